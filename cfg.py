@@ -1,0 +1,628 @@
+"""The radar configuration: a TI mmWave SDK 3.x ``.cfg`` for the xWR18xx.
+
+:class:`RadarConfig` parses the CLI text (``%`` comments, blank lines, CRLF),
+keeps every line so it can be written back and sent to the radar, types the
+commands that decide the raw data and the processing, validates them the way
+the firmware would (with ``file:line: command: field:`` in every error), and
+derives the radar's physics as properties with units in their names.
+
+Wavelength convention: velocities use the wavelength at the centre of the ADC
+sampling window, because that is the frequency the Doppler phase of a
+range-FFT peak advances with.  TI's tools use the start frequency, so their
+velocity figures are larger by ``carrier_frequency_hz / start_frequency_hz``
+(about 2.7 % for a 77 GHz, 100 MHz/us profile).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass, field
+from typing import Any, Iterator, Sequence
+
+from . import cfg_commands as cc
+from .antenna import VirtualArray, enabled_rx, tx_number
+from .errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+#: Speed of light, m/s.
+SPEED_OF_LIGHT = 299_792_458.0
+#: Bytes per complex sample on the LVDS stream (int16 I + int16 Q).
+BYTES_PER_COMPLEX_SAMPLE = 4
+#: Highest RF frequency of the xWR18xx, Hz.
+MAX_RF_FREQUENCY_HZ = 81e9
+#: ADC data bytes in a full DCA1000 data packet (protocol.md).
+DCA1000_PACKET_DATA_BYTES = 1456
+#: Measured DCA1000 Ethernet throughput, (packet delay us, Mbit/s): UG Table 19.
+DCA1000_THROUGHPUT_TABLE = ((5.0, 706.0), (10.0, 545.0), (25.0, 325.0), (50.0, 193.0))
+#: The packet delay TI's DCA1000 CLI uses by default, us.
+DCA1000_DEFAULT_PACKET_DELAY_US = 25.0
+
+#: Commands that must appear once, and describe the raw data layout.
+REQUIRED_COMMANDS = ("channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")
+#: Typed commands that may appear more than once: name -> field that keys them.
+KEYED_COMMANDS = {"cfarCfg": "proc_direction", "cfarFovCfg": "proc_direction"}
+#: Commands the driver sends itself around the cfg's own lines.
+SESSION_COMMANDS = ("sensorStop", "flushCfg", "sensorStart")
+#: The lvdsStreamCfg line raw capture needs (header off, ADC data, no SW data).
+RAW_LVDS_LINE = "lvdsStreamCfg -1 0 1 0"
+
+
+def dca1000_capacity_mbps(packet_delay_us: float) -> float:
+    """DCA1000 Ethernet throughput at a packet delay, Mbit/s of ADC data.
+
+    Interpolates UG Table 19 in time per packet (linear in the delay), and
+    extrapolates along the end segments.
+    """
+    bits = DCA1000_PACKET_DATA_BYTES * 8
+    pts = [(d, bits / r) for d, r in DCA1000_THROUGHPUT_TABLE]  # (delay us, us per packet)
+    for (d0, t0), (d1, t1) in zip(pts, pts[1:]):
+        if packet_delay_us <= d1 or (d1, t1) == pts[-1]:
+            t = t0 + (t1 - t0) * (packet_delay_us - d0) / (d1 - d0)
+            return bits / max(t, 1e-9)
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+@dataclass(frozen=True)
+class CfgLine:
+    """One line of a cfg file: a command, a ``%`` comment, or a blank line.
+
+    Two configurations are equal when their lines are; the line number is
+    where the line came from and does not take part.
+    """
+
+    kind: str  # "command", "comment" or "blank"
+    #: Command name, or the whole comment text (with its ``%``).
+    text: str = ""
+    #: Argument tokens exactly as written.
+    args: tuple[str, ...] = ()
+    #: The typed command object for typed commands, else None.
+    value: Any = field(default=None, compare=False)
+    line: int | None = field(default=None, compare=False)
+
+    def __str__(self) -> str:
+        return " ".join((self.text, *self.args)) if self.kind == "command" else self.text
+
+
+def _tokenize(text: str, path: str) -> list[CfgLine]:
+    lines: list[CfgLine] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        stripped = raw.strip()
+        if not stripped:
+            lines.append(CfgLine("blank", line=lineno))
+        elif stripped.startswith("%"):
+            lines.append(CfgLine("comment", stripped, line=lineno))
+        else:
+            name, *args = stripped.split()
+            lines.append(CfgLine("command", name, tuple(args), line=lineno))
+    return lines
+
+
+class RadarConfig:
+    """A validated xWR18xx radar configuration.
+
+    Build one with :meth:`from_file` or :meth:`from_text`; write it back with
+    :meth:`to_text`.  Typed commands are attributes (``cfg.profile``,
+    ``cfg.frame``, ...); derived physics are properties.
+    """
+
+    def __init__(self, lines: Sequence[CfgLine], path: str | os.PathLike | None = None) -> None:
+        self.path = os.fspath(path) if path is not None else "<cfg>"
+        typed = []
+        for ln in lines:
+            if ln.kind == "command" and ln.value is None:
+                ln = self._type_line(ln)
+            typed.append(ln)
+        self.lines: tuple[CfgLine, ...] = tuple(typed)
+        self._index()
+        self._validate()
+
+    # ------------------------------------------------------------------ parsing
+    @classmethod
+    def from_text(cls, text: str, path: str | os.PathLike | None = None) -> "RadarConfig":
+        """Parse cfg text; *path* only names the origin in messages."""
+        where = os.fspath(path) if path is not None else "<cfg>"
+        return cls(_tokenize(text, where), where)
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike) -> "RadarConfig":
+        """Read and parse a cfg file."""
+        try:
+            data = open(path, "rb").read()
+        except OSError as exc:
+            raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=path) from None
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            line = data[: exc.start].count(b"\n") + 1
+            raise ConfigError("not a text file (invalid UTF-8)", path=path, line=line) from None
+        return cls.from_text(text, path)
+
+    def _fail(self, message: str, ln: CfgLine | None = None, fld: str | None = None) -> ConfigError:
+        return ConfigError(
+            message,
+            path=self.path,
+            line=ln.line if ln else None,
+            command=ln.text if ln else None,
+            field=fld,
+        )
+
+    def _type_line(self, ln: CfgLine) -> CfgLine:
+        name = ln.text
+        if name in cc.TYPED_COMMANDS:
+            value = cc.parse_args(name, ln.args, path=self.path, line=ln.line)
+            return CfgLine("command", name, ln.args, value, ln.line)
+        if name in cc.UNSUPPORTED_COMMANDS:
+            raise self._fail(cc.UNSUPPORTED_COMMANDS[name], ln)
+        if name in cc.VERBATIM_COMMANDS:
+            counts = cc.VERBATIM_COMMANDS[name]
+            if len(ln.args) not in counts:
+                expected = " or ".join(map(str, counts))
+                raise self._fail(f"expected {expected} arguments, got {len(ln.args)}", ln)
+            return ln
+        log.warning("%s:%s: unknown command %r kept as is; the radar may reject it",
+                    self.path, ln.line, name)
+        return ln
+
+    def _index(self) -> None:
+        self._first: dict[str, CfgLine] = {}
+        self._keyed: dict[str, dict[int, CfgLine]] = {k: {} for k in KEYED_COMMANDS}
+        chirps: list[CfgLine] = []
+        for ln in self.commands():
+            name = ln.text
+            if name == "chirpCfg":
+                chirps.append(ln)
+            elif name in KEYED_COMMANDS:
+                key = getattr(ln.value, KEYED_COMMANDS[name])
+                if key in self._keyed[name]:
+                    first = self._keyed[name][key].line
+                    raise self._fail(f"given twice for procDirection {key} (first at line {first})", ln)
+                self._keyed[name][key] = ln
+            elif name in cc.TYPED_COMMANDS:
+                if name in self._first:
+                    raise self._fail(f"given twice (first at line {self._first[name].line})", ln)
+                self._first[name] = ln
+            elif name == "bpmCfg" and ln.args[1] != "0":
+                raise self._fail("BPM-MIMO is not supported: use TDM (bpmCfg -1 0 0 0)", ln, "enabled")
+        self._chirp_lines = tuple(chirps)
+
+    # --------------------------------------------------------------- validation
+    def _validate(self) -> None:
+        for name in REQUIRED_COMMANDS:
+            if name not in self._first and not (name == "chirpCfg" and self._chirp_lines):
+                raise ConfigError(f"missing: the raw data layout depends on it", path=self.path,
+                                  command=name)
+        self._validate_modes()
+        self._validate_profile()
+        self._validate_chirps_and_frame()
+        self._validate_fov()
+
+    def _validate_modes(self) -> None:
+        ln = self._first.get("dfeDataOutputMode")
+        if ln is not None and ln.value.mode != 1:
+            raise self._fail("only frame-based chirps (1) are supported; continuous (2) and "
+                             "advanced frame (3) modes are not", ln, "modeType")
+        ln = self._first["adcCfg"]
+        if ln.value.num_adc_bits != 2:
+            raise self._fail("12- and 14-bit ADC output is not supported: use 2 (16-bit)", ln, "numADCBits")
+        if ln.value.adc_output_fmt == 0:
+            raise self._fail("real-only ADC output is not supported: use 1 (complex 1x)", ln, "adcOutputFmt")
+        if ln.value.adc_output_fmt == 2:
+            raise self._fail("complex 2x ADC output is not supported: use 1 (complex 1x)", ln, "adcOutputFmt")
+        ln = self._first["adcbufCfg"]
+        if ln.value.output_fmt != 0:
+            raise self._fail("real ADC buffer format is not supported: use 0 (complex)", ln, "adcOutputFmt")
+        if ln.value.chan_interleave != 1:
+            raise self._fail("interleaved channels are not supported by the xWR18xx demo: use 1", ln,
+                             "ChanInterleave")
+
+    def _validate_profile(self) -> None:
+        ln = self._first["profileCfg"]
+        p = ln.value
+        if p.num_adc_samples % 2:
+            raise self._fail("must be even: the LVDS stream carries samples in pairs", ln, "numAdcSamples")
+        window_us = p.adc_start_time_us + p.num_adc_samples * 1000.0 / p.sample_rate_ksps
+        if window_us > p.ramp_end_time_us + 1e-9:
+            raise self._fail(
+                f"ADC sampling ends at {window_us:.2f} us (adcStartTime {p.adc_start_time_us:g} + "
+                f"numAdcSamples {p.num_adc_samples} / digOutSampleRate {p.sample_rate_ksps} ksps), "
+                f"after the ramp ends at {p.ramp_end_time_us:g} us", ln, "rampEndTime")
+        top_ghz = p.start_freq_ghz + p.freq_slope_mhz_us * p.ramp_end_time_us / 1000.0
+        if top_ghz * 1e9 > MAX_RF_FREQUENCY_HZ + 1e6:
+            raise self._fail(f"the ramp reaches {top_ghz:.3f} GHz, above the xWR18xx's 81 GHz",
+                             ln, "freqSlopeConst")
+
+    def _validate_chirps_and_frame(self) -> None:
+        channel = self._first["channelCfg"]
+        profile = self._first["profileCfg"].value
+        owner: dict[int, CfgLine] = {}
+        for ln in self._chirp_lines:
+            c = ln.value
+            if c.end_idx < c.start_idx:
+                raise self._fail(f"chirpEndIndex {c.end_idx} is below chirpStartIndex {c.start_idx}",
+                                 ln, "chirpEndIndex")
+            if c.profile_id != profile.profile_id:
+                raise self._fail(f"profile {c.profile_id} is not defined (profileCfg defines "
+                                 f"{profile.profile_id})", ln, "profileId")
+            if c.tx_mask == 0:
+                raise self._fail("the chirp transmits on no TX", ln, "txEnable")
+            if c.tx_mask & ~channel.value.tx_mask:
+                raise self._fail(f"TX mask {c.tx_mask} is not a subset of channelCfg txChannelEn "
+                                 f"{channel.value.tx_mask} (line {channel.line})", ln, "txEnable")
+            if c.tx_mask not in (1, 2, 4):
+                raise self._fail(f"TX mask {c.tx_mask} enables several TX at once; only TDM-MIMO "
+                                 f"(one TX per chirp) is supported", ln, "txEnable")
+            if any((c.start_freq_var_hz, c.freq_slope_var_khz_us, c.idle_time_var_us,
+                    c.adc_start_time_var_us)):
+                log.warning("%s:%s: chirpCfg variations are ignored by radarodom's signal model",
+                            self.path, ln.line)
+            for i in range(c.start_idx, c.end_idx + 1):
+                if i in owner:
+                    raise self._fail(f"chirp {i} is already defined at line {owner[i].line}", ln,
+                                     "chirpStartIndex")
+                owner[i] = ln
+        frame_ln = self._first["frameCfg"]
+        f = frame_ln.value
+        if f.chirp_end_idx < f.chirp_start_idx:
+            raise self._fail(f"chirpEndIndex {f.chirp_end_idx} is below chirpStartIndex "
+                             f"{f.chirp_start_idx}", frame_ln, "chirpEndIndex")
+        for i in range(f.chirp_start_idx, f.chirp_end_idx + 1):
+            if i not in owner:
+                raise self._fail(f"chirp {i} is not defined by any chirpCfg", frame_ln,
+                                 "chirpStartIndex" if i == f.chirp_start_idx else "chirpEndIndex")
+        if self.active_frame_time_s > self.frame_period_s + 1e-12:
+            raise self._fail(
+                f"{f.frame_period_ms:g} ms is shorter than the active frame time "
+                f"{self.active_frame_time_s * 1e3:.3f} ms ({f.num_loops} loops x "
+                f"{self.num_tx_slots} chirps x {self.chirp_time_s * 1e6:g} us)",
+                frame_ln, "framePeriodicity")
+
+    def _validate_fov(self) -> None:
+        for key, ln in self._keyed["cfarFovCfg"].items():
+            if ln.value.min_value > ln.value.max_value:
+                raise self._fail("min is above max", ln, "min (meters or m/s)")
+        ln = self._first.get("aoaFovCfg")
+        if ln is not None:
+            a = ln.value
+            if a.min_azimuth_deg > a.max_azimuth_deg:
+                raise self._fail("minAzimuthDeg is above maxAzimuthDeg", ln, "minAzimuthDeg")
+            if a.min_elevation_deg > a.max_elevation_deg:
+                raise self._fail("minElevationDeg is above maxElevationDeg", ln, "minElevationDeg")
+
+    def check_raw_capture(self) -> None:
+        """Raise :class:`ConfigError` unless the cfg streams raw ADC data over LVDS
+        the way the DCA1000 capture needs it (``lvdsStreamCfg -1 0 1 0``)."""
+        ln = self._first.get("lvdsStreamCfg")
+        if ln is None:
+            raise ConfigError(f"missing: add the line '{RAW_LVDS_LINE}' before sensorStart so the "
+                              f"radar streams raw ADC data to the DCA1000", path=self.path,
+                              command="lvdsStreamCfg")
+        v = ln.value
+        if v.data_fmt != 1 or v.enable_header or v.enable_sw:
+            raise self._fail(f"'{ln}' does not stream raw ADC data only; change this line to "
+                             f"'{RAW_LVDS_LINE}'", ln)
+
+    @property
+    def streams_raw_adc(self) -> bool:
+        """True when ``lvdsStreamCfg`` streams headerless raw ADC data."""
+        try:
+            self.check_raw_capture()
+        except ConfigError:
+            return False
+        return True
+
+    # ----------------------------------------------------------------- writing
+    def to_text(self) -> str:
+        """The cfg as text (LF line ends); ``from_text(to_text())`` equals this config."""
+        return "".join(str(ln) + "\n" for ln in self.lines)
+
+    def write(self, path: str | os.PathLike) -> None:
+        with open(path, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(self.to_text())
+
+    def replace(self, command: Any) -> "RadarConfig":
+        """A new config with the typed *command* replacing the line of the same
+        name (and procDirection, where keyed), or inserted before sensorStart."""
+        name = cc.cli_name(command)
+        new = CfgLine("command", name, cc.format_args(command), command)
+        key_field = KEYED_COMMANDS.get(name)
+        lines = list(self.lines)
+        for i, ln in enumerate(lines):
+            if ln.kind == "command" and ln.text == name and (
+                key_field is None or getattr(ln.value, key_field) == getattr(command, key_field)
+            ):
+                lines[i] = CfgLine("command", name, new.args, command, ln.line)
+                return RadarConfig(lines, self.path)
+        at = next((i for i, ln in enumerate(lines) if ln.kind == "command" and ln.text == "sensorStart"),
+                  len(lines))
+        lines.insert(at, new)
+        return RadarConfig(lines, self.path)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, RadarConfig) and self.lines == other.lines
+
+    def __hash__(self) -> int:
+        return hash(self.lines)
+
+    def __repr__(self) -> str:
+        return f"RadarConfig({self.path!r}, {len(self.lines)} lines)"
+
+    # ---------------------------------------------------------------- commands
+    def commands(self) -> Iterator[CfgLine]:
+        """Every command line, in file order."""
+        return (ln for ln in self.lines if ln.kind == "command")
+
+    def commands_to_send(self) -> list[CfgLine]:
+        """The command lines a driver sends between its own ``sensorStop``/``flushCfg``
+        and ``sensorStart``."""
+        return [ln for ln in self.commands() if ln.text not in SESSION_COMMANDS]
+
+    def line_of(self, name: str) -> CfgLine | None:
+        """The (first) line of command *name*, or None."""
+        return next((ln for ln in self.commands() if ln.text == name), None)
+
+    def _value(self, name: str) -> Any:
+        ln = self._first.get(name)
+        return ln.value if ln is not None else None
+
+    @property
+    def channel(self) -> cc.ChannelCfg:
+        return self._value("channelCfg")
+
+    @property
+    def adc(self) -> cc.AdcCfg:
+        return self._value("adcCfg")
+
+    @property
+    def adcbuf(self) -> cc.AdcbufCfg:
+        return self._value("adcbufCfg")
+
+    @property
+    def profile(self) -> cc.ProfileCfg:
+        return self._value("profileCfg")
+
+    @property
+    def chirps(self) -> tuple[cc.ChirpCfg, ...]:
+        return tuple(ln.value for ln in self._chirp_lines)
+
+    @property
+    def frame(self) -> cc.FrameCfg:
+        return self._value("frameCfg")
+
+    @property
+    def low_power(self) -> cc.LowPower | None:
+        return self._value("lowPower")
+
+    @property
+    def lvds_stream(self) -> cc.LvdsStreamCfg | None:
+        return self._value("lvdsStreamCfg")
+
+    @property
+    def cfar(self) -> dict[int, cc.CfarCfg]:
+        """cfarCfg by procDirection (0 range, 1 Doppler)."""
+        return {k: ln.value for k, ln in self._keyed["cfarCfg"].items()}
+
+    @property
+    def cfar_fov(self) -> dict[int, cc.CfarFovCfg]:
+        """cfarFovCfg by procDirection (0 range in m, 1 Doppler in m/s)."""
+        return {k: ln.value for k, ln in self._keyed["cfarFovCfg"].items()}
+
+    @property
+    def aoa_fov(self) -> cc.AoaFovCfg | None:
+        return self._value("aoaFovCfg")
+
+    @property
+    def multi_obj_beam_forming(self) -> cc.MultiObjBeamForming | None:
+        return self._value("multiObjBeamForming")
+
+    @property
+    def clutter_removal(self) -> cc.ClutterRemoval | None:
+        return self._value("clutterRemoval")
+
+    @property
+    def calib_dc_range_sig(self) -> cc.CalibDcRangeSig | None:
+        return self._value("calibDcRangeSig")
+
+    @property
+    def comp_range_bias_and_rx_chan_phase(self) -> cc.CompRangeBiasAndRxChanPhase | None:
+        return self._value("compRangeBiasAndRxChanPhase")
+
+    @property
+    def extended_max_velocity(self) -> cc.ExtendedMaxVelocity | None:
+        return self._value("extendedMaxVelocity")
+
+    # ------------------------------------------------------------ frame layout
+    def _frame_chirps(self) -> list[cc.ChirpCfg]:
+        by_idx = {}
+        for c in self.chirps:
+            for i in range(c.start_idx, c.end_idx + 1):
+                by_idx[i] = c
+        f = self.frame
+        return [by_idx[i] for i in range(f.chirp_start_idx, f.chirp_end_idx + 1)]
+
+    @property
+    def tx_order(self) -> tuple[int, ...]:
+        """TX number (1..3) of each chirp of a loop, in transmission order."""
+        return tuple(tx_number(c.tx_mask) for c in self._frame_chirps())
+
+    @property
+    def num_tx_slots(self) -> int:
+        """Chirps per loop (one TX each): the cube's tx_slots axis."""
+        return self.frame.chirp_end_idx - self.frame.chirp_start_idx + 1
+
+    @property
+    def num_tx(self) -> int:
+        """Distinct TX antennas used by the frame."""
+        return len(set(self.tx_order))
+
+    @property
+    def rx_indices(self) -> tuple[int, ...]:
+        """Enabled RX (0..3), ascending: the cube's rx axis."""
+        return enabled_rx(self.channel.rx_mask)
+
+    @property
+    def num_rx(self) -> int:
+        return len(self.rx_indices)
+
+    @property
+    def num_loops(self) -> int:
+        return self.frame.num_loops
+
+    @property
+    def num_samples(self) -> int:
+        """ADC samples per chirp."""
+        return self.profile.num_adc_samples
+
+    @property
+    def num_chirps_per_frame(self) -> int:
+        return self.num_loops * self.num_tx_slots
+
+    @property
+    def cube_shape(self) -> tuple[int, int, int, int]:
+        """Shape of one frame's raw cube: (loops, tx_slots, rx, samples)."""
+        return (self.num_loops, self.num_tx_slots, self.num_rx, self.num_samples)
+
+    @property
+    def frame_bytes(self) -> int:
+        """Bytes of one frame on the LVDS stream (16-bit complex samples)."""
+        return self.num_chirps_per_frame * self.num_rx * self.num_samples * BYTES_PER_COMPLEX_SAMPLE
+
+    @property
+    def virtual_array(self) -> VirtualArray:
+        """The TDM-MIMO virtual array from the chirpCfg TX masks and enabled RX."""
+        return VirtualArray(self.tx_order, self.rx_indices)
+
+    # ----------------------------------------------------------------- physics
+    @property
+    def sample_rate_hz(self) -> float:
+        return self.profile.sample_rate_ksps * 1e3
+
+    @property
+    def slope_hz_per_s(self) -> float:
+        return self.profile.freq_slope_mhz_us * 1e12
+
+    @property
+    def adc_sampling_time_s(self) -> float:
+        """Duration of the ADC sampling window of one chirp, s."""
+        return self.num_samples / self.sample_rate_hz
+
+    @property
+    def bandwidth_hz(self) -> float:
+        """Sweep bandwidth covered while the ADC samples, Hz."""
+        return self.slope_hz_per_s * self.adc_sampling_time_s
+
+    @property
+    def ramp_bandwidth_hz(self) -> float:
+        """Bandwidth of the whole ramp (to rampEndTime), Hz."""
+        return self.slope_hz_per_s * self.profile.ramp_end_time_us * 1e-6
+
+    @property
+    def start_frequency_hz(self) -> float:
+        return self.profile.start_freq_ghz * 1e9
+
+    @property
+    def carrier_frequency_hz(self) -> float:
+        """RF frequency at the centre of the ADC sampling window, Hz."""
+        p = self.profile
+        centre_s = p.adc_start_time_us * 1e-6 + (self.num_samples - 1) / (2.0 * self.sample_rate_hz)
+        return self.start_frequency_hz + self.slope_hz_per_s * centre_s
+
+    @property
+    def wavelength_m(self) -> float:
+        """Wavelength at :attr:`carrier_frequency_hz`, m."""
+        return SPEED_OF_LIGHT / self.carrier_frequency_hz
+
+    @property
+    def range_resolution_m(self) -> float:
+        """Range resolution and range-FFT bin size (N-point FFT), m."""
+        return SPEED_OF_LIGHT / (2.0 * self.bandwidth_hz)
+
+    @property
+    def unambiguous_range_m(self) -> float:
+        """Range at the sample rate's beat frequency (complex 1x), m."""
+        return self.sample_rate_hz * SPEED_OF_LIGHT / (2.0 * self.slope_hz_per_s)
+
+    @property
+    def max_range_m(self) -> float:
+        """Usable maximum range: beat frequency at 80 % of the sample rate, as TI's tools, m."""
+        return 0.8 * self.unambiguous_range_m
+
+    @property
+    def chirp_time_s(self) -> float:
+        """One chirp: idle time plus ramp end time, s."""
+        p = self.profile
+        return (p.idle_time_us + p.ramp_end_time_us) * 1e-6
+
+    @property
+    def chirp_repetition_s(self) -> float:
+        """Time between two chirps of the same TX slot (one loop), s."""
+        return self.num_tx_slots * self.chirp_time_s
+
+    @property
+    def active_frame_time_s(self) -> float:
+        """Time the radar chirps in each frame, s."""
+        return self.num_loops * self.chirp_repetition_s
+
+    @property
+    def frame_period_s(self) -> float:
+        return self.frame.frame_period_ms * 1e-3
+
+    @property
+    def frame_rate_hz(self) -> float:
+        return 1.0 / self.frame_period_s
+
+    @property
+    def duty_cycle(self) -> float:
+        """Share of the frame period spent chirping, 0..1."""
+        return self.active_frame_time_s / self.frame_period_s
+
+    @property
+    def max_velocity_mps(self) -> float:
+        """Maximum unambiguous radial velocity (+/-), m/s."""
+        return self.wavelength_m / (4.0 * self.chirp_repetition_s)
+
+    @property
+    def velocity_resolution_mps(self) -> float:
+        """Radial velocity per Doppler bin (numLoops-point FFT), m/s."""
+        return self.wavelength_m / (2.0 * self.num_loops * self.chirp_repetition_s)
+
+    @property
+    def data_rate_mbps(self) -> float:
+        """Average raw ADC data rate, Mbit/s."""
+        return self.frame_bytes * 8 / self.frame_period_s / 1e6
+
+    def dca1000_load(self, packet_delay_us: float = DCA1000_DEFAULT_PACKET_DELAY_US) -> float:
+        """Share (0..) of the DCA1000's Ethernet capacity at *packet_delay_us* that
+        :attr:`data_rate_mbps` uses; above 1 the board cannot keep up."""
+        return self.data_rate_mbps / dca1000_capacity_mbps(packet_delay_us)
+
+    def summary(self, packet_delay_us: float = DCA1000_DEFAULT_PACKET_DELAY_US) -> dict[str, Any]:
+        """Derived quantities with stable keys (the ``radar-cfg --json`` schema)."""
+        return {
+            "range_resolution_m": self.range_resolution_m,
+            "max_range_m": self.max_range_m,
+            "velocity_resolution_mps": self.velocity_resolution_mps,
+            "max_velocity_mps": self.max_velocity_mps,
+            "frame_bytes": self.frame_bytes,
+            "frame_period_s": self.frame_period_s,
+            "data_rate_mbps": self.data_rate_mbps,
+            "num_tx": self.num_tx,
+            "num_rx": self.num_rx,
+            "num_samples": self.num_samples,
+            "num_loops": self.num_loops,
+            "tx_order": list(self.tx_order),
+            "num_tx_slots": self.num_tx_slots,
+            "rx_indices": list(self.rx_indices),
+            "carrier_frequency_hz": self.carrier_frequency_hz,
+            "wavelength_m": self.wavelength_m,
+            "bandwidth_hz": self.bandwidth_hz,
+            "unambiguous_range_m": self.unambiguous_range_m,
+            "chirp_time_s": self.chirp_time_s,
+            "active_frame_time_s": self.active_frame_time_s,
+            "duty_cycle": self.duty_cycle,
+            "packet_delay_us": packet_delay_us,
+            "dca1000_capacity_mbps": dca1000_capacity_mbps(packet_delay_us),
+            "dca1000_load": self.dca1000_load(packet_delay_us),
+            "streams_raw_adc": self.streams_raw_adc,
+        }

@@ -1,0 +1,166 @@
+"""``replay://`` : recorded frames played back as a live stream.
+
+``replay://PATH?rate=1.0&loop=1&start=0&frames=N``
+
+- PATH: a capture directory, or TI recorder output (a ``*_Raw_<n>.bin`` file,
+  a folder with one such series, or mmWave Studio's ``adc_data.bin``) with
+  the cfg given separately.
+- ``rate``: 1.0 plays in real time from the timestamps, 2 twice as fast,
+  ``max`` as fast as the consumer takes frames.
+- ``loop``: how many times to play the selection (0: until stopped).
+- ``start``: first frame, as a frame number (``start=20``) or seconds from the
+  first frame (``start=2.5s``).
+- ``frames``: how many frames to play from ``start`` (default: to the end).
+- ``reordered``: TI recorder files only: 1 when the recorder rewrote the
+  samples to IQ order (the default for ``*_Raw_<n>.bin``, TI's
+  ``reorderEnable``), 0 for the raw stream (the default for other files, such
+  as mmWave Studio's ``adc_data.bin``).  I/Q order follows the cfg's
+  ``adcbufCfg`` SampleSwap.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from typing import Iterator
+
+import numpy as np
+
+from ..cfg import RadarConfig
+from ..errors import CaptureFormatError, ConfigError, SourceError
+from .capture_dir import ADC_DATA, RADAR_CFG, CaptureDirectory
+from .sources import Frame, Source, UrlOptions
+from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
+
+log = logging.getLogger(__name__)
+
+#: Longest single sleep while pacing, s: bounds how late a stop request is seen.
+_PACING_SLICE_S = 0.05
+
+
+def _rate(text: str) -> float:
+    if text == "max":
+        return float("inf")
+    value = float(text)
+    if not value > 0 or value == float("inf"):
+        raise ValueError(text)
+    return value
+
+
+def _count(minimum: int):
+    def convert(text: str) -> int:
+        value = int(text)
+        if value < minimum:
+            raise ValueError(text)
+        return value
+    return convert
+
+
+def _start(text: str) -> tuple[str, float]:
+    if text.endswith("s"):
+        value = float(text[:-1])
+        kind = "seconds"
+    else:
+        value = int(text)
+        kind = "frame"
+    if value < 0:
+        raise ValueError(text)
+    return kind, value
+
+
+def _flag(text: str) -> bool:
+    if text not in ("0", "1"):
+        raise ValueError(text)
+    return text == "1"
+
+
+class ReplaySource(Source):
+    """Plays the frames of a capture directory or TI recording."""
+
+    def __init__(self, store, *, rate: float = 1.0, loop: int = 1, start: int = 0,
+                 frames: int | None = None) -> None:
+        super().__init__()
+        if store.num_frames == 0:
+            raise CaptureFormatError(f"{store.directory}: holds no whole frame")
+        self.store = store
+        self.config: RadarConfig = store.config
+        self.rate = rate
+        self.loop = loop
+        if start >= store.num_frames:
+            raise SourceError(f"start frame {start} is past the recording's {store.num_frames} frames")
+        self.first = start
+        self.count = store.num_frames - start if frames is None else min(frames, store.num_frames - start)
+        self.frames_played = 0
+
+    def __iter__(self) -> Iterator[Frame]:
+        stamps = self.store.timestamps[self.first: self.first + self.count]
+        span = float(stamps[-1] - stamps[0]) + self.config.frame_period_s
+        wall0 = time.monotonic()
+        passes = 0
+        while not self.stop_requested and (self.loop == 0 or passes < self.loop):
+            for j in range(self.count):
+                if self.stop_requested:
+                    return
+                i = self.first + j
+                # Later passes continue the clock, so timestamps never go back.
+                timestamp = float(stamps[j]) + passes * span
+                self._pace(wall0, timestamp - float(stamps[0]))
+                if self.stop_requested:
+                    return
+                yield Frame(
+                    index=passes * self.count + j,
+                    timestamp=timestamp,
+                    raw=self.store.raw(i),
+                    layout=self.store.layout,
+                    missing_bytes=self.store.missing_bytes(i),
+                    pose=self.store.pose(i),
+                )
+                self.frames_played += 1
+            passes += 1
+
+    def _pace(self, wall0: float, stream_offset_s: float) -> None:
+        if self.rate == float("inf"):
+            return
+        due = wall0 + stream_offset_s / self.rate
+        while not self.stop_requested:
+            left = due - time.monotonic()
+            if left <= 0:
+                return
+            time.sleep(min(left, _PACING_SLICE_S))
+
+    def describe(self) -> dict:
+        return {"url": self.url, "path": self.store.directory, "frames": self.count,
+                "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop}
+
+
+def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:
+    rate = options.take("rate", _rate, 1.0, "a speed factor > 0 or max")
+    loop = options.take("loop", _count(0), 1, "a number of passes (0: forever)")
+    start = options.take("start", _start, ("frame", 0), "a frame number or seconds like 2.5s")
+    frames = options.take("frames", _count(1), None, "a number of frames >= 1")
+    reordered = options.take("reordered", _flag, None, "0 or 1 (TI recorder files)")
+    options.finish()
+    if not path:
+        raise SourceError(f"{options.url}: no path: use replay://DIR")
+    path = os.path.expanduser(path)
+    if not os.path.exists(path):
+        raise SourceError(f"{options.url}: {path}: no such file or directory")
+
+    is_capture_dir = os.path.isdir(path) and os.path.exists(os.path.join(path, ADC_DATA))
+    if is_capture_dir:
+        store = CaptureDirectory(path, config)
+    else:
+        if config is None:
+            raise ConfigError(f"{path} has no {RADAR_CFG}: give the radar configuration with --cfg",
+                              path=path)
+        if reordered is None:  # TI's CLI recorder reorders by default, mmWave Studio never
+            reordered = bool(_TI_SERIES.match(os.path.basename(path))) or os.path.isdir(path)
+        store = TiRecording(path, config, reordered=reordered)
+
+    kind, value = start
+    if kind == "seconds":
+        first = int(np.searchsorted(store.timestamps - store.timestamps[0], value - 1e-9))
+    else:
+        first = int(value)
+    return ReplaySource(store, rate=rate, loop=loop, start=first, frames=frames)

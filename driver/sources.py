@@ -1,0 +1,171 @@
+"""Frame sources opened from a URL, like pyserial's ``serial_for_url``.
+
+``open_source("replay://DIR?rate=max")`` looks the scheme up in a registry of
+backends (module path strings, imported only when used), hands the backend
+the path and the query options, and returns a :class:`Source`: an iterator of
+:class:`Frame` objects and a context manager.
+
+Every backend declares the options it takes through :class:`UrlOptions`, so
+an unknown scheme or option is one clear :class:`~radarodom.errors.SourceError`
+that lists what is supported.
+"""
+
+from __future__ import annotations
+
+import abc
+import importlib
+import logging
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator
+from urllib.parse import parse_qsl
+
+import numpy as np
+
+from ..cfg import RadarConfig
+from ..errors import SourceError
+from ..rawframe import RawLayout
+
+log = logging.getLogger(__name__)
+
+#: scheme -> "module:function" of the backend's opener.  Openers take
+#: (path, options: UrlOptions, config: RadarConfig | None) and return a Source.
+SCHEMES: dict[str, str] = {
+    "replay": "radarodom.driver.replay:open_replay",
+}
+
+
+def register_scheme(scheme: str, opener: str | Callable[..., "Source"]) -> None:
+    """Add or replace a backend (an opener, or its "module:function" path)."""
+    SCHEMES[scheme] = opener  # type: ignore[assignment]
+
+
+@dataclass
+class Frame:
+    """One radar frame from a source."""
+
+    #: Frame number in this stream, from 0.
+    index: int
+    #: Time of the frame's first chirp, s.
+    timestamp: float
+    #: The frame's raw bytes as the DCA1000 streams them, uint8 (frame_bytes,).
+    raw: np.ndarray
+    layout: RawLayout
+    #: Bytes of the frame lost in transport (zero-filled in ``raw``).
+    missing_bytes: int = 0
+    #: Ground-truth body pose (x, y, z, qx, qy, qz, qw) where the source knows it.
+    pose: tuple[float, ...] | None = None
+
+    @property
+    def complete(self) -> bool:
+        return self.missing_bytes == 0
+
+    def cube(self, out: np.ndarray | None = None) -> np.ndarray:
+        """The frame as complex64 (loops, tx_slots, rx, samples); fills *out* if given."""
+        return self.layout.decode(self.raw, out)
+
+
+class Source(abc.ABC):
+    """A stream of frames.  Iterate it; close it (or use ``with``)."""
+
+    #: The URL the source was opened from.
+    url: str = ""
+    #: The radar configuration the frames follow.
+    config: RadarConfig
+
+    def __init__(self) -> None:
+        self._stop_requested = False
+
+    @abc.abstractmethod
+    def __iter__(self) -> Iterator[Frame]:
+        ...
+
+    def stop(self) -> None:
+        """Ask the stream to end after the current frame.  Safe to call from a
+        signal handler or another thread."""
+        self._stop_requested = True
+
+    @property
+    def stop_requested(self) -> bool:
+        return self._stop_requested
+
+    def close(self) -> None:
+        """Release what the source holds.  Idempotent."""
+
+    def describe(self) -> dict[str, Any]:
+        """What a status display may show about the source."""
+        return {"url": self.url}
+
+    def __enter__(self) -> "Source":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class UrlOptions:
+    """The query options of a source URL, taken one by one by the backend."""
+
+    def __init__(self, url: str, query: str) -> None:
+        self.url = url
+        self._values: dict[str, str] = {}
+        for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=False):
+            if key in self._values:
+                raise SourceError(f"{url}: option {key!r} given twice")
+            self._values[key] = value
+        self._supported: list[str] = []
+
+    def take(self, name: str, convert: Callable[[str], Any], default: Any, expect: str) -> Any:
+        """Remove option *name* and convert it; *expect* says what it must be."""
+        self._supported.append(f"{name}={expect}")
+        if name not in self._values:
+            return default
+        text = self._values.pop(name)
+        try:
+            return convert(text)
+        except (ValueError, TypeError):
+            raise SourceError(f"{self.url}: option {name}={text!r}: expected {expect}") from None
+
+    def finish(self) -> None:
+        """Raise if the URL had options no backend took."""
+        if self._values:
+            names = ", ".join(sorted(self._values))
+            raise SourceError(f"{self.url}: unknown option(s) {names}; supported: "
+                              f"{', '.join(self._supported) or 'none'}")
+
+
+def split_url(url: str) -> tuple[str, str, str]:
+    """``scheme://path?query`` -> (scheme, path, query).  The path is kept as
+    written (relative or absolute), unlike urllib's host/path split."""
+    scheme, sep, rest = url.partition("://")
+    if not sep or not scheme:
+        raise SourceError(f"{url!r} is not a source URL (expected scheme://...); "
+                          f"supported schemes: {', '.join(sorted(SCHEMES))}")
+    path, _, query = rest.partition("?")
+    return scheme.lower(), path, query
+
+
+def _resolve(opener: str | Callable[..., Source]) -> Callable[..., Source]:
+    if callable(opener):
+        return opener
+    module, _, func = opener.partition(":")
+    return getattr(importlib.import_module(module), func)
+
+
+def open_source(url: str, config: RadarConfig | None = None) -> Source:
+    """Open the frame source *url* names.  *config* overrides the radar
+    configuration the source would otherwise use (required where the source
+    carries none)."""
+    scheme, path, query = split_url(url)
+    if scheme not in SCHEMES:
+        raise SourceError(f"unknown source scheme {scheme!r} in {url!r}; supported: "
+                          f"{', '.join(s + '://' for s in sorted(SCHEMES))}")
+    options = UrlOptions(url, query)
+    source = _resolve(SCHEMES[scheme])(path, options, config)
+    try:
+        options.finish()
+    except SourceError:
+        source.close()
+        raise
+    source.url = url
+    log.debug("opened %s", url)
+    return source

@@ -1,0 +1,84 @@
+"""The one exception family of radarodom.
+
+Every error the library raises on purpose derives from :class:`RadarodomError`.
+Each class carries the process exit code the command-line tools map it to
+(one place: :func:`radarodom.tools.cli.run`): 2 for usage and configuration
+errors, 1 for failures at run time.
+"""
+
+from __future__ import annotations
+
+import os
+
+
+class RadarodomError(Exception):
+    """Base class of all radarodom errors."""
+
+    #: Exit code of a command-line tool that stops on this error.
+    exit_code = 1
+
+
+class UsageError(RadarodomError):
+    """The caller asked for something that cannot be done as asked
+    (bad option, bad URL, missing argument)."""
+
+    exit_code = 2
+
+
+class SourceError(UsageError):
+    """A source URL names an unknown scheme or option, or a bad value."""
+
+
+class ConfigError(RadarodomError):
+    """A radar configuration (TI ``.cfg``) is malformed, inconsistent or
+    asks for a mode radarodom does not support.
+
+    The message names where: ``file:line: command: field: what is wrong``.
+    """
+
+    exit_code = 2
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: str | os.PathLike | None = None,
+        line: int | None = None,
+        command: str | None = None,
+        field: str | None = None,
+    ) -> None:
+        self.message = message
+        self.path = None if path is None else os.fspath(path)
+        self.line = line
+        self.command = command
+        self.field = field
+        super().__init__(self._render())
+
+    def _render(self) -> str:
+        where = self.path or "<cfg>"
+        if self.line is not None:
+            where += f":{self.line}"
+        parts = [where]
+        if self.command:
+            parts.append(self.command)
+        if self.field:
+            parts.append(self.field)
+        return ": ".join(parts) + ": " + self.message
+
+
+class CaptureError(RadarodomError):
+    """Reading or writing captured radar data failed (missing or corrupt
+    capture directory, I/O error while recording)."""
+
+
+class CaptureExistsError(CaptureError):
+    """Recording was asked into a directory that already holds a capture;
+    radarodom never overwrites recorded data."""
+
+    exit_code = 2
+
+
+class CaptureFormatError(CaptureError):
+    """A capture file does not have the layout its configuration implies."""
+
+    exit_code = 2

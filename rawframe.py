@@ -1,0 +1,119 @@
+"""Raw ADC bytes of the xWR18xx + DCA1000 <-> complex cubes.
+
+One frame on the LVDS stream (SWRA581B section 6; protocol.md) is
+loops (outer) x chirps of a loop in frameCfg order (one TX slot each) x
+enabled RX ascending x ADC samples, each sample a signed 16-bit I and Q.
+
+Within each RX's samples the two LVDS lanes interleave: a group of four int16
+holds two samples' first component, then the same two samples' second
+component (:data:`LVDS_GROUP`).  Which component is first depends on
+``adcbufCfg`` SampleSwap: 1 (every SDK cfg) puts Q first, ``Q0 Q1 I0 I1``;
+0 puts I first, ``I0 I1 Q0 Q1`` (mmWave Studio captures).
+
+TI's DCA1000 recorder rewrites each group to one sample at a time
+(``ReorderAlgorithm``: ``a0 a1 b0 b1 -> a0 b0 a1 b1``) when its
+``reorderEnable`` is set, which keeps the component order:
+:data:`IQ_SAMPLE`.
+
+Cubes are complex64 arrays shaped (loops, tx_slots, rx, samples), or with a
+leading frames axis, with I as the real and Q as the imaginary part.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .errors import CaptureFormatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .cfg import RadarConfig
+
+#: Two samples on two LVDS lanes: both samples' first component, then both second ones.
+LVDS_GROUP = np.dtype([("first", "<i2", (2,)), ("second", "<i2", (2,))])
+#: One sample in TI's reordered recorder files: first component, then second.
+IQ_SAMPLE = np.dtype([("first", "<i2"), ("second", "<i2")])
+
+INT16_MIN, INT16_MAX = -32768, 32767
+
+
+@dataclass(frozen=True)
+class RawLayout:
+    """How one frame's bytes map onto the cube."""
+
+    num_loops: int
+    num_tx_slots: int
+    num_rx: int
+    num_samples: int
+    #: True when Q comes before I (adcbufCfg SampleSwap = 1).
+    q_first: bool = True
+    #: True for TI's reordered recorder files (one sample at a time),
+    #: False for the raw LVDS stream (two samples at a time).
+    iq_interleaved: bool = False
+
+    @classmethod
+    def from_config(cls, cfg: "RadarConfig", *, iq_interleaved: bool = False) -> "RawLayout":
+        loops, slots, rx, samples = cfg.cube_shape
+        return cls(loops, slots, rx, samples, bool(cfg.adcbuf.sample_swap), iq_interleaved)
+
+    @property
+    def shape(self) -> tuple[int, int, int, int]:
+        """Cube shape of one frame: (loops, tx_slots, rx, samples)."""
+        return (self.num_loops, self.num_tx_slots, self.num_rx, self.num_samples)
+
+    @property
+    def samples_per_frame(self) -> int:
+        return self.num_loops * self.num_tx_slots * self.num_rx * self.num_samples
+
+    @property
+    def frame_bytes(self) -> int:
+        return self.samples_per_frame * 4
+
+    @property
+    def _record(self) -> np.dtype:
+        return IQ_SAMPLE if self.iq_interleaved else LVDS_GROUP
+
+    def decode(self, buf, out: np.ndarray | None = None) -> np.ndarray:
+        """Decode whole frames.
+
+        *buf* is any buffer of ``k * frame_bytes`` bytes.  Returns complex64
+        shaped (loops, tx_slots, rx, samples) for one frame (k = 1 and *out*
+        not given with a frames axis), else (k, loops, tx_slots, rx, samples).
+        *out*, when given, is filled and returned (no allocation).
+        """
+        nbytes = memoryview(buf).nbytes
+        if nbytes == 0 or nbytes % self.frame_bytes:
+            raise CaptureFormatError(
+                f"{nbytes} bytes is not a whole number of {self.frame_bytes}-byte frames")
+        k = nbytes // self.frame_bytes
+        shape = self.shape if (k == 1 and (out is None or out.ndim == 4)) else (k, *self.shape)
+        if out is None:
+            out = np.empty(shape, np.complex64)
+        elif out.shape != shape or out.dtype != np.complex64:
+            raise ValueError(f"out must be complex64 shaped {shape}, is {out.dtype} {out.shape}")
+        rec = np.frombuffer(buf, dtype=self._record)
+        i_part, q_part = (rec["second"], rec["first"]) if self.q_first else (rec["first"], rec["second"])
+        out.real[...] = i_part.reshape(shape)
+        out.imag[...] = q_part.reshape(shape)
+        return out
+
+    def encode(self, cube: np.ndarray) -> bytes:
+        """Bytes of one or more frames (inverse of :meth:`decode`).
+
+        *cube* holds integer-valued I + jQ shaped like :meth:`decode` returns;
+        values are rounded to int16 and must fit without clipping.
+        """
+        cube = np.asarray(cube)
+        if cube.shape[-4:] != self.shape:
+            raise ValueError(f"cube shape {cube.shape} does not end with {self.shape}")
+        i_part, q_part = np.rint(cube.real), np.rint(cube.imag)
+        lo, hi = min(i_part.min(), q_part.min()), max(i_part.max(), q_part.max())
+        if lo < INT16_MIN or hi > INT16_MAX:
+            raise CaptureFormatError(f"samples span {lo:g}..{hi:g}, beyond int16: scale the cube first")
+        rec = np.empty(cube.size // (1 if self.iq_interleaved else 2), dtype=self._record)
+        first, second = (q_part, i_part) if self.q_first else (i_part, q_part)
+        rec["first"] = first.reshape(rec["first"].shape)
+        rec["second"] = second.reshape(rec["second"].shape)
+        return rec.tobytes()
