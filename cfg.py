@@ -15,8 +15,10 @@ velocity figures are larger by ``carrier_frequency_hz / start_frequency_hz``
 
 from __future__ import annotations
 
+import codecs
 import logging
 import os
+import re
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Sequence
 
@@ -47,6 +49,17 @@ KEYED_COMMANDS = {"cfarCfg": "proc_direction", "cfarFovCfg": "proc_direction"}
 SESSION_COMMANDS = ("sensorStop", "flushCfg", "sensorStart")
 #: The lvdsStreamCfg line raw capture needs (header off, ADC data, no SW data).
 RAW_LVDS_LINE = "lvdsStreamCfg -1 0 1 0"
+
+
+#: The radar configuration shipped in ``configs/`` and used when none is given.
+DEFAULT_CONFIG_NAME = "awr1843_raw.cfg"
+
+
+def shipped_config_path(name: str = DEFAULT_CONFIG_NAME) -> str:
+    """Path of a cfg shipped with radarodom (``configs/<name>``), installed or not."""
+    from importlib import resources
+
+    return str(resources.files(__package__).joinpath("configs", name))
 
 
 def dca1000_capacity_mbps(packet_delay_us: float) -> float:
@@ -87,7 +100,12 @@ class CfgLine:
 
 def _tokenize(text: str, path: str) -> list[CfgLine]:
     lines: list[CfgLine] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
+    # Only CR/LF end a line, as for the radar's CLI (str.splitlines also splits
+    # at form feeds and Unicode separators, which would shift line numbers).
+    pieces = re.split(r"\r\n|\r|\n", text.removeprefix("\ufeff"))
+    if pieces and pieces[-1] == "":
+        pieces.pop()
+    for lineno, raw in enumerate(pieces, start=1):
         stripped = raw.strip()
         if not stripped:
             lines.append(CfgLine("blank", line=lineno))
@@ -97,6 +115,14 @@ def _tokenize(text: str, path: str) -> list[CfgLine]:
             name, *args = stripped.split()
             lines.append(CfgLine("command", name, tuple(args), line=lineno))
     return lines
+
+
+def _is_enabled(token: str) -> bool:
+    """A CLI flag argument as the firmware reads it (atoi): anything but 0 is on."""
+    try:
+        return float(token) != 0
+    except ValueError:
+        return True
 
 
 class RadarConfig:
@@ -132,6 +158,7 @@ class RadarConfig:
             data = open(path, "rb").read()
         except OSError as exc:
             raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=path) from None
+        data = data.removeprefix(codecs.BOM_UTF8)  # Windows editors save one
         try:
             text = data.decode("utf-8")
         except UnicodeDecodeError as exc:
@@ -183,7 +210,7 @@ class RadarConfig:
                 if name in self._first:
                     raise self._fail(f"given twice (first at line {self._first[name].line})", ln)
                 self._first[name] = ln
-            elif name == "bpmCfg" and ln.args[1] != "0":
+            elif name == "bpmCfg" and _is_enabled(ln.args[1]):
                 raise self._fail("BPM-MIMO is not supported: use TDM (bpmCfg -1 0 0 0)", ln, "enabled")
         self._chirp_lines = tuple(chirps)
 
@@ -325,14 +352,16 @@ class RadarConfig:
         """A new config with the typed *command* replacing the line of the same
         name (and procDirection, where keyed), or inserted before sensorStart."""
         name = cc.cli_name(command)
-        new = CfgLine("command", name, cc.format_args(command), command)
+        # The typed value is left for __init__ to re-derive from the text, so
+        # every field check runs on the new command as on a parsed one.
+        new = CfgLine("command", name, cc.format_args(command))
         key_field = KEYED_COMMANDS.get(name)
         lines = list(self.lines)
         for i, ln in enumerate(lines):
             if ln.kind == "command" and ln.text == name and (
                 key_field is None or getattr(ln.value, key_field) == getattr(command, key_field)
             ):
-                lines[i] = CfgLine("command", name, new.args, command, ln.line)
+                lines[i] = CfgLine("command", name, new.args, None, ln.line)
                 return RadarConfig(lines, self.path)
         at = next((i for i, ln in enumerate(lines) if ln.kind == "command" and ln.text == "sensorStart"),
                   len(lines))

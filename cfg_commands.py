@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -244,17 +245,27 @@ UNSUPPORTED_COMMANDS: dict[str, str] = {
 }
 
 
+#: Number syntax the radar's CLI reads (atoi/atof on ASCII digits).  Python's
+#: int()/float() also take "1_6" and non-ASCII digits, which the radar would
+#: read differently, so tokens are matched first.
+_INT_TOKEN = re.compile(r"[+-]?[0-9]+\Z")
+_FLOAT_TOKEN = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
+
+
 def _convert(token: str, kind: type, name: str) -> int | float:
     """One CLI token as int or float; raises ValueError with a reason."""
     if kind is int:
+        if not _INT_TOKEN.match(token):
+            raise ValueError(f"expected an integer, got {token!r}")
         try:
             return int(token, 10)
-        except ValueError:
-            raise ValueError(f"expected an integer, got {token!r}") from None
-    try:
-        value = float(token)
-    except ValueError:
-        raise ValueError(f"expected a number, got {token!r}") from None
+        except ValueError:  # more digits than Python converts
+            raise ValueError(f"integer too large: {token[:20]}...") from None
+    if not _FLOAT_TOKEN.match(token):
+        if token.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+            raise ValueError(f"expected a finite number, got {token!r}")
+        raise ValueError(f"expected a number, got {token!r}")
+    value = float(token)
     if not math.isfinite(value):
         raise ValueError(f"expected a finite number, got {token!r}")
     return value

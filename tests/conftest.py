@@ -1,0 +1,75 @@
+"""Shared fixtures.  No test needs hardware; tests that read the reference
+material in ``../shared/reference`` skip with a reason when it is absent (a
+user's clone has no ``../shared``)."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+
+import numpy as np
+import pytest
+
+from radarodom.cfg import RadarConfig
+from radarodom.driver.capture_dir import CaptureWriter
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+SHARED = pathlib.Path(os.environ.get("RADARODOM_SHARED", REPO.parent / "shared")) / "reference"
+
+#: A small but complete raw-capture cfg (3 TX, 4 RX, 4 loops, 16 samples): 3072-byte frames.
+SMALL_CFG = """\
+% small test profile
+sensorStop
+flushCfg
+dfeDataOutputMode 1
+channelCfg 15 7 0
+adcCfg 2 1
+adcbufCfg -1 0 1 1 1
+profileCfg 0 77 100 6 40 0 0 96 1 16 8000 0 0 30
+chirpCfg 0 0 0 0 0 0 0 1
+chirpCfg 1 1 0 0 0 0 0 4
+chirpCfg 2 2 0 0 0 0 0 2
+frameCfg 0 2 4 0 50 1 0
+lowPower 0 0
+lvdsStreamCfg -1 0 1 0
+sensorStart
+"""
+
+
+@pytest.fixture
+def shared_reference() -> pathlib.Path:
+    """``../shared/reference``, or skip."""
+    if not SHARED.is_dir():
+        pytest.skip(f"reference material not found at {SHARED} (only CI and developers have it)")
+    return SHARED
+
+
+@pytest.fixture
+def small_cfg() -> RadarConfig:
+    return RadarConfig.from_text(SMALL_CFG, "small.cfg")
+
+
+@pytest.fixture
+def shipped_cfg() -> RadarConfig:
+    return RadarConfig.from_file(REPO / "configs" / "awr1843_raw.cfg")
+
+
+def random_frames(cfg: RadarConfig, n: int, seed: int = 0) -> list[bytes]:
+    """*n* frames of random int16 samples, as raw bytes."""
+    rng = np.random.default_rng(seed)
+    return [rng.integers(-3000, 3000, cfg.frame_bytes // 2, dtype="<i2").tobytes() for _ in range(n)]
+
+
+def make_capture(directory, cfg: RadarConfig, n: int = 10, *, t0: float = 1000.0,
+                 incomplete: dict[int, int] | None = None, poses: bool = False, seed: int = 0):
+    """Write a capture directory of *n* random frames at the cfg's frame period.
+
+    Returns the list of frame bytes written.
+    """
+    frames = random_frames(cfg, n, seed)
+    incomplete = incomplete or {}
+    with CaptureWriter(directory, cfg, source="test") as writer:
+        for i, raw in enumerate(frames):
+            pose = (0.1 * i, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) if poses else None
+            writer.write(raw, t0 + i * cfg.frame_period_s, incomplete.get(i, 0), pose)
+    return frames

@@ -1,0 +1,89 @@
+"""The package installs as one import package, ``radarodom``, from a plain
+(non-editable) build, with its console scripts and the shipped cfg."""
+
+from __future__ import annotations
+
+import ast
+import configparser
+import pathlib
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+from conftest import REPO
+
+import radarodom
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> pathlib.Path:
+    out = tmp_path_factory.mktemp("wheel")
+    proc = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(REPO)],
+        capture_output=True, text=True, timeout=300)
+    if proc.returncode != 0:
+        pytest.fail(f"pip wheel failed:\n{proc.stdout}\n{proc.stderr}")
+    (whl,) = out.glob("radarodom-*.whl")
+    return whl
+
+
+def test_wheel_installs_only_the_radarodom_package(wheel):
+    names = zipfile.ZipFile(wheel).namelist()
+    top = {n.split("/")[0] for n in names}
+    assert {t for t in top if not t.endswith(".dist-info")} == {"radarodom"}
+    for sub in ("driver", "dsp", "estimator", "tools"):
+        assert f"radarodom/{sub}/__init__.py" in names
+    assert "radarodom/configs/awr1843_raw.cfg" in names
+    assert not any(n.startswith(("radarodom/tests/", "radarodom/bench/")) for n in names)
+
+
+def test_wheel_declares_console_scripts(wheel):
+    zf = zipfile.ZipFile(wheel)
+    (ep,) = [n for n in zf.namelist() if n.endswith("entry_points.txt")]
+    parser = configparser.ConfigParser()
+    parser.read_string(zf.read(ep).decode())
+    scripts = dict(parser["console_scripts"])
+    assert scripts["radar-capture"] == "radarodom.tools.radar_capture:main"
+    assert scripts["radar-cfg"] == "radarodom.tools.radar_cfg:main"
+
+
+def test_version_matches_pyproject():
+    text = (REPO / "pyproject.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("version"))
+    assert ast.literal_eval(line.split("=", 1)[1].strip()) == radarodom.__version__
+
+
+def test_dsp_and_estimator_import_neither_driver_nor_zenoh():
+    for pkg in ("dsp", "estimator"):
+        for path in (REPO / pkg).rglob("*.py"):
+            tree = ast.parse(path.read_text())
+            for node in ast.walk(tree):
+                if isinstance(node, ast.Import):
+                    mods = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    mods = [("." * node.level) + (node.module or "")]
+                else:
+                    continue
+                for mod in mods:
+                    assert "driver" not in mod and "zenoh" not in mod, f"{path}: imports {mod}"
+
+
+def test_library_never_prints_or_exits():
+    """Library code logs and raises; only tools/ may print or exit."""
+    offenders = []
+    for path in REPO.rglob("*.py"):
+        rel = path.relative_to(REPO)
+        if rel.parts[0] in ("tools", "tests", "bench", ".venv", "build") or "site-packages" in rel.parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                    and node.func.id in ("print", "exit", "quit"):
+                offenders.append(f"{rel}:{node.lineno}")
+            if isinstance(node, ast.Attribute) and node.attr == "exit" \
+                    and isinstance(node.value, ast.Name) and node.value.id == "sys":
+                offenders.append(f"{rel}:{node.lineno}")
+            if isinstance(node, ast.Assert):
+                offenders.append(f"{rel}:{node.lineno} (assert used for validation)")
+    assert offenders == []
