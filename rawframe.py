@@ -109,6 +109,8 @@ class RawLayout:
         if cube.shape[-4:] != self.shape:
             raise ValueError(f"cube shape {cube.shape} does not end with {self.shape}")
         i_part, q_part = np.rint(cube.real), np.rint(cube.imag)
+        if not (np.isfinite(i_part).all() and np.isfinite(q_part).all()):
+            raise CaptureFormatError("the cube holds NaN or infinite samples")
         lo, hi = min(i_part.min(), q_part.min()), max(i_part.max(), q_part.max())
         if lo < INT16_MIN or hi > INT16_MAX:
             raise CaptureFormatError(f"samples span {lo:g}..{hi:g}, beyond int16: scale the cube first")

@@ -39,6 +39,10 @@ TIMESTAMPS = "timestamps.txt"
 METADATA = "capture.json"
 GROUNDTRUTH = "groundtruth.tum"
 
+#: Incomplete frames listed in capture.json as soon as they are written, up to this many;
+#: beyond, the list is rewritten at most every _INCOMPLETE_FLUSH_S seconds.
+_IMMEDIATE_INCOMPLETE_LIMIT = 1000
+_INCOMPLETE_FLUSH_S = 0.25
 #: Value of capture.json's "format" key, and its version.
 FORMAT_NAME = "radarodom-capture"
 FORMAT_VERSION = 1
@@ -74,6 +78,7 @@ class CaptureWriter:
         self._extra = dict(extra or {})
         self._incomplete: list[dict[str, int]] = []
         self._frames = 0
+        self._saved_frames = 0
         self._lost_bytes = 0
         self._closed = False
         self._start_time = time.time()
@@ -130,9 +135,18 @@ class CaptureWriter:
         if missing_bytes:
             self._incomplete.append({"frame": index, "missing_bytes": int(missing_bytes)})
             self._lost_bytes += int(missing_bytes)
+        # capture.json is the only place that says a frame is zero-filled, so an
+        # incomplete frame is listed before the next frame is written; once the
+        # list is long (heavy loss), at most every quarter second to bound the cost.
+        if self._incomplete_unsaved():
+            due = 0.0 if len(self._incomplete) <= _IMMEDIATE_INCOMPLETE_LIMIT else _INCOMPLETE_FLUSH_S
+        else:
+            due = self._interval
+        if now - self._last_meta >= due:
             self._write_metadata()
-        elif now - self._last_meta >= self._interval:
-            self._write_metadata()
+
+    def _incomplete_unsaved(self) -> bool:
+        return bool(self._incomplete) and self._incomplete[-1]["frame"] >= self._saved_frames
 
     def _write_pose(self, timestamp: float, pose: Sequence[float]) -> None:
         if len(pose) != 7:
@@ -162,6 +176,7 @@ class CaptureWriter:
         return meta
 
     def _write_metadata(self) -> None:
+        self._saved_frames = self._frames
         path = os.path.join(self.directory, METADATA)
         tmp = path + ".tmp"
         with open(tmp, "w", encoding="utf-8") as fh:
@@ -293,9 +308,7 @@ class CaptureDirectory:
                          if isinstance(e, dict) and "frame" in e and "missing_bytes" in e}
         gt_path = os.path.join(self.directory, GROUNDTRUTH)
         self.groundtruth = read_tum(gt_path) if os.path.exists(gt_path) else None
-        if self.groundtruth is not None and len(self.groundtruth.times) < whole:
-            log.warning("%s: %s has %d poses for %d frames", self.directory, GROUNDTRUTH,
-                        len(self.groundtruth.times), whole)
+        self._pose_row = self._match_poses()
         if self.metadata and not self.metadata.get("closed", False):
             log.warning("%s: the capture was not closed cleanly (process killed?); reading its "
                         "%d whole frames", self.directory, whole)
@@ -327,9 +340,29 @@ class CaptureDirectory:
     def missing_bytes(self, i: int) -> int:
         return self._missing.get(i, 0)
 
-    def pose(self, i: int) -> tuple[float, ...] | None:
+    def _match_poses(self) -> np.ndarray:
+        """Row of groundtruth.tum for each frame (by time), -1 where none."""
+        rows = np.full(self.num_frames, -1)
         gt = self.groundtruth
-        return gt.pose(i) if gt is not None and i < len(gt.times) else None
+        if gt is None or not len(gt.times) or not self.num_frames:
+            return rows
+        order = np.argsort(gt.times, kind="stable")
+        times = gt.times[order]
+        j = np.clip(np.searchsorted(times, self.timestamps), 1, len(times)) - 1
+        # The nearest of the two neighbours, within a microsecond (TUM files keep 9 decimals).
+        j = np.where((j + 1 < len(times)) & (np.abs(times[np.minimum(j + 1, len(times) - 1)] - self.timestamps)
+                                               < np.abs(times[j] - self.timestamps)), j + 1, j)
+        hit = np.abs(times[j] - self.timestamps) <= 1e-6
+        rows[hit] = order[j[hit]]
+        if not hit.all():
+            log.warning("%s: %s has no pose for %d of %d frames", self.directory, GROUNDTRUTH,
+                        int((~hit).sum()), self.num_frames)
+        return rows
+
+    def pose(self, i: int) -> tuple[float, ...] | None:
+        """Ground-truth pose of frame *i* (the groundtruth.tum line with its timestamp), or None."""
+        row = self._pose_row[i] if 0 <= i < self.num_frames else -1
+        return self.groundtruth.pose(row) if row >= 0 else None
 
     def __len__(self) -> int:
         return self.num_frames

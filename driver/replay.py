@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import logging
 import os
-import time
 from typing import Iterator
 
 import numpy as np
@@ -30,23 +29,10 @@ import numpy as np
 from ..cfg import RadarConfig
 from ..errors import CaptureFormatError, ConfigError, SourceError
 from .capture_dir import ADC_DATA, RADAR_CFG, CaptureDirectory
-from .sources import Frame, Source, UrlOptions
+from .sources import Frame, Pacer, Source, UrlOptions, parse_rate
 from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
 
 log = logging.getLogger(__name__)
-
-#: Longest single sleep while pacing, s: bounds how late a stop request is seen.
-_PACING_SLICE_S = 0.05
-
-
-def _rate(text: str) -> float:
-    if text == "max":
-        return float("inf")
-    value = float(text)
-    if not value > 0 or value == float("inf"):
-        raise ValueError(text)
-    return value
-
 
 def _count(minimum: int):
     def convert(text: str) -> int:
@@ -96,7 +82,7 @@ class ReplaySource(Source):
     def __iter__(self) -> Iterator[Frame]:
         stamps = self.store.timestamps[self.first: self.first + self.count]
         span = float(stamps[-1] - stamps[0]) + self.config.frame_period_s
-        wall0 = time.monotonic()
+        pacer = Pacer(self.rate, self)
         passes = 0
         while not self.stop_requested and (self.loop == 0 or passes < self.loop):
             for j in range(self.count):
@@ -105,7 +91,7 @@ class ReplaySource(Source):
                 i = self.first + j
                 # Later passes continue the clock, so timestamps never go back.
                 timestamp = float(stamps[j]) + passes * span
-                self._pace(wall0, timestamp - float(stamps[0]))
+                pacer.wait(timestamp - float(stamps[0]))
                 if self.stop_requested:
                     return
                 yield Frame(
@@ -119,23 +105,13 @@ class ReplaySource(Source):
                 self.frames_played += 1
             passes += 1
 
-    def _pace(self, wall0: float, stream_offset_s: float) -> None:
-        if self.rate == float("inf"):
-            return
-        due = wall0 + stream_offset_s / self.rate
-        while not self.stop_requested:
-            left = due - time.monotonic()
-            if left <= 0:
-                return
-            time.sleep(min(left, _PACING_SLICE_S))
-
     def describe(self) -> dict:
         return {"url": self.url, "path": self.store.directory, "frames": self.count,
                 "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop}
 
 
 def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:
-    rate = options.take("rate", _rate, 1.0, "a speed factor > 0 or max")
+    rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
     loop = options.take("loop", _count(0), 1, "a number of passes (0: forever)")
     start = options.take("start", _start, ("frame", 0), "a frame number or seconds like 2.5s")
     frames = options.take("frames", _count(1), None, "a number of frames >= 1")
@@ -149,6 +125,9 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
 
     is_capture_dir = os.path.isdir(path) and os.path.exists(os.path.join(path, ADC_DATA))
     if is_capture_dir:
+        if reordered is not None:
+            raise SourceError(f"{options.url}: reordered= applies to TI recorder files, not to a "
+                              f"capture directory")
         store = CaptureDirectory(path, config)
     else:
         if config is None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import abc
 import importlib
 import logging
+import time
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 from urllib.parse import parse_qsl
@@ -31,6 +32,7 @@ log = logging.getLogger(__name__)
 #: (path, options: UrlOptions, config: RadarConfig | None) and return a Source.
 SCHEMES: dict[str, str] = {
     "replay": "radarodom.driver.replay:open_replay",
+    "sim": "radarodom.driver.sim.source:open_sim",
 }
 
 
@@ -100,6 +102,44 @@ class Source(abc.ABC):
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+#: Longest single sleep while pacing, s: bounds how late a stop request is seen.
+PACING_SLICE_S = 0.05
+
+
+def parse_rate(text: str) -> float:
+    """A ``rate=`` option: a speed factor above 0, or ``max`` (infinite)."""
+    if text == "max":
+        return float("inf")
+    value = float(text)
+    if not value > 0 or value == float("inf"):
+        raise ValueError(text)
+    return value
+
+
+class Pacer:
+    """Releases frames at their stream time divided by a rate factor, measured
+    from the first call; ``rate`` inf never waits.  Sleeps in short slices so a
+    stop request is seen promptly."""
+
+    def __init__(self, rate: float, source: "Source") -> None:
+        self.rate = rate
+        self.source = source
+        self._wall0: float | None = None
+
+    def wait(self, stream_offset_s: float) -> None:
+        """Block until *stream_offset_s* (seconds since the first frame) is due."""
+        if self._wall0 is None:
+            self._wall0 = time.monotonic()
+        if self.rate == float("inf"):
+            return
+        due = self._wall0 + stream_offset_s / self.rate
+        while not self.source.stop_requested:
+            left = due - time.monotonic()
+            if left <= 0:
+                return
+            time.sleep(min(left, PACING_SLICE_S))
 
 
 class UrlOptions:

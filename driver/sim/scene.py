@@ -1,0 +1,358 @@
+"""Indoor scenes for the simulator: geometry turned into radar scatterers.
+
+A scene is a floor plan in a world frame (x, y on the floor, z up, metres)
+with:
+
+- walls: polylines with a height, sampled into dense scatterers with fixed
+  random phases and a reflectivity that falls with the angle of incidence
+  (``sigma0 * area * cos(incidence)^m``), so that speckle and changing wall
+  returns appear as the sensor moves; walls also hide what is behind them;
+- objects: ``box`` (furniture, cabinets), ``cylinder`` (pillars, bins),
+  ``door`` (a door leaf set into a wall with strong frame edges),
+  ``corner_reflector`` and ``point`` targets;
+- a floor and a ceiling (weak diffuse returns);
+- movers: a walking ``person`` (torso plus swinging arms and legs);
+- optionally first-order multipath: one bounce off a wall on the way out or
+  back, for the point-like targets;
+- a sensor trajectory (see :mod:`.trajectory`).
+
+Scenes are written as TOML or JSON (the format is documented in
+``scenes/README.md`` beside this file, and the built-in scenes are examples).
+Everything random (scatterer jitter, phases) comes from the seed, so a scene
+and a seed always give the same scatterers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any, Sequence
+
+import numpy as np
+
+from ...errors import ConfigError
+from .trajectory import Trajectory, from_spec
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+#: Built-in scene names (files ``scenes/<name>.toml`` in this package).
+BUILTIN_SCENES = ("corridor", "room", "lab", "calibration")
+
+
+@dataclass
+class Scatterers:
+    """Static point scatterers in the world frame."""
+
+    pos: np.ndarray  # (K, 3) m
+    rcs: np.ndarray  # (K,) m^2 at normal incidence
+    normal: np.ndarray  # (K, 3) unit surface normal, or zeros for isotropic
+    exponent: np.ndarray  # (K,) incidence exponent m
+    phase: np.ndarray  # (K,) rad, fixed
+    #: True for compact strong targets that also get multipath images.
+    pointlike: np.ndarray  # (K,) bool
+
+    @classmethod
+    def empty(cls) -> "Scatterers":
+        return cls(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros(0), np.zeros(0),
+                   np.zeros(0, bool))
+
+    @classmethod
+    def concat(cls, parts: Sequence["Scatterers"]) -> "Scatterers":
+        parts = [p for p in parts if len(p.rcs)] or [cls.empty()]
+        return cls(*(np.concatenate([getattr(p, f) for p in parts])
+                     for f in ("pos", "rcs", "normal", "exponent", "phase", "pointlike")))
+
+
+def _points(pos, rcs, rng, *, normal=None, exponent=0.0, pointlike=False) -> Scatterers:
+    pos = np.atleast_2d(np.asarray(pos, dtype=float))
+    k = len(pos)
+    rcs = np.broadcast_to(np.asarray(rcs, dtype=float), (k,)).copy()
+    normal = np.zeros((k, 3)) if normal is None else np.broadcast_to(normal, (k, 3)).astype(float)
+    return Scatterers(pos, rcs, normal, np.full(k, float(exponent)),
+                      rng.uniform(0, 2 * np.pi, k), np.full(k, pointlike))
+
+
+def sample_surface(a, b, z0: float, z1: float, sigma0: float, rng: np.random.Generator, *,
+                   spacing: float = 0.08, row_spacing: float = 0.3, exponent: float = 2.0) -> Scatterers:
+    """Scatterers on the vertical rectangle above the floor segment a-b, z0..z1."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    length = float(np.hypot(*(b - a)))
+    if length < 1e-6 or z1 <= z0:
+        return Scatterers.empty()
+    n_along = max(1, math.ceil(length / spacing))
+    n_rows = max(1, math.ceil((z1 - z0) / row_spacing))
+    s = (np.arange(n_along) + rng.uniform(0.1, 0.9, (n_rows, n_along))) / n_along
+    z = z0 + (np.arange(n_rows)[:, None] + rng.uniform(0.1, 0.9, (n_rows, n_along))) * (z1 - z0) / n_rows
+    xy = a + s.reshape(-1, 1) * (b - a)
+    pos = np.column_stack([xy, z.reshape(-1)])
+    d = (b - a) / length
+    normal = np.array([-d[1], d[0], 0.0])
+    area = (length / n_along) * ((z1 - z0) / n_rows)
+    return _points(pos, sigma0 * area, rng, normal=normal, exponent=exponent)
+
+
+def sample_plane(lo, hi, z: float, sigma0: float, rng: np.random.Generator, *,
+                 spacing: float = 0.3, exponent: float = 1.0) -> Scatterers:
+    """Scatterers on the horizontal rectangle lo..hi (x, y) at height z (floor, ceiling)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    nx = max(1, math.ceil((hi[0] - lo[0]) / spacing))
+    ny = max(1, math.ceil((hi[1] - lo[1]) / spacing))
+    gx = (np.arange(nx)[:, None] + rng.uniform(0.1, 0.9, (nx, ny))) * (hi[0] - lo[0]) / nx + lo[0]
+    gy = (np.arange(ny)[None, :] + rng.uniform(0.1, 0.9, (nx, ny))) * (hi[1] - lo[1]) / ny + lo[1]
+    pos = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)])
+    area = (hi[0] - lo[0]) / nx * (hi[1] - lo[1]) / ny
+    return _points(pos, sigma0 * area, rng, normal=np.array([0.0, 0.0, 1.0]), exponent=exponent)
+
+
+@dataclass
+class Person:
+    """A person walking back and forth along a polyline: a torso and four
+    swinging limbs, so the return carries micro-Doppler."""
+
+    path: np.ndarray  # (n, 2) waypoints, m
+    speed: float = 1.0  # m/s
+    rcs: float = 0.5  # m^2, whole body
+    phase0: float = 0.0
+    phases: np.ndarray = field(default_factory=lambda: np.zeros(9))
+
+    #: (forward, side, height, swing amplitude, share of the rcs) per body scatterer.
+    BODY = (
+        (0.00, 0.00, 1.40, 0.00, 0.15), (0.05, 0.12, 1.20, 0.00, 0.15), (0.05, -0.12, 1.20, 0.00, 0.15),
+        (0.05, 0.00, 1.00, 0.00, 0.15), (0.00, 0.00, 0.90, 0.00, 0.10),
+        (0.00, 0.22, 1.00, 0.25, 0.07), (0.00, -0.22, 1.00, -0.25, 0.07),  # arms
+        (0.00, 0.10, 0.45, -0.30, 0.08), (0.00, -0.10, 0.45, 0.30, 0.08),  # legs
+    )
+    STRIDE_HZ = 0.9
+
+    def _along(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        seg = np.diff(self.path, axis=0)
+        lens = np.hypot(seg[:, 0], seg[:, 1])
+        total = lens.sum()
+        # Ping-pong along the path at constant speed.
+        s = np.mod(self.speed * t, 2 * total)
+        back = s > total
+        s = np.where(back, 2 * total - s, s)
+        cum = np.concatenate([[0.0], np.cumsum(lens)])
+        i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(lens) - 1)
+        frac = (s - cum[i]) / lens[i]
+        xy = self.path[i] + frac[:, None] * seg[i]
+        heading = np.arctan2(seg[i, 1], seg[i, 0]) + np.where(back, np.pi, 0.0)
+        return xy, heading
+
+    def positions(self, t: np.ndarray) -> np.ndarray:
+        """Body scatterer positions at times *t*, world frame, (T, 9, 3)."""
+        t = np.asarray(t, float)
+        xy, heading = self._along(t)
+        body = np.array(self.BODY)
+        swing = np.sin(2 * np.pi * self.STRIDE_HZ * t + self.phase0)[:, None] * body[None, :, 3]
+        fwd = body[None, :, 0] + swing
+        side = body[None, :, 1]
+        c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
+        out = np.empty((len(t), len(body), 3))
+        out[..., 0] = xy[:, 0:1] + c * fwd - s * side
+        out[..., 1] = xy[:, 1:2] + s * fwd + c * side
+        out[..., 2] = body[None, :, 2]
+        return out
+
+    @property
+    def body_rcs(self) -> np.ndarray:
+        return self.rcs * np.array(self.BODY)[:, 4]
+
+
+@dataclass
+class Scene:
+    name: str
+    trajectory: Trajectory
+    static: Scatterers
+    #: Occluding wall segments on the floor plan: (W, 2) start and end points.
+    wall_a: np.ndarray
+    wall_b: np.ndarray
+    movers: list[Person]
+    multipath: bool = False
+    #: Amplitude reflection coefficient of a wall for multipath.
+    wall_reflection: float = 0.3
+    #: Per-sample SNR of a 1 m^2 target 5 m away on boresight, dB.
+    snr_db: float = 0.0
+    #: Thermal noise, ADC counts RMS per I and Q component.
+    noise_counts: float = 5.0
+    source: str = "<scene>"
+
+    @property
+    def num_static(self) -> int:
+        return len(self.static.rcs)
+
+
+# ----------------------------------------------------------------- loading
+def _need(d: dict, key: str, where: str, kind=None):
+    if key not in d:
+        raise ConfigError(f"missing {key!r}", path=where, field=key)
+    return d[key]
+
+
+def _vec(value, n: int, where: str, what: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"must be {n} numbers, got {value!r}", path=where, field=what)
+    return arr
+
+
+def _num(d: dict, key: str, default: float, where: str, *, positive: bool = False) -> float:
+    value = d.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or (positive and value <= 0):
+        raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {value!r}",
+                          path=where, field=key)
+    return float(value)
+
+
+def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) -> Scatterers:
+    kind = obj.get("type")
+    w = f"{where} object {kind!r}"
+    if kind == "point":
+        return _points(_vec(_need(obj, "position", w), 3, w, "position"), _num(obj, "rcs", 1.0, w, positive=True),
+                       rng, pointlike=True)
+    if kind == "corner_reflector":
+        rcs = 10 ** (_num(obj, "rcs_dbsm", 15.0, w) / 10)
+        return _points(_vec(_need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
+    if kind == "box":
+        c = _vec(_need(obj, "center", w), 2, w, "center")
+        size = _vec(_need(obj, "size", w), 3, w, "size")
+        yaw = math.radians(_num(obj, "yaw", 0.0, w))
+        sigma0 = _num(obj, "sigma0", 0.3, w, positive=True)
+        z0 = _num(obj, "z", 0.0, w)
+        rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+        hx, hy = size[0] / 2, size[1] / 2
+        corners = c + np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) @ rot.T
+        faces = [sample_surface(corners[i], corners[(i + 1) % 4], z0, z0 + size[2], sigma0, rng,
+                                spacing=0.1, row_spacing=0.25) for i in range(4)]
+        # Corners and edges of furniture are the strong, compact returns.
+        edges = _points(np.column_stack([corners, np.full(4, z0 + size[2])]),
+                        _num(obj, "edge_rcs", 0.2, w, positive=True), rng, pointlike=True)
+        if obj.get("occludes", False):
+            walls_out.extend((corners[i], corners[(i + 1) % 4]) for i in range(4))
+        return Scatterers.concat(faces + [edges])
+    if kind == "cylinder":
+        c = _vec(_need(obj, "center", w), 2, w, "center")
+        radius = _num(obj, "radius", 0.2, w, positive=True)
+        height = _num(obj, "height", 2.7, w, positive=True)
+        sigma0 = _num(obj, "sigma0", 0.3, w, positive=True)
+        n = max(8, math.ceil(2 * math.pi * radius / 0.08))
+        ang = (np.arange(n) + rng.uniform(0, 1, n)) * 2 * math.pi / n
+        rows = max(1, math.ceil(height / 0.3))
+        z = (np.arange(rows)[:, None] + rng.uniform(0.1, 0.9, (rows, n))) * height / rows
+        pos = np.column_stack([np.tile(c[0] + radius * np.cos(ang), rows),
+                               np.tile(c[1] + radius * np.sin(ang), rows), z.ravel()])
+        normal = np.column_stack([np.tile(np.cos(ang), rows), np.tile(np.sin(ang), rows), np.zeros(rows * n)])
+        area = 2 * math.pi * radius / n * height / rows
+        s = _points(pos, sigma0 * area, rng, exponent=2.0)
+        s.normal = normal
+        if obj.get("occludes", True):  # two crossed diameters hide what is behind
+            walls_out.append((c - [radius, 0.0], c + [radius, 0.0]))
+            walls_out.append((c - [0.0, radius], c + [0.0, radius]))
+        return s
+    if kind == "door":
+        a = _vec(_need(obj, "a", w), 2, w, "a")
+        b = _vec(_need(obj, "b", w), 2, w, "b")
+        height = _num(obj, "height", 2.1, w, positive=True)
+        recess = _num(obj, "recess", 0.1, w)
+        d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
+        n = np.array([-d[1], d[0]])
+        leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, _num(obj, "sigma0", 0.2, w, positive=True),
+                              rng)
+        frame_rcs = _num(obj, "frame_rcs", 0.3, w, positive=True)
+        zs = np.arange(0.15, height, 0.3)
+        posts = np.vstack([np.column_stack([np.full(len(zs), p[0]), np.full(len(zs), p[1]), zs]) for p in (a, b)])
+        return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
+    raise ConfigError(f"unknown object type {kind!r}: use point, corner_reflector, box, cylinder or door",
+                      path=where, field="type")
+
+
+def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene>") -> Scene:
+    """Build a scene from its parsed TOML/JSON table."""
+    if not isinstance(spec, dict):
+        raise ConfigError("a scene must be a table", path=where)
+    rng = np.random.default_rng([seed, 0x5CE9E])
+    parts: list[Scatterers] = []
+    segments: list[tuple] = []
+    for wall in spec.get("walls", []):
+        pts = np.asarray(_need(wall, "points", where), dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+            raise ConfigError("wall points must be two or more [x, y]", path=where, field="walls")
+        height = _num(wall, "height", 2.7, where, positive=True)
+        sigma0 = _num(wall, "sigma0", 0.1, where, positive=True)
+        for a, b in zip(pts[:-1], pts[1:]):
+            parts.append(sample_surface(a, b, 0.0, height, sigma0, rng))
+            segments.append((a, b))
+    for obj in spec.get("objects", []):
+        if not isinstance(obj, dict):
+            raise ConfigError(f"an object must be a table, got {obj!r}", path=where, field="objects")
+        parts.append(_object(obj, rng, where, segments))
+    surfaces = spec.get("surfaces", {})
+    if surfaces:
+        lo = _vec(_need(surfaces, "min", where), 2, where, "surfaces.min")
+        hi = _vec(_need(surfaces, "max", where), 2, where, "surfaces.max")
+        if surfaces.get("floor", True):
+            parts.append(sample_plane(lo, hi, 0.0, _num(surfaces, "floor_sigma0", 0.02, where, positive=True), rng))
+        if "ceiling" in surfaces:
+            ceil = sample_plane(lo, hi, _num(surfaces, "ceiling", 2.7, where, positive=True),
+                                _num(surfaces, "ceiling_sigma0", 0.02, where, positive=True), rng)
+            ceil.normal[:, 2] = -1.0
+            parts.append(ceil)
+    movers = []
+    for m in spec.get("movers", []):
+        if m.get("type") != "person":
+            raise ConfigError(f"unknown mover type {m.get('type')!r}: use person", path=where, field="movers")
+        path = np.asarray(_need(m, "path", where), dtype=float)
+        if path.ndim != 2 or path.shape[1] != 2 or len(path) < 2:
+            raise ConfigError("person path must be two or more [x, y]", path=where, field="movers")
+        movers.append(Person(path, _num(m, "speed", 1.2, where, positive=True), _num(m, "rcs", 0.5, where, positive=True),
+                             float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
+    trajectory = from_spec(_need(spec, "trajectory", where), where)
+    radar = spec.get("radar", {})
+    wall_a = np.array([s[0] for s in segments], float).reshape(-1, 2)
+    wall_b = np.array([s[1] for s in segments], float).reshape(-1, 2)
+    return Scene(
+        name=str(spec.get("name", os.path.basename(where))),
+        trajectory=trajectory,
+        static=Scatterers.concat(parts),
+        wall_a=wall_a,
+        wall_b=wall_b,
+        movers=movers,
+        multipath=bool(spec.get("multipath", False)),
+        wall_reflection=_num(spec, "wall_reflection", 0.3, where),
+        snr_db=_num(radar, "snr_db", 0.0, where),
+        noise_counts=_num(radar, "noise_counts", 5.0, where, positive=True),
+        source=where,
+    )
+
+
+def load_scene(name_or_path: str, *, seed: int = 0) -> Scene:
+    """A built-in scene by name, or a scene file (``.toml`` or ``.json``)."""
+    if name_or_path in BUILTIN_SCENES:
+        ref = resources.files(__package__).joinpath("scenes", f"{name_or_path}.toml")
+        return scene_from_dict(tomllib.loads(ref.read_text(encoding="utf-8")), seed=seed,
+                               where=f"builtin:{name_or_path}")
+    path = os.path.expanduser(name_or_path)
+    if not os.path.isfile(path):
+        raise ConfigError(f"no such scene: use one of {', '.join(BUILTIN_SCENES)} or a .toml/.json file",
+                          path=name_or_path)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+        if path.endswith(".json"):
+            spec = json.loads(raw.decode("utf-8"))
+        else:
+            spec = tomllib.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:  # TOMLDecodeError and JSONDecodeError are ValueErrors
+        raise ConfigError(f"cannot parse: {exc}", path=path) from None
+    return scene_from_dict(spec, seed=seed, where=path)

@@ -1,0 +1,237 @@
+"""The radar simulator: a scene, a trajectory and a cfg in, DCA1000 bytes and
+ground truth out, frame by frame and deterministic for a seed.
+
+Per frame: the sensor pose at every chirp's time; the scatterers seen from
+the frame's middle (inside the unambiguous range, in front of the antenna,
+not hidden by a wall); their amplitude ``sqrt(RCS) / R^2`` times the antenna
+pattern and the reflectivity at the angle of incidence; optional one-bounce
+multipath images; the beat signal (:mod:`.physics`); thermal noise; and int16
+quantization, scaled down only where a frame would otherwise clip.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...cfg import RadarConfig
+from ...rawframe import INT16_MAX, RawLayout
+from .physics import AntennaPattern, FmcwSynthesizer
+from .scene import Scene
+from .trajectory import yaw_quaternion
+
+log = logging.getLogger(__name__)
+
+#: Range at which ``Scene.snr_db`` is defined for a 1 m^2 target, m.
+SNR_REFERENCE_RANGE_M = 5.0
+#: Closest range a scatterer is simulated at, m (the far-field model's limit).
+MIN_RANGE_M = 0.3
+#: Pattern gains below this are not worth synthesizing.
+MIN_PATTERN_GAIN = 1e-3
+
+
+@dataclass(frozen=True)
+class SimFrame:
+    index: int
+    #: Time of the frame's first chirp, s from the start of the trajectory.
+    timestamp: float
+    #: The frame as the DCA1000 streams it.
+    raw: bytes
+    #: Body-frame pose relative to the first frame: (x, y, z, qx, qy, qz, qw).
+    pose: tuple[float, ...]
+    #: Paths synthesized (scatterers and multipath images).
+    num_paths: int
+    #: Factor the frame was scaled by to fit int16 (1.0 almost always).
+    scale: float
+
+
+def world_to_sensor(points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray,
+                    height: float) -> np.ndarray:
+    """World points to the TI sensor frame of poses (x, y, yaw) at *height*.
+
+    points: (K, 3) or (C, K, 3); poses: (C,).  Returns (C, K, 3): x right,
+    y boresight (body forward), z up.
+    """
+    pts = points if points.ndim == 3 else points[None]
+    dx = pts[..., 0] - x[:, None]
+    dy = pts[..., 1] - y[:, None]
+    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    fwd = c * dx + s * dy  # body x
+    left = -s * dx + c * dy  # body y
+    out = np.empty(np.broadcast_shapes(dx.shape) + (3,))
+    out[..., 0] = -left
+    out[..., 1] = fwd
+    out[..., 2] = pts[..., 2] - height
+    return out
+
+
+def _occluded(sensor_xy: np.ndarray, targets_xy: np.ndarray, wall_a: np.ndarray, wall_b: np.ndarray) -> np.ndarray:
+    """True for targets whose line of sight crosses a wall segment strictly
+    before reaching them (a target on a wall does not hide itself)."""
+    if len(wall_a) == 0 or len(targets_xy) == 0:
+        return np.zeros(len(targets_xy), bool)
+    d = targets_xy - sensor_xy  # (K, 2)
+    e = wall_b - wall_a  # (W, 2)
+    f = wall_a - sensor_xy  # (W, 2)
+    denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (K, W)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (f[None, :, 0] * e[None, :, 1] - f[None, :, 1] * e[None, :, 0]) / denom
+        u = (f[None, :, 0] * d[:, None, 1] - f[None, :, 1] * d[:, None, 0]) / denom
+    dist = np.hypot(d[:, 0], d[:, 1])[:, None]
+    margin = 0.02 / np.maximum(dist, 1e-9)  # 2 cm: the target's own wall does not count
+    hit = (np.abs(denom) > 1e-12) & (t > 1e-9) & (t < 1.0 - margin) & (u >= 0.0) & (u <= 1.0)
+    return hit.any(axis=1)
+
+
+def _mirror(points_xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Mirror images of 2-D points across the line through a and b."""
+    d = (b - a) / np.hypot(*(b - a))
+    rel = points_xy - a
+    along = rel @ d
+    return a + 2 * along[..., None] * d - rel
+
+
+class Simulator:
+    """Frames of a scene seen by the radar of *cfg* along the scene's trajectory."""
+
+    def __init__(self, cfg: RadarConfig, scene: Scene, *, seed: int = 0,
+                 duration_s: float | None = None, pattern: AntennaPattern | None = None) -> None:
+        self.cfg = cfg
+        self.scene = scene
+        self.seed = seed
+        self.synth = FmcwSynthesizer(cfg)
+        self.pattern = pattern or AntennaPattern()
+        self.layout = RawLayout.from_config(cfg)
+        self.period = cfg.frame_period_s
+        span = scene.trajectory.duration_s if duration_s is None else duration_s
+        self.num_frames = max(1, math.ceil(span / self.period - 1e-9))
+        self.max_range_m = cfg.unambiguous_range_m
+        amp_ref = scene.noise_counts * math.sqrt(2.0) * 10 ** (scene.snr_db / 20.0)
+        #: ADC counts of a 1 m^2 target at 1 m on boresight.
+        self.gain_counts = amp_ref * SNR_REFERENCE_RANGE_M**2
+        self._cube = np.empty(cfg.cube_shape, np.complex64)
+        self._noise = np.empty(cfg.cube_shape, np.complex64)
+        x0, y0, yaw0 = scene.trajectory.pose(0.0)
+        self._origin = (float(x0), float(y0), float(yaw0))
+        self._clip_warned = False
+
+    def frame_time(self, i: int) -> float:
+        return i * self.period
+
+    def groundtruth(self, t) -> tuple[float, ...]:
+        """Body pose at time *t* relative to the body at the first frame (TUM order)."""
+        x, y, yaw = (float(v) for v in self.scene.trajectory.pose(t))
+        x0, y0, yaw0 = self._origin
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        dx, dy = x - x0, y - y0
+        q = yaw_quaternion(yaw - yaw0)
+        return (c * dx + s * dy, -s * dx + c * dy, 0.0, *map(float, q))
+
+    def paths(self, t0: float):
+        """Propagation paths of the frame starting at *t0*: (p_tx, p_rx, amp) as
+        :meth:`FmcwSynthesizer.synthesize` takes them (p_rx None: all direct)."""
+        scene, traj = self.scene, self.scene.trajectory
+        times = t0 + self.synth.chirp_offsets_s
+        x, y, yaw = traj.pose(times)
+        mid = len(times) // 2
+        centre = (x[mid:mid + 1], y[mid:mid + 1], yaw[mid:mid + 1])
+        sensor_xy = np.array([x[mid], y[mid]])
+
+        st = scene.static
+        movers = [m.positions(times) for m in scene.movers]
+        # Geometry at the frame's middle decides visibility and amplitude.
+        pts_mid = np.concatenate([st.pos] + [m[mid] for m in movers]) if (len(st.rcs) or movers) else np.zeros((0, 3))
+        rcs = np.concatenate([st.rcs] + [m.body_rcs for m in scene.movers])
+        phase = np.concatenate([st.phase] + [m.phases for m in scene.movers])
+        normal = np.concatenate([st.normal] + [np.zeros((len(m.BODY), 3)) for m in scene.movers])
+        expo = np.concatenate([st.exponent] + [np.zeros(len(m.BODY)) for m in scene.movers])
+        pointlike = np.concatenate([st.pointlike] + [np.ones(len(m.BODY), bool) for m in scene.movers])
+        rel = world_to_sensor(pts_mid, *centre, traj.height)[0]
+        r = np.linalg.norm(rel, axis=1)
+        az = np.arctan2(rel[:, 0], rel[:, 1])
+        el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1, 1))
+        gain = self.pattern.amplitude(az, el)
+        keep = (r > MIN_RANGE_M) & (r < self.max_range_m) & (gain > MIN_PATTERN_GAIN)
+        keep[keep] &= ~_occluded(sensor_xy, pts_mid[keep, :2], scene.wall_a, scene.wall_b)
+        idx = np.flatnonzero(keep)
+
+        # Reflectivity at the angle of incidence, for surfaces with a normal.
+        sensor3 = np.array([x[mid], y[mid], traj.height])
+        to_sensor = sensor3 - pts_mid[idx]
+        to_sensor /= np.linalg.norm(to_sensor, axis=1, keepdims=True)
+        cos_i = np.abs(np.einsum("kx,kx->k", normal[idx], to_sensor))
+        has_normal = np.any(normal[idx] != 0, axis=1)
+        incidence = np.where(has_normal, cos_i ** expo[idx], 1.0)
+        amp = (self.gain_counts * np.sqrt(rcs[idx]) * incidence * gain[idx] / r[idx] ** 2
+               * np.exp(1j * phase[idx]))
+
+        # Positions at every chirp's time: static points are fixed in the world.
+        n_static = len(st.rcs)
+        s_idx, m_idx = idx[idx < n_static], idx[idx >= n_static] - n_static
+        world_c = [np.broadcast_to(st.pos[s_idx], (len(times), len(s_idx), 3))]
+        if movers:
+            world_c.append(np.concatenate(movers, axis=1)[:, m_idx])
+        world_all = np.concatenate(world_c, axis=1)
+        p = world_to_sensor(world_all, x, y, yaw, traj.height)
+        if not scene.multipath or len(scene.wall_a) == 0:
+            return p, None, amp
+
+        # One bounce off a wall on the TX or the RX leg, for compact targets.
+        images_tx, images_rx, images_amp = [p], [p], [amp]
+        strong = np.flatnonzero(pointlike[idx])
+        for a, b in zip(scene.wall_a, scene.wall_b):
+            if not len(strong):
+                break
+            img_mid = _mirror(pts_mid[idx[strong], :2], a, b)
+            # The bounce point must lie on the wall: the sensor-to-image line crosses it.
+            d = img_mid - sensor_xy
+            e = b - a
+            denom = d[:, 0] * e[1] - d[:, 1] * e[0]
+            f = a - sensor_xy
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = (f[0] * e[1] - f[1] * e[0]) / denom
+                u = (f[0] * d[:, 1] - f[1] * d[:, 0]) / denom
+            ok = (np.abs(denom) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
+            if not ok.any():
+                continue
+            sel = strong[ok]
+            img_world = world_all[:, sel].copy()
+            img_world[..., :2] = _mirror(img_world[..., :2], a, b)
+            p_img = world_to_sensor(img_world, x, y, yaw, traj.height)
+            r_img = np.linalg.norm(p_img[mid], axis=1)
+            rel_img = p_img[mid]
+            g_img = self.pattern.amplitude(np.arctan2(rel_img[:, 0], rel_img[:, 1]),
+                                           np.arcsin(np.clip(rel_img[:, 2] / r_img, -1, 1)))
+            a_img = (scene.wall_reflection * self.gain_counts * np.sqrt(rcs[idx[sel]]) * incidence[sel]
+                     * np.sqrt(gain[idx[sel]] * g_img) / (r[idx[sel]] * r_img)
+                     * np.exp(1j * phase[idx[sel]]))
+            images_tx += [p_img, p[:, sel]]
+            images_rx += [p[:, sel], p_img]
+            images_amp += [a_img, a_img]
+        return np.concatenate(images_tx, axis=1), np.concatenate(images_rx, axis=1), np.concatenate(images_amp)
+
+    def frame(self, i: int) -> SimFrame:
+        """Frame *i*: its bytes, time and ground truth."""
+        if not 0 <= i < self.num_frames:
+            raise IndexError(f"frame {i} of {self.num_frames}")
+        t0 = self.frame_time(i)
+        p_tx, p_rx, amp = self.paths(t0)
+        cube = self.synth.synthesize(p_tx, p_rx, amp, out=self._cube)
+        rng = np.random.default_rng([self.seed, i])
+        noise = self._noise
+        noise.real[...] = rng.standard_normal(cube.shape, dtype=np.float32)
+        noise.imag[...] = rng.standard_normal(cube.shape, dtype=np.float32)
+        noise *= np.float32(self.scene.noise_counts)
+        cube += noise
+        peak = max(float(np.abs(cube.real).max()), float(np.abs(cube.imag).max()))
+        scale = 1.0
+        if peak > INT16_MAX:
+            scale = INT16_MAX / peak
+            cube *= np.float32(scale)
+            if not self._clip_warned:
+                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3f (lower snr_db)", i, scale)
+                self._clip_warned = True
+        return SimFrame(i, t0, self.layout.encode(cube), self.groundtruth(t0), len(amp), scale)

@@ -1,0 +1,187 @@
+"""Smooth planar sensor trajectories for the simulator.
+
+A trajectory is a start pose and a list of segments, each a commanded forward
+speed and yaw rate held for a time:
+
+- ``{"straight": 5.0, "speed": 1.0}``: 5 m ahead at 1 m/s;
+- ``{"turn": 90, "radius": 1.5, "speed": 0.8}``: an arc, left for positive degrees;
+- ``{"rotate": -180, "rate": 60}``: turn in place, degrees at degrees/s;
+- ``{"pause": 2.0}``: stand still for 2 s.
+
+or waypoints ``[[x, y], ...]`` visited in order (turn in place toward the next
+point at ``turn_rate``, then drive to it at ``speed``).
+
+The commands are sampled every millisecond and smoothed twice by a moving
+average (``smoothing_s``): speeds and yaw rates then ramp continuously with
+bounded acceleration, and the distance and angle of each segment are kept
+exactly (a moving average preserves integrals).  Poses are the integral,
+interpolated to any time.  Units: metres, seconds, radians (degrees only in
+the segment text).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from ...errors import ConfigError
+
+#: Integration step of the pose table, s.
+STEP_S = 1e-3
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Sensor body pose in the scene's world frame as a function of time."""
+
+    #: Sample times (n,), s, from 0 at STEP_S spacing.
+    times: np.ndarray
+    #: World x, y (m) and yaw (rad, unwrapped) of the body frame at ``times``.
+    x: np.ndarray
+    y: np.ndarray
+    yaw: np.ndarray
+    #: Sensor height above the floor, m.
+    height: float = 0.4
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.times[-1])
+
+    def pose(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, yaw) at times *t* (any shape, s); held at the ends."""
+        t = np.asarray(t, dtype=float)
+        return (np.interp(t, self.times, self.x), np.interp(t, self.times, self.y),
+                np.interp(t, self.times, self.yaw))
+
+    def velocity(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World-frame (vx, vy) in m/s and yaw rate in rad/s at times *t*."""
+        t = np.asarray(t, dtype=float)
+        g = [np.gradient(a, self.times) for a in (self.x, self.y, self.yaw)]
+        return tuple(np.interp(t, self.times, a) for a in g)  # type: ignore[return-value]
+
+    @property
+    def length_m(self) -> float:
+        return float(np.hypot(np.diff(self.x), np.diff(self.y)).sum())
+
+
+def _fail(message: str, where: str) -> ConfigError:
+    return ConfigError(message, path=where, field="trajectory")
+
+
+def _number(seg: dict, key: str, where: str, default: float | None = None, positive: bool = False) -> float:
+    value = seg.get(key, default)
+    if value is None:
+        raise _fail(f"segment {seg!r} needs {key!r}", where)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _fail(f"segment {seg!r}: {key} must be a number", where)
+    if positive and value <= 0:
+        raise _fail(f"segment {seg!r}: {key} must be above 0", where)
+    return float(value)
+
+
+def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, float]]:
+    """(duration s, speed m/s, yaw rate rad/s) per segment."""
+    out = []
+    for seg in segments:
+        if not isinstance(seg, dict):
+            raise _fail(f"a segment must be a table, got {seg!r}", where)
+        if "straight" in seg:
+            dist = _number(seg, "straight", where, positive=True)
+            speed = _number(seg, "speed", where, 1.0, positive=True)
+            out.append((dist / speed, speed, 0.0))
+        elif "turn" in seg:
+            angle = math.radians(_number(seg, "turn", where))
+            radius = _number(seg, "radius", where, 1.0, positive=True)
+            speed = _number(seg, "speed", where, 1.0, positive=True)
+            rate = speed / radius
+            out.append((abs(angle) / rate, speed, math.copysign(rate, angle)))
+        elif "rotate" in seg:
+            angle = math.radians(_number(seg, "rotate", where))
+            rate = math.radians(_number(seg, "rate", where, 45.0, positive=True))
+            out.append((abs(angle) / rate, 0.0, math.copysign(rate, angle)))
+        elif "pause" in seg:
+            out.append((_number(seg, "pause", where, positive=True), 0.0, 0.0))
+        else:
+            raise _fail(f"unknown segment {seg!r}: use straight, turn, rotate or pause", where)
+    return out
+
+
+def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.0, 0.0),
+                  smoothing_s: float = 0.3, height: float = 0.4, where: str = "<scene>") -> Trajectory:
+    """Build a trajectory; *start* is (x m, y m, yaw deg)."""
+    cmds = _commands(segments, where)
+    if not cmds:
+        raise _fail("no segments", where)
+    n_steps = [max(1, round(d / STEP_S)) for d, _, _ in cmds]
+    speed = np.concatenate([np.full(n, v) for n, (_, v, _) in zip(n_steps, cmds)])
+    rate = np.concatenate([np.full(n, w) for n, (_, _, w) in zip(n_steps, cmds)])
+    width = max(1, round(smoothing_s / STEP_S))
+    box = np.full(width, 1.0 / width)
+    for _ in range(2):  # twice: continuous speed and continuous acceleration
+        speed = np.convolve(speed, box)
+        rate = np.convolve(rate, box)
+    x0, y0, yaw0 = float(start[0]), float(start[1]), math.radians(float(start[2]))
+    yaw = yaw0 + np.concatenate([[0.0], np.cumsum(rate) * STEP_S])
+    mid_yaw = 0.5 * (yaw[1:] + yaw[:-1])  # midpoint rule: exact for constant-rate arcs to O(dt^2)
+    x = x0 + np.concatenate([[0.0], np.cumsum(speed * np.cos(mid_yaw)) * STEP_S])
+    y = y0 + np.concatenate([[0.0], np.cumsum(speed * np.sin(mid_yaw)) * STEP_S])
+    times = np.arange(len(yaw)) * STEP_S
+    return Trajectory(times, x, y, yaw, height)
+
+
+def waypoint_segments(points: Sequence[Sequence[float]], *, start_yaw_deg: float = 0.0,
+                      speed: float = 1.0, turn_rate_deg: float = 45.0, where: str = "<scene>") -> list[dict]:
+    """Segments that visit *points* in order: rotate toward each, then drive to it."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+        raise _fail("waypoints must be two or more [x, y] points", where)
+    segs: list[dict] = []
+    heading = math.radians(start_yaw_deg)
+    for a, b in zip(pts[:-1], pts[1:]):
+        d = b - a
+        dist = float(np.hypot(*d))
+        if dist < 1e-9:
+            continue
+        want = math.atan2(d[1], d[0])
+        turn = (want - heading + math.pi) % (2 * math.pi) - math.pi
+        if abs(turn) > 1e-6:
+            segs.append({"rotate": math.degrees(turn), "rate": turn_rate_deg})
+        segs.append({"straight": dist, "speed": speed})
+        heading = want
+    return segs
+
+
+def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
+    """A trajectory from a scene file's ``[trajectory]`` table."""
+    if not isinstance(spec, dict):
+        raise _fail("must be a table", where)
+    start = spec.get("start", [0.0, 0.0, 0.0])
+    if not (isinstance(start, (list, tuple)) and len(start) == 3
+            and all(isinstance(v, (int, float)) for v in start)):
+        raise _fail("start must be [x, y, yaw_deg]", where)
+    height = spec.get("height", 0.4)
+    smoothing = spec.get("smoothing_s", 0.3)
+    if "waypoints" in spec:
+        segments = waypoint_segments(spec["waypoints"], start_yaw_deg=start[2],
+                                     speed=float(spec.get("speed", 1.0)),
+                                     turn_rate_deg=float(spec.get("turn_rate", 45.0)), where=where)
+        if "segments" in spec:
+            raise _fail("give either segments or waypoints, not both", where)
+    else:
+        segments = spec.get("segments")
+        if not isinstance(segments, list):
+            raise _fail("needs a list of segments or waypoints", where)
+    return from_segments(segments, start=start, smoothing_s=float(smoothing), height=float(height),
+                         where=where)
+
+
+def yaw_quaternion(yaw) -> np.ndarray:
+    """(qx, qy, qz, qw) of a rotation by *yaw* about z; shape (..., 4)."""
+    yaw = np.asarray(yaw, dtype=float)
+    q = np.zeros(yaw.shape + (4,))
+    q[..., 2] = np.sin(yaw / 2.0)
+    q[..., 3] = np.cos(yaw / 2.0)
+    return q

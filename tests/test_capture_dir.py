@@ -1,0 +1,522 @@
+"""Capture directories: CaptureWriter / CaptureDirectory round trip, damaged
+directories, and crash safety against a real process killed with SIGKILL."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from conftest import SMALL_CFG, make_capture, random_frames
+
+import radarodom
+from radarodom.cfg import RadarConfig
+from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter, read_tum
+from radarodom.driver.sources import open_source
+from radarodom.errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
+
+T0 = 1000.0
+PERIOD = 0.05  # SMALL_CFG frame period
+
+
+@pytest.fixture
+def warnings_log(caplog):
+    """caplog at WARNING for radarodom, whatever level an earlier CLI run left set."""
+    caplog.set_level(logging.WARNING, logger="radarodom")
+    return caplog
+
+
+def _warnings(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+def _files(directory) -> dict[str, bytes]:
+    return {name: open(os.path.join(directory, name), "rb").read() for name in sorted(os.listdir(directory))}
+
+
+# --------------------------------------------------------------- round trip
+
+def test_round_trip(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    before = time.time()
+    frames = make_capture(d, small_cfg, 10, t0=T0, incomplete={2: 100, 7: 3072}, poses=True)
+    after = time.time()
+    assert sorted(os.listdir(d)) == ["adc_data.bin", "capture.json", "groundtruth.tum",
+                                     "radar.cfg", "timestamps.txt"]
+    assert (d / "adc_data.bin").read_bytes() == b"".join(frames)
+
+    cap = CaptureDirectory(d)
+    assert len(cap) == cap.num_frames == 10
+    assert cap.config.frame_bytes == small_cfg.frame_bytes == 3072
+    assert cap.config.cube_shape == small_cfg.cube_shape
+    assert cap.layout.shape == (4, 3, 4, 16)
+    for i, raw in enumerate(frames):
+        got = cap.raw(i)
+        assert got.dtype == np.uint8 and got.shape == (3072,)
+        assert bytes(got) == raw
+        assert not got.flags.writeable
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(10), rtol=0, atol=1e-9)
+    assert [cap.missing_bytes(i) for i in range(10)] == [0, 0, 100, 0, 0, 0, 0, 3072, 0, 0]
+    for i in range(10):
+        assert cap.pose(i) == pytest.approx((0.1 * i, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0))
+    np.testing.assert_allclose(cap.groundtruth.times, cap.timestamps, atol=1e-9)
+    with pytest.raises(IndexError):
+        cap.raw(10)
+    with pytest.raises(IndexError):
+        cap.raw(-1)
+
+    meta = json.loads((d / "capture.json").read_text())
+    assert meta == cap.metadata
+    assert meta["format"] == "radarodom-capture"
+    assert meta["format_version"] == 1
+    assert meta["software"] == f"radarodom {radarodom.__version__}"
+    assert meta["source"] == "test"
+    assert before - 1 <= meta["start_time_unix"] <= after + 1
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", meta["start_time"])
+    assert meta["start_time"] == time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(meta["start_time_unix"]))
+    assert meta["frame_bytes"] == 3072
+    assert meta["frame_count"] == 10
+    assert meta["first_timestamp"] == pytest.approx(T0)
+    assert meta["last_timestamp"] == pytest.approx(T0 + 9 * PERIOD)
+    assert meta["incomplete_frames"] == [{"frame": 2, "missing_bytes": 100},
+                                         {"frame": 7, "missing_bytes": 3072}]
+    assert meta["lost_bytes"] == 3172
+    assert meta["closed"] is True
+    assert _warnings(warnings_log) == []
+
+
+def test_text_files_format(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 3, t0=T0, poses=True)
+    lines = (d / "timestamps.txt").read_text().splitlines()
+    assert [float(x) for x in lines] == pytest.approx([T0, T0 + PERIOD, T0 + 2 * PERIOD], abs=1e-9)
+    tum = [line.split() for line in (d / "groundtruth.tum").read_text().splitlines()]
+    assert all(len(row) == 8 for row in tum)
+    assert float(tum[2][0]) == pytest.approx(T0 + 2 * PERIOD) and float(tum[2][1]) == pytest.approx(0.2)
+    gt = read_tum(d / "groundtruth.tum")
+    assert gt.positions.shape == (3, 3) and gt.quaternions.shape == (3, 4)
+    # radar.cfg is the configuration itself
+    assert RadarConfig.from_file(d / "radar.cfg").cube_shape == small_cfg.cube_shape
+
+
+def test_no_groundtruth_without_poses(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 2)
+    assert not (d / "groundtruth.tum").exists()
+    cap = CaptureDirectory(d)
+    assert cap.groundtruth is None and cap.pose(0) is None
+
+
+def test_poses_stay_with_their_frames_when_some_are_missing(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    frames = random_frames(small_cfg, 4)
+    poses = [(1.0, 0, 0, 0, 0, 0, 1), None, (3.0, 0, 0, 0, 0, 0, 1), (4.0, 0, 0, 0, 0, 0, 1)]
+    with CaptureWriter(d, small_cfg) as w:
+        for i, (raw, pose) in enumerate(zip(frames, poses)):
+            w.write(raw, T0 + PERIOD * i, pose=pose)
+    cap = CaptureDirectory(d)
+    assert cap.pose(0) == pytest.approx(poses[0])
+    assert cap.pose(1) is None
+    assert cap.pose(2) == pytest.approx(poses[2])
+    assert cap.pose(3) == pytest.approx(poses[3])
+
+
+def test_writer_extra_metadata_and_frame_count(tmp_path, small_cfg):
+    frames = random_frames(small_cfg, 3)
+    with CaptureWriter(tmp_path / "c", small_cfg, source="replay://x", extra={"operator": "me"}) as w:
+        for i, raw in enumerate(frames):
+            assert w.frame_count == i
+            w.write(raw, float(i))
+        assert w.frame_count == 3
+    meta = json.loads((tmp_path / "c" / "capture.json").read_text())
+    assert meta["operator"] == "me" and meta["source"] == "replay://x" and meta["frame_count"] == 3
+
+
+def test_incomplete_frames_reach_capture_json_at_once(tmp_path, small_cfg, warnings_log):
+    """A frame with lost bytes is listed in capture.json before the next write,
+    so a crash cannot lose that information."""
+    d = tmp_path / "c"
+    frames = random_frames(small_cfg, 3)
+    w = CaptureWriter(d, small_cfg, metadata_interval_s=3600)
+    w.write(frames[0], 1.0)
+    w.write(frames[1], 1.05, missing_bytes=1456)
+    w.write(frames[2], 1.10)
+    meta = json.loads((d / "capture.json").read_text())
+    assert meta["incomplete_frames"] == [{"frame": 1, "missing_bytes": 1456}]
+    assert meta["closed"] is False
+    cap = CaptureDirectory(d)  # readable while still open
+    assert cap.num_frames == 3 and cap.missing_bytes(1) == 1456
+    assert bytes(cap.raw(2)) == frames[2]
+    assert any("not closed" in m for m in _warnings(warnings_log))
+    w.close()
+    w.close()  # idempotent
+    assert json.loads((d / "capture.json").read_text())["closed"] is True
+    with pytest.raises(CaptureError):
+        w.write(frames[0], 2.0)
+
+
+def test_writer_refuses_existing_capture(tmp_path, small_cfg, shipped_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, poses=True)
+    before = _files(d)
+    with pytest.raises(CaptureExistsError) as info:
+        CaptureWriter(d, shipped_cfg, source="second")
+    assert info.value.exit_code == 2
+    assert isinstance(info.value, CaptureError)
+    assert str(d) in str(info.value)
+    assert _files(d) == before  # radar.cfg, capture.json, data: all untouched
+    assert CaptureDirectory(d).num_frames == 4
+
+
+def test_writer_accepts_existing_empty_directory(tmp_path, small_cfg):
+    d = tmp_path / "empty"
+    d.mkdir()
+    make_capture(d, small_cfg, 1)
+    assert CaptureDirectory(d).num_frames == 1
+
+
+def test_writer_rejects_wrong_frame_size(tmp_path, small_cfg):
+    d = tmp_path / "c"
+    with CaptureWriter(d, small_cfg) as w:
+        w.write(bytes(3072), 0.0)
+        for n in (3071, 3073, 0, 6144):
+            with pytest.raises(CaptureFormatError) as info:
+                w.write(bytes(n), 1.0)
+            assert str(n) in str(info.value) and "3072" in str(info.value)
+        assert w.frame_count == 1
+    assert (d / "adc_data.bin").stat().st_size == 3072
+    assert len((d / "timestamps.txt").read_text().splitlines()) == 1
+    assert CaptureDirectory(d).num_frames == 1
+
+
+def test_writer_cannot_create_directory(tmp_path, small_cfg):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(CaptureError):
+        CaptureWriter(blocker / "cap", small_cfg)
+
+
+# --------------------------------------------------------------- damaged directories
+
+def test_truncated_tail_is_ignored_with_warning(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 6)
+    with open(d / "adc_data.bin", "ab") as fh:
+        fh.write(b"\x55" * 1536)  # half a frame
+    cap = CaptureDirectory(d)
+    assert cap.num_frames == 6
+    assert [bytes(cap.raw(i)) for i in range(6)] == frames
+    warnings = _warnings(warnings_log)
+    assert any("1536" in m for m in warnings), warnings
+
+
+def test_partial_last_timestamp_line_is_ignored(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 6, t0=T0)
+    with open(d / "timestamps.txt", "a") as fh:
+        fh.write("1000.3")  # a seventh line cut short, no frame for it
+    cap = CaptureDirectory(d)
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
+    assert any("partly written" in m for m in _warnings(warnings_log))
+
+
+def test_cut_timestamp_of_last_frame_is_extrapolated(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 6, t0=T0)
+    text = (d / "timestamps.txt").read_text()
+    (d / "timestamps.txt").write_text(text[:-8])  # the last line loses its end
+    cap = CaptureDirectory(d)
+    assert cap.num_frames == 6
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
+
+
+def test_fewer_timestamps_are_extrapolated(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 6, t0=T0)
+    lines = (d / "timestamps.txt").read_text().splitlines(keepends=True)
+    (d / "timestamps.txt").write_text("".join(lines[:3]))
+    cap = CaptureDirectory(d)
+    assert cap.num_frames == 6
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
+    assert any("3 frame(s)" in m and "timestamp" in m for m in _warnings(warnings_log))
+
+
+def test_no_timestamps_file_starts_at_zero(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, t0=T0)
+    os.remove(d / "timestamps.txt")
+    cap = CaptureDirectory(d)
+    np.testing.assert_allclose(cap.timestamps, PERIOD * np.arange(4), atol=1e-12)
+
+
+def test_extra_timestamps_are_ignored(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, t0=T0)
+    with open(d / "timestamps.txt", "a") as fh:
+        fh.write("2000.0\n2000.05\n")
+    cap = CaptureDirectory(d)
+    assert len(cap.timestamps) == 4
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(4), atol=1e-9)
+    assert _warnings(warnings_log)
+
+
+def test_garbage_timestamp_line_is_an_error(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 2)
+    (d / "timestamps.txt").write_text("1000.0\nhello\n")
+    with pytest.raises(CaptureFormatError, match="timestamps.txt:2"):
+        CaptureDirectory(d)
+
+
+def test_missing_capture_json_still_readable(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 5, incomplete={1: 10})
+    os.remove(d / "capture.json")
+    cap = CaptureDirectory(d)
+    assert cap.metadata == {}
+    assert cap.num_frames == 5
+    assert [bytes(cap.raw(i)) for i in range(5)] == frames
+    assert cap.missing_bytes(1) == 0  # the record of the loss went with capture.json
+    assert _warnings(warnings_log) == []
+
+
+def test_unreadable_capture_json_warns(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 3)
+    (d / "capture.json").write_text('{"format": "radarodom-capt')
+    cap = CaptureDirectory(d)
+    assert cap.num_frames == 3 and cap.metadata == {}
+    assert any("capture.json" in m for m in _warnings(warnings_log))
+
+
+def test_not_closed_capture_warns(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 3)
+    meta = json.loads((d / "capture.json").read_text())
+    meta["closed"] = False
+    (d / "capture.json").write_text(json.dumps(meta))
+    cap = CaptureDirectory(d)
+    assert [bytes(cap.raw(i)) for i in range(3)] == frames
+    assert any("not closed" in m for m in _warnings(warnings_log))
+
+
+def test_fewer_poses_than_frames_warns(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, poses=True)
+    lines = (d / "groundtruth.tum").read_text().splitlines(keepends=True)
+    (d / "groundtruth.tum").write_text("".join(lines[:2]) + lines[2][:10])  # third pose cut
+    cap = CaptureDirectory(d)
+    assert cap.pose(1) == pytest.approx((0.1, 0, 0, 0, 0, 0, 1))
+    assert cap.pose(2) is None and cap.pose(3) is None
+    assert any("no pose for 2 of 4 frames" in m for m in _warnings(warnings_log))
+
+
+def test_missing_radar_cfg(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 2)
+    os.remove(d / "radar.cfg")
+    with pytest.raises(ConfigError) as info:
+        CaptureDirectory(d)
+    assert info.value.exit_code == 2
+    cap = CaptureDirectory(d, small_cfg)
+    assert bytes(cap.raw(1)) == frames[1]
+
+
+def test_not_a_capture_directory(tmp_path, small_cfg):
+    with pytest.raises(CaptureError):
+        CaptureDirectory(tmp_path / "nowhere")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(CaptureFormatError):
+        CaptureDirectory(tmp_path / "empty")
+
+
+def test_given_config_overrides_recorded(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 4)
+    half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"), "half.cfg")
+    cap = CaptureDirectory(d, half)
+    assert cap.config is half
+    assert cap.num_frames == 8
+    assert bytes(cap.raw(1)) == frames[0][1536:]
+    assert any("differs" in m for m in _warnings(warnings_log))
+
+
+# --------------------------------------------------------------- crash safety
+
+CHILD_WRITER = r"""
+import sys
+import numpy as np
+from radarodom.cfg import RadarConfig
+from radarodom.driver.capture_dir import CaptureWriter
+
+out, cfg_text = sys.argv[1], sys.argv[2]
+cfg = RadarConfig.from_text(cfg_text, "small.cfg")
+writer = CaptureWriter(out, cfg, source="crash-test", metadata_interval_s=0.002)
+i = 0
+while True:
+    raw = np.random.default_rng(i).integers(-32768, 32768, cfg.frame_bytes // 2, dtype="<i2").tobytes()
+    missing = 17 + i if i % 50 == 7 else 0
+    writer.write(raw, 1000.0 + 0.05 * i, missing, (0.01 * i, -0.5, 0.0, 0.0, 0.0, 0.0, 1.0))
+    i += 1
+"""
+
+
+def _child_frame(i: int, frame_bytes: int) -> bytes:
+    return np.random.default_rng(i).integers(-32768, 32768, frame_bytes // 2, dtype="<i2").tobytes()
+
+
+def _wait_for_size(path, nbytes: int, proc: subprocess.Popen, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if os.path.exists(path) and os.path.getsize(path) >= nbytes:
+            return
+        if proc.poll() is not None:
+            out, err = proc.communicate()
+            pytest.fail(f"child exited with {proc.returncode} before writing: {err!r}")
+        time.sleep(0.002)
+    proc.kill()
+    proc.wait()
+    pytest.fail(f"{path} did not reach {nbytes} bytes in {timeout} s")
+
+
+def _sigkill(proc: subprocess.Popen) -> None:
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert proc.returncode == -signal.SIGKILL
+
+
+def _complete_lines(path) -> int:
+    return open(path, "rb").read().count(b"\n")
+
+
+def test_writer_survives_sigkill(tmp_path, small_cfg, warnings_log):
+    fb = small_cfg.frame_bytes
+    rnd = random.Random(20240611)
+    delays = [0.0] + [rnd.uniform(0.0, 0.25) for _ in range(4)]
+    for k, delay in enumerate(delays):
+        d = tmp_path / f"crash{k}"
+        proc = subprocess.Popen([sys.executable, "-c", CHILD_WRITER, str(d), SMALL_CFG],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            _wait_for_size(d / "adc_data.bin", 3 * fb, proc)
+            time.sleep(delay)
+        finally:
+            _sigkill(proc)
+        where = f"kill {k} after {delay:.3f} s"
+        size = os.path.getsize(d / "adc_data.bin")
+        warnings_log.clear()
+        cap = CaptureDirectory(d)
+        n = cap.num_frames
+        assert n == size // fb >= 3, where
+        for i in range(n):
+            assert bytes(cap.raw(i)) == _child_frame(i, fb), f"{where}: frame {i} of {n}"
+        # timestamps: one line per frame handed to the kernel, the last may be missing
+        assert n - 1 <= _complete_lines(d / "timestamps.txt") <= n, where
+        np.testing.assert_allclose(cap.timestamps, 1000.0 + 0.05 * np.arange(n), rtol=0, atol=1e-6,
+                                   err_msg=where)
+        # capture.json was replaced atomically: always a whole JSON object
+        assert cap.metadata["format"] == "radarodom-capture", where
+        assert cap.metadata["closed"] is False, where
+        assert cap.metadata["frame_count"] <= n, where
+        assert any("not closed" in m for m in _warnings(warnings_log)), where
+        for i in range(n - 1):  # the last frame's loss may not have reached capture.json
+            assert cap.missing_bytes(i) == (17 + i if i % 50 == 7 else 0), f"{where}: frame {i}"
+        # poses: written after the timestamp, so at most the last one is missing
+        assert cap.groundtruth is not None
+        assert n - 1 <= len(cap.groundtruth.times) <= n, where
+        assert cap.pose(n - 2) == pytest.approx((0.01 * (n - 2), -0.5, 0, 0, 0, 0, 1))
+        # and the crashed directory replays
+        with open_source(f"replay://{d}?rate=max") as src:
+            assert sum(1 for _ in src) == n
+
+
+def _radar_capture() -> list[str]:
+    exe = shutil.which("radar-capture", path=os.path.dirname(sys.executable))
+    return [exe] if exe else [sys.executable, "-m", "radarodom.tools.radar_capture"]
+
+
+def _check_recording(out, frames, n_src, warnings_log) -> int:
+    cap = CaptureDirectory(out)
+    n = cap.num_frames
+    assert n >= 2 * n_src
+    for i in range(n):
+        assert bytes(cap.raw(i)) == frames[i % n_src], f"frame {i} of {n}"
+    # loops continue the clock: frame i at T0 + i * period
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(n), rtol=0, atol=1e-6)
+    for i in range(n - 1):
+        assert cap.missing_bytes(i) == (50 if i % n_src == 3 else 0), f"frame {i}"
+    assert cap.groundtruth is not None and len(cap.groundtruth.times) >= n - 1
+    for i in range(n - 1):
+        assert cap.pose(i) == pytest.approx((0.1 * (i % n_src), 0, 0, 0, 0, 0, 1)), f"frame {i}"
+    assert cap.config.frame_bytes == 3072
+    return n
+
+
+def test_radar_capture_record_survives_sigkill(tmp_path, small_cfg, warnings_log):
+    src = tmp_path / "src"
+    n_src = 7
+    frames = make_capture(src, small_cfg, n_src, t0=T0, incomplete={3: 50}, poses=True)
+    url = f"replay://{src}?rate=max&loop=0"
+    for k, delay in enumerate([0.0, 0.05, 0.2]):
+        out = tmp_path / f"out{k}"
+        proc = subprocess.Popen([*_radar_capture(), "--source", url, "--record", str(out), "-q"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            _wait_for_size(out / "adc_data.bin", 2 * n_src * 3072, proc)
+            time.sleep(delay)
+        finally:
+            _sigkill(proc)
+        _check_recording(out, frames, n_src, warnings_log)
+        meta = json.loads((out / "capture.json").read_text())
+        assert meta["source"] == url and meta["closed"] is False
+
+
+def test_radar_capture_sigterm_closes_recording(tmp_path, small_cfg, warnings_log):
+    src = tmp_path / "src"
+    n_src = 7
+    frames = make_capture(src, small_cfg, n_src, t0=T0, incomplete={3: 50}, poses=True)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([*_radar_capture(), "--source", f"replay://{src}?rate=max&loop=0",
+                             "--record", str(out), "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for_size(out / "adc_data.bin", 2 * n_src * 3072, proc)
+        proc.send_signal(signal.SIGTERM)
+        stdout, stderr = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, stderr
+    assert "stopped" in stdout and str(out) in stdout
+    warnings_log.clear()
+    n = _check_recording(out, frames, n_src, warnings_log)
+    meta = json.loads((out / "capture.json").read_text())
+    assert meta["closed"] is True and meta["frame_count"] == n
+    assert (out / "adc_data.bin").stat().st_size == n * 3072
+    assert all(e["missing_bytes"] == 50 and e["frame"] % n_src == 3 for e in meta["incomplete_frames"])
+    assert len(meta["incomplete_frames"]) == len([i for i in range(n) if i % n_src == 3])
+    assert _warnings(warnings_log) == []
+
+
+def test_radar_capture_refuses_existing_recording(tmp_path, small_cfg):
+    src = tmp_path / "src"
+    make_capture(src, small_cfg, 3)
+    out = tmp_path / "out"
+    make_capture(out, small_cfg, 2, seed=5)
+    before = _files(out)
+    proc = subprocess.run([*_radar_capture(), "--source", f"replay://{src}?rate=max", "--record", str(out)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert "already holds a capture" in proc.stderr
+    assert _files(out) == before

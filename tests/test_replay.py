@@ -1,0 +1,454 @@
+"""replay:// sources (capture directories and TI recorder files), URL handling,
+and the capture loop run_capture."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from conftest import SMALL_CFG, make_capture, random_frames
+
+from radarodom.cfg import RadarConfig
+from radarodom.driver.capture import run_capture
+from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
+from radarodom.driver.sources import SCHEMES, open_source
+from radarodom.errors import CaptureFormatError, ConfigError, SourceError
+from radarodom.rawframe import RawLayout
+
+T0 = 1000.0
+PERIOD = 0.05  # SMALL_CFG frame period
+
+
+@pytest.fixture
+def warnings_log(caplog):
+    caplog.set_level(logging.WARNING, logger="radarodom")
+    return caplog
+
+
+def _warnings(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+@pytest.fixture
+def capture(tmp_path, small_cfg):
+    """A 6-frame capture directory with an incomplete frame and poses."""
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 6, t0=T0, incomplete={2: 99}, poses=True)
+    return d, frames
+
+
+# --------------------------------------------------------------- capture directories
+
+def test_replay_yields_recorded_frames(capture, small_cfg):
+    d, frames = capture
+    url = f"replay://{d}?rate=max"
+    layout = RawLayout.from_config(small_cfg)
+    with open_source(url) as src:
+        assert src.url == url
+        assert src.config.frame_bytes == small_cfg.frame_bytes
+        assert src.describe()["rate"] == "max"
+        got = list(src)
+    assert [f.index for f in got] == list(range(6))
+    for i, f in enumerate(got):
+        assert f.timestamp == pytest.approx(T0 + i * PERIOD, abs=1e-9)
+        assert f.raw.dtype == np.uint8 and bytes(f.raw) == frames[i]
+        assert f.missing_bytes == (99 if i == 2 else 0)
+        assert f.complete == (i != 2)
+        assert f.pose == pytest.approx((0.1 * i, 0, 0, 0, 0, 0, 1))
+        assert f.layout == layout
+        cube = f.cube()
+        assert cube.shape == (4, 3, 4, 16)
+        np.testing.assert_array_equal(cube, layout.decode(frames[i]))
+        out = np.zeros(layout.shape, np.complex64)
+        assert f.cube(out) is out
+        np.testing.assert_array_equal(out, cube)
+
+
+def test_loop_twice(capture):
+    d, frames = capture
+    with open_source(f"replay://{d}?rate=max&loop=2") as src:
+        got = list(src)
+    assert [f.index for f in got] == list(range(12))
+    assert [bytes(f.raw) for f in got] == frames + frames
+    stamps = np.array([f.timestamp for f in got])
+    assert np.all(np.diff(stamps) > 0)
+    # the second pass continues the clock one frame period after the first
+    np.testing.assert_allclose(stamps, T0 + PERIOD * np.arange(12), atol=1e-9)
+
+
+def test_loop_forever_until_stopped(capture):
+    d, frames = capture
+    got = []
+    with open_source(f"replay://{d}?rate=max&loop=0") as src:
+        for f in src:
+            got.append(f)
+            if len(got) == 23:
+                src.stop()
+        assert src.stop_requested
+    assert len(got) == 23
+    assert [f.index for f in got] == list(range(23))
+    assert [bytes(f.raw) for f in got] == [frames[i % 6] for i in range(23)]
+    assert np.all(np.diff([f.timestamp for f in got]) > 0)
+
+
+@pytest.mark.parametrize("option, first", [("start=3", 3), ("start=0.15s", 3), ("start=0.14s", 3),
+                                           ("start=0s", 0), ("start=0", 0), ("start=5", 5),
+                                           ("start=0.25s", 5)])
+def test_start(capture, option, first):
+    d, frames = capture
+    with open_source(f"replay://{d}?rate=max&{option}") as src:
+        got = list(src)
+    assert [bytes(f.raw) for f in got] == frames[first:]
+    assert [f.index for f in got] == list(range(6 - first))
+    assert got[0].timestamp == pytest.approx(T0 + first * PERIOD, abs=1e-9)
+    assert got[0].missing_bytes == (99 if first == 2 else 0)
+
+
+def test_frames_option(capture):
+    d, frames = capture
+    with open_source(f"replay://{d}?rate=max&frames=2") as src:
+        assert [bytes(f.raw) for f in src] == frames[:2]
+    with open_source(f"replay://{d}?rate=max&start=4&frames=10") as src:
+        assert [bytes(f.raw) for f in src] == frames[4:]
+    with open_source(f"replay://{d}?rate=max&start=1&frames=2&loop=2") as src:
+        got = list(src)
+    assert [bytes(f.raw) for f in got] == [frames[1], frames[2], frames[1], frames[2]]
+    np.testing.assert_allclose([f.timestamp for f in got], T0 + PERIOD * np.arange(1, 5), atol=1e-9)
+
+
+@pytest.mark.parametrize("option", ["start=6", "start=100", "start=1s", "start=0.2501s"])
+def test_start_past_the_end(capture, option):
+    d, _ = capture
+    with pytest.raises(SourceError) as info:
+        open_source(f"replay://{d}?{option}")
+    assert info.value.exit_code == 2
+
+
+def _arrivals(url: str) -> list[float]:
+    with open_source(url) as src:
+        t0 = time.monotonic()
+        return [time.monotonic() - t0 for _ in src]
+
+
+def test_rate_paces_in_real_time(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 10, t0=T0)
+    paced = _arrivals(f"replay://{d}?rate=1.0")
+    assert len(paced) == 10
+    assert paced[-1] >= 0.35  # the last frame is due 0.45 s after the first
+    for k, t in enumerate(paced):
+        assert t >= k * PERIOD - 0.01, f"frame {k} came at {t:.3f} s, due at {k * PERIOD:.3f} s"
+    fast = _arrivals(f"replay://{d}?rate=max")
+    assert len(fast) == 10
+    assert fast[-1] < paced[-1] / 3
+    double = _arrivals(f"replay://{d}?rate=2")
+    assert double[-1] >= 0.45 / 2 - 0.03
+    for k, t in enumerate(double):
+        assert t >= k * PERIOD / 2 - 0.01
+
+
+def test_stop_during_pacing_ends_promptly(tmp_path, small_cfg):
+    d = tmp_path / "slow"
+    frames = random_frames(small_cfg, 3)
+    with CaptureWriter(d, small_cfg) as w:
+        for i, raw in enumerate(frames):
+            w.write(raw, 10.0 * i)  # frames 10 s apart
+    with open_source(f"replay://{d}?rate=1") as src:
+        timer = threading.Timer(0.2, src.stop)
+        t0 = time.monotonic()
+        timer.start()
+        try:
+            got = list(src)
+        finally:
+            timer.cancel()
+        elapsed = time.monotonic() - t0
+    assert len(got) == 1
+    assert 0.15 <= elapsed < 2.0, elapsed
+
+
+# --------------------------------------------------------------- URL errors
+
+OPTIONS = ("rate=", "loop=", "start=", "frames=", "reordered=")
+
+
+def test_unknown_option_lists_supported(capture):
+    d, _ = capture
+    with pytest.raises(SourceError) as info:
+        open_source(f"replay://{d}?rate=max&speed=2")
+    msg = str(info.value)
+    assert "speed" in msg
+    assert all(o in msg for o in OPTIONS), msg
+    assert info.value.exit_code == 2
+
+
+@pytest.mark.parametrize("option, name", [
+    ("rate=0", "rate"), ("rate=abc", "rate"), ("rate=-1", "rate"), ("rate=inf", "rate"),
+    ("rate=nan", "rate"), ("rate=", "rate"), ("loop=-1", "loop"), ("loop=1.5", "loop"),
+    ("loop=x", "loop"), ("frames=0", "frames"), ("frames=-3", "frames"), ("start=x", "start"),
+    ("start=-1", "start"), ("start=-1s", "start"), ("start=1.5", "start"), ("reordered=2", "reordered"),
+    ("rate=1&rate=2", "rate"),
+])
+def test_bad_option_values(capture, option, name):
+    d, _ = capture
+    with pytest.raises(SourceError) as info:
+        open_source(f"replay://{d}?{option}")
+    assert info.value.exit_code == 2
+    assert name in str(info.value)
+
+
+@pytest.mark.parametrize("url", ["nosuchscheme://192.168.33.180", "ftp://host/x", "file:///tmp/x"])
+def test_unknown_scheme_lists_supported(url):
+    with pytest.raises(SourceError) as info:
+        open_source(url)
+    assert url.split("://")[0] in str(info.value)
+    assert "replay://" in str(info.value)
+    assert all(f"{scheme}://" in str(info.value) for scheme in SCHEMES)
+    assert info.value.exit_code == 2
+
+
+def test_url_without_scheme(capture):
+    d, _ = capture
+    for url in (str(d), "", "://x"):
+        with pytest.raises(SourceError) as info:
+            open_source(url)
+        assert "replay" in str(info.value)
+
+
+@pytest.mark.parametrize("url", ["replay://", "replay://?rate=max"])
+def test_missing_path(url):
+    with pytest.raises(SourceError):
+        open_source(url)
+
+
+def test_nonexistent_path(tmp_path):
+    with pytest.raises(SourceError) as info:
+        open_source(f"replay://{tmp_path / 'nothing'}")
+    assert "nothing" in str(info.value)
+
+
+def test_directory_without_cfg_needs_config(capture, small_cfg):
+    d, frames = capture
+    (d / "radar.cfg").unlink()
+    with pytest.raises(ConfigError) as info:
+        open_source(f"replay://{d}?rate=max")
+    assert info.value.exit_code == 2
+    with open_source(f"replay://{d}?rate=max", small_cfg) as src:
+        assert [bytes(f.raw) for f in src] == frames
+
+
+def test_given_config_overrides_recorded(capture, warnings_log):
+    d, frames = capture
+    i_first = RadarConfig.from_text(SMALL_CFG.replace("adcbufCfg -1 0 1 1 1", "adcbufCfg -1 0 0 1 1"),
+                                    "i_first.cfg")
+    with open_source(f"replay://{d}?rate=max", i_first) as src:
+        assert src.config is i_first
+        got = list(src)
+    assert len(got) == 6
+    assert not got[0].layout.q_first
+    np.testing.assert_array_equal(got[1].cube(), RawLayout(4, 3, 4, 16, q_first=False).decode(frames[1]))
+    # a configuration with other frames re-cuts the stream
+    half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
+    with open_source(f"replay://{d}?rate=max", half) as src:
+        assert [bytes(f.raw) for f in src][:2] == [frames[0][:1536], frames[0][1536:]]
+    assert any("differs" in m for m in _warnings(warnings_log))
+
+
+# --------------------------------------------------------------- TI recorder files
+
+def _cubes(cfg, n, seed=0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    shape = (n, *cfg.cube_shape)
+    return (rng.integers(-2000, 2000, shape) + 1j * rng.integers(-2000, 2000, shape)).astype(np.complex64)
+
+
+def _write_split(directory, data: bytes, cuts, prefix="adc_data_Raw_", numbers=None):
+    directory.mkdir(exist_ok=True)
+    edges = [0, *cuts, len(data)]
+    numbers = numbers if numbers is not None else range(len(edges) - 1)
+    for k, n in enumerate(numbers):
+        (directory / f"{prefix}{n}.bin").write_bytes(data[edges[k]: edges[k + 1]])
+
+
+def test_ti_series_split_inside_frames(tmp_path, small_cfg, warnings_log):
+    cubes = _cubes(small_cfg, 5)
+    data = RawLayout.from_config(small_cfg, iq_interleaved=True).encode(cubes)
+    fb = small_cfg.frame_bytes
+    assert len(data) == 5 * fb
+    d = tmp_path / "ti"
+    # frame 1 (bytes 3072..6144) spans all three files; frame 3 spans the last cut
+    _write_split(d, data, [4100, 5000])
+    for path in (d / "adc_data_Raw_0.bin", d / "adc_data_Raw_1.bin", d):
+        with open_source(f"replay://{path}?rate=max", small_cfg) as src:
+            got = list(src)
+        assert len(got) == 5, path
+        for k, f in enumerate(got):
+            assert bytes(f.raw) == data[k * fb:(k + 1) * fb]
+            assert f.layout.iq_interleaved
+            np.testing.assert_array_equal(f.cube(), cubes[k])
+            assert f.timestamp == pytest.approx(k * PERIOD)
+            assert f.missing_bytes == 0 and f.pose is None
+    assert _warnings(warnings_log) == []
+
+
+def test_ti_series_cut_off_tail_warns(tmp_path, small_cfg, warnings_log):
+    cubes = _cubes(small_cfg, 3)
+    data = RawLayout.from_config(small_cfg, iq_interleaved=True).encode(cubes)
+    d = tmp_path / "ti"
+    _write_split(d, data + b"\x01" * 1000, [5000])
+    with open_source(f"replay://{d / 'adc_data_Raw_0.bin'}?rate=max", small_cfg) as src:
+        got = [f.cube() for f in src]
+    assert len(got) == 3
+    np.testing.assert_array_equal(np.stack(got), cubes)
+    assert any("1000" in m for m in _warnings(warnings_log))
+
+
+def test_reordered_flag_matters(tmp_path, small_cfg):
+    """The same raw-order bytes decode right only with reordered=0."""
+    cubes = _cubes(small_cfg, 2)
+    raw_order = RawLayout.from_config(small_cfg).encode(cubes)
+    d = tmp_path / "ti"
+    _write_split(d, raw_order, [])
+    url = f"replay://{d / 'adc_data_Raw_0.bin'}?rate=max"
+    with open_source(url + "&reordered=0", small_cfg) as src:
+        got = [f.cube() for f in src]
+    np.testing.assert_array_equal(np.stack(got), cubes)
+    with open_source(url, small_cfg) as src:  # series default: reordered
+        wrong = [f.cube() for f in src]
+    assert not np.array_equal(np.stack(wrong), cubes)
+
+
+def test_mmwave_studio_single_file(tmp_path, small_cfg):
+    """adc_data.bin from mmWave Studio: raw order by default, I first with SampleSwap 0."""
+    i_first = RadarConfig.from_text(SMALL_CFG.replace("adcbufCfg -1 0 1 1 1", "adcbufCfg -1 0 0 1 1"))
+    cubes = _cubes(i_first, 3, seed=4)
+    d = tmp_path / "studio"
+    d.mkdir()
+    path = d / "adc_data.bin"
+    path.write_bytes(RawLayout.from_config(i_first).encode(cubes))
+    for query in ("rate=max", "rate=max&reordered=0"):
+        with open_source(f"replay://{path}?{query}", i_first) as src:
+            got = list(src)
+        assert not got[0].layout.iq_interleaved and not got[0].layout.q_first
+        np.testing.assert_array_equal(np.stack([f.cube() for f in got]), cubes)
+    # a reordered single file needs reordered=1
+    path.write_bytes(RawLayout.from_config(small_cfg, iq_interleaved=True).encode(cubes))
+    with open_source(f"replay://{path}?rate=max&reordered=1", small_cfg) as src:
+        np.testing.assert_array_equal(np.stack([f.cube() for f in src]), cubes)
+
+
+def test_ti_series_gap_warns(tmp_path, small_cfg, warnings_log):
+    cubes = _cubes(small_cfg, 4)
+    data = RawLayout.from_config(small_cfg, iq_interleaved=True).encode(cubes)
+    d = tmp_path / "ti"
+    _write_split(d, data, [2 * small_cfg.frame_bytes], numbers=[0, 2])
+    with open_source(f"replay://{d / 'adc_data_Raw_0.bin'}?rate=max", small_cfg) as src:
+        got = [f.cube() for f in src]
+    assert len(got) == 2
+    np.testing.assert_array_equal(np.stack(got), cubes[:2])
+    assert any("gap" in m for m in _warnings(warnings_log))
+
+
+@pytest.mark.parametrize("size", [0, 100, 3071])
+def test_ti_file_shorter_than_a_frame(tmp_path, small_cfg, size):
+    d = tmp_path / "ti"
+    d.mkdir()
+    (d / "adc_data_Raw_0.bin").write_bytes(b"\x07" * size)
+    with pytest.raises(CaptureFormatError):
+        open_source(f"replay://{d / 'adc_data_Raw_0.bin'}?rate=max", small_cfg)
+
+
+def test_ti_file_needs_config(tmp_path, small_cfg):
+    d = tmp_path / "ti"
+    _write_split(d, bytes(2 * small_cfg.frame_bytes), [])
+    with pytest.raises(ConfigError):
+        open_source(f"replay://{d / 'adc_data_Raw_0.bin'}?rate=max")
+    with pytest.raises(ConfigError):
+        open_source(f"replay://{d}?rate=max")
+
+
+# --------------------------------------------------------------- run_capture
+
+def test_run_capture_to_end(capture):
+    d, _ = capture
+    with open_source(f"replay://{d}?rate=max") as src:
+        stats = run_capture(src)
+    assert stats.frames == 6 and stats.reason == "end of source"
+    assert stats.incomplete_frames == 1 and stats.missing_bytes == 99
+    assert stats.first_timestamp == pytest.approx(T0)
+    assert stats.stream_duration_s == pytest.approx(5 * PERIOD)
+
+
+def test_run_capture_max_frames(capture):
+    d, frames = capture
+    seen = []
+    with open_source(f"replay://{d}?rate=max&loop=0") as src:
+        stats = run_capture(src, max_frames=9, on_frame=lambda f, s: seen.append(bytes(f.raw)))
+    assert stats.frames == 9 and stats.reason == "frame limit"
+    assert seen == [frames[i % 6] for i in range(9)]
+
+
+def test_run_capture_max_duration_is_stream_time(capture):
+    d, _ = capture
+    seen = []
+    with open_source(f"replay://{d}?rate=max&loop=0") as src:
+        # loop=0 at rate=max: a wall-clock limit would let thousands of frames through
+        stats = run_capture(src, max_duration_s=0.175, on_frame=lambda f, s: seen.append(f.timestamp))
+    assert stats.frames == 4 and stats.reason == "duration limit"
+    np.testing.assert_allclose(seen, T0 + PERIOD * np.arange(4), atol=1e-9)
+    # looping: 0.5 s of stream is 10 frames of a 6-frame capture
+    with open_source(f"replay://{d}?rate=max&loop=0") as src:
+        stats = run_capture(src, max_duration_s=0.475)
+    assert stats.frames == 10
+
+
+def test_run_capture_stopped(capture):
+    d, _ = capture
+
+    def on_frame(frame, stats):
+        if stats.frames == 3:
+            src.stop()
+
+    with open_source(f"replay://{d}?rate=max&loop=0") as src:
+        stats = run_capture(src, on_frame=on_frame)
+    assert stats.frames == 3 and stats.reason == "stopped"
+
+
+def test_run_capture_records_identical_capture(capture, tmp_path):
+    d, frames = capture
+    out = tmp_path / "out"
+    url = f"replay://{d}?rate=max"
+    with open_source(url) as src:
+        writer = CaptureWriter(out, src.config, source=url)
+        stats = run_capture(src, writer=writer)
+    assert stats.frames == 6
+    for name in ("adc_data.bin", "timestamps.txt", "groundtruth.tum", "radar.cfg"):
+        assert (out / name).read_bytes() == (d / name).read_bytes(), name
+    rec = CaptureDirectory(out)
+    assert rec.metadata["closed"] is True and rec.metadata["source"] == url
+    assert rec.metadata["incomplete_frames"] == [{"frame": 2, "missing_bytes": 99}]
+    assert rec.missing_bytes(2) == 99
+
+
+def test_run_capture_closes_writer_on_exception(capture, tmp_path):
+    d, frames = capture
+    out = tmp_path / "out"
+
+    class Boom(RuntimeError):
+        pass
+
+    def on_frame(frame, stats):
+        if stats.frames == 3:
+            raise Boom("consumer failed")
+
+    with open_source(f"replay://{d}?rate=max") as src:
+        writer = CaptureWriter(out, src.config)
+        with pytest.raises(Boom):
+            run_capture(src, writer=writer, on_frame=on_frame)
+    rec = CaptureDirectory(out)
+    assert rec.metadata["closed"] is True
+    assert rec.metadata["frame_count"] == 3
+    assert [bytes(rec.raw(i)) for i in range(3)] == frames[:3]
