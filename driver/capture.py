@@ -18,6 +18,8 @@ from .sources import Frame, Source
 
 log = logging.getLogger(__name__)
 
+_DURATION_TOLERANCE_S = 1e-6
+
 
 @dataclass
 class CaptureStats:
@@ -39,9 +41,17 @@ class CaptureStats:
             return 0.0
         return self.last_timestamp - self.first_timestamp
 
+    #: Wall time (monotonic) of the first and the last frame.
+    first_frame_monotonic: float | None = None
+    last_frame_monotonic: float | None = None
+
     @property
     def mean_rate_hz(self) -> float:
-        return self.frames / self.elapsed_s if self.elapsed_s > 0 else 0.0
+        """Frames per second of wall time between the first and the last frame."""
+        if self.frames < 2 or self.first_frame_monotonic is None:
+            return 0.0
+        span = self.last_frame_monotonic - self.first_frame_monotonic
+        return (self.frames - 1) / span if span > 0 else 0.0
 
 
 def run_capture(
@@ -62,8 +72,10 @@ def run_capture(
     stats.reason = "end of source"
     try:
         for frame in source:
+            # The tolerance keeps 1000.15 - 1000.0 (= 0.14999...) from counting as
+            # short of 0.15 s; timestamps are only kept to the nanosecond anyway.
             if max_duration_s is not None and stats.first_timestamp is not None and \
-                    frame.timestamp - stats.first_timestamp >= max_duration_s:
+                    frame.timestamp - stats.first_timestamp >= max_duration_s - _DURATION_TOLERANCE_S:
                 stats.reason = "duration limit"
                 break
             if writer is not None:
@@ -75,7 +87,11 @@ def run_capture(
             if stats.first_timestamp is None:
                 stats.first_timestamp = frame.timestamp
             stats.last_timestamp = frame.timestamp
-            stats.elapsed_s = time.monotonic() - stats.started_monotonic
+            now = time.monotonic()
+            if stats.first_frame_monotonic is None:
+                stats.first_frame_monotonic = now
+            stats.last_frame_monotonic = now
+            stats.elapsed_s = now - stats.started_monotonic
             if on_frame is not None:
                 on_frame(frame, stats)
             if max_frames is not None and stats.frames >= max_frames:

@@ -283,9 +283,12 @@ class CaptureDirectory:
 
         size = os.path.getsize(data_path)
         whole, tail = divmod(size, config.frame_bytes)
-        if tail:
+        if tail and whole:
             log.warning("%s: %s ends with %d bytes of a cut-off frame after frame %d; they are ignored",
                         self.directory, ADC_DATA, tail, whole - 1)
+        elif tail:
+            log.warning("%s: %s holds %d bytes, less than one %d-byte frame of %s", self.directory,
+                        ADC_DATA, tail, config.frame_bytes, config.path)
         ts_path = os.path.join(self.directory, TIMESTAMPS)
         stamps = _read_timestamps(ts_path) if os.path.exists(ts_path) else np.empty(0)
         if len(stamps) > whole:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import signal
 import sys
 from typing import Iterator, Sequence
@@ -18,23 +19,14 @@ from ..cfg import RadarConfig
 from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Frame, Source, open_source
-from ..errors import UsageError
 from . import cli
 from .status import RateMeter, StatusAwareHandler, StatusLine, format_duration
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {text}")
-    return value
+log = logging.getLogger("radarodom.tools.radar_capture")
 
-
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
-    return value
+#: What runs when no source is given and no radar is attached.
+DEFAULT_SIM_URL = "sim://corridor"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,15 +35,18 @@ def build_parser() -> argparse.ArgumentParser:
         description="Stream raw radar frames from a source, show a live status, and optionally "
                     "record them to a capture directory.",
         epilog="Sources: replay://DIR[?rate=1.0|max&loop=N&start=K|Ss&frames=N] plays a capture "
-               "directory or TI recorder files (with --cfg).")
+               "directory or TI recorder files (with --cfg); sim://SCENE[?seed=N&rate=1.0|max&duration=S] "
+               "simulates a scene (corridor, room, lab, calibration, or a .toml/.json file). "
+               f"Without --source: {DEFAULT_SIM_URL}.")
     parser.add_argument("--cfg", metavar="FILE",
                         help="radar configuration (TI .cfg); for replay:// of a capture directory "
                              "it defaults to the directory's radar.cfg")
     parser.add_argument("--source", metavar="URL",
-                        help=f"frame source ({', '.join(s + '://' for s in sorted(SCHEMES))})")
+                        help=f"frame source ({', '.join(s + '://' for s in sorted(SCHEMES))}; "
+                             f"default {DEFAULT_SIM_URL} while no radar is attached)")
     parser.add_argument("--record", metavar="DIR", help="record the frames to this new capture directory")
-    parser.add_argument("--frames", type=_positive_int, metavar="N", help="stop after N frames")
-    parser.add_argument("--duration", type=_positive_float, metavar="S",
+    parser.add_argument("--frames", type=cli.positive_int, metavar="N", help="stop after N frames")
+    parser.add_argument("--duration", type=cli.positive_float, metavar="S",
                         help="stop after S seconds of stream time")
     cli.add_verbosity(parser)
     return parser
@@ -85,7 +80,7 @@ def _status_text(stats: CaptureStats, rate: RateMeter, recording: bool) -> str:
 
 
 def _summary(stats: CaptureStats, record: str | None) -> str:
-    text = (f"{stats.frames} frames ({stats.incomplete_frames} incomplete, {stats.missing_bytes} bytes "
+    text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({stats.incomplete_frames} incomplete, {stats.missing_bytes} bytes "
             f"lost) in {stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, "
             f"{stats.stream_duration_s:.2f} s of stream; {stats.reason}")
     if record:
@@ -97,8 +92,11 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     if not args.source:
-        raise UsageError("no --source given; live capture from the radar (dca1000://) and the "
-                         "simulator (sim://) are not available yet: use --source replay://DIR")
+        # The live radar (dca1000://) is the default once the driver exists;
+        # until then, and whenever no radar is attached, the simulator runs.
+        log.warning("no radar attached (live capture via dca1000:// is not available yet): "
+                    "streaming the simulator, %s; choose with --source", DEFAULT_SIM_URL)
+        args.source = DEFAULT_SIM_URL
     rate = RateMeter()
 
     def on_frame(frame: Frame, stats: CaptureStats) -> None:

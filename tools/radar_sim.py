@@ -18,20 +18,6 @@ from . import cli
 from .status import StatusAwareHandler, StatusLine, format_duration
 
 
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
-    return value
-
-
-def _seed(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="radar-sim",
@@ -41,9 +27,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"a built-in scene ({', '.join(BUILTIN_SCENES)}) or a .toml/.json scene file")
     parser.add_argument("--cfg", metavar="FILE", help="radar configuration (default: the shipped "
                                                        "configs/awr1843_raw.cfg)")
-    parser.add_argument("--duration", type=_positive_float, metavar="S",
+    parser.add_argument("--duration", type=cli.positive_float, metavar="S",
                         help="seconds to simulate (default: the whole trajectory)")
-    parser.add_argument("--seed", type=_seed, default=0, metavar="N", help="random seed (default 0)")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N", help="random seed (default 0)")
     parser.add_argument("--out", required=True, metavar="DIR", help="new capture directory to write")
     cli.add_verbosity(parser)
     return parser

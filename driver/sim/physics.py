@@ -99,6 +99,8 @@ class FmcwSynthesizer:
         # Block length for the beat tone: the largest power of two dividing the
         # sample count up to 16 (samples are even, so at least 2).
         self._block = next(b for b in (16, 8, 4, 2, 1) if samples % b == 0)
+        self._inner_n = np.arange(self._block, dtype=float)
+        self._outer_n = self._block * np.arange(samples // self._block, dtype=float)
 
     @property
     def chirps_per_frame(self) -> int:
@@ -137,8 +139,12 @@ class FmcwSynthesizer:
         main *= amp.astype(np.complex64)[None, :]
         step = _unit_phasor(0.5 * p_rx[..., 0] / r_rx)  # exp(j pi u_x), (C, K)
         a = np.empty((loops * slots, nrx, k), np.complex64)
-        for i, r in enumerate(self.rx_index):
-            a[:, i] = main * step**r if r else main
+        power = main  # main * step**r, by repeated products (complex ** is slow)
+        for r in range(int(self.rx_index[-1]) + 1):
+            if r:
+                power = power * step
+            for i in np.flatnonzero(self.rx_index == r):
+                a[:, i] = power
 
         flat = out.reshape(loops * slots, nrx, ns)
         chunk = self.loops_per_chunk * slots
@@ -160,8 +166,8 @@ class FmcwSynthesizer:
         cycles_per_sample = self.slope * tau / self.cfg.sample_rate_hz  # (K,)
         first = -(ns - 1) / 2.0  # t_n - t_mid in samples, at n = 0
         block = self._block
-        inner = _unit_phasor(np.mod(cycles_per_sample[:, None] * np.arange(block), 1.0))
-        outer = _unit_phasor(np.mod(cycles_per_sample[:, None] * (first + block * np.arange(ns // block)), 1.0))
+        inner = _unit_phasor(np.mod(cycles_per_sample[:, None] * self._inner_n, 1.0))
+        outer = _unit_phasor(np.mod(cycles_per_sample[:, None] * (first + self._outer_n), 1.0))
         tone = np.empty((len(tau), ns // block, block), np.complex64)
         np.multiply(outer[:, :, None], inner[:, None, :], out=tone)
         return tone.reshape(len(tau), ns)

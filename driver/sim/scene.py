@@ -80,7 +80,7 @@ def _points(pos, rcs, rng, *, normal=None, exponent=0.0, pointlike=False) -> Sca
 
 
 def sample_surface(a, b, z0: float, z1: float, sigma0: float, rng: np.random.Generator, *,
-                   spacing: float = 0.08, row_spacing: float = 0.3, exponent: float = 2.0) -> Scatterers:
+                   spacing: float = 0.1, row_spacing: float = 0.35, exponent: float = 2.0) -> Scatterers:
     """Scatterers on the vertical rectangle above the floor segment a-b, z0..z1."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     length = float(np.hypot(*(b - a)))
@@ -99,7 +99,7 @@ def sample_surface(a, b, z0: float, z1: float, sigma0: float, rng: np.random.Gen
 
 
 def sample_plane(lo, hi, z: float, sigma0: float, rng: np.random.Generator, *,
-                 spacing: float = 0.3, exponent: float = 1.0) -> Scatterers:
+                 spacing: float = 0.35, exponent: float = 1.0) -> Scatterers:
     """Scatterers on the horizontal rectangle lo..hi (x, y) at height z (floor, ceiling)."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     nx = max(1, math.ceil((hi[0] - lo[0]) / spacing))

@@ -56,14 +56,16 @@ def world_to_sensor(points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.nd
     y boresight (body forward), z up.
     """
     pts = points if points.ndim == 3 else points[None]
-    dx = pts[..., 0] - x[:, None]
-    dy = pts[..., 1] - y[:, None]
+    shape = (len(x), pts.shape[1])
+    out = np.empty(shape + (3,))
+    dx = np.subtract(pts[..., 0], x[:, None])
+    dy = np.subtract(pts[..., 1], y[:, None])
     c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    fwd = c * dx + s * dy  # body x
-    left = -s * dx + c * dy  # body y
-    out = np.empty(np.broadcast_shapes(dx.shape) + (3,))
-    out[..., 0] = -left
-    out[..., 1] = fwd
+    # x_TI = -(body y) = s dx - c dy;  y_TI = body x = c dx + s dy
+    np.multiply(s, dx, out=out[..., 0])
+    out[..., 0] -= c * dy
+    np.multiply(c, dx, out=out[..., 1])
+    out[..., 1] += s * dy
     out[..., 2] = pts[..., 2] - height
     return out
 

@@ -1,0 +1,531 @@
+"""radar-capture, the command-line program: replay -> record round trips, limits,
+error lines, Ctrl-C/SIGTERM, and the live status line on a terminal.
+
+The programs run as subprocesses (the installed console script) unless a test
+says otherwise.  Frames are SMALL_CFG's: 3072 bytes every 50 ms.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import logging
+import os
+import pty
+import re
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from conftest import SMALL_CFG, make_capture
+
+from radarodom.cfg import RadarConfig
+from radarodom.driver.capture_dir import CaptureDirectory
+from radarodom.tools import radar_capture
+
+FRAME_BYTES = 3072
+PERIOD_S = 0.05
+T0 = 1000.0
+N_SRC = 10
+INCOMPLETE = {3: 100}
+
+
+def _command(name: str) -> list[str]:
+    """The installed console script *name*, or ``python -m`` of its module."""
+    path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
+    found = shutil.which(name, path=path)
+    if found:
+        return [found]
+    return [sys.executable, "-m", "radarodom.tools." + name.replace("-", "_")]
+
+
+CAPTURE = _command("radar-capture")
+
+
+def run_capture_cli(*args, timeout=60) -> subprocess.CompletedProcess:
+    return subprocess.run(CAPTURE + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def popen_capture(*args, **kw) -> subprocess.Popen:
+    kw.setdefault("stdout", subprocess.PIPE)
+    kw.setdefault("stderr", subprocess.PIPE)
+    return subprocess.Popen(CAPTURE + [str(a) for a in args], stdin=subprocess.DEVNULL, **kw)
+
+
+def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
+    noun = "frame" if frames == 1 else "frames"
+    text = (rf"radar-capture: {frames} {noun} \({incomplete} incomplete, {lost} bytes lost\) "
+            rf"in \d+\.\d s, \d+\.\d Hz, {stream_s} s of stream; {re.escape(reason)}")
+    if record is not None:
+        text += rf"; recorded to {re.escape(str(record))}"
+    return text
+
+
+def one_error_line(proc, prog="radar-capture") -> str:
+    """The single 'prog: error: ...' line of a failed run (argparse adds its usage above it)."""
+    assert "Traceback" not in proc.stderr, proc.stderr
+    errors = [ln for ln in proc.stderr.splitlines() if ln.startswith(f"{prog}: error:")]
+    assert len(errors) == 1, proc.stderr
+    return errors[0]
+
+
+def meta(directory) -> dict:
+    return json.loads((directory / "capture.json").read_text())
+
+
+def snapshot(directory) -> dict:
+    return {p.name: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(directory.iterdir())}
+
+
+@pytest.fixture(autouse=True)
+def _restore_radarodom_logger():
+    """main() in-process attaches a stderr handler to the 'radarodom' logger and sets
+    its level; put both back so other tests see the logger as they left it."""
+    logger = logging.getLogger("radarodom")
+    handlers, level = list(logger.handlers), logger.level
+    yield
+    logger.handlers[:] = handlers
+    logger.setLevel(level)
+
+
+@pytest.fixture
+def src(tmp_path, small_cfg):
+    """A 10-frame capture directory with an incomplete frame 3 and poses; (path, frames)."""
+    path = tmp_path / "src"
+    frames = make_capture(path, small_cfg, N_SRC, t0=T0, incomplete=INCOMPLETE, poses=True)
+    assert small_cfg.frame_bytes == FRAME_BYTES and small_cfg.frame_period_s == PERIOD_S
+    return path, frames
+
+
+# ------------------------------------------------------------ the key round trip
+def test_replay_record_round_trip_is_identical(src, tmp_path):
+    path, frames = src
+    out = tmp_path / "out"
+    url = f"replay://{path}?rate=max"
+    proc = run_capture_cli("--source", url, "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source", out), proc.stdout.rstrip("\n")), \
+        proc.stdout
+    assert proc.stdout.count("\n") == 1
+
+    for name in ("adc_data.bin", "timestamps.txt", "groundtruth.tum", "radar.cfg"):
+        assert (out / name).read_bytes() == (path / name).read_bytes(), name
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+
+    got, want = meta(out), meta(path)
+    assert got["closed"] is True
+    assert got["incomplete_frames"] == want["incomplete_frames"] == [{"frame": 3, "missing_bytes": 100}]
+    assert got["frame_count"] == 10 and got["lost_bytes"] == 100
+    assert got["first_timestamp"] == T0 and got["last_timestamp"] == want["last_timestamp"]
+    assert got["frame_bytes"] == FRAME_BYTES
+    assert got["source"] == url
+
+    rec = CaptureDirectory(out)
+    assert rec.num_frames == 10 and rec.missing_bytes(3) == 100 and rec.missing_bytes(2) == 0
+
+
+def test_in_process_frames_limit_and_signal_handlers_restored(src, tmp_path, capsys):
+    path, frames = src
+    out = tmp_path / "out"
+    before = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+    rc = radar_capture.main(["--source", f"replay://{path}?rate=max", "--frames", "3",
+                             "--record", str(out)])
+    stdout, stderr = capsys.readouterr()
+    assert rc == 0, stderr
+    assert stderr == ""
+    assert re.fullmatch(summary_re(3, 0, 0, "0.10", "frame limit", out), stdout.rstrip("\n")), stdout
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames[:3])
+
+
+def test_no_record_streams_only(src, tmp_path):
+    path, _ = src
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max")
+    assert proc.returncode == 0, proc.stderr
+    assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source"), proc.stdout.rstrip("\n")), \
+        proc.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
+
+
+# ------------------------------------------------------------------------ --cfg
+def test_cfg_defaults_to_the_directory_radar_cfg(tmp_path):
+    # A capture with a cfg unlike SMALL_CFG (8 loops, 100 ms): only its own radar.cfg reads it.
+    text = SMALL_CFG.replace("frameCfg 0 2 4 0 50 1 0", "frameCfg 0 2 8 0 100 1 0")
+    cfg = RadarConfig.from_text(text, "eight.cfg")
+    assert cfg.frame_bytes == 2 * FRAME_BYTES
+    path, out = tmp_path / "src8", tmp_path / "out"
+    frames = make_capture(path, cfg, 5)
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert (out / "radar.cfg").read_text() == (path / "radar.cfg").read_text()
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+    assert re.fullmatch(summary_re(5, 0, 0, "0.40", "end of source", out), proc.stdout.rstrip("\n"))
+
+
+def _alt_cfg(tmp_path):
+    """SMALL_CFG at 100 ms with a marker comment: same frame size, different cfg."""
+    alt = tmp_path / "alt.cfg"
+    alt.write_text(SMALL_CFG.replace("% small test profile", "% alternative profile for --cfg")
+                   .replace("frameCfg 0 2 4 0 50 1 0", "frameCfg 0 2 4 0 100 1 0"))
+    return alt
+
+
+def test_explicit_cfg_is_needed_without_radar_cfg_and_used(src, tmp_path):
+    path, frames = src
+    (path / "radar.cfg").unlink()
+    out = tmp_path / "out"
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out)
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert "radar.cfg" in line and "--cfg" in line
+    assert not out.exists()
+
+    alt = _alt_cfg(tmp_path)
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--cfg", alt, "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+    assert (out / "radar.cfg").read_text() == RadarConfig.from_file(alt).to_text()
+    assert "% alternative profile for --cfg" in (out / "radar.cfg").read_text()
+
+
+def test_explicit_cfg_overrides_the_directory_radar_cfg(src, tmp_path):
+    path, frames = src
+    out = tmp_path / "out"
+    alt = _alt_cfg(tmp_path)
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--cfg", alt, "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""  # same frame size and cube: no mismatch warning
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+    assert (out / "radar.cfg").read_text() == RadarConfig.from_file(alt).to_text()
+    assert CaptureDirectory(out).config.frame_period_s == 0.1
+
+
+def test_cfg_with_bigger_frames_than_the_data(src, tmp_path):
+    path, _ = src
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max",
+                           "--cfg", os.path.join(os.path.dirname(__file__), "..", "configs",
+                                                 "awr1843_raw.cfg"))
+    assert proc.returncode == 2
+    assert "holds no whole frame" in one_error_line(proc)
+    assert "frame -1" not in proc.stderr
+
+
+# ---------------------------------------------------------------------- limits
+def test_frames_limit_records_exactly_n(src, tmp_path):
+    path, frames = src
+    out = tmp_path / "out"
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--frames", "3", "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    assert re.fullmatch(summary_re(3, 0, 0, "0.10", "frame limit", out), proc.stdout.rstrip("\n"))
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames[:3])
+    src_stamps = (path / "timestamps.txt").read_text().splitlines()
+    assert (out / "timestamps.txt").read_text().splitlines() == src_stamps[:3]
+    m = meta(out)
+    assert m["frame_count"] == 3 and m["closed"] is True
+    assert m["incomplete_frames"] == []  # frame 3 (the incomplete one) is the 4th: not recorded
+
+
+@pytest.mark.parametrize("duration,expected", [
+    # The rule (driver/capture.py): a frame is recorded while its stream time since the
+    # first frame is below --duration; the first frame at or past it stops the run.
+    ("0.2", 4), ("0.25", 5), ("0.1", 2), ("0.12", 3),
+    ("0.05", 1),
+    ("0.15", 3),
+    ("0.3", 6),
+])
+def test_duration_limit_counts_stream_time(src, tmp_path, duration, expected):
+    path, frames = src
+    out = tmp_path / "out"
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--duration", duration, "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    stream = f"{(expected - 1) * PERIOD_S:.2f}"
+    inc = 1 if expected > 3 else 0
+    assert re.fullmatch(summary_re(expected, inc, 100 * inc, stream, "duration limit", out),
+                        proc.stdout.rstrip("\n")), proc.stdout
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames[:expected])
+    assert meta(out)["frame_count"] == expected
+
+
+def test_duration_past_the_end_ends_with_the_source(src, tmp_path):
+    path, _ = src
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--duration", "5")
+    assert proc.returncode == 0, proc.stderr
+    assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source"), proc.stdout.rstrip("\n"))
+
+
+# ------------------------------------------------------------------ bad inputs
+def _bad_cfg(tmp_path):
+    bad = tmp_path / "bad.cfg"
+    bad.write_text(SMALL_CFG.replace("adcCfg 2 1", "adcCfg 2 0"))
+    line = SMALL_CFG.splitlines().index("adcCfg 2 1") + 1
+    return bad, rf"{re.escape(str(bad))}:{line}: adcCfg: adcOutputFmt: \S.*"
+
+
+@pytest.mark.parametrize("case", ["unknown-scheme", "not-a-url", "unknown-option", "bad-option-value",
+                                  "option-twice", "missing-dir", "invalid-cfg"])
+def test_bad_source_or_cfg_is_one_clear_line(src, tmp_path, case):
+    path, _ = src
+    out = tmp_path / "out"
+    missing = tmp_path / "no-such-dir"
+    args = {
+        "unknown-scheme": ["--source", f"foo://{path}"],
+        "not-a-url": ["--source", str(path)],
+        "unknown-option": ["--source", f"replay://{path}?rate=max&speed=2"],
+        "bad-option-value": ["--source", f"replay://{path}?rate=0"],
+        "option-twice": ["--source", f"replay://{path}?rate=max&rate=2"],
+        "missing-dir": ["--source", f"replay://{missing}"],
+        "invalid-cfg": ["--source", f"replay://{path}?rate=max", "--cfg", _bad_cfg(tmp_path)[0]],
+    }[case]
+    proc = run_capture_cli(*args, "--record", out)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    line = one_error_line(proc)
+    if case == "unknown-scheme":
+        assert "'foo'" in line and "replay://" in line
+    elif case == "not-a-url":
+        assert "scheme://" in line and "replay" in line
+    elif case == "unknown-option":
+        assert "speed" in line
+        for option in ("rate=", "loop=", "start=", "frames=", "reordered="):
+            assert option in line.split("supported:", 1)[1], option
+    elif case == "bad-option-value":
+        assert "rate='0'" in line and "expected" in line
+    elif case == "option-twice":
+        assert "'rate'" in line and "twice" in line
+    elif case == "missing-dir":
+        assert str(missing) in line and "no such file or directory" in line
+    elif case == "invalid-cfg":
+        assert re.fullmatch(r"radar-capture: error: " + _bad_cfg(tmp_path)[1], line), line
+    assert not out.exists()  # nothing created by a run that failed before streaming
+
+
+@pytest.mark.parametrize("target", ["other-capture", "the-source-itself"])
+def test_record_into_an_existing_capture_is_refused(src, tmp_path, small_cfg, target):
+    path, frames = src
+    if target == "other-capture":
+        old = tmp_path / "old"
+        make_capture(old, small_cfg, 4, seed=7, poses=True)
+    else:
+        old = path
+    before = snapshot(old)
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", old)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    line = one_error_line(proc)
+    assert str(old) in line and "already holds a capture" in line
+    assert snapshot(old) == before
+
+
+@pytest.mark.parametrize("option,value", [("--frames", "0"), ("--frames", "abc"), ("--frames", "-2"),
+                                          ("--duration", "0"), ("--duration", "-1"),
+                                          ("--duration", "abc")])
+def test_bad_limits_are_usage_errors(src, tmp_path, option, value):
+    path, _ = src
+    out = tmp_path / "out"
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, f"{option}={value}")
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    line = one_error_line(proc)
+    assert option in line and value in line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option", ["--frames", "--duration"])
+def test_non_number_limit_message_is_clear(src, option):
+    path, _ = src
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", option, "abc")
+    assert proc.returncode == 2
+    assert "_positive" not in one_error_line(proc)
+
+
+def test_no_source_streams_the_simulator_and_says_so():
+    # Originally "no --source" was a usage error suggesting replay://; the working tree
+    # (tools/radar_capture.py, DEFAULT_SIM_URL) now streams the simulator with a warning.
+    proc = run_capture_cli("--frames", "2")
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    warnings = proc.stderr.splitlines()
+    assert len(warnings) == 1, proc.stderr
+    assert warnings[0].startswith("radar-capture: warning: ")
+    assert radar_capture.DEFAULT_SIM_URL in warnings[0] and "--source" in warnings[0]
+    assert re.fullmatch(r"radar-capture: 2 frames \(0 incomplete, 0 bytes lost\) in \d+\.\d s, "
+                        r"\d+\.\d Hz, \d+\.\d\d s of stream; frame limit", proc.stdout.rstrip("\n")), \
+        proc.stdout
+
+
+def test_help_exits_0():
+    proc = run_capture_cli("--help")
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("usage: radar-capture")
+    for word in ("--source", "--record", "--frames", "--duration", "--cfg", "replay://"):
+        assert word in proc.stdout, word
+
+
+# --------------------------------------------------------- Ctrl-C and SIGTERM
+def _wait_for_frames(proc, out, count, timeout=15.0):
+    data = out / "adc_data.bin"
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if data.exists() and data.stat().st_size >= count * FRAME_BYTES:
+            return
+        if proc.poll() is not None:
+            pytest.fail(f"radar-capture ended early ({proc.returncode}): {proc.communicate()}")
+        time.sleep(0.01)
+    pytest.fail(f"fewer than {count} frames recorded after {timeout} s")
+
+
+def _check_looped_recording(out, path, frames, n) -> int:
+    """OUT reads back, and its frame k is source frame k % n (timestamps continue)."""
+    rec, source = CaptureDirectory(out), CaptureDirectory(path)
+    count = rec.num_frames
+    assert (out / "adc_data.bin").stat().st_size == count * FRAME_BYTES
+    assert len(rec.timestamps) == count
+    for k in range(count):
+        assert bytes(rec.raw(k)) == frames[k % n], k
+        assert rec.missing_bytes(k) == INCOMPLETE.get(k % n, 0), k
+        assert rec.pose(k) == pytest.approx(source.pose(k % n)), k
+    np.testing.assert_allclose(rec.timestamps, T0 + PERIOD_S * np.arange(count), atol=1e-6)
+    return count
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_stops_and_closes_the_recording(tmp_path, small_cfg, sig):
+    n = 5  # short, so the loop wraps before the signal
+    path, out = tmp_path / "src", tmp_path / "out"
+    frames = make_capture(path, small_cfg, n, t0=T0, incomplete=INCOMPLETE, poses=True)
+    proc = popen_capture("--source", f"replay://{path}?loop=0", "--record", out, text=True)
+    try:
+        _wait_for_frames(proc, out, n + 2)
+        proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=5)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, stderr
+    assert stderr == ""
+    m = meta(out)
+    assert m["closed"] is True
+    count = _check_looped_recording(out, path, frames, n)
+    assert count >= n + 2
+    assert m["frame_count"] == count
+    assert m["incomplete_frames"] == [{"frame": k, "missing_bytes": 100} for k in range(count) if k % n == 3]
+    inc = len(m["incomplete_frames"])
+    assert re.fullmatch(summary_re(count, inc, 100 * inc, f"{(count - 1) * PERIOD_S:.2f}", "stopped", out),
+                        stdout.rstrip("\n")), stdout
+
+
+def test_second_signal_aborts_and_leaves_a_readable_capture(tmp_path, small_cfg):
+    n = 5
+    path, out = tmp_path / "src", tmp_path / "out"
+    frames = make_capture(path, small_cfg, n, t0=T0, incomplete=INCOMPLETE, poses=True)
+    proc = popen_capture("--source", f"replay://{path}?loop=0", "--record", out, text=True)
+    try:
+        _wait_for_frames(proc, out, 3)
+        # Stopped, the process gets both signals at once when it resumes: the first asks
+        # for a clean stop, the second aborts.
+        proc.send_signal(signal.SIGSTOP)
+        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(signal.SIGCONT)
+        stdout, stderr = proc.communicate(timeout=5)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, stderr
+    assert stdout == ""
+    assert stderr.splitlines() == ["radar-capture: interrupted"]
+    assert _check_looped_recording(out, path, frames, n) >= 3
+
+
+# --------------------------------------------------------------- status line
+def _run_on_pty(*args, timeout=15.0):
+    """Run radar-capture with stderr on a pseudo-terminal; (returncode, pty bytes, stdout)."""
+    master, slave = pty.openpty()
+    try:
+        proc = popen_capture(*args, stderr=slave)
+    finally:
+        os.close(slave)
+    data = b""
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.1)
+            if not ready:
+                if proc.poll() is not None and not select.select([master], [], [], 0.2)[0]:
+                    break
+                continue
+            try:
+                chunk = os.read(master, 4096)
+            except OSError as exc:  # EIO: the child closed the terminal
+                if exc.errno != errno.EIO:
+                    raise
+                break
+            if not chunk:
+                break
+            data += chunk
+        stdout, _ = proc.communicate(timeout=5)
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return proc.returncode, data, stdout.decode()
+
+
+def test_live_status_line_on_a_terminal(src, tmp_path):
+    path, _ = src
+    out = tmp_path / "out"
+    rc, data, stdout = _run_on_pty("--source", f"replay://{path}?rate=1&loop=0", "--frames", "20",
+                                   "--record", out)
+    assert rc == 0, data
+    text = data.decode()
+    assert "\r" in text and "frames" in text and "Hz" in text
+    redraws = re.findall(r"\rframes (\d+)  rate +(\d+\.\d) Hz  incomplete (\d+)  elapsed [\d:.]+  \[rec\]"
+                         r"\x1b\[K", text)
+    assert len(redraws) >= 3, text  # 1 s at a redraw every 0.25 s
+    counts = [int(f) for f, _, _ in redraws]
+    assert counts == sorted(counts) and counts[0] >= 1 and counts[-1] <= 20
+    assert any(15.0 <= float(r) <= 25.0 for _, r, _ in redraws[1:]), redraws  # 20 Hz stream
+    assert text.endswith("\r\x1b[K")  # the line is erased at the end
+    assert "radar-capture:" not in text  # the summary goes to stdout
+    assert re.fullmatch(summary_re(20, 2, 200, "0.95", "frame limit", out), stdout.rstrip("\n")), stdout
+
+
+def test_quiet_shows_no_status_on_a_terminal(src):
+    path, _ = src
+    url = f"replay://{path}?rate=max"
+    rc, data, stdout = _run_on_pty("--source", url)  # control: a tty shows the first frame at once
+    assert rc == 0 and b"\rframes 1 " in data, data
+    rc, data, stdout = _run_on_pty("--source", url, "--quiet")
+    assert rc == 0, data
+    assert data == b""
+    assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source"), stdout.rstrip("\n")), stdout
+
+
+def test_no_carriage_returns_when_stderr_is_a_pipe(src):
+    path, _ = src
+    proc = run_capture_cli("--source", f"replay://{path}?rate=1", "--frames", "6")
+    assert proc.returncode == 0, proc.stderr
+    assert "\r" not in proc.stderr and "\x1b" not in proc.stderr
+    assert "frames" not in proc.stderr  # a log gets its first status line only after 10 s
+    assert proc.stderr == ""
+
+
+def test_summary_rate_is_the_stream_rate(src):
+    path, _ = src
+    proc = run_capture_cli("--source", f"replay://{path}?rate=1", "--frames", "2")
+    assert proc.returncode == 0, proc.stderr
+    rate = float(re.search(r", (\d+\.\d) Hz,", proc.stdout).group(1))
+    assert rate == pytest.approx(20.0, abs=2.0), proc.stdout

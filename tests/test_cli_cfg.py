@@ -1,0 +1,263 @@
+"""radar-cfg, the command-line program: exit codes, output, error lines.
+
+Most cases run the installed console script in a subprocess (what a user
+runs); a few call ``radarodom.tools.radar_cfg.main`` in-process with capsys.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import pytest
+from conftest import REPO, SMALL_CFG
+
+from radarodom.cfg import RAW_LVDS_LINE, RadarConfig
+from radarodom.tools import radar_cfg
+
+SHIPPED = REPO / "configs" / "awr1843_raw.cfg"
+
+STABLE_KEYS = ("range_resolution_m", "max_range_m", "velocity_resolution_mps", "max_velocity_mps",
+               "frame_bytes", "frame_period_s", "data_rate_mbps", "num_tx", "num_rx", "num_samples",
+               "num_loops", "tx_order")
+
+
+def _command(name: str) -> list[str]:
+    """The installed console script *name*, or ``python -m`` of its module."""
+    path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
+    found = shutil.which(name, path=path)
+    if found:
+        return [found]
+    return [sys.executable, "-m", "radarodom.tools." + name.replace("-", "_")]
+
+
+def run_cfg(*args, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run(_command("radar-cfg") + [str(a) for a in args], cwd=cwd,
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+
+
+@pytest.fixture(autouse=True)
+def _restore_radarodom_logger():
+    """main() in-process attaches a stderr handler to the 'radarodom' logger and sets
+    its level; put both back so other tests see the logger as they left it."""
+    logger = logging.getLogger("radarodom")
+    handlers, level = list(logger.handlers), logger.level
+    yield
+    logger.handlers[:] = handlers
+    logger.setLevel(level)
+
+
+def write_cfg(tmp_path, old: str | None = None, new: str | None = None, name: str = "test.cfg"):
+    """SMALL_CFG with line *old* replaced by *new*; returns (path, 1-based line number)."""
+    lines = SMALL_CFG.splitlines()
+    lineno = None
+    if old is not None:
+        lineno = lines.index(old) + 1
+        lines[lineno - 1] = new
+    path = tmp_path / name
+    path.write_text("\n".join(lines) + "\n")
+    return path, lineno
+
+
+def _table(stdout: str) -> dict[str, tuple[float, str]]:
+    """The '  label   value unit' rows of the human output."""
+    rows = {}
+    for line in stdout.splitlines():
+        m = re.match(r"^  (\S.*?)\s{2,}(-?\d+(?:\.\d+)?) (\S+)$", line)
+        if m:
+            rows[m.group(1)] = (float(m.group(2)), m.group(3))
+    return rows
+
+
+# --------------------------------------------------------------------- valid cfg
+def test_shipped_cfg_prints_derived_quantities_with_units(shipped_cfg):
+    proc = run_cfg("configs/awr1843_raw.cfg", cwd=REPO)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    lines = proc.stdout.splitlines()
+    assert lines[0] == "configs/awr1843_raw.cfg: valid xWR18xx configuration"
+    assert "note:" not in proc.stdout  # the shipped cfg streams raw ADC and fits the DCA1000
+    rows = _table(proc.stdout)
+    cfg = shipped_cfg
+    # (label, value in the printed unit, unit, tolerance: half the last printed digit)
+    expected = [
+        ("range resolution", cfg.range_resolution_m, "m", 5e-5),
+        ("max range (80% IF)", cfg.max_range_m, "m", 5e-3),
+        ("velocity resolution", cfg.velocity_resolution_mps, "m/s", 5e-5),
+        ("max velocity (+/-)", cfg.max_velocity_mps, "m/s", 5e-4),
+        ("carrier (ADC centre)", cfg.carrier_frequency_hz * 1e-9, "GHz", 5e-4),
+        ("sampled bandwidth", cfg.bandwidth_hz * 1e-6, "MHz", 5e-2),
+        ("chirp time", cfg.chirp_time_s * 1e6, "us", 5e-3),
+        ("frame period", cfg.frame_period_s * 1e3, "ms", 5e-4),
+        ("frame size", cfg.frame_bytes, "bytes", 0),
+        ("raw data rate", cfg.data_rate_mbps, "Mbit/s", 5e-3),
+    ]
+    for label, value, unit, tol in expected:
+        assert label in rows, f"no row {label!r} in:\n{proc.stdout}"
+        got, got_unit = rows[label]
+        assert got_unit == unit, label
+        assert got == pytest.approx(value, abs=tol + 1e-12), label
+    # Independent of cfg.py: the figures the shipped cfg's own header comments state.
+    assert rows["range resolution"][0] == pytest.approx(0.049, abs=0.001)
+    assert rows["max range (80% IF)"][0] == pytest.approx(10.0, abs=0.05)
+    assert rows["max velocity (+/-)"][0] == pytest.approx(2.3, abs=0.05)
+    assert rows["velocity resolution"][0] == pytest.approx(0.07, abs=0.001)
+    assert rows["frame size"][0] == 786432
+    assert rows["frame period"][0] == 100.0
+    assert rows["raw data rate"][0] == pytest.approx(63, abs=0.5)
+    assert "TX1 TX3 TX2" in proc.stdout and "12 virtual antennas" in proc.stdout
+    assert "64 loops x 3 chirps x 256 samples" in proc.stdout
+
+
+def _check_stable_keys(data: dict, cfg: RadarConfig) -> None:
+    for key in STABLE_KEYS:
+        assert key in data, key
+    assert data["range_resolution_m"] == cfg.range_resolution_m
+    assert data["max_range_m"] == cfg.max_range_m
+    assert data["velocity_resolution_mps"] == cfg.velocity_resolution_mps
+    assert data["max_velocity_mps"] == cfg.max_velocity_mps
+    assert data["frame_bytes"] == cfg.frame_bytes
+    assert data["frame_period_s"] == cfg.frame_period_s
+    assert data["data_rate_mbps"] == cfg.data_rate_mbps
+    assert data["num_tx"] == cfg.num_tx
+    assert data["num_rx"] == cfg.num_rx
+    assert data["num_samples"] == cfg.num_samples
+    assert data["num_loops"] == cfg.num_loops
+    assert data["tx_order"] == list(cfg.tx_order)
+
+
+def test_json_subprocess_has_stable_keys(shipped_cfg):
+    proc = run_cfg(SHIPPED, "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    data = json.loads(proc.stdout)  # nothing but JSON on stdout
+    _check_stable_keys(data, shipped_cfg)
+    assert data["frame_bytes"] == 786432 and data["tx_order"] == [1, 3, 2]
+    assert data["num_tx"] == 3 and data["num_rx"] == 4
+    assert data["num_samples"] == 256 and data["num_loops"] == 64
+    assert data["streams_raw_adc"] is True
+
+
+def test_json_in_process(tmp_path, small_cfg, capsys):
+    path, _ = write_cfg(tmp_path)
+    assert radar_cfg.main([str(path), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert err == ""
+    data = json.loads(out)
+    _check_stable_keys(data, small_cfg)
+    assert data == json.loads(json.dumps(small_cfg.summary()))
+    assert data["frame_bytes"] == 3072 and data["frame_period_s"] == 0.05
+
+
+def test_packet_delay_changes_capacity(tmp_path, capsys):
+    path, _ = write_cfg(tmp_path)
+    assert radar_cfg.main([str(path), "--json", "--packet-delay-us", "5"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["packet_delay_us"] == 5.0
+    assert data["dca1000_capacity_mbps"] == pytest.approx(706.0)  # UG Table 19
+
+
+# ------------------------------------------------------------------- invalid cfg
+BAD_LINES = [
+    # (line in SMALL_CFG, replacement, command, field)
+    ("profileCfg 0 77 100 6 40 0 0 96 1 16 8000 0 0 30",
+     "profileCfg 0 77 100 6 40 0 0 96 1 15 8000 0 0 30", "profileCfg", "numAdcSamples"),
+    ("profileCfg 0 77 100 6 40 0 0 96 1 16 8000 0 0 30",
+     "profileCfg 0 77 abc 6 40 0 0 96 1 16 8000 0 0 30", "profileCfg", "idleTime"),
+    ("adcCfg 2 1", "adcCfg 1 1", "adcCfg", "numADCBits"),
+    ("frameCfg 0 2 4 0 50 1 0", "frameCfg 0 2 4 0 1 1 0", "frameCfg", "framePeriodicity"),
+]
+
+
+@pytest.mark.parametrize("old,new,command,field", BAD_LINES,
+                         ids=["odd-samples", "not-a-number", "14-bit", "period-too-short"])
+def test_invalid_cfg_one_line_with_location(tmp_path, old, new, command, field):
+    path, lineno = write_cfg(tmp_path, old, new, "bad.cfg")
+    proc = run_cfg(path)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert re.fullmatch(rf"radar-cfg: error: {re.escape(str(path))}:{lineno}: {command}: {field}: \S.*",
+                        lines[0]), lines[0]
+    assert "Traceback" not in proc.stderr
+
+
+def test_invalid_cfg_verbose_shows_traceback(tmp_path):
+    old, new, command, field = BAD_LINES[0]
+    path, lineno = write_cfg(tmp_path, old, new, "bad.cfg")
+    proc = run_cfg("--verbose", path)
+    assert proc.returncode == 2
+    assert f"radar-cfg: error: {path}:{lineno}: {command}: {field}: " in proc.stderr
+    assert "Traceback (most recent call last)" in proc.stderr
+    assert "ConfigError" in proc.stderr
+
+
+def test_invalid_cfg_in_process(tmp_path, capsys):
+    old, new, command, field = BAD_LINES[0]
+    path, lineno = write_cfg(tmp_path, old, new, "bad.cfg")
+    assert radar_cfg.main([str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.splitlines() == [err.rstrip("\n")]
+    assert err.startswith(f"radar-cfg: error: {path}:{lineno}: {command}: {field}: ")
+    assert "Traceback" not in err
+
+
+def test_missing_file_exits_2(tmp_path):
+    path = tmp_path / "nope.cfg"
+    proc = run_cfg(path)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith(f"radar-cfg: error: {path}: ")
+    assert "Traceback" not in proc.stderr
+
+
+def test_no_argument_is_a_usage_error():
+    proc = run_cfg()
+    assert proc.returncode == 2
+    assert "usage: radar-cfg" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+# ----------------------------------------------------------- lvdsStreamCfg note
+def test_non_raw_lvds_is_valid_with_a_note(tmp_path):
+    path, lineno = write_cfg(tmp_path, "lvdsStreamCfg -1 0 1 0", "lvdsStreamCfg -1 0 0 0", "ti.cfg")
+    proc = run_cfg(path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[0] == f"{path}: valid xWR18xx configuration"
+    notes = [ln for ln in proc.stdout.splitlines() if "note:" in ln]
+    assert len(notes) == 1, proc.stdout
+    assert f"line {lineno}" in notes[0]
+    assert "'lvdsStreamCfg -1 0 0 0'" in notes[0]
+    assert f"'{RAW_LVDS_LINE}'" in notes[0] and RAW_LVDS_LINE == "lvdsStreamCfg -1 0 1 0"
+
+    proc = run_cfg(path, "--json")
+    assert proc.returncode == 0
+    assert json.loads(proc.stdout)["streams_raw_adc"] is False
+
+
+def test_missing_lvds_line_is_noted(tmp_path, capsys):
+    path = tmp_path / "nolvds.cfg"
+    path.write_text("".join(ln + "\n" for ln in SMALL_CFG.splitlines()
+                            if not ln.startswith("lvdsStreamCfg")))
+    assert radar_cfg.main([str(path)]) == 0
+    out = capsys.readouterr().out
+    notes = [ln for ln in out.splitlines() if "note:" in ln]
+    assert len(notes) == 1 and "no lvdsStreamCfg line" in notes[0]
+    assert "'lvdsStreamCfg -1 0 1 0'" in notes[0]
+
+
+def test_help_exits_0():
+    proc = run_cfg("--help")
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("usage: radar-cfg")
+    assert "--json" in proc.stdout and "--verbose" in proc.stdout
+    assert proc.stderr == ""
