@@ -35,7 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError
-from .trajectory import Trajectory, from_spec
+from .trajectory import Trajectory, from_spec, polyline
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -284,10 +284,15 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
     rng = np.random.default_rng([seed, 0x5CE9E])
     parts: list[Scatterers] = []
     segments: list[tuple] = []
+    for key in ("walls", "objects", "movers"):
+        if not isinstance(spec.get(key, []), list):
+            raise ConfigError(f"must be a list of tables ([[{key}]] in TOML)", path=where, field=key)
+    if not isinstance(spec.get("surfaces", {}), dict) or not isinstance(spec.get("radar", {}), dict):
+        raise ConfigError("surfaces and radar must be tables", path=where)
     for wall in spec.get("walls", []):
-        pts = np.asarray(_need(wall, "points", where), dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
-            raise ConfigError("wall points must be two or more [x, y]", path=where, field="walls")
+        if not isinstance(wall, dict):
+            raise ConfigError(f"a wall must be a table, got {wall!r}", path=where, field="walls")
+        pts = polyline(_need(wall, "points", where), where, "walls.points")
         height = _num(wall, "height", 2.7, where, positive=True)
         sigma0 = _num(wall, "sigma0", 0.1, where, positive=True)
         for a, b in zip(pts[:-1], pts[1:]):
@@ -310,11 +315,12 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
             parts.append(ceil)
     movers = []
     for m in spec.get("movers", []):
-        if m.get("type") != "person":
-            raise ConfigError(f"unknown mover type {m.get('type')!r}: use person", path=where, field="movers")
-        path = np.asarray(_need(m, "path", where), dtype=float)
-        if path.ndim != 2 or path.shape[1] != 2 or len(path) < 2:
-            raise ConfigError("person path must be two or more [x, y]", path=where, field="movers")
+        if not isinstance(m, dict) or m.get("type") != "person":
+            kind = m.get("type") if isinstance(m, dict) else m
+            raise ConfigError(f"unknown mover {kind!r}: use type = \"person\"", path=where, field="movers")
+        path = polyline(_need(m, "path", where), where, "movers.path")
+        if not np.hypot(*np.diff(path, axis=0).T).all():
+            raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")
         movers.append(Person(path, _num(m, "speed", 1.2, where, positive=True), _num(m, "rcs", 0.5, where, positive=True),
                              float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
     trajectory = from_spec(_need(spec, "trajectory", where), where)

@@ -74,12 +74,24 @@ def _fail(message: str, where: str) -> ConfigError:
 def _number(seg: dict, key: str, where: str, default: float | None = None, positive: bool = False) -> float:
     value = seg.get(key, default)
     if value is None:
-        raise _fail(f"segment {seg!r} needs {key!r}", where)
+        raise _fail(f"{seg!r} needs {key!r}", where)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _fail(f"segment {seg!r}: {key} must be a number", where)
+        raise _fail(f"{key} must be a number, got {value!r}", where)
     if positive and value <= 0:
-        raise _fail(f"segment {seg!r}: {key} must be above 0", where)
+        raise _fail(f"{key} must be above 0, got {value!r}", where)
     return float(value)
+
+
+def polyline(value: Any, where: str, what: str) -> np.ndarray:
+    """Two or more finite [x, y] points as a float array (n, 2), or ConfigError."""
+    try:
+        pts = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        pts = np.zeros((0, 0))
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+        raise ConfigError(f"must be two or more [x, y] points of numbers, got {value!r}"[:200],
+                          path=where, field=what)
+    return pts
 
 
 def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, float]]:
@@ -115,9 +127,19 @@ def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.
     cmds = _commands(segments, where)
     if not cmds:
         raise _fail("no segments", where)
-    n_steps = [max(1, round(d / STEP_S)) for d, _, _ in cmds]
-    speed = np.concatenate([np.full(n, v) for n, (_, v, _) in zip(n_steps, cmds)])
-    rate = np.concatenate([np.full(n, w) for n, (_, _, w) in zip(n_steps, cmds)])
+    speeds, rates = [], []
+    for duration, v, w in cmds:
+        n = round(duration / STEP_S)
+        if n == 0:  # a zero turn or a distance shorter than one step moves nothing
+            continue
+        # Rounding the duration to whole steps would change the distance and angle:
+        # scale the command instead so that its integral stays exact.
+        stretch = duration / (n * STEP_S)
+        speeds.append(np.full(n, v * stretch))
+        rates.append(np.full(n, w * stretch))
+    if not speeds:
+        raise _fail("the segments add up to no motion and no time", where)
+    speed, rate = np.concatenate(speeds), np.concatenate(rates)
     width = max(1, round(smoothing_s / STEP_S))
     box = np.full(width, 1.0 / width)
     for _ in range(2):  # twice: continuous speed and continuous acceleration
@@ -135,9 +157,7 @@ def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.
 def waypoint_segments(points: Sequence[Sequence[float]], *, start_yaw_deg: float = 0.0,
                       speed: float = 1.0, turn_rate_deg: float = 45.0, where: str = "<scene>") -> list[dict]:
     """Segments that visit *points* in order: rotate toward each, then drive to it."""
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
-        raise _fail("waypoints must be two or more [x, y] points", where)
+    pts = polyline(points, where, "trajectory.waypoints")
     segs: list[dict] = []
     heading = math.radians(start_yaw_deg)
     for a, b in zip(pts[:-1], pts[1:]):
@@ -160,21 +180,23 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
         raise _fail("must be a table", where)
     start = spec.get("start", [0.0, 0.0, 0.0])
     if not (isinstance(start, (list, tuple)) and len(start) == 3
-            and all(isinstance(v, (int, float)) for v in start)):
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in start)):
         raise _fail("start must be [x, y, yaw_deg]", where)
-    height = spec.get("height", 0.4)
-    smoothing = spec.get("smoothing_s", 0.3)
+    height = _number(spec, "height", where, 0.4, positive=True)
+    smoothing = _number(spec, "smoothing_s", where, 0.3, positive=True)
     if "waypoints" in spec:
-        segments = waypoint_segments(spec["waypoints"], start_yaw_deg=start[2],
-                                     speed=float(spec.get("speed", 1.0)),
-                                     turn_rate_deg=float(spec.get("turn_rate", 45.0)), where=where)
         if "segments" in spec:
             raise _fail("give either segments or waypoints, not both", where)
+        segments = waypoint_segments(spec["waypoints"], start_yaw_deg=start[2],
+                                     speed=_number(spec, "speed", where, 1.0, positive=True),
+                                     turn_rate_deg=_number(spec, "turn_rate", where, 45.0, positive=True),
+                                     where=where)
     else:
         segments = spec.get("segments")
         if not isinstance(segments, list):
             raise _fail("needs a list of segments or waypoints", where)
-    return from_segments(segments, start=start, smoothing_s=float(smoothing), height=float(height),
+    return from_segments(segments, start=start, smoothing_s=smoothing, height=height,
                          where=where)
 
 
