@@ -291,7 +291,7 @@ def test_wall_hides_point_behind_it(shipped_cfg):
         scene = point_scene([point], STILL, extra=extra)
         sim = Simulator(cfg, scene, seed=2)
         p_tx, _, _ = sim.paths(0.0)
-        ranges = np.linalg.norm(p_tx[p_tx.shape[0] // 2], axis=1)
+        ranges = np.linalg.norm(p_tx[:, p_tx.shape[1] // 2], axis=0)
         f = sim.frame(0)
         pw = rd_power(range_doppler(cfg, decode(sim, f)))
         rb = int(round(truth(scene, cfg, point, 0.0)["r"] / cfg.range_resolution_m))
@@ -309,7 +309,7 @@ def test_target_on_the_wall_is_not_hidden_by_it(small_cfg):
                         extra={"walls": [{"points": [[4.0, -1.0], [4.0, 1.0]], "sigma0": 0.001}]})
     sim = Simulator(small_cfg, scene, seed=2)
     p_tx, _, _ = sim.paths(0.0)
-    ranges = np.linalg.norm(p_tx[0], axis=1)
+    ranges = np.linalg.norm(p_tx[:, 0], axis=0)
     assert np.sum(np.abs(ranges - 4.0) < 1e-6) == 1
 
 

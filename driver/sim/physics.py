@@ -60,6 +60,14 @@ class AntennaPattern:
         return ca**na * ce**ne
 
 
+def _norm(p: np.ndarray) -> np.ndarray:
+    """Lengths of (3, C, K) vectors: (C, K)."""
+    r = p[0] * p[0]
+    r += p[1] * p[1]
+    r += p[2] * p[2]
+    return np.sqrt(r, out=r)
+
+
 def _unit_phasor(cycles: np.ndarray) -> np.ndarray:
     """exp(j 2 pi cycles) as complex64; *cycles* already reduced mod 1 so that
     float32 keeps the phase exact to ~1e-7 cycles."""
@@ -111,7 +119,7 @@ class FmcwSynthesizer:
         """The noiseless cube of one frame.
 
         p_tx, p_rx: path end points in the TI sensor frame at every chirp's
-            time, m, float (chirps, paths, 3); the TX leg ends at ``p_tx`` and
+            time, m, float (3, chirps, paths): the x, y, z planes; the TX leg ends at ``p_tx`` and
             the RX leg at ``p_rx`` (the same array for a direct path; a mirror
             image for a leg that bounces off a wall).  ``p_rx`` None means direct.
         amp: complex amplitude of each path, (paths,), ADC counts at 1 m
@@ -127,17 +135,18 @@ class FmcwSynthesizer:
             return out
         direct = p_rx is None
         p_rx = p_tx if direct else p_rx
-        r_tx = np.linalg.norm(p_tx, axis=-1)  # (C, K)
-        r_rx = r_tx if direct else np.linalg.norm(p_rx, axis=-1)
+        r_tx = _norm(p_tx)  # (C, K)
+        r_rx = r_tx if direct else _norm(p_rx)
         # Far-field leg lengths |p - e| = |p| - u.e.  The TX element depends on
         # the chirp's slot; the RX elements sit on the x axis at -r lambda/2,
         # so RX r adds a phase pi r u_x (u toward the path's RX end).
         slot_of_chirp = np.tile(np.arange(slots), loops)
-        tx_term = np.einsum("ckx,cx->ck", p_tx, self.tx_pos[slot_of_chirp]) / r_tx
+        tx = self.tx_pos[slot_of_chirp]  # (C, 3); TX antennas lie in the x-z plane
+        tx_term = (p_tx[0] * tx[:, 0:1] + p_tx[2] * tx[:, 2:3]) / r_tx
         cycles = (r_tx + r_rx - tx_term) * (self.f_c / SPEED_OF_LIGHT)  # (C, K)
         main = _unit_phasor(np.mod(cycles, 1.0))
         main *= amp.astype(np.complex64)[None, :]
-        step = _unit_phasor(0.5 * p_rx[..., 0] / r_rx)  # exp(j pi u_x), (C, K)
+        step = _unit_phasor(0.5 * p_rx[0] / r_rx)  # exp(j pi u_x), (C, K)
         a = np.empty((loops * slots, nrx, k), np.complex64)
         power = main  # main * step**r, by repeated products (complex ** is slow)
         for r in range(int(self.rx_index[-1]) + 1):

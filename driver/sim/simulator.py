@@ -31,6 +31,9 @@ SNR_REFERENCE_RANGE_M = 5.0
 MIN_RANGE_M = 0.3
 #: Pattern gains below this are not worth synthesizing.
 MIN_PATTERN_GAIN = 1e-3
+#: Paths whose SNR after integrating a whole frame (all samples, chirps and
+#: virtual antennas) stays below this are skipped, dB.
+MIN_INTEGRATED_SNR_DB = -10.0
 
 
 @dataclass(frozen=True)
@@ -52,21 +55,21 @@ def world_to_sensor(points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.nd
                     height: float) -> np.ndarray:
     """World points to the TI sensor frame of poses (x, y, yaw) at *height*.
 
-    points: (K, 3) or (C, K, 3); poses: (C,).  Returns (C, K, 3): x right,
-    y boresight (body forward), z up.
+    points: (K, 3) or (C, K, 3); poses: (C,).  Returns (3, C, K): the planes
+    x right, y boresight (body forward), z up, each contiguous (the synthesis
+    reads them plane by plane).
     """
     pts = points if points.ndim == 3 else points[None]
-    shape = (len(x), pts.shape[1])
-    out = np.empty(shape + (3,))
-    dx = np.subtract(pts[..., 0], x[:, None])
-    dy = np.subtract(pts[..., 1], y[:, None])
     c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    out = np.empty((3, len(x), pts.shape[1]))
+    dx = pts[..., 0] - x[:, None]
+    dy = pts[..., 1] - y[:, None]
     # x_TI = -(body y) = s dx - c dy;  y_TI = body x = c dx + s dy
-    np.multiply(s, dx, out=out[..., 0])
-    out[..., 0] -= c * dy
-    np.multiply(c, dx, out=out[..., 1])
-    out[..., 1] += s * dy
-    out[..., 2] = pts[..., 2] - height
+    np.multiply(s, dx, out=out[0])
+    out[0] -= c * dy
+    np.multiply(c, dx, out=out[1])
+    out[1] += s * dy
+    out[2] = pts[..., 2] - height
     return out
 
 
@@ -114,6 +117,11 @@ class Simulator:
         amp_ref = scene.noise_counts * math.sqrt(2.0) * 10 ** (scene.snr_db / 20.0)
         #: ADC counts of a 1 m^2 target at 1 m on boresight.
         self.gain_counts = amp_ref * SNR_REFERENCE_RANGE_M**2
+        samples_per_frame = int(np.prod(cfg.cube_shape))
+        #: Paths weaker than this (ADC counts) stay below MIN_INTEGRATED_SNR_DB after a frame's
+        #: coherent integration and are not synthesized.
+        self.min_amplitude = scene.noise_counts * math.sqrt(
+            2.0 * 10 ** (MIN_INTEGRATED_SNR_DB / 10) / samples_per_frame)
         self._cube = np.empty(cfg.cube_shape, np.complex64)
         self._noise = np.empty(cfg.cube_shape, np.complex64)
         x0, y0, yaw0 = scene.trajectory.pose(0.0)
@@ -134,7 +142,8 @@ class Simulator:
 
     def paths(self, t0: float):
         """Propagation paths of the frame starting at *t0*: (p_tx, p_rx, amp) as
-        :meth:`FmcwSynthesizer.synthesize` takes them (p_rx None: all direct)."""
+        :meth:`FmcwSynthesizer.synthesize` takes them (p_rx None: all direct);
+        positions are (3, chirps, paths) in the TI frame."""
         scene, traj = self.scene, self.scene.trajectory
         times = t0 + self.synth.chirp_offsets_s
         x, y, yaw = traj.pose(times)
@@ -151,10 +160,10 @@ class Simulator:
         normal = np.concatenate([st.normal] + [np.zeros((len(m.BODY), 3)) for m in scene.movers])
         expo = np.concatenate([st.exponent] + [np.zeros(len(m.BODY)) for m in scene.movers])
         pointlike = np.concatenate([st.pointlike] + [np.ones(len(m.BODY), bool) for m in scene.movers])
-        rel = world_to_sensor(pts_mid, *centre, traj.height)[0]
-        r = np.linalg.norm(rel, axis=1)
-        az = np.arctan2(rel[:, 0], rel[:, 1])
-        el = np.arcsin(np.clip(rel[:, 2] / np.maximum(r, 1e-9), -1, 1))
+        rel = world_to_sensor(pts_mid, *centre, traj.height)[:, 0]  # (3, K)
+        r = np.sqrt((rel**2).sum(axis=0))
+        az = np.arctan2(rel[0], rel[1])
+        el = np.arcsin(np.clip(rel[2] / np.maximum(r, 1e-9), -1, 1))
         gain = self.pattern.amplitude(az, el)
         keep = (r > MIN_RANGE_M) & (r < self.max_range_m) & (gain > MIN_PATTERN_GAIN)
         keep[keep] &= ~_occluded(sensor_xy, pts_mid[keep, :2], scene.wall_a, scene.wall_b)
@@ -169,6 +178,10 @@ class Simulator:
         incidence = np.where(has_normal, cos_i ** expo[idx], 1.0)
         amp = (self.gain_counts * np.sqrt(rcs[idx]) * incidence * gain[idx] / r[idx] ** 2
                * np.exp(1j * phase[idx]))
+        # A path far below the noise even after the full coherent integration of a
+        # frame changes no range-Doppler-angle cell visibly: skip it.
+        audible = np.abs(amp) >= self.min_amplitude
+        idx, amp, incidence = idx[audible], amp[audible], incidence[audible]
 
         # Positions at every chirp's time: static points are fixed in the world.
         n_static = len(st.rcs)
@@ -203,17 +216,17 @@ class Simulator:
             img_world = world_all[:, sel].copy()
             img_world[..., :2] = _mirror(img_world[..., :2], a, b)
             p_img = world_to_sensor(img_world, x, y, yaw, traj.height)
-            r_img = np.linalg.norm(p_img[mid], axis=1)
-            rel_img = p_img[mid]
-            g_img = self.pattern.amplitude(np.arctan2(rel_img[:, 0], rel_img[:, 1]),
-                                           np.arcsin(np.clip(rel_img[:, 2] / r_img, -1, 1)))
+            rel_img = p_img[:, mid]
+            r_img = np.sqrt((rel_img**2).sum(axis=0))
+            g_img = self.pattern.amplitude(np.arctan2(rel_img[0], rel_img[1]),
+                                           np.arcsin(np.clip(rel_img[2] / r_img, -1, 1)))
             a_img = (scene.wall_reflection * self.gain_counts * np.sqrt(rcs[idx[sel]]) * incidence[sel]
                      * np.sqrt(gain[idx[sel]] * g_img) / (r[idx[sel]] * r_img)
                      * np.exp(1j * phase[idx[sel]]))
-            images_tx += [p_img, p[:, sel]]
-            images_rx += [p[:, sel], p_img]
+            images_tx += [p_img, p[:, :, sel]]
+            images_rx += [p[:, :, sel], p_img]
             images_amp += [a_img, a_img]
-        return np.concatenate(images_tx, axis=1), np.concatenate(images_rx, axis=1), np.concatenate(images_amp)
+        return np.concatenate(images_tx, axis=2), np.concatenate(images_rx, axis=2), np.concatenate(images_amp)
 
     def frame(self, i: int) -> SimFrame:
         """Frame *i*: its bytes, time and ground truth."""
