@@ -218,7 +218,7 @@ class RadarConfig:
     def _validate(self) -> None:
         for name in REQUIRED_COMMANDS:
             if name not in self._first and not (name == "chirpCfg" and self._chirp_lines):
-                raise ConfigError(f"missing: the raw data layout depends on it", path=self.path,
+                raise ConfigError("missing: the raw data layout depends on it", path=self.path,
                                   command=name)
         self._validate_modes()
         self._validate_profile()

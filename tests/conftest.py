@@ -4,8 +4,11 @@ user's clone has no ``../shared``)."""
 
 from __future__ import annotations
 
+import logging
 import os
 import pathlib
+import shutil
+import sys
 
 import numpy as np
 import pytest
@@ -73,3 +76,34 @@ def make_capture(directory, cfg: RadarConfig, n: int = 10, *, t0: float = 1000.0
             pose = (0.1 * i, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) if poses else None
             writer.write(raw, t0 + i * cfg.frame_period_s, incomplete.get(i, 0), pose)
     return frames
+
+
+def console_command(name: str) -> list[str]:
+    """The installed console script *name*, or ``python -m`` of its module."""
+    path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
+    found = shutil.which(name, path=path)
+    if found:
+        return [found]
+    return [sys.executable, "-m", "radarodom.tools." + name.replace("-", "_")]
+
+
+@pytest.fixture
+def warnings_log(caplog):
+    """caplog at WARNING for radarodom, whatever level an earlier CLI run left set."""
+    caplog.set_level(logging.WARNING, logger="radarodom")
+    return caplog
+
+
+def warning_messages(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+@pytest.fixture(autouse=True)
+def _restore_radarodom_logger():
+    """main() in-process attaches a stderr handler to the 'radarodom' logger and sets
+    its level; put both back so other tests see the logger as they left it."""
+    logger = logging.getLogger("radarodom")
+    handlers, level = list(logger.handlers), logger.level
+    yield
+    logger.handlers[:] = handlers
+    logger.setLevel(level)

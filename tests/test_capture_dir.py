@@ -4,7 +4,6 @@ directories, and crash safety against a real process killed with SIGKILL."""
 from __future__ import annotations
 
 import json
-import logging
 import os
 import random
 import re
@@ -17,7 +16,7 @@ import time
 import numpy as np
 import pytest
 
-from conftest import SMALL_CFG, make_capture, random_frames
+from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 
 import radarodom
 from radarodom.cfg import RadarConfig
@@ -27,17 +26,6 @@ from radarodom.errors import CaptureError, CaptureExistsError, CaptureFormatErro
 
 T0 = 1000.0
 PERIOD = 0.05  # SMALL_CFG frame period
-
-
-@pytest.fixture
-def warnings_log(caplog):
-    """caplog at WARNING for radarodom, whatever level an earlier CLI run left set."""
-    caplog.set_level(logging.WARNING, logger="radarodom")
-    return caplog
-
-
-def _warnings(caplog) -> list[str]:
-    return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
 
 
 def _files(directory) -> dict[str, bytes]:
@@ -92,7 +80,7 @@ def test_round_trip(tmp_path, small_cfg, warnings_log):
                                          {"frame": 7, "missing_bytes": 3072}]
     assert meta["lost_bytes"] == 3172
     assert meta["closed"] is True
-    assert _warnings(warnings_log) == []
+    assert warning_messages(warnings_log) == []
 
 
 def test_text_files_format(tmp_path, small_cfg):
@@ -157,7 +145,7 @@ def test_incomplete_frames_reach_capture_json_at_once(tmp_path, small_cfg, warni
     cap = CaptureDirectory(d)  # readable while still open
     assert cap.num_frames == 3 and cap.missing_bytes(1) == 1456
     assert bytes(cap.raw(2)) == frames[2]
-    assert any("not closed" in m for m in _warnings(warnings_log))
+    assert any("not closed" in m for m in warning_messages(warnings_log))
     w.close()
     w.close()  # idempotent
     assert json.loads((d / "capture.json").read_text())["closed"] is True
@@ -216,7 +204,7 @@ def test_truncated_tail_is_ignored_with_warning(tmp_path, small_cfg, warnings_lo
     cap = CaptureDirectory(d)
     assert cap.num_frames == 6
     assert [bytes(cap.raw(i)) for i in range(6)] == frames
-    warnings = _warnings(warnings_log)
+    warnings = warning_messages(warnings_log)
     assert any("1536" in m for m in warnings), warnings
 
 
@@ -227,7 +215,7 @@ def test_partial_last_timestamp_line_is_ignored(tmp_path, small_cfg, warnings_lo
         fh.write("1000.3")  # a seventh line cut short, no frame for it
     cap = CaptureDirectory(d)
     np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
-    assert any("partly written" in m for m in _warnings(warnings_log))
+    assert any("partly written" in m for m in warning_messages(warnings_log))
 
 
 def test_cut_timestamp_of_last_frame_is_extrapolated(tmp_path, small_cfg, warnings_log):
@@ -248,7 +236,7 @@ def test_fewer_timestamps_are_extrapolated(tmp_path, small_cfg, warnings_log):
     cap = CaptureDirectory(d)
     assert cap.num_frames == 6
     np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
-    assert any("3 frame(s)" in m and "timestamp" in m for m in _warnings(warnings_log))
+    assert any("3 frame(s)" in m and "timestamp" in m for m in warning_messages(warnings_log))
 
 
 def test_no_timestamps_file_starts_at_zero(tmp_path, small_cfg, warnings_log):
@@ -267,7 +255,7 @@ def test_extra_timestamps_are_ignored(tmp_path, small_cfg, warnings_log):
     cap = CaptureDirectory(d)
     assert len(cap.timestamps) == 4
     np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(4), atol=1e-9)
-    assert _warnings(warnings_log)
+    assert warning_messages(warnings_log)
 
 
 def test_garbage_timestamp_line_is_an_error(tmp_path, small_cfg):
@@ -287,7 +275,7 @@ def test_missing_capture_json_still_readable(tmp_path, small_cfg, warnings_log):
     assert cap.num_frames == 5
     assert [bytes(cap.raw(i)) for i in range(5)] == frames
     assert cap.missing_bytes(1) == 0  # the record of the loss went with capture.json
-    assert _warnings(warnings_log) == []
+    assert warning_messages(warnings_log) == []
 
 
 def test_unreadable_capture_json_warns(tmp_path, small_cfg, warnings_log):
@@ -296,7 +284,7 @@ def test_unreadable_capture_json_warns(tmp_path, small_cfg, warnings_log):
     (d / "capture.json").write_text('{"format": "radarodom-capt')
     cap = CaptureDirectory(d)
     assert cap.num_frames == 3 and cap.metadata == {}
-    assert any("capture.json" in m for m in _warnings(warnings_log))
+    assert any("capture.json" in m for m in warning_messages(warnings_log))
 
 
 def test_not_closed_capture_warns(tmp_path, small_cfg, warnings_log):
@@ -307,7 +295,7 @@ def test_not_closed_capture_warns(tmp_path, small_cfg, warnings_log):
     (d / "capture.json").write_text(json.dumps(meta))
     cap = CaptureDirectory(d)
     assert [bytes(cap.raw(i)) for i in range(3)] == frames
-    assert any("not closed" in m for m in _warnings(warnings_log))
+    assert any("not closed" in m for m in warning_messages(warnings_log))
 
 
 def test_fewer_poses_than_frames_warns(tmp_path, small_cfg, warnings_log):
@@ -318,7 +306,7 @@ def test_fewer_poses_than_frames_warns(tmp_path, small_cfg, warnings_log):
     cap = CaptureDirectory(d)
     assert cap.pose(1) == pytest.approx((0.1, 0, 0, 0, 0, 0, 1))
     assert cap.pose(2) is None and cap.pose(3) is None
-    assert any("no pose for 2 of 4 frames" in m for m in _warnings(warnings_log))
+    assert any("no pose for 2 of 4 frames" in m for m in warning_messages(warnings_log))
 
 
 def test_missing_radar_cfg(tmp_path, small_cfg):
@@ -348,7 +336,7 @@ def test_given_config_overrides_recorded(tmp_path, small_cfg, warnings_log):
     assert cap.config is half
     assert cap.num_frames == 8
     assert bytes(cap.raw(1)) == frames[0][1536:]
-    assert any("differs" in m for m in _warnings(warnings_log))
+    assert any("differs" in m for m in warning_messages(warnings_log))
 
 
 # --------------------------------------------------------------- crash safety
@@ -428,7 +416,7 @@ def test_writer_survives_sigkill(tmp_path, small_cfg, warnings_log):
         assert cap.metadata["format"] == "radarodom-capture", where
         assert cap.metadata["closed"] is False, where
         assert cap.metadata["frame_count"] <= n, where
-        assert any("not closed" in m for m in _warnings(warnings_log)), where
+        assert any("not closed" in m for m in warning_messages(warnings_log)), where
         for i in range(n - 1):  # the last frame's loss may not have reached capture.json
             assert cap.missing_bytes(i) == (17 + i if i % 50 == 7 else 0), f"{where}: frame {i}"
         # poses: written after the timestamp, so at most the last one is missing
@@ -506,7 +494,7 @@ def test_radar_capture_sigterm_closes_recording(tmp_path, small_cfg, warnings_lo
     assert (out / "adc_data.bin").stat().st_size == n * 3072
     assert all(e["missing_bytes"] == 50 and e["frame"] % n_src == 3 for e in meta["incomplete_frames"])
     assert len(meta["incomplete_frames"]) == len([i for i in range(n) if i % n_src == 3])
-    assert _warnings(warnings_log) == []
+    assert warning_messages(warnings_log) == []
 
 
 def test_radar_capture_refuses_existing_recording(tmp_path, small_cfg):

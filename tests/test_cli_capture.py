@@ -9,20 +9,17 @@ from __future__ import annotations
 
 import errno
 import json
-import logging
 import os
 import pty
 import re
 import select
-import shutil
 import signal
 import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
-from conftest import SMALL_CFG, make_capture
+from conftest import SMALL_CFG, console_command, make_capture
 
 from radarodom.cfg import RadarConfig
 from radarodom.driver.capture_dir import CaptureDirectory
@@ -35,16 +32,7 @@ N_SRC = 10
 INCOMPLETE = {3: 100}
 
 
-def _command(name: str) -> list[str]:
-    """The installed console script *name*, or ``python -m`` of its module."""
-    path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
-    found = shutil.which(name, path=path)
-    if found:
-        return [found]
-    return [sys.executable, "-m", "radarodom.tools." + name.replace("-", "_")]
-
-
-CAPTURE = _command("radar-capture")
+CAPTURE = console_command("radar-capture")
 
 
 def run_capture_cli(*args, timeout=60) -> subprocess.CompletedProcess:
@@ -81,17 +69,6 @@ def meta(directory) -> dict:
 
 def snapshot(directory) -> dict:
     return {p.name: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(directory.iterdir())}
-
-
-@pytest.fixture(autouse=True)
-def _restore_radarodom_logger():
-    """main() in-process attaches a stderr handler to the 'radarodom' logger and sets
-    its level; put both back so other tests see the logger as they left it."""
-    logger = logging.getLogger("radarodom")
-    handlers, level = list(logger.handlers), logger.level
-    yield
-    logger.handlers[:] = handlers
-    logger.setLevel(level)
 
 
 @pytest.fixture

@@ -7,15 +7,11 @@ runs); a few call ``radarodom.tools.radar_cfg.main`` in-process with capsys.
 from __future__ import annotations
 
 import json
-import logging
-import os
 import re
-import shutil
 import subprocess
-import sys
 
 import pytest
-from conftest import REPO, SMALL_CFG
+from conftest import REPO, SMALL_CFG, console_command
 
 from radarodom.cfg import RAW_LVDS_LINE, RadarConfig
 from radarodom.tools import radar_cfg
@@ -27,29 +23,9 @@ STABLE_KEYS = ("range_resolution_m", "max_range_m", "velocity_resolution_mps", "
                "num_loops", "tx_order")
 
 
-def _command(name: str) -> list[str]:
-    """The installed console script *name*, or ``python -m`` of its module."""
-    path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
-    found = shutil.which(name, path=path)
-    if found:
-        return [found]
-    return [sys.executable, "-m", "radarodom.tools." + name.replace("-", "_")]
-
-
 def run_cfg(*args, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run(_command("radar-cfg") + [str(a) for a in args], cwd=cwd,
+    return subprocess.run(console_command("radar-cfg") + [str(a) for a in args], cwd=cwd,
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
-
-
-@pytest.fixture(autouse=True)
-def _restore_radarodom_logger():
-    """main() in-process attaches a stderr handler to the 'radarodom' logger and sets
-    its level; put both back so other tests see the logger as they left it."""
-    logger = logging.getLogger("radarodom")
-    handlers, level = list(logger.handlers), logger.level
-    yield
-    logger.handlers[:] = handlers
-    logger.setLevel(level)
 
 
 def write_cfg(tmp_path, old: str | None = None, new: str | None = None, name: str = "test.cfg"):

@@ -3,14 +3,13 @@ and the capture loop run_capture."""
 
 from __future__ import annotations
 
-import logging
 import threading
 import time
 
 import numpy as np
 import pytest
 
-from conftest import SMALL_CFG, make_capture, random_frames
+from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 
 from radarodom.cfg import RadarConfig
 from radarodom.driver.capture import run_capture
@@ -21,16 +20,6 @@ from radarodom.rawframe import RawLayout
 
 T0 = 1000.0
 PERIOD = 0.05  # SMALL_CFG frame period
-
-
-@pytest.fixture
-def warnings_log(caplog):
-    caplog.set_level(logging.WARNING, logger="radarodom")
-    return caplog
-
-
-def _warnings(caplog) -> list[str]:
-    return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
 
 
 @pytest.fixture
@@ -254,7 +243,7 @@ def test_given_config_overrides_recorded(capture, warnings_log):
     half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
     with open_source(f"replay://{d}?rate=max", half) as src:
         assert [bytes(f.raw) for f in src][:2] == [frames[0][:1536], frames[0][1536:]]
-    assert any("differs" in m for m in _warnings(warnings_log))
+    assert any("differs" in m for m in warning_messages(warnings_log))
 
 
 # --------------------------------------------------------------- TI recorder files
@@ -291,7 +280,7 @@ def test_ti_series_split_inside_frames(tmp_path, small_cfg, warnings_log):
             np.testing.assert_array_equal(f.cube(), cubes[k])
             assert f.timestamp == pytest.approx(k * PERIOD)
             assert f.missing_bytes == 0 and f.pose is None
-    assert _warnings(warnings_log) == []
+    assert warning_messages(warnings_log) == []
 
 
 def test_ti_series_cut_off_tail_warns(tmp_path, small_cfg, warnings_log):
@@ -303,7 +292,7 @@ def test_ti_series_cut_off_tail_warns(tmp_path, small_cfg, warnings_log):
         got = [f.cube() for f in src]
     assert len(got) == 3
     np.testing.assert_array_equal(np.stack(got), cubes)
-    assert any("1000" in m for m in _warnings(warnings_log))
+    assert any("1000" in m for m in warning_messages(warnings_log))
 
 
 def test_reordered_flag_matters(tmp_path, small_cfg):
@@ -349,7 +338,7 @@ def test_ti_series_gap_warns(tmp_path, small_cfg, warnings_log):
         got = [f.cube() for f in src]
     assert len(got) == 2
     np.testing.assert_array_equal(np.stack(got), cubes[:2])
-    assert any("gap" in m for m in _warnings(warnings_log))
+    assert any("gap" in m for m in warning_messages(warnings_log))
 
 
 @pytest.mark.parametrize("size", [0, 100, 3071])

@@ -8,14 +8,13 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
-import shutil
 import subprocess
 import sys
 from importlib import resources
 
 import numpy as np
 import pytest
+from conftest import console_command
 from sim_helpers import decode, detect, point_scene, range_doppler, rd_power, truth
 
 from radarodom.cfg import RadarConfig
@@ -34,17 +33,8 @@ else:  # pragma: no cover
 STILL = [{"pause": 2.0}]
 
 
-def _command(name: str) -> list[str]:
-    """The installed console script *name*, or ``python -m`` of its module."""
-    path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
-    found = shutil.which(name, path=path)
-    if found:
-        return [found]
-    return [sys.executable, "-m", "radarodom.tools." + name.replace("-", "_")]
-
-
 def _run(name: str, *args, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run(_command(name) + [str(a) for a in args], stdin=subprocess.DEVNULL,
+    return subprocess.run(console_command(name) + [str(a) for a in args], stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
 
 

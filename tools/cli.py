@@ -16,6 +16,7 @@ import traceback
 from typing import Callable, Sequence
 
 from ..errors import RadarodomError
+from .status import StatusAwareHandler, StatusLine
 
 
 class _Formatter(logging.Formatter):
@@ -122,3 +123,14 @@ def run(
         if verbose:
             traceback.print_exc()
         return 1
+
+
+def run_with_status(
+    main: Callable[[argparse.Namespace, StatusLine], int | None],
+    parser: argparse.ArgumentParser,
+    argv: Sequence[str] | None = None,
+) -> int:
+    """:func:`run` for programs with a live status line on stderr; log records
+    erase the line before they print."""
+    status = StatusLine(sys.stderr)
+    return run(lambda args: main(args, status), parser, argv, handler=StatusAwareHandler(status))

@@ -20,7 +20,7 @@ from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Frame, Source, open_source
 from . import cli
-from .status import RateMeter, StatusAwareHandler, StatusLine, format_duration
+from .status import RateMeter, StatusLine, format_duration
 
 
 log = logging.getLogger("radarodom.tools.radar_capture")
@@ -116,9 +116,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    status = StatusLine(sys.stderr)
-    return cli.run(lambda args: _main(args, status), build_parser(), argv,
-                   handler=StatusAwareHandler(status))
+    return cli.run_with_status(_main, build_parser(), argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

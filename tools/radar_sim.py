@@ -15,7 +15,7 @@ from ..driver.capture_dir import CaptureWriter
 from ..driver.sim.scene import BUILTIN_SCENES, load_scene
 from ..driver.sim.simulator import Simulator
 from . import cli
-from .status import StatusAwareHandler, StatusLine, format_duration
+from .status import StatusLine, format_duration
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,9 +63,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    status = StatusLine(sys.stderr)
-    return cli.run(lambda args: _main(args, status), build_parser(), argv,
-                   handler=StatusAwareHandler(status))
+    return cli.run_with_status(_main, build_parser(), argv)
 
 
 if __name__ == "__main__":  # pragma: no cover
