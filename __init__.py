@@ -19,6 +19,7 @@ import logging
 from .errors import (  # noqa: F401  (re-exported API)
     CaptureError,
     ConfigError,
+    DeviceError,
     RadarodomError,
     SourceError,
     UsageError,

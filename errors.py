@@ -66,6 +66,20 @@ class ConfigError(RadarodomError):
         return ": ".join(parts) + ": " + self.message
 
 
+class DeviceError(RadarodomError):
+    """The radar or the DCA1000 did not do what was asked: no answer in time,
+    an error reply, a failure status, a port that went away."""
+
+
+class DeviceTimeout(DeviceError):
+    """A device did not answer within its timeout."""
+
+
+class RadarCommandError(DeviceError):
+    """The radar refused a configuration line; the message names the cfg line
+    and quotes the radar."""
+
+
 class CaptureError(RadarodomError):
     """Reading or writing captured radar data failed (missing or corrupt
     capture directory, I/O error while recording)."""
