@@ -33,6 +33,7 @@ log = logging.getLogger(__name__)
 SCHEMES: dict[str, str] = {
     "replay": "radarodom.driver.replay:open_replay",
     "sim": "radarodom.driver.sim.source:open_sim",
+    "dca1000": "radarodom.driver.live:open_live",
 }
 
 

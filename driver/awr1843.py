@@ -1,0 +1,141 @@
+"""The AWR1843's command line (SDK demo firmware) over its UART, via pyserial.
+
+:class:`Awr1843Cli` opens the port with ``serial.serial_for_url`` (so a
+device path, ``loop://``, ``socket://`` and ptys all work), sends each
+command, and reads the echo and the reply up to the prompt
+(:mod:`.awr1843_protocol`).  An error reply or a timeout raises an error that
+names the cfg line and quotes the radar.  :meth:`Awr1843Cli.configure` sends
+``sensorStop`` and ``flushCfg`` first, then every command of the cfg.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import serial
+
+from ..cfg import RadarConfig
+from ..errors import DeviceError, DeviceTimeout, RadarCommandError
+from .awr1843_protocol import CLI_BAUDRATE, Outcome, Reply, ReplyFramer, classify, split_lines
+
+log = logging.getLogger(__name__)
+
+#: Seconds to wait for an ordinary command's reply.
+COMMAND_TIMEOUT_S = 2.0
+#: Seconds to wait for sensorStart: the firmware calibrates before it answers.
+START_TIMEOUT_S = 5.0
+
+
+class SensorStartHung(DeviceTimeout):
+    """sensorStart got no answer: the radar hung (typically an impossible chirp timing)."""
+
+
+class Awr1843Cli:
+    """One CLI session with the radar."""
+
+    def __init__(self, url: str, *, baudrate: int = CLI_BAUDRATE,
+                 command_timeout_s: float = COMMAND_TIMEOUT_S,
+                 start_timeout_s: float = START_TIMEOUT_S) -> None:
+        self.url = url
+        self.baudrate = baudrate
+        self.command_timeout_s = command_timeout_s
+        self.start_timeout_s = start_timeout_s
+        self._port: serial.SerialBase | None = None
+        self._framer = ReplyFramer()
+        #: True between a successful sensorStart and sensorStop.
+        self.started = False
+
+    def open(self) -> "Awr1843Cli":
+        try:
+            self._port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.05,
+                                               write_timeout=self.command_timeout_s)
+        except (serial.SerialException, ValueError, OSError) as exc:
+            raise DeviceError(f"cannot open the radar's CLI port {self.url}: {exc}. Is the AWR1843BOOST "
+                              f"plugged in, and may you open the port (radar-devices tells)?") from None
+        self._port.reset_input_buffer()
+        return self
+
+    @property
+    def is_open(self) -> bool:
+        return self._port is not None
+
+    def close(self) -> None:
+        if self._port is not None:
+            try:
+                self._port.close()
+            except (serial.SerialException, OSError):
+                pass
+            self._port = None
+
+    def __enter__(self) -> "Awr1843Cli":
+        return self.open() if self._port is None else self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ talk
+    def send(self, line: str, timeout_s: float | None = None) -> Reply:
+        """Send one command line and return the classified reply."""
+        if self._port is None:
+            self.open()
+        timeout_s = self.command_timeout_s if timeout_s is None else timeout_s
+        command = line.strip()
+        try:
+            self._port.write((command + "\n").encode("ascii", errors="replace"))
+            deadline = time.monotonic() + timeout_s
+            while True:
+                for text in self._framer.feed(self._port.read(self._port.in_waiting or 1)):
+                    if _belongs_to(text, command):
+                        reply = classify(text, command)
+                        log.debug("%s -> %s %s", command, reply.outcome.value, reply.text)
+                        return reply
+                    log.debug("unsolicited text from the radar: %r", text[:200])
+                if time.monotonic() > deadline:
+                    heard = " ".join(split_lines(self._framer.pending.decode("ascii", "replace")))[:200]
+                    raise DeviceTimeout(f"the radar did not answer {command.split()[0]!r} within "
+                                        f"{timeout_s:g} s on {self.url}"
+                                        + (f" (it said: {heard!r})" if heard else ""))
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable "
+                              f"unplugged or the board reset?") from None
+
+    def configure(self, cfg: RadarConfig) -> None:
+        """sensorStop, flushCfg, then every cfg command; raises on the first refusal."""
+        self.stop()
+        self._expect(self.send("flushCfg"), "flushCfg")
+        for ln in cfg.commands_to_send():
+            try:
+                reply = self.send(str(ln))
+            except DeviceTimeout as exc:
+                raise DeviceTimeout(f"{cfg.path}:{ln.line}: {ln.text}: {exc}") from None
+            if reply.outcome in (Outcome.ERROR, Outcome.UNKNOWN_COMMAND, Outcome.UNCLEAR):
+                raise RadarCommandError(f"{cfg.path}:{ln.line}: {ln.text}: the radar refused it: "
+                                        f"{reply.text or 'no Done'}")
+
+    def start(self) -> None:
+        """sensorStart; a radar that does not answer raises :class:`SensorStartHung`."""
+        try:
+            reply = self.send("sensorStart", self.start_timeout_s)
+        except DeviceTimeout:
+            raise SensorStartHung(
+                f"sensorStart got no answer within {self.start_timeout_s:g} s: the radar hung, which an "
+                f"impossible chirp or frame timing does (check the cfg with radar-cfg)") from None
+        self._expect(reply, "sensorStart")
+        self.started = True
+
+    def stop(self) -> None:
+        """sensorStop (an already stopped sensor is fine)."""
+        self._expect(self.send("sensorStop"), "sensorStop")
+        self.started = False
+
+    @staticmethod
+    def _expect(reply: Reply, what: str) -> None:
+        if reply.outcome not in (Outcome.DONE, Outcome.IGNORED):
+            raise RadarCommandError(f"{what}: the radar answered: {reply.text or 'nothing but the prompt'}")
+
+
+def _belongs_to(text: str, command: str) -> bool:
+    """True when a reply's text answers *command* (its echo is among the lines;
+    garbage before the echo does not matter)."""
+    return any(ln.endswith(command) for ln in split_lines(text))

@@ -1,0 +1,216 @@
+"""``dca1000://`` : the live radar, configured over its UART, streamed by the DCA1000.
+
+``dca1000://[BOARD_IP]?host=192.168.33.30&cli=/dev/ttyACM0&delay=25&policy=latest``
+
+Options: ``host`` (this computer's address on the board's network, default
+192.168.33.30), ``cli`` (the radar's CLI port: a device path or any pyserial
+URL; default found automatically), ``config_port`` / ``data_port`` (host ports,
+4096 / 4098), ``board_port`` (4096), ``delay`` (packet delay in us, 25),
+``policy`` (``latest`` or ``queue``: which frames to drop when the consumer
+is slower than the radar), ``buffers`` (frames in the ring, 8), ``timeout``
+(seconds per board command, 1) and ``start_timeout`` (seconds for sensorStart, 5).
+
+Start order (TI's CLI and xwr do the same): open and flush the data socket,
+configure the board, RECORD_START, configure the radar, sensorStart; stop in
+reverse.  ``sensorStop`` is sent on every exit, errors and Ctrl-C included.
+A hung sensorStart is answered with the DCA1000's RESET_AR_DEV.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+from typing import Iterator
+
+from ..cfg import RadarConfig, shipped_config_path
+from ..errors import DeviceError, RadarodomError, SourceError
+from ..rawframe import RawLayout
+from .awr1843 import Awr1843Cli, SensorStartHung
+from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
+from .frame_ring import POLICIES, FrameRing
+from .sources import Frame, Source, UrlOptions
+
+log = logging.getLogger(__name__)
+
+
+class FrameClock:
+    """Frame times from host receive times, smoothed onto the radar's frame grid.
+
+    The radar's frames come exactly one period apart; host receive times add a
+    positive, jittery delay.  The smallest ``receive - index * period`` over the
+    last ``window`` frames is the best estimate of the grid's start, so each
+    frame gets ``start + index * period``: the time its first packet would
+    arrive with the least delay seen (within a millisecond of the first chirp).
+    """
+
+    def __init__(self, period_s: float, window: int = 64) -> None:
+        self.period = period_s
+        self._offsets: collections.deque[float] = collections.deque(maxlen=window)
+
+    def stamp(self, index: int, receive_time: float) -> float:
+        if receive_time > 0:
+            self._offsets.append(receive_time - index * self.period)
+        if not self._offsets:
+            return index * self.period
+        return min(self._offsets) + index * self.period
+
+
+class LiveSource(Source):
+    def __init__(self, config: RadarConfig, settings: Dca1000Settings, cli_url: str, *,
+                 policy: str = "latest", buffers: int = 8, start_timeout_s: float = 5.0) -> None:
+        super().__init__()
+        config.check_raw_capture()
+        self.config = config
+        self.settings = settings
+        self.layout = RawLayout.from_config(config)
+        self.ring = FrameRing(config.frame_bytes, buffers, policy)
+        self.board = Dca1000Client(settings)
+        self.receiver = Dca1000Receiver(settings, config.frame_bytes, self.ring,
+                                        idle_flush_s=max(0.5, 2 * config.frame_period_s))
+        self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s)
+        self.clock = FrameClock(config.frame_period_s)
+        self.fpga_version = None
+        self._recording = False
+        self._closed = False
+        try:
+            self._prepare()
+        except BaseException:
+            self.close()
+            raise
+
+    def _prepare(self) -> None:
+        self.receiver.open()
+        self.board.open()
+        self.board.connect()
+        self.fpga_version = self.board.read_fpga_version()
+        log.info("DCA1000 FPGA %s", self.fpga_version)
+        if self.fpga_version.playback:
+            raise DeviceError(f"the DCA1000 runs its playback FPGA image ({self.fpga_version}); "
+                              f"switch it to record mode")
+        self.board.reset_fpga()
+        self.board.configure_fpga()
+        self.board.configure_packets()
+        self.radar.open()
+        self.radar.configure(self.config)
+
+    def __iter__(self) -> Iterator[Frame]:
+        self.board.start_recording()
+        self._recording = True
+        self.receiver.start()
+        try:
+            self.radar.start()
+        except SensorStartHung as exc:
+            try:
+                self.board.reset_radar()
+                recovery = "radarodom reset it through the DCA1000 (RESET_AR_DEV)"
+            except RadarodomError:
+                recovery = "resetting it through the DCA1000 failed too: power-cycle the radar"
+            raise SensorStartHung(f"{exc}; {recovery}") from None
+        held = None
+        try:
+            while not self.stop_requested:
+                frame = self.ring.get(timeout=0.2)
+                if held is not None:  # the consumer is done with the previous frame
+                    self.ring.release(held)
+                    held = None
+                if frame is None:
+                    if self.receiver.error is not None:
+                        raise DeviceError(f"receiving DCA1000 data failed: {self.receiver.error}")
+                    self.board.poll_async()
+                    continue
+                held = frame.slot
+                yield Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
+                            raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes)
+        finally:
+            if held is not None:
+                self.ring.release(held)
+
+    def describe(self) -> dict:
+        r, a = self.receiver.stats, self.receiver.assembler.stats
+        return {
+            "url": self.url, "fpga": str(self.fpga_version), "packets": r.packets,
+            "foreign_packets": r.foreign_packets, "malformed_packets": r.malformed_packets,
+            "seq_gaps": r.seq_gaps, "duplicate_packets": a.duplicate_packets, "late_packets": a.late_packets,
+            "missing_bytes": a.missing_bytes, "frames_incomplete": a.frames_incomplete,
+            "frames_dropped": self.ring.dropped_frames, "async_status": dict(self.board.async_status.counts),
+            "rcvbuf_bytes": r.rcvbuf_bytes,
+        }
+
+    def close(self) -> None:
+        """Stop in reverse order; every step is tried, the first failure is reported."""
+        if self._closed:
+            return
+        self._closed = True
+        failures = []
+        for step in (self._stop_radar, self._stop_recording, self.receiver.close,
+                     self.radar.close, self.board.close):
+            try:
+                step()
+            except RadarodomError as exc:
+                failures.append(exc)
+                log.warning("while stopping: %s", exc)
+        if failures:
+            log.debug("%d step(s) failed while stopping", len(failures))
+
+    def _stop_radar(self) -> None:
+        if self.radar.is_open:
+            self.radar.stop()
+
+    def _stop_recording(self) -> None:
+        if self._recording:
+            self._recording = False
+            self.board.stop_recording()
+
+
+def _port(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise ValueError(text)
+    return value
+
+
+def _positive(text: str) -> float:
+    value = float(text)
+    if not 0 < value < float("inf"):
+        raise ValueError(text)
+    return value
+
+
+def _policy(text: str) -> str:
+    if text not in POLICIES:
+        raise ValueError(text)
+    return text
+
+
+def _buffers(text: str) -> int:
+    value = int(text)
+    if value < 2:
+        raise ValueError(text)
+    return value
+
+
+def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> LiveSource:
+    defaults = Dca1000Settings()
+    board = path.strip("/") or defaults.board_ip
+    host = options.take("host", str, defaults.host_ip, "this host's IP address on the board's network")
+    cli = options.take("cli", str, None, "the radar's CLI port (path or pyserial URL)")
+    config_port = options.take("config_port", _port, defaults.config_port, "a UDP port")
+    data_port = options.take("data_port", _port, defaults.data_port, "a UDP port")
+    board_port = options.take("board_port", _port, defaults.board_port, "a UDP port")
+    delay = options.take("delay", _positive, defaults.packet_delay_us, "packet delay in us")
+    policy = options.take("policy", _policy, "latest", " or ".join(POLICIES))
+    buffers = options.take("buffers", _buffers, 8, "a number of frames >= 2")
+    timeout = options.take("timeout", _positive, defaults.timeout_s, "seconds per board command")
+    start_timeout = options.take("start_timeout", _positive, 5.0, "seconds for sensorStart")
+    options.finish()
+    if cli is None:
+        from .discovery import default_cli_port  # pyusb and sysfs only when needed
+
+        cli = default_cli_port()
+        if cli is None:
+            raise SourceError(f"{options.url}: no AWR1843 CLI port found; give it with cli=/dev/ttyACM0 "
+                              f"(radar-devices lists what is connected)")
+    settings = Dca1000Settings(host_ip=host, board_ip=board, config_port=config_port, board_port=board_port,
+                               data_port=data_port, packet_delay_us=delay, timeout_s=timeout)
+    cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
+    return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout)
