@@ -29,6 +29,19 @@ log = logging.getLogger("radarodom.tools.radar_capture")
 DEFAULT_SIM_URL = "sim://corridor"
 
 
+def _default_source() -> str:
+    """The live radar when one is plugged in (standard addresses), else the simulator."""
+    from ..driver.discovery import default_cli_port, no_radar_message
+
+    port = default_cli_port()
+    if port is not None:
+        log.info("radar found on %s: streaming it through the DCA1000 at the standard addresses", port)
+        return f"dca1000://?cli={port}"
+    log.warning("%s. Streaming the simulator meanwhile: %s (choose a source with --source)",
+                no_radar_message(), DEFAULT_SIM_URL)
+    return DEFAULT_SIM_URL
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="radar-capture",
@@ -37,13 +50,15 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Sources: replay://DIR[?rate=1.0|max&loop=N&start=K|Ss&frames=N] plays a capture "
                "directory or TI recorder files (with --cfg); sim://SCENE[?seed=N&rate=1.0|max&duration=S] "
                "simulates a scene (corridor, room, lab, calibration, or a .toml/.json file). "
-               f"Without --source: {DEFAULT_SIM_URL}.")
+               "dca1000://[BOARD_IP][?cli=PORT&host=IP&delay=US&policy=latest|queue] streams the live "
+               "radar. Without --source: the live radar when one is plugged in, else "
+               f"{DEFAULT_SIM_URL}.")
     parser.add_argument("--cfg", metavar="FILE",
                         help="radar configuration (TI .cfg); for replay:// of a capture directory "
                              "it defaults to the directory's radar.cfg")
     parser.add_argument("--source", metavar="URL",
-                        help=f"frame source ({', '.join(s + '://' for s in sorted(SCHEMES))}; "
-                             f"default {DEFAULT_SIM_URL} while no radar is attached)")
+                        help=f"frame source ({', '.join(s + '://' for s in sorted(SCHEMES))}; default: "
+                             f"the live radar if one is plugged in, else {DEFAULT_SIM_URL})")
     parser.add_argument("--record", metavar="DIR", help="record the frames to this new capture directory")
     parser.add_argument("--frames", type=cli.positive_int, metavar="N", help="stop after N frames")
     parser.add_argument("--duration", type=cli.positive_float, metavar="S",
@@ -92,11 +107,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     if not args.source:
-        # The live radar (dca1000://) is the default once the driver exists;
-        # until then, and whenever no radar is attached, the simulator runs.
-        log.warning("no radar attached (live capture via dca1000:// is not available yet): "
-                    "streaming the simulator, %s; choose with --source", DEFAULT_SIM_URL)
-        args.source = DEFAULT_SIM_URL
+        args.source = _default_source()
     rate = RateMeter()
 
     def on_frame(frame: Frame, stats: CaptureStats) -> None:
