@@ -120,7 +120,8 @@ class Dca1000Client:
 
     # ---------------------------------------------------------------- commands
     def command(self, command: Command, data: bytes = b"") -> Response:
-        """Send one command and return its checked response."""
+        """Send one command and return its checked response (READ_FPGA_VERSION's
+        status field is the version, not a success flag)."""
         if self._sock is None:
             self.open()
         s = self.settings
@@ -129,7 +130,7 @@ class Dca1000Client:
             self._sock.sendto(request, (s.board_ip, s.board_port))
             response = self._await(command, s.timeout_s)
             if response is not None:
-                if response.status != Status.SUCCESS:
+                if response.status != Status.SUCCESS and command != Command.READ_FPGA_VERSION:
                     raise DeviceError(f"the DCA1000 refused {command.name} (status {response.status})")
                 return response
             log.debug("no answer to %s (try %d of %d)", command.name, attempt, s.retries)

@@ -1,0 +1,102 @@
+"""radar-emulate: a fake AWR1843 (on a pty) and a fake DCA1000 (on loopback UDP)
+streaming a recording or the simulator, to try the live path without hardware.
+
+    radar-emulate --capture DIR [--loss P] [--reorder P] ...
+    radar-emulate --source sim://lab
+
+It prints the --source URL (and --cfg) to give to radar-capture, then runs
+until Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import signal
+import sys
+import threading
+from typing import Sequence
+
+from ..cfg import RadarConfig
+from ..driver.capture_dir import RADAR_CFG
+from ..driver.emulators.fake_awr1843 import CliFaults
+from ..driver.emulators.fake_dca1000 import Faults
+from ..driver.emulators.rig import EmulatedRig
+from ..errors import UsageError
+from . import cli
+
+
+def _probability(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in 0..1, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="radar-emulate",
+        description="Emulate the AWR1843BOOST CLI (pseudo-terminal) and the DCA1000EVM (UDP on "
+                    "127.0.0.2) streaming a capture or the simulator; prints the radar-capture "
+                    "command to use, and runs until Ctrl-C.")
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument("--capture", metavar="DIR", help="a capture directory to stream (looped)")
+    what.add_argument("--source", metavar="URL", help="any frame source, e.g. sim://lab")
+    parser.add_argument("--cfg", metavar="FILE", help="radar configuration for --source "
+                                                       "(default: the source's own)")
+    faults = parser.add_argument_group("faults (probabilities per data packet)")
+    for name in ("loss", "duplicate", "reorder", "truncate", "malformed", "foreign"):
+        faults.add_argument(f"--{name}", type=_probability, default=0.0, metavar="P")
+    faults.add_argument("--burst-flush", action="store_true",
+                        help="end every frame with a short packet instead of straddling frames")
+    faults.add_argument("--hang-on-start", action="store_true",
+                        help="the radar never answers sensorStart (until RESET_AR_DEV)")
+    parser.add_argument("--max-rate", action="store_true", help="stream as fast as possible, not paced")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N")
+    cli.add_verbosity(parser)
+    return parser
+
+
+def _main(args: argparse.Namespace) -> int:
+    if args.capture:
+        if not os.path.isdir(args.capture):
+            raise UsageError(f"--capture {args.capture}: no such directory")
+        url, cfg_path = f"replay://{args.capture}", args.cfg or os.path.join(args.capture, RADAR_CFG)
+    else:
+        url, cfg_path = args.source, args.cfg
+    config = RadarConfig.from_file(cfg_path) if cfg_path else None
+    faults = Faults(loss=args.loss, duplicate=args.duplicate, reorder=args.reorder, truncate=args.truncate,
+                    malformed=args.malformed, foreign=args.foreign, burst_flush=args.burst_flush)
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with EmulatedRig(url, config=config, faults=faults, cli_faults=CliFaults(hang_on_start=args.hang_on_start),
+                         rate="max" if args.max_rate else "paced", seed=args.seed) as rig:
+            command = ["radar-capture", "--source", rig.url()]
+            if cfg_path:
+                command += ["--cfg", cfg_path]
+            print(f"radar-emulate: radar CLI on {rig.cli_path}, DCA1000 at {rig.board.command_address[0]}; "
+                  f"streaming {url}")
+            print(shlex.join(command), flush=True)
+            while not stop.wait(0.5):
+                pass
+            stats = rig.board.stats
+            print(f"radar-emulate: sent {stats.frames_sent} frames in {stats.packets_sent} packets "
+                  f"({stats.dropped} dropped, {stats.duplicates} duplicated, {stats.reordered} reordered, "
+                  f"{stats.truncated} truncated by the fault injector)")
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli.run(_main, build_parser(), argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
