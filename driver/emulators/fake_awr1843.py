@@ -1,0 +1,602 @@
+"""A fake AWR1843 running the mmWave SDK 3.x demo firmware, seen from its CLI UART.
+
+:class:`FakeAwr1843` serves the demo's command line on a real pseudo-terminal,
+so a client opens it exactly like the XDS110's CLI port::
+
+    with FakeAwr1843() as radar:
+        port = serial.serial_for_url(radar.open_pty(), baudrate=115200, timeout=1)
+        port.write(b"sensorStop\\n")
+        port.read_until(PROMPT)
+        # b'sensorStop\\nIgnored: Sensor is already stopped\\n\\rDone\\n\\rmmwDemo:/>'
+
+Per received line (ended by ``\\n`` or ``\\r\\n``, in any chunking) it echoes
+the line, prints its reply lines ending in ``\\n\\r`` and then the prompt, as
+the real trace in protocol.md shows.  Configuration commands are checked
+with the same argument counts and ranges as :mod:`radarodom.cfg_commands`;
+``sensorStart`` builds a :class:`~radarodom.cfg.RadarConfig` from the stored
+lines and hands it to :attr:`FakeAwr1843.on_sensor_start` (a fake DCA1000
+uses it to stream frames of the right size).  :class:`CliFaults` injects the
+failures users of real boards report: error replies, commands that hang until
+a reset, a ``sensorStart`` that never answers, line noise, a slow UART and a
+port that disappears.
+
+Importing this module also registers the pyserial URL scheme
+``fakeawr1843://`` (see :class:`FakeAwr1843Serial`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import errno
+import logging
+import os
+import select
+import sys
+import threading
+import time
+import tty
+import types
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import serial
+import serial.serialposix
+
+from ... import cfg_commands as cc
+from ...cfg import RadarConfig
+from ...errors import ConfigError
+from ..awr1843_protocol import (
+    ALREADY_STARTED,
+    ALREADY_STOPPED,
+    DONE,
+    FIRMWARE_EOL,
+    FULL_CONFIG_NEEDED,
+    NOT_ALLOWED_AFTER_START,
+    NOT_RECOGNIZED,
+    PROMPT,
+    SKIPPED,
+)
+
+log = logging.getLogger(__name__)
+
+#: SDK version the fake claims to run.
+SDK_VERSION = "03.05.00.04"
+
+#: What ``version`` prints before ``Done``: the fields the SDK 3.x demo prints;
+#: the RF firmware and mmWaveLink numbers are plausible, not copied from a board.
+VERSION_LINES = (
+    "Platform                : xWR18xx",
+    f"mmWave SDK Version      : {SDK_VERSION}",
+    "Device Info             : AWR18XX non-secure ES 02.00",
+    "RF F/W Version          : 02.02.00.01.20.07.23",
+    "RF F/W Patch            : 00.00.00.00.00.00.00",
+    "mmWaveLink Version      : 01.02.06.06",
+)
+
+#: What a reset (RESET_AR_DEV, power-up) prints before the first prompt.
+BOOT_BANNER = (
+    "******************************************",
+    f"xWR18xx MMW Demo {SDK_VERSION}",
+    "******************************************",
+)
+
+#: Commands the demo knows besides those radarodom types or keeps verbatim,
+#: with their argument counts (SDK 3.5 user guide).  radarodom refuses them
+#: in a cfg; the firmware accepts them and fails only at sensorStart.
+EXTRA_COMMANDS: dict[str, tuple[int, ...]] = {
+    "advFrameCfg": (5,),
+    "subFrameCfg": (10,),
+}
+
+#: Known commands that do not change the configuration: allowed while running.
+_RUNTIME_COMMANDS = frozenset({"sensorStart", "sensorStop", "version", "help", "queryDemoStatus"})
+
+#: Verbatim commands' argument names, for ``help`` (SDK 3.5 user guide).
+_VERBATIM_USAGE = {
+    "sensorStart": "[doReconfig(optional, default:enabled)]",
+    "sensorStop": "No arguments",
+    "flushCfg": "No arguments",
+    "guiMonitor": "<subFrameIdx> <detectedObjects> <logMagRange> <noiseProfile> "
+                  "<rangeAzimuthHeatMap> <rangeDopplerHeatMap> <statsInfo>",
+    "measureRangeBiasAndRxChanPhase": "<enabled> <targetDistance> <searchWin>",
+    "CQRxSatMonitor": "<profile> <satMonSel> <priSliceDuration> <numSlices> <rxChanMask>",
+    "CQSigImgMonitor": "<profile> <numSlices> <numSamplePerSlice>",
+    "analogMonitor": "<rxSaturation> <sigImgBand>",
+    "calibData": "<save enable> <restore enable> <Flash offset>",
+    "bpmCfg": "<subFrameIdx> <enabled> <chirp0Idx> <chirp1Idx>",
+    "configDataPort": "<baudrate> <ackPing>",
+    "queryDemoStatus": "No arguments",
+    "idlePowerCycle": "<subFrameIdx> <enDSPpowerdown> <enDSSclkgate> <enMMWclkgate> "
+                      "<enBSSclkgate> <enRFpowerdown>",
+    "version": "No arguments",
+    "help": "No arguments",
+    "advFrameCfg": "<numOfSubFrames> <forceProfile> <numFrames> <triggerSelect> <frameTrigDelay>",
+    "subFrameCfg": "<subFrameNum> <forceProfileIdx> <chirpStartIdx> <numOfChirps> <numLoops> "
+                   "<burstPeriodicity> <chirpStartIdxOffset> <numOfBurst> <numOfBurstLoops> "
+                   "<subFramePeriodicity>",
+}
+
+#: Explanatory line the demo prints before "Error -1" for a malformed command.
+INVALID_USAGE = "Error: Invalid usage of the CLI command"
+
+#: Sensor states ``queryDemoStatus`` reports (the SDK demo's enum).
+_STATE_OPENED, _STATE_STARTED, _STATE_STOPPED = 1, 2, 3
+
+#: Longest a reply may wait for a client that does not read before it is
+#: dropped (a real UART never waits: its bytes are lost).
+WRITE_TIMEOUT_S = 2.0
+
+
+def known_commands() -> tuple[str, ...]:
+    """Every command name the fake firmware recognises."""
+    return (*cc.TYPED_COMMANDS, *cc.VERBATIM_COMMANDS, *EXTRA_COMMANDS)
+
+
+@dataclass
+class CliFaults:
+    """Failures to inject; all off by default.  Change them at any time."""
+
+    #: Command name -> N: the command answers ``Error <N>`` instead of Done (and has no effect).
+    error_on: dict[str, int] = field(default_factory=dict)
+    #: Command names that are echoed and then never answered: the CLI hangs until reset().
+    silent_on: set[str] = field(default_factory=set)
+    #: sensorStart is echoed and then never answered until reset() (like an invalid chirp timing).
+    hang_on_start: bool = False
+    #: Bytes sent before the echo of every reply (line noise, a stale boot message).
+    garbage: bytes = b""
+    #: When this command arrives, the pty master is closed at once (the USB cable is pulled).
+    disappear_on: str | None = None
+    #: Delay after each byte sent, s (a slow UART; exercises a client's framing).
+    char_delay_s: float = 0.0
+
+
+def _usage(name: str) -> str:
+    cls = cc.TYPED_COMMANDS.get(name)
+    if cls is None:
+        return _VERBATIM_USAGE.get(name, "")
+    if cls is cc.CompRangeBiasAndRxChanPhase:
+        return f"<rangeBias> <Re00> <Im00> ... ({cc.NUM_COMP_VIRTUAL_ANTENNAS} virtual antennas)"
+    return " ".join(f"<{f.metadata['ti_name']}>" for f in dataclasses.fields(cls))
+
+
+class FakeAwr1843:
+    """The demo firmware's CLI on a pseudo-terminal.
+
+    State (read it from any thread): :attr:`started`, :attr:`config` (the
+    last started :class:`RadarConfig`, None until the first start and after
+    :meth:`reset`), :attr:`received` (every line received, decoded, without
+    its line end), :attr:`faults`.  Callbacks (run on the serving thread,
+    before the reply's ``Done`` is sent): :attr:`on_sensor_start` ``(config)``
+    and :attr:`on_sensor_stop` ``()``.
+    """
+
+    def __init__(
+        self,
+        faults: CliFaults | None = None,
+        *,
+        on_sensor_start: Callable[[RadarConfig], None] | None = None,
+        on_sensor_stop: Callable[[], None] | None = None,
+        name: str | None = None,
+    ) -> None:
+        self.faults = faults if faults is not None else CliFaults()
+        self.on_sensor_start = on_sensor_start
+        self.on_sensor_stop = on_sensor_stop
+        self.started = False
+        self.config: RadarConfig | None = None
+        self.received: list[str] = []
+        #: Slave path of the open pty, or None.
+        self.path: str | None = None
+        #: True once a ``disappear_on`` fault closed the port.
+        self.disappeared = False
+        self.name = name
+        self._stored: list[str] = []  # configuration lines accepted since boot / flushCfg
+        self._ever_started = False
+        self._hung = False
+        self._inbuf = bytearray()
+        self._lock = threading.RLock()  # firmware state
+        self._io_lock = threading.Lock()  # the master fd and writes to it
+        self._master: int | None = None
+        self._slave: int | None = None
+        self._wake_r: int | None = None
+        self._wake_w: int | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        if name is not None:
+            _NAMED[name] = self
+
+    # ------------------------------------------------------------------ pty
+    def open_pty(self) -> str:
+        """Create the pty, serve it on a daemon thread, return the slave's path."""
+        if self._master is not None:
+            raise RuntimeError(f"the fake AWR1843 already serves {self.path}")
+        self._join_old_thread()  # after a disappearance the old thread is ending
+        with self._io_lock:
+            if self._master is not None:
+                raise RuntimeError(f"the fake AWR1843 already serves {self.path}")
+            master, slave = os.openpty()
+            # Raw: no echo, no CR/LF translation, no signals from the line discipline.
+            tty.setraw(slave)
+            os.set_blocking(master, False)
+            wake_r, wake_w = os.pipe()
+            self._master, self._slave = master, slave  # the slave stays open so the
+            self._wake_r, self._wake_w = wake_r, wake_w  # master never sees EIO between clients
+            self.path = os.ttyname(slave)
+            self.disappeared = False
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._serve, args=(master, wake_r),
+                                            name=f"fake-awr1843 {self.path}", daemon=True)
+            self._thread.start()
+        log.info("fake AWR1843 CLI on %s", self.path)
+        return self.path
+
+    def close(self) -> None:
+        """Stop serving and close the pty (idempotent)."""
+        self._stop.set()
+        with self._io_lock:
+            if self._wake_w is not None:
+                try:
+                    os.write(self._wake_w, b"x")
+                except OSError:
+                    pass
+        self._join_old_thread()
+        with self._io_lock:
+            self._close_fds()
+
+    def _join_old_thread(self) -> None:
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=5.0)
+            if thread.is_alive():  # pragma: no cover - a callback that never returns
+                log.warning("fake AWR1843 thread did not stop")
+        if thread is not threading.current_thread():
+            self._thread = None
+
+    def _close_fds(self) -> None:
+        """Close every fd (caller holds _io_lock)."""
+        self.path = None
+        for attr in ("_master", "_slave", "_wake_r", "_wake_w"):
+            fd = getattr(self, attr)
+            setattr(self, attr, None)
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+
+    def __enter__(self) -> FakeAwr1843:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---------------------------------------------------------------- reset
+    def reset(self) -> None:
+        """What the DCA1000's RESET_AR_DEV does: reboot the radar.
+
+        Stops the sensor (calling :attr:`on_sensor_stop` if it ran), forgets
+        the configuration, recovers from a hang and prints the boot banner and
+        a prompt, unsolicited, like a real reset.
+        """
+        with self._lock:
+            was_started = self.started
+            self.started = False
+            self.config = None
+            self._stored.clear()
+            self._ever_started = False
+            self._hung = False
+            self._inbuf.clear()
+        log.info("fake AWR1843 reset%s", " (sensor was running)" if was_started else "")
+        if was_started:
+            self._call(self.on_sensor_stop)
+        banner = "".join(ln + FIRMWARE_EOL for ln in ("", *BOOT_BANNER)).encode() + PROMPT
+        self._send(banner, slow=False)
+
+    # -------------------------------------------------------------- serving
+    def _serve(self, master: int, wake_r: int) -> None:
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([master, wake_r], [], [])
+            except (OSError, ValueError):  # closed under us
+                break
+            if wake_r in ready:
+                break
+            try:
+                data = os.read(master, 4096)
+            except BlockingIOError:
+                continue
+            except OSError as exc:
+                log.info("fake AWR1843 pty read failed: %s", exc)
+                break
+            if not data:
+                break
+            self._feed(data)
+            if self.disappeared:
+                break
+        log.debug("fake AWR1843 serving thread ends")
+
+    def _feed(self, data: bytes) -> None:
+        """Cut *data* into lines and answer each complete one."""
+        with self._lock:
+            self._inbuf += data
+        while True:
+            with self._lock:
+                at = self._inbuf.find(b"\n")
+                if at < 0:
+                    return
+                raw = bytes(self._inbuf[:at])
+                del self._inbuf[: at + 1]
+            if raw.endswith(b"\r"):
+                raw = raw[:-1]
+            self._handle_line(raw)
+            if self.disappeared:
+                return
+
+    def _handle_line(self, raw: bytes) -> None:
+        text = raw.decode("ascii", errors="replace")
+        self.received.append(text)
+        with self._lock:
+            if self._hung:
+                log.debug("fake AWR1843 is hung; ignoring %r", text)
+                return
+        faults = self.faults
+        tokens = text.split()
+        if not tokens:  # an empty line: just the prompt again
+            self._send(PROMPT)
+            return
+        name = tokens[0]
+        if faults.disappear_on is not None and name == faults.disappear_on:
+            log.info("fake AWR1843: %r arrived; the port disappears", name)
+            self._disappear()
+            return
+        echo = faults.garbage + raw + b"\n"
+        hang = name in faults.silent_on or (name == "sensorStart" and faults.hang_on_start)
+        if hang:
+            with self._lock:
+                self._hung = True
+            log.info("fake AWR1843 hangs on %r until reset()", text)
+            self._send(echo)
+            return
+        if text.lstrip().startswith("%"):
+            lines, after = [SKIPPED], None
+        elif name in faults.error_on:
+            lines, after = [f"Error {faults.error_on[name]}"], None
+        else:
+            lines, after = self._execute(name, tokens[1:])
+        if after is not None:
+            after()
+        reply = echo + "".join(ln + FIRMWARE_EOL for ln in lines).encode() + PROMPT
+        self._send(reply)
+
+    # ------------------------------------------------------------- commands
+    def _execute(self, name: str, args: list[str]) -> tuple[list[str], Callable[[], None] | None]:
+        """The reply lines of command *name*, and a callback to run before sending them."""
+        counts = EXTRA_COMMANDS.get(name) or cc.VERBATIM_COMMANDS.get(name)
+        if counts is None and name not in cc.TYPED_COMMANDS:
+            return [f"'{name}' {NOT_RECOGNIZED}"], None
+        with self._lock:
+            if self.started and name not in _RUNTIME_COMMANDS:
+                return [NOT_ALLOWED_AFTER_START, DONE], None
+            problem = self._check_args(name, args, counts)
+            if problem is not None:
+                return [f"{INVALID_USAGE}: {problem}", "Error -1"], None
+            if name == "sensorStop":
+                return self._sensor_stop()
+            if name == "sensorStart":
+                return self._sensor_start(args)
+            if name == "flushCfg":
+                self._stored.clear()
+                return [DONE], None
+            if name == "version":
+                return [*VERSION_LINES, DONE], None
+            if name == "help":
+                return [*self._help_lines(), DONE], None
+            if name == "queryDemoStatus":
+                state = (_STATE_STARTED if self.started
+                         else _STATE_STOPPED if self._ever_started else _STATE_OPENED)
+                return [f"Sensor State: {state}", "Data port baud rate: 921600", DONE], None
+            self._store(name, args)
+            return [DONE], None
+
+    @staticmethod
+    def _check_args(name: str, args: list[str], counts: tuple[int, ...] | None) -> str | None:
+        """Why the arguments of *name* are refused, or None."""
+        if name in cc.TYPED_COMMANDS:
+            try:
+                cc.parse_args(name, args)
+            except ConfigError as exc:
+                return f"{exc.field}: {exc.message}" if exc.field else exc.message
+            return None
+        if counts is not None and len(args) not in counts:
+            return f"expected {' or '.join(map(str, counts))} arguments, got {len(args)}"
+        return None
+
+    def _store(self, name: str, args: list[str]) -> None:
+        """Keep a configuration line; a repeated command replaces the earlier one,
+        as the firmware overwrites its settings (chirpCfg adds a chirp)."""
+        line = " ".join((name, *args))
+        if name != "chirpCfg":
+            key_field = {"cfarCfg": 1, "cfarFovCfg": 1}.get(name)  # procDirection token
+            for i, old in enumerate(self._stored):
+                old_tokens = old.split()
+                if old_tokens[0] != name:
+                    continue
+                if key_field is None or (len(old_tokens) > key_field + 1 and len(args) > key_field
+                                         and old_tokens[key_field + 1] == args[key_field]):
+                    self._stored[i] = line
+                    return
+        self._stored.append(line)
+
+    def _sensor_stop(self) -> tuple[list[str], Callable[[], None] | None]:
+        if not self.started:
+            return [ALREADY_STOPPED, DONE], None
+        self.started = False
+        log.info("fake AWR1843 sensor stopped")
+        return [DONE], lambda: self._call(self.on_sensor_stop)
+
+    def _sensor_start(self, args: list[str]) -> tuple[list[str], Callable[[], None] | None]:
+        if self.started:
+            return [ALREADY_STARTED, DONE], None
+        reconfigure = not args or _atoi(args[0]) != 0
+        if not reconfigure:
+            if self.config is None:
+                return [FULL_CONFIG_NEEDED, "Error -1"], None
+            config = self.config
+        else:
+            try:
+                config = RadarConfig.from_text("".join(ln + "\n" for ln in self._stored),
+                                               "fake-awr1843")
+            except ConfigError as exc:
+                log.info("fake AWR1843 refuses sensorStart: %s", exc)
+                if not self._ever_started and exc.message.startswith("missing"):
+                    return [FULL_CONFIG_NEEDED, "Error -1"], None
+                return [f"Error: {exc}", "Error -1"], None
+        self.started = True
+        self._ever_started = True
+        self.config = config
+        if not config.streams_raw_adc:
+            log.warning("fake AWR1843 started without raw ADC on LVDS (lvdsStreamCfg); "
+                        "a DCA1000 would receive no data")
+        log.info("fake AWR1843 sensor started: %d bytes/frame every %g ms",
+                 config.frame_bytes, config.frame.frame_period_ms)
+        return [DONE], lambda: self._call(self.on_sensor_start, config)
+
+    def _help_lines(self) -> list[str]:
+        lines = ["help: Display the usage of the CLI commands"]
+        lines += [f"{name}: {_usage(name)}" for name in known_commands() if name != "help"]
+        return lines
+
+    @staticmethod
+    def _call(callback: Callable | None, *args) -> None:
+        if callback is None:
+            return
+        try:
+            callback(*args)
+        except Exception:  # a broken test double must not kill the firmware
+            log.exception("fake AWR1843 callback %r failed", callback)
+
+    # -------------------------------------------------------------- output
+    def _send(self, data: bytes, *, slow: bool = True) -> None:
+        """Write *data* to the client (byte by byte with faults.char_delay_s)."""
+        delay = self.faults.char_delay_s if slow else 0.0
+        with self._io_lock:
+            fd = self._master
+            if fd is None:
+                return
+            if delay > 0:
+                for i in range(len(data)):
+                    if not self._write_all(fd, data[i:i + 1]) or self._stop.wait(delay):
+                        return
+            else:
+                self._write_all(fd, data)
+
+    def _write_all(self, fd: int, data: bytes) -> bool:
+        deadline = time.monotonic() + WRITE_TIMEOUT_S
+        view = memoryview(data)
+        while view:
+            if self._stop.is_set():
+                return False
+            try:
+                n = os.write(fd, view)
+            except BlockingIOError:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    log.warning("fake AWR1843: the client does not read; %d bytes lost "
+                                "(a UART overruns)", len(view))
+                    return False
+                select.select([], [fd], [], min(left, 0.1))
+                continue
+            except OSError as exc:
+                if exc.errno != errno.EINTR:
+                    log.info("fake AWR1843 pty write failed: %s", exc)
+                    return False
+                continue
+            view = view[n:]
+        return True
+
+    def _disappear(self) -> None:
+        """Close the pty now, like pulling the USB cable (called on the serving thread)."""
+        with self._io_lock:
+            self.disappeared = True  # set before the client can see the hang-up
+            self._close_fds()
+
+
+def _atoi(token: str) -> int:
+    """C atoi: leading integer digits, 0 when there are none."""
+    digits = ""
+    for i, ch in enumerate(token.strip()):
+        if ch.isdigit() or (i == 0 and ch in "+-"):
+            digits += ch
+        else:
+            break
+    try:
+        return int(digits)
+    except ValueError:
+        return 0
+
+
+# --------------------------------------------------------------- pyserial URL
+#: Fakes created with a name, for ``fakeawr1843://<name>``.
+_NAMED: weakref.WeakValueDictionary[str, FakeAwr1843] = weakref.WeakValueDictionary()
+
+URL_SCHEME = "fakeawr1843"
+
+
+class FakeAwr1843Serial(serial.serialposix.Serial):
+    """pyserial port for ``fakeawr1843://[name]``.
+
+    ``fakeawr1843://`` starts a private :class:`FakeAwr1843`, closed with the
+    port; ``fakeawr1843://<name>`` attaches to the live fake created with
+    ``FakeAwr1843(name=<name>)`` (opening its pty if needed).  Either way the
+    port is a real pty client; the fake is :attr:`fake`.
+    """
+
+    fake: FakeAwr1843 | None = None
+    _owns_fake = False
+
+    def open(self) -> None:
+        url = self._port
+        if not isinstance(url, str) or not url.lower().startswith(URL_SCHEME + "://"):
+            raise serial.SerialException(f"not a {URL_SCHEME}:// URL: {url!r}")
+        name = url[len(URL_SCHEME) + 3:].split("?", 1)[0].strip("/")
+        if name:
+            fake = _NAMED.get(name)
+            if fake is None:
+                raise serial.SerialException(f"no FakeAwr1843 named {name!r}")
+            owns = False
+        else:
+            fake, owns = FakeAwr1843(), True
+        path = fake.path or fake.open_pty()
+        self.fake, self._owns_fake = fake, owns
+        self.portstr = path  # PosixSerial opens portstr; port keeps the URL
+        try:
+            super().open()
+        except BaseException:
+            if owns:
+                fake.close()
+            raise
+
+    def close(self) -> None:
+        super().close()
+        if self._owns_fake and self.fake is not None:
+            self.fake.close()
+
+
+def serial_class_for_url(url: str):
+    """pyserial's protocol-handler hook."""
+    return url, FakeAwr1843Serial
+
+
+def register_url_handler() -> None:
+    """Make ``serial.serial_for_url("fakeawr1843://...")`` work (idempotent)."""
+    handler = f"{__package__}.protocol_{URL_SCHEME}"
+    if handler not in sys.modules:
+        module = types.ModuleType(handler, "pyserial handler for fakeawr1843:// (fake_awr1843.py)")
+        module.serial_class_for_url = serial_class_for_url  # type: ignore[attr-defined]
+        module.Serial = FakeAwr1843Serial  # type: ignore[attr-defined]
+        sys.modules[handler] = module
+    if __package__ not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append(__package__)
+
+
+register_url_handler()
