@@ -88,9 +88,12 @@ def _stop_on_signals(source: Source) -> Iterator[None]:
             signal.signal(sig, old)
 
 
-def _status_text(stats: CaptureStats, rate: RateMeter, recording: bool) -> str:
+def _status_text(stats: CaptureStats, rate: RateMeter, recording: bool, source: Source) -> str:
     text = (f"frames {stats.frames}  rate {rate.rate_hz:5.1f} Hz  incomplete {stats.incomplete_frames}"
             f"  elapsed {format_duration(stats.elapsed_s)}")
+    live = source.describe()
+    if "frames_dropped" in live:  # a live capture: what the consumer and the network lost
+        text += f"  dropped {live['frames_dropped']}  lost packets {live['seq_gaps']}"
     return text + ("  [rec]" if recording else "")
 
 
@@ -110,11 +113,11 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         args.source = _default_source()
     rate = RateMeter()
 
-    def on_frame(frame: Frame, stats: CaptureStats) -> None:
-        rate.tick()
-        status.update(_status_text(stats, rate, args.record is not None))
-
     with open_source(args.source, cfg) as source:
+        def on_frame(frame: Frame, stats: CaptureStats) -> None:
+            rate.tick()
+            status.update(_status_text(stats, rate, args.record is not None, source))
+
         writer = CaptureWriter(args.record, source.config, source=args.source) if args.record else None
         with _stop_on_signals(source):
             try:
@@ -122,7 +125,13 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
                                     max_duration_s=args.duration, on_frame=on_frame)
             finally:
                 status.clear()
-    print(f"radar-capture: {_summary(stats, args.record)}")
+        live = source.describe()
+    summary = _summary(stats, args.record)
+    if "frames_dropped" in live:
+        summary += (f"; {live['frames_dropped']} frames dropped by slow processing, {live['seq_gaps']} "
+                    f"packets lost, {live['foreign_packets']} foreign and {live['malformed_packets']} "
+                    f"malformed packets ignored")
+    print(f"radar-capture: {summary}")
     return 0
 
 
