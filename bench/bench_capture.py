@@ -95,9 +95,9 @@ def run_rate(frame_period_s: float | None, seconds: float, delay_us: float) -> d
         return {
             "target_mbps": None if frame_period_s is None else LAYOUT.frame_bytes * 8 / frame_period_s / 1e6,
             "frames": frames, "complete": complete, "dropped_by_ring": ring.dropped_frames,
-            "seq_gaps": st.seq_gaps, "missing_bytes": asm.missing_bytes,
+            "seq_gaps": receiver.gaps.lost, "missing_bytes": asm.missing_bytes,
             "mbps": mbps, "packets_per_s": mbps * 1e6 / 8 / MAX_DATA_BYTES,
-            "zero_loss": frames > 0 and complete == frames and ring.dropped_frames == 0 and st.seq_gaps == 0,
+            "zero_loss": frames > 0 and complete == frames and ring.dropped_frames == 0 and receiver.gaps.lost == 0,
             "rcvbuf_bytes": st.rcvbuf_bytes,
         }
     finally:

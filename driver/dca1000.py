@@ -234,21 +234,54 @@ class ReceiverStats:
     bytes: int = 0
     foreign_packets: int = 0
     malformed_packets: int = 0
-    #: Sequence numbers skipped (packets the network or the host dropped).
-    seq_gaps: int = 0
     rcvbuf_bytes: int = 0
+
+
+class SeqGaps:
+    """Sequence numbers not (yet) received: a late packet closes its gap, so
+    reordering is not counted as loss.  Gaps more than ``horizon`` packets old
+    are final."""
+
+    def __init__(self, horizon: int = 4096) -> None:
+        self.horizon = horizon
+        self.last = 0
+        self._open: set[int] = set()
+        self._final = 0
+
+    def add(self, seq: int) -> None:
+        if seq > self.last + 1:
+            self._open.update(range(self.last + 1, seq))
+            if len(self._open) > 2 * self.horizon:
+                old = {s for s in self._open if s < seq - self.horizon}
+                self._open -= old
+                self._final += len(old)
+        elif seq <= self.last:
+            self._open.discard(seq)
+        self.last = max(self.last, seq)
+
+    @property
+    def lost(self) -> int:
+        """Packets missing so far (the open gaps and the final ones)."""
+        return self._final + len(self._open)
 
 
 class Dca1000Receiver:
     """Receives the data port in a thread and assembles frames into a ring."""
 
     def __init__(self, settings: Dca1000Settings, frame_bytes: int, ring: FrameRing, *,
-                 reorder_bytes: int = DEFAULT_REORDER_PACKETS * MAX_DATA_BYTES,
-                 idle_flush_s: float = 0.5) -> None:
+                 reorder_bytes: int | None = None, idle_flush_s: float = 0.5) -> None:
         self.settings = settings
         self.frame_bytes = frame_bytes
         self.ring = ring
+        if reorder_bytes is None:
+            # Every frame open for reordering holds a ring buffer: with small frames
+            # the window must stay within the ring, leaving room for the consumer.
+            reorder_bytes = min(DEFAULT_REORDER_PACKETS * MAX_DATA_BYTES,
+                                max(MAX_DATA_BYTES, (ring.slots - 3) * frame_bytes))
         self.assembler = FrameAssembler(frame_bytes, ring, reorder_bytes=reorder_bytes)
+        self.gaps = SeqGaps()
+        #: time.monotonic() of the last packet from the board (0: none yet).
+        self.last_packet_monotonic = 0.0
         self.stats = ReceiverStats()
         self.idle_flush_s = idle_flush_s
         self._sock: socket.socket | None = None
@@ -334,7 +367,7 @@ class Dca1000Receiver:
         asm = self.assembler
         header = DATA_HEADER
         last_packet = time.monotonic()
-        last_seq = 0
+        gaps = self.gaps
         try:
             while self._running.is_set():
                 try:
@@ -344,7 +377,7 @@ class Dca1000Receiver:
                         asm.expire()  # the stream paused: hand on what we have
                     continue
                 now = time.time()
-                last_packet = time.monotonic()
+                last_packet = self.last_packet_monotonic = time.monotonic()
                 if addr[0] != board:
                     st.foreign_packets += 1
                     continue
@@ -354,9 +387,7 @@ class Dca1000Receiver:
                 seq, count = header.unpack_from(buf)
                 st.packets += 1
                 st.bytes += n - header.size
-                if seq > last_seq + 1:
-                    st.seq_gaps += seq - last_seq - 1
-                last_seq = max(last_seq, seq)
+                gaps.add(seq)
                 asm.add(seq, int.from_bytes(count, "little"), view[header.size:n], now)
         except Exception as exc:  # reported by the source, which owns the user interface
             self._error = exc

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import collections
 import logging
+import time
 from typing import Iterator
 
 from ..cfg import RadarConfig, shipped_config_path
-from ..errors import DeviceError, RadarodomError, SourceError
+from ..errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..rawframe import RawLayout
 from .awr1843 import Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
@@ -69,6 +70,8 @@ class LiveSource(Source):
                                         idle_flush_s=max(0.5, 2 * config.frame_period_s))
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s)
         self.clock = FrameClock(config.frame_period_s)
+        #: Seconds without any data packet before the stream is declared dead.
+        self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
         self.fpga_version = None
         self._recording = False
         self._closed = False
@@ -93,6 +96,15 @@ class LiveSource(Source):
         self.radar.open()
         self.radar.configure(self.config)
 
+    def _reset_radar(self) -> str:
+        """RESET_AR_DEV through the board; says what happened, for messages."""
+        try:
+            self.board.reset_radar()
+            self.radar.started = False
+            return "radarodom reset it through the DCA1000 (RESET_AR_DEV)"
+        except RadarodomError:
+            return "resetting it through the DCA1000 failed too: power-cycle the radar"
+
     def __iter__(self) -> Iterator[Frame]:
         self.board.start_recording()
         self._recording = True
@@ -100,23 +112,27 @@ class LiveSource(Source):
         try:
             self.radar.start()
         except SensorStartHung as exc:
-            try:
-                self.board.reset_radar()
-                recovery = "radarodom reset it through the DCA1000 (RESET_AR_DEV)"
-            except RadarodomError:
-                recovery = "resetting it through the DCA1000 failed too: power-cycle the radar"
-            raise SensorStartHung(f"{exc}; {recovery}") from None
+            raise SensorStartHung(f"{exc}; {self._reset_radar()}") from None
+        except BaseException:  # Ctrl-C while the radar starts: leave it usable
+            log.warning("interrupted during sensorStart: %s", self._reset_radar())
+            raise
         held = None
+        started = time.monotonic()
+        next_poll = 0.0
         try:
             while not self.stop_requested:
-                frame = self.ring.get(timeout=0.2)
+                frame = self.ring.get(timeout=0.1)
                 if held is not None:  # the consumer is done with the previous frame
                     self.ring.release(held)
                     held = None
+                now = time.monotonic()
+                if now >= next_poll:  # the board's status messages, about 5 times a second
+                    self.board.poll_async()
+                    next_poll = now + 0.2
                 if frame is None:
                     if self.receiver.error is not None:
                         raise DeviceError(f"receiving DCA1000 data failed: {self.receiver.error}")
-                    self.board.poll_async()
+                    self._check_data_flows(now, started)
                     continue
                 held = frame.slot
                 yield Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
@@ -125,12 +141,22 @@ class LiveSource(Source):
             if held is not None:
                 self.ring.release(held)
 
+    def _check_data_flows(self, now: float, started: float) -> None:
+        last = self.receiver.last_packet_monotonic or started
+        if now - last > self.data_timeout_s:
+            what = "no data arrived" if not self.receiver.last_packet_monotonic else "the data stopped"
+            hint = (" The board reported no LVDS data: check lvdsStreamCfg and the DCA1000's switches."
+                    if self.board.async_status.counts.get("NO_LVDS_DATA") else
+                    " Was the radar reset, or its cable moved?")
+            raise DeviceTimeout(f"{what} from the DCA1000 for {now - last:.1f} s "
+                                f"(frame period {self.config.frame_period_s:g} s).{hint}")
+
     def describe(self) -> dict:
         r, a = self.receiver.stats, self.receiver.assembler.stats
         return {
             "url": self.url, "fpga": str(self.fpga_version), "packets": r.packets,
             "foreign_packets": r.foreign_packets, "malformed_packets": r.malformed_packets,
-            "seq_gaps": r.seq_gaps, "duplicate_packets": a.duplicate_packets, "late_packets": a.late_packets,
+            "seq_gaps": self.receiver.gaps.lost, "duplicate_packets": a.duplicate_packets, "late_packets": a.late_packets,
             "missing_bytes": a.missing_bytes, "frames_incomplete": a.frames_incomplete,
             "frames_dropped": self.ring.dropped_frames, "async_status": dict(self.board.async_status.counts),
             "rcvbuf_bytes": r.rcvbuf_bytes,
@@ -153,8 +179,14 @@ class LiveSource(Source):
             log.debug("%d step(s) failed while stopping", len(failures))
 
     def _stop_radar(self) -> None:
-        if self.radar.is_open:
+        if not self.radar.is_open:
+            return
+        try:
             self.radar.stop()
+        except DeviceTimeout:
+            # A radar that no longer answers (hung, or interrupted mid-command)
+            # is reset so that the next session finds it usable.
+            raise DeviceTimeout(f"the radar did not answer sensorStop; {self._reset_radar()}") from None
 
     def _stop_recording(self) -> None:
         if self._recording:
