@@ -18,8 +18,10 @@ with ``f_c = f0 + S t_mid`` the frequency at the centre of the ADC window
 path), carries all phase information exactly; the second, the beat tone over
 the samples, uses each path's delay at the chunk's centre and the array's
 centre.  What that neglects is a phase ramp over the samples of at most
-``2 pi S dtau T_adc / 2``: about 0.1 rad for 1.5 m/s motion over a 4-loop
-chunk of the shipped cfg, and 0.25 rad for the 8 mm antenna offsets.
+``2 pi S dtau T_adc / 2``: the chunks are made short enough, from the frame's
+own motion, to keep it within 0.25 rad (4 chunks of the shipped cfg at 1 m/s,
+one chunk when nothing moves in range); and 0.25 rad for the 8 mm antenna
+offsets.
 
 Antenna elements are placed in the TI sensor frame with the wavelength at
 ``f_c``, so the spatial phase between virtual elements is exactly
@@ -78,6 +80,12 @@ def _unit_phasor(cycles: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Largest phase error the chunked beat tone may make at the ADC window's edges, rad:
+#: a tone held 0.25 rad off at its ends is a beat frequency off by 0.25 / pi of a
+#: range bin at the chunk's first and last chirps, under 1/12 of a bin, and 0 on average.
+MAX_BEAT_PHASE_ERROR_RAD = 0.25
+
+
 class FmcwSynthesizer:
     """Turns propagation paths into one frame's complex ADC cube.
 
@@ -85,7 +93,7 @@ class FmcwSynthesizer:
     ``max_paths`` paths and grown when needed.
     """
 
-    def __init__(self, cfg: RadarConfig, *, loops_per_chunk: int = 8) -> None:
+    def __init__(self, cfg: RadarConfig, *, loops_per_chunk: int | None = None) -> None:
         self.cfg = cfg
         loops, slots, rx, samples = cfg.cube_shape
         self.shape = cfg.cube_shape
@@ -103,7 +111,7 @@ class FmcwSynthesizer:
         self.tx_pos = np.array([[-h * half, 0.0, v * half] for h, v in tx])
         self.rx_pos = np.array([[-r * half, 0.0, 0.0] for r in cfg.rx_indices])  # documents the geometry
         self.rx_index = np.array(cfg.rx_indices)
-        self.loops_per_chunk = max(1, min(loops_per_chunk, loops))
+        self.loops_per_chunk = None if loops_per_chunk is None else max(1, min(loops_per_chunk, loops))
         # Block length for the beat tone: the largest power of two dividing the
         # sample count up to 16 (samples are even, so at least 2).
         self._block = next(b for b in (16, 8, 4, 2, 1) if samples % b == 0)
@@ -156,7 +164,7 @@ class FmcwSynthesizer:
                 a[:, i] = power
 
         flat = out.reshape(loops * slots, nrx, ns)
-        chunk = self.loops_per_chunk * slots
+        chunk = self._chunk_loops(r_tx, r_rx) * slots
         for c0 in range(0, loops * slots, chunk):
             c1 = min(c0 + chunk, loops * slots)
             tau = (r_tx[c0:c1] + r_rx[c0:c1]).mean(axis=0) / SPEED_OF_LIGHT  # (K,)
@@ -164,6 +172,24 @@ class FmcwSynthesizer:
             np.matmul(a[c0:c1].reshape((c1 - c0) * nrx, k), beat,
                       out=flat[c0:c1].reshape((c1 - c0) * nrx, ns))
         return out
+
+    def _chunk_loops(self, r_tx: np.ndarray, r_rx: np.ndarray) -> int:
+        """Loops per chunk: the fewest chunks that keep the beat tone's phase error
+        within MAX_BEAT_PHASE_ERROR_RAD (one chunk when nothing moves in range:
+        a pause, a turn in place), unless ``loops_per_chunk`` fixes it.
+
+        Within a chunk a path's delay drifts linearly; holding it at the chunk's
+        mean is off by half the chunk's drift, which misphases the window's
+        edge samples by 2 pi S (drift / 2) (T_adc / 2).
+        """
+        loops = self.shape[0]
+        if self.loops_per_chunk is not None:
+            return self.loops_per_chunk
+        drift = float(np.abs((r_tx[-1] + r_rx[-1]) - (r_tx[0] + r_rx[0])).max()) / SPEED_OF_LIGHT  # s
+        half_window = self.shape[3] / self.cfg.sample_rate_hz / 2
+        error_one_chunk = 2 * np.pi * self.slope * (drift / 2) * half_window
+        chunks = max(1, int(np.ceil(error_one_chunk / MAX_BEAT_PHASE_ERROR_RAD)))
+        return max(1, loops // chunks)
 
     def _beat_tone(self, tau: np.ndarray) -> np.ndarray:
         """exp(j 2 pi S tau (t_n - t_mid)) for delays *tau* (K,): complex64 (K, samples).

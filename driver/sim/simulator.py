@@ -52,18 +52,22 @@ class SimFrame:
 
 
 def world_to_sensor(points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray,
-                    height: float) -> np.ndarray:
+                    height: float, out: np.ndarray | None = None) -> np.ndarray:
     """World points to the TI sensor frame of poses (x, y, yaw) at *height*.
 
-    points: (K, 3) or (C, K, 3); poses: (C,).  Returns (3, C, K): the planes
-    x right, y boresight (body forward), z up, each contiguous (the synthesis
-    reads them plane by plane).
+    points: (K, 3) (fixed in the world) or (C, K, 3); poses: (C,).  Returns
+    float32 (3, C, K): the planes x right, y boresight (body forward), z up,
+    each contiguous (the synthesis reads them plane by plane), filled into
+    *out* when given.  float32 keeps ranges to about 1 um at 20 m.
     """
     pts = points if points.ndim == 3 else points[None]
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    out = np.empty((3, len(x), pts.shape[1]))
-    dx = pts[..., 0] - x[:, None]
-    dy = pts[..., 1] - y[:, None]
+    c = np.cos(yaw).astype(np.float32)[:, None]
+    s = np.sin(yaw).astype(np.float32)[:, None]
+    if out is None:
+        out = np.empty((3, len(x), pts.shape[1]), np.float32)
+    # Differences in float64 first: world coordinates are large, their differences small.
+    dx = (pts[..., 0] - x[:, None]).astype(np.float32)
+    dy = (pts[..., 1] - y[:, None]).astype(np.float32)
     # x_TI = -(body y) = s dx - c dy;  y_TI = body x = c dx + s dy
     np.multiply(s, dx, out=out[0])
     out[0] -= c * dy
@@ -186,11 +190,11 @@ class Simulator:
         # Positions at every chirp's time: static points are fixed in the world.
         n_static = len(st.rcs)
         s_idx, m_idx = idx[idx < n_static], idx[idx >= n_static] - n_static
-        world_c = [np.broadcast_to(st.pos[s_idx], (len(times), len(s_idx), 3))]
+        p = np.empty((3, len(times), len(idx)), np.float32)
+        world_to_sensor(st.pos[s_idx], x, y, yaw, traj.height, out=p[:, :, :len(s_idx)])
+        moving = np.concatenate(movers, axis=1)[:, m_idx] if movers else np.zeros((len(times), 0, 3))
         if movers:
-            world_c.append(np.concatenate(movers, axis=1)[:, m_idx])
-        world_all = np.concatenate(world_c, axis=1)
-        p = world_to_sensor(world_all, x, y, yaw, traj.height)
+            world_to_sensor(moving, x, y, yaw, traj.height, out=p[:, :, len(s_idx):])
         if not scene.multipath or len(scene.wall_a) == 0:
             return p, None, amp
 
@@ -213,7 +217,7 @@ class Simulator:
             if not ok.any():
                 continue
             sel = strong[ok]
-            img_world = world_all[:, sel].copy()
+            img_world = self._world_at_chirps(sel, s_idx, moving, len(times))
             img_world[..., :2] = _mirror(img_world[..., :2], a, b)
             p_img = world_to_sensor(img_world, x, y, yaw, traj.height)
             rel_img = p_img[:, mid]
@@ -227,6 +231,15 @@ class Simulator:
             images_rx += [p[:, :, sel], p_img]
             images_amp += [a_img, a_img]
         return np.concatenate(images_tx, axis=2), np.concatenate(images_rx, axis=2), np.concatenate(images_amp)
+
+    def _world_at_chirps(self, sel: np.ndarray, s_idx: np.ndarray, moving: np.ndarray, chirps: int) -> np.ndarray:
+        """World positions (chirps, len(sel), 3) of the synthesized paths *sel*
+        (columns: the static paths *s_idx* first, then the moving ones)."""
+        out = np.empty((chirps, len(sel), 3))
+        static = sel < len(s_idx)
+        out[:, static] = self.scene.static.pos[s_idx[sel[static]]][None]
+        out[:, ~static] = moving[:, sel[~static] - len(s_idx)]
+        return out
 
     def frame(self, i: int) -> SimFrame:
         """Frame *i*: its bytes, time and ground truth."""
