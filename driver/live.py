@@ -29,7 +29,7 @@ from ..rawframe import RawLayout
 from .awr1843 import Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
 from .frame_ring import POLICIES, FrameRing
-from .sources import Frame, Source, UrlOptions
+from .sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
 
 log = logging.getLogger(__name__)
 
@@ -194,46 +194,19 @@ class LiveSource(Source):
             self.board.stop_recording()
 
 
-def _port(text: str) -> int:
-    value = int(text)
-    if not 0 <= value <= 65535:
-        raise ValueError(text)
-    return value
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not 0 < value < float("inf"):
-        raise ValueError(text)
-    return value
-
-
-def _policy(text: str) -> str:
-    if text not in POLICIES:
-        raise ValueError(text)
-    return text
-
-
-def _buffers(text: str) -> int:
-    value = int(text)
-    if value < 2:
-        raise ValueError(text)
-    return value
-
-
 def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> LiveSource:
     defaults = Dca1000Settings()
     board = path.strip("/") or defaults.board_ip
     host = options.take("host", str, defaults.host_ip, "this host's IP address on the board's network")
     cli = options.take("cli", str, None, "the radar's CLI port (path or pyserial URL)")
-    config_port = options.take("config_port", _port, defaults.config_port, "a UDP port")
-    data_port = options.take("data_port", _port, defaults.data_port, "a UDP port")
-    board_port = options.take("board_port", _port, defaults.board_port, "a UDP port")
-    delay = options.take("delay", _positive, defaults.packet_delay_us, "packet delay in us")
-    policy = options.take("policy", _policy, "latest", " or ".join(POLICIES))
-    buffers = options.take("buffers", _buffers, 8, "a number of frames >= 2")
-    timeout = options.take("timeout", _positive, defaults.timeout_s, "seconds per board command")
-    start_timeout = options.take("start_timeout", _positive, 5.0, "seconds for sensorStart")
+    config_port = options.take("config_port", udp_port, defaults.config_port, "a UDP port")
+    data_port = options.take("data_port", udp_port, defaults.data_port, "a UDP port")
+    board_port = options.take("board_port", udp_port, defaults.board_port, "a UDP port")
+    delay = options.take("delay", positive_number, defaults.packet_delay_us, "packet delay in us")
+    policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
+    buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
+    timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")
+    start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
     options.finish()
     if cli is None:
         from .discovery import default_cli_port  # pyusb and sysfs only when needed

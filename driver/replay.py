@@ -29,19 +29,10 @@ import numpy as np
 from ..cfg import RadarConfig
 from ..errors import CaptureFormatError, ConfigError, SourceError
 from .capture_dir import ADC_DATA, RADAR_CFG, CaptureDirectory
-from .sources import Frame, Pacer, Source, UrlOptions, parse_rate
+from .sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
 
 log = logging.getLogger(__name__)
-
-def _count(minimum: int):
-    def convert(text: str) -> int:
-        value = int(text)
-        if value < minimum:
-            raise ValueError(text)
-        return value
-    return convert
-
 
 def _start(text: str) -> tuple[str, float]:
     if text.endswith("s"):
@@ -112,9 +103,9 @@ class ReplaySource(Source):
 
 def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:
     rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
-    loop = options.take("loop", _count(0), 1, "a number of passes (0: forever)")
+    loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     start = options.take("start", _start, ("frame", 0), "a frame number or seconds like 2.5s")
-    frames = options.take("frames", _count(1), None, "a number of frames >= 1")
+    frames = options.take("frames", at_least(1), None, "a number of frames >= 1")
     reordered = options.take("reordered", _flag, None, "0 or 1 (TI recorder files)")
     options.finish()
     if not path:

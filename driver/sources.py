@@ -143,6 +143,41 @@ class Pacer:
             time.sleep(min(left, PACING_SLICE_S))
 
 
+def at_least(minimum: int) -> Callable[[str], int]:
+    """A ``UrlOptions.take`` converter: a whole number >= *minimum*."""
+    def convert(text: str) -> int:
+        value = int(text)
+        if value < minimum:
+            raise ValueError(text)
+        return value
+    return convert
+
+
+def positive_number(text: str) -> float:
+    """A ``UrlOptions.take`` converter: a finite number > 0."""
+    value = float(text)
+    if not 0 < value < float("inf"):
+        raise ValueError(text)
+    return value
+
+
+def udp_port(text: str) -> int:
+    """A ``UrlOptions.take`` converter: 0..65535 (0: any free port)."""
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise ValueError(text)
+    return value
+
+
+def one_of(*choices: str) -> Callable[[str], str]:
+    """A ``UrlOptions.take`` converter: one of *choices*."""
+    def convert(text: str) -> str:
+        if text not in choices:
+            raise ValueError(text)
+        return text
+    return convert
+
+
 class UrlOptions:
     """The query options of a source URL, taken one by one by the backend."""
 

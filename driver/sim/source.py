@@ -20,25 +20,11 @@ from typing import Iterator
 import numpy as np
 
 from ...cfg import RadarConfig, shipped_config_path
-from ..sources import Frame, Pacer, Source, UrlOptions, parse_rate
+from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate, positive_number
 from .scene import load_scene
 from .simulator import Simulator
 
 DEFAULT_SCENE = "corridor"
-
-
-def _seed(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise ValueError(text)
-    return value
-
-
-def _duration(text: str) -> float:
-    value = float(text)
-    if not 0 < value < float("inf"):
-        raise ValueError(text)
-    return value
 
 
 class SimSource(Source):
@@ -69,9 +55,9 @@ class SimSource(Source):
 
 
 def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimSource:
-    seed = options.take("seed", _seed, 0, "an integer >= 0")
+    seed = options.take("seed", at_least(0), 0, "an integer >= 0")
     rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
-    duration = options.take("duration", _duration, None, "seconds > 0")
+    duration = options.take("duration", positive_number, None, "seconds > 0")
     options.finish()
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     scene = load_scene(path or DEFAULT_SCENE, seed=seed)
