@@ -13,6 +13,8 @@ import contextlib
 import logging
 import signal
 import sys
+
+import numpy as np
 from typing import Iterator, Sequence
 
 from ..cfg import RadarConfig
@@ -60,6 +62,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"frame source ({', '.join(s + '://' for s in sorted(SCHEMES))}; default: "
                              f"the live radar if one is plugged in, else {DEFAULT_SIM_URL})")
     parser.add_argument("--record", metavar="DIR", help="record the frames to this new capture directory")
+    parser.add_argument("--points-out", metavar="FILE.csv",
+                        help="run the DSP and write every frame's point cloud to this new CSV file")
+    parser.add_argument("--heatmap-out", metavar="DIR",
+                        help="run the DSP and write every frame's range-azimuth heatmaps (.npy) here")
     parser.add_argument("--frames", type=cli.positive_int, metavar="N", help="stop after N frames")
     parser.add_argument("--duration", type=cli.positive_float, metavar="S",
                         help="stop after S seconds of stream time")
@@ -106,6 +112,33 @@ def _summary(stats: CaptureStats, record: str | None) -> str:
     return text
 
 
+def _processing(source: Source, args: argparse.Namespace, outputs: contextlib.ExitStack):
+    """A per-frame DSP step writing --points-out / --heatmap-out, or None."""
+    if not (args.points_out or args.heatmap_out):
+        return None
+    from ..dsp.heatmap import HeatmapMaker
+    from ..dsp.processor import FrameProcessor
+    from .exports import HeatmapWriter, PointsCsvWriter
+
+    processor = FrameProcessor(source.config)
+    heatmaps = HeatmapMaker(processor) if args.heatmap_out else None
+    points_out = PointsCsvWriter(args.points_out) if args.points_out else None
+    heatmap_out = HeatmapWriter(args.heatmap_out) if args.heatmap_out else None
+    for writer in (points_out, heatmap_out):
+        if writer is not None:
+            outputs.callback(writer.close)
+
+    cube = np.empty(source.config.cube_shape, np.complex64)  # reused: no allocation per frame
+
+    def process(frame: Frame) -> None:
+        result = processor.process(frame.cube(out=cube))
+        if points_out is not None:
+            points_out.write(frame.index, frame.timestamp, result.points)
+        if heatmap_out is not None:
+            heatmap_out.write(frame.index, frame.timestamp, heatmaps.range_azimuth(result.spectrum))
+    return process
+
+
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
@@ -113,8 +146,12 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         args.source = _default_source()
     rate = RateMeter()
 
-    with open_source(args.source, cfg) as source:
+    with open_source(args.source, cfg) as source, contextlib.ExitStack() as outputs:
+        process = _processing(source, args, outputs)
+
         def on_frame(frame: Frame, stats: CaptureStats) -> None:
+            if process is not None:
+                process(frame)
             rate.tick()
             status.update(_status_text(stats, rate, args.record is not None, source))
 

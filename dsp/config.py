@@ -1,0 +1,107 @@
+"""The DSP's settings: one typed, dumpable configuration (like kiss-icp's).
+
+Everything else follows from the radar's cfg (:class:`radarodom.cfg.RadarConfig`):
+sizes, axes, the virtual array.  ``DspConfig.ti_like`` makes detection follow
+the cfg's own ``cfarCfg``, ``cfarFovCfg``, ``aoaFovCfg``, ``multiObjBeamForming``
+and ``clutterRemoval`` lines, as TI's demo does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import ConfigError
+from .cfar import CfarParams
+
+
+def _default_range_cfar() -> CfarParams:
+    return CfarParams(method="cago", guard=2, train=8, pfa=1e-5, cyclic=False)
+
+
+def _default_doppler_cfar() -> CfarParams:
+    return CfarParams(method="ca", guard=1, train=4, pfa=1e-3, cyclic=True)
+
+
+@dataclass
+class DspConfig:
+    #: Windows before the range and Doppler FFTs (scipy.signal.get_window names, or "rect").
+    range_window: str = "hann"
+    doppler_window: str = "hann"
+    #: FFT sizes; None: the number of samples / loops (no zero padding).
+    range_fft_size: int | None = None
+    doppler_fft_size: int | None = None
+    #: Zero-padded FFT sizes over the virtual array's azimuth row and its two rows in elevation.
+    azimuth_fft_size: int = 64
+    elevation_fft_size: int = 16
+    #: Undo the Doppler phase between TDM-MIMO TX slots before angle processing.
+    tdm_compensation: bool = True
+    #: Resolve velocities beyond +/- max velocity over the N_tx hypotheses (TI's extended velocity).
+    velocity_disambiguation: bool = False
+    #: Remove static returns (after windowing, so no false zero-Doppler detection appears).
+    #: Keep it off where the Doppler ego-velocity estimator needs the static world.
+    clutter_removal: bool = False
+    range_cfar: CfarParams = field(default_factory=_default_range_cfar)
+    doppler_cfar: CfarParams = field(default_factory=_default_doppler_cfar)
+    #: Keep only detections that are local maxima in range and Doppler.
+    peak_grouping: bool = True
+    #: A second azimuth peak per detection when at least this share of the first (None: off).
+    second_peak_threshold: float | None = None
+    #: Detections closer than this are dropped (the ADC's DC and TX-RX leakage live there), m.
+    min_range_m: float = 0.3
+    max_range_m: float | None = None
+    #: Follow the radar cfg's cfarCfg, cfarFovCfg, aoaFovCfg, multiObjBeamForming, clutterRemoval.
+    ti_like: bool = False
+    #: Threads for scipy.fft.
+    workers: int = 2
+
+    def __post_init__(self) -> None:
+        for name in ("azimuth_fft_size", "elevation_fft_size", "workers"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"must be at least 1, got {getattr(self, name)}", field=name)
+        for name in ("range_fft_size", "doppler_fft_size"):
+            if getattr(self, name) is not None and getattr(self, name) < 2:
+                raise ConfigError(f"must be at least 2, got {getattr(self, name)}", field=name)
+        if self.second_peak_threshold is not None and not 0 < self.second_peak_threshold <= 1:
+            raise ConfigError("must be in (0, 1]", field="second_peak_threshold")
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = value.to_dict() if isinstance(value, CfarParams) else value
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "DspConfig":
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(data) - known
+        if unknown:
+            raise ConfigError(f"unknown DSP setting(s): {', '.join(sorted(unknown))}")
+        values = dict(data)
+        for key in ("range_cfar", "doppler_cfar"):
+            if key in values and isinstance(values[key], dict):
+                values[key] = CfarParams.from_dict(values[key])
+        try:
+            return cls(**values)
+        except TypeError as exc:
+            raise ConfigError(f"bad DSP settings: {exc}") from None
+
+    def dump(self, path: str | os.PathLike) -> None:
+        with open(path, "w", encoding="utf-8") as fh:
+            json.dump(self.to_dict(), fh, indent=2)
+            fh.write("\n")
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "DspConfig":
+        try:
+            with open(path, encoding="utf-8") as fh:
+                data = json.load(fh)
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"cannot read DSP settings: {exc}", path=path) from None
+        if not isinstance(data, dict):
+            raise ConfigError("DSP settings must be a JSON object", path=path)
+        return cls.from_dict(data)

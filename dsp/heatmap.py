@@ -1,0 +1,135 @@
+"""Heatmaps: range-azimuth (and range-azimuth-elevation) intensity with Doppler.
+
+Like ColoRadar's heatmaps, each cell has an intensity and the radial velocity
+of its dominant Doppler bin.  Two intensities: over all Doppler bins, and over
+the static (zero-Doppler) bins only, which is what scan registration wants.
+
+- Range-azimuth: for every Doppler bin the TDM-compensated azimuth row is
+  zero-padded and transformed in one batched FFT; power is then summed (all),
+  taken at zero Doppler (static), and its argmax over Doppler gives the
+  dominant velocity.
+- Range-azimuth-elevation: per range bin the spatial covariance of the whole
+  virtual array over Doppler bins (12 x 12 for 3 TX x 4 RX) is formed once,
+  and the Bartlett spectrum a^H R a evaluated on an azimuth x elevation grid
+  as one matrix product, not per cell.
+- Cartesian: a polar heatmap resampled (bilinear) onto an x-y grid, with the
+  sample positions computed once per grid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+import scipy.ndimage
+
+from .processor import FrameProcessor
+
+
+@dataclass
+class RangeAzimuth:
+    """A polar range-azimuth heatmap; arrays (n_range, n_azimuth)."""
+
+    intensity: np.ndarray  # power over all Doppler bins, linear
+    static: np.ndarray  # power in the zero-Doppler bin(s), linear
+    doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin, m/s
+    range_m: np.ndarray  # (n_range,)
+    azimuth_rad: np.ndarray  # (n_azimuth,), ascending, positive to the right
+
+
+@dataclass
+class RangeAzimuthElevation:
+    """A polar 3-D heatmap; arrays (n_range, n_elevation, n_azimuth)."""
+
+    intensity: np.ndarray
+    static: np.ndarray
+    range_m: np.ndarray
+    azimuth_rad: np.ndarray
+    elevation_rad: np.ndarray
+
+
+class HeatmapMaker:
+    """Heatmaps from a :class:`FrameProcessor`'s Doppler spectrum."""
+
+    def __init__(self, processor: FrameProcessor, *, static_bins: int = 0,
+                 elevation_bins: int | None = None) -> None:
+        self.proc = processor
+        self.static_bins = static_bins
+        n_az = processor.n_az
+        k = np.arange(n_az) - n_az // 2  # after fftshift: ascending signed bins
+        self.azimuth_rad = np.arcsin(np.clip(2.0 * k / n_az, -1.0, 1.0))
+        centre = processor.n_doppler // 2
+        self._static_rows = slice(centre - static_bins, centre + static_bins + 1)
+        self._tdm = processor._tdm if processor.params.tdm_compensation else None
+        n_el = elevation_bins or processor.params.elevation_fft_size
+        kz = np.arange(n_el) - n_el // 2
+        self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
+        # Steering vectors of the whole virtual array on the (elevation, azimuth) grid.
+        va = processor.cfg.virtual_array
+        h, v = va.h.ravel().astype(float), va.v.ravel().astype(float)
+        sx = np.sin(self.azimuth_rad)[None, :] * np.cos(self.elevation_rad)[:, None]  # x / r
+        sz = np.sin(self.elevation_rad)[:, None] * np.ones_like(sx)  # z / r
+        # Element phase pi (h Wx - v Wz) (see the simulator's geometry and conventions.md).
+        phase = np.pi * (h[None, None, :] * sx[..., None] - v[None, None, :] * sz[..., None])
+        self._steer = np.exp(1j * phase).reshape(-1, len(h)).astype(np.complex64)  # (el*az, elems)
+
+    def _compensated(self, spectrum: np.ndarray) -> np.ndarray:
+        """Doppler spectrum per element, TDM-compensated: (n_doppler, elements, n_range)."""
+        nd, slots, nrx, nr = spectrum.shape
+        data = spectrum.reshape(nd, slots * nrx, nr)
+        if self._tdm is not None:
+            data = data * self._tdm[:, self.proc._slot_of_element, None]
+        return data
+
+    def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
+        proc = self.proc
+        data = self._compensated(spectrum)
+        nd, _, nr = data.shape
+        az_in = np.zeros((nd, proc.n_az, nr), np.complex64)
+        az_in[:, proc.az_h, :] = data[:, proc.az_elements, :]
+        az = scipy.fft.fftshift(scipy.fft.fft(az_in, axis=1, workers=proc.params.workers), axes=1)
+        power = az.real**2 + az.imag**2  # (n_doppler, n_az, n_range)
+        intensity = power.sum(axis=0).T
+        static = power[self._static_rows].sum(axis=0).T
+        dominant = proc.velocity_mps[power.argmax(axis=0)].T.astype(np.float32)
+        return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)
+
+    def range_azimuth_elevation(self, spectrum: np.ndarray) -> RangeAzimuthElevation:
+        data = self._compensated(spectrum)  # (n_doppler, elements, n_range)
+        x = np.transpose(data, (2, 1, 0))  # (n_range, elements, n_doppler)
+        cov = x @ np.conj(np.transpose(x, (0, 2, 1)))  # (n_range, elements, elements)
+        a = self._steer  # (cells, elements)
+        # a^H R a for every cell and range, as matrix products.
+        intensity = np.einsum("ce,ref,cf->rc", np.conj(a), cov, a, optimize=True).real
+        xs = data[self._static_rows].sum(axis=0).T  # (n_range, elements)
+        static = np.abs(xs @ np.conj(a).T) ** 2  # (n_range, cells)
+        shape = (len(self.proc.range_m), len(self.elevation_rad), len(self.azimuth_rad))
+        return RangeAzimuthElevation(intensity.reshape(shape).astype(np.float32),
+                                     static.reshape(shape).astype(np.float32),
+                                     self.proc.range_m, self.azimuth_rad, self.elevation_rad)
+
+
+class CartesianGrid:
+    """An x-y grid (TI sensor frame: x right, y ahead) and how to resample polar
+    range-azimuth arrays onto it (bilinear; zero outside the field of view)."""
+
+    def __init__(self, range_m: np.ndarray, azimuth_rad: np.ndarray, *, resolution_m: float = 0.05,
+                 max_range_m: float | None = None) -> None:
+        r_max = float(max_range_m or range_m[-1])
+        self.x = np.arange(-r_max, r_max + resolution_m / 2, resolution_m)
+        self.y = np.arange(0.0, r_max + resolution_m / 2, resolution_m)
+        xx, yy = np.meshgrid(self.x, self.y)  # (ny, nx)
+        r = np.hypot(xx, yy)
+        theta = np.arctan2(xx, yy)
+        # Fractional indices into the polar arrays (range bins are uniform; azimuth is not).
+        ri = r / (range_m[1] - range_m[0])
+        ai = np.interp(theta, azimuth_rad, np.arange(len(azimuth_rad)), left=-1.0, right=-1.0)
+        self._coords = np.stack([ri, ai])
+        self._outside = (ai < 0) | (r > r_max)
+
+    def resample(self, polar: np.ndarray) -> np.ndarray:
+        """A (n_range, n_azimuth) array on the grid: (len(y), len(x))."""
+        out = scipy.ndimage.map_coordinates(polar, self._coords, order=1, mode="constant", cval=0.0)
+        out[self._outside] = 0.0
+        return out

@@ -1,0 +1,272 @@
+"""The frame processor: raw cube to range-Doppler map and point cloud.
+
+Built once per radar configuration (sizes, windows, axes, the virtual array,
+TDM phase tables), then run on every frame:
+
+1. range FFT over the ADC samples (windowed), per loop, TX slot and RX;
+2. optional static clutter removal, done on the Doppler-windowed data (a
+   least-squares fit of the window's own shape), so that a moving target's
+   range bin gets no false zero-Doppler return;
+3. Doppler FFT over the loops (windowed, centred: bin ``n_doppler // 2`` is
+   zero velocity, higher bins recede);
+4. range-Doppler power summed over the virtual array, and CFAR detection
+   (:mod:`.cfar`);
+5. per detection: TDM-MIMO Doppler phase compensation (optionally over the
+   N_tx velocity hypotheses), the azimuth FFT over the azimuth row of the
+   virtual array (zero-padded) and the elevation from the raised row, giving
+   x, y, z in the TI sensor frame.
+
+Angles follow conventions.md: the azimuth row's FFT peak k gives
+``Wx = 2k/N`` and ``x = r Wx``; with the raised row's FFT taken at the
+elements' true horizontal positions, ``Wz = angle(A conj(E)) / pi`` at that
+peak (the same as TI's ``angle(A conj(E))/pi + 2 Wx`` with the raised row
+indexed from its first element), ``z = r Wz``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+import scipy.signal
+
+from ..cfg import RadarConfig
+from ..errors import ConfigError
+from .cfar import CfarParams, cfar_2d_ti, params_from_ti
+from .config import DspConfig
+
+log = logging.getLogger(__name__)
+
+#: One detected point (TI sensor frame; SI units, radians).
+POINT_DTYPE = np.dtype([
+    ("x", "f4"), ("y", "f4"), ("z", "f4"),  # m
+    ("range", "f4"),  # m
+    ("azimuth", "f4"), ("elevation", "f4"),  # rad; azimuth positive to the right
+    ("velocity", "f4"),  # m/s radial, positive receding
+    ("snr_db", "f4"), ("noise_db", "f4"),  # dB (noise: 10 log10 of the summed power's CFAR estimate)
+    ("range_bin", "i2"), ("doppler_bin", "i2"),  # Doppler bin signed: 0 is zero velocity
+])
+
+
+def make_window(name: str, n: int) -> np.ndarray:
+    """A float32 window of length *n* by scipy's name ("rect" for none)."""
+    if name in ("rect", "boxcar", "none"):
+        return np.ones(n, np.float32)
+    try:
+        return scipy.signal.get_window(name, n, fftbins=False).astype(np.float32)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"unknown window {name!r}: {exc}", field="window") from None
+
+
+@dataclass
+class FrameResult:
+    """What one frame gave.  Arrays are the processor's buffers: valid until
+    the next :meth:`FrameProcessor.process`; copy what you keep."""
+
+    #: Range-Doppler power summed over the virtual array, linear, (doppler_bins, range_bins).
+    power: np.ndarray
+    #: Doppler spectrum per virtual element, complex64 (doppler_bins, tx_slots, rx, range_bins).
+    spectrum: np.ndarray
+    #: The detections, POINT_DTYPE (n,).
+    points: np.ndarray
+
+
+class FrameProcessor:
+    """Range/Doppler/angle processing for one radar configuration."""
+
+    def __init__(self, cfg: RadarConfig, params: DspConfig | None = None) -> None:
+        params = params or DspConfig()
+        if params.ti_like:
+            params = ti_like_params(cfg, params)
+        self.cfg = cfg
+        self.params = params
+        loops, slots, nrx, ns = cfg.cube_shape
+        self.n_range = params.range_fft_size or ns
+        self.n_doppler = params.doppler_fft_size or loops
+        self.w_range = make_window(params.range_window, ns)
+        self.w_doppler = make_window(params.doppler_window, loops)
+        #: Range of each range bin, m, (n_range,).
+        self.range_m = np.arange(self.n_range) * cfg.range_resolution_m * ns / self.n_range
+        #: Signed Doppler bin of each row of the centred spectrum, (n_doppler,).
+        self.doppler_bins = np.arange(self.n_doppler) - self.n_doppler // 2
+        #: Radial velocity of each row, m/s, (n_doppler,).
+        self.velocity_mps = self.doppler_bins * cfg.velocity_resolution_mps * loops / self.n_doppler
+        self._windowed = np.empty(cfg.cube_shape, np.complex64)
+        self._power = np.empty((self.n_doppler, self.n_range), np.float32)
+        # Virtual array: which flat (slot, rx) element sits where.
+        va = cfg.virtual_array
+        h, v = va.h.ravel(), va.v.ravel()
+        self.az_elements = va.azimuth_row
+        self.az_h = h[self.az_elements]
+        self.el_elements = va.elevation_row
+        self.el_h = h[self.el_elements]
+        self.n_az = max(params.azimuth_fft_size, int(h.max()) + 1)
+        self._slot_of_element = np.repeat(np.arange(slots), nrx)
+        # TDM-MIMO: slot m of a target in Doppler bin k (cycles k / n_doppler per loop)
+        # lags by 2 pi k m / (slots n_doppler); this undoes it.
+        self._tdm = np.exp(-2j * np.pi * np.outer(self.doppler_bins, np.arange(slots))
+                           / (slots * self.n_doppler)).astype(np.complex64)  # (n_doppler, slots)
+        self._range_ok = self.range_m >= params.min_range_m
+        if params.max_range_m is not None:
+            self._range_ok &= self.range_m <= params.max_range_m
+        self._fov = cfg.cfar_fov if params.ti_like else {}
+        self._aoa = cfg.aoa_fov if params.ti_like else None
+
+    # ---------------------------------------------------------------- stages
+    def range_fft(self, cube: np.ndarray) -> np.ndarray:
+        """Windowed range FFT: complex64 (loops, tx_slots, rx, n_range)."""
+        np.multiply(cube, self.w_range, out=self._windowed)
+        return scipy.fft.fft(self._windowed, n=self.n_range, axis=-1, workers=self.params.workers,
+                             overwrite_x=True)
+
+    def doppler_fft(self, range_spectrum: np.ndarray) -> np.ndarray:
+        """Windowed, centred Doppler FFT: complex64 (n_doppler, tx_slots, rx, n_range)."""
+        w = self.w_doppler[:, None, None, None]
+        data = range_spectrum * w
+        if self.params.clutter_removal:
+            # Static returns are w_l * s in the windowed data: fit s per cell and remove
+            # w * s, which takes their leakage with them (a plain mean would not).
+            s = np.einsum("l,lmrn->mrn", self.w_doppler, data) / float(self.w_doppler @ self.w_doppler)
+            data -= w * s[None]
+        spec = scipy.fft.fft(data, n=self.n_doppler, axis=0, workers=self.params.workers, overwrite_x=True)
+        return scipy.fft.fftshift(spec, axes=0)
+
+    def power(self, spectrum: np.ndarray) -> np.ndarray:
+        """Power summed over the virtual array: float32 (n_doppler, n_range)."""
+        p = spectrum.real**2
+        p += spectrum.imag**2
+        np.sum(p, axis=(1, 2), out=self._power)
+        return self._power
+
+    def process(self, cube: np.ndarray) -> FrameResult:
+        """A raw cube, complex (loops, tx_slots, rx, samples), to detections."""
+        if cube.shape != self.cfg.cube_shape:
+            raise ConfigError(f"cube shaped {cube.shape}, the cfg gives {self.cfg.cube_shape}")
+        spectrum = self.doppler_fft(self.range_fft(cube))
+        power = self.power(spectrum)
+        det = cfar_2d_ti(power, self.params.range_cfar, self.params.doppler_cfar,
+                         peak_grouping=self.params.peak_grouping)
+        keep = self._range_ok[det.range_idx]
+        if self._fov:
+            from .cfar import fov_mask
+
+            keep &= fov_mask(self.range_m[det.range_idx], self.velocity_mps[det.doppler_idx], self._fov)
+        points = self.points(spectrum, det.doppler_idx[keep], det.range_idx[keep], det.snr_db[keep],
+                             det.noise[keep])
+        return FrameResult(power, spectrum, points)
+
+    # ---------------------------------------------------------------- angles
+    def points(self, spectrum: np.ndarray, doppler_idx: np.ndarray, range_idx: np.ndarray,
+               snr_db: np.ndarray, noise: np.ndarray) -> np.ndarray:
+        """Angles and positions of detections (row indices into the centred spectrum)."""
+        n = len(range_idx)
+        slots = self.cfg.num_tx_slots
+        elements = spectrum[doppler_idx, :, :, range_idx].reshape(n, -1)  # (n, slots * rx)
+        doppler = self.doppler_bins[doppler_idx].astype(float)
+        if self.params.tdm_compensation and self.params.velocity_disambiguation and slots > 1:
+            elements, doppler = self._disambiguate(elements, doppler)
+        elif self.params.tdm_compensation:
+            elements = elements * self._tdm[doppler_idx][:, self._slot_of_element]
+        az_in = np.zeros((n, self.n_az), np.complex64)
+        az_in[:, self.az_h] = elements[:, self.az_elements]
+        az = scipy.fft.fft(az_in, axis=1, workers=self.params.workers)
+        mag = np.abs(az)
+        peak = mag.argmax(axis=1)
+        out = self._points_at(az, peak, elements, range_idx, doppler, snr_db, noise)
+        if self.params.second_peak_threshold is not None and n:
+            second = self._second_peaks(mag, peak)
+            if second is not None:
+                rows, k2 = second
+                more = self._points_at(az[rows], k2, elements[rows], range_idx[rows], doppler[rows],
+                                       snr_db[rows], noise[rows])
+                out = np.concatenate([out, more])
+        if self._aoa is not None and len(out):
+            a = self._aoa
+            az_deg, el_deg = np.degrees(out["azimuth"]), np.degrees(out["elevation"])
+            out = out[(az_deg >= a.min_azimuth_deg) & (az_deg <= a.max_azimuth_deg)
+                      & (el_deg >= a.min_elevation_deg) & (el_deg <= a.max_elevation_deg)]
+        return out
+
+    def _points_at(self, az, peak, elements, range_idx, doppler, snr_db, noise) -> np.ndarray:
+        n = len(peak)
+        k = np.where(peak >= self.n_az // 2, peak - self.n_az, peak)  # signed FFT bin
+        wx = np.clip(2.0 * k / self.n_az, -1.0, 1.0)
+        wz = np.zeros(n)
+        if len(self.el_elements):
+            el_in = np.zeros((n, self.n_az), np.complex64)
+            el_in[:, self.el_h] = elements[:, self.el_elements]
+            el = scipy.fft.fft(el_in, axis=1, workers=self.params.workers)
+            rows = np.arange(n)
+            wz = np.angle(az[rows, peak] * np.conj(el[rows, peak])) / np.pi
+        r = self.range_m[range_idx]
+        x = r * wx
+        z = r * np.clip(wz, -1.0, 1.0)
+        y = np.sqrt(np.maximum(r * r - x * x - z * z, 0.0))
+        pts = np.empty(n, POINT_DTYPE)
+        pts["x"], pts["y"], pts["z"], pts["range"] = x, y, z, r
+        pts["azimuth"] = np.arctan2(x, y)
+        pts["elevation"] = np.arcsin(np.clip(z / np.maximum(r, 1e-9), -1.0, 1.0))
+        pts["velocity"] = doppler * self.cfg.velocity_resolution_mps * self.cfg.num_loops / self.n_doppler
+        pts["snr_db"] = snr_db
+        pts["noise_db"] = 10 * np.log10(np.maximum(noise, 1e-30))
+        pts["range_bin"] = range_idx
+        pts["doppler_bin"] = np.round(doppler).astype(np.int16)
+        return pts
+
+    def _disambiguate(self, elements: np.ndarray, doppler: np.ndarray):
+        """TI's extended velocity: of the N_tx Doppler hypotheses k + j n_doppler,
+        keep the one whose compensation gives the strongest azimuth peak."""
+        slots = self.cfg.num_tx_slots
+        js = np.arange(slots) - (slots - 1) // 2
+        best_power = np.full(len(doppler), -1.0)
+        best_el = elements
+        best_k = doppler
+        for j in js:  # a handful of hypotheses, each vectorised over detections
+            k = doppler + j * self.n_doppler
+            comp = np.exp(-2j * np.pi * np.outer(k, np.arange(slots)) / (slots * self.n_doppler))
+            cand = elements * comp[:, self._slot_of_element].astype(np.complex64)
+            az_in = np.zeros((len(k), self.n_az), np.complex64)
+            az_in[:, self.az_h] = cand[:, self.az_elements]
+            peak_power = np.abs(scipy.fft.fft(az_in, axis=1)).max(axis=1)
+            better = peak_power > best_power
+            best_power = np.where(better, peak_power, best_power)
+            best_el = np.where(better[:, None], cand, best_el)
+            best_k = np.where(better, k, best_k)
+        return best_el, best_k
+
+    def _second_peaks(self, mag: np.ndarray, peak: np.ndarray):
+        """(rows, bins) of azimuth local maxima at least second_peak_threshold of the first."""
+        left, right = np.roll(mag, 1, axis=1), np.roll(mag, -1, axis=1)
+        local = (mag > left) & (mag >= right)
+        rows = np.arange(len(peak))
+        local[rows, peak] = False
+        cand = np.where(local, mag, 0.0)
+        k2 = cand.argmax(axis=1)
+        ok = cand[rows, k2] >= self.params.second_peak_threshold * mag[rows, peak]
+        return (rows[ok], k2[ok]) if ok.any() else None
+
+
+def ti_like_params(cfg: RadarConfig, params: DspConfig) -> DspConfig:
+    """*params* with detection set from the cfg's own TI lines, where present."""
+    import dataclasses
+
+    changes = {}
+    cfar = cfg.cfar
+    if 0 in cfar:
+        changes["range_cfar"] = params_from_ti(cfar[0])
+        changes["peak_grouping"] = bool(cfar[0].peak_grouping)
+    if 1 in cfar:
+        changes["doppler_cfar"] = params_from_ti(cfar[1])
+    if cfg.clutter_removal is not None:
+        changes["clutter_removal"] = bool(cfg.clutter_removal.enabled)
+    mobf = cfg.multi_obj_beam_forming
+    if mobf is not None:
+        changes["second_peak_threshold"] = mobf.threshold if mobf.enabled and mobf.threshold > 0 else None
+    if cfg.extended_max_velocity is not None:
+        changes["velocity_disambiguation"] = bool(cfg.extended_max_velocity.enabled)
+    return dataclasses.replace(params, ti_like=True, **changes)
+
+
+__all__ = ["POINT_DTYPE", "FrameProcessor", "FrameResult", "CfarParams", "make_window", "ti_like_params"]
