@@ -97,7 +97,7 @@ class FrameProcessor:
         self._power = np.empty((self.n_doppler, self.n_range), np.float32)
         # Virtual array: which flat (slot, rx) element sits where.
         va = cfg.virtual_array
-        h, v = va.h.ravel(), va.v.ravel()
+        h = va.h.ravel()
         self.az_elements = va.azimuth_row
         self.az_h = h[self.az_elements]
         self.el_elements = va.elevation_row
