@@ -4,10 +4,11 @@ Like ColoRadar's heatmaps, each cell has an intensity and the radial velocity
 of its dominant Doppler bin.  Two intensities: over all Doppler bins, and over
 the static (zero-Doppler) bins only, which is what scan registration wants.
 
-- Range-azimuth: for every Doppler bin the TDM-compensated azimuth row is
-  zero-padded and transformed in one batched FFT; power is then summed (all),
-  taken at zero Doppler (static), and its argmax over Doppler gives the
-  dominant velocity.
+- Range-azimuth: for every Doppler and range bin the TDM-compensated azimuth
+  row goes through the zero-padded azimuth DFT, as one matrix product with a
+  small precomputed DFT matrix (8 elements onto 64 bins: cheaper than FFTs of
+  mostly zeros); power is then summed (all), taken at zero Doppler (static),
+  and its argmax over Doppler gives the dominant velocity.
 - Range-azimuth-elevation: per range bin the spatial covariance of the whole
   virtual array over Doppler bins (12 x 12 for 3 TX x 4 RX) is formed once,
   and the Bartlett spectrum a^H R a evaluated on an azimuth x elevation grid
@@ -62,6 +63,9 @@ class HeatmapMaker:
         centre = processor.n_doppler // 2
         self._static_rows = slice(centre - static_bins, centre + static_bins + 1)
         self._tdm = processor._tdm if processor.params.tdm_compensation else None
+        # DFT of the azimuth row at its elements' positions onto the centred bins:
+        # exp(-j 2 pi h k / n_az) for signed k ascending (what fft + fftshift give).
+        self._az_dft_t = np.exp(-2j * np.pi * np.outer(k, processor.az_h) / n_az).astype(np.complex64)
         n_el = elevation_bins or processor.params.elevation_fft_size
         kz = np.arange(n_el) - n_el // 2
         self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
@@ -84,15 +88,19 @@ class HeatmapMaker:
 
     def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
         proc = self.proc
-        data = self._compensated(spectrum)
-        nd, _, nr = data.shape
-        az_in = np.zeros((nd, proc.n_az, nr), np.complex64)
-        az_in[:, proc.az_h, :] = data[:, proc.az_elements, :]
-        az = scipy.fft.fftshift(scipy.fft.fft(az_in, axis=1, workers=proc.params.workers), axes=1)
-        power = az.real**2 + az.imag**2  # (n_doppler, n_az, n_range)
-        intensity = power.sum(axis=0).T
-        static = power[self._static_rows].sum(axis=0).T
-        dominant = proc.velocity_mps[power.argmax(axis=0)].T.astype(np.float32)
+        nd, slots, nrx, nr = spectrum.shape
+        row = spectrum.reshape(nd, slots * nrx, nr)[:, proc.az_elements, :]  # (n_doppler, row, n_range)
+        if self._tdm is not None:
+            row = row * self._tdm[:, proc._slot_of_element[proc.az_elements], None]
+        # Doppler last, so that the sums and the argmax over Doppler run along memory.
+        x = np.ascontiguousarray(np.transpose(row, (2, 1, 0)))  # (n_range, row, n_doppler)
+        # A zero-padded FFT of a few elements is a small DFT matrix: matrix products.
+        az = np.matmul(self._az_dft_t, x)  # (n_range, n_az, n_doppler), azimuth bins ascending
+        power = az.real**2
+        power += az.imag**2
+        intensity = power.sum(axis=-1)
+        static = power[..., self._static_rows].sum(axis=-1)
+        dominant = proc.velocity_mps[power.argmax(axis=-1)].astype(np.float32)
         return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)
 
     def range_azimuth_elevation(self, spectrum: np.ndarray) -> RangeAzimuthElevation:
