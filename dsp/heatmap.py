@@ -66,6 +66,12 @@ class HeatmapMaker:
         # DFT of the azimuth row at its elements' positions onto the centred bins:
         # exp(-j 2 pi h k / n_az) for signed k ascending (what fft + fftshift give).
         self._az_dft_t = np.exp(-2j * np.pi * np.outer(k, processor.az_h) / n_az).astype(np.complex64)
+        # Work buffers, reused by every frame (fresh large arrays cost page faults).
+        nr, nd, n_row = len(processor.range_m), processor.n_doppler, len(processor.az_elements)
+        self._buffers = (np.empty((nr, n_row, nd), np.complex64), np.empty((nr, n_az, nd), np.complex64),
+                         np.empty((nr, n_az, nd), np.float32), np.empty((nr, n_az, nd), np.float32))
+        self._tdm_row = (None if self._tdm is None else np.ascontiguousarray(
+            self._tdm[:, processor._slot_of_element[processor.az_elements]].T)[None])  # (1, row, n_doppler)
         n_el = elevation_bins or processor.params.elevation_fft_size
         kz = np.arange(n_el) - n_el // 2
         self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
@@ -89,15 +95,17 @@ class HeatmapMaker:
     def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
         proc = self.proc
         nd, slots, nrx, nr = spectrum.shape
+        x, az, power, scratch = self._buffers
         row = spectrum.reshape(nd, slots * nrx, nr)[:, proc.az_elements, :]  # (n_doppler, row, n_range)
-        if self._tdm is not None:
-            row = row * self._tdm[:, proc._slot_of_element[proc.az_elements], None]
         # Doppler last, so that the sums and the argmax over Doppler run along memory.
-        x = np.ascontiguousarray(np.transpose(row, (2, 1, 0)))  # (n_range, row, n_doppler)
+        x[...] = np.transpose(row, (2, 1, 0))  # (n_range, row, n_doppler)
+        if self._tdm_row is not None:
+            x *= self._tdm_row
         # A zero-padded FFT of a few elements is a small DFT matrix: matrix products.
-        az = np.matmul(self._az_dft_t, x)  # (n_range, n_az, n_doppler), azimuth bins ascending
-        power = az.real**2
-        power += az.imag**2
+        np.matmul(self._az_dft_t, x, out=az)  # (n_range, n_az, n_doppler), azimuth bins ascending
+        np.square(az.real, out=power)
+        np.square(az.imag, out=scratch)
+        power += scratch
         intensity = power.sum(axis=-1)
         static = power[..., self._static_rows].sum(axis=-1)
         dominant = proc.velocity_mps[power.argmax(axis=-1)].astype(np.float32)

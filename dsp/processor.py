@@ -94,6 +94,12 @@ class FrameProcessor:
         #: Radial velocity of each row, m/s, (n_doppler,).
         self.velocity_mps = self.doppler_bins * cfg.velocity_resolution_mps * loops / self.n_doppler
         self._windowed = np.empty(cfg.cube_shape, np.complex64)
+        # (-1)^l shifts the spectrum by half the FFT size: the fftshift, for free.
+        self._centred_by_sign = self.n_doppler % 2 == 0
+        sign = np.where(np.arange(loops) % 2, -1.0, 1.0) if self._centred_by_sign else np.ones(loops)
+        self._doppler_weights = (self.w_doppler * sign).astype(np.float32)
+        self._window_2d = (self._doppler_weights[:, None, None, None]
+                           * self.w_range[None, None, None, :]).astype(np.float32)
         self._power = np.empty((self.n_doppler, self.n_range), np.float32)
         # Virtual array: which flat (slot, rx) element sits where.
         va = cfg.virtual_array
@@ -116,22 +122,28 @@ class FrameProcessor:
 
     # ---------------------------------------------------------------- stages
     def range_fft(self, cube: np.ndarray) -> np.ndarray:
-        """Windowed range FFT: complex64 (loops, tx_slots, rx, n_range)."""
-        np.multiply(cube, self.w_range, out=self._windowed)
+        """Windowed range FFT: complex64 (loops, tx_slots, rx, n_range).
+
+        Both windows (and, for an even Doppler size, the (-1)^loop factor that
+        centres the Doppler spectrum) are applied here in one multiply, since
+        they commute with the range FFT.
+        """
+        np.multiply(cube, self._window_2d, out=self._windowed)
         return scipy.fft.fft(self._windowed, n=self.n_range, axis=-1, workers=self.params.workers,
                              overwrite_x=True)
 
     def doppler_fft(self, range_spectrum: np.ndarray) -> np.ndarray:
-        """Windowed, centred Doppler FFT: complex64 (n_doppler, tx_slots, rx, n_range)."""
-        w = self.w_doppler[:, None, None, None]
-        data = range_spectrum * w
+        """Centred Doppler FFT of the (already windowed) range spectrum:
+        complex64 (n_doppler, tx_slots, rx, n_range)."""
+        data = range_spectrum
         if self.params.clutter_removal:
             # Static returns are w_l * s in the windowed data: fit s per cell and remove
             # w * s, which takes their leakage with them (a plain mean would not).
-            s = np.einsum("l,lmrn->mrn", self.w_doppler, data) / float(self.w_doppler @ self.w_doppler)
-            data -= w * s[None]
+            w = self._doppler_weights
+            s = np.einsum("l,lmrn->mrn", w, data) / float(w @ w)
+            data -= w[:, None, None, None] * s[None]
         spec = scipy.fft.fft(data, n=self.n_doppler, axis=0, workers=self.params.workers, overwrite_x=True)
-        return scipy.fft.fftshift(spec, axes=0)
+        return spec if self._centred_by_sign else scipy.fft.fftshift(spec, axes=0)
 
     def power(self, spectrum: np.ndarray) -> np.ndarray:
         """Power summed over the virtual array: float32 (n_doppler, n_range)."""

@@ -1,0 +1,401 @@
+"""DSP speed: how long does radarodom take from a raw cube to points and a heatmap?
+
+One frame of 256 samples x 128 loops x 3 TX (masks 1, 4, 2) x 4 RX, made by the
+simulator (built-in scene ``corridor``, frame ``--frame``; synthesis is not
+timed) and decoded with RawLayout, is processed over and over in this process
+after a warm-up; every figure is the median of ``--repeats`` runs (default 30).
+
+1. radarodom, default DspConfig (Hann windows, CAGO range + CA Doppler CFAR,
+   peak grouping, TDM compensation): the whole chain,
+   ``FrameProcessor.process(cube)`` + ``HeatmapMaker.range_azimuth(spectrum)``,
+   and each stage on its own (range_fft, doppler_fft, power, cfar_2d_ti,
+   points, heatmap), so one sees where the time goes.  The whole chain is also
+   run with ``DspConfig(workers=1)``.
+2. OpenRadar (PyPI ``openradar`` 1.0.1, import name ``mmwave``) on the same
+   frame, the partial chain of its own demo (demo/visualizer/main.py):
+   ``range_processing`` (windowed range FFT), ``doppler_processing``
+   (TX separation, windowed Doppler FFT, log2|X| summed over the virtual
+   array) and its CFAR (``np.apply_along_axis(dsp.ca_, ...)`` along Doppler and
+   along range, the two masks and ``argwhere``).  Same Hann windows as ours,
+   clutter removal off as in our default (``--openradar-clutter`` turns it on,
+   as the demo has it).  No angles, no heatmap: compare it with our partial
+   chain (range_fft + doppler_fft + power + cfar_2d_ti).
+3. Anchors, same run: a bare ``scipy.fft.fft`` of the same sizes on complex64
+   (range: 256 points over the samples axis; Doppler: 128 points over the
+   loops axis) with workers=2 and workers=1, and ``numpy.fft.fft`` of the same.
+   The 2-D anchor (range then Doppler, scipy, workers=2) is the floor of any
+   range-Doppler chain in Python on this machine.  Anchors are measured first
+   and again last (the heap, hence page faults on fresh outputs, differs); the
+   lower median of the two is the anchor.
+
+Ratios: "x OpenRadar" is OpenRadar's time over ours (above 1: we are faster);
+"x anchor" is our time over the matching FFT anchor (range and Doppler rows:
+their own 1-D anchor; every other row: the 2-D anchor).
+
+OpenRadar is imported for comparison only, with one work-around: its
+``mmwave/__init__.py`` imports ``mmwave.clustering`` (needs scikit-learn),
+``mmwave.tracking`` and ``mmwave.dataloader``, none of which this benchmark
+uses.  We register an empty package module ``mmwave`` whose ``__path__`` is the
+installed package directory, so that ``import mmwave.dsp`` loads only
+``mmwave/dsp`` and never runs ``mmwave/__init__.py``.  ``mmwave.dsp`` itself
+imports cleanly on numpy 2: the removed aliases it uses (``np.complex`` in
+angle_estimation, ``np.int`` in ZoomFFT) sit inside functions we do not call,
+and it does not use numba, so no numpy alias is patched.
+
+    python bench/bench_dsp.py [--repeats 30] [--frame N] [--json] [--env-sweep]
+
+``--env-sweep`` runs the whole benchmark again in fresh processes: as is, with
+``OPENBLAS_NUM_THREADS=1``, and with glibc's malloc told to keep blocks of up to
+32 MiB in the heap (``GLIBC_TUNABLES``; a probe of the cost of page faults on
+fresh temporaries, not a recommended setting), and reports each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+import types
+
+import numpy as np
+import scipy
+import scipy.fft
+
+from radarodom.cfg import RadarConfig
+from radarodom.driver.sim.scene import load_scene
+from radarodom.driver.sim.simulator import Simulator
+from radarodom.dsp.cfar import cfar_2d_ti
+from radarodom.dsp.config import DspConfig
+from radarodom.dsp.heatmap import HeatmapMaker
+from radarodom.dsp.processor import FrameProcessor
+from radarodom.rawframe import RawLayout
+
+#: The shipped profile (configs/awr1843_raw.cfg: 77 GHz, idle 100 us, ramp 40 us,
+#: 96 MHz/us, 256 samples at 8 Msps) with 128 loops of TX1, TX3, TX2:
+#: 384 chirps x 140 us = 53.8 ms of chirping in a 100 ms frame.
+BENCH_CFG = """\
+% bench_dsp: 256 samples x 128 loops x 3 TX x 4 RX
+sensorStop
+flushCfg
+dfeDataOutputMode 1
+channelCfg 15 7 0
+adcCfg 2 1
+adcbufCfg -1 0 1 1 1
+profileCfg 0 77 100 6 40 0 0 96 1 256 8000 0 0 30
+chirpCfg 0 0 0 0 0 0 0 1
+chirpCfg 1 1 0 0 0 0 0 4
+chirpCfg 2 2 0 0 0 0 0 2
+frameCfg 0 2 128 0 100 1 0
+lowPower 0 0
+lvdsStreamCfg -1 0 1 0
+sensorStart
+"""
+SCENE = "corridor"
+GOAL_MS = 5.0
+
+
+def _times_ms(fn, repeats: int, warmup: int = 3) -> list[float]:
+    for _ in range(warmup):
+        fn()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append((time.perf_counter() - t) * 1e3)
+    return times
+
+
+def _median_ms(fn, repeats: int, warmup: int = 3) -> float:
+    return statistics.median(_times_ms(fn, repeats, warmup))
+
+
+def import_openradar_dsp():
+    """``mmwave.dsp`` without running ``mmwave/__init__.py`` (see the module docstring);
+    (module, None) or (None, reason)."""
+    spec = importlib.util.find_spec("mmwave")
+    if spec is None or not spec.submodule_search_locations:
+        return None, "openradar is not installed (pip install openradar)"
+    if "mmwave" not in sys.modules:
+        pkg = types.ModuleType("mmwave")
+        pkg.__path__ = list(spec.submodule_search_locations)
+        sys.modules["mmwave"] = pkg
+    try:
+        from mmwave import dsp
+    except Exception as exc:  # noqa: BLE001 - report any import failure, do not crash the bench
+        return None, f"import mmwave.dsp failed: {exc!r}"
+    return dsp, None
+
+
+def _openradar_version() -> str | None:
+    try:
+        from importlib.metadata import version
+
+        return version("openradar")
+    except Exception:  # noqa: BLE001
+        return None
+
+
+def make_cube(cfg: RadarConfig, frame: int | None) -> tuple[np.ndarray, dict]:
+    sim = Simulator(cfg, load_scene(SCENE, seed=0), seed=0)
+    i = sim.num_frames // 2 if frame is None else frame
+    t = time.perf_counter()
+    f = sim.frame(i)
+    sim_ms = (time.perf_counter() - t) * 1e3
+    cube = RawLayout.from_config(cfg).decode(f.raw)
+    return cube, {"source": f"simulator, scene {SCENE!r}, frame {i} of {sim.num_frames}",
+                  "paths": f.num_paths, "simulate_ms": sim_ms}
+
+
+def bench_radarodom(cfg: RadarConfig, cube: np.ndarray, repeats: int, workers: int) -> dict:
+    proc = FrameProcessor(cfg, DspConfig(workers=workers))
+    maker = HeatmapMaker(proc)
+    prm = proc.params
+
+    def chain():
+        res = proc.process(cube)
+        maker.range_azimuth(res.spectrum)
+
+    chain_times = _times_ms(chain, repeats)
+    out = {"chain": statistics.median(chain_times)}
+    spread = {"min": min(chain_times), "p10": float(np.percentile(chain_times, 10)),
+              "p90": float(np.percentile(chain_times, 90))}
+    res = proc.process(cube)
+    n_points = len(res.points)
+    rs = proc.range_fft(cube).copy()
+    spec = proc.doppler_fft(rs).copy()  # doppler_fft does not modify its input
+    power = proc.power(spec).copy()
+    det = cfar_2d_ti(power, prm.range_cfar, prm.doppler_cfar, peak_grouping=prm.peak_grouping)
+    keep = proc._range_ok[det.range_idx]
+    d_idx, r_idx, snr, noise = det.doppler_idx[keep], det.range_idx[keep], det.snr_db[keep], det.noise[keep]
+    out["range_fft"] = _median_ms(lambda: proc.range_fft(cube), repeats)
+    out["doppler_fft"] = _median_ms(lambda: proc.doppler_fft(rs), repeats)
+    out["power"] = _median_ms(lambda: proc.power(spec), repeats)
+    out["cfar_2d_ti"] = _median_ms(
+        lambda: cfar_2d_ti(power, prm.range_cfar, prm.doppler_cfar, peak_grouping=prm.peak_grouping), repeats)
+    out["points"] = _median_ms(lambda: proc.points(spec, d_idx, r_idx, snr, noise), repeats)
+    out["heatmap"] = _median_ms(lambda: maker.range_azimuth(spec), repeats)
+    out["partial_chain"] = _median_ms(lambda: cfar_2d_ti(proc.power(proc.doppler_fft(proc.range_fft(cube))),
+                                                         prm.range_cfar, prm.doppler_cfar,
+                                                         peak_grouping=prm.peak_grouping), repeats)
+    return {"ms": out, "chain_spread_ms": spread, "detections": len(det), "points": n_points}
+
+
+def bench_openradar(dsp, cfg: RadarConfig, cube: np.ndarray, repeats: int, clutter: bool) -> dict:
+    from mmwave.dsp.utils import Window
+
+    n_tx = cfg.num_tx_slots
+    # OpenRadar's frame layout: (chirps in TX order, rx, samples); ours reshapes to it.
+    frame = np.ascontiguousarray(cube.reshape(-1, cfg.num_rx, cfg.num_samples))
+    win = Window.HANNING
+
+    def range_stage():
+        return dsp.range_processing(frame, window_type_1d=win)
+
+    def doppler_stage(radar_cube):
+        return dsp.doppler_processing(radar_cube, num_tx_antennas=n_tx, clutter_removal_enabled=clutter,
+                                      interleaved=True, window_type_2d=win, accumulate=True)
+
+    def cfar_stage(det_matrix):
+        # As demo/visualizer/main.py: CA along Doppler and along range, both masks, argwhere.
+        fft2d_sum = det_matrix.astype(np.int64)
+        thr_d, _ = np.apply_along_axis(func1d=dsp.ca_, axis=0, arr=fft2d_sum.T, l_bound=1.5,
+                                       guard_len=4, noise_len=16)
+        thr_r, _ = np.apply_along_axis(func1d=dsp.ca_, axis=0, arr=fft2d_sum, l_bound=2.5,
+                                             guard_len=4, noise_len=16)
+        mask = (det_matrix > thr_d.T) & (det_matrix > thr_r)
+        return np.argwhere(mask)
+
+    def chain():
+        cfar_stage(doppler_stage(range_stage())[0])
+
+    rc = range_stage()
+    det_matrix, _ = doppler_stage(rc)
+    peaks = cfar_stage(det_matrix)
+    out = {
+        "range": _median_ms(range_stage, repeats),
+        "doppler": _median_ms(lambda: doppler_stage(rc), repeats),
+        "cfar": _median_ms(lambda: cfar_stage(det_matrix), repeats),
+        "partial_chain": _median_ms(chain, repeats),
+    }
+    return {"ms": out, "detections": len(peaks), "range_cube_dtype": str(rc.dtype),
+            "clutter_removal": clutter}
+
+
+def bench_anchors(cube: np.ndarray, repeats: int) -> dict:
+    x = np.ascontiguousarray(cube)  # complex64 (loops, tx, rx, samples)
+    out = {}
+    for w in (2, 1):
+        out[f"scipy_range_w{w}"] = _median_ms(lambda w=w: scipy.fft.fft(x, axis=-1, workers=w), repeats)
+        out[f"scipy_doppler_w{w}"] = _median_ms(lambda w=w: scipy.fft.fft(x, axis=0, workers=w), repeats)
+        out[f"scipy_2d_w{w}"] = _median_ms(
+            lambda w=w: scipy.fft.fft(scipy.fft.fft(x, axis=-1, workers=w), axis=0, workers=w, overwrite_x=True),
+            repeats)
+    out["numpy_range"] = _median_ms(lambda: np.fft.fft(x, axis=-1), repeats)
+    out["numpy_doppler"] = _median_ms(lambda: np.fft.fft(x, axis=0), repeats)
+    out["numpy_2d"] = _median_ms(lambda: np.fft.fft(np.fft.fft(x, axis=-1), axis=0), repeats)
+    return out
+
+
+def machine_info() -> dict:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            cpu = next((ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")), cpu)
+    except OSError:
+        pass
+    try:
+        deps = np.show_config(mode="dicts")["Build Dependencies"]["blas"]
+        blas = deps.get("openblas configuration") or deps.get("name")
+    except Exception:  # noqa: BLE001 - older numpy: no dict mode
+        blas = None
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "openradar": _openradar_version(), "blas": blas,
+            "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS"),
+            "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS")}
+
+
+def run(args) -> dict:
+    cfg = RadarConfig.from_text(BENCH_CFG, "bench_dsp.cfg")
+    cube, source = make_cube(cfg, args.frame)
+    anchors_first = bench_anchors(cube, args.repeats)
+    ours = bench_radarodom(cfg, cube, args.repeats, workers=2)
+    ours_w1 = bench_radarodom(cfg, cube, args.repeats, workers=1)
+    dsp, why = import_openradar_dsp()
+    theirs = bench_openradar(dsp, cfg, cube, args.repeats, args.openradar_clutter) if dsp else None
+    anchors_last = bench_anchors(cube, args.repeats)
+    # Measured first and last (the heap differs): a floor is the lower of the two.
+    anchors = {k: min(anchors_first[k], anchors_last[k]) for k in anchors_first}
+    return {"machine": machine_info(), "cube_shape": list(cube.shape), "frame": source,
+            "repeats": args.repeats, "goal_ms": GOAL_MS, "radarodom": ours, "radarodom_workers1": ours_w1,
+            "openradar": theirs, "openradar_unavailable": why, "anchors": anchors,
+            "anchors_first": anchors_first, "anchors_last": anchors_last}
+
+
+# Table rows: (label, our key, OpenRadar key, anchor key).
+ROWS = (
+    ("whole chain: process + range_azimuth", "chain", None, "scipy_2d_w2"),
+    ("  range_fft", "range_fft", "range", "scipy_range_w2"),
+    ("  doppler_fft", "doppler_fft", None, "scipy_doppler_w2"),
+    ("  power", "power", None, "scipy_2d_w2"),
+    ("  cfar_2d_ti", "cfar_2d_ti", "cfar", "scipy_2d_w2"),
+    ("  points", "points", None, "scipy_2d_w2"),
+    ("  heatmap (range_azimuth)", "heatmap", None, "scipy_2d_w2"),
+    ("  doppler_fft + power", "doppler_power", "doppler", "scipy_doppler_w2"),
+    ("partial chain: range..cfar", "partial_chain", "partial_chain", "scipy_2d_w2"),
+)
+
+
+def rows_of(result: dict) -> list[dict]:
+    ours, anchors = dict(result["radarodom"]["ms"]), result["anchors"]
+    ours["doppler_power"] = ours["doppler_fft"] + ours["power"]
+    theirs = result["openradar"]["ms"] if result["openradar"] else {}
+    rows = []
+    for label, key, okey, akey in ROWS:
+        ms = ours[key]
+        o = theirs.get(okey) if okey else None
+        rows.append({"row": label.strip(), "key": key, "ms": ms, "openradar_ms": o,
+                     "x_openradar": o / ms if o else None, "anchor": akey, "x_anchor": ms / anchors[akey]})
+    return rows
+
+
+def print_table(result: dict) -> None:
+    m = result["machine"]
+    print(f"machine: {m['cpu']}, {m['cores']} cores; Python {m['python']}, numpy {m['numpy']}, "
+          f"scipy {m['scipy']}, openradar {m['openradar']}; BLAS {m['blas']}; "
+          f"OPENBLAS_NUM_THREADS={m['OPENBLAS_NUM_THREADS']}")
+    ro = result["radarodom"]
+    print(f"frame: {tuple(result['cube_shape'])} complex64 from the {result['frame']['source']} "
+          f"({result['frame']['paths']} paths); {ro['detections']} CFAR detections, {ro['points']} points; "
+          f"median of {result['repeats']} runs")
+    print(f"{'':<38} {'ms':>8} {'OpenRadar ms':>12} {'x OpenRadar':>11} {'x anchor':>9}  anchor")
+    for r in rows_of(result):
+        o = f"{r['openradar_ms']:.2f}" if r["openradar_ms"] else "-"
+        xo = f"{r['x_openradar']:.2f}" if r["x_openradar"] else "-"
+        label = next(lbl for lbl, key, _, _ in ROWS if key == r["key"])
+        print(f"{label:<38} {r['ms']:>8.2f} {o:>12} {xo:>11} {r['x_anchor']:>9.2f}  {r['anchor']}")
+    w1 = result["radarodom_workers1"]["ms"]
+    print(f"whole chain with DspConfig(workers=1): {w1['chain']:.2f} ms (workers=2: {ro['ms']['chain']:.2f} ms); "
+          f"stages w1: " + ", ".join(f"{k} {v:.2f}" for k, v in w1.items() if k not in ("chain", "partial_chain")))
+    sp = ro["chain_spread_ms"]
+    print(f"whole chain spread: min {sp['min']:.2f}, p10 {sp['p10']:.2f}, p90 {sp['p90']:.2f} ms")
+    stage_sum = sum(ro["ms"][k] for k in ("range_fft", "doppler_fft", "power", "cfar_2d_ti", "points", "heatmap"))
+    print(f"sum of stages: {stage_sum:.2f} ms; goal {result['goal_ms']:g} ms: whole chain is "
+          f"{ro['ms']['chain'] / result['goal_ms']:.1f}x the goal")
+    if result["openradar"]:
+        om = result["openradar"]
+        print(f"OpenRadar (clutter removal {'on' if om['clutter_removal'] else 'off'}): range {om['ms']['range']:.2f}, "
+              f"doppler {om['ms']['doppler']:.2f}, cfar {om['ms']['cfar']:.2f}, partial chain "
+              f"{om['ms']['partial_chain']:.2f} ms; its range cube is {om['range_cube_dtype']}; "
+              f"{om['detections']} detections (its own thresholds, not comparable to ours)")
+    else:
+        print(f"OpenRadar: {result['openradar_unavailable']}")
+    a = result["anchors"]
+    print("anchors ms (lower of first/last): " + ", ".join(f"{k} {v:.2f}" for k, v in a.items()))
+
+
+#: Environments of --env-sweep.  The glibc one keeps freed blocks of up to 32 MiB in the heap
+#: (no mmap/munmap, so no fresh page faults, per temporary array): a probe of how much of the
+#: time is the allocator's, not a setting we ship.
+SWEEP = (
+    ("default", {}),
+    ("OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"}),
+    ("GLIBC_TUNABLES mmap_threshold=32MiB", {
+        "GLIBC_TUNABLES": "glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=1073741824"}),
+)
+
+
+def env_sweep(args) -> dict:
+    """The benchmark in fresh processes, with and without OPENBLAS_NUM_THREADS=1."""
+    out = {}
+    for name, extra in SWEEP:
+        env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "GLIBC_TUNABLES")}
+        env.update(extra)
+        cmd = [sys.executable, os.path.abspath(__file__), "--json", "--repeats", str(args.repeats)]
+        if args.frame is not None:
+            cmd += ["--frame", str(args.frame)]
+        if args.openradar_clutter:
+            cmd.append("--openradar-clutter")
+        out[name] = json.loads(subprocess.run(cmd, env=env, check=True, capture_output=True,
+                                             text=True).stdout)["result"]
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=30)
+    parser.add_argument("--frame", type=int, default=None, help="simulator frame (default: the middle one)")
+    parser.add_argument("--openradar-clutter", action="store_true",
+                        help="OpenRadar with its mean-subtraction clutter removal on (its demo's setting)")
+    parser.add_argument("--env-sweep", action="store_true",
+                        help="run in fresh processes: as is, OPENBLAS_NUM_THREADS=1, glibc malloc tunables")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    if args.env_sweep:
+        sweep = env_sweep(args)
+        if args.json:
+            print(json.dumps({k: {"result": v, "rows": rows_of(v)} for k, v in sweep.items()}, indent=2))
+            return
+        for name, result in sweep.items():
+            print(f"=== {name}")
+            print_table(result)
+            print()
+        print("summary, whole chain ms (workers=2 / workers=1):")
+        for name, result in sweep.items():
+            print(f"  {name:<40} {result['radarodom']['ms']['chain']:7.2f} / "
+                  f"{result['radarodom_workers1']['ms']['chain']:7.2f}")
+        return
+    result = run(args)
+    if args.json:
+        print(json.dumps({"result": result, "rows": rows_of(result)}, indent=2))
+        return
+    print_table(result)
+
+
+if __name__ == "__main__":
+    main()
