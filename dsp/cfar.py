@@ -58,6 +58,7 @@ Imports neither :mod:`radarodom.driver` nor zenoh.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from collections.abc import Mapping
@@ -139,6 +140,49 @@ def _log_pfa_os(alpha: float, n: int, k: int) -> float:
     return float(np.sum(np.log(m) - np.log(m + alpha)))
 
 
+def _log_pfa_summed(alpha: float, method: str, n: int, channels: int, k: int | None = None) -> float:
+    """log Pfa when every cell is the sum of *channels* independent exponential
+    powers (a Gamma(channels) variable), as a map summed over virtual antennas is.
+
+    CA (n cells): the cell over the training mean is F(2L, 2nL) distributed, so
+    Pfa = I_{n/(n+alpha)}(nL, L) (regularized incomplete beta).  CASO/CAGO (n cells
+    a side): Pfa = E[Q(L, alpha S / n)] over S the smaller / larger of two Gamma(nL)
+    side sums; OS (n cells, rank k): the same over the k-th smallest of n Gamma(L)
+    cells; Q is the regularized upper incomplete gamma function.  The expectations
+    are one-dimensional integrals.
+    """
+    import scipy.integrate
+    from scipy.special import betainc, gammainc, gammaincc, gammaln
+
+    L = float(channels)
+    if method == "ca":
+        return math.log(max(float(betainc(n * L, L, n / (n + alpha))), 1e-300))
+    if method in ("caso", "cago"):
+        a = n * L  # each side's sum is Gamma(nL)
+
+        def density(s):
+            pdf = np.exp((a - 1) * np.log(s) - s - gammaln(a))
+            other = gammaincc(a, s) if method == "caso" else gammainc(a, s)
+            return 2 * pdf * other
+        scale, upper = alpha / n, a + 40 * math.sqrt(a) + 40
+    else:  # os: the k-th smallest of n Gamma(L) cells
+        log_c = gammaln(n + 1) - gammaln(k) - gammaln(n - k + 1)
+
+        def density(y):
+            log_pdf = (L - 1) * np.log(y) - y - gammaln(L)
+            return np.exp(log_c + (k - 1) * np.log(gammainc(L, y)) + (n - k) * np.log(gammaincc(L, y)) + log_pdf)
+        scale, upper = alpha, L + 40 * math.sqrt(L) + 40
+    value, _ = scipy.integrate.quad(lambda s: density(s) * gammaincc(L, scale * s), 1e-12, upper,
+                                    limit=200, epsabs=0.0, epsrel=1e-9)
+    return math.log(max(value, 1e-300))
+
+
+@functools.lru_cache(maxsize=256)
+def _summed_scale(method: str, n: int, channels: int, k: int | None, pfa: float) -> float:
+    """The solved alpha for summed noise (solving takes milliseconds: cached)."""
+    return _solve_alpha(lambda a: _log_pfa_summed(a, method, n, channels, k), pfa)
+
+
 def _solve_alpha(log_pfa, pfa: float) -> float:
     """The alpha > 0 where the decreasing function ``log_pfa(alpha)`` equals log(pfa)."""
     from scipy.optimize import brentq
@@ -177,6 +221,10 @@ class CfarParams:
     cyclic: bool = False
     #: OS only: rank k (1-based) of the training cell used as noise; None: 0.75 N.
     os_rank: int | None = None
+    #: Independent exponential powers summed in each cell (the virtual antennas of a
+    #: map summed over them): the noise is then Gamma(channels), far less spread,
+    #: and a Pfa needs a lower scale.  The frame processor sets it.
+    channels: int = 1
 
     _scale: float = field(init=False, repr=False, compare=False)
     _edge_scale: float = field(init=False, repr=False, compare=False)
@@ -214,6 +262,7 @@ class CfarParams:
                 raise _fail(f"must be at most the {n} training cells (2 * train), got {rank}",
                             "os_rank")
             set_(self, "os_rank", rank)
+        set_(self, "channels", _as_int(self.channels, "channels", 1))
         set_(self, "_scale", self._compute_scale(n, self.rank))
         edge = self._scale if pfa is None or self.cyclic else self._compute_scale(self.train,
                                                                                   self.edge_rank,
@@ -262,6 +311,10 @@ class CfarParams:
         if self.threshold_db is not None:
             return 10.0 ** (self.threshold_db / 10.0)
         pfa = self.pfa
+        if self.channels > 1:
+            method = "ca" if one_sided and self.method != "os" else self.method
+            side = n if method in ("ca", "os") else n // 2
+            return _summed_scale(method, side, self.channels, k, pfa)
         if self.method == "os":
             return _solve_alpha(lambda a: _log_pfa_os(a, n, k), pfa)
         if self.method == "ca" or one_sided:
@@ -275,14 +328,14 @@ class CfarParams:
         """The constructor's arguments, JSON-ready."""
         return {"method": self.method, "guard": self.guard, "train": self.train,
                 "threshold_db": self.threshold_db, "pfa": self.pfa, "cyclic": self.cyclic,
-                "os_rank": self.os_rank}
+                "os_rank": self.os_rank, "channels": self.channels}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> CfarParams:
         """Inverse of :meth:`to_dict`; unknown or missing keys raise :class:`ConfigError`."""
         if not isinstance(data, Mapping):
             raise _fail(f"expected a mapping, got {type(data).__name__}")
-        known = ("method", "guard", "train", "threshold_db", "pfa", "cyclic", "os_rank")
+        known = ("method", "guard", "train", "threshold_db", "pfa", "cyclic", "os_rank", "channels")
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise _fail(f"unknown key(s) {', '.join(map(str, unknown))}; known: {', '.join(known)}")

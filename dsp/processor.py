@@ -25,6 +25,7 @@ indexed from its first element), ``z = r Wz``.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -80,6 +81,12 @@ class FrameProcessor:
         params = params or DspConfig()
         if params.ti_like:
             params = ti_like_params(cfg, params)
+        # The map CFAR runs on sums the power of every virtual antenna: thresholds
+        # from a Pfa must be derived for that sum, not for one antenna.
+        n_virtual = cfg.num_tx_slots * cfg.num_rx
+        params = dataclasses.replace(
+            params, range_cfar=dataclasses.replace(params.range_cfar, channels=n_virtual),
+            doppler_cfar=dataclasses.replace(params.doppler_cfar, channels=n_virtual))
         self.cfg = cfg
         self.params = params
         loops, slots, nrx, ns = cfg.cube_shape
@@ -175,7 +182,7 @@ class FrameProcessor:
         """Angles and positions of detections (row indices into the centred spectrum)."""
         n = len(range_idx)
         slots = self.cfg.num_tx_slots
-        elements = spectrum[doppler_idx, :, :, range_idx].reshape(n, -1)  # (n, slots * rx)
+        elements = spectrum[doppler_idx, :, :, range_idx].reshape(n, slots * self.cfg.num_rx)
         doppler = self.doppler_bins[doppler_idx].astype(float)
         if self.params.tdm_compensation and self.params.velocity_disambiguation and slots > 1:
             elements, doppler = self._disambiguate(elements, doppler)
@@ -262,8 +269,6 @@ class FrameProcessor:
 
 def ti_like_params(cfg: RadarConfig, params: DspConfig) -> DspConfig:
     """*params* with detection set from the cfg's own TI lines, where present."""
-    import dataclasses
-
     changes = {}
     cfar = cfg.cfar
     if 0 in cfar:

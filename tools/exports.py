@@ -19,7 +19,7 @@ import os
 import numpy as np
 
 from ..dsp.heatmap import RangeAzimuth
-from ..errors import CaptureError
+from ..errors import CaptureError, CaptureExistsError
 
 POINT_COLUMNS = ("x", "y", "z", "range", "azimuth", "elevation", "velocity", "snr_db")
 
@@ -28,6 +28,8 @@ class PointsCsvWriter:
     def __init__(self, path: str | os.PathLike) -> None:
         try:
             self._fh = open(path, "x", encoding="ascii", newline="\n")
+        except FileExistsError:
+            raise CaptureExistsError(f"{os.fspath(path)} already exists; choose a new file") from None
         except OSError as exc:
             raise CaptureError(f"cannot create {os.fspath(path)}: {exc.strerror or exc}") from None
         self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
@@ -52,7 +54,7 @@ class HeatmapWriter:
         except OSError as exc:
             raise CaptureError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
         if os.path.exists(os.path.join(self.directory, "index.json")):
-            raise CaptureError(f"{self.directory} already holds heatmaps; choose a new directory")
+            raise CaptureExistsError(f"{self.directory} already holds heatmaps; choose a new directory")
         self._index: dict = {"format": "radarodom-heatmaps", "format_version": 1,
                              "files": ["intensity", "static", "doppler"], "frames": []}
 

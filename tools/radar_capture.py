@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import signal
 import sys
 
@@ -21,6 +22,7 @@ from ..cfg import RadarConfig
 from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Frame, Source, open_source
+from ..errors import CaptureExistsError
 from . import cli
 from .status import RateMeter, StatusLine, format_duration
 
@@ -122,11 +124,15 @@ def _processing(source: Source, args: argparse.Namespace, outputs: contextlib.Ex
 
     processor = FrameProcessor(source.config)
     heatmaps = HeatmapMaker(processor) if args.heatmap_out else None
-    points_out = PointsCsvWriter(args.points_out) if args.points_out else None
+    # Check every destination before writing to any, so a refusal leaves nothing behind.
+    if args.points_out and os.path.exists(args.points_out):
+        raise CaptureExistsError(f"{args.points_out} already exists; choose a new file")
     heatmap_out = HeatmapWriter(args.heatmap_out) if args.heatmap_out else None
-    for writer in (points_out, heatmap_out):
-        if writer is not None:
-            outputs.callback(writer.close)
+    if heatmap_out is not None:
+        outputs.callback(heatmap_out.close)
+    points_out = PointsCsvWriter(args.points_out) if args.points_out else None
+    if points_out is not None:
+        outputs.callback(points_out.close)
 
     cube = np.empty(source.config.cube_shape, np.complex64)  # reused: no allocation per frame
 
