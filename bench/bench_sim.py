@@ -39,12 +39,14 @@ def _median_s(fn, repeats: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--fidelity", choices=("exact", "fast"), default="fast",
+                        help="the synthesis mode to time (fast: what real-time sim:// uses)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     cfg = RadarConfig.from_file(shipped_config_path())
     rows = []
     for name in BUILTIN_SCENES:
-        sim = Simulator(cfg, load_scene(name, seed=0), seed=0)
+        sim = Simulator(cfg, load_scene(name, seed=0), seed=0, fidelity=args.fidelity)
         sim.frame(0)  # warm-up: imports, BLAS threads, caches
         # Frames spread over the whole trajectory: start, turns, the busiest views.
         frame_ids = np.linspace(0, sim.num_frames - 1, args.frames).round().astype(int)
@@ -73,6 +75,7 @@ def main() -> None:
         print(json.dumps({"machine": machine, "cfg": "configs/awr1843_raw.cfg", "results": rows}, indent=2))
         return
     print(f"machine: {machine}")
+    print(f"fidelity: {args.fidelity}")
     print(f"cfg: configs/awr1843_raw.cfg ({cfg.num_loops} loops x {cfg.num_tx_slots} TX x {cfg.num_rx} RX x "
           f"{cfg.num_samples} samples, {cfg.frame_rate_hz:g} Hz)")
     print(f"{'scene':<12} {'paths':>6} {'max':>6} {'median ms':>9} {'p90 ms':>7} {'x real time':>11} "

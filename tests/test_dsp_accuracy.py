@@ -39,7 +39,7 @@ import numpy as np
 import pytest
 from sim_helpers import point_scene, truth
 
-from radarodom.driver.sim.physics import AntennaPattern, FmcwSynthesizer
+from radarodom.driver.sim.physics import AntennaPattern
 from radarodom.driver.sim.scene import load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.dsp.cfar import CfarParams, cfar_2d_ti
@@ -63,10 +63,9 @@ SMALL_PARAMS = DspConfig(doppler_window="rect",
 
 # ------------------------------------------------------------------ helpers
 def simulate(cfg, scene, frame=2, seed=7, exact=True):
-    """(SimFrame, cube) of one frame; *exact*: the beat tone per loop (no chunking)."""
-    sim = Simulator(cfg, scene, seed=seed)
-    if exact:
-        sim.synth = FmcwSynthesizer(cfg, loops_per_chunk=1)
+    """(SimFrame, cube) of one frame; *exact*: the simulator's exact fidelity (its default),
+    else its fast, chunked beat tone (for real-time streaming)."""
+    sim = Simulator(cfg, scene, seed=seed, fidelity="exact" if exact else "fast")
     f = sim.frame(frame)
     return f, sim.layout.decode(f.raw)
 
@@ -259,21 +258,16 @@ def test_several_moving_targets_one_detection_each(shipped_cfg):
         check_point(proc, q, tr, static=False)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "simulator bug (driver/sim/physics.py FmcwSynthesizer.synthesize/_chunk_loops): the beat tone "
-    "is held at each chunk's mean delay, chunks sized for MAX_BEAT_PHASE_ERROR_RAD = 0.25 rad; the "
-    "resulting saw-tooth phase error repeats every chunk and puts Doppler spurs 20-40 dB below a moving "
-    "target in the neighbouring range bin, which CFAR reports as 6-14 extra points"))
 def test_moving_target_single_detection_with_default_simulator(shipped_cfg):
-    """The same scene as test_moving_sensor_point_accuracy[left_below] etc., but with the
-    simulator as it ships (chunked beat tone): a single point target must still give one
-    detection."""
+    """The same scenes as test_moving_sensor_point_accuracy, with the simulator as it ships
+    (exact fidelity: each chirp's delay drift modelled, no chunk artefacts): a single point
+    target moving at 1.5 m/s relative to the sensor gives one detection."""
     proc = FrameProcessor(shipped_cfg)
     counts = []
     for point in [(4.0, 0.5, 0.0), (3.0, 0.0, 1.0), (2.0, 0.3, 0.2)]:
         scene = point_scene([point], FORWARD_1_5)
-        _, cube = simulate(shipped_cfg, scene, frame=2, exact=False)
-        counts.append(len(proc.process(cube).points))
+        sim = Simulator(shipped_cfg, scene, seed=7)
+        counts.append(len(proc.process(sim.layout.decode(sim.frame(2).raw)).points))
     assert counts == [1, 1, 1], counts
 
 

@@ -80,10 +80,18 @@ def _unit_phasor(cycles: np.ndarray) -> np.ndarray:
     return out
 
 
-#: Largest phase error the chunked beat tone may make at the ADC window's edges, rad:
+#: fidelity="exact": largest error of the drifting-delay expansion, rad, and the
+#: largest drift phase a chunk may span (keeps the Taylor series short).
+EXACT_PHASE_ERROR_RAD = 1e-3
+EXACT_CHUNK_PHASE_RAD = 0.7
+#: fidelity="fast": largest phase error the chunked beat tone may make at the ADC window's edges, rad:
 #: a tone held 0.25 rad off at its ends is a beat frequency off by 0.25 / pi of a
 #: range bin at the chunk's first and last chirps, under 1/12 of a bin, and 0 on average.
 MAX_BEAT_PHASE_ERROR_RAD = 0.25
+
+
+#: Synthesis modes: exact (for recordings and evaluation) or fast (real-time streaming).
+FIDELITIES = ("exact", "fast")
 
 
 class FmcwSynthesizer:
@@ -93,7 +101,12 @@ class FmcwSynthesizer:
     ``max_paths`` paths and grown when needed.
     """
 
-    def __init__(self, cfg: RadarConfig, *, loops_per_chunk: int | None = None) -> None:
+    def __init__(self, cfg: RadarConfig, *, loops_per_chunk: int | None = None,
+                 fidelity: str = "exact") -> None:
+        if fidelity not in FIDELITIES:
+            raise ValueError(f"fidelity {fidelity!r}: use {' or '.join(FIDELITIES)}")
+        #: "exact": every chirp's delay drift to 1e-3 rad; "fast": chunked, for real-time streaming.
+        self.fidelity = fidelity
         self.cfg = cfg
         loops, slots, rx, samples = cfg.cube_shape
         self.shape = cfg.cube_shape
@@ -164,14 +177,62 @@ class FmcwSynthesizer:
                 a[:, i] = power
 
         flat = out.reshape(loops * slots, nrx, ns)
-        chunk = self._chunk_loops(r_tx, r_rx) * slots
-        for c0 in range(0, loops * slots, chunk):
-            c1 = min(c0 + chunk, loops * slots)
-            tau = (r_tx[c0:c1] + r_rx[c0:c1]).mean(axis=0) / SPEED_OF_LIGHT  # (K,)
-            beat = self._beat_tone(tau)
-            np.matmul(a[c0:c1].reshape((c1 - c0) * nrx, k), beat,
-                      out=flat[c0:c1].reshape((c1 - c0) * nrx, ns))
+        if self.fidelity == "fast":
+            chunk = self._chunk_loops(r_tx, r_rx) * slots
+            for c0 in range(0, loops * slots, chunk):
+                c1 = min(c0 + chunk, loops * slots)
+                tau = (r_tx[c0:c1] + r_rx[c0:c1]).mean(axis=0) / SPEED_OF_LIGHT  # (K,)
+                beat = self._beat_tone(tau)
+                np.matmul(a[c0:c1].reshape((c1 - c0) * nrx, k), beat,
+                          out=flat[c0:c1].reshape((c1 - c0) * nrx, ns))
+            return out
+        self._synthesize_exact(a, r_tx, r_rx, flat)
         return out
+
+    def _synthesize_exact(self, a: np.ndarray, r_tx: np.ndarray, r_rx: np.ndarray, flat: np.ndarray) -> None:
+        """The beat tone with each path's delay drifting chirp by chirp, to
+        EXACT_PHASE_ERROR_RAD.
+
+        Per chunk, a path's delay is tau + d_c (d_c its drift from the chunk's
+        mean); over the samples that multiplies the tone at tau by
+        exp(j z_c y_n), y_n in [-1, 1] across the ADC window and
+        z_c = 2 pi S d_c T_adc / 2.  Its Taylor series in z_c y_n has separable
+        terms (j z_c)^m / m! times y_n^m, so M terms are one matrix product
+        with M stacked blocks: error at most |z|^M / M!, and not periodic.
+        """
+        chirps, nrx, k = a.shape
+        ns = flat.shape[-1]
+        tau_all = (r_tx + r_rx).astype(np.float64) / SPEED_OF_LIGHT  # (C, K)
+        half_window = (ns - 1) / (2 * self.cfg.sample_rate_hz)
+        z_scale = 2 * np.pi * self.slope * half_window
+        spread = float((tau_all.max(axis=0) - tau_all.min(axis=0)).max()) / 2 * z_scale
+        loops = self.shape[0]
+        slots = chirps // loops
+        chunks = min(loops, max(1, int(np.ceil(spread / EXACT_CHUNK_PHASE_RAD))))
+        per = int(np.ceil(loops / chunks)) * slots
+        y = ((self.t_n - self.t_mid) / half_window).astype(np.float32)
+        for c0 in range(0, chirps, per):
+            c1 = min(c0 + per, chirps)
+            tau = tau_all[c0:c1].mean(axis=0)
+            z = ((tau_all[c0:c1] - tau) * z_scale).astype(np.float32)  # (c, K)
+            zmax = float(np.abs(z).max())
+            terms, bound = 1, zmax
+            while bound > EXACT_PHASE_ERROR_RAD and terms < 12:
+                terms += 1
+                bound *= zmax / terms
+            tone = self._beat_tone(tau)  # (K, ns)
+            rows = (c1 - c0) * nrx
+            a_stack = np.empty((c1 - c0, nrx, terms * k), np.complex64)
+            b_stack = np.empty((terms * k, ns), np.complex64)
+            coeff = np.ones_like(z, dtype=np.complex64)
+            basis = np.ones(ns, np.float32)
+            for m in range(terms):
+                if m:
+                    coeff *= (1j * z) / m
+                    basis *= y
+                a_stack[:, :, m * k:(m + 1) * k] = a[c0:c1] * coeff[:, None, :]
+                np.multiply(tone, basis[None, :], out=b_stack[m * k:(m + 1) * k])
+            np.matmul(a_stack.reshape(rows, terms * k), b_stack, out=flat[c0:c1].reshape(rows, ns))
 
     def _chunk_loops(self, r_tx: np.ndarray, r_rx: np.ndarray) -> int:
         """Loops per chunk: the fewest chunks that keep the beat tone's phase error

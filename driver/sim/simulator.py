@@ -107,11 +107,12 @@ class Simulator:
     """Frames of a scene seen by the radar of *cfg* along the scene's trajectory."""
 
     def __init__(self, cfg: RadarConfig, scene: Scene, *, seed: int = 0,
-                 duration_s: float | None = None, pattern: AntennaPattern | None = None) -> None:
+                 duration_s: float | None = None, pattern: AntennaPattern | None = None,
+                 fidelity: str = "exact") -> None:
         self.cfg = cfg
         self.scene = scene
         self.seed = seed
-        self.synth = FmcwSynthesizer(cfg)
+        self.synth = FmcwSynthesizer(cfg, fidelity=fidelity)
         self.pattern = pattern or AntennaPattern()
         self.layout = RawLayout.from_config(cfg)
         self.period = cfg.frame_period_s
