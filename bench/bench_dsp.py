@@ -53,6 +53,7 @@ fresh temporaries, not a recommended setting), and reports each.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import json
 import os
@@ -67,7 +68,7 @@ import numpy as np
 import scipy
 import scipy.fft
 
-from radarodom.cfg import RadarConfig
+from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.dsp.cfar import cfar_2d_ti
@@ -76,26 +77,14 @@ from radarodom.dsp.heatmap import HeatmapMaker
 from radarodom.dsp.processor import FrameProcessor
 from radarodom.rawframe import RawLayout
 
-#: The shipped profile (configs/awr1843_raw.cfg: 77 GHz, idle 100 us, ramp 40 us,
-#: 96 MHz/us, 256 samples at 8 Msps) with 128 loops of TX1, TX3, TX2:
-#: 384 chirps x 140 us = 53.8 ms of chirping in a 100 ms frame.
-BENCH_CFG = """\
-% bench_dsp: 256 samples x 128 loops x 3 TX x 4 RX
-sensorStop
-flushCfg
-dfeDataOutputMode 1
-channelCfg 15 7 0
-adcCfg 2 1
-adcbufCfg -1 0 1 1 1
-profileCfg 0 77 100 6 40 0 0 96 1 256 8000 0 0 30
-chirpCfg 0 0 0 0 0 0 0 1
-chirpCfg 1 1 0 0 0 0 0 4
-chirpCfg 2 2 0 0 0 0 0 2
-frameCfg 0 2 128 0 100 1 0
-lowPower 0 0
-lvdsStreamCfg -1 0 1 0
-sensorStart
-"""
+def bench_config() -> RadarConfig:
+    """The shipped profile (77 GHz, idle 100 us, ramp 40 us, 96 MHz/us, 256 samples at
+    8 Msps) with 128 loops of TX1, TX3, TX2 instead of 64: 384 chirps x 140 us = 53.8 ms
+    of chirping in a 100 ms frame."""
+    cfg = RadarConfig.from_file(shipped_config_path())
+    return cfg.replace(dataclasses.replace(cfg.frame, num_loops=128))
+
+
 SCENE = "corridor"
 GOAL_MS = 5.0
 
@@ -261,7 +250,7 @@ def machine_info() -> dict:
 
 
 def run(args) -> dict:
-    cfg = RadarConfig.from_text(BENCH_CFG, "bench_dsp.cfg")
+    cfg = bench_config()
     cube, source = make_cube(cfg, args.frame)
     anchors_first = bench_anchors(cube, args.repeats)
     ours = bench_radarodom(cfg, cube, args.repeats, workers=2)
