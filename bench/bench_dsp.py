@@ -87,6 +87,9 @@ def bench_config() -> RadarConfig:
 
 SCENE = "corridor"
 GOAL_MS = 5.0
+#: The heatmap's fast mode: dominant Doppler for this many strongest cells (the estimator's
+#: Top-k features are 200).
+FAST_DOPPLER_CELLS = 256
 
 
 def _times_ms(fn, repeats: int, warmup: int = 3) -> list[float]:
@@ -169,6 +172,9 @@ def bench_radarodom(cfg: RadarConfig, cube: np.ndarray, repeats: int, workers: i
         lambda: cfar_2d_ti(power, prm.range_cfar, prm.doppler_cfar, peak_grouping=prm.peak_grouping), repeats)
     out["points"] = _median_ms(lambda: proc.points(spec, d_idx, r_idx, snr, noise), repeats)
     out["heatmap"] = _median_ms(lambda: maker.range_azimuth(spec), repeats)
+    fast_maker = HeatmapMaker(proc, doppler_cells=FAST_DOPPLER_CELLS)
+    out["heatmap_fast"] = _median_ms(lambda: fast_maker.range_azimuth(spec), repeats)
+    out["chain_fast"] = _median_ms(lambda: fast_maker.range_azimuth(proc.process(cube).spectrum), repeats)
     out["partial_chain"] = _median_ms(lambda: cfar_2d_ti(proc.power(proc.doppler_fft(proc.range_fft(cube))),
                                                          prm.range_cfar, prm.doppler_cfar,
                                                          peak_grouping=prm.peak_grouping), repeats)
@@ -308,6 +314,8 @@ def print_table(result: dict) -> None:
         xo = f"{r['x_openradar']:.2f}" if r["x_openradar"] else "-"
         label = next(lbl for lbl, key, _, _ in ROWS if key == r["key"])
         print(f"{label:<38} {r['ms']:>8.2f} {o:>12} {xo:>11} {r['x_anchor']:>9.2f}  {r['anchor']}")
+    print(f"whole chain with HeatmapMaker(doppler_cells={FAST_DOPPLER_CELLS}): {ro['ms']['chain_fast']:.2f} ms "
+          f"(heatmap {ro['ms']['heatmap_fast']:.2f} ms)")
     w1 = result["radarodom_workers1"]["ms"]
     print(f"whole chain with DspConfig(workers=1): {w1['chain']:.2f} ms (workers=2: {ro['ms']['chain']:.2f} ms); "
           f"stages w1: " + ", ".join(f"{k} {v:.2f}" for k, v in w1.items() if k not in ("chain", "partial_chain")))
