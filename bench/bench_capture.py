@@ -49,8 +49,9 @@ def _board(data_port: int, frame_period_s: float, rate: str, ready, stop, comman
         stop.wait()
 
 
-def run_rate(frame_period_s: float | None, seconds: float, delay_us: float) -> dict:
-    """Stream for *seconds*; None = as fast as the sender can."""
+def run_rate(frame_period_s: float | None, seconds: float, delay_us: float, dsp=None) -> dict:
+    """Stream for *seconds*; None = as fast as the sender can.  *dsp*: a callable run on
+    every decoded cube by the consumer (the DSP chain), or None."""
     ctx = mp.get_context("spawn")
     data_port = free_udp_port(HOST_IP)
     ready, stop, command_port = ctx.Event(), ctx.Event(), ctx.Value("i", 0)
@@ -84,6 +85,8 @@ def run_rate(frame_period_s: float | None, seconds: float, delay_us: float) -> d
                 if start is None:
                     start, deadline = time.monotonic(), time.monotonic() + seconds
                 LAYOUT.decode(frame.data, out=cube)  # the consumer decodes every frame
+                if dsp is not None:
+                    dsp(cube)
                 frames += 1
                 complete += frame.missing_bytes == 0
                 ring.release(frame.slot)
@@ -109,8 +112,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--dsp", action="store_true",
+                        help="only the 30 Hz rate, with the consumer also running the DSP chain "
+                             "(point cloud and range-azimuth heatmap) on every frame")
     args = parser.parse_args()
     frame_bits = LAYOUT.frame_bytes * 8
+    if args.dsp:
+        for cells in (None, 256):
+            _bench_with_dsp(args.seconds, frame_bits, cells)
+        return
     link = dca1000_capacity_mbps(5.0)
     rates = [30 * frame_bits / 1e6, 200.0, 400.0, 600.0, link]  # Mbit/s; 30 Hz frames first
     rows = [run_rate(frame_bits / (r * 1e6), args.seconds, 5.0) for r in rates]
@@ -133,6 +143,30 @@ def main() -> None:
               f"{r['dropped_by_ring']:>10d} {r['seq_gaps']:>8d} {str(r['zero_loss']):>9}")
     print(f"highest zero-loss rate: {best:.0f} Mbit/s; the DCA1000's own maximum: {DCA1000_MAX_MBPS:.0f} Mbit/s "
           f"(ratio {best / DCA1000_MAX_MBPS:.2f})")
+
+
+def _bench_with_dsp(seconds: float, frame_bits: int, doppler_cells: int | None) -> None:
+    import dataclasses
+
+    from radarodom.cfg import RadarConfig, shipped_config_path
+    from radarodom.dsp.heatmap import HeatmapMaker
+    from radarodom.dsp.processor import FrameProcessor
+
+    cfg = RadarConfig.from_file(shipped_config_path())
+    # 128 loops at 30 Hz need short chirps: idle 7 us as in TI's profiles (18 ms of chirping).
+    cfg = cfg.replace(dataclasses.replace(cfg.profile, idle_time_us=7.0))
+    cfg = cfg.replace(dataclasses.replace(cfg.frame, num_loops=LAYOUT.num_loops, frame_period_ms=1000 / 30))
+    proc = FrameProcessor(cfg)
+    heatmaps = HeatmapMaker(proc, doppler_cells=doppler_cells)
+
+    def dsp(cube):
+        heatmaps.range_azimuth(proc.process(cube).spectrum)
+
+    row = run_rate(1 / 30, seconds, 5.0, dsp)
+    mode = "every cell's Doppler" if doppler_cells is None else f"Doppler for {doppler_cells} cells"
+    print(f"30 Hz of {LAYOUT.shape} frames ({30 * frame_bits / 1e6:.0f} Mbit/s), DSP on every frame ({mode}): "
+          f"{row['frames']} frames, {row['complete']} complete, {row['dropped_by_ring']} dropped by the ring, "
+          f"{row['seq_gaps']} packets lost: zero loss {row['zero_loss']}")
 
 
 if __name__ == "__main__":
