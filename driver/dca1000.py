@@ -139,16 +139,19 @@ class Dca1000Client:
             f"{s.retries} tries of {s.timeout_s:g} s: is it powered (and switched to Ethernet), its cable "
             f"plugged in, and does this host have the address {s.host_ip}?")
 
-    def _await(self, command: Command, timeout: float) -> Response | None:
+    def _await(self, command: Command | None, timeout: float) -> Response | None:
+        """The response to *command* within *timeout* s, handling asynchronous
+        status messages on the way; with *command* None, read only what is
+        waiting (non-blocking) and return None."""
         deadline = time.monotonic() + timeout
         while True:
             left = deadline - time.monotonic()
-            if left <= 0:
+            if left <= 0 and command is not None:
                 return None
-            self._sock.settimeout(left)
+            self._sock.settimeout(max(left, 0.0))  # 0: non-blocking, to drain
             try:
                 payload, addr = self._sock.recvfrom(2048)
-            except socket.timeout:
+            except (socket.timeout, BlockingIOError, InterruptedError):
                 return None
             if addr[0] != self.settings.board_ip:
                 log.debug("ignoring a datagram from %s on the config port", addr[0])
@@ -160,7 +163,7 @@ class Dca1000Client:
                 continue
             if response.is_async:
                 self._on_async(response.status)
-            elif response.command == command:
+            elif command is not None and response.command == command:
                 return response
             else:
                 log.debug("stale response to command 0x%02X ignored", response.command)
@@ -173,25 +176,8 @@ class Dca1000Client:
 
     def poll_async(self) -> None:
         """Read the status messages waiting on the config port (non-blocking)."""
-        if self._sock is None:
-            return
-        self._sock.setblocking(False)
-        try:
-            while True:
-                try:
-                    payload, addr = self._sock.recvfrom(2048)
-                except (BlockingIOError, InterruptedError):
-                    return
-                if addr[0] != self.settings.board_ip:
-                    continue
-                try:
-                    response = Response.parse(payload)
-                except WireError:
-                    continue
-                if response.is_async:
-                    self._on_async(response.status)
-        finally:
-            self._sock.setblocking(True)
+        if self._sock is not None:
+            self._await(None, 0.0)
 
     def connect(self) -> None:
         self.command(Command.SYSTEM_CONNECT)

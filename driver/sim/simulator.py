@@ -77,21 +77,32 @@ def world_to_sensor(points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.nd
     return out
 
 
+def _crossings(origin: np.ndarray, targets_xy: np.ndarray, wall_a: np.ndarray, wall_b: np.ndarray):
+    """Where the 2-D segments origin->target cross the wall segments a->b.
+
+    Returns (t, u, ok), each (K, W): t along origin->target (0..1), u along the
+    wall (0..1), ok False where the two are parallel.
+    """
+    d = targets_xy - origin  # (K, 2)
+    e = wall_b - wall_a  # (W, 2)
+    f = wall_a - origin  # (W, 2)
+    denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (K, W)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (f[None, :, 0] * e[None, :, 1] - f[None, :, 1] * e[None, :, 0]) / denom
+        u = (f[None, :, 0] * d[:, None, 1] - f[None, :, 1] * d[:, None, 0]) / denom
+    return t, u, np.abs(denom) > 1e-12
+
+
 def _occluded(sensor_xy: np.ndarray, targets_xy: np.ndarray, wall_a: np.ndarray, wall_b: np.ndarray) -> np.ndarray:
     """True for targets whose line of sight crosses a wall segment strictly
     before reaching them (a target on a wall does not hide itself)."""
     if len(wall_a) == 0 or len(targets_xy) == 0:
         return np.zeros(len(targets_xy), bool)
-    d = targets_xy - sensor_xy  # (K, 2)
-    e = wall_b - wall_a  # (W, 2)
-    f = wall_a - sensor_xy  # (W, 2)
-    denom = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]  # (K, W)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (f[None, :, 0] * e[None, :, 1] - f[None, :, 1] * e[None, :, 0]) / denom
-        u = (f[None, :, 0] * d[:, None, 1] - f[None, :, 1] * d[:, None, 0]) / denom
+    t, u, ok = _crossings(sensor_xy, targets_xy, wall_a, wall_b)
+    d = targets_xy - sensor_xy
     dist = np.hypot(d[:, 0], d[:, 1])[:, None]
     margin = 0.02 / np.maximum(dist, 1e-9)  # 2 cm: the target's own wall does not count
-    hit = (np.abs(denom) > 1e-12) & (t > 1e-9) & (t < 1.0 - margin) & (u >= 0.0) & (u <= 1.0)
+    hit = ok & (t > 1e-9) & (t < 1.0 - margin) & (u >= 0.0) & (u <= 1.0)
     return hit.any(axis=1)
 
 
@@ -207,14 +218,8 @@ class Simulator:
                 break
             img_mid = _mirror(pts_mid[idx[strong], :2], a, b)
             # The bounce point must lie on the wall: the sensor-to-image line crosses it.
-            d = img_mid - sensor_xy
-            e = b - a
-            denom = d[:, 0] * e[1] - d[:, 1] * e[0]
-            f = a - sensor_xy
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (f[0] * e[1] - f[1] * e[0]) / denom
-                u = (f[0] * d[:, 1] - f[1] * d[:, 0]) / denom
-            ok = (np.abs(denom) > 1e-12) & (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
+            t, u, ok = (v[:, 0] for v in _crossings(sensor_xy, img_mid, a[None], b[None]))
+            ok &= (t > 0) & (t < 1) & (u >= 0) & (u <= 1)
             if not ok.any():
                 continue
             sel = strong[ok]
