@@ -48,6 +48,15 @@ FORMAT_NAME = "radarodom-capture"
 FORMAT_VERSION = 1
 
 
+def write_json_atomically(path: str, obj: Any) -> None:
+    """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(obj, fh, indent=1)
+        fh.write("\n")
+    os.replace(tmp, path)
+
+
 def _write_all(fd: int, data) -> None:
     view = memoryview(data).cast("B")
     while view:
@@ -177,12 +186,7 @@ class CaptureWriter:
 
     def _write_metadata(self) -> None:
         self._saved_frames = self._frames
-        path = os.path.join(self.directory, METADATA)
-        tmp = path + ".tmp"
-        with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(self.metadata(), fh, indent=1)
-            fh.write("\n")
-        os.replace(tmp, path)  # atomic: a reader never sees half a file
+        write_json_atomically(os.path.join(self.directory, METADATA), self.metadata())
         self._last_meta = time.monotonic()
 
     def close(self) -> None:

@@ -13,11 +13,11 @@ one entry per frame (``frame``, ``t``).
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
 
+from ..driver.capture_dir import write_json_atomically
 from ..dsp.heatmap import RangeAzimuth
 from ..errors import CaptureError, CaptureExistsError
 
@@ -70,10 +70,7 @@ class HeatmapWriter:
             self._write_index()
 
     def _write_index(self) -> None:
-        path = os.path.join(self.directory, "index.json")
-        with open(path + ".tmp", "w", encoding="utf-8") as fh:
-            json.dump(self._index, fh)
-        os.replace(path + ".tmp", path)
+        write_json_atomically(os.path.join(self.directory, "index.json"), self._index)
 
     def close(self) -> None:
         self._write_index()
