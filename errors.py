@@ -96,3 +96,8 @@ class CaptureFormatError(CaptureError):
     """A capture file does not have the layout its configuration implies."""
 
     exit_code = 2
+
+
+class EvaluationError(UsageError):
+    """Two trajectories cannot be compared as given: too few poses match in
+    time, timestamps out of order, a bad evaluation parameter."""

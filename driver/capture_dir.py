@@ -21,7 +21,6 @@ import json
 import logging
 import os
 import time
-from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
@@ -30,6 +29,7 @@ from .. import __version__
 from ..cfg import RadarConfig
 from ..errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
 from ..rawframe import RawLayout
+from ..tum import TumWriter, read_tum
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +103,7 @@ class CaptureWriter:
             self._data_fd = os.open(os.path.join(self.directory, ADC_DATA),
                                     os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
             self._ts = open(os.path.join(self.directory, TIMESTAMPS), "x", buffering=1, encoding="ascii")
-            self._gt = None
+            self._gt: TumWriter | None = None
         except OSError as exc:
             raise CaptureError(f"cannot create capture directory {self.directory}: "
                                f"{exc.strerror or exc}") from None
@@ -158,11 +158,9 @@ class CaptureWriter:
         return bool(self._incomplete) and self._incomplete[-1]["frame"] >= self._saved_frames
 
     def _write_pose(self, timestamp: float, pose: Sequence[float]) -> None:
-        if len(pose) != 7:
-            raise ValueError("pose must be (x, y, z, qx, qy, qz, qw)")
         if self._gt is None:
-            self._gt = open(os.path.join(self.directory, GROUNDTRUTH), "x", buffering=1, encoding="ascii")
-        self._gt.write(f"{timestamp:.9f} " + " ".join(f"{v:.9g}" for v in pose) + "\n")
+            self._gt = TumWriter(os.path.join(self.directory, GROUNDTRUTH))
+        self._gt.write_pose(timestamp, pose[:3], pose[3:])
 
     def metadata(self) -> dict[str, Any]:
         """What capture.json holds now."""
@@ -207,40 +205,6 @@ class CaptureWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-@dataclass(frozen=True)
-class GroundTruth:
-    """Poses from a TUM file: times (n,) s, positions (n, 3) m, quaternions (n, 4) xyzw."""
-
-    times: np.ndarray
-    positions: np.ndarray
-    quaternions: np.ndarray
-
-    def pose(self, i: int) -> tuple[float, ...]:
-        return (*self.positions[i], *self.quaternions[i])
-
-
-def read_tum(path: str | os.PathLike) -> GroundTruth:
-    """Read a TUM trajectory (``t x y z qx qy qz qw`` per line, ``#`` comments)."""
-    rows = []
-    with open(path, encoding="utf-8") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            if not line.endswith("\n"):
-                log.warning("%s:%d: ignoring a last line without end of line", path, lineno)
-                break
-            try:
-                values = [float(v) for v in text.split()]
-            except ValueError:
-                values = []
-            if len(values) != 8:
-                raise CaptureFormatError(f"{os.fspath(path)}:{lineno}: expected 't x y z qx qy qz qw'")
-            rows.append(values)
-    arr = np.array(rows, dtype=float).reshape(-1, 8)
-    return GroundTruth(arr[:, 0], arr[:, 1:4], arr[:, 4:8])
 
 
 def _read_timestamps(path: str) -> np.ndarray:

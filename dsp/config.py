@@ -8,13 +8,10 @@ and ``clutterRemoval`` lines, as TI's demo does.
 
 from __future__ import annotations
 
-import dataclasses
-import json
-import os
 from dataclasses import dataclass, field
-from typing import Any
 
 from ..errors import ConfigError
+from ..settings import Settings
 from .cfar import CfarParams
 
 
@@ -27,7 +24,9 @@ def _default_doppler_cfar() -> CfarParams:
 
 
 @dataclass
-class DspConfig:
+class DspConfig(Settings):
+    _what = "DSP"
+
     #: Windows before the range and Doppler FFTs (scipy.signal.get_window names, or "rect").
     range_window: str = "hann"
     doppler_window: str = "hann"
@@ -67,41 +66,3 @@ class DspConfig:
                 raise ConfigError(f"must be at least 2, got {getattr(self, name)}", field=name)
         if self.second_peak_threshold is not None and not 0 < self.second_peak_threshold <= 1:
             raise ConfigError("must be in (0, 1]", field="second_peak_threshold")
-
-    def to_dict(self) -> dict[str, Any]:
-        out = {}
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            out[f.name] = value.to_dict() if isinstance(value, CfarParams) else value
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "DspConfig":
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(data) - known
-        if unknown:
-            raise ConfigError(f"unknown DSP setting(s): {', '.join(sorted(unknown))}")
-        values = dict(data)
-        for key in ("range_cfar", "doppler_cfar"):
-            if key in values and isinstance(values[key], dict):
-                values[key] = CfarParams.from_dict(values[key])
-        try:
-            return cls(**values)
-        except TypeError as exc:
-            raise ConfigError(f"bad DSP settings: {exc}") from None
-
-    def dump(self, path: str | os.PathLike) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            json.dump(self.to_dict(), fh, indent=2)
-            fh.write("\n")
-
-    @classmethod
-    def load(cls, path: str | os.PathLike) -> "DspConfig":
-        try:
-            with open(path, encoding="utf-8") as fh:
-                data = json.load(fh)
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"cannot read DSP settings: {exc}", path=path) from None
-        if not isinstance(data, dict):
-            raise ConfigError("DSP settings must be a JSON object", path=path)
-        return cls.from_dict(data)

@@ -74,6 +74,22 @@ class FrameResult:
     points: np.ndarray
 
 
+def _fitted(params: CfarParams, n: int, axis: str) -> CfarParams:
+    """*params* with guard and training cells cut down to fit an axis of *n* cells (small
+    test configurations), with a warning; unchanged when they fit."""
+    if n >= params.window:
+        return params
+    room = (n - 1) // 2  # guard + train that fit around the cell under test
+    if room < 1:
+        raise ConfigError(f"the {axis} axis has {n} cells: too few for any CFAR window", field=f"{axis} CFAR")
+    guard = min(params.guard, room - 1)
+    train = room - guard
+    os_rank = params.os_rank if params.os_rank is None or params.os_rank <= 2 * train else None
+    log.info("the %s axis has only %d cells: CFAR guard %d -> %d and train %d -> %d cells", axis, n,
+                params.guard, guard, params.train, train)
+    return dataclasses.replace(params, guard=guard, train=train, os_rank=os_rank)
+
+
 class FrameProcessor:
     """Range/Doppler/angle processing for one radar configuration."""
 
@@ -84,14 +100,16 @@ class FrameProcessor:
         # The map CFAR runs on sums the power of every virtual antenna: thresholds
         # from a Pfa must be derived for that sum, not for one antenna.
         n_virtual = cfg.num_tx_slots * cfg.num_rx
-        params = dataclasses.replace(
-            params, range_cfar=dataclasses.replace(params.range_cfar, channels=n_virtual),
-            doppler_cfar=dataclasses.replace(params.doppler_cfar, channels=n_virtual))
-        self.cfg = cfg
-        self.params = params
         loops, slots, nrx, ns = cfg.cube_shape
         self.n_range = params.range_fft_size or ns
         self.n_doppler = params.doppler_fft_size or loops
+        params = dataclasses.replace(
+            params,
+            range_cfar=_fitted(dataclasses.replace(params.range_cfar, channels=n_virtual), self.n_range, "range"),
+            doppler_cfar=_fitted(dataclasses.replace(params.doppler_cfar, channels=n_virtual), self.n_doppler,
+                                 "Doppler"))
+        self.cfg = cfg
+        self.params = params
         self.w_range = make_window(params.range_window, ns)
         self.w_doppler = make_window(params.doppler_window, loops)
         #: Range of each range bin, m, (n_range,).

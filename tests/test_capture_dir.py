@@ -20,9 +20,10 @@ from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 
 import radarodom
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter, read_tum
+from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.sources import open_source
 from radarodom.errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
+from radarodom.tum import read_tum
 
 T0 = 1000.0
 PERIOD = 0.05  # SMALL_CFG frame period

@@ -52,7 +52,9 @@ def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
             rf"in \d+\.\d s, \d+\.\d Hz, {stream_s} s of stream; {re.escape(reason)}")
     if record is not None:
         text += rf"; recorded to {re.escape(str(record))}"
-    return text
+    # The estimator runs by default and adds where it ended.
+    return text + r"(; odometry: x -?\d+\.\d\d m, y -?\d+\.\d\d m, yaw -?\d+\.\d deg, estimator median "\
+                  r"\d+\.\d ms/frame(, trajectory in .*)?)?"
 
 
 def one_error_line(proc, prog="radar-capture") -> str:
@@ -335,8 +337,8 @@ def test_no_source_streams_the_simulator_and_says_so():
     assert len(warnings) == 1, proc.stderr
     assert warnings[0].startswith("radar-capture: warning: ")
     assert radar_capture.DEFAULT_SIM_URL in warnings[0] and "--source" in warnings[0]
-    assert re.fullmatch(r"radar-capture: 2 frames \(0 incomplete, 0 bytes lost\) in \d+\.\d s, "
-                        r"\d+\.\d Hz, \d+\.\d\d s of stream; frame limit", proc.stdout.rstrip("\n")), \
+    assert re.fullmatch(summary_re(2, 0, 0, r"\d+\.\d\d", "frame limit"),
+                        proc.stdout.rstrip("\n")), \
         proc.stdout
 
 
@@ -470,6 +472,7 @@ def test_live_status_line_on_a_terminal(src, tmp_path):
     text = data.decode()
     assert "\r" in text and "frames" in text and "Hz" in text
     redraws = re.findall(r"\rframes (\d+)  rate +(\d+\.\d) Hz  incomplete (\d+)  elapsed [\d:.]+  \[rec\]"
+                         r"(?:  x +-?\d+\.\d\d y +-?\d+\.\d\d m yaw +-?\d+\.\d deg  v +-?\d+\.\d\d m/s(?:  \[[a-z_,]+\])?)?"
                          r"\x1b\[K", text)
     assert len(redraws) >= 3, text  # 1 s at a redraw every 0.25 s
     counts = [int(f) for f, _, _ in redraws]

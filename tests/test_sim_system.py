@@ -18,12 +18,13 @@ from conftest import console_command
 from sim_helpers import decode, detect, point_scene, range_doppler, rd_power, truth
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory, read_tum
+from radarodom.driver.capture_dir import CaptureDirectory
 from radarodom.driver.sim.scene import BUILTIN_SCENES, load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.driver.sim.trajectory import from_segments, from_spec
 from radarodom.driver.sources import open_source
 from radarodom.errors import ConfigError, SourceError
+from radarodom.tum import read_tum
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -1,6 +1,8 @@
-"""radar-capture: stream radar frames from a source, show a live status, record.
+"""radar-capture: stream radar frames from a source, run the DSP and the odometry
+on them, show a live status, record.
 
-    radar-capture --source replay://DIR [--cfg FILE] [--record OUT] [--frames N] [--duration S]
+    radar-capture --source replay://DIR [--cfg FILE] [--record OUT] [--odom-out FILE.tum]
+                  [--frames N] [--duration S] [--no-odom]
 
 Ctrl-C (or SIGTERM) stops after the current frame and closes the recording;
 a second Ctrl-C aborts at once (what was written stays readable).
@@ -11,6 +13,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import math
 import os
 import signal
 import sys
@@ -22,7 +25,8 @@ from ..cfg import RadarConfig
 from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Frame, Source, open_source
-from ..errors import CaptureExistsError
+from ..errors import CaptureExistsError, UsageError
+from ..estimator.config import EstimatorConfig
 from . import cli
 from .status import RateMeter, StatusLine, format_duration
 
@@ -68,6 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
                         help="run the DSP and write every frame's point cloud to this new CSV file")
     parser.add_argument("--heatmap-out", metavar="DIR",
                         help="run the DSP and write every frame's range-azimuth heatmaps (.npy) here")
+    parser.add_argument("--odom-out", metavar="FILE.tum",
+                        help="write the odometry (body frame in the first frame's, one TUM line per frame) "
+                             "to this new file")
+    parser.add_argument("--no-odom", action="store_true",
+                        help="do not run the estimator (capture, record and DSP exports only)")
+    parser.add_argument("--estimator-config", metavar="FILE.json",
+                        help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones)")
     parser.add_argument("--frames", type=cli.positive_int, metavar="N", help="stop after N frames")
     parser.add_argument("--duration", type=cli.positive_float, metavar="S",
                         help="stop after S seconds of stream time")
@@ -114,52 +125,93 @@ def _summary(stats: CaptureStats, record: str | None) -> str:
     return text
 
 
-def _processing(source: Source, args: argparse.Namespace, outputs: contextlib.ExitStack):
-    """A per-frame DSP step writing --points-out / --heatmap-out, or None."""
-    if not (args.points_out or args.heatmap_out):
-        return None
-    from ..dsp.heatmap import HeatmapMaker
-    from ..dsp.processor import FrameProcessor
-    from .exports import HeatmapWriter, PointsCsvWriter
+class _Processing:
+    """The per-frame DSP and estimator, and the files they write (--points-out,
+    --heatmap-out, --odom-out)."""
 
-    processor = FrameProcessor(source.config)
-    heatmaps = HeatmapMaker(processor) if args.heatmap_out else None
-    # Check every destination before writing to any, so a refusal leaves nothing behind.
-    if args.points_out and os.path.exists(args.points_out):
-        raise CaptureExistsError(f"{args.points_out} already exists; choose a new file")
-    heatmap_out = HeatmapWriter(args.heatmap_out) if args.heatmap_out else None
-    if heatmap_out is not None:
-        outputs.callback(heatmap_out.close)
-    points_out = PointsCsvWriter(args.points_out) if args.points_out else None
-    if points_out is not None:
-        outputs.callback(points_out.close)
+    def __init__(self, source: Source, args: argparse.Namespace, outputs: contextlib.ExitStack) -> None:
+        from ..dsp.heatmap import HeatmapMaker
+        from ..dsp.processor import FrameProcessor
+        from ..estimator.odometry import RadarOdometry
+        from ..tum import TumWriter
+        from .exports import HeatmapWriter, PointsCsvWriter
 
-    cube = np.empty(source.config.cube_shape, np.complex64)  # reused: no allocation per frame
+        # Check every destination before writing to any, so a refusal leaves nothing behind.
+        for path in (args.points_out, args.odom_out):
+            if path and os.path.exists(path):
+                raise CaptureExistsError(f"{path} already exists; choose a new file")
+        estimator_cfg = args.estimator
+        self.processor = FrameProcessor(source.config)
+        # The estimator needs each cell's Doppler only where features can be; the heatmap
+        # export gets the full map.
+        self.heatmaps = HeatmapMaker(self.processor, doppler_cells=None if args.heatmap_out else 4 * estimator_cfg.features.k)
+        self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
+        self.state = None
+        self.estimator_s: list[float] = []
+        self.heatmap_out = HeatmapWriter(args.heatmap_out) if args.heatmap_out else None
+        self.points_out = PointsCsvWriter(args.points_out) if args.points_out else None
+        self.odom_out = TumWriter(args.odom_out) if args.odom_out and self.odometry else None
+        for writer in (self.heatmap_out, self.points_out, self.odom_out):
+            if writer is not None:
+                outputs.callback(writer.close)
+        self._cube = np.empty(source.config.cube_shape, np.complex64)  # reused: no allocation per frame
 
-    def process(frame: Frame) -> None:
-        result = processor.process(frame.cube(out=cube))
-        if points_out is not None:
-            points_out.write(frame.index, frame.timestamp, result.points)
-        if heatmap_out is not None:
-            heatmap_out.write(frame.index, frame.timestamp, heatmaps.range_azimuth(result.spectrum))
-    return process
+    def __call__(self, frame: Frame) -> None:
+        result = self.processor.process(frame.cube(out=self._cube))
+        if self.points_out is not None:
+            self.points_out.write(frame.index, frame.timestamp, result.points)
+        if self.heatmap_out is None and self.odometry is None:
+            return
+        heatmap = self.heatmaps.range_azimuth(result.spectrum)
+        if self.heatmap_out is not None:
+            self.heatmap_out.write(frame.index, frame.timestamp, heatmap)
+        if self.odometry is not None:
+            self.state = self.odometry.step(frame.timestamp, result.points, heatmap)
+            self.estimator_s.append(self.state.compute_s)
+            if self.odom_out is not None:
+                self.odom_out.write(self.state.t, self.state.x, self.state.y, self.state.yaw)
+
+    def status(self) -> str:
+        st = self.state
+        if st is None:
+            return ""
+        return (f"  x {st.x:6.2f} y {st.y:6.2f} m yaw {math.degrees(st.yaw):6.1f} deg"
+                f"  v {st.vx:5.2f} m/s" + ("" if st.ok else "  [" + ",".join(st.flags) + "]"))
+
+    def summary(self) -> str:
+        if self.state is None:
+            return ""
+        st = self.state
+        text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {math.degrees(st.yaw):.1f} deg, "
+                f"estimator median {1e3 * float(np.median(self.estimator_s)):.1f} ms/frame")
+        if self.odom_out is not None:
+            text += f", trajectory in {self.odom_out.path}"
+        return text
 
 
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
+    if args.no_odom and (args.odom_out or args.estimator_config):
+        raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
+                         "take --estimator-config")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
+    # Read the estimator's settings before any hardware is touched.
+    args.estimator = (EstimatorConfig.load(args.estimator_config) if args.estimator_config
+                      else EstimatorConfig())
     if not args.source:
         args.source = _default_source()
     rate = RateMeter()
 
     with open_source(args.source, cfg) as source, contextlib.ExitStack() as outputs:
-        process = _processing(source, args, outputs)
+        needed = not args.no_odom or args.points_out or args.heatmap_out
+        process = _Processing(source, args, outputs) if needed else None
 
         def on_frame(frame: Frame, stats: CaptureStats) -> None:
             if process is not None:
                 process(frame)
             rate.tick()
-            status.update(_status_text(stats, rate, args.record is not None, source))
+            status.update(_status_text(stats, rate, args.record is not None, source)
+                          + (process.status() if process is not None else ""))
 
         writer = CaptureWriter(args.record, source.config, source=args.source) if args.record else None
         with _stop_on_signals(source):
@@ -169,7 +221,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
             finally:
                 status.clear()
         live = source.describe()
-    summary = _summary(stats, args.record)
+    summary = _summary(stats, args.record) + (process.summary() if process is not None else "")
     if "frames_dropped" in live:
         summary += (f"; {live['frames_dropped']} frames dropped by slow processing, {live['seq_gaps']} "
                     f"packets lost, {live['foreign_packets']} foreign and {live['malformed_packets']} "

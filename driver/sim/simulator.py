@@ -19,9 +19,9 @@ import numpy as np
 
 from ...cfg import RadarConfig
 from ...rawframe import INT16_MAX, RawLayout
+from ...tum import yaw_quaternion
 from .physics import AntennaPattern, FmcwSynthesizer
 from .scene import Scene
-from .trajectory import yaw_quaternion
 
 log = logging.getLogger(__name__)
 

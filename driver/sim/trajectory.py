@@ -198,12 +198,3 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
             raise _fail("needs a list of segments or waypoints", where)
     return from_segments(segments, start=start, smoothing_s=smoothing, height=height,
                          where=where)
-
-
-def yaw_quaternion(yaw) -> np.ndarray:
-    """(qx, qy, qz, qw) of a rotation by *yaw* about z; shape (..., 4)."""
-    yaw = np.asarray(yaw, dtype=float)
-    q = np.zeros(yaw.shape + (4,))
-    q[..., 2] = np.sin(yaw / 2.0)
-    q[..., 3] = np.cos(yaw / 2.0)
-    return q

@@ -1,0 +1,216 @@
+"""The estimator's settings: one typed configuration that can be dumped and loaded.
+
+``EstimatorConfig()`` is the best combination measured by the experiment
+(``bench/paper_experiment.py``; the README has the tables); ``EstimatorConfig.paper()``
+is the method as the paper describes it, Top-k preprocessing and sampling + mwICP,
+with none of the options that go beyond it.  Units: metres, seconds, radians.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+from ..dsp.cfar import CfarParams
+from ..errors import ConfigError
+from ..settings import Settings
+
+FEATURE_METHODS = ("topk", "raymax", "cfar")
+PROJECTIONS = ("divide", "paper", "none")
+INITIAL_GUESSES = ("zero", "constant_rate", "profile", "scan")
+
+
+def _check(ok: bool, message: str, fld: str) -> None:
+    if not ok:
+        raise ConfigError(message, field=fld)
+
+
+def _one_of(value: str, choices: tuple[str, ...], fld: str) -> None:
+    _check(value in choices, f"must be one of {', '.join(choices)}, got {value!r}", fld)
+
+
+@dataclass
+class VelocityConfig(Settings):
+    """Linear velocity from the point cloud's Doppler (paper III-A)."""
+
+    _what = "velocity"
+
+    #: Fewer points than this (after the elevation cut): no fit ("few_points").
+    min_points: int = 5
+    #: RANSAC hypotheses, each from two points; drawn all at once.
+    ransac_iterations: int = 100
+    #: |measured - predicted| radial velocity of an inlier, m/s (the Doppler bin is 0.07 m/s).
+    inlier_threshold_mps: float = 0.1
+    #: The fit is refused below this share of inliers (moving objects above 1 - this).
+    min_inlier_ratio: float = 0.35
+    #: Points within this of zero Doppler count as standing still, m/s ...
+    zero_velocity_threshold_mps: float = 0.04
+    #: ... and when at least this share does, the sensor stands still.
+    zero_velocity_ratio: float = 0.7
+    #: How a point's radial velocity relates to the planar velocity: "divide" by cos(elevation)
+    #: (a static point's Doppler is -(v . u_xy) cos(el)); "paper" multiplies by it, as the
+    #: paper's text under eq. 1 writes; "none" ignores elevation.
+    elevation_projection: str = "divide"
+    #: Points further above or below the horizon than this are not used, rad.
+    max_elevation_rad: float = math.radians(40.0)
+    #: Largest condition number of the inliers' normal matrix: above it the azimuths are too
+    #: few or too clustered to tell vx from vy ("ill_conditioned").
+    max_condition: float = 200.0
+    #: Seed of the random generator (results are reproducible).
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _check(self.min_points >= 2, "must be at least 2", "min_points")
+        _check(self.ransac_iterations >= 1, "must be at least 1", "ransac_iterations")
+        _check(self.inlier_threshold_mps > 0, "must be positive", "inlier_threshold_mps")
+        _check(0 < self.min_inlier_ratio <= 1, "must be in (0, 1]", "min_inlier_ratio")
+        _check(0 < self.zero_velocity_ratio <= 1, "must be in (0, 1]", "zero_velocity_ratio")
+        _check(0 < self.max_elevation_rad <= math.pi / 2, "must be in (0, pi/2]", "max_elevation_rad")
+        _check(self.max_condition > 1, "must be above 1", "max_condition")
+        _one_of(self.elevation_projection, PROJECTIONS, "elevation_projection")
+
+
+def _default_heatmap_cfar() -> CfarParams:
+    return CfarParams(method="ca", guard=2, train=8, threshold_db=10.0)
+
+
+@dataclass
+class FeatureConfig(Settings):
+    """Heatmap features (paper III-B) and the options beyond the paper."""
+
+    _what = "feature"
+
+    #: "topk" (the k strongest cells), "raymax" (the strongest cell of each azimuth ray)
+    #: or "cfar" (CFAR along range on each ray).
+    method: str = "topk"
+    k: int = 200
+    #: Region of interest: range and bearing limits of the features, m and rad.
+    min_range_m: float = 0.5
+    max_range_m: float | None = None
+    max_azimuth_rad: float = math.radians(65.0)
+    #: CFAR of the "cfar" method, along range.
+    cfar: CfarParams = field(default_factory=_default_heatmap_cfar)
+    #: Weights from the intensity: "linear" power, or "db" (10 log10, less dominated by
+    #: a few strong reflectors); normalised to sum to one.
+    weighting: str = "linear"
+    #: Beyond the paper: keep only cells that are local maxima over their 8 neighbours.
+    peaks_only: bool = True
+    #: Beyond the paper: sub-bin azimuth (and range) of each feature from a parabola through
+    #: the log intensity of its neighbours, instead of the bin centre.
+    subbin: bool = True
+    #: Beyond the paper: drop cells whose dominant Doppler disagrees with the Doppler a
+    #: static reflector would have at the estimated ego-velocity, by more than this, m/s
+    #: (None: off).
+    dynamic_rejection_mps: float | None = 0.15
+
+    def __post_init__(self) -> None:
+        _one_of(self.method, FEATURE_METHODS, "method")
+        _one_of(self.weighting, ("linear", "db"), "weighting")
+        _check(self.k >= 1, "must be at least 1", "k")
+        _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")
+        _check(self.max_range_m is None or self.max_range_m > self.min_range_m,
+               "must be above min_range_m", "max_range_m")
+        _check(0 < self.max_azimuth_rad <= math.pi / 2, "must be in (0, pi/2]", "max_azimuth_rad")
+        _check(self.dynamic_rejection_mps is None or self.dynamic_rejection_mps > 0,
+               "must be positive (or null: off)", "dynamic_rejection_mps")
+
+
+@dataclass
+class IcpConfig(Settings):
+    """Rotation-only weighted ICP with the paper's sampling (eqs. 4-6)."""
+
+    _what = "ICP"
+
+    #: Correspondence error e = alpha dr^2 + beta dtheta^2: alpha in 1/m^2, beta in 1/rad^2.
+    #: The defaults make e the squared distance in units of 0.1 m and 2 degrees.
+    alpha: float = 100.0
+    beta: float = 1.0 / math.radians(2.0) ** 2
+    #: Sampling (eq. 5): e_min > eps_max: remove; e_min < eps_min (or outside the region of
+    #: interest): neglect for this iteration; else match.
+    eps_min: float = 0.01
+    eps_max: float = 25.0
+    #: Without sampling every source point is matched to its nearest target ("wICP").
+    sampling: bool = True
+    #: Register both ways and average (mwICP); else previous -> current only.
+    two_way: bool = True
+    #: Weight of a matched pair: "source" (the source point's normalised intensity) or
+    #: "product" of the two points' weights.
+    weight: str = "source"
+    iterations: int = 20
+    #: Converged when an iteration changes the rotation by less than this, rad.
+    tolerance_rad: float = 1e-5
+    #: Fewer matched pairs than this: the registration failed.
+    min_matches: int = 5
+    #: Beyond the paper, a starting rotation without an IMU: "zero" (the paper); the previous
+    #: frame's yaw rate ("constant_rate"); the shift that best correlates the two frames'
+    #: azimuth power profiles ("profile"); or the rotation that lays the previous frame's
+    #: ``scan_points`` strongest cells, rectified, on the brightest cells of the current
+    #: heatmap ("scan").  The last two search around the constant-rate prediction.
+    initial_guess: str = "scan"
+    #: Search range of the profile and scan guesses around their centre, rad.
+    max_rotation_rad: float = math.radians(15.0)
+    scan_points: int = 400
+    #: With the scan guess: a frame whose best scan score (mean log intensity of the matched
+    #: cells over the heatmap's median, natural-log units) stays below this holds no structure
+    #: to register (noise, a blocked radar): its yaw is not measured ("no_structure").
+    min_scan_score: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check(self.alpha > 0, "must be positive", "alpha")
+        _check(self.beta > 0, "must be positive", "beta")
+        _check(0 <= self.eps_min < self.eps_max, "need 0 <= eps_min < eps_max", "eps_min")
+        _check(self.iterations >= 1, "must be at least 1", "iterations")
+        _check(self.tolerance_rad > 0, "must be positive", "tolerance_rad")
+        _check(self.min_matches >= 1, "must be at least 1", "min_matches")
+        _check(self.max_rotation_rad > 0, "must be positive", "max_rotation_rad")
+        _check(self.scan_points >= 10, "must be at least 10", "scan_points")
+        _one_of(self.weight, ("source", "product"), "weight")
+        _one_of(self.initial_guess, INITIAL_GUESSES, "initial_guess")
+
+
+@dataclass
+class OdometryConfig(Settings):
+    """Integration of velocity and yaw into a pose, and what happens when a step fails."""
+
+    _what = "odometry"
+
+    #: A failed step carries the last good velocity / yaw rate forward this long, s; after
+    #: that the motion it reports is zero (and flagged).
+    hold_s: float = 0.5
+    #: Fewer heatmap features than this: no registration ("few_features").
+    min_features: int = 10
+    #: Velocity at the middle of two heatmap frames (paper eq. 2): "interpolate" linearly
+    #: between the bracketing velocity estimates, or take the "nearest".
+    velocity_sync: str = "interpolate"
+
+    def __post_init__(self) -> None:
+        _check(self.hold_s >= 0, "must be >= 0", "hold_s")
+        _check(self.min_features >= 2, "must be at least 2", "min_features")
+        _one_of(self.velocity_sync, ("interpolate", "nearest"), "velocity_sync")
+
+
+@dataclass
+class EstimatorConfig(Settings):
+    _what = "estimator"
+
+    velocity: VelocityConfig = field(default_factory=VelocityConfig)
+    features: FeatureConfig = field(default_factory=FeatureConfig)
+    icp: IcpConfig = field(default_factory=IcpConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+
+    @classmethod
+    def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":
+        """The paper's method (one of its variants), without the options beyond it."""
+        return cls(velocity=VelocityConfig(),
+                   features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None),
+                   icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero"),
+                   odometry=OdometryConfig())
+
+    def with_(self, **sections) -> "EstimatorConfig":
+        """A copy with fields of sections replaced: ``cfg.with_(icp={"two_way": False})``."""
+        out = self
+        for name, changes in sections.items():
+            if name not in ("velocity", "features", "icp", "odometry"):
+                raise ConfigError(f"unknown estimator section {name!r}")
+            out = replace(out, **{name: replace(getattr(out, name), **changes)})
+        return out

@@ -1,0 +1,213 @@
+"""Point features from a range-azimuth heatmap (paper III-B): Top-k, Ray-max, CFAR.
+
+The input is any polar heatmap: an intensity array (n_range, n_azimuth) with
+its axes ``range_m`` (n_range,) and ``azimuth_rad`` (n_azimuth,) ascending in
+the TI sensor frame (positive to the right), and optionally ``doppler_mps``
+(n_range, n_azimuth), the radial velocity of each cell's dominant Doppler bin
+(NaN where unknown).  :class:`radarodom.dsp.heatmap.RangeAzimuth` is one;
+ColoRadar's heatmaps, reduced over elevation, are another.
+
+Features come out in the body frame (REP-103): bearing = -azimuth, positive
+to the left, with weights from their intensities normalised to sum to one.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import scipy.ndimage
+
+from ..dsp.cfar import cfar_1d
+from .config import FeatureConfig
+
+log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())
+
+
+class PolarHeatmap(Protocol):
+    intensity: np.ndarray
+    range_m: np.ndarray
+    azimuth_rad: np.ndarray
+
+
+@dataclass
+class Features:
+    """Polar point features in the body frame; arrays (n,)."""
+
+    range_m: np.ndarray
+    bearing_rad: np.ndarray  # counter-clockwise from x (forward)
+    weight: np.ndarray  # normalised: sums to one
+    intensity: np.ndarray  # the heatmap's value, linear
+
+    def __len__(self) -> int:
+        return len(self.range_m)
+
+    @property
+    def xy(self) -> np.ndarray:
+        """Cartesian positions (n, 2), m."""
+        return np.stack([self.range_m * np.cos(self.bearing_rad), self.range_m * np.sin(self.bearing_rad)], 1)
+
+    @classmethod
+    def from_xy(cls, xy: np.ndarray, weight: np.ndarray, intensity: np.ndarray) -> "Features":
+        return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity)
+
+    def shifted(self, dxy: np.ndarray) -> "Features":
+        """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3)."""
+        return Features.from_xy(self.xy - np.asarray(dxy, dtype=float)[None, :], self.weight, self.intensity)
+
+
+def roi_mask(heatmap: PolarHeatmap, config: FeatureConfig) -> np.ndarray:
+    """Cells inside the region of interest, (n_range, n_azimuth) bool."""
+    r = heatmap.range_m
+    rmask = r >= config.min_range_m
+    if config.max_range_m is not None:
+        rmask &= r <= config.max_range_m
+    amask = np.abs(heatmap.azimuth_rad) <= config.max_azimuth_rad
+    return rmask[:, None] & amask[None, :]
+
+
+def static_mask(heatmap: PolarHeatmap, velocity_xy: np.ndarray, threshold_mps: float) -> np.ndarray:
+    """Cells whose dominant Doppler is what a static reflector would show at body-frame
+    velocity *velocity_xy* (2,), m/s, within *threshold_mps*; unknown Doppler counts as
+    static.  (n_range, n_azimuth) bool."""
+    doppler = getattr(heatmap, "doppler_mps", None)
+    if doppler is None:
+        return np.ones(heatmap.intensity.shape, bool)
+    bearing = -heatmap.azimuth_rad
+    predicted = -(velocity_xy[0] * np.cos(bearing) + velocity_xy[1] * np.sin(bearing))  # (n_az,)
+    return ~(np.abs(doppler - predicted[None, :]) > threshold_mps)  # NaN compares False: kept
+
+
+def extract(heatmap: PolarHeatmap, config: FeatureConfig,
+            velocity_xy: np.ndarray | None = None) -> Features:
+    """Features of one heatmap by ``config.method``; *velocity_xy* enables the
+    dynamic-object rejection when the config asks for it."""
+    intensity = np.asarray(heatmap.intensity, dtype=np.float32)
+    if intensity.shape != (len(heatmap.range_m), len(heatmap.azimuth_rad)):
+        raise ValueError(f"heatmap intensity {intensity.shape} does not match its axes "
+                         f"({len(heatmap.range_m)}, {len(heatmap.azimuth_rad)})")
+    valid = roi_mask(heatmap, config)
+    if config.dynamic_rejection_mps is not None and velocity_xy is not None:
+        valid &= static_mask(heatmap, velocity_xy, config.dynamic_rejection_mps)
+    if config.peaks_only:
+        valid &= intensity >= scipy.ndimage.maximum_filter(intensity, size=3, mode="nearest")
+    if config.method == "topk":
+        ri, ai = _top_k(intensity, valid, config.k)
+    elif config.method == "raymax":
+        ri, ai = _ray_max(intensity, valid)
+    else:
+        ri, ai = _cfar(intensity, valid, config)
+    values = intensity[ri, ai].astype(float)
+    if config.subbin:
+        rng, az = _subbin(intensity, ri, ai, heatmap.range_m, heatmap.azimuth_rad)
+    else:
+        rng, az = heatmap.range_m[ri].astype(float), heatmap.azimuth_rad[ai].astype(float)
+    return Features(rng, -az, _weights(values, intensity[valid], config.weighting), values)
+
+
+def _top_k(intensity: np.ndarray, valid: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    flat = np.where(valid, intensity, -np.inf).ravel()
+    k = min(k, int(valid.sum()))
+    if k == 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    idx = np.argpartition(flat, len(flat) - k)[len(flat) - k:]
+    return np.unravel_index(idx, intensity.shape)
+
+
+def _ray_max(intensity: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    masked = np.where(valid, intensity, -np.inf)
+    ri = masked.argmax(axis=0)
+    ai = np.flatnonzero(np.isfinite(masked[ri, np.arange(intensity.shape[1])]))
+    return ri[ai], ai
+
+
+def _cfar(intensity: np.ndarray, valid: np.ndarray, config: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
+    detected, _ = cfar_1d(intensity, config.cfar, axis=0)
+    return np.nonzero(detected & valid)
+
+
+def _weights(values: np.ndarray, background: np.ndarray, weighting: str) -> np.ndarray:
+    if len(values) == 0:
+        return values
+    if weighting == "db":
+        # Decibels over the heatmap's median (its noise and clutter floor), so weak
+        # features still count but never negatively.
+        floor = float(np.median(background)) if background.size else 0.0
+        w = np.maximum(10.0 * np.log10(np.maximum(values, 1e-30) / max(floor, 1e-30)), 1e-3)
+    else:
+        w = np.maximum(values, 1e-30)
+    return w / w.sum()
+
+
+def _parabolic(left: np.ndarray, centre: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """Vertex offset in bins of a parabola through three log values; 0 unless the
+    centre is a peak (a slope has no vertex within half a bin)."""
+    curvature = left - 2.0 * centre + right
+    peak = (centre >= left) & (centre >= right) & (curvature < 0)
+    offset = np.where(peak, 0.5 * (left - right) / np.where(peak, curvature, -1.0), 0.0)
+    return np.clip(offset, -0.5, 0.5)
+
+
+def _subbin(intensity: np.ndarray, ri: np.ndarray, ai: np.ndarray, range_m: np.ndarray,
+            azimuth_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Range and azimuth of each feature from a parabola through the log intensity of its
+    neighbours.  Azimuth bins are interpolated in sin(azimuth), where FFT bins are uniform."""
+    log_i = np.log(np.maximum(intensity, 1e-30))
+    nr, na = intensity.shape
+    inner_a = (ai > 0) & (ai < na - 1)
+    da = np.zeros(len(ai))
+    a0, a1 = np.clip(ai - 1, 0, na - 1), np.clip(ai + 1, 0, na - 1)
+    da[inner_a] = _parabolic(log_i[ri, a0], log_i[ri, ai], log_i[ri, a1])[inner_a]
+    inner_r = (ri > 0) & (ri < nr - 1)
+    dr = np.zeros(len(ri))
+    r0, r1 = np.clip(ri - 1, 0, nr - 1), np.clip(ri + 1, 0, nr - 1)
+    dr[inner_r] = _parabolic(log_i[r0, ai], log_i[ri, ai], log_i[r1, ai])[inner_r]
+    sin_az = np.interp(ai + da, np.arange(na), np.sin(azimuth_rad))
+    rng = np.interp(ri + dr, np.arange(nr), range_m)
+    return rng, np.arcsin(np.clip(sin_az, -1.0, 1.0))
+
+
+def azimuth_profile(heatmap: PolarHeatmap, config: FeatureConfig, grid_rad: np.ndarray) -> np.ndarray:
+    """The heatmap's power summed over range in the region of interest, in dB, resampled
+    onto body-frame bearings *grid_rad* (ascending, uniform); for the correlation guess
+    of the rotation.  (len(grid_rad),)"""
+    valid = roi_mask(heatmap, config)
+    power = np.where(valid, heatmap.intensity, 0.0).sum(axis=0)
+    db = 10.0 * np.log10(np.maximum(power, 1e-30))
+    bearing = -heatmap.azimuth_rad[::-1]
+    inside = np.abs(bearing) <= config.max_azimuth_rad
+    return np.interp(grid_rad, bearing[inside], db[::-1][inside], left=np.nan, right=np.nan)
+
+
+class LogHeatmap:
+    """A heatmap's log intensity over its region of interest, for sampling at any polar point.
+
+    The median is subtracted so that scores of different frames are comparable; sampling
+    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform."""
+
+    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig) -> None:
+        log_i = np.log(np.maximum(np.asarray(heatmap.intensity, dtype=np.float64), 1e-30))
+        valid = roi_mask(heatmap, config)
+        self.values = log_i - (np.median(log_i[valid]) if valid.any() else 0.0)
+        self.range_m = np.asarray(heatmap.range_m, dtype=float)
+        self.sin_az = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float))
+        self.region = config
+
+    def sample(self, range_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
+        """Log intensity at body-frame polar points (any shape); NaN outside the heatmap."""
+        nr, na = self.values.shape
+        fa = np.interp(np.sin(-bearing_rad), self.sin_az, np.arange(na), left=np.nan, right=np.nan)
+        fr = np.interp(range_m, self.range_m, np.arange(nr), left=np.nan, right=np.nan)
+        inside = np.isfinite(fa) & np.isfinite(fr) & (np.abs(bearing_rad) <= self.region.max_azimuth_rad)
+        fa = np.where(inside, fa, 0.0)
+        fr = np.where(inside, fr, 0.0)
+        a0 = np.minimum(fa.astype(int), na - 2)
+        r0 = np.minimum(fr.astype(int), nr - 2)
+        da, dr = fa - a0, fr - r0
+        v = self.values
+        out = ((v[r0, a0] * (1 - da) + v[r0, a0 + 1] * da) * (1 - dr)
+               + (v[r0 + 1, a0] * (1 - da) + v[r0 + 1, a0 + 1] * da) * dr)
+        return np.where(inside, out, np.nan)

@@ -1,0 +1,240 @@
+"""Rotation-only weighted ICP with the paper's sampling, one way or both (mwICP).
+
+The translation between two heatmap frames is known from the Doppler velocity
+(the previous frame's features are rectified, paper eq. 3), so only a rotation
+R about the sensor is left: ``y = R x`` maps source points x onto target
+points y.  Correspondences use the paper's polar error (eq. 4)
+
+    e_ij = alpha (r_i - r_j)^2 + beta (theta_i - theta_j)^2
+
+and each source point is, by its smallest error (eq. 5): removed (e_min >
+eps_max), neglected for this iteration (e_min < eps_min, or outside the
+target's region of interest) or matched.  The weighted rotation is the SVD
+solution of eq. 6.  :func:`register_rotation` is one registration (pure, no
+state); :func:`register_two_way` averages previous->current and
+current->previous.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.spatial
+
+from .config import IcpConfig
+from .features import Features, LogHeatmap
+
+OK, FEW_MATCHES, NOT_CONVERGED = "ok", "few_matches", "not_converged"
+
+
+@dataclass
+class Region:
+    """Where the target can see: range and body-frame bearing limits, m and rad."""
+
+    min_range_m: float
+    max_range_m: float
+    max_bearing_rad: float
+
+    def contains(self, range_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
+        return ((range_m >= self.min_range_m) & (range_m <= self.max_range_m)
+                & (np.abs(bearing_rad) <= self.max_bearing_rad))
+
+
+@dataclass
+class Registration:
+    """Result of one registration: ``y = R(rotation) x``."""
+
+    rotation_rad: float
+    iterations: int
+    status: str
+    matches: int = 0
+    removed: int = 0
+    neglected: int = 0
+    #: Variance of the rotation from the weighted angular residuals, rad^2.
+    variance: float = math.inf
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OK
+
+
+def wrap(angle):
+    """Angle(s) into [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def rotation_svd(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    """The angle of the rotation R in SO(2) minimising sum w |y - R x|^2 (paper eq. 6):
+    H = sum w x y^T = U D V^T, R = V U^T (a reflection is corrected to a rotation).
+    x, y (n, 2); w (n,)."""
+    h = (x * w[:, None]).T @ y
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    r = vt.T @ np.diag([1.0, d]) @ u.T
+    return math.atan2(r[1, 0], r[0, 0])
+
+
+def _scaled(range_m: np.ndarray, bearing_rad: np.ndarray, config: IcpConfig) -> np.ndarray:
+    """Polar points scaled so that squared Euclidean distance is e of eq. 4, (n, 2).
+    Bearings are wrapped into [-pi, pi) and a radar sees a half-plane, so bearing
+    differences need no wrapping."""
+    return np.column_stack([math.sqrt(config.alpha) * range_m, math.sqrt(config.beta) * bearing_rad])
+
+
+def register_rotation(source: Features, target: Features, config: IcpConfig, *,
+                      initial_rad: float = 0.0, region: Region | None = None) -> Registration:
+    """Rotate *source* onto *target* (both in the same sensor position after rectification)."""
+    if len(source) == 0 or len(target) == 0:
+        return Registration(initial_rad, 0, FEW_MATCHES)
+    rotation = float(initial_rad)
+    xy_src = source.xy
+    tgt_xy = target.xy
+    # The target stays put: one k-d tree of it answers every iteration's nearest-error query.
+    tree = scipy.spatial.cKDTree(_scaled(target.range_m, target.bearing_rad, config))
+    status, matched, removed, neglected = NOT_CONVERGED, 0, 0, 0
+    iteration = 0
+    pairs = None
+    for iteration in range(1, config.iterations + 1):
+        bearing = wrap(source.bearing_rad + rotation)
+        distance, nearest = tree.query(_scaled(source.range_m, bearing, config))
+        e_min = distance * distance
+        if config.sampling:
+            remove = e_min > config.eps_max
+            neglect = ~remove & (e_min < config.eps_min)
+            if region is not None:
+                neglect |= ~remove & ~region.contains(source.range_m, bearing)
+            match = ~remove & ~neglect
+        else:
+            remove = neglect = np.zeros(len(source), bool)
+            match = np.ones(len(source), bool)
+        matched, removed, neglected = int(match.sum()), int(remove.sum()), int(neglect.sum())
+        if matched == 0 and neglected > 0 and removed < len(source):
+            # Every usable point already sits on a target point: aligned.
+            status = OK
+            break
+        if matched < config.min_matches:
+            status = FEW_MATCHES
+            break
+        c, s = math.cos(rotation), math.sin(rotation)
+        x = xy_src[match] @ np.array([[c, s], [-s, c]])  # rows rotated by `rotation`
+        y = tgt_xy[nearest[match]]
+        w = source.weight[match]
+        if config.weight == "product":
+            w = w * target.weight[nearest[match]]
+        step = rotation_svd(x, y, w)
+        rotation += step
+        pairs = (match, nearest, w)
+        if abs(step) < config.tolerance_rad:
+            status = OK
+            break
+    return Registration(rotation, iteration, status, matched, removed, neglected,
+                        _variance(source, target, rotation, pairs))
+
+
+def _variance(source: Features, target: Features, rotation: float, pairs) -> float:
+    """Weighted variance of the matched pairs' bearing residuals over their effective number."""
+    if pairs is None:
+        return math.inf
+    match, nearest, w = pairs
+    residual = wrap(source.bearing_rad[match] + rotation - target.bearing_rad[nearest[match]])
+    w = w / w.sum()
+    n_eff = 1.0 / float(np.sum(w * w))
+    return float(np.sum(w * residual * residual)) / max(n_eff - 1.0, 1.0)
+
+
+def register_two_way(previous: Features, current: Features, config: IcpConfig, *,
+                     initial_rad: float = 0.0, region: Region | None = None
+                     ) -> tuple[Registration, Registration | None]:
+    """previous->current and, with ``config.two_way``, current->previous (negated, so
+    both estimate the same rotation).  Returns (combined, forward)."""
+    forward = register_rotation(previous, current, config, initial_rad=initial_rad, region=region)
+    if not config.two_way:
+        return forward, forward
+    backward = register_rotation(current, previous, config, initial_rad=-initial_rad, region=region)
+    if forward.ok and backward.ok:
+        mean = 0.5 * (forward.rotation_rad - backward.rotation_rad)
+        spread = 0.25 * (forward.rotation_rad + backward.rotation_rad) ** 2
+        variance = 0.25 * (forward.variance + backward.variance) + spread
+        return Registration(mean, forward.iterations + backward.iterations, OK,
+                            forward.matches + backward.matches, forward.removed + backward.removed,
+                            forward.neglected + backward.neglected, variance), forward
+    if forward.ok:
+        return forward, forward
+    if backward.ok:
+        return Registration(-backward.rotation_rad, backward.iterations, OK, backward.matches,
+                            backward.removed, backward.neglected, backward.variance), forward
+    return forward, forward
+
+
+def correlation_guess(previous_profile: np.ndarray, current_profile: np.ndarray, step_rad: float,
+                      max_rad: float, centre_rad: float = 0.0) -> float | None:
+    """Rotation (source -> target convention) that best aligns two azimuth power profiles
+    sampled every *step_rad*: the shift s maximising the normalised correlation of
+    previous(b) and current(b + s), searched over centre +/- max, refined by a parabola.
+    None when the profiles share too little."""
+    n = len(previous_profile)
+    centre = int(round(centre_rad / step_rad))
+    reach = int(math.ceil(max_rad / step_rad))
+    shifts = np.arange(centre - reach, centre + reach + 1)
+    scores = np.full(len(shifts), -np.inf)
+    for i, s in enumerate(shifts):
+        if abs(s) >= n // 2:
+            continue
+        a = previous_profile[max(0, -s):n - max(0, s)]
+        b = current_profile[max(0, s):n - max(0, -s)]
+        ok = np.isfinite(a) & np.isfinite(b)
+        if ok.sum() < n // 4:
+            continue
+        a, b = a[ok] - a[ok].mean(), b[ok] - b[ok].mean()
+        denom = math.sqrt(float(a @ a) * float(b @ b))
+        if denom > 0:
+            scores[i] = float(a @ b) / denom
+    best = _peak(scores)
+    return None if best is None else best * step_rad + shifts[0] * step_rad
+
+
+def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: float,
+               centre_rad: float = 0.0) -> tuple[float, float] | None:
+    """Rotation (source -> target) that puts the rectified *source* points on the brightest
+    part of the target heatmap: the maximum of the weighted mean log intensity sampled at
+    the rotated points, searched over centre +/- max on a grid four times coarser than
+    *step_rad*, then on *step_rad* around the best, refined by a parabola.
+
+    Returns (rotation, score), the score being that mean log intensity over the target's
+    median (natural-log units: ~0 when the heatmaps hold only noise), or None when too
+    few points stay inside the heatmap."""
+    coarse = 4.0 * step_rad
+    reach = math.ceil(max_rad / coarse)
+    best = _scan(source, target, centre_rad + coarse * np.arange(-reach, reach + 1))
+    if best is None:
+        return None
+    return _scan(source, target, best[0] + step_rad * np.arange(-4, 5))
+
+
+def _scan(source: Features, target: LogHeatmap, shifts: np.ndarray) -> tuple[float, float] | None:
+    values = target.sample(source.range_m[None, :], wrap(source.bearing_rad[None, :] + shifts[:, None]))
+    inside = np.isfinite(values)
+    w = np.where(inside, source.weight[None, :], 0.0)
+    enough = inside.sum(axis=1) >= max(3, len(source) // 4)
+    weighted = (np.where(inside, values, 0.0) * w).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-30)
+    scores = np.where(enough, weighted, -np.inf)
+    best = _peak(scores)
+    if best is None:
+        return None
+    return float(np.interp(best, np.arange(len(shifts)), shifts)), float(np.max(scores))
+
+
+def _peak(scores: np.ndarray) -> float | None:
+    """Fractional index of the maximum of *scores* (a parabola through it and its
+    neighbours), None if no score is finite."""
+    best = int(np.argmax(scores))
+    if not np.isfinite(scores[best]):
+        return None
+    if 0 < best < len(scores) - 1 and np.isfinite(scores[best - 1]) and np.isfinite(scores[best + 1]):
+        left, mid, right = scores[best - 1], scores[best], scores[best + 1]
+        curvature = left - 2 * mid + right
+        if curvature < 0:
+            return best + 0.5 * (left - right) / curvature
+    return float(best)

@@ -1,0 +1,304 @@
+"""Radar odometry: Doppler velocity + heatmap yaw integrated into an SE(2) pose.
+
+Two streams, as in the paper: point clouds give the velocity (any rate), heatmaps
+give the yaw (any rate, possibly another sensor).  Feed them in time order:
+
+    odom = RadarOdometry(EstimatorConfig())
+    odom.add_points(t, points)        # -> VelocityEstimate
+    state = odom.add_heatmap(t, hm)   # -> OdometryState (one per heatmap frame)
+
+or ``odom.step(t, points, heatmap)`` when one radar gives both.  For each heatmap
+frame the velocity is interpolated to the middle of it and the previous one
+(paper eq. 2), the previous frame's features are shifted by -v dt (eq. 3) and
+registered to the current ones by rotation-only weighted ICP; the pose moves by
+the chord of that arc and turns by the ICP's rotation.  Poses are the body frame
+(REP-103) in the world frame (the body frame at the first heatmap frame).
+
+Nothing here returns NaN: a step that fails says so in ``flags`` and carries the
+last good motion forward for ``odometry.hold_s``, then reports no motion.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .config import EstimatorConfig
+from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract
+from .icp import Region, Registration, correlation_guess, register_two_way, scan_guess, wrap
+from .velocity import VelocityEstimate, estimate_velocity
+
+log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())
+
+#: Quality flags of an odometry state.
+FIRST_FRAME = "first_frame"
+VELOCITY_FAILED = "velocity_failed"  # no good velocity near this frame
+VELOCITY_HELD = "velocity_held"  # ... the last good one was used
+FEW_FEATURES = "few_features"
+NO_STRUCTURE = "no_structure"  # the heatmaps hold nothing to register (the scan guess's verdict)
+ICP_FAILED = "icp_failed"  # registration found too few matches
+ICP_NOT_CONVERGED = "icp_not_converged"
+YAW_HELD = "yaw_held"  # the last good yaw rate was used
+MOTION_LOST = "motion_lost"  # nothing good for longer than hold_s: no motion reported
+
+#: Correlation guess: bearing grid step, rad.
+_PROFILE_STEP = math.radians(0.25)
+
+
+@dataclass
+class OdometryState:
+    """The odometry after one heatmap frame."""
+
+    t: float
+    frame: int
+    x: float = 0.0  # m, world frame
+    y: float = 0.0
+    yaw: float = 0.0  # rad, counter-clockwise, unwrapped
+    vx: float = 0.0  # m/s, body frame (forward)
+    vy: float = 0.0  # m/s, body frame (left)
+    yaw_rate: float = 0.0  # rad/s
+    #: Covariance of (x, y, yaw), propagated, and of (vx, vy, yaw_rate) of this step.
+    pose_covariance: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    twist_covariance: np.ndarray = field(default_factory=lambda: np.eye(3))
+    flags: tuple[str, ...] = ()
+    features: int = 0
+    #: The yaw increment of this step, rad, and what registration gave it.
+    yaw_increment: float = 0.0
+    registration: Registration | None = None
+    velocity: VelocityEstimate | None = None
+    #: Time spent in the estimator for this heatmap frame (features, ICP, integration), s.
+    compute_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return not (set(self.flags) - {FIRST_FRAME})
+
+
+class _Velocities:
+    """Recent good velocity estimates, for interpolation to heatmap times."""
+
+    def __init__(self, size: int = 32) -> None:
+        self.items: deque[VelocityEstimate] = deque(maxlen=size)
+
+    def add(self, est: VelocityEstimate) -> None:
+        if self.items and est.t < self.items[-1].t:
+            raise ValueError(f"velocity at t={est.t} after one at t={self.items[-1].t}: feed in time order")
+        self.items.append(est)
+
+    def at(self, t: float, mode: str) -> VelocityEstimate | None:
+        """The velocity at *t*: linear between the bracketing estimates (eq. 2), else the
+        nearest; None when there is none."""
+        if not self.items:
+            return None
+        times = np.fromiter((e.t for e in self.items), float, len(self.items))
+        k = int(np.searchsorted(times, t))
+        if mode == "nearest" or k == 0 or k == len(times):
+            e = self.items[int(np.argmin(np.abs(times - t)))]
+            return e
+        a, b = self.items[k - 1], self.items[k]
+        f = (t - a.t) / (b.t - a.t) if b.t > a.t else 0.0
+        return VelocityEstimate(t=t, vx=a.vx + f * (b.vx - a.vx), vy=a.vy + f * (b.vy - a.vy),
+                                covariance=(1 - f) * a.covariance + f * b.covariance,
+                                n_points=b.n_points, inliers=b.inliers, status=b.status)
+
+
+class RadarOdometry:
+    """Streaming odometry; see the module docstring."""
+
+    def __init__(self, config: EstimatorConfig | None = None) -> None:
+        self.config = config or EstimatorConfig()
+        self.rng = np.random.default_rng(self.config.velocity.seed)
+        self._velocities = _Velocities()
+        self._last_velocity: VelocityEstimate | None = None  # latest, good or not
+        self._previous: tuple[float, Features, Any] | None = None  # (t, features, guide)
+        self._state: OdometryState | None = None
+        self._good_rate: tuple[float, float] | None = None  # (t, yaw rate) of the last good ICP
+        self._good_velocity_t: float | None = None
+        self._frames = 0
+        grid_max = self.config.features.max_azimuth_rad
+        self._scan_features = replace(self.config.features, method="topk", k=self.config.icp.scan_points,
+                                      weighting="db", peaks_only=False, subbin=False)
+        self._grid = np.arange(-grid_max, grid_max + 1e-9, _PROFILE_STEP)
+
+    @property
+    def state(self) -> OdometryState | None:
+        return self._state
+
+    # ------------------------------------------------------------------ velocity stream
+    def add_points(self, t: float, points: np.ndarray) -> VelocityEstimate:
+        """Estimate the velocity from one point cloud (TI frame fields azimuth, elevation,
+        velocity) taken at *t* and keep it for the heatmap frames around it."""
+        est = estimate_velocity(points, t, self.config.velocity, self.rng)
+        self.add_velocity(est)
+        return est
+
+    def add_velocity(self, est: VelocityEstimate) -> None:
+        """Use a velocity from elsewhere (or from :meth:`add_points`)."""
+        self._last_velocity = est
+        if est.ok:
+            self._velocities.add(est)
+            self._good_velocity_t = est.t
+
+    # ------------------------------------------------------------------ heatmap stream
+    def step(self, t: float, points: np.ndarray, heatmap: PolarHeatmap) -> OdometryState:
+        """One radar giving both streams at *t*."""
+        self.add_points(t, points)
+        return self.add_heatmap(t, heatmap)
+
+    def add_heatmap(self, t: float, heatmap: PolarHeatmap) -> OdometryState:
+        start = time.perf_counter()
+        cfg = self.config
+        flags: list[str] = []
+        velocity_now = self._velocities.at(t, "nearest")
+        v_now = None if velocity_now is None else velocity_now.velocity
+        features = extract(heatmap, cfg.features, v_now)
+        guide = self._guide(heatmap)
+        frame = self._frames
+        self._frames += 1
+
+        if self._previous is None:
+            state = OdometryState(t=t, frame=frame, flags=(FIRST_FRAME,), features=len(features))
+            if velocity_now is not None:
+                state.vx, state.vy, state.velocity = velocity_now.vx, velocity_now.vy, velocity_now
+            self._finish(state, t, features, guide, heatmap, start)
+            return state
+
+        t_prev, prev_features, prev_guide = self._previous
+        previous = self._state
+        dt = t - t_prev
+        if dt <= 0:
+            raise ValueError(f"heatmap at t={t} not after the previous one at t={t_prev}: feed in time order")
+
+        # Velocity at the middle of the two frames (eq. 2), or the last good one held.
+        velocity = self._velocities.at(0.5 * (t + t_prev), cfg.odometry.velocity_sync)
+        v, v_cov = self._velocity_or_hold(velocity, t, flags)
+
+        # Yaw: rectify (eq. 3), register both ways, average.
+        initial = self._initial_rotation(prev_guide, heatmap, guide, v * dt, dt)
+        rotation, registration, var_yaw = self._register(prev_features, features, v * dt, initial, flags)
+        if rotation is None:
+            rate = self._held_rate(t, flags)
+            dyaw, var_yaw = rate * dt, (math.radians(10.0) * dt) ** 2 + var_yaw
+        else:
+            dyaw = -rotation  # the world turns the other way
+            self._good_rate = (t, dyaw / dt)
+
+        state = self._integrate(previous, t, frame, v, v_cov, dyaw, var_yaw, dt)
+        state.flags = tuple(flags)
+        state.features = len(features)
+        state.registration = registration
+        state.velocity = velocity
+        self._finish(state, t, features, guide, heatmap, start)
+        return state
+
+    # ------------------------------------------------------------------ helpers
+    def _guide(self, heatmap: PolarHeatmap):
+        """What the initial guess keeps of a frame: its azimuth profile, or its strongest cells."""
+        guess = self.config.icp.initial_guess
+        if guess == "profile":
+            return azimuth_profile(heatmap, self.config.features, self._grid)
+        if guess == "scan":
+            return extract(heatmap, self._scan_features)
+        return None
+
+    def _finish(self, state: OdometryState, t: float, features: Features, guide, heatmap, start: float) -> None:
+        self._previous = (t, features, guide)
+        self._state = state
+        self._region = Region(self.config.features.min_range_m,
+                              self.config.features.max_range_m or float(np.max(heatmap.range_m)),
+                              self.config.features.max_azimuth_rad)
+        state.compute_s = time.perf_counter() - start
+
+    def _velocity_or_hold(self, velocity: VelocityEstimate | None, t: float,
+                          flags: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        hold = self.config.odometry.hold_s
+        last = self._last_velocity
+        fresh = last is not None and last.ok
+        if velocity is not None and fresh:
+            return velocity.velocity, velocity.covariance
+        flags.append(VELOCITY_FAILED)
+        if velocity is not None and self._good_velocity_t is not None and t - self._good_velocity_t <= hold:
+            flags.append(VELOCITY_HELD)
+            return velocity.velocity, velocity.covariance * 4.0
+        if MOTION_LOST not in flags:
+            flags.append(MOTION_LOST)
+        return np.zeros(2), np.eye(2)
+
+    def _held_rate(self, t: float, flags: list[str]) -> float:
+        if self._good_rate is not None and t - self._good_rate[0] <= self.config.odometry.hold_s:
+            flags.append(YAW_HELD)
+            return self._good_rate[1]
+        if MOTION_LOST not in flags:
+            flags.append(MOTION_LOST)
+        return 0.0
+
+    def _initial_rotation(self, prev_guide, heatmap: PolarHeatmap, guide, translation: np.ndarray,
+                          dt: float) -> float | None:
+        """Starting rotation of the registration (source -> target convention); None when
+        the scan finds no structure to register."""
+        icp = self.config.icp
+        predicted = 0.0
+        if icp.initial_guess != "zero" and self._good_rate is not None:
+            predicted = -self._good_rate[1] * dt
+        guess = None
+        if prev_guide is not None and icp.initial_guess == "profile":
+            guess = correlation_guess(prev_guide, guide, _PROFILE_STEP, icp.max_rotation_rad, predicted)
+        elif prev_guide is not None and icp.initial_guess == "scan":
+            found = scan_guess(prev_guide.shifted(translation), LogHeatmap(heatmap, self.config.features),
+                               _PROFILE_STEP, icp.max_rotation_rad, predicted)
+            if found is None or found[1] < icp.min_scan_score:
+                return None
+            guess = found[0]
+        return predicted if guess is None else guess
+
+    def _register(self, prev_features: Features, features: Features, translation: np.ndarray,
+                  initial: float | None, flags: list[str]):
+        """(rotation or None, registration, variance) of previous -> current."""
+        minimum = self.config.odometry.min_features
+        if len(features) < minimum or len(prev_features) < minimum:
+            flags.append(FEW_FEATURES)
+            return None, None, 0.0
+        if initial is None:
+            flags.append(NO_STRUCTURE)
+            return None, None, 0.0
+        source = prev_features.shifted(translation)
+        registration, _ = register_two_way(source, features, self.config.icp, initial_rad=initial,
+                                           region=self._region)
+        if registration.status == "few_matches":
+            flags.append(ICP_FAILED)
+            return None, registration, 0.0
+        if registration.status == "not_converged":
+            flags.append(ICP_NOT_CONVERGED)  # its rotation is still the best there is
+        variance = registration.variance if math.isfinite(registration.variance) else math.radians(5.0) ** 2
+        return registration.rotation_rad, registration, variance
+
+    def _integrate(self, previous: OdometryState, t: float, frame: int, v: np.ndarray, v_cov: np.ndarray,
+                   dyaw: float, var_yaw: float, dt: float) -> OdometryState:
+        # The body moved along an arc: its chord points half the turn off the mid velocity.
+        half = previous.yaw + 0.5 * dyaw
+        c, s = math.cos(half), math.sin(half)
+        step = np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]]) * dt
+        x, y = previous.x + step[0], previous.y + step[1]
+        # Covariance: pose (x, y, yaw) through the step's Jacobians.
+        f = np.eye(3)
+        f[0, 2], f[1, 2] = -step[1], step[0]
+        g = np.zeros((3, 3))
+        g[:2, :2] = np.array([[c, -s], [s, c]]) * dt
+        g[2, 2] = dt
+        twist = np.zeros((3, 3))
+        twist[:2, :2] = v_cov
+        twist[2, 2] = var_yaw / (dt * dt)
+        pose_cov = f @ previous.pose_covariance @ f.T + g @ twist @ g.T
+        return OdometryState(t=t, frame=frame, x=float(x), y=float(y), yaw=float(previous.yaw + dyaw),
+                             vx=float(v[0]), vy=float(v[1]), yaw_rate=float(dyaw / dt),
+                             pose_covariance=pose_cov, twist_covariance=twist, yaw_increment=float(dyaw))
+
+
+__all__ = ["RadarOdometry", "OdometryState", "wrap"]

@@ -1,0 +1,184 @@
+"""Planar ego-velocity from the Doppler of one point cloud (paper III-A).
+
+A static reflector seen from a sensor moving with velocity v has radial
+velocity v_r = -v . u (u the unit vector to it; conventions.md).  In the body
+frame (x forward, y left) with bearing b = -azimuth_TI and elevation el,
+
+    -v_r / cos(el) = cos(b) vx + sin(b) vy,
+
+a line in (vx, vy) per point.  RANSAC over pairs of points finds the largest
+set that agrees (the static world), least squares on it refines the answer,
+and its residuals give the covariance.  Moving objects are the outliers.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .config import VelocityConfig
+
+log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())
+
+#: Why a velocity is what it is.
+OK, ZERO, FEW_POINTS, ILL_CONDITIONED, NO_CONSENSUS = (
+    "ok", "zero_velocity", "few_points", "ill_conditioned", "no_consensus")
+
+
+@dataclass
+class VelocityEstimate:
+    """The sensor's planar velocity in its body frame (REP-103) at time ``t``."""
+
+    t: float
+    vx: float = 0.0  # m/s forward
+    vy: float = 0.0  # m/s left
+    #: 2x2 covariance of (vx, vy), m^2/s^2.
+    covariance: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+    n_points: int = 0
+    inliers: int = 0
+    status: str = FEW_POINTS
+    #: Per input point: True for the inliers (the static world), (n,).
+    inlier_mask: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.status in (OK, ZERO)
+
+    @property
+    def inlier_ratio(self) -> float:
+        return self.inliers / self.n_points if self.n_points else 0.0
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return np.array([self.vx, self.vy])
+
+
+def design(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, velocity_mps: np.ndarray,
+           projection: str = "divide") -> tuple[np.ndarray, np.ndarray]:
+    """The linear model of the module docstring: rows (n, 2) and right-hand sides (n,).
+
+    *azimuth_rad* is in the TI sensor frame (positive to the right), as the DSP gives it.
+    """
+    bearing = -np.asarray(azimuth_rad, dtype=float)
+    rows = np.stack([np.cos(bearing), np.sin(bearing)], axis=1)
+    rhs = -np.asarray(velocity_mps, dtype=float)
+    cos_el = np.cos(np.asarray(elevation_rad, dtype=float))
+    if projection == "divide":
+        rhs = rhs / cos_el
+    elif projection == "paper":
+        rhs = rhs * cos_el
+    return rows, rhs
+
+
+def _least_squares(rows: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Solution, normal matrix and residual variance of rows @ v = rhs."""
+    normal = rows.T @ rows
+    v = np.linalg.solve(normal, rows.T @ rhs)
+    dof = max(len(rhs) - 2, 1)
+    sigma2 = float(np.sum((rhs - rows @ v) ** 2) / dof)
+    return v, normal, sigma2
+
+
+def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
+                      rng: np.random.Generator) -> VelocityEstimate:
+    """RANSAC + least squares on a point cloud with fields azimuth, elevation (rad) and
+    velocity (m/s, positive receding), like :data:`radarodom.dsp.processor.POINT_DTYPE`.
+
+    Never raises for bad data: an ill-posed cloud gives an estimate whose ``status`` says
+    why and whose ``ok`` is False.
+    """
+    n_all = len(points)
+    keep = np.abs(points["elevation"]) <= config.max_elevation_rad if n_all else np.zeros(0, bool)
+    rows, rhs = design(points["azimuth"][keep], points["elevation"][keep], points["velocity"][keep],
+                       config.elevation_projection)
+    n = len(rhs)
+    out = VelocityEstimate(t=t, n_points=n, inlier_mask=np.zeros(n_all, bool))
+    if n < 2:
+        return out
+
+    # Standing still: most of the world has zero Doppler, whatever the azimuths.  A still
+    # sensor sees few detections (the whole static world falls in one Doppler bin), so a
+    # handful of points all at zero Doppler is enough to say so.
+    still = np.abs(rhs) < config.zero_velocity_threshold_mps
+    if still.mean() >= (config.zero_velocity_ratio if n >= config.min_points else 1.0):
+        out.status, out.inliers = ZERO, int(still.sum())
+        out.covariance = _zero_covariance(rows[still], config)
+        out.inlier_mask[np.flatnonzero(keep)[still]] = True
+        return out
+
+    if n < config.min_points:
+        return out
+    inliers = _ransac(rows, rhs, config, rng)
+    if inliers is None or inliers.sum() < max(config.min_points, config.min_inlier_ratio * n):
+        out.status = NO_CONSENSUS
+        out.inliers = 0 if inliers is None else int(inliers.sum())
+        return out
+    # Refine: least squares on the consensus, then once more on the points it explains.
+    for _ in range(2):
+        if not _well_conditioned(rows[inliers], config):
+            out.status, out.inliers = ILL_CONDITIONED, int(inliers.sum())
+            return out
+        v, normal, sigma2 = _least_squares(rows[inliers], rhs[inliers])
+        refined = np.abs(rows @ v - rhs) < config.inlier_threshold_mps
+        if refined.sum() < max(config.min_points, config.min_inlier_ratio * n):
+            break
+        inliers = refined
+    if not _well_conditioned(rows[inliers], config):
+        out.status, out.inliers = ILL_CONDITIONED, int(inliers.sum())
+        return out
+    v, normal, sigma2 = _least_squares(rows[inliers], rhs[inliers])
+    # The Doppler grid quantises every measurement: the residual variance never drops
+    # below the bin's uniform-quantisation variance, whatever few points agree.
+    sigma2 = max(sigma2, config.inlier_threshold_mps ** 2 / 12.0)
+    out.vx, out.vy = float(v[0]), float(v[1])
+    out.covariance = sigma2 * np.linalg.inv(normal)
+    out.inliers = int(inliers.sum())
+    out.inlier_mask[np.flatnonzero(keep)[inliers]] = True
+    out.status = OK
+    return out
+
+
+def _well_conditioned(rows: np.ndarray, config: VelocityConfig) -> bool:
+    if len(rows) < 2:
+        return False
+    return bool(np.linalg.cond(rows.T @ rows) <= config.max_condition)
+
+
+def _zero_covariance(rows: np.ndarray, config: VelocityConfig) -> np.ndarray:
+    """Covariance of a zero-velocity decision: the threshold's spread over the points."""
+    sigma2 = config.zero_velocity_threshold_mps ** 2 / 3.0
+    normal = rows.T @ rows
+    if np.linalg.cond(normal) > 1e12:
+        return np.eye(2) * sigma2
+    return sigma2 * np.linalg.inv(normal) * len(rows) / max(len(rows) - 2, 1)
+
+
+def _ransac(rows: np.ndarray, rhs: np.ndarray, config: VelocityConfig,
+            rng: np.random.Generator) -> np.ndarray | None:
+    """Inlier mask (n,) of the best two-point hypothesis, or None if all were degenerate."""
+    n = len(rhs)
+    m = config.ransac_iterations
+    i = rng.integers(0, n, m)
+    j = (i + rng.integers(1, n, m)) % n  # a second, different point
+    a11, a12, a21, a22 = rows[i, 0], rows[i, 1], rows[j, 0], rows[j, 1]
+    det = a11 * a22 - a12 * a21  # sin of the bearing difference
+    good = np.abs(det) > math.sin(math.radians(3.0))
+    if not good.any():
+        return None
+    det, i, j = det[good], i[good], j[good]
+    vx = (rhs[i] * a22[good] - rhs[j] * a12[good]) / det
+    vy = (rhs[j] * a11[good] - rhs[i] * a21[good]) / det
+    residual = np.abs(rows @ np.stack([vx, vy]) - rhs[:, None])  # (n, hypotheses)
+    within = residual < config.inlier_threshold_mps
+    counts = within.sum(axis=0)
+    # Among the largest consensus sets, the one that fits them most tightly.
+    best = np.flatnonzero(counts == counts.max())
+    if len(best) > 1:
+        best = best[np.argmin(np.where(within[:, best], residual[:, best], 0.0).sum(axis=0))]
+    else:
+        best = best[0]
+    return within[:, best]

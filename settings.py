@@ -1,0 +1,86 @@
+"""Typed settings that can be dumped to JSON and loaded back (like kiss-icp's).
+
+A settings class is a dataclass whose fields are plain values or other
+settings (nested dataclasses, or classes with ``to_dict``/``from_dict``).
+:class:`Settings` gives it ``to_dict``, ``from_dict``, ``dump`` and ``load``;
+unknown keys and bad values raise :class:`ConfigError` naming the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import typing
+from typing import Any, Mapping, TypeVar
+
+from .errors import ConfigError
+
+S = TypeVar("S", bound="Settings")
+
+
+def _nested_type(cls: type, name: str) -> type | None:
+    """The field's class when it is itself loadable from a dict, else None."""
+    hint = typing.get_type_hints(cls).get(name)
+    return hint if isinstance(hint, type) and hasattr(hint, "from_dict") else None
+
+
+class Settings:
+    """Mixin for dataclasses: JSON round trip with field-level errors."""
+
+    #: What the settings are called in messages ("DSP", "estimator", ...).
+    _what = "settings"
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            if not f.init:
+                continue
+            value = getattr(self, f.name)
+            out[f.name] = value.to_dict() if hasattr(value, "to_dict") else value
+        return out
+
+    @classmethod
+    def from_dict(cls: type[S], data: Mapping[str, Any], *, prefix: str = "") -> S:
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{cls._what} settings must be an object, got {type(data).__name__}",
+                              field=prefix.rstrip(".") or None)
+        known = {f.name for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
+        unknown = set(data) - known
+        if unknown:
+            raise ConfigError(f"unknown {cls._what} setting(s): "
+                              + ", ".join(prefix + k for k in sorted(unknown)))
+        values = dict(data)
+        for key, value in data.items():
+            nested = _nested_type(cls, key)
+            if nested is not None and isinstance(value, Mapping):
+                if issubclass(nested, Settings):
+                    values[key] = nested.from_dict(value, prefix=f"{prefix}{key}.")
+                else:
+                    values[key] = nested.from_dict(value)
+        try:
+            return cls(**values)
+        except TypeError as exc:
+            raise ConfigError(f"bad {cls._what} settings: {exc}") from None
+
+    def dump(self, path: str | os.PathLike) -> None:
+        with open(path, "w", encoding="utf-8") as fh:
+            json.dump(self.to_dict(), fh, indent=2)
+            fh.write("\n")
+
+    @classmethod
+    def load(cls: type[S], path: str | os.PathLike) -> S:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                data = json.load(fh)
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"cannot read {cls._what} settings: {exc}", path=path) from None
+        if not isinstance(data, dict):
+            raise ConfigError(f"{cls._what} settings must be a JSON object", path=path)
+        try:
+            return cls.from_dict(data)
+        except ConfigError as exc:
+            if exc.path is None:
+                exc.path = os.fspath(path)
+                exc.args = (exc._render(),)
+            raise

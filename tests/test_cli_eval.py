@@ -1,0 +1,108 @@
+"""radar-eval, the command-line program: the table, --json, --plot, and errors
+as one line with exit status 2."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import subprocess
+import sys
+
+import pytest
+from conftest import console_command
+from test_evaluation import drive, write_tum
+
+from radarodom.estimator.evaluation import evaluate
+from radarodom.tools import radar_eval
+from radarodom.tum import read_tum
+
+
+def run_eval(*args) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture
+def run_files(tmp_path):
+    """(estimate, ground truth) TUM files of a 20 s run with a biased, noisy estimate."""
+    t, ref, est = drive(200, seed=3, scale=1.03, yaw_bias_deg=0.1, trans_noise_m=0.003, yaw_noise_deg=0.3)
+    return write_tum(tmp_path / "est.tum", t, est), write_tum(tmp_path / "gt.tum", t, ref)
+
+
+def test_prints_the_table(run_files):
+    est, gt = run_files
+    proc = run_eval(est, gt)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    out = proc.stdout
+    assert out.startswith(f"{est} against {gt}\n  200 poses matched")
+    result = evaluate(read_tum(est), read_tum(gt))
+    rows = {line[:32].strip(): line[32:].split() for line in out.splitlines()
+            if line.startswith(("RPE", "yaw", "ATE"))}
+    assert list(rows) == ["RPE per frame, translation m", "RPE per frame, rotation deg",
+                          "RPE per 1 m, translation m", "RPE per 1 m, translation %", "RPE per 1 m, rotation deg",
+                          "yaw-increment error deg", "ATE (Umeyama-aligned) m"]
+    assert float(rows["yaw-increment error deg"][0]) == pytest.approx(result.yaw_rmse_deg, abs=6e-5)
+    assert rows["RPE per frame, rotation deg"][-1] == "199"
+    assert f"final drift (aligned at the first pose): {result.drift_m:.3f} m" in out
+
+
+def test_json_and_plots(run_files, tmp_path):
+    pytest.importorskip("matplotlib", reason="--plot needs matplotlib (the plot or test extra)")
+    est, gt = run_files
+    proc = run_eval(est, gt, "--json", tmp_path / "eval.json", "--plot", tmp_path / "plots", "--delta-m", "2")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads((tmp_path / "eval.json").read_text())
+    expected = evaluate(read_tum(est), read_tum(gt), delta_m=2.0).to_dict()
+    assert data == json.loads(json.dumps(expected))
+    assert data["rpe_per_distance"]["delta_m"] == 2.0 and "RPE per 2 m, rotation deg" in proc.stdout
+    for name in ("trajectories.png", "yaw_error.png", "yaw_cumulative_error.png"):
+        png = (tmp_path / "plots" / name).read_bytes()
+        assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 10_000, name
+
+
+def test_json_without_matplotlib_plot_asks_for_the_extra(run_files, tmp_path, monkeypatch, capsys):
+    est, gt = run_files
+    for name in {"matplotlib", *(m for m in sys.modules if m.startswith("matplotlib."))}:
+        monkeypatch.setitem(sys.modules, name, None)  # as if it were not installed
+    assert radar_eval.main([est, gt, "--json", str(tmp_path / "a.json")]) == 0
+    assert json.loads((tmp_path / "a.json").read_text())["poses"]["matched"] == 200
+    capsys.readouterr()
+    assert radar_eval.main([est, gt, "--plot", str(tmp_path / "plots")]) == 2
+    err = capsys.readouterr().err
+    assert err == 'radar-eval: error: plots need matplotlib: pip install "radarodom[plot]"\n'
+    assert not (tmp_path / "plots").exists()
+
+
+def test_a_malformed_line_is_one_error_line_with_file_and_line(run_files, tmp_path):
+    est, gt = run_files
+    lines = pathlib.Path(est).read_text().splitlines(keepends=True)
+    lines[41] = "1004.1 0.5 oops 0 0 0 0 1\n"
+    bad = tmp_path / "bad.tum"
+    bad.write_text("".join(lines))
+    proc = run_eval(bad, gt)
+    assert proc.returncode == 2
+    assert proc.stderr == (f"radar-eval: error: {bad}:42: expected 't x y z qx qy qz qw', "
+                           f"got '1004.1 0.5 oops 0 0 0 0 1'\n")
+    assert proc.stdout == ""
+    verbose = run_eval(bad, gt, "--verbose")
+    assert verbose.returncode == 2 and "Traceback" in verbose.stderr
+
+
+def test_no_common_times_and_missing_files_exit_2(run_files, tmp_path):
+    est, gt = run_files
+    shifted = read_tum(est)
+    late = write_tum(tmp_path / "late.tum", shifted.times + 60.0, shifted.se2())
+    proc = run_eval(late, gt)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.count("\n") == 1 and f"{late} (200 poses, t 1060.000 .. 1079.900 s)" in proc.stderr
+    assert f"{gt} (200 poses, t 1000.000 .. 1019.900 s)" in proc.stderr
+    proc = run_eval(tmp_path / "nope.tum", gt)
+    assert (proc.returncode, proc.stderr) == (2, f"radar-eval: error: {tmp_path / 'nope.tum'}: no such file\n")
+
+
+def test_bad_options_are_usage_errors(run_files):
+    est, gt = run_files
+    for option in (["--delta-m", "0"], ["--max-diff", "-1"]):
+        proc = run_eval(est, gt, *option)
+        assert proc.returncode == 2 and "expected a number > 0" in proc.stderr, option

@@ -1,0 +1,192 @@
+"""TUM trajectory files: ``t x y z qx qy qz qw`` per line (conventions.md).
+
+The one reader and the one line formatter of the project: the capture
+directory's ``groundtruth.tum``, the estimator's ``--odom-out`` and
+``radar-eval`` all go through here, so every file is readable by ``evo``.
+Units: seconds, metres; quaternions are (qx, qy, qz, qw), Hamilton, unit norm.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError
+
+log = logging.getLogger(__name__)
+
+
+def yaw_quaternion(yaw) -> np.ndarray:
+    """(qx, qy, qz, qw) of a rotation by *yaw* (rad) about z; shape ``yaw.shape + (4,)``."""
+    yaw = np.asarray(yaw, dtype=float)
+    q = np.zeros(yaw.shape + (4,))
+    q[..., 2] = np.sin(yaw / 2.0)
+    q[..., 3] = np.cos(yaw / 2.0)
+    return q
+
+
+def quaternion_yaw(quaternions) -> np.ndarray:
+    """Heading (rad, in (-pi, pi]) of quaternions (..., 4) xyzw: the z angle of the
+    z-y-x Euler decomposition, so a tilted body still gives the direction it faces.
+    The quaternions need not be normalised."""
+    q = np.asarray(quaternions, dtype=float)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
+def format_tum_line(t: float, position: Sequence[float], quaternion: Sequence[float]) -> str:
+    """One TUM line with its newline: *t* (s) to 9 decimals (nanoseconds, as the
+    frame timestamps), the position (3,) m and quaternion (4,) xyzw to 9 digits."""
+    values = [float(v) for v in position] + [float(v) for v in quaternion]
+    if len(values) != 7:
+        raise UsageError(f"a TUM pose is a position (3) and a quaternion (4), got {len(values)} numbers")
+    if not all(math.isfinite(v) for v in values) or not math.isfinite(t):
+        raise UsageError(f"refusing to write a non-finite pose at t={t}: {values}")
+    return f"{t:.9f} " + " ".join(f"{v:.9g}" for v in values) + "\n"
+
+
+@dataclass(frozen=True)
+class TumTrajectory:
+    """Poses from a TUM file.
+
+    ``times`` (n,) s, ``positions`` (n, 3) m, ``quaternions`` (n, 4) xyzw;
+    ``source`` names the file (for messages) and ``lines`` (n,) holds each pose's
+    1-based line number in it (0 when the poses did not come from a file).
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    quaternions: np.ndarray
+    source: str = ""
+    lines: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.times)
+        if self.positions.shape != (n, 3) or self.quaternions.shape != (n, 4):
+            raise UsageError(f"a trajectory of {n} times needs positions (n, 3) and quaternions (n, 4), "
+                             f"got {self.positions.shape} and {self.quaternions.shape}")
+        if self.lines is None:
+            object.__setattr__(self, "lines", np.zeros(n, dtype=int))
+
+    @classmethod
+    def from_se2(cls, times, poses, *, source: str = "") -> "TumTrajectory":
+        """Planar poses *poses* (n, 3): x, y (m), yaw (rad); z = 0, yaw-only quaternions."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        positions = np.zeros((len(poses), 3))
+        positions[:, :2] = poses[:, :2]
+        return cls(np.asarray(times, dtype=float).reshape(-1), positions, yaw_quaternion(poses[:, 2]),
+                   source=source)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    @property
+    def yaw(self) -> np.ndarray:
+        """Heading (n,) rad in (-pi, pi], counter-clockwise from the world x axis."""
+        return quaternion_yaw(self.quaternions)
+
+    def se2(self) -> np.ndarray:
+        """Planar poses (n, 3): x, y (m) and yaw (rad); z, roll and pitch are dropped."""
+        return np.column_stack([self.positions[:, 0], self.positions[:, 1], self.yaw])
+
+    def pose(self, i: int) -> tuple[float, ...]:
+        """Pose *i* as ``(x, y, z, qx, qy, qz, qw)``."""
+        return (*self.positions[i], *self.quaternions[i])
+
+    def take(self, indices) -> "TumTrajectory":
+        """The poses at *indices* (an index array or a boolean mask), same source."""
+        return TumTrajectory(self.times[indices], self.positions[indices], self.quaternions[indices],
+                             self.source, self.lines[indices])
+
+    def where(self, i: int) -> str:
+        """``file:line`` of pose *i*, for messages."""
+        line = int(self.lines[i])
+        return f"{self.source or '<trajectory>'}:{line}" if line else f"{self.source or '<trajectory>'}"
+
+
+def read_tum(path: str | os.PathLike) -> TumTrajectory:
+    """Read a TUM trajectory (``t x y z qx qy qz qw`` per line, ``#`` comments, blank lines).
+
+    A last line without its end of line (a writer cut off mid-line) is ignored
+    with a warning.  Raises :class:`CaptureFormatError` naming ``file:line`` for
+    a line that is not eight finite numbers or has a zero quaternion, and
+    :class:`CaptureError` when the file cannot be read.
+    """
+    name = os.fspath(path)
+    rows: list[list[float]] = []
+    lines: list[int] = []
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for lineno, line in enumerate(fh, start=1):
+                text = line.strip()
+                if not text or text.startswith("#"):
+                    continue
+                if not line.endswith("\n"):
+                    log.warning("%s:%d: ignoring a last line without end of line", name, lineno)
+                    break
+                try:
+                    values = [float(v) for v in text.split()]
+                except ValueError:
+                    values = []
+                if len(values) != 8:
+                    raise CaptureFormatError(f"{name}:{lineno}: expected 't x y z qx qy qz qw', "
+                                             f"got {text[:60]!r}")
+                if not all(math.isfinite(v) for v in values):
+                    raise CaptureFormatError(f"{name}:{lineno}: not a finite number: {text[:60]!r}")
+                if not any(values[4:]):
+                    raise CaptureFormatError(f"{name}:{lineno}: the quaternion is zero")
+                rows.append(values)
+                lines.append(lineno)
+    except OSError as exc:
+        raise CaptureError(f"cannot read {name}: {exc.strerror or exc}") from None
+    arr = np.array(rows, dtype=float).reshape(-1, 8)
+    return TumTrajectory(arr[:, 0], arr[:, 1:4], arr[:, 4:8], name, np.array(lines, dtype=int))
+
+
+class TumWriter:
+    """Write poses to a new TUM file, one line each, handed to the kernel per line.
+
+    Refuses an existing file (:class:`CaptureExistsError`): radarodom never
+    overwrites recorded data.  Use as a context manager.
+    """
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = os.fspath(path)
+        try:
+            # Line-buffered: a process killed mid-run leaves whole lines behind.
+            self._fh = open(self.path, "x", buffering=1, encoding="ascii")
+        except FileExistsError:
+            raise CaptureExistsError(f"{self.path} already exists; choose a new file") from None
+        except OSError as exc:
+            raise CaptureError(f"cannot create {self.path}: {exc.strerror or exc}") from None
+
+    def write(self, t: float, x: float, y: float, yaw: float) -> None:
+        """A planar pose: x, y (m) and yaw (rad) at time *t* (s); z = 0."""
+        self.write_pose(t, (x, y, 0.0), yaw_quaternion(yaw))
+
+    def write_pose(self, t: float, position: Sequence[float], quaternion: Sequence[float]) -> None:
+        """A pose: position (3,) m and quaternion (4,) xyzw at time *t* (s)."""
+        line = format_tum_line(t, position, quaternion)
+        try:
+            self._fh.write(line)
+        except ValueError:  # written after close()
+            raise CaptureError(f"{self.path}: the file is closed") from None
+        except OSError as exc:
+            raise CaptureError(f"writing {self.path} failed: {exc.strerror or exc}") from None
+
+    def close(self) -> None:
+        try:
+            self._fh.close()
+        except OSError as exc:
+            raise CaptureError(f"closing {self.path} failed: {exc.strerror or exc}") from None
+
+    def __enter__(self) -> "TumWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
