@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import types
 import typing
 from typing import Any, Mapping, TypeVar
 
@@ -23,6 +24,31 @@ def _nested_type(cls: type, name: str) -> type | None:
     """The field's class when it is itself loadable from a dict, else None."""
     hint = typing.get_type_hints(cls).get(name)
     return hint if isinstance(hint, type) and hasattr(hint, "from_dict") else None
+
+
+_KINDS = {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}
+
+
+def _checked(value: Any, hint: Any, name: str) -> Any:
+    """*value* if it has the type *hint* asks for (ints accepted as floats), else
+    :class:`ConfigError` naming the field.  Hints other than the plain ones pass."""
+    allowed = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
+    if value is None and type(None) in allowed:
+        return value
+    for kind in allowed:
+        if kind is bool and isinstance(value, bool):
+            return value
+        if kind is int and isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        if kind is str and isinstance(value, str):
+            return value
+    plain = [k for k in allowed if k in _KINDS]
+    if not plain or len(plain) < len([k for k in allowed if k is not type(None)]):
+        return value  # not a plain type (a nested section is checked by its own from_dict)
+    wanted = " or ".join(_KINDS[k] for k in plain) + (" or null" if type(None) in allowed else "")
+    raise ConfigError(f"must be {wanted}, got {value!r}", field=name)
 
 
 class Settings:
@@ -42,6 +68,18 @@ class Settings:
 
     @classmethod
     def from_dict(cls: type[S], data: Mapping[str, Any], *, prefix: str = "") -> S:
+        """Settings from a dict (nested sections as dicts); errors name the field by its
+        path (``icp.iterations``)."""
+        try:
+            return cls._from_dict(data, prefix)
+        except ConfigError as exc:
+            if prefix and exc.field and not exc.field.startswith(prefix):
+                exc.field = prefix + exc.field
+                exc.args = (exc._render(),)
+            raise
+
+    @classmethod
+    def _from_dict(cls: type[S], data: Mapping[str, Any], prefix: str) -> S:
         if not isinstance(data, Mapping):
             raise ConfigError(f"{cls._what} settings must be an object, got {type(data).__name__}",
                               field=prefix.rstrip(".") or None)
@@ -51,13 +89,18 @@ class Settings:
             raise ConfigError(f"unknown {cls._what} setting(s): "
                               + ", ".join(prefix + k for k in sorted(unknown)))
         values = dict(data)
+        hints = typing.get_type_hints(cls)
         for key, value in data.items():
             nested = _nested_type(cls, key)
-            if nested is not None and isinstance(value, Mapping):
+            if nested is None:
+                values[key] = _checked(value, hints.get(key), key)
+            elif isinstance(value, Mapping):
                 if issubclass(nested, Settings):
                     values[key] = nested.from_dict(value, prefix=f"{prefix}{key}.")
                 else:
                     values[key] = nested.from_dict(value)
+            elif not isinstance(value, nested):
+                raise ConfigError(f"must be an object of {nested.__name__} settings, got {value!r}", field=key)
         try:
             return cls(**values)
         except TypeError as exc:

@@ -52,7 +52,9 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "+ profile-correlation guess": ("beyond", paper.with_(icp={"initial_guess": "profile"})),
         "+ heatmap-scan guess": ("beyond", paper.with_(icp={"initial_guess": "scan"})),
         "+ peaks, sub-bin angles": ("beyond", paper.with_(features={"peaks_only": True, "subbin": True})),
-        "default (best combination)": ("beyond", EstimatorConfig()),
+        "+ yaw-rate filter": ("beyond", paper.with_(odometry={"yaw_rate_filter": True})),
+        "default without keyframes": ("beyond", EstimatorConfig().with_(odometry={"keyframe_distance_m": 0.0})),
+        "default (all of the above, keyframes)": ("beyond", EstimatorConfig()),
     }
 
 
@@ -118,7 +120,7 @@ def _plot(results: dict, scene: str, seed: int, out: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for name in ("CFAR", "Ray-max", "Top-k", "default (best combination)"):
+    for name in ("CFAR", "Ray-max", "Top-k", "default (all of the above, keyframes)"):
         r = results.get((name, scene, seed))
         if r is None:
             continue

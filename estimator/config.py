@@ -9,7 +9,7 @@ with none of the options that go beyond it.  Units: metres, seconds, radians.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from ..dsp.cfar import CfarParams
 from ..errors import ConfigError
@@ -74,6 +74,12 @@ def _default_heatmap_cfar() -> CfarParams:
     return CfarParams(method="ca", guard=2, train=8, threshold_db=10.0)
 
 
+def _default_azimuth_cfar() -> CfarParams:
+    # The guard spans the beam's main lobe (64 bins over 8 elements: 8 bins a side), so the
+    # training cells see the sidelobes, which a sidelobe alone does not stand out from.
+    return CfarParams(method="ca", guard=7, train=4, threshold_db=6.0)
+
+
 @dataclass
 class FeatureConfig(Settings):
     """Heatmap features (paper III-B) and the options beyond the paper."""
@@ -81,15 +87,16 @@ class FeatureConfig(Settings):
     _what = "feature"
 
     #: "topk" (the k strongest cells), "raymax" (the strongest cell of each azimuth ray)
-    #: or "cfar" (CFAR along range on each ray).
+    #: or "cfar" (cells that CFAR detects along range and along azimuth).
     method: str = "topk"
     k: int = 200
     #: Region of interest: range and bearing limits of the features, m and rad.
     min_range_m: float = 0.5
     max_range_m: float | None = None
     max_azimuth_rad: float = math.radians(65.0)
-    #: CFAR of the "cfar" method, along range.
+    #: CFAR of the "cfar" method, along range and along azimuth.
     cfar: CfarParams = field(default_factory=_default_heatmap_cfar)
+    cfar_azimuth: CfarParams = field(default_factory=_default_azimuth_cfar)
     #: Weights from the intensity: "linear" power, or "db" (10 log10, less dominated by
     #: a few strong reflectors); normalised to sum to one.
     weighting: str = "linear"
@@ -131,6 +138,9 @@ class IcpConfig(Settings):
     eps_max: float = 25.0
     #: Without sampling every source point is matched to its nearest target ("wICP").
     sampling: bool = True
+    #: The paper's reading of eq. 5: aligned points (e_min < eps_min) sit out each step.  It
+    #: lets the iteration cycle between rotations; off, they stay in the fit as anchors.
+    neglect_aligned: bool = False
     #: Register both ways and average (mwICP); else previous -> current only.
     two_way: bool = True
     #: Weight of a matched pair: "source" (the source point's normalised intensity) or
@@ -182,10 +192,29 @@ class OdometryConfig(Settings):
     #: Velocity at the middle of two heatmap frames (paper eq. 2): "interpolate" linearly
     #: between the bracketing velocity estimates, or take the "nearest".
     velocity_sync: str = "interpolate"
+    #: Beyond the paper: smooth the measured yaw rate with a Kalman filter (a robot's yaw rate
+    #: changes smoothly; frame-to-frame registration noise does not) ...
+    yaw_rate_filter: bool = True
+    #: ... whose measurements have at least this noise per frame, rad ...
+    yaw_noise_rad: float = math.radians(1.0)
+    #: ... and whose yaw rate changes with this standard deviation of yaw acceleration, rad/s^2.
+    yaw_accel_std_radps2: float = math.radians(50.0)
+    #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
+    #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken
+    #: when the sensor is this far (m) or has turned this much (rad) from the last (0: off) ...
+    keyframe_distance_m: float = 0.5
+    keyframe_angle_rad: float = math.radians(10.0)
+    #: ... and the keyframe registration may move the predicted yaw by at most this, rad.
+    keyframe_search_rad: float = math.radians(3.0)
 
     def __post_init__(self) -> None:
         _check(self.hold_s >= 0, "must be >= 0", "hold_s")
         _check(self.min_features >= 2, "must be at least 2", "min_features")
+        _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")
+        _check(self.keyframe_distance_m >= 0, "must be >= 0 (0: off)", "keyframe_distance_m")
+        _check(self.keyframe_angle_rad > 0, "must be positive", "keyframe_angle_rad")
+        _check(self.keyframe_search_rad > 0, "must be positive", "keyframe_search_rad")
+        _check(self.yaw_accel_std_radps2 > 0, "must be positive", "yaw_accel_std_radps2")
         _one_of(self.velocity_sync, ("interpolate", "nearest"), "velocity_sync")
 
 
@@ -203,14 +232,16 @@ class EstimatorConfig(Settings):
         """The paper's method (one of its variants), without the options beyond it."""
         return cls(velocity=VelocityConfig(),
                    features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None),
-                   icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero"),
-                   odometry=OdometryConfig())
+                   icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero", neglect_aligned=True),
+                   odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0))
 
     def with_(self, **sections) -> "EstimatorConfig":
         """A copy with fields of sections replaced: ``cfg.with_(icp={"two_way": False})``."""
-        out = self
+        data = {name: getattr(self, name) for name in ("velocity", "features", "icp", "odometry")}
         for name, changes in sections.items():
-            if name not in ("velocity", "features", "icp", "odometry"):
+            if name not in data:
                 raise ConfigError(f"unknown estimator section {name!r}")
-            out = replace(out, **{name: replace(getattr(out, name), **changes)})
-        return out
+            section = data[name].to_dict()
+            section.update(changes)
+            data[name] = section
+        return EstimatorConfig.from_dict(data)

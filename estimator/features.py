@@ -89,7 +89,8 @@ def extract(heatmap: PolarHeatmap, config: FeatureConfig,
     if intensity.shape != (len(heatmap.range_m), len(heatmap.azimuth_rad)):
         raise ValueError(f"heatmap intensity {intensity.shape} does not match its axes "
                          f"({len(heatmap.range_m)}, {len(heatmap.azimuth_rad)})")
-    valid = roi_mask(heatmap, config)
+    # Cells with no power carry nothing (an empty or blocked heatmap gives no features).
+    valid = roi_mask(heatmap, config) & (intensity > 0)
     if config.dynamic_rejection_mps is not None and velocity_xy is not None:
         valid &= static_mask(heatmap, velocity_xy, config.dynamic_rejection_mps)
     if config.peaks_only:
@@ -125,8 +126,13 @@ def _ray_max(intensity: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def _cfar(intensity: np.ndarray, valid: np.ndarray, config: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
-    detected, _ = cfar_1d(intensity, config.cfar, axis=0)
-    return np.nonzero(detected & valid)
+    """Cells detected along range and along azimuth (each pass alone lets a strong
+    reflector's range or angle sidelobes through on every neighbouring ray)."""
+    along_range, _ = cfar_1d(intensity, config.cfar, axis=0)
+    if intensity.shape[1] >= config.cfar_azimuth.window:
+        along_azimuth, _ = cfar_1d(intensity, config.cfar_azimuth, axis=1)
+        along_range &= along_azimuth
+    return np.nonzero(along_range & valid)
 
 
 def _weights(values: np.ndarray, background: np.ndarray, weighting: str) -> np.ndarray:

@@ -85,7 +85,11 @@ def _scaled(range_m: np.ndarray, bearing_rad: np.ndarray, config: IcpConfig) -> 
 
 def register_rotation(source: Features, target: Features, config: IcpConfig, *,
                       initial_rad: float = 0.0, region: Region | None = None) -> Registration:
-    """Rotate *source* onto *target* (both in the same sensor position after rectification)."""
+    """Rotate *source* onto *target* (both in the same sensor position after rectification).
+
+    With ``config.neglect_aligned`` (the paper) the aligned points (e_min < eps_min) sit
+    out each step, which can make the iteration cycle; then the rotation of the cycle with
+    the smallest mean error over all usable points is returned (status not_converged)."""
     if len(source) == 0 or len(target) == 0:
         return Registration(initial_rad, 0, FEW_MATCHES)
     rotation = float(initial_rad)
@@ -96,27 +100,32 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
     status, matched, removed, neglected = NOT_CONVERGED, 0, 0, 0
     iteration = 0
     pairs = None
+    best = (math.inf, rotation, None)  # (mean error, rotation, pairs) of the best iterate
     for iteration in range(1, config.iterations + 1):
         bearing = wrap(source.bearing_rad + rotation)
         distance, nearest = tree.query(_scaled(source.range_m, bearing, config))
         e_min = distance * distance
         if config.sampling:
             remove = e_min > config.eps_max
-            neglect = ~remove & (e_min < config.eps_min)
-            if region is not None:
-                neglect |= ~remove & ~region.contains(source.range_m, bearing)
+            inside = np.ones(len(source), bool) if region is None else region.contains(source.range_m, bearing)
+            aligned = ~remove & inside & (e_min < config.eps_min)
+            neglect = ~remove & ~inside
+            if config.neglect_aligned:
+                neglect |= aligned
             match = ~remove & ~neglect
         else:
-            remove = neglect = np.zeros(len(source), bool)
+            remove = neglect = aligned = np.zeros(len(source), bool)
             match = np.ones(len(source), bool)
         matched, removed, neglected = int(match.sum()), int(remove.sum()), int(neglect.sum())
-        if matched == 0 and neglected > 0 and removed < len(source):
-            # Every usable point already sits on a target point: aligned.
-            status = OK
-            break
         if matched < config.min_matches:
-            status = FEW_MATCHES
+            # Fewer pairs to fit than needed: fine if that is because the rest sits on its
+            # targets already, a failure if nothing usable is left.
+            status = OK if int(aligned.sum()) + matched >= config.min_matches else FEW_MATCHES
             break
+        usable = match | aligned
+        error = float(np.sum(source.weight[usable] * e_min[usable]) / np.sum(source.weight[usable]))
+        if error < best[0]:
+            best = (error, rotation, pairs)
         c, s = math.cos(rotation), math.sin(rotation)
         x = xy_src[match] @ np.array([[c, s], [-s, c]])  # rows rotated by `rotation`
         y = tgt_xy[nearest[match]]
@@ -129,6 +138,8 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
         if abs(step) < config.tolerance_rad:
             status = OK
             break
+    if status == NOT_CONVERGED and config.sampling and best[2] is not None:
+        _, rotation, pairs = best
     return Registration(rotation, iteration, status, matched, removed, neglected,
                         _variance(source, target, rotation, pairs))
 
@@ -153,11 +164,12 @@ def register_two_way(previous: Features, current: Features, config: IcpConfig, *
     if not config.two_way:
         return forward, forward
     backward = register_rotation(current, previous, config, initial_rad=-initial_rad, region=region)
-    if forward.ok and backward.ok:
+    if forward.status != FEW_MATCHES and backward.status != FEW_MATCHES:
         mean = 0.5 * (forward.rotation_rad - backward.rotation_rad)
         spread = 0.25 * (forward.rotation_rad + backward.rotation_rad) ** 2
         variance = 0.25 * (forward.variance + backward.variance) + spread
-        return Registration(mean, forward.iterations + backward.iterations, OK,
+        status = OK if forward.ok and backward.ok else NOT_CONVERGED
+        return Registration(mean, forward.iterations + backward.iterations, status,
                             forward.matches + backward.matches, forward.removed + backward.removed,
                             forward.neglected + backward.neglected, variance), forward
     if forward.ok:

@@ -121,6 +121,9 @@ class RadarOdometry:
         self._state: OdometryState | None = None
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate) of the last good ICP
         self._good_velocity_t: float | None = None
+        self._rate_filter: tuple[float, float] | None = None  # (yaw rate rad/s, variance)
+        self._key: tuple | None = None  # ((x, y, yaw), features, guide, yaw variance since it)
+        self._log: tuple | None = None  # (heatmap, its LogHeatmap)
         self._frames = 0
         grid_max = self.config.features.max_azimuth_rad
         self._scan_features = replace(self.config.features, method="topk", k=self.config.icp.scan_points,
@@ -155,6 +158,9 @@ class RadarOdometry:
     def add_heatmap(self, t: float, heatmap: PolarHeatmap) -> OdometryState:
         start = time.perf_counter()
         cfg = self.config
+        if self._previous is not None and t <= self._previous[0]:
+            raise ValueError(f"heatmap at t={t} not after the previous one at t={self._previous[0]}: "
+                             "feed in time order")
         flags: list[str] = []
         velocity_now = self._velocities.at(t, "nearest")
         v_now = None if velocity_now is None else velocity_now.velocity
@@ -167,14 +173,13 @@ class RadarOdometry:
             state = OdometryState(t=t, frame=frame, flags=(FIRST_FRAME,), features=len(features))
             if velocity_now is not None:
                 state.vx, state.vy, state.velocity = velocity_now.vx, velocity_now.vy, velocity_now
+            self._update_keyframe(state, features, guide, ok=False)
             self._finish(state, t, features, guide, heatmap, start)
             return state
 
         t_prev, prev_features, prev_guide = self._previous
         previous = self._state
         dt = t - t_prev
-        if dt <= 0:
-            raise ValueError(f"heatmap at t={t} not after the previous one at t={t_prev}: feed in time order")
 
         # Velocity at the middle of the two frames (eq. 2), or the last good one held.
         velocity = self._velocities.at(0.5 * (t + t_prev), cfg.odometry.velocity_sync)
@@ -184,13 +189,19 @@ class RadarOdometry:
         initial = self._initial_rotation(prev_guide, heatmap, guide, v * dt, dt)
         rotation, registration, var_yaw = self._register(prev_features, features, v * dt, initial, flags)
         if rotation is None:
+            self._rate_filter = None  # restart from the next measurement
             rate = self._held_rate(t, flags)
             dyaw, var_yaw = rate * dt, (math.radians(10.0) * dt) ** 2 + var_yaw
         else:
             dyaw = -rotation  # the world turns the other way
+            if cfg.odometry.yaw_rate_filter:
+                dyaw, var_yaw = self._filtered(dyaw, var_yaw, dt)
             self._good_rate = (t, dyaw / dt)
 
+        if rotation is not None and cfg.odometry.keyframe_distance_m > 0:
+            dyaw, var_yaw = self._against_keyframe(previous, v, dt, dyaw, var_yaw, features, heatmap)
         state = self._integrate(previous, t, frame, v, v_cov, dyaw, var_yaw, dt)
+        self._update_keyframe(state, features, guide, ok=rotation is not None)
         state.flags = tuple(flags)
         state.features = len(features)
         state.registration = registration
@@ -210,6 +221,7 @@ class RadarOdometry:
 
     def _finish(self, state: OdometryState, t: float, features: Features, guide, heatmap, start: float) -> None:
         self._previous = (t, features, guide)
+        self._log = None  # the heatmap is the caller's: do not keep it
         self._state = state
         self._region = Region(self.config.features.min_range_m,
                               self.config.features.max_range_m or float(np.max(heatmap.range_m)),
@@ -231,6 +243,80 @@ class RadarOdometry:
             flags.append(MOTION_LOST)
         return np.zeros(2), np.eye(2)
 
+    def _log_heatmap(self, heatmap: PolarHeatmap) -> LogHeatmap:
+        """The log heatmap of the frame being processed, made once for both registrations."""
+        if self._log is None or self._log[0] is not heatmap:
+            self._log = (heatmap, LogHeatmap(heatmap, self.config.features))
+        return self._log[1]
+
+    def _against_keyframe(self, previous: OdometryState, v: np.ndarray, dt: float, dyaw: float,
+                          var_yaw: float, features: Features, heatmap: PolarHeatmap) -> tuple[float, float]:
+        """Beyond the paper: correct the frame-to-frame yaw by registering the current frame to
+        the keyframe (a frame up to ``keyframe_distance_m`` / ``keyframe_angle_rad`` back), so
+        that registration noise does not add up frame by frame.  A Kalman update of the yaw
+        relative to the keyframe.  Returns the corrected increment and its variance."""
+        if self._key is None:
+            return dyaw, var_yaw
+        key_pose, key_features, key_guide, p_rel = self._key
+        cfg = self.config
+        # The current pose as predicted by this frame's step, relative to the keyframe.
+        half = previous.yaw + 0.5 * dyaw
+        x = previous.x + (math.cos(half) * v[0] - math.sin(half) * v[1]) * dt
+        y = previous.y + (math.sin(half) * v[0] + math.cos(half) * v[1]) * dt
+        c, s = math.cos(key_pose[2]), math.sin(key_pose[2])
+        t_rel = np.array([c * (x - key_pose[0]) + s * (y - key_pose[1]),
+                          -s * (x - key_pose[0]) + c * (y - key_pose[1])])
+        predicted = previous.yaw + dyaw - key_pose[2]  # yaw relative to the keyframe
+        p_rel += var_yaw
+        initial = -predicted
+        if key_guide is not None and cfg.icp.initial_guess == "scan":
+            found = scan_guess(key_guide.shifted(t_rel), self._log_heatmap(heatmap), _PROFILE_STEP,
+                               cfg.odometry.keyframe_search_rad, initial)
+            if found is not None and found[1] >= cfg.icp.min_scan_score:
+                initial = found[0]
+        registration, _ = register_two_way(key_features.shifted(t_rel), features, cfg.icp, initial_rad=initial,
+                                           region=self._region)
+        measured = -registration.rotation_rad
+        if registration.status == "few_matches" or abs(measured - predicted) > cfg.odometry.keyframe_search_rad:
+            self._key = (key_pose, key_features, key_guide, p_rel)
+            return dyaw, var_yaw
+        r = max(registration.variance, cfg.odometry.yaw_noise_rad ** 2)
+        gain = p_rel / (p_rel + r)
+        corrected = predicted + gain * (measured - predicted)
+        self._key = (key_pose, key_features, key_guide, (1.0 - gain) * p_rel)
+        return dyaw + (corrected - predicted), (1.0 - gain) * var_yaw
+
+    def _update_keyframe(self, state: OdometryState, features: Features, guide, ok: bool) -> None:
+        """Make this frame the keyframe when the last one is far enough behind (or unusable)."""
+        odo = self.config.odometry
+        if odo.keyframe_distance_m <= 0:
+            return
+        if self._key is not None and ok:
+            (kx, ky, kyaw), _, _, _ = self._key
+            near = (math.hypot(state.x - kx, state.y - ky) < odo.keyframe_distance_m
+                    and abs(state.yaw - kyaw) < odo.keyframe_angle_rad)
+            if near:
+                return
+        self._key = ((state.x, state.y, state.yaw), features, guide, 0.0)
+
+    def _filtered(self, dyaw: float, var_yaw: float, dt: float) -> tuple[float, float]:
+        """A scalar Kalman filter on the yaw rate (constant rate, white yaw acceleration): the
+        measured increment, of variance at least the configured per-frame noise, is blended
+        with the prediction.  Returns the filtered increment and its variance."""
+        odo = self.config.odometry
+        r = max(var_yaw, odo.yaw_noise_rad ** 2) / (dt * dt)  # rate measurement variance
+        z = dyaw / dt
+        if self._rate_filter is None:
+            rate, p = z, r
+        else:
+            rate, p = self._rate_filter
+            p += (odo.yaw_accel_std_radps2 * dt) ** 2
+            gain = p / (p + r)
+            rate += gain * (z - rate)
+            p *= 1.0 - gain
+        self._rate_filter = (rate, p)
+        return rate * dt, p * dt * dt
+
     def _held_rate(self, t: float, flags: list[str]) -> float:
         if self._good_rate is not None and t - self._good_rate[0] <= self.config.odometry.hold_s:
             flags.append(YAW_HELD)
@@ -251,7 +337,7 @@ class RadarOdometry:
         if prev_guide is not None and icp.initial_guess == "profile":
             guess = correlation_guess(prev_guide, guide, _PROFILE_STEP, icp.max_rotation_rad, predicted)
         elif prev_guide is not None and icp.initial_guess == "scan":
-            found = scan_guess(prev_guide.shifted(translation), LogHeatmap(heatmap, self.config.features),
+            found = scan_guess(prev_guide.shifted(translation), self._log_heatmap(heatmap),
                                _PROFILE_STEP, icp.max_rotation_rad, predicted)
             if found is None or found[1] < icp.min_scan_score:
                 return None

@@ -105,6 +105,10 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
     # handful of points all at zero Doppler is enough to say so.
     still = np.abs(rhs) < config.zero_velocity_threshold_mps
     if still.mean() >= (config.zero_velocity_ratio if n >= config.min_points else 1.0):
+        if not _well_conditioned(rows[still], config):
+            # Zero Doppler from one direction only: sideways motion would look the same.
+            out.status, out.inliers = ILL_CONDITIONED, int(still.sum())
+            return out
         out.status, out.inliers = ZERO, int(still.sum())
         out.covariance = _zero_covariance(rows[still], config)
         out.inlier_mask[np.flatnonzero(keep)[still]] = True

@@ -25,7 +25,7 @@ from ..cfg import RadarConfig
 from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Frame, Source, open_source
-from ..errors import CaptureExistsError, UsageError
+from ..errors import CaptureError, CaptureExistsError, UsageError
 from ..estimator.config import EstimatorConfig
 from . import cli
 from .status import RateMeter, StatusLine, format_duration
@@ -125,6 +125,15 @@ def _summary(stats: CaptureStats, record: str | None) -> str:
     return text
 
 
+def _check_destination(path: str, *, is_dir: bool = False) -> None:
+    """Refuse an output that exists (a file) or cannot be created (no parent directory)."""
+    if not is_dir and os.path.exists(path):
+        raise CaptureExistsError(f"{path} already exists; choose a new file")
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):
+        raise CaptureError(f"cannot create {path}: no directory {parent}")
+
+
 class _Processing:
     """The per-frame DSP and estimator, and the files they write (--points-out,
     --heatmap-out, --odom-out)."""
@@ -137,9 +146,9 @@ class _Processing:
         from .exports import HeatmapWriter, PointsCsvWriter
 
         # Check every destination before writing to any, so a refusal leaves nothing behind.
-        for path in (args.points_out, args.odom_out):
-            if path and os.path.exists(path):
-                raise CaptureExistsError(f"{path} already exists; choose a new file")
+        for path in (args.points_out, args.odom_out if not args.no_odom else None, args.heatmap_out):
+            if path:
+                _check_destination(path, is_dir=path == args.heatmap_out)
         estimator_cfg = args.estimator
         self.processor = FrameProcessor(source.config)
         # The estimator needs each cell's Doppler only where features can be; the heatmap

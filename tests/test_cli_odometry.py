@@ -1,0 +1,313 @@
+"""radar-capture with the estimator, from the command line: --odom-out, --no-odom,
+--estimator-config, the odometry part of the summary, and radar-eval on what it wrote.
+
+The programs run as subprocesses on real files.  One short simulation of the
+``corridor`` scene (1 s standing still, then 2 s driving straight ahead and
+speeding up to 1.2 m/s) is streamed once per module through ``sim://`` with
+``--record`` and ``--odom-out``; the other runs replay that recording.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import signal
+import subprocess
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import console_command
+from test_cli_capture import one_error_line, popen_capture, run_capture_cli, summary_re
+
+from radarodom.estimator.config import EstimatorConfig
+
+DURATION_S = 3
+FRAMES = 30  # 10 Hz (configs/awr1843_raw.cfg)
+STANDING_S = 1.0  # the corridor's trajectory starts with a 1 s pause
+SIM_URL = f"sim://corridor?rate=max&duration={DURATION_S}"
+
+#: The odometry part radar-capture adds to its summary when the estimator runs.
+ODOM_PART = (r"; odometry: x (?P<x>-?\d+\.\d\d) m, y (?P<y>-?\d+\.\d\d) m, yaw (?P<yaw>-?\d+\.\d) deg, "
+             r"estimator median (?P<ms>\d+\.\d) ms/frame(?:, trajectory in (?P<path>.+))?$")
+
+
+def run_eval(*args) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120)
+
+
+def tum_rows(path) -> list[list[str]]:
+    """The fields of every line of a TUM file; every line must be complete."""
+    text = open(path, encoding="ascii").read()
+    assert text.endswith("\n"), text[-80:]
+    return [line.split() for line in text.splitlines()]
+
+
+def poses(path) -> np.ndarray:
+    """(n, 8) t x y z qx qy qz qw."""
+    return np.array([[float(v) for v in row] for row in tum_rows(path)])
+
+
+def yaw_of(q: np.ndarray) -> np.ndarray:
+    return 2.0 * np.arctan2(q[..., 2], q[..., 3])
+
+
+def snapshot(path) -> tuple[bytes, int]:
+    return open(path, "rb").read(), os.stat(path).st_mtime_ns
+
+
+@pytest.fixture(scope="module")
+def sim_run(tmp_path_factory):
+    """radar-capture streaming the simulator, recording it and writing the odometry."""
+    base = tmp_path_factory.mktemp("odom_cli")
+    rec, tum = base / "rec", base / "live.tum"
+    start = time.monotonic()
+    proc = run_capture_cli("--source", SIM_URL, "--record", rec, "--odom-out", tum, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return SimpleNamespace(base=base, rec=rec, tum=tum, proc=proc, seconds=time.monotonic() - start)
+
+
+def replay_url(sim_run) -> str:
+    return f"replay://{sim_run.rec}?rate=max"
+
+
+# ------------------------------------------------------------------ the run itself
+def test_summary_has_the_odometry_part(sim_run):
+    proc = sim_run.proc
+    assert proc.stderr == ""
+    line = proc.stdout.rstrip("\n")
+    assert proc.stdout.count("\n") == 1, proc.stdout
+    assert re.fullmatch(summary_re(FRAMES, 0, 0, "2.90", "end of source", sim_run.rec), line), line
+    m = re.search(ODOM_PART, line)
+    assert m, line
+    assert m["path"] == str(sim_run.tum)
+    assert 0.0 < float(m["ms"]) < 1000.0
+    # The summary's pose is the last line of the trajectory.
+    last = poses(sim_run.tum)[-1]
+    assert m["x"] == f"{last[1]:.2f}" and m["y"] == f"{last[2]:.2f}"
+    assert float(m["yaw"]) == pytest.approx(math.degrees(yaw_of(last[4:])), abs=0.051)
+
+
+def test_odom_out_has_one_line_per_frame_at_the_frame_times(sim_run):
+    rows = tum_rows(sim_run.tum)
+    stamps = (sim_run.rec / "timestamps.txt").read_text().split()
+    assert len(stamps) == FRAMES
+    assert len(rows) == FRAMES
+    assert all(len(r) == 8 for r in rows)
+    # The same times, to the nanosecond, as the recorded frames (and their ground truth).
+    assert [r[0] for r in rows] == stamps
+    gt = tum_rows(sim_run.rec / "groundtruth.tum")
+    assert [r[0] for r in gt] == stamps
+    p = poses(sim_run.tum)
+    assert np.all(np.isfinite(p))
+    assert np.all(np.diff(p[:, 0]) > 0)
+    # Planar: z = 0, a unit quaternion about z only.
+    assert np.all(p[:, 3] == 0.0)
+    assert np.all(p[:, 4] == 0.0) and np.all(p[:, 5] == 0.0)
+    np.testing.assert_allclose(np.linalg.norm(p[:, 4:], axis=1), 1.0, atol=1e-8)
+    # The world is the first body frame: the first pose is the identity.
+    assert rows[0][1:] == ["0", "0", "0", "0", "0", "0", "1"], rows[0]
+
+
+def test_the_estimate_follows_the_corridor(sim_run):
+    p = poses(sim_run.tum)
+    gt = poses(sim_run.rec / "groundtruth.tum")
+    standing = p[:, 0] < STANDING_S - 1e-6
+    assert standing.sum() == 10
+    # Standing still: zero Doppler everywhere, no motion at all; the yaw barely moves.
+    assert np.all(p[standing, 1:3] == 0.0)
+    assert np.all(np.abs(np.degrees(yaw_of(p[standing, 4:]))) < 0.5)
+    # Then forward along x; the run ends about 1.9 m ahead.
+    travelled = gt[-1, 1]
+    assert travelled == pytest.approx(1.92, abs=0.05)
+    assert np.all(np.diff(p[:, 1]) >= -1e-9)
+    assert p[-1, 1] == pytest.approx(travelled, rel=0.05)
+    assert abs(p[-1, 2]) < 0.05 * travelled
+    assert np.all(np.abs(np.degrees(yaw_of(p[:, 4:]))) < 2.0)
+
+
+def test_radar_eval_on_the_run(sim_run):
+    out = sim_run.base / "eval.json"
+    proc = run_eval(sim_run.tum, sim_run.rec / "groundtruth.tum", "--json", out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert f"{FRAMES} poses matched" in proc.stdout
+    data = json.loads(out.read_text())
+    assert data["poses"] == {"estimate": FRAMES, "reference": FRAMES, "matched": FRAMES}
+    path = data["reference_path_length_m"]
+    assert path == pytest.approx(1.92, abs=0.05)
+    assert data["estimate_path_length_m"] == pytest.approx(path, rel=0.05)
+    # Measured (default estimator): 0.6 % drift, 0.05 deg yaw-increment RMSE, 7 mm ATE.
+    assert 0 <= data["final_drift"]["percent_of_path"] < 5.0
+    assert abs(data["final_drift"]["yaw_deg"]) < 1.5
+    assert data["yaw_increment_error_deg"]["rmse"] < 0.3
+    assert data["ate_m"]["rmse"] < 0.05
+    assert data["rpe_per_frame"]["translation_m"]["max"] < 0.03
+
+
+def test_replay_with_a_dumped_default_config_gives_the_same_trajectory(sim_run, tmp_path):
+    # The recording replayed, with the default settings as EstimatorConfig.dump writes them:
+    # the file is accepted and changes nothing.
+    cfg = tmp_path / "estimator.json"
+    EstimatorConfig().dump(cfg)
+    tum = tmp_path / "replay.tum"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert re.search(ODOM_PART, proc.stdout.rstrip("\n")), proc.stdout
+    live, replay = tum_rows(sim_run.tum), tum_rows(tum)
+    assert [r[0] for r in replay] == [r[0] for r in live]
+    np.testing.assert_allclose(poses(tum), poses(sim_run.tum), rtol=0, atol=1e-6)
+
+
+def test_estimator_config_is_used(sim_run, tmp_path):
+    # A partial file: a velocity fit that needs more points than any frame has never
+    # succeeds, so the estimate never moves (while the default one moved 1.9 m).
+    cfg = tmp_path / "strict.json"
+    cfg.write_text(json.dumps({"velocity": {"min_points": 100000}}))
+    tum = tmp_path / "strict.tum"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
+    assert proc.returncode == 0, proc.stderr
+    m = re.search(ODOM_PART, proc.stdout.rstrip("\n"))
+    assert m and (m["x"], m["y"]) == ("0.00", "0.00"), proc.stdout
+    p = poses(tum)
+    assert len(p) == FRAMES
+    assert np.all(p[:, 1:3] == 0.0)
+    assert poses(sim_run.tum)[-1, 1] > 1.5
+
+
+def test_no_odom_runs_without_the_estimator(sim_run, tmp_path):
+    before = sorted(os.listdir(tmp_path))
+    proc = run_capture_cli("--source", replay_url(sim_run), "--no-odom")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    line = proc.stdout.rstrip("\n")
+    assert re.fullmatch(summary_re(FRAMES, 0, 0, "2.90", "end of source"), line), line
+    assert "odometry" not in line and "estimator" not in line
+    assert sorted(os.listdir(tmp_path)) == before
+
+
+def test_a_stopped_run_leaves_whole_lines_one_per_frame(tmp_path):
+    # Streaming in real time, stopped with Ctrl-C after a few frames: the trajectory holds
+    # one complete line for every frame the summary counts.
+    tum = tmp_path / "stopped.tum"
+    proc = popen_capture("--source", "sim://corridor?rate=1", "--odom-out", tum, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if tum.exists() and tum.read_text().count("\n") >= 3:
+                break
+            if proc.poll() is not None:
+                pytest.fail(f"radar-capture ended early: {proc.communicate()}")
+            time.sleep(0.02)
+        else:
+            pytest.fail("fewer than 3 odometry lines after 60 s")
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, stderr
+    line = stdout.rstrip("\n")
+    frames = int(re.match(r"radar-capture: (\d+) frames? ", line).group(1))
+    assert re.fullmatch(summary_re(frames, 0, 0, r"\d+\.\d\d", "stopped"), line), line
+    assert re.search(ODOM_PART, line), line
+    rows = tum_rows(tum)
+    assert len(rows) == frames >= 3
+    np.testing.assert_allclose([float(r[0]) for r in rows], 0.1 * np.arange(frames), atol=1e-9)
+
+
+# ------------------------------------------------------------------------ refusals
+def test_odom_out_onto_an_existing_file_is_refused(sim_run, tmp_path):
+    existing = tmp_path / "old.tum"
+    existing.write_text("0.000000000 1 2 0 0 0 0 1\n")
+    os.utime(existing, ns=(1_000_000_000, 1_000_000_000))
+    before = snapshot(existing)
+    points, out = tmp_path / "points.csv", tmp_path / "out"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--odom-out", existing,
+                           "--points-out", points, "--record", out)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    line = one_error_line(proc)
+    assert str(existing) in line and "already exists" in line
+    assert snapshot(existing) == before
+    # Refused before anything was written.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.tum"]
+
+
+@pytest.mark.parametrize("extra", [["--odom-out", "x.tum"], ["--estimator-config", "e.json"]],
+                         ids=["odom-out", "estimator-config"])
+def test_no_odom_with_an_estimator_option_is_a_usage_error(sim_run, tmp_path, extra):
+    (tmp_path / "e.json").write_text("{}")
+    before = sorted(os.listdir(tmp_path))
+    proc = subprocess.run(console_command("radar-capture") + ["--source", replay_url(sim_run), "--no-odom",
+                                                              *extra], cwd=tmp_path, stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    line = one_error_line(proc)
+    assert "--no-odom" in line and extra[0] in line
+    assert sorted(os.listdir(tmp_path)) == before
+
+
+BAD_CONFIGS = {
+    # case: (file text, what the message must name besides the file)
+    "malformed-json": ("{ not json", ["cannot read", "line 1"]),
+    "not-an-object": ("[1, 2]", ["JSON object"]),
+    "unknown-key": ('{"bogus": 1}', ["bogus"]),
+    "unknown-nested-key": ('{"icp": {"bogus": 1}}', ["icp.bogus"]),
+    "wrong-type": ('{"features": {"k": "many"}}', ["k:", "'many'", "integer"]),
+    "wrong-type-section": ('{"features": 5}', ["features:", "5"]),
+    "wrong-type-bool": ('{"icp": {"two_way": "yes"}}', ["two_way:", "'yes'", "boolean"]),
+    "bad-value": ('{"icp": {"iterations": 0}}', ["iterations:", "at least 1"]),
+    "bad-choice": ('{"features": {"method": "sift"}}', ["method:", "sift", "topk"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_CONFIGS))
+def test_bad_estimator_config_is_one_clear_line(sim_run, tmp_path, case):
+    text, words = BAD_CONFIGS[case]
+    cfg = tmp_path / "estimator.json"
+    cfg.write_text(text)
+    tum = tmp_path / "x.tum"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    line = one_error_line(proc)  # also: no traceback
+    assert line.startswith(f"radar-capture: error: {cfg}: "), line
+    for word in words:
+        assert word in line, (word, line)
+    assert not tum.exists()
+
+
+def test_missing_estimator_config_file(sim_run, tmp_path):
+    missing = tmp_path / "nope.json"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", missing)
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert line.startswith(f"radar-capture: error: {missing}: ") and "No such file" in line, line
+
+
+def test_a_bad_value_in_a_section_is_named_by_its_path(sim_run, tmp_path):
+    cfg = tmp_path / "estimator.json"
+    cfg.write_text('{"icp": {"iterations": "many"}}')
+    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg)
+    assert proc.returncode == 2
+    assert "icp.iterations" in one_error_line(proc)
+
+
+def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
+    points, heatmaps = tmp_path / "points.csv", tmp_path / "heatmaps"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,
+                           "--odom-out", tmp_path / "no-such-dir" / "x.tum")
+    assert proc.returncode != 0
+    assert "no-such-dir" in one_error_line(proc)
+    assert sorted(os.listdir(tmp_path)) == []

@@ -1,0 +1,326 @@
+"""The estimator on the simulator's own frames, end to end: Simulator (exact fidelity) ->
+FrameProcessor -> HeatmapMaker (as radar-capture makes them) -> RadarOdometry, against the
+simulator's ground truth.
+
+Two short sequences of the ``corridor`` scene, made once per module:
+
+- ``straight``: the scene's own trajectory, 3.5 s: 1 s standing still, then speeding up to
+  1.2 m/s straight along the corridor (2.5 m);
+- ``turn``: the same walls, the sensor starting 13 m along the corridor, 1.5 m ahead and
+  then the corridor's left turn (90 degrees on a 0.8 m radius at 0.8 m/s: 57 deg/s), 3.5 s.
+
+Poses are the body frame (REP-103) in the first frame's (conventions.md).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from radarodom.cfg import RadarConfig, shipped_config_path
+from radarodom.driver.sim.scene import Scene, load_scene, scene_from_dict
+from radarodom.driver.sim.simulator import Simulator
+from radarodom.dsp.heatmap import HeatmapMaker, RangeAzimuth
+from radarodom.dsp.processor import FrameProcessor
+from radarodom.estimator import odometry as odo_mod
+from radarodom.estimator.config import EstimatorConfig
+from radarodom.estimator.odometry import OdometryState, RadarOdometry
+from radarodom.estimator.velocity import VelocityEstimate
+
+DEG = math.radians(1.0)
+DURATION_S = 3.5
+
+
+@dataclass
+class Sequence:
+    cfg: RadarConfig
+    scene: Scene
+    times: np.ndarray  # (n,) frame start times, s
+    points: list[np.ndarray]
+    heatmaps: list[RangeAzimuth]
+    truth: np.ndarray  # (n, 3) x, y, yaw of the body in the first frame's frame
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def body_velocity(self, i: int) -> np.ndarray:
+        """True (vx, vy) in the body frame in the middle of frame *i*'s chirps."""
+        t = self.times[i] + self.cfg.active_frame_time_s / 2.0
+        traj = self.scene.trajectory
+        vx, vy, _ = (float(v) for v in traj.velocity(t))
+        yaw = float(traj.pose(t)[2])
+        c, s = math.cos(yaw), math.sin(yaw)
+        return np.array([c * vx + s * vy, -s * vx + c * vy])
+
+    @property
+    def path_m(self) -> float:
+        return float(np.hypot(*np.diff(self.truth[:, :2], axis=0).T).sum())
+
+
+def _simulate(scene: Scene) -> Sequence:
+    cfg = RadarConfig.from_file(shipped_config_path())
+    sim = Simulator(cfg, scene, seed=0, duration_s=DURATION_S, fidelity="exact")
+    processor = FrameProcessor(cfg)
+    # As radar-capture makes them for the estimator.
+    maker = HeatmapMaker(processor, doppler_cells=4 * EstimatorConfig().features.k)
+    times, points, heatmaps, truth = [], [], [], []
+    for i in range(sim.num_frames):
+        frame = sim.frame(i)
+        result = processor.process(sim.layout.decode(frame.raw))
+        times.append(frame.timestamp)
+        points.append(result.points.copy())  # the processor's buffer
+        heatmaps.append(maker.range_azimuth(result.spectrum))
+        x, y, _, qx, qy, qz, qw = frame.pose
+        truth.append((x, y, 2.0 * math.atan2(qz, qw)))
+    return Sequence(cfg, scene, np.array(times), points, heatmaps, np.array(truth))
+
+
+@pytest.fixture(scope="module")
+def straight() -> Sequence:
+    return _simulate(load_scene("corridor"))
+
+
+@pytest.fixture(scope="module")
+def turn() -> Sequence:
+    ref = resources.files("radarodom.driver.sim").joinpath("scenes", "corridor.toml")
+    spec = tomllib.loads(ref.read_text(encoding="utf-8"))
+    spec["trajectory"]["start"] = [13.0, 0.0, 0.0]
+    spec["trajectory"]["segments"] = [{"straight": 1.5, "speed": 1.2},
+                                      {"turn": 90, "radius": 0.8, "speed": 0.8},
+                                      {"straight": 3.0, "speed": 1.0}]
+    return _simulate(scene_from_dict(spec, where="corridor-turn"))
+
+
+def run(seq: Sequence, config: EstimatorConfig, *, heatmap_every: int = 1
+        ) -> tuple[list[VelocityEstimate], list[OdometryState], list[int]]:
+    """Velocity from every frame's points; heatmaps from every *heatmap_every*-th frame.
+    Returns the velocity estimates, the odometry states and the frames of the states."""
+    odom = RadarOdometry(config)
+    velocities, states, frames = [], [], []
+    for i, t in enumerate(seq.times):
+        velocities.append(odom.add_points(float(t), seq.points[i]))
+        if i % heatmap_every == 0:
+            states.append(odom.add_heatmap(float(t), seq.heatmaps[i]))
+            frames.append(i)
+    return velocities, states, frames
+
+
+def pose_array(states: list[OdometryState]) -> np.ndarray:
+    return np.array([(s.x, s.y, s.yaw) for s in states])
+
+
+def finite(s: OdometryState) -> bool:
+    values = [s.t, s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.yaw_increment, s.compute_s]
+    return (all(math.isfinite(v) for v in values) and bool(np.all(np.isfinite(s.pose_covariance)))
+            and bool(np.all(np.isfinite(s.twist_covariance))))
+
+
+def fingerprint(states: list[OdometryState]) -> list[tuple]:
+    """Everything a state reports except the time it took."""
+    return [(s.t, s.frame, s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.yaw_increment, s.flags, s.features,
+             s.pose_covariance.tobytes(), s.twist_covariance.tobytes()) for s in states]
+
+
+def input_digest(seq: Sequence) -> str:
+    h = hashlib.sha256()
+    for p, hm in zip(seq.points, seq.heatmaps):
+        h.update(p.tobytes())
+        for a in (hm.intensity, hm.static, hm.doppler_mps, hm.range_m, hm.azimuth_rad):
+            h.update(a.tobytes())
+    return h.hexdigest()
+
+
+CONFIGS = {"default": EstimatorConfig(), "paper": EstimatorConfig.paper()}
+
+
+# --------------------------------------------------------------------------- velocity
+class TestVelocity:
+    def test_standing_still_is_exactly_zero(self, straight):
+        velocities, _, _ = run(straight, EstimatorConfig())
+        still = [i for i in range(len(straight)) if np.hypot(*straight.body_velocity(i)) < 1e-3]
+        assert len(still) == 10  # the first second
+        for i in still:
+            v = velocities[i]
+            assert v.status == "zero_velocity" and v.ok, (i, v.status)
+            assert (v.vx, v.vy) == (0.0, 0.0)
+
+    def test_matches_the_true_body_velocity(self, straight):
+        velocities, _, _ = run(straight, EstimatorConfig())
+        moving = [i for i in range(len(straight)) if np.hypot(*straight.body_velocity(i)) >= 1e-3]
+        assert len(moving) == 25
+        errors = []
+        for i in moving:
+            v, true = velocities[i], straight.body_velocity(i)
+            assert v.ok, (i, v.status, v.n_points)
+            assert abs(v.vx - true[0]) < 0.05, (i, v.vx, true)  # forward: always close
+            assert np.all(np.isfinite(v.covariance)) and np.all(np.linalg.eigvalsh(v.covariance) >= 0)
+            errors.append(math.hypot(v.vx - true[0], v.vy - true[1]))
+        errors = np.array(errors)
+        # Measured: 23 of 25 within 0.05 m/s, the largest 0.058 (sideways), median 0.018.
+        assert np.mean(errors < 0.05) >= 0.8, errors
+        assert errors.max() < 0.1 and np.median(errors) < 0.03, errors
+
+    def test_in_the_turn(self, turn):
+        velocities, _, _ = run(turn, EstimatorConfig())
+        ok = [i for i, v in enumerate(velocities) if v.ok]
+        # The first frames, barely moving, have too few points for a fit: refused, not guessed.
+        assert len(ok) >= 0.85 * len(turn)
+        for i, v in enumerate(velocities):
+            assert v.ok or v.status in ("few_points", "ill_conditioned", "no_consensus"), v.status
+        errors = np.array([math.hypot(*(velocities[i].velocity - turn.body_velocity(i))) for i in ok])
+        assert np.mean(errors < 0.05) >= 0.85, errors
+        assert errors.max() < 0.1, errors
+
+    def test_paper_config_same_velocity(self, straight):
+        # The paper's settings change the yaw, not the velocity fit.
+        a, _, _ = run(straight, EstimatorConfig())
+        b, _, _ = run(straight, EstimatorConfig.paper())
+        assert [(v.vx, v.vy, v.status) for v in a] == [(v.vx, v.vy, v.status) for v in b]
+
+
+# --------------------------------------------------------------------------- odometry
+class TestOdometry:
+    @pytest.mark.parametrize("name", list(CONFIGS))
+    def test_never_nan_and_bookkeeping(self, straight, turn, name):
+        for seq in (straight, turn):
+            _, states, _ = run(seq, CONFIGS[name])
+            assert len(states) == len(seq)
+            assert all(finite(s) for s in states)
+            assert [s.frame for s in states] == list(range(len(seq)))
+            assert [s.t for s in states] == list(seq.times)
+            assert states[0].flags == (odo_mod.FIRST_FRAME,)
+            assert (states[0].x, states[0].y, states[0].yaw) == (0.0, 0.0, 0.0)
+            assert all(s.compute_s > 0 for s in states)
+            assert all(np.all(np.linalg.eigvalsh(s.pose_covariance) > -1e-12) for s in states)
+            for a, b in zip(states, states[1:]):
+                assert b.yaw == pytest.approx(a.yaw + b.yaw_increment, abs=1e-12)
+
+    # Measured on `straight`: default yaw increments within 0.14 deg, end 13 mm and 0.5 deg off;
+    # the paper's within 0.8 deg, end 0.10 m and 5.9 deg off (its yaw wanders on 15-degree beams).
+    @pytest.mark.parametrize("name,max_dyaw_deg,max_yaw_deg,max_pos_pct", [
+        ("default", 0.5, 1.5, 2.0),
+        ("paper", 2.0, 10.0, 8.0),
+    ])
+    def test_follows_the_straight_corridor(self, straight, name, max_dyaw_deg, max_yaw_deg, max_pos_pct):
+        _, states, _ = run(straight, CONFIGS[name])
+        est, truth = pose_array(states), straight.truth
+        # The yaw increments, frame by frame, within a couple of degrees of the truth.
+        dyaw_err = np.degrees(np.diff(est[:, 2]) - np.diff(truth[:, 2]))
+        assert np.abs(dyaw_err).max() < max_dyaw_deg, dyaw_err
+        assert abs(math.degrees(est[-1, 2] - truth[-1, 2])) < max_yaw_deg
+        # Standing still for the first second: no motion at all.
+        assert np.all(est[:10, :2] == 0.0)
+        # Then forward; the end within a few % of the 2.5 m travelled.
+        assert straight.path_m == pytest.approx(2.52, abs=0.05)
+        end_err = math.hypot(*(est[-1, :2] - truth[-1, :2]))
+        assert end_err < max_pos_pct / 100 * straight.path_m, end_err
+        assert np.all(np.diff(est[:, 0]) >= 0)
+
+    def test_default_follows_the_turn(self, turn):
+        _, states, _ = run(turn, EstimatorConfig())
+        est, truth = pose_array(states), turn.truth
+        true_dyaw = np.degrees(np.diff(truth[:, 2]))
+        dyaw_err = np.degrees(np.diff(est[:, 2])) - true_dyaw
+        # In the steady part of the turn (5.7 degrees a frame) the increments are right:
+        # measured within 0.5 degrees, median 0.2 short.
+        steady = true_dyaw > 5.5
+        assert steady.sum() >= 10
+        assert np.abs(np.median(dyaw_err[steady])) < 1.0, dyaw_err[steady]
+        assert np.abs(dyaw_err[steady]).max() < 1.5, dyaw_err[steady]
+        # Over the whole sequence, measured: RMSE 1.0 degree, largest 2.7 (the turn's onset).
+        assert np.sqrt(np.mean(dyaw_err ** 2)) < 1.5, dyaw_err
+        # A left turn of most of 90 degrees (measured 78.8).
+        assert math.degrees(truth[-1, 2]) == pytest.approx(90.0, abs=0.5)
+        assert 65.0 < math.degrees(est[-1, 2]) < 100.0
+        assert est[-1, 1] > 0.5
+
+    @pytest.mark.xfail(strict=True, reason="LIMITATION (the issue's target, not met): in the corridor's "
+                       "57 deg/s turn at 10 Hz the default estimator's yaw-increment RMSE is 1.0 degree "
+                       "(target 0.5): it turns 4 degrees spuriously in the first frames (too few points for a "
+                       "velocity yet), lags 2-3 degrees a frame at the turn's onset and 1.5 at its end, and "
+                       "under-rotates 0.2-0.5 degrees a frame in it: 11 degrees short of 90 at the end (3 at 5 Hz)")
+    def test_default_meets_the_yaw_target_in_the_turn(self, turn):
+        _, states, _ = run(turn, EstimatorConfig())
+        dyaw_err = np.degrees(np.diff(pose_array(states)[:, 2]) - np.diff(turn.truth[:, 2]))
+        assert np.sqrt(np.mean(dyaw_err ** 2)) <= 0.5
+        assert abs(math.degrees(states[-1].yaw - turn.truth[-1, 2])) < 5.0
+
+
+# --------------------------------------------------------------------- reproducibility
+class TestReproducible:
+    @pytest.mark.parametrize("name", list(CONFIGS))
+    def test_same_input_same_output(self, straight, name):
+        digest = input_digest(straight)
+        _, a, _ = run(straight, CONFIGS[name])
+        _, b, _ = run(straight, CONFIGS[name])
+        assert fingerprint(a) == fingerprint(b)
+        assert input_digest(straight) == digest  # the estimator leaves its inputs alone
+
+    @pytest.mark.parametrize("config", [
+        pytest.param(EstimatorConfig(), id="default"),
+        pytest.param(EstimatorConfig.paper(), id="paper"),
+        pytest.param(EstimatorConfig.paper(method="cfar", two_way=False), id="paper-cfar-oneway"),
+        pytest.param(EstimatorConfig().with_(features={"method": "raymax", "max_range_m": 12.5},
+                                             icp={"initial_guess": "profile"}, velocity={"seed": 3}),
+                     id="custom"),
+    ])
+    def test_dump_load_round_trip_gives_the_same_trajectory(self, straight, tmp_path, config):
+        path = tmp_path / "estimator.json"
+        config.dump(path)
+        loaded = EstimatorConfig.load(path)
+        assert loaded == config
+        _, a, _ = run(straight, config)
+        _, b, _ = run(straight, loaded)
+        assert fingerprint(a) == fingerprint(b)
+
+    def test_different_configs_differ(self, straight):
+        # The trajectories above are not the same whatever the settings.
+        _, a, _ = run(straight, EstimatorConfig())
+        _, b, _ = run(straight, EstimatorConfig.paper())
+        assert [s.yaw for s in a] != [s.yaw for s in b]
+
+
+# ------------------------------------------------------------------------ multi-rate
+class TestMultiRate:
+    """Velocity from every frame's points (10 Hz), heatmaps from every second frame (5 Hz)."""
+
+    def test_velocity_is_taken_at_the_mid_time(self, straight):
+        velocities, states, frames = run(straight, EstimatorConfig(), heatmap_every=2)
+        assert frames == list(range(0, len(straight), 2))
+        assert [s.t for s in states] == [straight.times[i] for i in frames]
+        assert all(finite(s) for s in states)
+        # Between heatmaps i-2 and i the mid-time is frame i-1's: its velocity is the step's.
+        for s, i in zip(states[1:], frames[1:]):
+            assert s.velocity is not None and s.velocity.t == pytest.approx(straight.times[i - 1])
+            assert s.vx == pytest.approx(velocities[i - 1].vx, abs=1e-9)
+            assert s.vy == pytest.approx(velocities[i - 1].vy, abs=1e-9)
+            assert s.ok, s.flags
+
+    def test_follows_the_straight_corridor(self, straight):
+        _, states, frames = run(straight, EstimatorConfig(), heatmap_every=2)
+        est, truth = pose_array(states), straight.truth[frames]
+        dyaw_err = np.degrees(np.diff(est[:, 2]) - np.diff(truth[:, 2]))
+        assert np.abs(dyaw_err).max() < 1.0, dyaw_err  # measured 0.21
+        assert math.hypot(*(est[-1, :2] - truth[-1, :2])) < 0.03 * straight.path_m  # measured 10 mm
+        # And close to the odometry at the full rate.
+        _, full, _ = run(straight, EstimatorConfig())
+        full_at = pose_array(full)[frames]
+        assert np.abs(est[:, :2] - full_at[:, :2]).max() < 0.03
+        assert np.degrees(np.abs(est[:, 2] - full_at[:, 2])).max() < 1.0
+
+    def test_follows_the_turn(self, turn):
+        _, states, frames = run(turn, EstimatorConfig(), heatmap_every=2)
+        est, truth = pose_array(states), turn.truth[frames]
+        assert all(finite(s) for s in states)
+        # 11.5 degrees between heatmaps in the turn; measured: within 1.5, RMSE 0.8, end 3.2 short.
+        dyaw_err = np.degrees(np.diff(est[:, 2]) - np.diff(truth[:, 2]))
+        assert np.abs(dyaw_err).max() < 3.0, dyaw_err
+        assert np.sqrt(np.mean(dyaw_err ** 2)) < 1.5, dyaw_err
+        assert abs(math.degrees(est[-1, 2] - truth[-1, 2])) < 8.0
+        assert math.hypot(*(est[-1, :2] - truth[-1, :2])) < 0.1 * turn.path_m  # measured 0.06 m of 2.6

@@ -1,0 +1,545 @@
+"""Estimator configuration (estimator/config.py) and streaming odometry
+(estimator/odometry.py) on synthetic sequences.
+
+A sequence is point reflectors in a world seen along a known trajectory
+(tests/estimator_synth.py): each frame gives a TI-frame point cloud with the static
+world's Doppler and an AWR1843-like range-azimuth heatmap.  Poses are the body frame
+(REP-103) in the world frame = the body frame at the first frame (conventions.md).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+
+import estimator_synth as synth
+import numpy as np
+import pytest
+from estimator_synth import AZIMUTH_RAD, RANGE_M, Trajectory, points_polar
+from radarodom.dsp.cfar import CfarParams
+from radarodom.dsp.heatmap import RangeAzimuth
+from radarodom.errors import ConfigError
+from radarodom.estimator import config as config_mod
+from radarodom.estimator import odometry as odo_mod
+from radarodom.estimator.config import (
+    EstimatorConfig,
+    FeatureConfig,
+    IcpConfig,
+    OdometryConfig,
+    VelocityConfig,
+)
+from radarodom.estimator.odometry import OdometryState, RadarOdometry
+from radarodom.estimator.velocity import VelocityEstimate
+
+DEG = math.radians(1.0)
+
+
+# =========================================================================== config
+class TestConfig:
+    def test_dump_load_round_trip(self, tmp_path):
+        cfg = EstimatorConfig().with_(
+            velocity={"seed": 7, "elevation_projection": "paper"},
+            features={"method": "raymax", "max_range_m": 9.5, "weighting": "db"},
+            icp={"two_way": False, "alpha": 50.0},
+            odometry={"hold_s": 0.25, "velocity_sync": "nearest"})
+        path = tmp_path / "est.json"
+        cfg.dump(path)
+        data = json.loads(path.read_text())
+        assert data["features"]["max_range_m"] == 9.5 and data["icp"]["two_way"] is False
+        assert isinstance(data["features"]["cfar"], dict)
+        back = EstimatorConfig.load(path)
+        assert back == cfg
+        assert back.to_dict() == cfg.to_dict()
+
+    @pytest.mark.parametrize("variant", [{}, {"method": "cfar"}, {"method": "raymax", "sampling": False},
+                                         {"two_way": False}])
+    def test_round_trip_of_paper_variants(self, tmp_path, variant):
+        cfg = EstimatorConfig.paper(**variant)
+        cfg.dump(tmp_path / "p.json")
+        assert EstimatorConfig.load(tmp_path / "p.json") == cfg
+
+    def test_default_round_trip_and_partial_file(self, tmp_path):
+        EstimatorConfig().dump(tmp_path / "d.json")
+        assert EstimatorConfig.load(tmp_path / "d.json") == EstimatorConfig()
+        # A file may give only what it changes.
+        (tmp_path / "part.json").write_text(json.dumps({"icp": {"iterations": 7}}))
+        part = EstimatorConfig.load(tmp_path / "part.json")
+        assert part.icp.iterations == 7
+        assert part.features == EstimatorConfig().features
+
+    def test_cfar_params_round_trip(self, tmp_path):
+        cfg = EstimatorConfig().with_(features={"method": "cfar", "cfar": CfarParams(
+            method="os", guard=1, train=6, pfa=1e-4)})
+        cfg.dump(tmp_path / "c.json")
+        back = EstimatorConfig.load(tmp_path / "c.json")
+        assert back.features.cfar.method == "os" and back.features.cfar.pfa == 1e-4
+        assert back == cfg
+
+    @pytest.mark.parametrize("data,name", [
+        ({"bogus": 1}, "bogus"),
+        ({"icp": {"bogus": 1}}, "bogus"),
+        ({"features": {"kk": 3}}, "kk"),
+        ({"features": {"cfar": {"method": "ca", "guard": 1, "train": 4, "threshold_db": 10, "wat": 1}}}, "wat"),
+    ])
+    def test_unknown_keys(self, data, name):
+        with pytest.raises(ConfigError, match=name):
+            EstimatorConfig.from_dict(data)
+
+    @pytest.mark.parametrize("section,fld,value", [
+        ("velocity", "min_points", 1),
+        ("velocity", "ransac_iterations", 0),
+        ("velocity", "inlier_threshold_mps", 0.0),
+        ("velocity", "min_inlier_ratio", 1.5),
+        ("velocity", "zero_velocity_ratio", 0.0),
+        ("velocity", "max_elevation_rad", 2.0),
+        ("velocity", "max_condition", 1.0),
+        ("velocity", "elevation_projection", "multiply"),
+        ("features", "method", "sift"),
+        ("features", "k", 0),
+        ("features", "min_range_m", -1.0),
+        ("features", "max_range_m", 0.1),
+        ("features", "max_azimuth_rad", 0.0),
+        ("features", "weighting", "log"),
+        ("features", "dynamic_rejection_mps", 0.0),
+        ("icp", "alpha", 0.0),
+        ("icp", "beta", -1.0),
+        ("icp", "eps_min", 30.0),
+        ("icp", "iterations", 0),
+        ("icp", "tolerance_rad", 0.0),
+        ("icp", "min_matches", 0),
+        ("icp", "weight", "target"),
+        ("icp", "initial_guess", "imu"),
+        ("icp", "max_rotation_rad", 0.0),
+        ("odometry", "hold_s", -0.1),
+        ("odometry", "min_features", 1),
+        ("odometry", "velocity_sync", "spline"),
+    ])
+    def test_bad_values_name_the_field(self, tmp_path, section, fld, value):
+        with pytest.raises(ConfigError) as exc:
+            EstimatorConfig.from_dict({section: {fld: value}})
+        assert exc.value.field == f"{section}.{fld}"  # the path a user finds in the file
+        assert f"{section}.{fld}" in str(exc.value)
+        # From a file: the error also names the file.
+        path = tmp_path / "bad.json"
+        path.write_text(json.dumps({section: {fld: value}}))
+        with pytest.raises(ConfigError) as exc:
+            EstimatorConfig.load(path)
+        assert exc.value.field == f"{section}.{fld}" and str(path) in str(exc.value)
+
+    def test_unreadable_file(self, tmp_path):
+        path = tmp_path / "broken.json"
+        path.write_text("{ not json")
+        with pytest.raises(ConfigError, match="broken.json"):
+            EstimatorConfig.load(path)
+        path.write_text("[1, 2]")
+        with pytest.raises(ConfigError):
+            EstimatorConfig.load(path)
+        with pytest.raises(ConfigError):
+            EstimatorConfig.load(tmp_path / "missing.json")
+
+    @pytest.mark.parametrize("data,fld", [({"velocity": 5}, "velocity"), ({"features": {"k": 2.5}}, "features.k"),
+                                          ({"features": {"k": "many"}}, "features.k")])
+    def test_wrong_types_name_the_field(self, data, fld):
+        with pytest.raises(ConfigError) as exc:
+            EstimatorConfig.from_dict(data)
+        assert exc.value.field == fld
+
+    def test_with_replaces_and_validates(self):
+        base = EstimatorConfig()
+        new = base.with_(icp={"two_way": False, "iterations": 3}, features={"k": 50})
+        assert new.icp.two_way is False and new.icp.iterations == 3 and new.features.k == 50
+        assert base.icp.two_way == EstimatorConfig().icp.two_way  # the original is untouched
+        assert base.features.k == 200
+        assert new.velocity == base.velocity and new.odometry == base.odometry
+        with pytest.raises(ConfigError) as exc:
+            base.with_(features={"k": 0})
+        assert exc.value.field == "features.k"
+        with pytest.raises(ConfigError, match="nonsense"):
+            base.with_(nonsense={"k": 1})
+
+    def test_with_unknown_field(self):
+        with pytest.raises(ConfigError, match="bogus"):
+            EstimatorConfig().with_(icp={"bogus": 1})
+
+    @pytest.mark.parametrize("method", config_mod.FEATURE_METHODS)
+    @pytest.mark.parametrize("sampling", [True, False])
+    @pytest.mark.parametrize("two_way", [True, False])
+    def test_paper_variants(self, method, sampling, two_way):
+        cfg = EstimatorConfig.paper(method=method, sampling=sampling, two_way=two_way)
+        assert cfg.features.method == method
+        assert cfg.icp.sampling is sampling and cfg.icp.two_way is two_way
+        # Nothing beyond the paper.
+        assert cfg.icp.initial_guess == "zero"
+        assert cfg.features.peaks_only is False and cfg.features.subbin is False
+        assert cfg.features.dynamic_rejection_mps is None
+        assert cfg.velocity.elevation_projection in config_mod.PROJECTIONS
+        assert cfg.features.k == 200
+
+    def test_paper_default_is_topk_sampling_mwicp(self):
+        cfg = EstimatorConfig.paper()
+        assert (cfg.features.method, cfg.icp.sampling, cfg.icp.two_way) == ("topk", True, True)
+        with pytest.raises(ConfigError):
+            EstimatorConfig.paper(method="orb")
+
+    def test_sections_construct_alone(self):
+        for cls in (VelocityConfig, FeatureConfig, IcpConfig, OdometryConfig):
+            obj = cls()
+            assert cls.from_dict(obj.to_dict()) == obj
+
+
+# =========================================================================== helpers
+def empty_heatmap() -> RangeAzimuth:
+    z = np.zeros((len(RANGE_M), len(AZIMUTH_RAD)), np.float32)
+    return RangeAzimuth(z, z, np.full_like(z, np.nan), RANGE_M.copy(), AZIMUTH_RAD.copy())
+
+
+def blind_heatmap() -> RangeAzimuth:
+    """A heatmap that sees nothing inside the region of interest (its range axis ends before
+    the minimum range of the features)."""
+    hm = synth.heatmap(SCENE_WORLD, 1.0, noise=1e-4)
+    n = 8
+    return RangeAzimuth(hm.intensity[:n], hm.static[:n], hm.doppler_mps[:n], hm.range_m[:n], hm.azimuth_rad)
+
+
+def static_cloud(v, n: int = 40, seed: int = 0) -> np.ndarray:
+    """A noise-free cloud of static points seen moving at body velocity *v*."""
+    rng = np.random.default_rng(seed)
+    return points_polar(np.radians(rng.uniform(-60, 60, n)), 0.0, v, range_m=rng.uniform(1, 10, n))
+
+
+def few_points_cloud() -> np.ndarray:
+    return points_polar(np.radians([10.0, 20.0]), 0.0, (1.0, 0.0))
+
+
+def scene_heatmap(pose=(0.0, 0.0, 0.0), world=None, **kw) -> RangeAzimuth:
+    world = SCENE_WORLD if world is None else world
+    return synth.heatmap(synth.world_to_body(world, pose), 1.0, noise=1e-4, **kw)
+
+
+_r = np.array([3.0, 5.0, 7.0, 4.0, 9.0, 6.0, 8.0, 2.5, 5.5, 10.0, 6.5, 3.5])
+_b = np.radians([-50, -40, -30, -20, -10, 0, 10, 20, 30, 40, 50, -5])
+SCENE_WORLD = np.column_stack([_r * np.cos(_b), _r * np.sin(_b)])
+
+
+def finite_state(s: OdometryState) -> bool:
+    values = [s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.yaw_increment, s.compute_s]
+    return (all(math.isfinite(v) for v in values) and np.all(np.isfinite(s.pose_covariance))
+            and np.all(np.isfinite(s.twist_covariance)))
+
+
+#: A configuration pinned for the trajectory test (not the moving default): the paper's
+#: method plus the options that make it work on an 8-element array.
+TRAJECTORY_CONFIG = EstimatorConfig.paper().with_(
+    features={"peaks_only": True, "subbin": True, "dynamic_rejection_mps": 0.15},
+    icp={"initial_guess": "constant_rate"})
+
+STRAIGHT_ARC_TURN = Trajectory([(3.0, 1.0, 0.0), (3.0, 1.0, 20 * DEG), (3.0, 0.0, 30 * DEG)])
+
+
+def run_sequence(config: EstimatorConfig, trajectory: Trajectory, *, seed: int = 2, rate_hz: float = 10.0,
+                 start_pose=(0.0, 0.0, 0.0)):
+    """Feed a synthetic sequence through RadarOdometry.step; returns states and true poses
+    relative to the first frame."""
+    world, amp = synth.scene(trajectory, 40, seed=seed)
+    x0, y0, yaw0 = start_pose
+    # Move the whole world so that the trajectory starts at start_pose in it.
+    world_moved = world @ synth.rot(yaw0).T + [x0, y0]
+    rng = np.random.default_rng(seed + 100)
+    odom = RadarOdometry(config)
+    states, truths = [], []
+    n = round(trajectory.duration * rate_hz) + 1
+    for i in range(n):
+        t = i / rate_hz
+        px, py, pyaw = trajectory.pose(t)
+        wx, wy = synth.rot(yaw0) @ [px, py] + [x0, y0]
+        vx, vy, _ = trajectory.twist(t)
+        cloud, hm = synth.frame(world_moved, amp, (wx, wy, pyaw + yaw0), (vx, vy), rng)
+        states.append(odom.step(t, cloud, hm))
+        truths.append((px, py, pyaw))
+    return states, truths
+
+
+# =========================================================================== odometry
+@pytest.fixture(scope="module")
+def run():
+    return run_sequence(TRAJECTORY_CONFIG, STRAIGHT_ARC_TURN)
+
+
+class TestTrajectory:
+    def test_follows_the_trajectory(self, run):
+        states, truths = run
+        path = STRAIGHT_ARC_TURN.path_length()
+        end, truth = states[-1], truths[-1]
+        assert math.hypot(end.x - truth[0], end.y - truth[1]) < 0.03 * path
+        assert abs(end.yaw - truth[2]) < 5 * DEG
+        # Every step along the way stays close too (never a jump, never a flipped sign).
+        for s, (x, y, yaw) in zip(states, truths):
+            assert math.hypot(s.x - x, s.y - y) < 0.05 * path
+            assert abs(s.yaw - yaw) < 6 * DEG
+
+    def test_phases(self, run):
+        states, _ = run
+        # After the straight phase (3 s at 1 m/s): 3 m ahead, no turn.
+        s = states[30]
+        assert s.x == pytest.approx(3.0, abs=0.1) and abs(s.y) < 0.1 and abs(s.yaw) < 1.5 * DEG
+        assert s.vx == pytest.approx(1.0, abs=0.03) and abs(s.vy) < 0.03
+        # In the arc (turning left, counter-clockwise): y grows, yaw rate about +20 deg/s.
+        arc = states[35:58]
+        assert np.median([a.yaw_rate for a in arc]) == pytest.approx(20 * DEG, abs=2 * DEG)
+        assert states[58].y > 1.0
+        # Turning in place at 30 deg/s: no translation, positive yaw rate.
+        turn = states[62:]
+        assert np.median([a.yaw_rate for a in turn]) == pytest.approx(30 * DEG, abs=3 * DEG)
+        assert math.hypot(turn[-1].x - turn[0].x, turn[-1].y - turn[0].y) < 0.05
+        assert all(abs(a.vx) < 0.05 and abs(a.vy) < 0.05 for a in turn)
+
+    def test_first_state_and_bookkeeping(self, run):
+        states, _ = run
+        first = states[0]
+        assert first.flags == (odo_mod.FIRST_FRAME,) and first.ok
+        assert (first.x, first.y, first.yaw, first.frame) == (0.0, 0.0, 0.0, 0)
+        assert [s.frame for s in states] == list(range(len(states)))
+        assert all(finite_state(s) for s in states)
+        assert all(s.compute_s > 0 for s in states)
+        assert all(s.features > 0 for s in states)
+        for a, b in itertools.pairwise(states):
+            assert b.t > a.t
+            assert b.yaw == pytest.approx(a.yaw + b.yaw_increment, abs=1e-12)
+            assert b.yaw_rate == pytest.approx(b.yaw_increment / (b.t - a.t), rel=1e-9)
+        # The pose covariance grows along the way.
+        traces = [np.trace(s.pose_covariance) for s in states]
+        assert traces[0] == 0.0 and traces[-1] > traces[10] > 0
+        assert all(np.all(np.linalg.eigvalsh(s.pose_covariance) > -1e-12) for s in states)
+
+    def test_world_frame_is_the_first_body_frame(self):
+        # The same motion started somewhere else in the world, facing elsewhere, gives the
+        # same odometry: it is relative to the first frame.
+        short = Trajectory([(1.0, 1.0, 0.0), (1.0, 1.0, 20 * DEG)])
+        a, truth = run_sequence(TRAJECTORY_CONFIG, short, seed=3)
+        b, _ = run_sequence(TRAJECTORY_CONFIG, short, seed=3, start_pose=(4.0, -2.0, 1.2))
+        for sa, sb in zip(a, b):
+            assert sb.x == pytest.approx(sa.x, abs=0.02)
+            assert sb.y == pytest.approx(sa.y, abs=0.02)
+            assert sb.yaw == pytest.approx(sa.yaw, abs=0.5 * DEG)
+        assert a[-1].x == pytest.approx(truth[-1][0], abs=0.06)
+        assert a[-1].y == pytest.approx(truth[-1][1], abs=0.06)
+
+    @pytest.mark.xfail(strict=True, reason="LIMITATION of the paper's method (Top-k cells, sampling "
+                       "+ mwICP, zero initial guess) loses the yaw on this sensor's heatmaps once the "
+                       "sensor both moves and turns: in a 1 m/s, 20 deg/s arc it measures about 0.2 "
+                       "deg per frame instead of 2 (tens of degrees of yaw error)")
+    def test_paper_method_follows_the_trajectory(self):
+        states, truths = run_sequence(EstimatorConfig.paper(), STRAIGHT_ARC_TURN)
+        assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
+
+    def test_default_config_follows_the_trajectory(self):
+        states, truths = run_sequence(EstimatorConfig(), STRAIGHT_ARC_TURN)
+        assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
+
+
+class TestFlags:
+    def test_first_frame_flag_and_velocity(self):
+        odom = RadarOdometry(EstimatorConfig())
+        s = odom.step(0.0, static_cloud((0.5, 0.1)), scene_heatmap())
+        assert s.flags == (odo_mod.FIRST_FRAME,)
+        assert s.vx == pytest.approx(0.5, abs=1e-5) and s.vy == pytest.approx(0.1, abs=1e-5)
+        assert odom.state is s
+
+    def test_few_features(self):
+        # More features required than a frame can give: flagged, the yaw rate held (zero so far).
+        cfg = EstimatorConfig().with_(odometry={"min_features": 10000})
+        odom = RadarOdometry(cfg)
+        odom.step(0.0, static_cloud((0.0, 0.0)), scene_heatmap())
+        s = odom.step(0.1, static_cloud((0.0, 0.0)), scene_heatmap())
+        assert odo_mod.FEW_FEATURES in s.flags and not s.ok
+        assert s.yaw == 0.0 and finite_state(s)
+
+    @pytest.mark.parametrize("config", [
+        pytest.param(EstimatorConfig(), id="default"),
+        pytest.param(EstimatorConfig.paper(), id="paper"),
+    ])
+    def test_empty_heatmap_is_refused(self, config):
+        # A heatmap with nothing in it (all zero): no rotation may be measured from it.
+        odom = RadarOdometry(config)
+        states = [odom.step(0.1 * i, static_cloud((1.0, 0.0)), empty_heatmap()) for i in range(4)]
+        for s in states[1:]:
+            assert not s.ok, s.flags
+            assert abs(s.yaw) < 1e-9
+            assert s.registration is None or not s.registration.ok
+            assert finite_state(s)
+        assert states[-1].x == pytest.approx(0.3, abs=1e-6)  # the velocity still counts
+
+    def test_velocity_failure_holds_then_motion_lost(self):
+        cfg = EstimatorConfig().with_(odometry={"hold_s": 0.25})
+        odom = RadarOdometry(cfg)
+        hm = scene_heatmap()
+        dt = 0.1
+        # Good velocity (0.4 m/s forward) for 3 frames, then the point cloud fails.
+        states = []
+        for i in range(10):
+            cloud = static_cloud((0.4, 0.0)) if i < 3 else few_points_cloud()
+            states.append(odom.step(i * dt, cloud, hm))
+        for s in states[1:3]:
+            assert s.ok and s.vx == pytest.approx(0.4, abs=1e-5)
+        last_good_t = 0.2
+        for s in states[3:]:
+            assert odo_mod.VELOCITY_FAILED in s.flags and not s.ok
+            assert finite_state(s)
+            if s.t - last_good_t <= 0.25 + 1e-9:
+                assert odo_mod.VELOCITY_HELD in s.flags and odo_mod.MOTION_LOST not in s.flags
+                assert s.vx == pytest.approx(0.4, abs=1e-5)
+            else:
+                assert odo_mod.MOTION_LOST in s.flags and odo_mod.VELOCITY_HELD not in s.flags
+                assert s.vx == 0.0 and s.vy == 0.0
+        # While lost the position stands still.
+        lost = [s for s in states if odo_mod.MOTION_LOST in s.flags]
+        assert len(lost) >= 4
+        assert all(s.x == lost[0].x for s in lost[1:])
+        # Recovery: a good cloud again clears the flags.
+        s = odom.step(1.0, static_cloud((0.4, 0.0)), hm)
+        assert odo_mod.VELOCITY_FAILED not in s.flags
+
+    def test_yaw_rate_held_then_lost(self):
+        # Turning in place at 30 deg/s with a good heatmap, then heatmaps with too few features:
+        # the last good yaw rate is carried for hold_s, then no rotation is reported.
+        cfg = TRAJECTORY_CONFIG.with_(odometry={"hold_s": 0.25})
+        odom = RadarOdometry(cfg)
+        rate = 30 * DEG
+        states = []
+        for i in range(12):
+            t = 0.1 * i
+            hm = scene_heatmap((0.0, 0.0, rate * t)) if i < 5 else blind_heatmap()
+            states.append(odom.step(t, static_cloud((0.0, 0.0)), hm))
+        good_rates = [s.yaw_rate for s in states[1:5]]
+        assert np.all(np.abs(np.array(good_rates) - rate) < 5 * DEG)
+        for s in states[5:]:
+            assert odo_mod.FEW_FEATURES in s.flags
+            if s.t - 0.4 <= 0.25 + 1e-9:
+                assert odo_mod.YAW_HELD in s.flags
+                assert s.yaw_rate == pytest.approx(states[4].yaw_rate)
+            else:
+                assert odo_mod.MOTION_LOST in s.flags and s.yaw_rate == 0.0
+            assert finite_state(s)
+
+    def test_never_nan_on_garbage(self):
+        rng = np.random.default_rng(5)
+        odom = RadarOdometry(EstimatorConfig())
+        for i in range(25):
+            kind = i % 5
+            if kind == 0:
+                cloud, hm = few_points_cloud(), empty_heatmap()
+            elif kind == 1:
+                cloud = points_polar(rng.uniform(-1, 1, 30), 0.0, (0, 0), radial_velocity=rng.uniform(-5, 5, 30))
+                hm = synth.heatmap(np.zeros((0, 2)), noise=1.0, rng=rng)
+            elif kind == 2:
+                cloud = points_polar(np.full(20, 0.3), 0.0, (1.0, 0.0))  # one azimuth
+                hm = scene_heatmap()
+            elif kind == 3:
+                cloud = few_points_cloud()[:0]
+                hm = scene_heatmap((rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)))
+            else:
+                cloud = static_cloud((rng.uniform(-2, 2), rng.uniform(-2, 2)))
+                hm = synth.heatmap(rng.uniform(-10, 10, (5, 2)), 1.0, noise=1e-3, rng=rng)
+            s = odom.step(0.1 * i, cloud, hm)
+            assert finite_state(s), s
+            assert s.compute_s > 0
+
+
+class TestVelocitySync:
+    def test_interpolation_to_mid_time(self):
+        # Velocity at 10 Hz (t = 0, 0.1, ...), changing linearly; heatmaps at 5 Hz offset by
+        # 30 ms.  Paper eq. 2: the step between two heatmaps uses the velocity at their mid-time.
+        odom = RadarOdometry(EstimatorConfig())
+        v_of = lambda t: (0.5 + 0.3 * t, -0.2 + 0.1 * t)
+        hm = scene_heatmap()
+        events = [(round(0.1 * i, 10), "v") for i in range(25)] + [(round(0.03 + 0.2 * j, 10), "h") for j in range(11)]
+        events.sort()
+        states = []
+        for t, kind in events:
+            if kind == "v":
+                est = odom.add_points(t, static_cloud(v_of(t), seed=int(t * 10)))
+                assert est.ok and est.t == t
+            else:
+                states.append(odom.add_heatmap(t, hm))
+        assert len(states) == 11
+        for prev, s in itertools.pairwise(states):
+            mid = 0.5 * (prev.t + s.t)
+            assert s.vx == pytest.approx(v_of(mid)[0], abs=1e-5)
+            assert s.vy == pytest.approx(v_of(mid)[1], abs=1e-5)
+            assert s.velocity.t == pytest.approx(mid)
+            # The step used it: the position moves by v(mid) dt along the chord of the turn.
+            dt = s.t - prev.t
+            half = prev.yaw + 0.5 * s.yaw_increment
+            step = synth.rot(half) @ np.array(v_of(mid)) * dt
+            assert s.x - prev.x == pytest.approx(step[0], abs=1e-6)
+            assert s.y - prev.y == pytest.approx(step[1], abs=1e-6)
+
+    def test_nearest_mode(self):
+        cfg = EstimatorConfig().with_(odometry={"velocity_sync": "nearest"})
+        odom = RadarOdometry(cfg)
+        hm = scene_heatmap()
+        for t, v in ((0.0, 0.3), (0.1, 0.6), (0.2, 0.9)):
+            odom.add_velocity(VelocityEstimate(t=t, vx=v, vy=0.0, covariance=np.eye(2) * 1e-4, status="ok"))
+        odom.add_heatmap(0.0, hm)
+        s = odom.add_heatmap(0.16, hm)  # mid-time 0.08: nearest estimate is at 0.1
+        assert s.vx == pytest.approx(0.6)
+
+    def test_velocity_from_elsewhere(self):
+        odom = RadarOdometry(EstimatorConfig())
+        hm = scene_heatmap()
+        odom.add_velocity(VelocityEstimate(t=0.0, vx=1.0, vy=0.0, covariance=np.eye(2) * 1e-4, status="ok"))
+        odom.add_heatmap(0.0, hm)
+        odom.add_velocity(VelocityEstimate(t=0.2, vx=2.0, vy=0.0, covariance=np.eye(2) * 1e-4, status="ok"))
+        s = odom.add_heatmap(0.2, hm)
+        assert s.vx == pytest.approx(1.5)
+        assert s.x == pytest.approx(0.3, abs=1e-6)
+
+
+class TestTimeOrder:
+    def test_heatmap_out_of_order_raises(self):
+        odom = RadarOdometry(EstimatorConfig())
+        hm = scene_heatmap()
+        odom.add_heatmap(0.0, hm)
+        odom.add_heatmap(0.1, hm)
+        with pytest.raises(ValueError):
+            odom.add_heatmap(0.05, hm)
+        with pytest.raises(ValueError):
+            odom.add_heatmap(0.1, hm)
+
+    def test_velocity_out_of_order_raises(self):
+        odom = RadarOdometry(EstimatorConfig())
+        odom.add_points(0.2, static_cloud((1.0, 0.0)))
+        with pytest.raises(ValueError):
+            odom.add_points(0.1, static_cloud((1.0, 0.0)))
+
+    def test_step_out_of_order_raises(self):
+        odom = RadarOdometry(EstimatorConfig())
+        odom.step(1.0, static_cloud((1.0, 0.0)), scene_heatmap())
+        with pytest.raises(ValueError):
+            odom.step(0.5, static_cloud((1.0, 0.0)), scene_heatmap())
+
+    def test_refused_heatmap_leaves_no_trace(self):
+        odom = RadarOdometry(EstimatorConfig())
+        hm = scene_heatmap()
+        odom.add_heatmap(0.0, hm)
+        odom.add_heatmap(0.1, hm)
+        with pytest.raises(ValueError):
+            odom.add_heatmap(0.05, hm)
+        assert odom.add_heatmap(0.2, hm).frame == 2
+
+
+def test_reproducible():
+    short = Trajectory([(0.5, 1.0, 0.0), (0.5, 1.0, 20 * DEG)])
+    a, _ = run_sequence(EstimatorConfig(), short, seed=4)
+    b, _ = run_sequence(EstimatorConfig(), short, seed=4)
+    assert [(s.x, s.y, s.yaw, s.flags) for s in a] == [(s.x, s.y, s.yaw, s.flags) for s in b]
+
+
+def test_initial_guess_options_run():
+    short = Trajectory([(0.3, 0.0, 30 * DEG)])
+    for guess in config_mod.INITIAL_GUESSES:
+        cfg = TRAJECTORY_CONFIG.with_(icp={"initial_guess": guess})
+        states, truths = run_sequence(cfg, short, seed=5)
+        assert all(finite_state(s) for s in states)
+        assert abs(states[-1].yaw - truths[-1][2]) < 2 * DEG, guess
