@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import bisect
 import logging
+import time
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -191,7 +192,7 @@ class FrameAssembler:
         else:
             st.frames_complete += 1
         self.on_frame(RingFrame(frame.slot, frame.index, self.ring.buffer(frame.slot), missing,
-                                frame.first_time))
+                                frame.first_time, time.monotonic()))
 
     def expire(self) -> None:
         """Hand on every frame still open (the stream paused or stopped)."""

@@ -39,8 +39,9 @@ class RingFrame:
     missing_bytes: int
     #: Host time (time.time()) the first packet touching the frame arrived.
     first_packet_time: float
-    #: Host time the frame was completed or given up on.
-    done_time: float = 0.0
+    #: time.monotonic() when the frame was completed or given up on (its last packet, or
+    #: the packet that proved it would not complete): the start of its end-to-end latency.
+    done_monotonic: float = 0.0
 
 
 class FrameRing:

@@ -136,7 +136,8 @@ class LiveSource(Source):
                     continue
                 held = frame.slot
                 yield Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
-                            raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes)
+                            raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
+                            ready_monotonic=frame.done_monotonic)
         finally:
             if held is not None:
                 self.ring.release(held)

@@ -16,7 +16,7 @@ import abc
 import importlib
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 from urllib.parse import parse_qsl
 
@@ -57,6 +57,9 @@ class Frame:
     missing_bytes: int = 0
     #: Ground-truth body pose (x, y, z, qx, qy, qz, qw) where the source knows it.
     pose: tuple[float, ...] | None = None
+    #: time.monotonic() when the frame was there to process: its last packet received (live),
+    #: or made or read (simulator, replay).  End-to-end latencies are measured from it.
+    ready_monotonic: float = field(default_factory=time.monotonic)
 
     @property
     def complete(self) -> bool:

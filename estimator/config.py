@@ -146,9 +146,9 @@ class IcpConfig(Settings):
     #: Weight of a matched pair: "source" (the source point's normalised intensity) or
     #: "product" of the two points' weights.
     weight: str = "source"
-    iterations: int = 20
+    iterations: int = 10
     #: Converged when an iteration changes the rotation by less than this, rad.
-    tolerance_rad: float = 1e-5
+    tolerance_rad: float = 1e-4
     #: Fewer matched pairs than this: the registration failed.
     min_matches: int = 5
     #: Beyond the paper, a starting rotation without an IMU: "zero" (the paper); the previous

@@ -198,15 +198,15 @@ class LogHeatmap:
         log_i = np.log(np.maximum(np.asarray(heatmap.intensity, dtype=np.float64), 1e-30))
         valid = roi_mask(heatmap, config)
         self.values = log_i - (np.median(log_i[valid]) if valid.any() else 0.0)
-        self.range_m = np.asarray(heatmap.range_m, dtype=float)
-        self.sin_az = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float))
+        self._range = _Axis(np.asarray(heatmap.range_m, dtype=float))
+        self._sin_az = _Axis(np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)))
         self.region = config
 
     def sample(self, range_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
         """Log intensity at body-frame polar points (any shape); NaN outside the heatmap."""
         nr, na = self.values.shape
-        fa = np.interp(np.sin(-bearing_rad), self.sin_az, np.arange(na), left=np.nan, right=np.nan)
-        fr = np.interp(range_m, self.range_m, np.arange(nr), left=np.nan, right=np.nan)
+        fa = self._sin_az.index(np.sin(-bearing_rad))
+        fr = self._range.index(range_m)
         inside = np.isfinite(fa) & np.isfinite(fr) & (np.abs(bearing_rad) <= self.region.max_azimuth_rad)
         fa = np.where(inside, fa, 0.0)
         fr = np.where(inside, fr, 0.0)
@@ -217,3 +217,21 @@ class LogHeatmap:
         out = ((v[r0, a0] * (1 - da) + v[r0, a0 + 1] * da) * (1 - dr)
                + (v[r0 + 1, a0] * (1 - da) + v[r0 + 1, a0 + 1] * da) * dr)
         return np.where(inside, out, np.nan)
+
+
+class _Axis:
+    """Fractional index of values on an ascending axis: arithmetic when the axis is uniform
+    (FFT bins are: range, and azimuth in sin), interpolation otherwise (ColoRadar's bins)."""
+
+    def __init__(self, axis: np.ndarray) -> None:
+        self.axis = axis
+        step = np.diff(axis)
+        self.uniform = len(axis) > 1 and bool(np.allclose(step, step[0], rtol=1e-6, atol=0.0))
+        self.start, self.step = float(axis[0]), float(step[0]) if len(axis) > 1 else 1.0
+
+    def index(self, values: np.ndarray) -> np.ndarray:
+        """(same shape as values); NaN outside the axis."""
+        if not self.uniform:
+            return np.interp(values, self.axis, np.arange(len(self.axis)), left=np.nan, right=np.nan)
+        f = (values - self.start) / self.step
+        return np.where((f >= 0) & (f <= len(self.axis) - 1), f, np.nan)

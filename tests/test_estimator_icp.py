@@ -359,6 +359,8 @@ class TestRotationSvd:
         w = rng.uniform(0.01, 1.0, n)
         closed = math.atan2(np.sum(w * (x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0])), np.sum(w * np.sum(x * y, 1)))
         assert abs(icp.wrap(rotation_svd(x, y, w) - closed)) < 1e-9
+        # The ICP loop's closed form is the SVD solution.
+        assert abs(icp.wrap(rotation_svd(x, y, w) - icp.rotation_2d(x, y, w))) < 1e-9
 
     def test_weights_matter(self):
         x = np.array([[1.0, 0.0], [0.0, 1.0]])
@@ -672,3 +674,30 @@ class TestCorrelationGuess:
 def test_wrap():
     np.testing.assert_allclose(icp.wrap(np.array([0.0, math.pi, -math.pi, 3 * math.pi / 2, -7.0])),
                                [0.0, -math.pi, -math.pi, -math.pi / 2, -7.0 + 2 * math.pi])
+
+
+class TestLogHeatmap:
+    """The scan guess's sampler: exact at the bins, bilinear between, NaN outside; uniform
+    (FFT) and non-uniform (ColoRadar-like) axes alike."""
+
+    @pytest.mark.parametrize("uniform", [True, False])
+    def test_samples_at_and_between_bins(self, uniform):
+        from radarodom.dsp.heatmap import RangeAzimuth
+        from radarodom.estimator.features import LogHeatmap
+
+        rng = np.random.default_rng(40)
+        n_r, n_a = 40, 32
+        range_m = 0.1 * np.arange(n_r) + 0.2
+        sin_az = np.linspace(-0.9, 0.9, n_a) if uniform else np.sort(rng.uniform(-0.9, 0.9, n_a))
+        az = np.arcsin(sin_az)
+        intensity = np.exp(rng.uniform(0, 5, (n_r, n_a))).astype(np.float32)
+        cfg = FeatureConfig(max_azimuth_rad=math.radians(89.0), min_range_m=0.0)
+        lh = LogHeatmap(RangeAzimuth(intensity, intensity, intensity * np.nan, range_m, az), cfg)
+        i, j = 7, 11
+        # Body bearing = -TI azimuth.
+        assert lh.sample(np.array([range_m[i]]), np.array([-az[j]]))[0] == pytest.approx(lh.values[i, j], abs=1e-9)
+        mid_r = 0.5 * (range_m[i] + range_m[i + 1])
+        mid = lh.sample(np.array([mid_r]), np.array([-az[j]]))[0]
+        assert mid == pytest.approx(0.5 * (lh.values[i, j] + lh.values[i + 1, j]), abs=1e-9)
+        assert np.isnan(lh.sample(np.array([100.0]), np.array([0.0]))[0])
+        assert np.isnan(lh.sample(np.array([range_m[i]]), np.array([math.radians(80.0)]))[0])

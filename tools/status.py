@@ -86,3 +86,23 @@ def format_duration(seconds: float) -> str:
     minutes, sec = divmod(seconds, 60)
     hours, minutes = divmod(int(minutes), 60)
     return f"{hours:d}:{minutes:02d}:{sec:04.1f}" if hours else f"{minutes:02d}:{sec:04.1f}"
+
+
+class LatencyMeter:
+    """Recent latencies (s) and their percentiles, over the last *size* samples."""
+
+    def __init__(self, size: int = 300) -> None:
+        self._values: collections.deque[float] = collections.deque(maxlen=size)
+        self.count = 0
+
+    def add(self, seconds: float) -> None:
+        self._values.append(seconds)
+        self.count += 1
+
+    def percentiles_ms(self, *qs: float) -> tuple[float, ...]:
+        """The *qs* percentiles (0-100) of the recent latencies, ms; NaN when there are none."""
+        if not self._values:
+            return tuple(float("nan") for _ in qs)
+        values = sorted(self._values)
+        last = len(values) - 1
+        return tuple(1e3 * values[min(last, int(round(q / 100.0 * last)))] for q in qs)
