@@ -54,7 +54,7 @@ def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
         text += rf"; recorded to {re.escape(str(record))}"
     # The estimator runs by default and adds where it ended.
     return text + r"(; odometry: x -?\d+\.\d\d m, y -?\d+\.\d\d m, yaw -?\d+\.\d deg, estimator median "\
-                  r"\d+\.\d ms/frame(, trajectory in .*)?)?"
+                  r"\d+\.\d ms/frame, latency p50 \d+\.\d ms, p99 \d+\.\d ms(, trajectory in .*)?)?"
 
 
 def one_error_line(proc, prog="radar-capture") -> str:
@@ -472,7 +472,8 @@ def test_live_status_line_on_a_terminal(src, tmp_path):
     text = data.decode()
     assert "\r" in text and "frames" in text and "Hz" in text
     redraws = re.findall(r"\rframes (\d+)  rate +(\d+\.\d) Hz  incomplete (\d+)  elapsed [\d:.]+  \[rec\]"
-                         r"(?:  x +-?\d+\.\d\d y +-?\d+\.\d\d m yaw +-?\d+\.\d deg  v +-?\d+\.\d\d m/s(?:  \[[a-z_,]+\])?)?"
+                         r"(?:  x +-?\d+\.\d\d y +-?\d+\.\d\d m yaw +-?\d+\.\d deg  v +-?\d+\.\d\d m/s"
+                         r"  latency \d+/\d+ ms(?:  \[[a-z_,]+\])?)?"
                          r"\x1b\[K", text)
     assert len(redraws) >= 3, text  # 1 s at a redraw every 0.25 s
     counts = [int(f) for f, _, _ in redraws]

@@ -32,7 +32,8 @@ SIM_URL = f"sim://corridor?rate=max&duration={DURATION_S}"
 
 #: The odometry part radar-capture adds to its summary when the estimator runs.
 ODOM_PART = (r"; odometry: x (?P<x>-?\d+\.\d\d) m, y (?P<y>-?\d+\.\d\d) m, yaw (?P<yaw>-?\d+\.\d) deg, "
-             r"estimator median (?P<ms>\d+\.\d) ms/frame(?:, trajectory in (?P<path>.+))?$")
+             r"estimator median (?P<ms>\d+\.\d) ms/frame, latency p50 (?P<p50>\d+\.\d) ms, "
+             r"p99 (?P<p99>\d+\.\d) ms(?:, trajectory in (?P<path>.+))?$")
 
 
 def run_eval(*args) -> subprocess.CompletedProcess:

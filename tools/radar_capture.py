@@ -11,12 +11,14 @@ a second Ctrl-C aborts at once (what was written stays readable).
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import logging
 import math
 import os
 import signal
 import sys
+import time
 
 import numpy as np
 from typing import Iterator, Sequence
@@ -28,7 +30,7 @@ from ..driver.sources import SCHEMES, Frame, Source, open_source
 from ..errors import CaptureError, CaptureExistsError, UsageError
 from ..estimator.config import EstimatorConfig
 from . import cli
-from .status import RateMeter, StatusLine, format_duration
+from .status import LatencyMeter, RateMeter, StatusLine, format_duration
 
 
 log = logging.getLogger("radarodom.tools.radar_capture")
@@ -156,7 +158,9 @@ class _Processing:
         self.heatmaps = HeatmapMaker(self.processor, doppler_cells=None if args.heatmap_out else 4 * estimator_cfg.features.k)
         self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
         self.state = None
-        self.estimator_s: list[float] = []
+        # Recent figures only: a sensor node runs for days.
+        self.estimator_s: collections.deque[float] = collections.deque(maxlen=1000)
+        self.latency = LatencyMeter()
         self.heatmap_out = HeatmapWriter(args.heatmap_out) if args.heatmap_out else None
         self.points_out = PointsCsvWriter(args.points_out) if args.points_out else None
         self.odom_out = TumWriter(args.odom_out) if args.odom_out and self.odometry else None
@@ -179,20 +183,26 @@ class _Processing:
             self.estimator_s.append(self.state.compute_s)
             if self.odom_out is not None:
                 self.odom_out.write(self.state.t, self.state.x, self.state.y, self.state.yaw)
+        # End to end: the frame's last packet (or its making) -> its odometry out.
+        self.latency.add(time.monotonic() - frame.ready_monotonic)
 
     def status(self) -> str:
         st = self.state
         if st is None:
             return ""
+        p50, p99 = self.latency.percentiles_ms(50, 99)
         return (f"  x {st.x:6.2f} y {st.y:6.2f} m yaw {math.degrees(st.yaw):6.1f} deg"
-                f"  v {st.vx:5.2f} m/s" + ("" if st.ok else "  [" + ",".join(st.flags) + "]"))
+                f"  v {st.vx:5.2f} m/s  latency {p50:.0f}/{p99:.0f} ms"
+                + ("" if st.ok else "  [" + ",".join(st.flags) + "]"))
 
     def summary(self) -> str:
         if self.state is None:
             return ""
         st = self.state
+        p50, p99 = self.latency.percentiles_ms(50, 99)
         text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {math.degrees(st.yaw):.1f} deg, "
-                f"estimator median {1e3 * float(np.median(self.estimator_s)):.1f} ms/frame")
+                f"estimator median {1e3 * float(np.median(self.estimator_s)):.1f} ms/frame, "
+                f"latency p50 {p50:.1f} ms, p99 {p99:.1f} ms")
         if self.odom_out is not None:
             text += f", trajectory in {self.odom_out.path}"
         return text
