@@ -372,19 +372,24 @@ def _pad_last(x: np.ndarray, p: int, cyclic: bool) -> np.ndarray:
 
 
 def _noise_ca_family(x: np.ndarray, params: CfarParams) -> np.ndarray:
-    """Noise estimate (float64, shape of *x*) along the last axis for ca/cago/caso.
+    """Noise estimate (shape and float type of *x*) along the last axis for ca/cago/caso.
 
     With p = guard + train and the input padded by p each side, the left training
     cells of cell i are padded [i, i + train) and the right ones
-    [i + 2p + 1 - train, i + 2p + 1): differences of one cumulative sum.
+    [i + 2p + 1 - train, i + 2p + 1): both are sums of *train* consecutive cells,
+    formed once for every start by adding *train* shifted slices.  (A cumulative
+    sum would need float64 to survive the map's dynamic range, and costs 7x more.)
     """
     n, g, t = x.shape[-1], params.guard, params.train
     p = g + t
     xp = _pad_last(x, p, params.cyclic)
-    c = np.zeros(xp.shape[:-1] + (xp.shape[-1] + 1,), dtype=np.float64)
-    np.cumsum(xp, axis=-1, dtype=np.float64, out=c[..., 1:])
-    left = (c[..., t:t + n] - c[..., 0:n]) / t
-    right = (c[..., 2 * p + 1:2 * p + 1 + n] - c[..., 2 * p + 1 - t:2 * p + 1 - t + n]) / t
+    m = xp.shape[-1] - t + 1
+    sums = xp[..., 0:m].copy()
+    for k in range(1, t):
+        sums += xp[..., k:k + m]
+    sums /= t
+    left = sums[..., 0:n]
+    right = sums[..., 2 * p + 1 - t:2 * p + 1 - t + n]
     if params.method == "ca":
         noise = 0.5 * (left + right)
     elif params.method == "cago":

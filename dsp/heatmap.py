@@ -132,12 +132,14 @@ class HeatmapMaker:
         # a^H R a for every azimuth bin, with a the DFT row: sum_hg conj(D_ah) R_hg D_ag.
         intensity = np.einsum("ah,rhg,ag->ra", dft, cov, np.conj(dft), optimize=True).real.astype(np.float32)
         zero = x[:, :, nd // 2 - self.static_bins: nd // 2 + self.static_bins + 1]
-        static = (np.abs(np.einsum("ah,rhd->rad", dft, zero)) ** 2).sum(axis=-1).astype(np.float32)
+        # Batched matrix products, not einsum: einsum does not reach BLAS for these (5x slower).
+        zero_az = np.matmul(dft, zero)  # (n_range, n_az, static Doppler bins)
+        static = (zero_az.real ** 2 + zero_az.imag ** 2).sum(axis=-1).astype(np.float32)
         dominant = np.full(intensity.shape, np.nan, np.float32)
         n = min(self.doppler_cells, intensity.size)
         cells = np.argpartition(intensity.ravel(), -n)[-n:]
         r, a = np.unravel_index(cells, intensity.shape)
-        spectra = np.einsum("ch,chd->cd", dft[a], x[r])  # (cells, n_doppler)
+        spectra = np.matmul(dft[a][:, None, :], x[r])[:, 0, :]  # (cells, n_doppler)
         best = (spectra.real**2 + spectra.imag**2).argmax(axis=1)
         dominant[r, a] = proc.velocity_mps[best]
         return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)

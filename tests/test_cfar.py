@@ -405,4 +405,6 @@ def test_no_python_loop_over_cells():
         found = [type(n).__name__ for n in ast.walk(funcs[name]) if isinstance(n, loops)]
         if name == "cfar_2d_ti":  # one loop over its two parameter objects
             found = found[1:] if found[:1] == ["For"] else found
+        if name == "_noise_ca_family":  # one loop over the training offsets, each over all cells
+            found = found[1:] if found[:1] == ["For"] else found
         assert not found, f"{name} loops: {found}"
