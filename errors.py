@@ -101,3 +101,22 @@ class CaptureFormatError(CaptureError):
 class EvaluationError(UsageError):
     """Two trajectories cannot be compared as given: too few poses match in
     time, timestamps out of order, a bad evaluation parameter."""
+
+
+class MessageError(RadarodomError):
+    """A message on the wire does not follow its schema (wrong magic, version,
+    size or field), or a value cannot be encoded (NaN, infinity, bad shape)."""
+
+
+class PublishError(RadarodomError):
+    """Publishing over Zenoh failed at run time: the session could not open
+    (a router that does not answer in client mode, a port in use), or a
+    publisher was used after it was closed."""
+
+
+class PublishConfigError(PublishError):
+    """The Zenoh session options are unusable as given: an unreadable or
+    invalid config file, a malformed endpoint, key prefix or mode, or the ROS 2
+    output asked for without its dependency."""
+
+    exit_code = 2

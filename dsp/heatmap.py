@@ -71,6 +71,7 @@ class HeatmapMaker:
         # DFT of the azimuth row at its elements' positions onto the centred bins:
         # exp(-j 2 pi h k / n_az) for signed k ascending (what fft + fftshift give).
         self._az_dft_t = np.exp(-2j * np.pi * np.outer(k, processor.az_h) / n_az).astype(np.complex64)
+        self._az_dft_h = np.ascontiguousarray(np.conj(self._az_dft_t).T)  # (row, n_az)
         # Work buffers, reused by every frame (fresh large arrays cost page faults).
         nr, nd, n_row = len(processor.range_m), processor.n_doppler, len(processor.az_elements)
         self._buffers = (np.empty((nr, n_row, nd), np.complex64), np.empty((nr, n_az, nd), np.complex64),
@@ -129,8 +130,12 @@ class HeatmapMaker:
             x *= self._tdm_row
         dft = self._az_dft_t  # (n_az, row)
         cov = np.matmul(x, np.conj(np.transpose(x, (0, 2, 1))))  # (n_range, row, row)
-        # a^H R a for every azimuth bin, with a the DFT row: sum_hg conj(D_ah) R_hg D_ag.
-        intensity = np.einsum("ah,rhg,ag->ra", dft, cov, np.conj(dft), optimize=True).real.astype(np.float32)
+        # a^H R a for every azimuth bin, with a the DFT row: sum_hg D_ah R_hg conj(D_ag): one
+        # batched product, then a sum over h (einsum's optimizer would pick BLAS paths that cost
+        # more in setup and threads than these small products do).
+        rd = np.matmul(cov, self._az_dft_h)  # (n_range, row, n_az)
+        rd *= self._az_dft_t.T[None]
+        intensity = rd.sum(axis=1).real.astype(np.float32)
         zero = x[:, :, nd // 2 - self.static_bins: nd // 2 + self.static_bins + 1]
         # Batched matrix products, not einsum: einsum does not reach BLAS for these (5x slower).
         zero_az = np.matmul(dft, zero)  # (n_range, n_az, static Doppler bins)

@@ -54,7 +54,8 @@ def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
         text += rf"; recorded to {re.escape(str(record))}"
     # The estimator runs by default and adds where it ended.
     return text + r"(; odometry: x -?\d+\.\d\d m, y -?\d+\.\d\d m, yaw -?\d+\.\d deg, estimator median "\
-                  r"\d+\.\d ms/frame, latency p50 \d+\.\d ms, p99 \d+\.\d ms(, trajectory in .*)?)?"
+                  r"\d+\.\d ms/frame, latency p50 \d+\.\d ms, p99 \d+\.\d ms(, trajectory in .*)?)?"\
+                  r"(; published \d+ odometry, \d+ point cloud, \d+ heatmap and \d+ status messages under \S+)?"
 
 
 def one_error_line(proc, prog="radar-capture") -> str:

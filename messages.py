@@ -1,0 +1,421 @@
+"""The messages radarodom publishes: versioned wire schemas and pure encode/decode.
+
+Nothing here opens a network session; :mod:`radarodom.publish` puts these
+bytes on Zenoh keys under a prefix (default ``radar/awr1843``).  Everything
+below is enough to read the messages without radarodom.
+
+Odometry: ``<prefix>/odom``, encoding ``application/json``
+    One UTF-8 JSON object per heatmap frame (schema ``radarodom/odom``,
+    version 1)::
+
+        {"schema": "radarodom/odom", "version": 1,
+         "t": 1700000000.05,      # s, the frame's timestamp (host clock, or the recording's)
+         "frame": 12,             # index of the estimator's frame, from 0
+         "x": 1.2, "y": -0.3,     # m, position in the odom frame (REP-103: the body frame at frame 0)
+         "yaw": 0.1,              # rad, counter-clockwise, unwrapped (not folded into +-pi)
+         "vx": 0.5, "vy": 0.0,    # m/s, body frame: x forward, y left
+         "yaw_rate": 0.02,        # rad/s
+         "pose_covariance": [9 numbers],   # 3x3 row-major over (x, y, yaw)
+         "twist_covariance": [9 numbers],  # 3x3 row-major over (vx, vy, yaw_rate)
+         "flags": ["velocity_failed", ...],  # quality flags; empty when the step was good
+         "ok": true,              # no flag other than "first_frame"
+         "features": 180,         # heatmap features registered
+         "compute_ms": 4.1,       # estimator time for this frame
+         "frame_id": "odom", "child_frame_id": "base_radar"}
+
+    No value is ever NaN or infinite (an encoder refuses; JSON has no NaN).
+    Readers ignore keys they do not know; a change that would break a reader
+    raises ``version``.
+
+Status: ``<prefix>/status``, encoding ``application/json``
+    A free-form JSON object about once a second with ``"schema":
+    "radarodom/status", "version": 1`` and whatever the publisher reports
+    (rates, drops, lost packets, latency percentiles, radar and board state).
+
+Point cloud: ``<prefix>/pointcloud``, encoding ``application/octet-stream;radarodom/pointcloud/v1``
+    A 32-byte little-endian header, then ``count`` records of 36 bytes::
+
+        offset  type     field
+        0       4 bytes  magic b"RPC1"
+        4       uint16   version (1)
+        6       uint16   header_bytes (32)
+        8       uint64   frame
+        16      float64  t (s)
+        24      uint32   count
+        28      uint16   record_bytes (36)
+        30      uint16   fields (9)
+
+    Each record is nine float32 in the TI sensor frame (x right, y along
+    boresight, z up): ``x, y, z`` (m), ``range`` (m), ``azimuth``,
+    ``elevation`` (rad, azimuth positive to the right), ``velocity`` (m/s
+    radial, positive receding), ``snr_db``, ``noise_db`` (dB).  In numpy:
+    ``np.frombuffer(payload, POINTCLOUD_RECORD, count, 32)``.
+
+Heatmap: ``<prefix>/heatmap``, encoding ``application/octet-stream;radarodom/heatmap/v1``
+    A 36-byte little-endian header, then float32 arrays back to back::
+
+        offset  type     field
+        0       4 bytes  magic b"RHM1"
+        4       uint16   version (1)
+        6       uint16   header_bytes (36)
+        8       uint64   frame
+        16      float64  t (s)
+        24      uint32   n_range
+        28      uint32   n_azimuth
+        32      uint32   channels (3)
+
+        range_m      float32 (n_range,)
+        azimuth_rad  float32 (n_azimuth,), ascending, positive to the right
+        intensity    float32 (n_range, n_azimuth) row-major: power over all Doppler bins, linear
+        static       float32 (n_range, n_azimuth): power in the zero-Doppler bin(s), linear
+        doppler_mps  float32 (n_range, n_azimuth): radial velocity of each cell's strongest
+                     Doppler bin, m/s; NaN where it was not computed
+
+ROS 2: ``nav_msgs/msg/Odometry``
+    :func:`ros2_odometry` builds the message (with any rosbags typestore) that
+    :mod:`radarodom.publish` serializes as CDR for rmw_zenoh, and
+    :data:`ROS2_ATTACHMENT` is the attachment rmw_zenoh_cpp (>= 0.2.4, Jazzy)
+    wants on every sample.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import MessageError
+
+ODOM_SCHEMA = "radarodom/odom"
+STATUS_SCHEMA = "radarodom/status"
+POINTCLOUD_SCHEMA = "radarodom/pointcloud"
+HEATMAP_SCHEMA = "radarodom/heatmap"
+#: The version this module writes and the newest it reads, of every schema.
+VERSION = 1
+
+JSON_ENCODING = "application/json"
+POINTCLOUD_ENCODING = f"application/octet-stream;{POINTCLOUD_SCHEMA}/v{VERSION}"
+HEATMAP_ENCODING = f"application/octet-stream;{HEATMAP_SCHEMA}/v{VERSION}"
+
+#: The odometry's frames (REP-105 names).
+ODOM_FRAME_ID = "odom"
+CHILD_FRAME_ID = "base_radar"
+
+POINTCLOUD_MAGIC = b"RPC1"
+HEATMAP_MAGIC = b"RHM1"
+
+#: Point cloud header (little-endian, no padding: offsets as in the module docstring).
+POINTCLOUD_HEADER = np.dtype([
+    ("magic", "S4"), ("version", "<u2"), ("header_bytes", "<u2"),
+    ("frame", "<u8"), ("t", "<f8"),
+    ("count", "<u4"), ("record_bytes", "<u2"), ("fields", "<u2"),
+])
+#: One point on the wire: the float fields of radarodom.dsp.processor.POINT_DTYPE.
+POINTCLOUD_RECORD = np.dtype([
+    ("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4"),
+    ("azimuth", "<f4"), ("elevation", "<f4"), ("velocity", "<f4"),
+    ("snr_db", "<f4"), ("noise_db", "<f4"),
+])
+#: Heatmap header (little-endian, no padding).
+HEATMAP_HEADER = np.dtype([
+    ("magic", "S4"), ("version", "<u2"), ("header_bytes", "<u2"),
+    ("frame", "<u8"), ("t", "<f8"),
+    ("n_range", "<u4"), ("n_azimuth", "<u4"), ("channels", "<u4"),
+])
+#: The heatmap's (n_range, n_azimuth) channels, in wire order; the names are
+#: radarodom.dsp.heatmap.RangeAzimuth's attributes.
+HEATMAP_CHANNELS = ("intensity", "static", "doppler_mps")
+
+#: rmw_zenoh_cpp's per-sample attachment: sequence number (int64), source
+#: timestamp (int64 ns), and the 16-byte publisher gid as a Zenoh-serialized
+#: byte sequence (its length 16 as one LEB128 byte, then the bytes).  33 bytes.
+ROS2_ATTACHMENT = struct.Struct("<qqB16s")
+ROS2_GID_BYTES = 16
+ROS2_ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+#: Covariance given to what a planar odometry does not observe (z, roll, pitch).
+ROS2_UNOBSERVED_VARIANCE = 1e6
+#: Where (x, y, yaw) and (vx, vy, yaw_rate) sit in ROS's 6x6 covariances
+#: (x, y, z, rotation about x, y, z).
+_PLANAR_IN_6D = (0, 1, 5)
+
+
+# ---------------------------------------------------------------------- JSON
+def _json_bytes(obj: Mapping[str, Any], what: str) -> bytes:
+    try:
+        return json.dumps(obj, allow_nan=False, separators=(",", ":")).encode()
+    except ValueError as exc:  # NaN or infinity: JSON has no way to say it
+        raise MessageError(f"{what}: cannot encode a non-finite number ({exc})") from None
+    except TypeError as exc:
+        raise MessageError(f"{what}: {exc}") from None
+
+
+def _reject_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _json_object(payload: bytes, schema: str) -> dict:
+    """The JSON object in *payload*, checked to be of *schema* at a version this reader knows."""
+    try:
+        obj = json.loads(bytes(payload).decode("utf-8"), parse_constant=_reject_constant)
+    except ValueError as exc:  # not UTF-8, not JSON, or NaN/Infinity in it
+        raise MessageError(f"not a {schema} message: not UTF-8 JSON ({exc})") from None
+    if not isinstance(obj, dict):
+        raise MessageError(f"not a {schema} message: a JSON {type(obj).__name__}, not an object")
+    if obj.get("schema") != schema:
+        raise MessageError(f"not a {schema} message: schema {obj.get('schema')!r}")
+    _check_version(obj.get("version"), schema)
+    return obj
+
+
+def _check_version(version: Any, schema: str) -> None:
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise MessageError(f"{schema}: bad version {version!r}")
+    if version > VERSION:
+        raise MessageError(f"{schema} version {version} is newer than this reader understands "
+                           f"({VERSION}); upgrade radarodom")
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _covariance(value: Any) -> bool:
+    return isinstance(value, list) and len(value) == 9 and all(_finite(v) for v in value)
+
+
+def _strings(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(v, str) for v in value)
+
+
+#: Every field of odometry v1 and what its value must be.
+_ODOM_FIELDS = {
+    "t": (_finite, "a finite number"),
+    "frame": (_count, "a whole number >= 0"),
+    **{name: (_finite, "a finite number") for name in ("x", "y", "yaw", "vx", "vy", "yaw_rate", "compute_ms")},
+    "pose_covariance": (_covariance, "a list of 9 finite numbers"),
+    "twist_covariance": (_covariance, "a list of 9 finite numbers"),
+    "flags": (_strings, "a list of strings"),
+    "ok": (lambda v: isinstance(v, bool), "true or false"),
+    "features": (_count, "a whole number >= 0"),
+    "frame_id": (lambda v: isinstance(v, str), "a string"),
+    "child_frame_id": (lambda v: isinstance(v, str), "a string"),
+}
+
+
+def odometry_dict(state: Any) -> dict:
+    """The odometry v1 object of an :class:`radarodom.estimator.odometry.OdometryState`
+    (or anything with its attributes)."""
+    return {
+        "schema": ODOM_SCHEMA, "version": VERSION,
+        "t": float(state.t), "frame": int(state.frame),
+        "x": float(state.x), "y": float(state.y), "yaw": float(state.yaw),
+        "vx": float(state.vx), "vy": float(state.vy), "yaw_rate": float(state.yaw_rate),
+        "pose_covariance": _flat3x3(state.pose_covariance, "pose_covariance"),
+        "twist_covariance": _flat3x3(state.twist_covariance, "twist_covariance"),
+        "flags": [str(f) for f in state.flags],
+        "ok": bool(state.ok),
+        "features": int(state.features),
+        "compute_ms": 1e3 * float(state.compute_s),
+        "frame_id": ODOM_FRAME_ID, "child_frame_id": CHILD_FRAME_ID,
+    }
+
+
+def _flat3x3(matrix: Any, name: str) -> list[float]:
+    a = np.asarray(matrix, dtype=float)
+    if a.shape != (3, 3):
+        raise MessageError(f"odometry {name}: expected a 3x3 matrix, got shape {a.shape}")
+    return a.ravel().tolist()
+
+
+def odometry_json(state: Any) -> bytes:
+    """The odometry v1 message of *state*, UTF-8 JSON; refuses NaN and infinity."""
+    return _json_bytes(odometry_dict(state), "odometry")
+
+
+def parse_odometry(payload: bytes) -> dict:
+    """The odometry object in *payload*, with every v1 field checked; raises
+    :class:`MessageError` naming what is wrong."""
+    obj = _json_object(payload, ODOM_SCHEMA)
+    for name, (valid, what) in _ODOM_FIELDS.items():
+        if name not in obj:
+            raise MessageError(f"{ODOM_SCHEMA}: field {name!r} is missing")
+        if not valid(obj[name]):
+            raise MessageError(f"{ODOM_SCHEMA}: field {name!r} must be {what}, got {obj[name]!r}")
+    return obj
+
+
+def status_json(status: Mapping[str, Any]) -> bytes:
+    """The status v1 message: *status*'s items after ``schema`` and ``version``
+    (which it must not set itself); refuses NaN and infinity."""
+    reserved = {"schema", "version"} & set(status)
+    if reserved:
+        raise MessageError(f"status: {', '.join(sorted(reserved))} are set by the schema, not the caller")
+    return _json_bytes({"schema": STATUS_SCHEMA, "version": VERSION, **status}, "status")
+
+
+def parse_status(payload: bytes) -> dict:
+    """The status object in *payload* (schema and version checked)."""
+    return _json_object(payload, STATUS_SCHEMA)
+
+
+# ---------------------------------------------------------------------- binary
+def _header(dtype: np.dtype, magic: bytes, frame: int, t: float, **fields: int) -> np.ndarray:
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
+        raise MessageError(f"frame must be a whole number >= 0, got {frame!r}")
+    if not math.isfinite(t):
+        raise MessageError(f"t must be finite, got {t!r}")
+    header = np.zeros((), dtype)
+    header["magic"], header["version"], header["header_bytes"] = magic, VERSION, dtype.itemsize
+    header["frame"], header["t"] = frame, t
+    for name, value in fields.items():
+        header[name] = value
+    return header
+
+
+def _read_header(payload: bytes, dtype: np.dtype, magic: bytes, schema: str) -> np.ndarray:
+    if len(payload) < dtype.itemsize:
+        raise MessageError(f"{schema}: {len(payload)} bytes, shorter than its {dtype.itemsize}-byte header")
+    header = np.frombuffer(payload, dtype, 1)[0]
+    if header["magic"] != magic:
+        raise MessageError(f"not a {schema} message: magic {bytes(header['magic'])!r}, expected {magic!r}")
+    _check_version(int(header["version"]), schema)
+    if header["header_bytes"] != dtype.itemsize:
+        raise MessageError(f"{schema}: header of {header['header_bytes']} bytes, expected {dtype.itemsize}")
+    return header
+
+
+def _check_size(payload: bytes, expected: int, schema: str, what: str) -> None:
+    if len(payload) != expected:
+        raise MessageError(f"{schema}: {len(payload)} bytes, but its header says {what}: {expected} bytes")
+
+
+def encode_pointcloud(frame: int, t: float, points: np.ndarray) -> bytes:
+    """The point cloud v1 message of one frame; *points* is a structured array
+    with at least the fields of :data:`POINTCLOUD_RECORD` (``POINT_DTYPE`` has them)."""
+    names = points.dtype.names or ()
+    missing = [f for f in POINTCLOUD_RECORD.names if f not in names]
+    if missing:
+        raise MessageError(f"point cloud: the points lack field(s) {', '.join(missing)}")
+    records = np.empty(len(points), POINTCLOUD_RECORD)
+    for name in POINTCLOUD_RECORD.names:
+        records[name] = points[name]
+    header = _header(POINTCLOUD_HEADER, POINTCLOUD_MAGIC, frame, t, count=len(points),
+                     record_bytes=POINTCLOUD_RECORD.itemsize, fields=len(POINTCLOUD_RECORD.names))
+    return header.tobytes() + records.tobytes()
+
+
+def decode_pointcloud(payload: bytes) -> tuple[dict, np.ndarray]:
+    """(header, points) of a point cloud message; points are a writable
+    :data:`POINTCLOUD_RECORD` array.  The header has ``schema, version, frame, t, count``."""
+    payload = bytes(payload)
+    header = _read_header(payload, POINTCLOUD_HEADER, POINTCLOUD_MAGIC, POINTCLOUD_SCHEMA)
+    layout = (int(header["record_bytes"]), int(header["fields"]))
+    if layout != (POINTCLOUD_RECORD.itemsize, len(POINTCLOUD_RECORD.names)):
+        raise MessageError(f"{POINTCLOUD_SCHEMA}: records of {layout[0]} bytes in {layout[1]} fields, "
+                           f"expected {POINTCLOUD_RECORD.itemsize} in {len(POINTCLOUD_RECORD.names)}")
+    count = int(header["count"])
+    _check_size(payload, POINTCLOUD_HEADER.itemsize + count * POINTCLOUD_RECORD.itemsize, POINTCLOUD_SCHEMA,
+                f"{count} points")
+    points = np.frombuffer(payload, POINTCLOUD_RECORD, count, POINTCLOUD_HEADER.itemsize).copy()
+    info = {"schema": POINTCLOUD_SCHEMA, "version": int(header["version"]), "frame": int(header["frame"]),
+            "t": float(header["t"]), "count": count}
+    return info, points
+
+
+def encode_heatmap(frame: int, t: float, heatmap: Any) -> bytes:
+    """The heatmap v1 message of a :class:`radarodom.dsp.heatmap.RangeAzimuth`
+    (or anything with its five arrays)."""
+    range_m = np.ascontiguousarray(heatmap.range_m, "<f4")
+    azimuth = np.ascontiguousarray(heatmap.azimuth_rad, "<f4")
+    if range_m.ndim != 1 or azimuth.ndim != 1:
+        raise MessageError(f"heatmap: the axes must be 1-D, got range_m {range_m.shape} and "
+                           f"azimuth_rad {azimuth.shape}")
+    shape = (len(range_m), len(azimuth))
+    parts = [range_m, azimuth]
+    for name in HEATMAP_CHANNELS:
+        channel = np.ascontiguousarray(getattr(heatmap, name), "<f4")
+        if channel.shape != shape:
+            raise MessageError(f"heatmap: {name} has shape {channel.shape}, the axes say {shape}")
+        parts.append(channel)
+    header = _header(HEATMAP_HEADER, HEATMAP_MAGIC, frame, t, n_range=shape[0], n_azimuth=shape[1],
+                     channels=len(HEATMAP_CHANNELS))
+    # One copy of each array into the message (join takes their buffers as they are).
+    return b"".join([header.tobytes(), *(memoryview(p).cast("B") for p in parts)])
+
+
+def decode_heatmap(payload: bytes) -> tuple[dict, dict[str, np.ndarray]]:
+    """(header, arrays) of a heatmap message.  The arrays are float32 keyed like
+    RangeAzimuth's attributes, so ``RangeAzimuth(**arrays)`` rebuilds one.  The
+    header has ``schema, version, frame, t, n_range, n_azimuth, channels``."""
+    payload = bytes(payload)
+    header = _read_header(payload, HEATMAP_HEADER, HEATMAP_MAGIC, HEATMAP_SCHEMA)
+    nr, na, channels = int(header["n_range"]), int(header["n_azimuth"]), int(header["channels"])
+    if channels != len(HEATMAP_CHANNELS):
+        raise MessageError(f"{HEATMAP_SCHEMA}: {channels} channels, expected {len(HEATMAP_CHANNELS)}")
+    floats = nr + na + channels * nr * na
+    _check_size(payload, HEATMAP_HEADER.itemsize + 4 * floats, HEATMAP_SCHEMA, f"{nr} x {na} x {channels}")
+    data = np.frombuffer(payload, "<f4", floats, HEATMAP_HEADER.itemsize).astype(np.float32)
+    arrays = {"range_m": data[:nr], "azimuth_rad": data[nr:nr + na]}
+    cells = data[nr + na:].reshape(channels, nr, na)
+    arrays.update(zip(HEATMAP_CHANNELS, cells))
+    info = {"schema": HEATMAP_SCHEMA, "version": int(header["version"]), "frame": int(header["frame"]),
+            "t": float(header["t"]), "n_range": nr, "n_azimuth": na, "channels": list(HEATMAP_CHANNELS)}
+    return info, arrays
+
+
+# ---------------------------------------------------------------------- ROS 2
+def ros2_stamp(t: float) -> tuple[int, int]:
+    """(sec, nanosec) of *t* seconds, nanosec in [0, 1e9)."""
+    # Split first: t * 1e9 of a present-day time in float would lose ~100 ns.
+    sec = math.floor(t)
+    nanosec = round((t - sec) * 1e9)
+    if nanosec == 1_000_000_000:
+        return sec + 1, 0
+    return sec, nanosec
+
+
+def _covariance_6x6(cov3: Any) -> np.ndarray:
+    """ROS's 6x6 covariance (row-major, 36) holding a planar 3x3 one; what a
+    planar odometry cannot see gets :data:`ROS2_UNOBSERVED_VARIANCE`."""
+    out = np.diag(np.full(6, ROS2_UNOBSERVED_VARIANCE))
+    out[np.ix_(_PLANAR_IN_6D, _PLANAR_IN_6D)] = np.asarray(cov3, float)
+    return out.ravel()
+
+
+def ros2_odometry(state: Any, typestore: Any) -> Any:
+    """The ``nav_msgs/msg/Odometry`` of *state* as an instance of *typestore*'s
+    (rosbags) class: stamp from ``t``, frames ``odom`` -> ``base_radar``, the
+    planar pose and twist, and 6x6 covariances from the 3x3 ones."""
+    if not all(math.isfinite(float(v)) for v in (state.t, state.x, state.y, state.yaw,
+                                                 state.vx, state.vy, state.yaw_rate)):
+        raise MessageError("ROS 2 odometry: cannot encode a non-finite value")
+    types = typestore.types
+    vector, point = types["geometry_msgs/msg/Vector3"], types["geometry_msgs/msg/Point"]
+    sec, nanosec = ros2_stamp(float(state.t))
+    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+                                          frame_id=ODOM_FRAME_ID)
+    half = 0.5 * float(state.yaw)
+    orientation = types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
+    pose = types["geometry_msgs/msg/PoseWithCovariance"](
+        pose=types["geometry_msgs/msg/Pose"](position=point(x=float(state.x), y=float(state.y), z=0.0),
+                                             orientation=orientation),
+        covariance=_covariance_6x6(state.pose_covariance))
+    twist = types["geometry_msgs/msg/TwistWithCovariance"](
+        twist=types["geometry_msgs/msg/Twist"](linear=vector(x=float(state.vx), y=float(state.vy), z=0.0),
+                                               angular=vector(x=0.0, y=0.0, z=float(state.yaw_rate))),
+        covariance=_covariance_6x6(state.twist_covariance))
+    return types[ROS2_ODOMETRY_TYPE](header=header, child_frame_id=CHILD_FRAME_ID, pose=pose, twist=twist)
+
+
+def ros2_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
+    """rmw_zenoh_cpp's attachment of one sample (see :data:`ROS2_ATTACHMENT`)."""
+    if len(gid) != ROS2_GID_BYTES:
+        raise MessageError(f"ROS 2 gid must be {ROS2_GID_BYTES} bytes, got {len(gid)}")
+    return ROS2_ATTACHMENT.pack(sequence, timestamp_ns, ROS2_GID_BYTES, gid)

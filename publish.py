@@ -1,0 +1,469 @@
+"""Publishing odometry, point clouds, heatmaps and status over Zenoh (eclipse-zenoh 1.x).
+
+    with Publisher(ZenohOptions()) as pub:      # the default: one machine, no router, no network
+        pub.odometry(state)                     # <prefix>/odom, JSON, real-time priority, express
+        pub.pointcloud(frame, t, points)        # <prefix>/pointcloud, binary, low priority
+        pub.heatmap(frame, t, range_azimuth)    # <prefix>/heatmap, binary, low priority
+        pub.status({"rate_hz": 10.0})           # <prefix>/status, JSON
+
+The message formats are in :mod:`radarodom.messages`.  Every put drops rather
+than waits when the network is congested, so publishing never holds up the
+caller.  ``<prefix>/odom`` is also a queryable that answers a ``get`` with the
+latest odometry (for late joiners), and ``<prefix>/alive`` a liveliness token
+that exists while the publisher runs.
+
+Sessions.  Without a config file the session is a peer with multicast
+scouting off that listens on :data:`DEFAULT_ENDPOINT` (``tcp/127.0.0.1:7448``,
+loopback only) and retries its connect endpoints every 0.1 s growing to 1 s,
+so a peer or router that is down at start is joined when it comes up.  A
+link's handshake may take 2 s (zenoh's default is 10 s, and closing a session
+waits for pending handshakes).  A subscriber (``radar-echo``,
+:meth:`ZenohOptions.for_subscriber`) connects to that endpoint and listens on
+nothing: on one machine nothing goes on the network and no router is needed.
+When the port is taken (a second publisher, or another program) the publisher
+listens on a free loopback port instead, says which in a warning, and connects
+to :data:`DEFAULT_ENDPOINT`: when a Zenoh peer holds it (another radarodom
+publisher), subscribers connected there learn of this one through gossip
+scouting.  Endpoints given (``listen``, ``connect``) replace the defaults and
+never fall back.  A config file (JSON5, zenoh's own format) replaces all of
+these defaults; options given explicitly override it.
+
+A session that is not closed keeps the interpreter from exiting (its callback
+threads are not daemons: zenoh-python #434), so :class:`Publisher` is a
+context manager and its :meth:`Publisher.close` always closes the session.
+
+ROS 2 (``ros2=True``): ``nav_msgs/msg/Odometry`` in CDR (rosbags' Jazzy
+typestore) on the key expression rmw_zenoh_cpp uses, with the attachment and
+the liveliness tokens it requires (rmw_zenoh_cpp >= 0.2.4 on Jazzy), so a ROS 2
+node using rmw_zenoh receives it.  Without ``connect`` it also connects to the
+ROS 2 router, :data:`ROS2_ROUTER_ENDPOINT`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import re
+import socket
+import time
+import weakref
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import zenoh
+
+from . import messages
+from .errors import PublishConfigError, PublishError
+
+log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())
+
+DEFAULT_KEY_PREFIX = "radar/awr1843"
+#: Where a publisher listens and a subscriber connects by default: a fixed
+#: loopback port, so the two find each other on one machine without scouting
+#: or network (7447 is a Zenoh router's, which ROS 2's rmw_zenohd takes).
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7448"
+#: The router every ROS 2 node using rmw_zenoh connects to.
+ROS2_ROUTER_ENDPOINT = "tcp/localhost:7447"
+DEFAULT_ROS2_TOPIC = "/radar/odom"
+ROS2_NODE_NAME = "radarodom"
+MODES = ("peer", "client")
+#: The published keys under the prefix.
+KINDS = ("odom", "pointcloud", "heatmap", "status")
+ALIVE = "alive"
+#: Retry a connect endpoint after 0.1 s, doubling up to 1 s: a peer that comes
+#: up is joined within about a second.
+CONNECT_RETRY = "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}"
+#: A link's handshake must finish within this (zenoh's default is 10 s): closing
+#: a session waits for pending handshakes, and an endpoint that accepts TCP but
+#: never answers (not Zenoh, or a dead link) would hold Ctrl-C that long.
+HANDSHAKE_TIMEOUT_MS = 2000
+#: Protocols whose address is host:port.
+_INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+_ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
+#: The source location zenoh appends to its error messages.
+_RUST_LOCATION = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
+#: rmw_zenoh's QoS of the publisher token: reliable, volatile, keep last 10
+#: (only the depth differs from rmw_zenoh's defaults, so only it is written).
+_ROS2_QOS = "::,10:,:,:,,"
+
+
+def zenoh_reason(exc: BaseException) -> str:
+    """A zenoh error's message without the Rust source locations."""
+    return _RUST_LOCATION.sub("", str(exc)).strip()
+
+
+def _check_endpoint(endpoint: Any, option: str) -> str:
+    if not isinstance(endpoint, str) or "/" not in endpoint:
+        raise PublishConfigError(f"{option}: {endpoint!r} is not an endpoint; expected "
+                                 "PROTOCOL/ADDRESS, e.g. tcp/192.168.1.10:7447")
+    protocol, address = endpoint.split("/", 1)
+    address = re.split(r"[?#]", address, maxsplit=1)[0]
+    if protocol in _INET_PROTOCOLS:
+        host, _, port = address.rpartition(":")
+        if not host or not port.isdigit() or int(port) > 65535:
+            raise PublishConfigError(f"{option}: {endpoint!r} needs HOST:PORT after {protocol}/, "
+                                     f"e.g. {protocol}/192.168.1.10:7447")
+    return endpoint
+
+
+def _endpoints(value: Any, option: str) -> tuple[str, ...] | None:
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = (value,)
+    return tuple(_check_endpoint(e, option) for e in value)
+
+
+@dataclass(frozen=True)
+class ZenohOptions:
+    """How to open the Zenoh session and where to publish.
+
+    ``None`` means "the default" (see the module docstring); an empty
+    ``listen`` or ``connect`` means none at all.  Invalid values raise
+    :class:`PublishConfigError`.
+    """
+
+    mode: str | None = None  # "peer" | "client"; default peer (or the config file's)
+    connect: Sequence[str] | None = None
+    listen: Sequence[str] | None = None
+    config_file: str | os.PathLike | None = None  # JSON5, zenoh's format
+    key_prefix: str = DEFAULT_KEY_PREFIX
+    ros2: bool = False
+    ros2_domain: int = 0
+    ros2_topic: str = DEFAULT_ROS2_TOPIC
+
+    def __post_init__(self) -> None:
+        if self.mode is not None and self.mode not in MODES:
+            raise PublishConfigError(f"zenoh mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        object.__setattr__(self, "connect", _endpoints(self.connect, "connect"))
+        object.__setattr__(self, "listen", _endpoints(self.listen, "listen"))
+        _check_key_prefix(self.key_prefix)
+        if isinstance(self.ros2_domain, bool) or not isinstance(self.ros2_domain, int) \
+                or not 0 <= self.ros2_domain <= 232:
+            raise PublishConfigError(f"ROS 2 domain must be a whole number from 0 to 232, got {self.ros2_domain!r}")
+        if not isinstance(self.ros2_topic, str) or not _ROS_TOPIC.fullmatch(self.ros2_topic):
+            raise PublishConfigError(f"ROS 2 topic must be an absolute ROS name like /radar/odom, "
+                                     f"got {self.ros2_topic!r}")
+        if self.config_file is None and self.effective_mode == "client":
+            if self.listen:
+                raise PublishConfigError("a Zenoh client does not listen: drop --listen, or use --mode peer")
+            if not self.effective_connect:
+                raise PublishConfigError("--mode client needs --connect with a Zenoh router's endpoint, "
+                                         "e.g. tcp/192.168.1.10:7447")
+
+    @property
+    def effective_mode(self) -> str | None:
+        """The mode set on the session; None: the config file's."""
+        return self.mode or (None if self.config_file else "peer")
+
+    @property
+    def effective_listen(self) -> tuple[str, ...] | None:
+        """The listen endpoints set on the session; None: the config file's."""
+        if self.listen is not None or self.config_file:
+            return self.listen
+        return (DEFAULT_ENDPOINT,) if self.effective_mode == "peer" else ()
+
+    @property
+    def effective_connect(self) -> tuple[str, ...] | None:
+        """The connect endpoints set on the session; None: the config file's."""
+        if self.connect is not None or self.config_file:
+            return self.connect
+        return (ROS2_ROUTER_ENDPOINT,) if self.ros2 else ()
+
+    def key(self, kind: str) -> str:
+        """The key of one published stream (``odom``, ``pointcloud``, ...) under the prefix."""
+        return f"{self.key_prefix}/{kind}"
+
+    def for_subscriber(self) -> ZenohOptions:
+        """These options for a program that subscribes: it never takes the
+        publisher's default endpoint (listens on nothing unless told), and with
+        no endpoint given connects to it.  A config file is left as it is."""
+        if self.config_file:
+            return self
+        connect = self.connect
+        if connect is None:
+            connect = (DEFAULT_ENDPOINT,) if self.listen is None else ()
+        return dataclasses.replace(self, connect=connect, listen=self.listen or ())
+
+    def describe(self) -> str:
+        """Where the session goes, for messages: ``listen ... connect ...``."""
+        parts = [f"config {os.fspath(self.config_file)}"] if self.config_file else []
+        for name, endpoints in (("listen", self.effective_listen), ("connect", self.effective_connect)):
+            if endpoints:
+                parts.append(f"{name} {' '.join(endpoints)}")
+        return f"{self.effective_mode or 'as configured'}" + (f", {', '.join(parts)}" if parts else "")
+
+    def to_config(self) -> zenoh.Config:
+        """The zenoh.Config: the config file (if any), then these options."""
+        if self.config_file:
+            path = os.fspath(self.config_file)
+            try:
+                config = zenoh.Config.from_file(path)
+            except zenoh.ZError as exc:
+                raise PublishConfigError(f"zenoh config {path}: {zenoh_reason(exc)}") from None
+        else:
+            config = zenoh.Config()
+            # One machine, no network: no multicast; peers found by endpoint only.
+            _insert(config, "scouting/multicast/enabled", "false")
+            _insert(config, "connect/retry", CONNECT_RETRY)
+            _insert(config, "transport/unicast/open_timeout", str(HANDSHAKE_TIMEOUT_MS))
+        if self.effective_mode is not None:
+            _insert(config, "mode", json.dumps(self.effective_mode))
+        for name, endpoints in (("listen", self.effective_listen), ("connect", self.effective_connect)):
+            if endpoints is not None:
+                _insert(config, f"{name}/endpoints", json.dumps(list(endpoints)))
+        return config
+
+
+def _check_key_prefix(prefix: Any) -> None:
+    if not isinstance(prefix, str) or not prefix:
+        raise PublishConfigError(f"key prefix must be a non-empty string, got {prefix!r}")
+    if any(c in prefix for c in "*$?#"):
+        raise PublishConfigError(f"key prefix {prefix!r}: wildcards and the characters $ ? # are not allowed")
+    try:
+        zenoh.KeyExpr(prefix)
+    except zenoh.ZError as exc:
+        raise PublishConfigError(f"key prefix {prefix!r} is not a Zenoh key expression "
+                                 f"(chunks separated by single slashes): {zenoh_reason(exc)}") from None
+
+
+def _insert(config: zenoh.Config, key: str, value: str) -> None:
+    try:
+        config.insert_json5(key, value)
+    except zenoh.ZError as exc:
+        raise PublishConfigError(f"zenoh config {key} = {value}: {zenoh_reason(exc)}") from None
+
+
+def _free_loopback_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def open_session(options: ZenohOptions) -> tuple[zenoh.Session, ZenohOptions]:
+    """Open a Zenoh session; returns it and the options it was opened with.
+
+    When the default listen endpoint is taken, falls back (see the module
+    docstring) and returns the options of the fallback.  Raises
+    :class:`PublishConfigError` for unusable options and :class:`PublishError`
+    when the session cannot open.
+    """
+    try:
+        return zenoh.open(options.to_config()), options
+    except zenoh.ZError as exc:
+        reason = zenoh_reason(exc)
+        # Only the built-in default falls back: an endpoint the user chose is meant.
+        if not (options.effective_listen == (DEFAULT_ENDPOINT,) and options.listen is None
+                and "already in use" in reason):
+            raise PublishError(_open_failure(options, reason)) from None
+    fallback = dataclasses.replace(options, listen=(f"tcp/127.0.0.1:{_free_loopback_port()}",),
+                                   connect=tuple(options.effective_connect or ()) + (DEFAULT_ENDPOINT,))
+    log.warning("%s is in use: listening on %s instead (subscribers connect there, or reach this "
+                "publisher through a Zenoh peer on %s)", DEFAULT_ENDPOINT, fallback.listen[0], DEFAULT_ENDPOINT)
+    try:
+        return zenoh.open(fallback.to_config()), fallback
+    except zenoh.ZError as exc:
+        raise PublishError(_open_failure(fallback, zenoh_reason(exc))) from None
+
+
+def _open_failure(options: ZenohOptions, reason: str) -> str:
+    text = f"cannot open the Zenoh session ({options.describe()}): {reason}"
+    if options.effective_mode == "client":
+        text += " (is the Zenoh router running? Without a router use --mode peer)"
+    elif "already in use" in reason:
+        text += " (another program listens there: choose another --listen)"
+    return text
+
+
+def ros2_topic_key(domain: int, topic: str, type_hash: str, msg_type: str = messages.ROS2_ODOMETRY_TYPE) -> str:
+    """rmw_zenoh's key expression of a topic: ``<domain>/<topic>/<DDS type>/<RIHS01 hash>``."""
+    return f"{domain}/{topic.strip('/')}/{_dds_type_name(msg_type)}/{type_hash}"
+
+
+def _dds_type_name(msg_type: str) -> str:
+    package, kind, name = msg_type.split("/")
+    return f"{package}::{kind}::dds_::{name}_"
+
+
+def ros2_liveliness_keys(domain: int, zid: str, topic: str, type_hash: str, node: str = ROS2_NODE_NAME,
+                         msg_type: str = messages.ROS2_ODOMETRY_TYPE) -> tuple[str, str]:
+    """rmw_zenoh's liveliness tokens of a node (in the root namespace, default
+    enclave) and of its publisher of *topic*: what makes them part of the ROS
+    graph (``ros2 node list``, ``ros2 topic list``)."""
+    # /<admin>/<domain>/<zid>/<node id>/<entity id>/<kind>/<enclave>/<namespace>/<node>: "/" is "%".
+    node_key = f"@ros2_lv/{domain}/{zid}/0/0/NN/%/%/{node}"
+    publisher_key = (f"@ros2_lv/{domain}/{zid}/0/10/MP/%/%/{node}/{topic.replace('/', '%')}/"
+                     f"{_dds_type_name(msg_type)}/{type_hash}/{_ROS2_QOS}")
+    return node_key, publisher_key
+
+
+def ros2_typestore() -> Any:
+    """rosbags' ROS 2 Jazzy typestore; a clear error when rosbags is missing."""
+    try:
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise PublishConfigError('the ROS 2 output needs rosbags: pip install "radarodom[ros2]"') from None
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+class _LatestReply:
+    """A queryable's handler: answers every query with the latest payload (none
+    before the first).  Holds no reference to the Publisher, so that a
+    publisher dropped unclosed can still be collected (and its session closed)."""
+
+    def __init__(self, key: str, encoding: str) -> None:
+        self.key = key
+        self.encoding = zenoh.Encoding(encoding)
+        self.payload: bytes | None = None
+
+    def __call__(self, query: zenoh.Query) -> None:
+        # Runs on a zenoh thread: never raise into it.
+        payload = self.payload
+        if payload is None:
+            return
+        try:
+            query.reply(self.key, payload, encoding=self.encoding)
+        except zenoh.ZError as exc:
+            log.debug("could not answer a query on %s: %s", self.key, zenoh_reason(exc))
+
+
+class _Ros2Odometry:
+    """nav_msgs/msg/Odometry as a ROS 2 node using rmw_zenoh_cpp publishes it."""
+
+    def __init__(self, session: zenoh.Session, options: ZenohOptions, typestore: Any) -> None:
+        self._store = typestore
+        type_hash = typestore.hash_rihs01(messages.ROS2_ODOMETRY_TYPE)
+        self.key = ros2_topic_key(options.ros2_domain, options.ros2_topic, type_hash)
+        self.publisher = session.declare_publisher(self.key, priority=zenoh.Priority.REAL_TIME,
+                                                   congestion_control=zenoh.CongestionControl.DROP, express=True)
+        # rmw_zenoh derives its gid from the token; any fixed 16 bytes per publisher serve.
+        self._gid = os.urandom(messages.ROS2_GID_BYTES)
+        self._sequence = 0
+        liveliness = session.liveliness()
+        self._tokens = [liveliness.declare_token(k) for k in
+                        ros2_liveliness_keys(options.ros2_domain, str(session.zid()), options.ros2_topic, type_hash)]
+
+    def encode(self, state: Any) -> tuple[bytes, bytes]:
+        """(CDR payload, attachment) of the next sample."""
+        msg = messages.ros2_odometry(state, self._store)
+        self._sequence += 1
+        return (bytes(self._store.serialize_cdr(msg, messages.ROS2_ODOMETRY_TYPE)),
+                messages.ros2_attachment(self._sequence, time.time_ns(), self._gid))
+
+
+def _close_session(session: zenoh.Session) -> None:
+    try:
+        session.close()
+    except zenoh.ZError as exc:
+        log.warning("closing the Zenoh session: %s", zenoh_reason(exc))
+
+
+class Publisher:
+    """radarodom's Zenoh publisher: odometry, point clouds, heatmaps, status.
+
+    Opens the session at once (raising :class:`PublishConfigError` or
+    :class:`PublishError`); close it with :meth:`close` or a ``with`` block.
+    Methods may be called from any one thread at a time.
+    """
+
+    def __init__(self, options: ZenohOptions | None = None) -> None:
+        options = options or ZenohOptions()
+        # rosbags is checked before anything opens: a missing extra is an option error.
+        typestore = ros2_typestore() if options.ros2 else None
+        self._session, self.options = open_session(options)
+        # Closes the session once: on close(), or when the publisher is collected unclosed.
+        self._close_session = weakref.finalize(self, _close_session, self._session)
+        self.keys = {kind: self.options.key(kind) for kind in KINDS}
+        self._latest = _LatestReply(self.keys["odom"], messages.JSON_ENCODING)
+        #: Messages put per kind (``ros2``: the ROS 2 odometry).
+        self.counts = dict.fromkeys(KINDS + (("ros2",) if options.ros2 else ()), 0)
+        try:
+            self._declare(typestore)
+        except BaseException:
+            self.close()
+            raise
+        log.info("publishing on %s/{%s} (%s)", self.options.key_prefix, ",".join(KINDS), self.options.describe())
+
+    def _declare(self, typestore: Any) -> None:
+        session, keys = self._session, self.keys
+        drop = zenoh.CongestionControl.DROP
+        json_encoding = zenoh.Encoding(messages.JSON_ENCODING)
+        try:
+            self._publishers = {
+                "odom": session.declare_publisher(keys["odom"], encoding=json_encoding,
+                                                  priority=zenoh.Priority.REAL_TIME, congestion_control=drop,
+                                                  express=True),
+                "pointcloud": session.declare_publisher(keys["pointcloud"],
+                                                        encoding=zenoh.Encoding(messages.POINTCLOUD_ENCODING),
+                                                        priority=zenoh.Priority.DATA_LOW, congestion_control=drop),
+                "heatmap": session.declare_publisher(keys["heatmap"],
+                                                     encoding=zenoh.Encoding(messages.HEATMAP_ENCODING),
+                                                     priority=zenoh.Priority.DATA_LOW, congestion_control=drop),
+                "status": session.declare_publisher(keys["status"], encoding=json_encoding,
+                                                    priority=zenoh.Priority.DATA, congestion_control=drop),
+            }
+            self._queryable = session.declare_queryable(keys["odom"], self._latest)
+            self._alive = session.liveliness().declare_token(self.options.key(ALIVE))
+            self._ros2 = None if typestore is None else _Ros2Odometry(session, self.options, typestore)
+            if self._ros2 is not None:
+                self._publishers["ros2"] = self._ros2.publisher
+        except zenoh.ZError as exc:
+            raise PublishError(f"cannot declare the publishers under {self.options.key_prefix}: "
+                               f"{zenoh_reason(exc)}") from None
+
+    @property
+    def zid(self) -> str:
+        """The session's Zenoh id."""
+        return str(self._session.zid())
+
+    @property
+    def ros2_key(self) -> str | None:
+        """The rmw_zenoh key the ROS 2 odometry goes to, or None."""
+        return None if self._ros2 is None else self._ros2.key
+
+    @property
+    def closed(self) -> bool:
+        return not self._close_session.alive
+
+    def _put(self, kind: str, payload: bytes, attachment: bytes | None = None) -> None:
+        if self.closed:
+            raise PublishError("the publisher is closed")
+        try:
+            self._publishers[kind].put(payload, attachment=attachment)
+        except zenoh.ZError as exc:
+            raise PublishError(f"publishing {kind}: {zenoh_reason(exc)}") from None
+        self.counts[kind] += 1
+
+    def odometry(self, state: Any) -> None:
+        """Publish an :class:`~radarodom.estimator.odometry.OdometryState` (and
+        keep it for queries; and on ROS 2 when enabled)."""
+        payload = messages.odometry_json(state)
+        self._put("odom", payload)
+        self._latest.payload = payload
+        if self._ros2 is not None:
+            self._put("ros2", *self._ros2.encode(state))
+
+    def pointcloud(self, frame: int, t: float, points: Any) -> None:
+        """Publish one frame's point cloud (POINT_DTYPE or any array with the wire fields)."""
+        self._put("pointcloud", messages.encode_pointcloud(frame, t, points))
+
+    def heatmap(self, frame: int, t: float, heatmap: Any) -> None:
+        """Publish one frame's range-azimuth heatmap (a RangeAzimuth)."""
+        self._put("heatmap", messages.encode_heatmap(frame, t, heatmap))
+
+    def status(self, info: Mapping[str, Any]) -> None:
+        """Publish a status message: *info* with the schema's ``schema`` and ``version``."""
+        self._put("status", messages.status_json(info))
+
+    def close(self) -> None:
+        """Close the session (undeclaring everything); safe to call twice."""
+        self._close_session()
+
+    def __enter__(self) -> Publisher:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()

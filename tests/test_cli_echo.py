@@ -1,0 +1,190 @@
+"""radar-echo, the command-line subscriber: run as a subprocess (the installed
+console script) against a publisher in the test, on loopback endpoints."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import signal
+import subprocess
+import threading
+import time
+
+import pytest
+from conftest import console_command
+from zenoh_helpers import default_endpoint_free, estimator_run, free_endpoint, peer, wait_for
+
+from radarodom import messages
+from radarodom.publish import Publisher, ZenohOptions
+from radarodom.tools import radar_echo
+from radarodom.tools.zenoh_args import add_zenoh_arguments, options_from_args
+
+ECHO = console_command("radar-echo")
+ODOM_LINE = re.compile(r"odom frame (\d+) t (\d+\.\d{3}) x (-?\d+\.\d{3}) y (-?\d+\.\d{3}) m "
+                       r"yaw (-?\d+\.\d{2}) deg v (\d+\.\d{3}) m/s( \[[a-z_,]+\])?")
+
+
+@pytest.fixture(scope="module")
+def run():
+    return estimator_run(frames=12)
+
+
+class Publishing:
+    """Publishes the run's odometry (and a status, point cloud, heatmap per frame)
+    every 20 ms on a thread until stopped, looping over the run."""
+
+    def __init__(self, pub: Publisher, run) -> None:
+        self.pub, self.run = pub, run
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, daemon=True)
+
+    def _loop(self) -> None:
+        i = 0
+        while not self._stop.is_set():
+            state, points, heatmap = self.run[i % len(self.run)]
+            self.pub.odometry(state)
+            self.pub.status({"frame": state.frame})
+            self.pub.pointcloud(state.frame, state.t, points)
+            self.pub.heatmap(state.frame, state.t, heatmap)
+            i += 1
+            time.sleep(0.02)
+
+    def __enter__(self) -> Publishing:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join(5)
+
+
+def echo(*args, timeout=30) -> subprocess.CompletedProcess:
+    return subprocess.run(ECHO + [str(a) for a in args], stdin=subprocess.DEVNULL, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def test_radar_echo_prints_odometry_lines_and_exits_after_count(run):
+    endpoint = free_endpoint()
+    with Publisher(ZenohOptions(listen=[endpoint])) as pub, Publishing(pub, run):
+        proc = echo("--connect", endpoint, "--count", 5, "odom")
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 5
+    matches = [ODOM_LINE.fullmatch(line) for line in lines]
+    assert all(matches), lines
+    by_frame = {s.frame: s for s, _, _ in run}
+    for m in matches:
+        state = by_frame[int(m.group(1))]
+        assert float(m.group(3)) == pytest.approx(state.x, abs=6e-4)
+        assert float(m.group(5)) == pytest.approx(57.29577951 * state.yaw, abs=6e-3)
+    assert f"connect {endpoint}" in proc.stderr and "Ctrl-C stops" in proc.stderr
+
+
+def test_radar_echo_json_and_every_kind(run):
+    endpoint = free_endpoint()
+    with Publisher(ZenohOptions(listen=[endpoint], key_prefix="robot/radar")) as pub, Publishing(pub, run):
+        proc = echo("--connect", endpoint, "--key-prefix", "robot/radar", "--count", 40, "--json", "-q",
+                    "odom", "status", "pointcloud", "heatmap")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    objects = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert len(objects) == 40
+    kinds = {o["key"]: o for o in objects}
+    assert set(kinds) == {"robot/radar/odom", "robot/radar/status", "robot/radar/pointcloud",
+                          "robot/radar/heatmap"}
+    assert kinds["robot/radar/odom"]["schema"] == "radarodom/odom"
+    assert kinds["robot/radar/heatmap"]["n_azimuth"] == 64
+    assert kinds["robot/radar/pointcloud"]["schema"] == "radarodom/pointcloud"
+
+
+def test_radar_echo_skips_malformed_messages_with_a_warning(run):
+    endpoint = free_endpoint()
+    with peer(listen=[endpoint]) as session:
+        proc = subprocess.Popen(ECHO + ["--connect", endpoint, "--count", "1", "odom"], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            publisher = session.declare_publisher("radar/awr1843/odom")
+            deadline = time.monotonic() + 20
+            while proc.poll() is None and time.monotonic() < deadline:
+                publisher.put(b'{"schema": "radarodom/odom", "version": 1}')
+                publisher.put(messages.odometry_json(run[3][0]))
+                time.sleep(0.05)
+            out, err = proc.communicate(timeout=10)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert ODOM_LINE.fullmatch(out.strip()) and out.startswith("odom frame 3 ")
+    assert "ignored a malformed message" in err and "'t' is missing" in err
+
+
+def test_radar_echo_stops_on_ctrl_c_with_status_0():
+    # Nothing publishes: it waits (retrying its connect) until interrupted.
+    proc = subprocess.Popen(ECHO + ["--connect", free_endpoint()], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "Ctrl-C stops" in proc.stderr.readline()
+        proc.send_signal(signal.SIGINT)
+        started = time.monotonic()
+        out, _ = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0 and out == ""
+    assert time.monotonic() - started < 5.0
+
+
+def test_radar_echo_finds_a_default_publisher_without_options(run):
+    if not wait_for(default_endpoint_free, timeout=3.0):
+        pytest.skip("tcp/127.0.0.1:7448 is taken on this machine")
+    with Publisher() as pub, Publishing(pub, run):
+        proc = echo("--count", 2, "status")
+    assert proc.returncode == 0, proc.stderr
+    assert [json.loads(line.split(" ", 1)[1])["schema"] for line in proc.stdout.splitlines()] == \
+        ["radarodom/status"] * 2
+
+
+@pytest.mark.parametrize("args, words", [
+    (["bogus"], "expected one of odom, pointcloud, heatmap, status"),
+    (["--count", "0"], "expected a whole number >= 1"),
+    (["--connect", "tcp/192.168.1.5"], "needs HOST:PORT"),
+    (["--mode", "client"], "needs --connect"),
+    (["--key-prefix", "radar/*"], "wildcards"),
+])
+def test_radar_echo_bad_options_exit_2(capsys, args, words):
+    assert radar_echo.main(args) == 2
+    assert words in capsys.readouterr().err
+
+
+def test_radar_echo_bad_config_file_exits_2(capsys, tmp_path):
+    path = tmp_path / "bad.json5"
+    path.write_text("{ mode: 'peer', listen: [ }")
+    assert radar_echo.main(["--zenoh-config", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"radar-echo: error: zenoh config {path}:") and len(err.splitlines()) >= 1
+
+
+def test_format_message_lines():
+    state = estimator_run(frames=2)[1][0]
+    line = radar_echo.format_message("odom", "radar/awr1843/odom", messages.odometry_json(state))
+    assert ODOM_LINE.fullmatch(line) and line.startswith("odom frame 1 t 1000.100 ")
+    obj = json.loads(radar_echo.format_message("status", "k", messages.status_json({"a": 1}), as_json=True))
+    assert obj == {"key": "k", "schema": "radarodom/status", "version": 1, "a": 1}
+
+
+def test_the_shared_session_arguments_make_zenoh_options():
+    """What radar-capture and radar-echo share (tools/zenoh_args.py), with the ROS 2 ones."""
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser, ros2=True)
+    args = parser.parse_args(["--connect", "tcp/10.0.0.2:7447", "--connect", "tcp/10.0.0.3:7447",
+                              "--listen", "tcp/0.0.0.0:7448", "--mode", "peer", "--key-prefix", "robot/radar",
+                              "--ros2", "--ros2-domain", "7", "--ros2-topic", "/robot/odom"])
+    assert options_from_args(args) == ZenohOptions(
+        mode="peer", connect=("tcp/10.0.0.2:7447", "tcp/10.0.0.3:7447"), listen=("tcp/0.0.0.0:7448",),
+        key_prefix="robot/radar", ros2=True, ros2_domain=7, ros2_topic="/robot/odom")
+    assert options_from_args(parser.parse_args([])) == ZenohOptions()
+    without = argparse.ArgumentParser()
+    add_zenoh_arguments(without)
+    assert options_from_args(without.parse_args(["--zenoh-config", "z.json5"])) == \
+        ZenohOptions(config_file="z.json5")
+    with pytest.raises(SystemExit):
+        without.parse_args(["--ros2"])

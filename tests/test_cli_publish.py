@@ -1,0 +1,128 @@
+"""radar-capture publishing over Zenoh, end to end: real radar-capture processes and real
+Zenoh sessions on loopback (peers, multicast scouting off, explicit endpoints on free ports).
+
+A 3 s recording of the simulated corridor (30 frames) is made once per module; the runs
+replay it.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+
+import pytest
+from test_cli_capture import popen_capture, run_capture_cli
+from zenoh_helpers import Inbox, free_endpoint, peer, wait_for
+
+from radarodom import messages
+
+FRAMES = 30
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    rec = tmp_path_factory.mktemp("publish_cli") / "rec"
+    proc = run_capture_cli("--source", "sim://corridor?rate=max&duration=3", "--record", rec, "--no-publish",
+                           "--no-odom", timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return rec
+
+
+def _odometry(inbox: Inbox) -> list[dict]:
+    return [messages.parse_odometry(payload) for key, _, payload, _ in inbox.samples if key.endswith("/odom")]
+
+
+def test_a_subscriber_gets_every_odometry_message_in_order(recording, tmp_path):
+    here = free_endpoint()
+    with peer(listen=[here]) as session:
+        inbox = Inbox()
+        sub = session.declare_subscriber("test/radar/**", inbox)
+        try:
+            proc = run_capture_cli("--source", f"replay://{recording}?rate=2", "--key-prefix", "test/radar",
+                                   "--connect", here, "--listen", free_endpoint(), timeout=120)
+            assert proc.returncode == 0, proc.stderr
+            assert wait_for(lambda: len(_odometry(inbox)) >= FRAMES, 5.0)
+        finally:
+            sub.undeclare()
+    odom = _odometry(inbox)
+    assert [m["frame"] for m in odom] == list(range(FRAMES))  # every one, in order
+    assert all(m["schema"] == "radarodom/odom" and m["version"] == 1 for m in odom)
+    times = [m["t"] for m in odom]
+    assert times == sorted(times) and times[0] == pytest.approx(0.0, abs=1e-6)
+    assert odom[-1]["x"] > 1.0  # the corridor drives forward
+    encodings = {key.rsplit("/", 1)[1]: enc for key, enc, _, _ in inbox.samples}
+    assert encodings["odom"] == "application/json"
+    assert encodings["pointcloud"] == messages.POINTCLOUD_ENCODING
+    assert encodings["heatmap"] == messages.HEATMAP_ENCODING
+    status = [json.loads(p) for key, _, p, _ in inbox.samples if key.endswith("/status")]
+    assert status and status[-1]["running"] is False and status[-1]["frames"] == FRAMES
+    assert set(status[-1]["latency_ms"]) == {"p50", "p90", "p99", "max"}
+    assert "published 30 odometry" in proc.stdout
+
+
+def test_a_late_joiner_gets_the_latest_odometry_and_ctrl_c_ends_promptly(recording):
+    listen = free_endpoint()
+    proc = popen_capture("--source", f"replay://{recording}?rate=1&loop=0", "--listen", listen, "-q")
+    try:
+        time.sleep(2.5)  # about 20 frames in
+        with peer(connect=[listen]) as session:
+            replies = []
+            end = time.monotonic() + 10
+            while not replies and time.monotonic() < end:
+                replies = [r.ok for r in session.get("radar/awr1843/odom", timeout=2.0) if r.ok is not None]
+            assert replies, "no answer to get()"
+            latest = messages.parse_odometry(replies[0].payload.to_bytes())
+            assert latest["frame"] >= 5
+            alive = [r.ok for r in session.liveliness().get("radar/awr1843/**", timeout=2.0) if r.ok is not None]
+            assert any(str(s.key_expr) == "radar/awr1843/alive" for s in alive)
+        proc.send_signal(signal.SIGINT)
+        start = time.monotonic()
+        out, err = proc.communicate(timeout=15)
+        assert time.monotonic() - start < 5.0, "radar-capture took too long to stop"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert b"Traceback" not in err
+
+
+def test_the_publisher_keeps_going_while_its_peer_is_down_and_reaches_it_when_it_comes_up(recording):
+    router = free_endpoint()  # nothing listens there yet
+    proc = popen_capture("--source", f"replay://{recording}?rate=1&loop=0", "--connect", router,
+                         "--listen", free_endpoint(), "-q")
+    try:
+        time.sleep(1.5)
+        assert proc.poll() is None, proc.communicate()
+        with peer(listen=[router]) as session:
+            inbox = Inbox()
+            sub = session.declare_subscriber("radar/awr1843/odom", inbox)
+            try:
+                assert wait_for(lambda: len(_odometry(inbox)) >= 3, 8.0), "nothing arrived after the peer came up"
+            finally:
+                sub.undeclare()
+        frames = [m["frame"] for m in _odometry(inbox)]
+        assert frames == sorted(frames)
+        assert proc.poll() is None  # and it is still running
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0
+
+
+def test_no_publish_opens_no_session(recording):
+    proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--no-publish")
+    assert proc.returncode == 0, proc.stderr
+    assert "published" not in proc.stdout
+
+
+def test_a_bad_zenoh_option_fails_before_the_source_opens(recording, tmp_path):
+    bad = tmp_path / "zenoh.json5"
+    bad.write_text("{ this is not json5")
+    proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--zenoh-config", bad)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and str(bad) in proc.stderr

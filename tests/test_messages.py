@@ -1,0 +1,306 @@
+"""The wire schemas (radarodom.messages): round trips of every format, the byte
+layouts read back as the module docstring documents them (with struct, as a user
+without radarodom would), and refusal of bad messages and unencodable values."""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from radarodom import messages
+from radarodom.dsp.heatmap import RangeAzimuth
+from radarodom.dsp.processor import POINT_DTYPE
+from radarodom.errors import MessageError, RadarodomError
+from radarodom.estimator.odometry import OdometryState
+
+finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
+FLAGS = st.lists(st.sampled_from(["first_frame", "velocity_failed", "velocity_held", "icp_failed", "yaw_held"]),
+                 max_size=3, unique=True).map(tuple)
+
+
+def state(**kw) -> OdometryState:
+    base = dict(t=1000.25, frame=7, x=1.5, y=-0.25, yaw=0.3, vx=0.8, vy=0.01, yaw_rate=0.1,
+                pose_covariance=np.diag([1e-3, 2e-3, 3e-4]), twist_covariance=np.diag([4e-3, 5e-3, 6e-3]),
+                flags=("velocity_held",), features=180, compute_s=0.0041)
+    base.update(kw)
+    return OdometryState(**base)
+
+
+def heatmap(n_range=5, n_az=4, seed=0) -> RangeAzimuth:
+    rng = np.random.default_rng(seed)
+    doppler = rng.normal(size=(n_range, n_az)).astype(np.float32)
+    doppler[0, 0] = np.nan  # "not computed" cells travel as NaN
+    return RangeAzimuth(rng.random((n_range, n_az), np.float32), rng.random((n_range, n_az), np.float32),
+                        doppler, 0.05 * np.arange(n_range), np.linspace(-1.0, 1.0, n_az))
+
+
+def points(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    out = np.zeros(n, POINT_DTYPE)
+    for name in messages.POINTCLOUD_RECORD.names:
+        out[name] = rng.normal(size=n)
+    out["range_bin"] = rng.integers(0, 256, n)
+    return out
+
+
+# =========================================================================== odometry
+@given(t=finite, frame=st.integers(0, 2**53), xyz=st.lists(finite, min_size=6, max_size=6),
+       cov=st.lists(finite, min_size=18, max_size=18), flags=FLAGS, features=st.integers(0, 10_000),
+       compute_s=st.floats(0.0, 10.0))
+def test_odometry_round_trip(t, frame, xyz, cov, flags, features, compute_s):
+    s = OdometryState(t=t, frame=frame, x=xyz[0], y=xyz[1], yaw=xyz[2], vx=xyz[3], vy=xyz[4], yaw_rate=xyz[5],
+                      pose_covariance=np.reshape(cov[:9], (3, 3)), twist_covariance=np.reshape(cov[9:], (3, 3)),
+                      flags=flags, features=features, compute_s=compute_s)
+    m = messages.parse_odometry(messages.odometry_json(s))
+    assert m["schema"] == "radarodom/odom" and m["version"] == 1
+    assert (m["t"], m["frame"], m["x"], m["y"], m["yaw"], m["vx"], m["vy"], m["yaw_rate"]) == (t, frame, *xyz)
+    assert m["pose_covariance"] == cov[:9] and m["twist_covariance"] == cov[9:]  # row-major, exact
+    assert m["flags"] == list(flags) and m["ok"] == s.ok and m["features"] == features
+    assert m["compute_ms"] == pytest.approx(1e3 * compute_s)
+    assert (m["frame_id"], m["child_frame_id"]) == ("odom", "base_radar")
+
+
+def test_odometry_json_is_plain_utf8_json_with_the_documented_keys():
+    payload = messages.odometry_json(state())
+    obj = json.loads(payload.decode("utf-8"))
+    assert list(obj) == ["schema", "version", "t", "frame", "x", "y", "yaw", "vx", "vy", "yaw_rate",
+                         "pose_covariance", "twist_covariance", "flags", "ok", "features", "compute_ms",
+                         "frame_id", "child_frame_id"]
+    assert obj["ok"] is False and obj["flags"] == ["velocity_held"]
+    assert obj["pose_covariance"][4] == 2e-3
+
+
+@pytest.mark.parametrize("bad", [dict(x=math.nan), dict(yaw=math.inf), dict(t=-math.inf),
+                                 dict(pose_covariance=np.full((3, 3), np.nan)),
+                                 dict(twist_covariance=np.eye(2))])
+def test_odometry_refuses_what_it_cannot_encode(bad):
+    with pytest.raises(MessageError):
+        messages.odometry_json(state(**bad))
+
+
+def _odom_obj(**changes) -> bytes:
+    obj = json.loads(messages.odometry_json(state()))
+    obj.update(changes)
+    return json.dumps(obj).encode()
+
+
+@pytest.mark.parametrize("payload, words", [
+    (b"\xff\xfe", "not UTF-8 JSON"),
+    (b"{not json", "not UTF-8 JSON"),
+    (b"[1, 2]", "not an object"),
+    (_odom_obj(schema="radarodom/status"), "schema 'radarodom/status'"),
+    (_odom_obj(version=2), "version 2 is newer"),
+    (_odom_obj(version="1"), "bad version"),
+    (_odom_obj(version=True), "bad version"),
+    (_odom_obj(frame=-1), "'frame'"),
+    (_odom_obj(frame=1.5), "'frame'"),
+    (_odom_obj(x="1.0"), "'x'"),
+    (_odom_obj(ok="yes"), "'ok'"),
+    (_odom_obj(yaw=True), "'yaw'"),
+    (_odom_obj(pose_covariance=[0.0] * 8), "'pose_covariance'"),
+    (_odom_obj(flags=[1]), "'flags'"),
+    (messages.odometry_json(state()).replace(b'"x":1.5', b'"x":1e400'), "'x'"),  # read as inf
+    (_odom_obj(t=None), "'t'"),
+    (messages.odometry_json(state()).replace(b'"x":1.5', b'"x":NaN'), "NaN"),
+])
+def test_parse_odometry_refuses_bad_messages(payload, words):
+    with pytest.raises(MessageError, match=words.replace("(", r"\(")):
+        messages.parse_odometry(payload)
+
+
+def test_parse_odometry_names_a_missing_field_and_ignores_unknown_ones():
+    obj = json.loads(messages.odometry_json(state()))
+    del obj["yaw_rate"]
+    with pytest.raises(MessageError, match="'yaw_rate' is missing"):
+        messages.parse_odometry(json.dumps(obj).encode())
+    assert messages.parse_odometry(_odom_obj(extra={"added": "later"}))["extra"] == {"added": "later"}
+
+
+def test_message_errors_are_radarodom_errors():
+    assert issubclass(MessageError, RadarodomError)
+
+
+# =========================================================================== status
+def test_status_round_trip_and_refusals():
+    info = {"rate_hz": 10.0, "dropped": 0, "latency_ms": {"p50": 3.2, "p99": 9.9}, "radar": "streaming"}
+    m = messages.parse_status(messages.status_json(info))
+    assert m == {"schema": "radarodom/status", "version": 1, **info}
+    with pytest.raises(MessageError, match="non-finite"):
+        messages.status_json({"latency_ms": math.nan})
+    with pytest.raises(MessageError, match="version"):
+        messages.status_json({"version": 3})
+    with pytest.raises(MessageError, match="not a radarodom/status message"):
+        messages.parse_status(messages.odometry_json(state()))
+    with pytest.raises(MessageError):
+        messages.status_json({"when": object()})
+
+
+# =========================================================================== point cloud
+@given(n=st.integers(0, 50), seed=st.integers(0, 2**32 - 1), frame=st.integers(0, 2**64 - 1), t=finite)
+def test_pointcloud_round_trip(n, seed, frame, t):
+    pts = points(n, seed)
+    header, decoded = messages.decode_pointcloud(messages.encode_pointcloud(frame, t, pts))
+    assert header == {"schema": "radarodom/pointcloud", "version": 1, "frame": frame, "t": t, "count": n}
+    assert decoded.dtype == messages.POINTCLOUD_RECORD and decoded.flags.writeable
+    for name in messages.POINTCLOUD_RECORD.names:
+        np.testing.assert_array_equal(decoded[name], pts[name])
+
+
+def test_pointcloud_layout_is_the_documented_one():
+    pts = points(3)
+    payload = messages.encode_pointcloud(42, 1000.5, pts)
+    magic, version, header_bytes, frame, t, count, record_bytes, fields = struct.unpack_from("<4sHHQdIHH", payload)
+    assert (magic, version, header_bytes, frame, t, count, record_bytes, fields) == \
+        (b"RPC1", 1, 32, 42, 1000.5, 3, 36, 9)
+    assert len(payload) == 32 + 3 * 36
+    second = struct.unpack_from("<9f", payload, 32 + 36)
+    assert second == tuple(np.float32(pts[1][f]) for f in
+                           ("x", "y", "z", "range", "azimuth", "elevation", "velocity", "snr_db", "noise_db"))
+    assert messages.POINTCLOUD_ENCODING == "application/octet-stream;radarodom/pointcloud/v1"
+
+
+def _patched(payload: bytes, offset: int, fmt: str, value) -> bytes:
+    out = bytearray(payload)
+    struct.pack_into(fmt, out, offset, value)
+    return bytes(out)
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda p: p[:20], "shorter than its 32-byte header"),
+    (lambda p: p[:-1], "header says 2 points"),
+    (lambda p: p + b"\0", "header says 2 points"),
+    (lambda p: b"XPC1" + p[4:], "magic"),
+    (lambda p: _patched(p, 4, "<H", 2), "version 2 is newer"),
+    (lambda p: _patched(p, 6, "<H", 40), "header of 40 bytes"),
+    (lambda p: _patched(p, 28, "<H", 40), "records of 40 bytes"),
+    (lambda p: messages.encode_heatmap(1, 1.0, heatmap()), "magic"),
+])
+def test_decode_pointcloud_refuses_bad_messages(change, words):
+    with pytest.raises(MessageError, match=words):
+        messages.decode_pointcloud(change(messages.encode_pointcloud(1, 1.0, points(2))))
+
+
+def test_encode_pointcloud_refusals():
+    with pytest.raises(MessageError, match="lack field"):
+        messages.encode_pointcloud(0, 0.0, np.zeros(2, [("x", "f4")]))
+    with pytest.raises(MessageError, match="frame"):
+        messages.encode_pointcloud(-1, 0.0, points(1))
+    with pytest.raises(MessageError, match="t must be finite"):
+        messages.encode_pointcloud(0, math.nan, points(1))
+
+
+# =========================================================================== heatmap
+@given(n_range=st.integers(1, 40), n_az=st.integers(1, 16), seed=st.integers(0, 1000),
+       frame=st.integers(0, 2**40), t=finite)
+def test_heatmap_round_trip(n_range, n_az, seed, frame, t):
+    hm = heatmap(n_range, n_az, seed)
+    header, arrays = messages.decode_heatmap(messages.encode_heatmap(frame, t, hm))
+    assert header == {"schema": "radarodom/heatmap", "version": 1, "frame": frame, "t": t, "n_range": n_range,
+                      "n_azimuth": n_az, "channels": ["intensity", "static", "doppler_mps"]}
+    back = RangeAzimuth(**arrays)  # the arrays are RangeAzimuth's fields
+    for name in ("intensity", "static", "doppler_mps", "range_m", "azimuth_rad"):
+        expected = np.asarray(getattr(hm, name), np.float32)
+        np.testing.assert_array_equal(getattr(back, name), expected)  # NaN == NaN here
+        assert getattr(back, name).dtype == np.float32
+
+
+def test_heatmap_layout_is_the_documented_one():
+    hm = heatmap(5, 4)
+    payload = messages.encode_heatmap(9, 12.5, hm)
+    assert struct.unpack_from("<4sHHQdIII", payload) == (b"RHM1", 1, 36, 9, 12.5, 5, 4, 3)
+    floats = np.frombuffer(payload, "<f4", offset=36)
+    assert len(floats) == 5 + 4 + 3 * 5 * 4
+    np.testing.assert_array_equal(floats[:5], np.float32(hm.range_m))
+    np.testing.assert_array_equal(floats[5:9], np.float32(hm.azimuth_rad))
+    cells = floats[9:].reshape(3, 5, 4)
+    np.testing.assert_array_equal(cells[0], hm.intensity)
+    np.testing.assert_array_equal(cells[1], hm.static)
+    np.testing.assert_array_equal(cells[2], hm.doppler_mps)
+    assert messages.HEATMAP_ENCODING == "application/octet-stream;radarodom/heatmap/v1"
+
+
+def test_heatmap_encodes_non_contiguous_arrays():
+    hm = heatmap(6, 8)
+    sliced = RangeAzimuth(hm.intensity[::2], hm.static[::2], hm.doppler_mps[::2], hm.range_m[::2], hm.azimuth_rad)
+    _, arrays = messages.decode_heatmap(messages.encode_heatmap(0, 0.0, sliced))
+    np.testing.assert_array_equal(arrays["intensity"], hm.intensity[::2])
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda p: p[:30], "shorter than its 36-byte header"),
+    (lambda p: p[:-4], "header says 5 x 4 x 3"),
+    (lambda p: b"RPC1" + p[4:], "magic"),
+    (lambda p: _patched(p, 4, "<H", 7), "version 7 is newer"),
+    (lambda p: _patched(p, 32, "<I", 2), "2 channels"),
+    (lambda p: _patched(p, 24, "<I", 6), "header says 6 x 4 x 3"),
+])
+def test_decode_heatmap_refuses_bad_messages(change, words):
+    with pytest.raises(MessageError, match=words):
+        messages.decode_heatmap(change(messages.encode_heatmap(1, 1.0, heatmap(5, 4))))
+
+
+def test_encode_heatmap_refuses_inconsistent_shapes():
+    hm = heatmap(5, 4)
+    with pytest.raises(MessageError, match="static has shape"):
+        messages.encode_heatmap(0, 0.0, RangeAzimuth(hm.intensity, hm.static.T, hm.doppler_mps, hm.range_m,
+                                                     hm.azimuth_rad))
+    with pytest.raises(MessageError, match="1-D"):
+        messages.encode_heatmap(0, 0.0, RangeAzimuth(hm.intensity, hm.static, hm.doppler_mps,
+                                                     hm.range_m[:, None], hm.azimuth_rad))
+
+
+# =========================================================================== ROS 2
+@pytest.mark.parametrize("t, expected", [(0.0, (0, 0)), (1.5, (1, 500_000_000)), (1.9999999999, (2, 0)),
+                                         (1700000000.123456789, (1700000000, 123456717)), (-0.25, (-1, 750_000_000))])
+def test_ros2_stamp(t, expected):
+    assert messages.ros2_stamp(t) == expected
+
+
+def test_ros2_odometry_through_rosbags_cdr():
+    rosbags = pytest.importorskip("rosbags.typesys")
+    store = rosbags.get_typestore(rosbags.Stores.ROS2_JAZZY)
+    s = state(yaw=2.5, pose_covariance=np.arange(9.0).reshape(3, 3), twist_covariance=10 + np.arange(9.0).reshape(3, 3))
+    cdr = bytes(store.serialize_cdr(messages.ros2_odometry(s, store), "nav_msgs/msg/Odometry"))
+    assert cdr[:4] == b"\x00\x01\x00\x00"  # CDR, little-endian
+    msg = store.deserialize_cdr(cdr, "nav_msgs/msg/Odometry")
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1000, 250_000_000)
+    assert (msg.header.frame_id, msg.child_frame_id) == ("odom", "base_radar")
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    assert (p.x, p.y, p.z) == (1.5, -0.25, 0.0)
+    assert 2 * math.atan2(q.z, q.w) == pytest.approx(2.5) and q.x == q.y == 0.0
+    assert (msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.angular.z) == (0.8, 0.01, 0.1)
+    pose_cov = msg.pose.covariance.reshape(6, 6)
+    np.testing.assert_array_equal(pose_cov[np.ix_([0, 1, 5], [0, 1, 5])], np.arange(9.0).reshape(3, 3))
+    assert pose_cov[2, 2] == pose_cov[3, 3] == pose_cov[4, 4] == 1e6 and pose_cov[0, 2] == 0.0
+    twist_cov = msg.twist.covariance.reshape(6, 6)
+    np.testing.assert_array_equal(twist_cov[np.ix_([0, 1, 5], [0, 1, 5])], 10 + np.arange(9.0).reshape(3, 3))
+    with pytest.raises(MessageError):
+        messages.ros2_odometry(state(x=math.nan), store)
+
+
+def test_ros2_attachment_is_zenoh_serialization_of_rmw_zenohs_fields():
+    ext = pytest.importorskip("zenoh.ext")
+    gid = bytes(range(16))
+    attachment = messages.ros2_attachment(7, 1_700_000_000_123_456_789, gid)
+    assert len(attachment) == 33
+    # rmw_zenoh_cpp: serializer.serialize(int64 seq); (int64 timestamp); (std::array<uint8_t, 16> gid)
+    assert attachment == ext.z_serialize((ext.Int64(7), ext.Int64(1_700_000_000_123_456_789), gid)).to_bytes()
+    with pytest.raises(MessageError):
+        messages.ros2_attachment(1, 0, b"short")
+
+
+def test_messages_import_neither_zenoh_nor_the_dsp():
+    """radar-echo and other readers stay light: no zenoh, scipy or rosbags behind the schemas."""
+    code = ("import sys, radarodom.messages; "
+            "print(sorted(m for m in ('zenoh', 'scipy', 'rosbags', 'radarodom.dsp') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"

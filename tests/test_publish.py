@@ -1,0 +1,504 @@
+"""Publishing over Zenoh (radarodom.publish) with real sessions on loopback: peers
+with multicast scouting off on explicit tcp/127.0.0.1 endpoints on free ports.
+
+What a subscriber gets (every odometry message of a run, in order, by schema;
+point clouds and heatmaps with their encodings, exactly), the queryable for late
+joiners, the liveliness token, a publisher without subscribers, a publisher whose
+peer is down at start or goes away and comes back, the process exiting promptly
+(also on Ctrl-C), the ROS 2 output as rmw_zenoh_cpp expects it, and the session
+options and their errors."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import zenoh
+from conftest import REPO
+from zenoh_helpers import Inbox, estimator_run, free_endpoint, peer, subscribe, wait_for
+
+from radarodom import messages, publish
+from radarodom.errors import PublishConfigError, PublishError
+from radarodom.publish import (CONNECT_RETRY, DEFAULT_ENDPOINT, ROS2_ROUTER_ENDPOINT, Publisher, ZenohOptions,
+                               open_session, ros2_liveliness_keys, ros2_topic_key)
+
+
+@pytest.fixture(scope="module")
+def run():
+    """A real estimator run to publish: [(OdometryState, points, RangeAzimuth)]."""
+    return estimator_run()
+
+
+@pytest.fixture
+def endpoint() -> str:
+    return free_endpoint()
+
+
+@pytest.fixture
+def publisher(endpoint):
+    with Publisher(ZenohOptions(listen=[endpoint])) as pub:
+        yield pub
+
+
+def matched(pub: Publisher, kind: str = "odom") -> bool:
+    """Wait until the publisher of *kind* knows of a subscriber (samples put before are lost)."""
+    return wait_for(lambda: pub._publishers[kind].matching_status.matching)
+
+
+# =========================================================================== what subscribers get
+def test_a_subscriber_receives_every_odometry_message_in_order(publisher, endpoint, run):
+    with peer(connect=[endpoint]) as session:
+        inbox = subscribe(session, "radar/awr1843/odom")
+        assert matched(publisher)
+        for state, _, _ in run:
+            publisher.odometry(state)
+            time.sleep(0.01)  # a replay at 100 Hz
+        assert wait_for(lambda: len(inbox.samples) >= len(run)), f"{len(inbox.samples)} of {len(run)}"
+        time.sleep(0.05)
+    assert len(inbox.samples) == len(run)
+    received = [messages.parse_odometry(p) for p in inbox.payloads()]
+    assert [m["frame"] for m in received] == list(range(len(run)))
+    for m, (state, _, _) in zip(received, run):
+        assert m == messages.odometry_dict(state)
+    assert {s[0] for s in inbox.samples} == {"radar/awr1843/odom"}
+    assert {s[1] for s in inbox.samples} == {"application/json"}
+    assert publisher.counts["odom"] == len(run)
+
+
+def test_point_clouds_and_heatmaps_arrive_with_their_encodings_exactly(publisher, endpoint, run):
+    with peer(connect=[endpoint]) as session:
+        clouds = subscribe(session, "radar/awr1843/pointcloud")
+        heatmaps = subscribe(session, "radar/awr1843/heatmap")
+        assert matched(publisher, "pointcloud") and matched(publisher, "heatmap")
+        for i, (state, points, heatmap) in enumerate(run[:5]):
+            publisher.pointcloud(i, state.t, points)
+            publisher.heatmap(i, state.t, heatmap)
+            # One frame at a time: on a loaded machine a burst of heatmaps may be dropped, by design.
+            assert wait_for(lambda: len(clouds.samples) == len(heatmaps.samples) == i + 1), \
+                (i, len(clouds.samples), len(heatmaps.samples))
+    assert {s[1] for s in clouds.samples} == {"application/octet-stream;radarodom/pointcloud/v1"}
+    assert {s[1] for s in heatmaps.samples} == {"application/octet-stream;radarodom/heatmap/v1"}
+    for i, (state, points, heatmap) in enumerate(run[:5]):
+        header, decoded = messages.decode_pointcloud(clouds.samples[i][2])
+        assert (header["frame"], header["t"], header["count"]) == (i, state.t, len(points))
+        for name in messages.POINTCLOUD_RECORD.names:
+            np.testing.assert_array_equal(decoded[name], points[name])
+        header, arrays = messages.decode_heatmap(heatmaps.samples[i][2])
+        assert (header["frame"], header["n_range"], header["n_azimuth"]) == (i, *heatmap.intensity.shape)
+        for name in ("intensity", "static", "doppler_mps", "range_m", "azimuth_rad"):
+            np.testing.assert_array_equal(arrays[name], np.float32(getattr(heatmap, name)))
+
+
+def test_status_messages(publisher, endpoint):
+    with peer(connect=[endpoint]) as session:
+        inbox = subscribe(session, "radar/awr1843/status")
+        assert matched(publisher, "status")
+        publisher.status({"rate_hz": 10.0, "dropped": 0})
+        assert wait_for(lambda: inbox.samples)
+    assert messages.parse_status(inbox.samples[0][2]) == {"schema": "radarodom/status", "version": 1,
+                                                          "rate_hz": 10.0, "dropped": 0}
+    assert inbox.samples[0][1] == "application/json"
+
+
+def test_a_late_joiner_gets_the_latest_odometry_by_query(publisher, endpoint, run):
+    with peer(connect=[endpoint]) as session:
+        assert wait_for(lambda: list(session.info.peers_zid()))
+        # Before any odometry the queryable has nothing to say.
+        assert [r for r in session.get("radar/awr1843/odom", timeout=1.0) if r.ok is not None] == []
+    for state, _, _ in run[:4]:
+        publisher.odometry(state)  # nobody listens
+    with peer(connect=[endpoint]) as late:
+        assert wait_for(lambda: list(late.info.peers_zid()))
+        replies = [r.ok for r in late.get("radar/awr1843/odom", timeout=2.0) if r.ok is not None]
+    assert len(replies) == 1
+    assert str(replies[0].key_expr) == "radar/awr1843/odom" and str(replies[0].encoding) == "application/json"
+    assert messages.parse_odometry(replies[0].payload.to_bytes())["frame"] == run[3][0].frame
+
+
+def test_the_liveliness_token_lives_as_long_as_the_publisher(endpoint):
+    with peer(listen=[endpoint]) as session:
+        pub = Publisher(ZenohOptions(listen=(), connect=[endpoint]))
+        try:
+            assert wait_for(lambda: [str(r.ok.key_expr) for r in session.liveliness().get("radar/**", timeout=1.0)
+                                     if r.ok is not None] == ["radar/awr1843/alive"])
+        finally:
+            pub.close()
+        assert wait_for(lambda: [r for r in session.liveliness().get("radar/**", timeout=0.5)
+                                 if r.ok is not None] == [])
+
+
+def test_the_publisher_keeps_running_without_subscribers(publisher, endpoint, run):
+    state = run[-1][0]
+    started = time.perf_counter()
+    slowest = 0.0
+    for i in range(300):
+        t0 = time.perf_counter()
+        publisher.odometry(state)
+        publisher.pointcloud(i, state.t, run[-1][1])
+        publisher.heatmap(i, state.t, run[-1][2])
+        slowest = max(slowest, time.perf_counter() - t0)
+    assert time.perf_counter() - started < 5.0
+    assert slowest < 0.1, f"a publish took {slowest * 1e3:.1f} ms"
+    assert publisher.counts == {"odom": 300, "pointcloud": 300, "heatmap": 300, "status": 0}
+    with peer(connect=[endpoint]) as session:  # ... and a subscriber that joins then gets what follows
+        inbox = subscribe(session, "radar/awr1843/odom")
+        assert matched(publisher)
+        publisher.odometry(state)
+        assert wait_for(lambda: inbox.samples)
+
+
+def _publish_until(pub: Publisher, state, inbox: Inbox, timeout: float) -> float | None:
+    """Publish every 50 ms until *inbox* gets something; the seconds it took, or None."""
+    started = time.monotonic()
+    while time.monotonic() - started < timeout:
+        pub.odometry(state)
+        if inbox.samples:
+            return time.monotonic() - started
+        time.sleep(0.05)
+    return None
+
+
+def test_a_peer_that_is_down_at_start_and_goes_away_is_joined_when_it_comes_up(endpoint, run):
+    state = run[-1][0]
+    # Told to connect to a peer that is not there: opens anyway, and publishes into nothing.
+    with Publisher(ZenohOptions(listen=(), connect=[endpoint])) as pub:
+        for _ in range(10):
+            pub.odometry(state)
+            time.sleep(0.05)
+        for attempt in ("comes up", "comes back"):
+            with peer(listen=[endpoint]) as session:
+                inbox = subscribe(session, "radar/awr1843/odom")
+                took = _publish_until(pub, state, inbox, timeout=5.0)
+                assert took is not None, f"nothing received within 5 s after the peer {attempt}"
+            # The peer is gone again: publishing goes on without error.
+            for _ in range(10):
+                pub.odometry(state)
+                time.sleep(0.02)
+
+
+# =========================================================================== the process exits
+PUBLISHER_SCRIPT = """
+import sys, time
+from radarodom.estimator.odometry import OdometryState
+from radarodom.publish import Publisher, ZenohOptions
+with Publisher(ZenohOptions(listen=(), connect=[sys.argv[1]])) as pub:
+    print("ready", flush=True)
+    i = 0
+    while sys.argv[2] == "forever" or i < int(sys.argv[2]):
+        pub.odometry(OdometryState(t=float(i), frame=i))
+        i += 1
+        time.sleep(0.01)
+print("closed", flush=True)
+"""
+
+
+def _start_publisher_process(endpoint: str, count: str) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", PUBLISHER_SCRIPT, endpoint, count], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    return proc
+
+
+def test_a_publishing_process_exits_promptly_at_its_end(endpoint):
+    with peer(listen=[endpoint]) as session:
+        inbox = subscribe(session, "radar/awr1843/odom")  # someone is listening while it runs
+        proc = _start_publisher_process(endpoint, "50")
+        try:
+            out, err = proc.communicate(timeout=10)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert out.strip() == "closed"
+    assert inbox.samples  # it did publish
+
+
+def test_a_publishing_process_exits_promptly_on_ctrl_c(endpoint):
+    with peer(listen=[endpoint]) as session:
+        inbox = subscribe(session, "radar/awr1843/odom")
+        proc = _start_publisher_process(endpoint, "forever")
+        try:
+            assert wait_for(lambda: len(inbox.samples) > 3)
+            proc.send_signal(signal.SIGINT)
+            started = time.monotonic()
+            _, err = proc.communicate(timeout=10)
+        finally:
+            proc.kill()
+    assert time.monotonic() - started < 5.0
+    # Python's own exit on an unhandled Ctrl-C: it dies of SIGINT, after the with block closed the session.
+    assert proc.returncode == -signal.SIGINT and "KeyboardInterrupt" in err
+
+
+def test_close_leaves_no_thread_that_would_hold_the_interpreter(endpoint):
+    before = set(threading.enumerate())
+    with Publisher(ZenohOptions(listen=[endpoint])) as pub:
+        pub.status({"n": 1})
+    assert wait_for(lambda: not [t for t in threading.enumerate() if t not in before and not t.daemon])
+
+
+def test_closing_stops_publishing_and_can_be_repeated(endpoint, run):
+    pub = Publisher(ZenohOptions(listen=[endpoint]))
+    pub.close()
+    pub.close()
+    assert pub.closed
+    with pytest.raises(PublishError, match="closed"):
+        pub.odometry(run[0][0])
+
+
+# =========================================================================== ROS 2
+def test_ros2_odometry_reaches_an_rmw_zenoh_subscriber(endpoint, run):
+    typesys = pytest.importorskip("rosbags.typesys")
+    store = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+    type_hash = store.hash_rihs01("nav_msgs/msg/Odometry")
+    key = f"0/radar/odom/nav_msgs::msg::dds_::Odometry_/{type_hash}"
+    options = ZenohOptions(listen=[endpoint], connect=(), ros2=True)
+    with Publisher(options) as pub, peer(connect=[endpoint]) as session:
+        assert pub.ros2_key == key
+        inbox = subscribe(session, key)  # what an rmw_zenoh_cpp subscription declares
+        assert matched(pub, "ros2")
+        for i, (state, _, _) in enumerate(run[:6]):
+            pub.odometry(state)
+            assert wait_for(lambda: len(inbox.samples) == i + 1), (i, len(inbox.samples))
+        tokens = sorted(str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=1.0)
+                        if r.ok is not None)
+        zid = pub.zid
+    sequences, gids = [], set()
+    for (_, _, payload, attachment), (state, _, _) in zip(inbox.samples, run):
+        msg = store.deserialize_cdr(payload, "nav_msgs/msg/Odometry")
+        assert msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 == pytest.approx(state.t, abs=1e-9)
+        assert (msg.pose.pose.position.x, msg.pose.pose.position.y) == (state.x, state.y)
+        assert 2 * math.atan2(msg.pose.pose.orientation.z, msg.pose.pose.orientation.w) == \
+            pytest.approx(math.remainder(state.yaw, 2 * math.pi))
+        assert msg.twist.twist.linear.x == state.vx and msg.twist.twist.angular.z == state.yaw_rate
+        assert len(attachment) == 33
+        seq, stamp_ns, n, gid = messages.ROS2_ATTACHMENT.unpack(attachment)
+        assert n == 16 and abs(stamp_ns - time.time_ns()) < 60e9
+        sequences.append(seq)
+        gids.add(gid)
+    assert sequences == list(range(sequences[0], sequences[0] + 6)) and len(gids) == 1
+    assert tokens == sorted(ros2_liveliness_keys(0, zid, "/radar/odom", type_hash))
+    for token in tokens:
+        _check_rmw_zenoh_token(token)
+
+
+def _check_rmw_zenoh_token(token: str) -> None:
+    """What rmw_zenoh_cpp's Entity::make(keyexpr) checks before it accepts a graph token."""
+    parts = token.split("/")
+    assert parts[0] == "@ros2_lv" and all(parts), token
+    assert parts[5] in ("NN", "MP")
+    if parts[5] == "NN":
+        assert len(parts) == 9
+        return
+    assert len(parts) == 13
+    qos = parts[12].split(":")
+    assert len(qos) == 6 and len(qos[2].split(",")) == 2 and len(qos[5].split(",")) == 3
+    assert parts[9].replace("%", "/") == "/radar/odom" and parts[10] == "nav_msgs::msg::dds_::Odometry_"
+
+
+def test_ros2_keys_follow_rmw_zenoh():
+    assert ros2_topic_key(3, "/robot/radar/odom", "RIHS01_ab") == \
+        "3/robot/radar/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_ab"
+    node, pub = ros2_liveliness_keys(3, "f00d", "/robot/odom", "RIHS01_ab")
+    assert node == "@ros2_lv/3/f00d/0/0/NN/%/%/radarodom"
+    assert pub == "@ros2_lv/3/f00d/0/10/MP/%/%/radarodom/%robot%odom/nav_msgs::msg::dds_::Odometry_/RIHS01_ab/::,10:,:,:,,"
+
+
+def test_ros2_without_rosbags_says_what_to_install(monkeypatch, endpoint):
+    monkeypatch.setitem(sys.modules, "rosbags", None)  # as if it were not installed
+    monkeypatch.setitem(sys.modules, "rosbags.typesys", None)
+    with pytest.raises(PublishConfigError, match=r'pip install "radarodom\[ros2\]"') as info:
+        Publisher(ZenohOptions(listen=[endpoint], ros2=True))
+    assert info.value.exit_code == 2
+
+
+# =========================================================================== session options
+def _config(options: ZenohOptions) -> dict:
+    config = options.to_config()
+    return {key: json.loads(config.get_json(key)) for key in
+            ("mode", "listen/endpoints", "connect/endpoints", "scouting/multicast/enabled", "connect/retry")}
+
+
+def test_the_default_session_is_a_local_peer_without_multicast():
+    config = _config(ZenohOptions())
+    assert config["mode"] == "peer" and config["scouting/multicast/enabled"] is False
+    assert config["listen/endpoints"] == [DEFAULT_ENDPOINT] == ["tcp/127.0.0.1:7448"]
+    assert config["connect/endpoints"] == []
+    assert config["connect/retry"] == {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2.0}
+    assert "period_max_ms: 1000" in CONNECT_RETRY
+    assert _config(ZenohOptions(ros2=True))["connect/endpoints"] == [ROS2_ROUTER_ENDPOINT]
+    assert _config(ZenohOptions(ros2=True, connect=["tcp/10.0.0.1:7447"]))["connect/endpoints"] == ["tcp/10.0.0.1:7447"]
+    client = _config(ZenohOptions(mode="client", connect="tcp/10.0.0.1:7447"))
+    assert client["mode"] == "client" and client["listen/endpoints"] == []
+
+
+def test_subscribers_connect_to_the_publishers_default_endpoint_and_never_take_it():
+    sub = ZenohOptions().for_subscriber()
+    assert (sub.listen, sub.connect) == ((), (DEFAULT_ENDPOINT,))
+    sub = ZenohOptions(connect=["tcp/10.0.0.1:7448"]).for_subscriber()
+    assert (sub.effective_listen, sub.effective_connect) == ((), ("tcp/10.0.0.1:7448",))
+    sub = ZenohOptions(listen=["tcp/0.0.0.0:7500"]).for_subscriber()
+    assert (sub.effective_listen, sub.effective_connect) == (("tcp/0.0.0.0:7500",), ())
+    from_file = ZenohOptions(config_file="zenoh.json5")
+    assert from_file.for_subscriber() is from_file
+
+
+def test_a_config_file_comes_first_and_options_override_it(tmp_path):
+    path = tmp_path / "zenoh.json5"
+    path.write_text("{ mode: 'peer', // comments are JSON5\n"
+                    "  listen: { endpoints: ['tcp/127.0.0.1:7999'] },\n"
+                    "  scouting: { multicast: { enabled: true } } }")
+    config = _config(ZenohOptions(config_file=path))
+    assert config["listen/endpoints"] == ["tcp/127.0.0.1:7999"]
+    assert config["scouting/multicast/enabled"] is True  # the file's, not the built-in default
+    overridden = _config(ZenohOptions(config_file=path, listen=["tcp/127.0.0.1:7001"], mode="client",
+                                      connect=["tcp/127.0.0.1:7002"]))
+    assert overridden["listen/endpoints"] == ["tcp/127.0.0.1:7001"] and overridden["mode"] == "client"
+
+
+@pytest.mark.parametrize("text, words", [
+    ("{ mode: 'peer', listen: { endpoints: [ }", "zenoh config .*zenoh.json5"),
+    ("{ mode: 'banana' }", "banana"),
+    ("{ moed: 'peer' }", "moed"),
+])
+def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
+    path = tmp_path / "zenoh.json5"
+    path.write_text(text)
+    with pytest.raises(PublishConfigError, match=words) as info:
+        ZenohOptions(config_file=path).to_config()
+    assert info.value.exit_code == 2
+    assert ".rs:" not in str(info.value)  # zenoh's source locations are left out
+    with pytest.raises(PublishConfigError, match="No such file"):
+        ZenohOptions(config_file=tmp_path / "missing.json5").to_config()
+
+
+@pytest.mark.parametrize("options, words", [
+    (dict(mode="router"), "mode must be one of peer, client"),
+    (dict(connect=["localhost:7447"]), "not an endpoint"),
+    (dict(connect=["tcp/192.168.1.5"]), "needs HOST:PORT"),
+    (dict(listen=["tcp/127.0.0.1:99999"]), "needs HOST:PORT"),
+    (dict(listen=[7447]), "not an endpoint"),
+    (dict(key_prefix=""), "non-empty"),
+    (dict(key_prefix="radar/*"), "wildcards"),
+    (dict(key_prefix="/radar"), "not a Zenoh key expression"),
+    (dict(key_prefix="radar//awr"), "not a Zenoh key expression"),
+    (dict(ros2_domain=233), "domain"),
+    (dict(ros2_topic="radar/odom"), "absolute ROS name"),
+    (dict(ros2_topic="/radar//odom"), "absolute ROS name"),
+    (dict(mode="client"), "needs --connect"),
+    (dict(mode="client", connect=["tcp/127.0.0.1:7447"], listen=["tcp/127.0.0.1:7448"]), "does not listen"),
+])
+def test_bad_options_are_refused_with_exit_code_2(options, words):
+    with pytest.raises(PublishConfigError, match=words) as info:
+        ZenohOptions(**options)
+    assert info.value.exit_code == 2
+
+
+def test_a_client_without_its_router_fails_to_open_with_a_hint(endpoint):
+    with pytest.raises(PublishError, match="router running") as info:
+        Publisher(ZenohOptions(mode="client", connect=[endpoint]))
+    assert info.value.exit_code == 1 and endpoint in str(info.value)
+
+
+def test_a_chosen_listen_endpoint_in_use_is_an_error(endpoint):
+    with peer(listen=[endpoint]):
+        with pytest.raises(PublishError, match="already in use") as info:
+            Publisher(ZenohOptions(listen=[endpoint]))
+    assert info.value.exit_code == 1
+
+
+@pytest.fixture
+def default_endpoint(monkeypatch) -> str:
+    """The publisher's default endpoint moved to a free port for the test, so that it
+    meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""
+    endpoint = free_endpoint()
+    monkeypatch.setattr(publish, "DEFAULT_ENDPOINT", endpoint)
+    return endpoint
+
+
+def test_the_default_endpoint_in_use_falls_back_to_a_free_port(warnings_log, default_endpoint):
+    holder = socket.socket()  # a program that is not Zenoh holds the port
+    holder.bind(("127.0.0.1", int(default_endpoint.rsplit(":", 1)[1])))
+    holder.listen()
+    try:
+        pub = Publisher()
+        try:
+            fallback = pub.options.listen[0]
+            assert fallback != default_endpoint and fallback.startswith("tcp/127.0.0.1:")
+            assert default_endpoint in pub.options.connect
+            with peer(connect=[fallback]) as session:
+                inbox = subscribe(session, "radar/awr1843/status")
+                assert matched(pub, "status")
+                pub.status({"ok": True})
+                assert wait_for(lambda: inbox.samples)
+        finally:
+            started = time.monotonic()
+            pub.close()
+    finally:
+        holder.close()
+    # The holder accepts TCP but never answers Zenoh's handshake: closing waits for that at most 2 s.
+    assert time.monotonic() - started < 3.0
+    assert any(f"{default_endpoint} is in use" in r.getMessage() and fallback in r.getMessage()
+               for r in warnings_log.records)
+
+
+def test_default_subscribers_find_default_publishers_even_a_second_one(default_endpoint):
+    """Two publishers with default options (two radars): the second falls back to a free
+    port and joins the first; a subscriber with default options hears both."""
+    with Publisher() as first, Publisher(ZenohOptions(key_prefix="radar/second")) as second:
+        assert first.options.effective_listen == (default_endpoint,) != second.options.effective_listen
+        session, used = open_session(ZenohOptions().for_subscriber())
+        try:
+            assert used.connect == (default_endpoint,) and used.listen == ()
+            inbox = subscribe(session, "radar/**")
+            assert matched(first, "status") and matched(second, "status")
+            first.status({"radar": 1})
+            second.status({"radar": 2})
+            assert wait_for(lambda: len(inbox.samples) == 2)
+        finally:
+            session.close()
+    assert sorted(s[0] for s in inbox.samples) == ["radar/awr1843/status", "radar/second/status"]
+
+
+def test_zenoh_is_closed_by_a_with_block_even_on_errors(endpoint):
+    with pytest.raises(RuntimeError):
+        with Publisher(ZenohOptions(listen=[endpoint])) as pub:
+            raise RuntimeError("boom")
+    assert pub.closed
+    with Publisher(ZenohOptions(listen=[endpoint])):  # the port is free again
+        pass
+
+
+def test_keys_are_under_the_prefix():
+    assert ZenohOptions().key("odom") == "radar/awr1843/odom"
+    assert ZenohOptions(key_prefix="robot1/radar").key("heatmap") == "robot1/radar/heatmap"
+    assert isinstance(zenoh.KeyExpr(ZenohOptions().key("status")), zenoh.KeyExpr)
+
+
+def test_the_readme_subscriber_example_receives_odometry(run):
+    """The README's ten-line subscriber, pointed at this test's publisher."""
+    readme = (REPO / "README.md").read_text()
+    section = readme[readme.index("A subscriber in ten lines"):]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    assert DEFAULT_ENDPOINT in code and "time.sleep(60)" in code
+    endpoint = free_endpoint()
+    code = code.replace(DEFAULT_ENDPOINT, endpoint).replace("time.sleep(60)", "time.sleep(1.5)")
+    with Publisher(ZenohOptions(listen=[endpoint])) as pub:
+        proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        try:
+            while proc.poll() is None:
+                pub.odometry(run[5][0])
+                time.sleep(0.05)
+            out, err = proc.communicate(timeout=10)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert re.match(r"1000\.500 x -?\d+\.\d\d y -?\d+\.\d\d yaw -?\d+\.\d{3} \[\]", out), out
