@@ -333,9 +333,17 @@ class TestTrajectory:
         states, truths = run_sequence(EstimatorConfig.paper(), STRAIGHT_ARC_TURN)
         assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
 
-    def test_default_config_follows_the_trajectory(self):
-        states, truths = run_sequence(EstimatorConfig(), STRAIGHT_ARC_TURN)
+    @pytest.mark.parametrize("keyframes", [
+        pytest.param(0.5, id="default"),
+        pytest.param(0.0, id="no-keyframes", marks=pytest.mark.xfail(strict=True, reason=(
+            "LIMITATION: frame-to-frame registration under-measures the 30 deg/s turn in place by "
+            "about 4 % (5.6 deg short of 150); keyframe registration, the default, removes most of it"))),
+    ])
+    def test_default_config_follows_the_trajectory(self, keyframes):
+        cfg = EstimatorConfig().with_(odometry={"keyframe_distance_m": keyframes})
+        states, truths = run_sequence(cfg, STRAIGHT_ARC_TURN)
         assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
+        assert all(finite_state(s) for s in states)
 
 
 class TestFlags:
