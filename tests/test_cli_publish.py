@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import signal
+import subprocess
 import time
 
 import pytest
@@ -126,3 +127,28 @@ def test_a_bad_zenoh_option_fails_before_the_source_opens(recording, tmp_path):
     proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--zenoh-config", bad)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and str(bad) in proc.stderr
+
+
+def test_status_of_a_live_capture_carries_the_board_state(recording):
+    """radar-capture on the emulated rig (fake AWR1843 on a pty, fake DCA1000 on UDP):
+    the status messages report rates, drops, lost packets, latency and the board's state."""
+    from live_helpers import Emulator
+
+    here = free_endpoint()
+    with Emulator("--capture", recording) as emu, peer(listen=[here]) as session:
+        inbox = Inbox()
+        sub = session.declare_subscriber("radar/awr1843/status", inbox)
+        try:
+            proc = subprocess.run(emu.capture_argv("--frames", "25", "--connect", here, "--listen", free_endpoint()),
+                                  stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+            assert proc.returncode == 0, proc.stderr
+            assert wait_for(lambda: any(json.loads(p)["running"] is False for p in inbox.payloads()), 5.0)
+        finally:
+            sub.undeclare()
+    status = [json.loads(p) for p in inbox.payloads()]
+    last = status[-1]
+    assert last["frames"] == 25 and last["frames_dropped"] == 0 and last["packets_lost"] == 0
+    assert last["source"]["url"].startswith("dca1000://") and last["source"]["fpga"]
+    assert isinstance(last["source"]["async_status"], dict)  # the board's status counts
+    assert last["latency_ms"]["p99"] < 1000.0 and last["rate_hz"] > 0
+    assert len(status) >= 2  # about once a second while running, and a last one

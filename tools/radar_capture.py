@@ -291,6 +291,13 @@ def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: S
     return summary
 
 
+def _plain(value) -> bool:
+    """JSON-ready: a scalar, or a dict of scalars (the board's status counts)."""
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _plain(v) and not isinstance(v, dict) for k, v in value.items())
+    return value is None or isinstance(value, (str, int, float, bool))
+
+
 class _StatusReporter:
     """Status messages about once a second: rates, drops, losses, latency, source state."""
 
@@ -313,7 +320,7 @@ class _StatusReporter:
         live = self.source.describe()
         info["frames_dropped"] = live.get("frames_dropped", 0)
         info["packets_lost"] = live.get("seq_gaps", 0)
-        info["source"] = {k: v for k, v in live.items() if isinstance(v, (str, int, float, bool)) or v is None}
+        info["source"] = {k: v for k, v in live.items() if _plain(v)}  # radar and board state
         if self.process is not None:
             p50, p90, p99, worst = self.process.latency.percentiles_ms(50, 90, 99, 100)
             info["latency_ms"] = {"p50": p50, "p90": p90, "p99": p99, "max": worst}
