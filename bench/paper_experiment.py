@@ -30,7 +30,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
 
-from radarodom.estimator.config import EstimatorConfig  # noqa: E402
+from radarodom.estimator.config import EstimatorConfig, paper_variants  # noqa: E402
 from radarodom.estimator.evaluation import evaluate  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
@@ -40,12 +40,7 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
     """Name -> (table, config)."""
     paper = EstimatorConfig.paper()
     return {
-        "CFAR": ("preprocessing", EstimatorConfig.paper(method="cfar")),
-        "Ray-max": ("preprocessing", EstimatorConfig.paper(method="raymax")),
-        "Top-k": ("preprocessing", paper),
-        "wICP": ("icp", EstimatorConfig.paper(sampling=False, two_way=False)),
-        "Sampling + wICP": ("icp", EstimatorConfig.paper(two_way=False)),
-        "Sampling + mwICP": ("icp", paper),
+        **paper_variants(),
         "paper (Top-k, sampling + mwICP)": ("beyond", paper),
         "+ dynamic rejection": ("beyond", paper.with_(features={"dynamic_rejection_mps": 0.15})),
         "+ constant-rate guess": ("beyond", paper.with_(icp={"initial_guess": "constant_rate"})),

@@ -246,3 +246,18 @@ class EstimatorConfig(Settings):
             section.update(changes)
             data[name] = section
         return EstimatorConfig.from_dict(data)
+
+
+def paper_variants() -> dict[str, tuple[str, EstimatorConfig]]:
+    """The variants of the paper's two tables, name -> (table, config): "preprocessing"
+    (Table III: CFAR, Ray-max, Top-k with sampling + mwICP) and "icp" (Table IV: wICP,
+    sampling + wICP, sampling + mwICP with Top-k)."""
+    paper = EstimatorConfig.paper()
+    return {
+        "CFAR": ("preprocessing", EstimatorConfig.paper(method="cfar")),
+        "Ray-max": ("preprocessing", EstimatorConfig.paper(method="raymax")),
+        "Top-k": ("preprocessing", paper),
+        "wICP": ("icp", EstimatorConfig.paper(sampling=False, two_way=False)),
+        "Sampling + wICP": ("icp", EstimatorConfig.paper(two_way=False)),
+        "Sampling + mwICP": ("icp", paper),
+    }
