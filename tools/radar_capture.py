@@ -62,8 +62,9 @@ def _default_source() -> str:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="radar-capture",
-        description="Stream raw radar frames from a source, show a live status, and optionally "
-                    "record them to a capture directory.",
+        description="Stream raw radar frames from a source, run the DSP and the odometry on every "
+                    "frame, publish them over Zenoh, show a live status, and optionally record the frames "
+                    "to a capture directory.",
         epilog="Sources: replay://DIR[?rate=1.0|max&loop=N&start=K|Ss&frames=N] plays a capture "
                "directory or TI recorder files (with --cfg); sim://SCENE[?seed=N&rate=1.0|max&duration=S] "
                "simulates a scene (corridor, room, lab, calibration, or a .toml/.json file). "
