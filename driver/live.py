@@ -8,7 +8,8 @@ URL; default found automatically), ``config_port`` / ``data_port`` (host ports,
 4096 / 4098), ``board_port`` (4096), ``delay`` (packet delay in us, 25),
 ``policy`` (``latest`` or ``queue``: which frames to drop when the consumer
 is slower than the radar), ``buffers`` (frames in the ring, 8), ``timeout``
-(seconds per board command, 1) and ``start_timeout`` (seconds for sensorStart, 5).
+(seconds per board command, 1), ``start_timeout`` (seconds for sensorStart, 5) and
+``cli_timeout`` (seconds per radar CLI command, 2).
 
 Start order (TI's CLI and xwr do the same): open and flush the data socket,
 configure the board, RECORD_START, configure the radar, sensorStart; stop in
@@ -26,7 +27,7 @@ from typing import Iterator
 from ..cfg import RadarConfig, shipped_config_path
 from ..errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..rawframe import RawLayout
-from .awr1843 import Awr1843Cli, SensorStartHung
+from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
 from .frame_ring import POLICIES, FrameRing
 from .sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
@@ -58,7 +59,8 @@ class FrameClock:
 
 class LiveSource(Source):
     def __init__(self, config: RadarConfig, settings: Dca1000Settings, cli_url: str, *,
-                 policy: str = "latest", buffers: int = 8, start_timeout_s: float = 5.0) -> None:
+                 policy: str = "latest", buffers: int = 8, start_timeout_s: float = 5.0,
+                 cli_timeout_s: float = COMMAND_TIMEOUT_S) -> None:
         super().__init__()
         config.check_raw_capture()
         self.config = config
@@ -68,7 +70,7 @@ class LiveSource(Source):
         self.board = Dca1000Client(settings)
         self.receiver = Dca1000Receiver(settings, config.frame_bytes, self.ring,
                                         idle_flush_s=max(0.5, 2 * config.frame_period_s))
-        self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s)
+        self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.clock = FrameClock(config.frame_period_s)
         #: Seconds without any data packet before the stream is declared dead.
         self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
@@ -208,6 +210,7 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
     timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")
     start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
+    cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
     options.finish()
     if cli is None:
         from .discovery import default_cli_port  # pyusb and sysfs only when needed
@@ -219,4 +222,5 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     settings = Dca1000Settings(host_ip=host, board_ip=board, config_port=config_port, board_port=board_port,
                                data_port=data_port, packet_delay_us=delay, timeout_s=timeout)
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
-    return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout)
+    return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout,
+                      cli_timeout_s=cli_timeout)

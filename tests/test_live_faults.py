@@ -199,6 +199,20 @@ def test_radar_silent_on_a_command_times_out_naming_it(small_capture, small_cfg)
     assert received[-1] == "sensorStop", received
 
 
+def test_radar_cli_timeout_is_set_by_the_url(small_capture, small_cfg):
+    """cli_timeout=S bounds each radar command instead of the default 2 s."""
+    directory, _ = small_capture
+    with EmulatedRig(f"replay://{directory}", config=small_cfg,
+                     cli_faults=CliFaults(silent_on={"channelCfg"})) as rig:
+        t0 = time.monotonic()
+        with pytest.raises(DeviceTimeout) as info:
+            open_source(rig.url(**URL_TIMEOUTS, cli_timeout=0.3), small_cfg)
+        elapsed = time.monotonic() - t0
+        assert_released(rig)
+    assert "did not answer 'channelCfg' within 0.3 s" in str(info.value), str(info.value)
+    assert elapsed < COMMAND_TIMEOUT_S, elapsed  # the command's 0.3 s and the sensorStop's 0.3 s
+
+
 @pytest.mark.parametrize("garbage", [b"\x00\xfe\xff\x1b[0m line noise Done\r\n",
                                      b"\n\r****\n\rxWR18xx MMW Demo 03.05.00.04\n\rmmwDemo:/>"],
                          ids=["noise", "stale-banner-and-prompt"])
