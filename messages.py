@@ -88,6 +88,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .errors import MessageError
+from .tum import yaw_quaternion
 
 ODOM_SCHEMA = "radarodom/odom"
 STATUS_SCHEMA = "radarodom/status"
@@ -401,8 +402,8 @@ def ros2_odometry(state: Any, typestore: Any) -> Any:
     sec, nanosec = ros2_stamp(float(state.t))
     header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
                                           frame_id=ODOM_FRAME_ID)
-    half = 0.5 * float(state.yaw)
-    orientation = types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
+    qx, qy, qz, qw = (float(v) for v in yaw_quaternion(float(state.yaw)))
+    orientation = types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)
     pose = types["geometry_msgs/msg/PoseWithCovariance"](
         pose=types["geometry_msgs/msg/Pose"](position=point(x=float(state.x), y=float(state.y), z=0.0),
                                              orientation=orientation),

@@ -39,6 +39,21 @@ def quaternion_yaw(quaternions) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
 
+def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: str) -> list[float]:
+    """The finite numbers of one line of a text file: exactly *count* of them when given,
+    else at least one; :class:`CaptureFormatError` naming ``path:lineno`` and *what* was
+    expected otherwise."""
+    try:
+        values = [float(v) for v in text.split()]
+    except ValueError:
+        values = []
+    if not values or (count is not None and len(values) != count):
+        raise CaptureFormatError(f"{path}:{lineno}: expected {what}, got {text[:60]!r}")
+    if not all(math.isfinite(v) for v in values):
+        raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
+    return values
+
+
 def format_tum_line(t: float, position: Sequence[float], quaternion: Sequence[float]) -> str:
     """One TUM line with its newline: *t* (s) to 9 decimals (nanoseconds, as the
     frame timestamps), the position (3,) m and quaternion (4,) xyzw to 9 digits."""
@@ -129,15 +144,7 @@ def read_tum(path: str | os.PathLike) -> TumTrajectory:
                 if not line.endswith("\n"):
                     log.warning("%s:%d: ignoring a last line without end of line", name, lineno)
                     break
-                try:
-                    values = [float(v) for v in text.split()]
-                except ValueError:
-                    values = []
-                if len(values) != 8:
-                    raise CaptureFormatError(f"{name}:{lineno}: expected 't x y z qx qy qz qw', "
-                                             f"got {text[:60]!r}")
-                if not all(math.isfinite(v) for v in values):
-                    raise CaptureFormatError(f"{name}:{lineno}: not a finite number: {text[:60]!r}")
+                values = parse_numbers(name, lineno, text, 8, "'t x y z qx qy qz qw'")
                 if not any(values[4:]):
                     raise CaptureFormatError(f"{name}:{lineno}: the quaternion is zero")
                 rows.append(values)

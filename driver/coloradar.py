@@ -35,7 +35,7 @@ import numpy as np
 from ..dsp.heatmap import RangeAzimuth
 from ..dsp.processor import POINT_DTYPE
 from ..errors import CaptureError, CaptureFormatError, UsageError
-from ..tum import TumTrajectory
+from ..tum import TumTrajectory, parse_numbers
 
 log = logging.getLogger(__name__)
 
@@ -152,23 +152,10 @@ def _read_lines(path: str) -> list[tuple[int, str]]:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
-def _numbers(path: str, lineno: int, text: str, count: int | None, what: str) -> list[float]:
-    """The finite numbers of one line; *count* of them when given, else at least one."""
-    try:
-        values = [float(v) for v in text.split()]
-    except ValueError:
-        values = []
-    if not values or (count is not None and len(values) != count):
-        raise CaptureFormatError(f"{path}:{lineno}: expected {what}, got {text[:60]!r}")
-    if not all(math.isfinite(v) for v in values):
-        raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
-    return values
-
-
 def _read_table(path: str, columns: int, what: str) -> tuple[np.ndarray, np.ndarray]:
     """Rows (n, columns) float64 of a whitespace-separated text file and their line numbers (n,)."""
     lines = _read_lines(path)
-    rows = [_numbers(path, n, text, columns, what) for n, text in lines]
+    rows = [parse_numbers(path, n, text, columns, what) for n, text in lines]
     return (np.array(rows, dtype=float).reshape(-1, columns),
             np.array([n for n, _ in lines], dtype=int))
 
@@ -192,7 +179,7 @@ def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> 
         if key in out:
             raise CaptureFormatError(f"{path}:{lineno}: {key} given twice")
         multi = key in ("azimuth_bins", "elevation_bins")
-        values = _numbers(path, lineno, rest, None if multi else 1, f"{key} and its value(s)")
+        values = parse_numbers(path, lineno, rest, None if multi else 1, f"{key} and its value(s)")
         if key in int_keys:
             if values[0] != int(values[0]) or values[0] <= 0:
                 raise CaptureFormatError(f"{path}:{lineno}: {key} must be a positive integer, got {rest!r}")
@@ -234,8 +221,8 @@ def read_transform(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     lines = _read_lines(path)
     if len(lines) < 2:
         raise CaptureFormatError(f"{path}: expected 'tx ty tz' and 'qx qy qz qw' lines, found {len(lines)} line(s)")
-    t = np.array(_numbers(path, lines[0][0], lines[0][1], 3, "'tx ty tz'"))
-    q = np.array(_numbers(path, lines[1][0], lines[1][1], 4, "'qx qy qz qw'"))
+    t = np.array(parse_numbers(path, lines[0][0], lines[0][1], 3, "'tx ty tz'"))
+    q = np.array(parse_numbers(path, lines[1][0], lines[1][1], 4, "'qx qy qz qw'"))
     norm = np.linalg.norm(q)
     if norm == 0:
         raise CaptureFormatError(f"{path}:{lines[1][0]}: the quaternion is zero")

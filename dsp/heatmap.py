@@ -72,10 +72,13 @@ class HeatmapMaker:
         # exp(-j 2 pi h k / n_az) for signed k ascending (what fft + fftshift give).
         self._az_dft_t = np.exp(-2j * np.pi * np.outer(k, processor.az_h) / n_az).astype(np.complex64)
         self._az_dft_h = np.ascontiguousarray(np.conj(self._az_dft_t).T)  # (row, n_az)
-        # Work buffers, reused by every frame (fresh large arrays cost page faults).
+        # Work buffers, reused by every frame (fresh large arrays cost page faults); the full
+        # Doppler x azimuth spectrum's (tens of MB) only where it is made.
         nr, nd, n_row = len(processor.range_m), processor.n_doppler, len(processor.az_elements)
-        self._buffers = (np.empty((nr, n_row, nd), np.complex64), np.empty((nr, n_az, nd), np.complex64),
-                         np.empty((nr, n_az, nd), np.float32), np.empty((nr, n_az, nd), np.float32))
+        self._row = np.empty((nr, n_row, nd), np.complex64)
+        self._full = None if doppler_cells is not None else (
+            np.empty((nr, n_az, nd), np.complex64), np.empty((nr, n_az, nd), np.float32),
+            np.empty((nr, n_az, nd), np.float32))
         self._tdm_row = (None if self._tdm is None else np.ascontiguousarray(
             self._tdm[:, processor._slot_of_element[processor.az_elements]].T)[None])  # (1, row, n_doppler)
         n_el = elevation_bins or processor.params.elevation_fft_size
@@ -98,17 +101,24 @@ class HeatmapMaker:
             data = data * self._tdm[:, self.proc._slot_of_element, None]
         return data
 
-    def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
-        if self.doppler_cells is not None:
-            return self._range_azimuth_strong(spectrum)
-        proc = self.proc
+    def _azimuth_row(self, spectrum: np.ndarray) -> np.ndarray:
+        """The azimuth row's Doppler spectra, TDM-compensated, in the work buffer:
+        complex64 (n_range, row, n_doppler)."""
         nd, slots, nrx, nr = spectrum.shape
-        x, az, power, scratch = self._buffers
-        row = spectrum.reshape(nd, slots * nrx, nr)[:, proc.az_elements, :]  # (n_doppler, row, n_range)
+        row = spectrum.reshape(nd, slots * nrx, nr)[:, self.proc.az_elements, :]  # (n_doppler, row, n_range)
         # Doppler last, so that the sums and the argmax over Doppler run along memory.
-        x[...] = np.transpose(row, (2, 1, 0))  # (n_range, row, n_doppler)
+        x = self._row
+        x[...] = np.transpose(row, (2, 1, 0))
         if self._tdm_row is not None:
             x *= self._tdm_row
+        return x
+
+    def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
+        if self._full is None:
+            return self._range_azimuth_strong(spectrum)
+        proc = self.proc
+        x = self._azimuth_row(spectrum)
+        az, power, scratch = self._full
         # A zero-padded FFT of a few elements is a small DFT matrix: matrix products.
         np.matmul(self._az_dft_t, x, out=az)  # (n_range, n_az, n_doppler), azimuth bins ascending
         np.square(az.real, out=power)
@@ -122,12 +132,7 @@ class HeatmapMaker:
     def _range_azimuth_strong(self, spectrum: np.ndarray) -> RangeAzimuth:
         """Intensities from per-range covariances; dominant Doppler for the strongest cells."""
         proc = self.proc
-        nd, slots, nrx, nr = spectrum.shape
-        x = self._buffers[0]
-        row = spectrum.reshape(nd, slots * nrx, nr)[:, proc.az_elements, :]
-        x[...] = np.transpose(row, (2, 1, 0))  # (n_range, row, n_doppler)
-        if self._tdm_row is not None:
-            x *= self._tdm_row
+        x = self._azimuth_row(spectrum)
         dft = self._az_dft_t  # (n_az, row)
         cov = np.matmul(x, np.conj(np.transpose(x, (0, 2, 1))))  # (n_range, row, row)
         # a^H R a for every azimuth bin, with a the DFT row: sum_hg D_ah R_hg conj(D_ag): one
@@ -136,7 +141,7 @@ class HeatmapMaker:
         rd = np.matmul(cov, self._az_dft_h)  # (n_range, row, n_az)
         rd *= self._az_dft_t.T[None]
         intensity = rd.sum(axis=1).real.astype(np.float32)
-        zero = x[:, :, nd // 2 - self.static_bins: nd // 2 + self.static_bins + 1]
+        zero = x[:, :, self._static_rows]
         # Batched matrix products, not einsum: einsum does not reach BLAS for these (5x slower).
         zero_az = np.matmul(dft, zero)  # (n_range, n_az, static Doppler bins)
         static = (zero_az.real ** 2 + zero_az.imag ** 2).sum(axis=-1).astype(np.float32)

@@ -31,7 +31,7 @@ import numpy as np
 
 from .config import EstimatorConfig
 from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract
-from .icp import Region, Registration, correlation_guess, register_two_way, scan_guess, wrap
+from .icp import FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, register_two_way, scan_guess
 from .velocity import VelocityEstimate, estimate_velocity
 
 log = logging.getLogger(__name__)
@@ -230,17 +230,13 @@ class RadarOdometry:
 
     def _velocity_or_hold(self, velocity: VelocityEstimate | None, t: float,
                           flags: list[str]) -> tuple[np.ndarray, np.ndarray]:
-        hold = self.config.odometry.hold_s
         last = self._last_velocity
         fresh = last is not None and last.ok
         if velocity is not None and fresh:
             return velocity.velocity, velocity.covariance
         flags.append(VELOCITY_FAILED)
-        if velocity is not None and self._good_velocity_t is not None and t - self._good_velocity_t <= hold:
-            flags.append(VELOCITY_HELD)
+        if velocity is not None and self._held(self._good_velocity_t, t, VELOCITY_HELD, flags):
             return velocity.velocity, velocity.covariance * 4.0
-        if MOTION_LOST not in flags:
-            flags.append(MOTION_LOST)
         return np.zeros(2), np.eye(2)
 
     def _log_heatmap(self, heatmap: PolarHeatmap) -> LogHeatmap:
@@ -260,9 +256,8 @@ class RadarOdometry:
         key_pose, key_features, key_guide, p_rel = self._key
         cfg = self.config
         # The current pose as predicted by this frame's step, relative to the keyframe.
-        half = previous.yaw + 0.5 * dyaw
-        x = previous.x + (math.cos(half) * v[0] - math.sin(half) * v[1]) * dt
-        y = previous.y + (math.sin(half) * v[0] + math.cos(half) * v[1]) * dt
+        step, _ = _chord(previous.yaw, dyaw, v, dt)
+        x, y = previous.x + step[0], previous.y + step[1]
         c, s = math.cos(key_pose[2]), math.sin(key_pose[2])
         t_rel = np.array([c * (x - key_pose[0]) + s * (y - key_pose[1]),
                           -s * (x - key_pose[0]) + c * (y - key_pose[1])])
@@ -277,7 +272,7 @@ class RadarOdometry:
         registration, _ = register_two_way(key_features.shifted(t_rel), features, cfg.icp, initial_rad=initial,
                                            region=self._region)
         measured = -registration.rotation_rad
-        if registration.status == "few_matches" or abs(measured - predicted) > cfg.odometry.keyframe_search_rad:
+        if registration.status == FEW_MATCHES or abs(measured - predicted) > cfg.odometry.keyframe_search_rad:
             self._key = (key_pose, key_features, key_guide, p_rel)
             return dyaw, var_yaw
         r = max(registration.variance, cfg.odometry.yaw_noise_rad ** 2)
@@ -318,12 +313,18 @@ class RadarOdometry:
         return rate * dt, p * dt * dt
 
     def _held_rate(self, t: float, flags: list[str]) -> float:
-        if self._good_rate is not None and t - self._good_rate[0] <= self.config.odometry.hold_s:
-            flags.append(YAW_HELD)
-            return self._good_rate[1]
+        good_t = None if self._good_rate is None else self._good_rate[0]
+        return self._good_rate[1] if self._held(good_t, t, YAW_HELD, flags) else 0.0
+
+    def _held(self, good_t: float | None, t: float, flag: str, flags: list[str]) -> bool:
+        """Whether the last good value (at *good_t*) may still stand in at *t*: flagged
+        *flag* if so, ``motion_lost`` (once) if not."""
+        if good_t is not None and t - good_t <= self.config.odometry.hold_s:
+            flags.append(flag)
+            return True
         if MOTION_LOST not in flags:
             flags.append(MOTION_LOST)
-        return 0.0
+        return False
 
     def _initial_rotation(self, prev_guide, heatmap: PolarHeatmap, guide, translation: np.ndarray,
                           dt: float) -> float | None:
@@ -357,26 +358,23 @@ class RadarOdometry:
         source = prev_features.shifted(translation)
         registration, _ = register_two_way(source, features, self.config.icp, initial_rad=initial,
                                            region=self._region)
-        if registration.status == "few_matches":
+        if registration.status == FEW_MATCHES:
             flags.append(ICP_FAILED)
             return None, registration, 0.0
-        if registration.status == "not_converged":
+        if registration.status == NOT_CONVERGED:
             flags.append(ICP_NOT_CONVERGED)  # its rotation is still the best there is
         variance = registration.variance if math.isfinite(registration.variance) else math.radians(5.0) ** 2
         return registration.rotation_rad, registration, variance
 
     def _integrate(self, previous: OdometryState, t: float, frame: int, v: np.ndarray, v_cov: np.ndarray,
                    dyaw: float, var_yaw: float, dt: float) -> OdometryState:
-        # The body moved along an arc: its chord points half the turn off the mid velocity.
-        half = previous.yaw + 0.5 * dyaw
-        c, s = math.cos(half), math.sin(half)
-        step = np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]]) * dt
+        step, turn = _chord(previous.yaw, dyaw, v, dt)
         x, y = previous.x + step[0], previous.y + step[1]
         # Covariance: pose (x, y, yaw) through the step's Jacobians.
         f = np.eye(3)
         f[0, 2], f[1, 2] = -step[1], step[0]
         g = np.zeros((3, 3))
-        g[:2, :2] = np.array([[c, -s], [s, c]]) * dt
+        g[:2, :2] = turn * dt
         g[2, 2] = dt
         twist = np.zeros((3, 3))
         twist[:2, :2] = v_cov
@@ -387,4 +385,14 @@ class RadarOdometry:
                              pose_covariance=pose_cov, twist_covariance=twist, yaw_increment=float(dyaw))
 
 
-__all__ = ["RadarOdometry", "OdometryState", "wrap"]
+def _chord(yaw: float, dyaw: float, v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """World displacement (2,) m of a body at heading *yaw* moving at body velocity *v* (2,)
+    m/s for *dt* s while turning by *dyaw*: along an arc, the chord points half the turn off
+    the mid velocity.  Also the rotation (2, 2) from the body to the chord's heading."""
+    half = yaw + 0.5 * dyaw
+    c, s = math.cos(half), math.sin(half)
+    turn = np.array([[c, -s], [s, c]])
+    return turn @ v * dt, turn
+
+
+__all__ = ["RadarOdometry", "OdometryState"]

@@ -116,25 +116,27 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
 
     if n < config.min_points:
         return out
+    needed = max(config.min_points, config.min_inlier_ratio * n)
     inliers = _ransac(rows, rhs, config, rng)
-    if inliers is None or inliers.sum() < max(config.min_points, config.min_inlier_ratio * n):
+    if inliers is None or inliers.sum() < needed:
         out.status = NO_CONSENSUS
         out.inliers = 0 if inliers is None else int(inliers.sum())
         return out
-    # Refine: least squares on the consensus, then once more on the points it explains.
+    # Refine: least squares on the consensus, then up to twice more on the points each fit
+    # explains (while they are still enough).
+    fit = _fit(rows, rhs, inliers, config)
     for _ in range(2):
-        if not _well_conditioned(rows[inliers], config):
-            out.status, out.inliers = ILL_CONDITIONED, int(inliers.sum())
-            return out
-        v, normal, sigma2 = _least_squares(rows[inliers], rhs[inliers])
-        refined = np.abs(rows @ v - rhs) < config.inlier_threshold_mps
-        if refined.sum() < max(config.min_points, config.min_inlier_ratio * n):
+        if fit is None:
+            break
+        refined = np.abs(rows @ fit[0] - rhs) < config.inlier_threshold_mps
+        if refined.sum() < needed:
             break
         inliers = refined
-    if not _well_conditioned(rows[inliers], config):
+        fit = _fit(rows, rhs, inliers, config)
+    if fit is None:
         out.status, out.inliers = ILL_CONDITIONED, int(inliers.sum())
         return out
-    v, normal, sigma2 = _least_squares(rows[inliers], rhs[inliers])
+    v, normal, sigma2 = fit
     # The Doppler grid quantises every measurement: the residual variance never drops
     # below the bin's uniform-quantisation variance, whatever few points agree.
     sigma2 = max(sigma2, config.inlier_threshold_mps ** 2 / 12.0)
@@ -144,6 +146,14 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
     out.inlier_mask[np.flatnonzero(keep)[inliers]] = True
     out.status = OK
     return out
+
+
+def _fit(rows: np.ndarray, rhs: np.ndarray, inliers: np.ndarray,
+         config: VelocityConfig) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Least squares on *inliers*, or None when their bearings cannot tell vx from vy."""
+    if not _well_conditioned(rows[inliers], config):
+        return None
+    return _least_squares(rows[inliers], rhs[inliers])
 
 
 def _well_conditioned(rows: np.ndarray, config: VelocityConfig) -> bool:
