@@ -95,6 +95,17 @@ def zenoh_reason(exc: BaseException) -> str:
     return _RUST_LOCATION.sub("", str(exc)).strip()
 
 
+def _json5_where(path: str, reason: str) -> str:
+    """A JSON5 parse error as one line, ``path:line:column: what`` (zenoh reports it as a
+    multi-line drawing: ``--> L:C``, the text with a caret, ``= what``); other reasons as
+    ``path: reason``."""
+    where = re.search(r"-->\s*(\d+):(\d+)", reason)
+    what = re.search(r"^\s*=\s*(.+)$", reason, re.MULTILINE)
+    if where and what:
+        return f"{path}:{where.group(1)}:{where.group(2)}: {what.group(1).strip()}"
+    return f"{path}: {reason}"
+
+
 def _check_endpoint(endpoint: Any, option: str) -> str:
     if not isinstance(endpoint, str) or "/" not in endpoint:
         raise PublishConfigError(f"{option}: {endpoint!r} is not an endpoint; expected "
@@ -203,7 +214,7 @@ class ZenohOptions:
             try:
                 config = zenoh.Config.from_file(path)
             except zenoh.ZError as exc:
-                raise PublishConfigError(f"zenoh config {path}: {zenoh_reason(exc)}") from None
+                raise PublishConfigError(f"zenoh config {_json5_where(path, zenoh_reason(exc))}") from None
         else:
             config = zenoh.Config()
             # One machine, no network: no multicast; peers found by endpoint only.

@@ -127,6 +127,9 @@ def test_a_bad_zenoh_option_fails_before_the_source_opens(recording, tmp_path):
     proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--zenoh-config", bad)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and str(bad) in proc.stderr
+    # One line, saying where in the file: zenoh's own report is a multi-line drawing.
+    assert proc.stderr.splitlines() == [f"radar-capture: error: zenoh config {bad}:1:1: "
+                                        "expected array, boolean, null, number, object, or string"]
 
 
 def test_status_of_a_live_capture_carries_the_board_state(recording):
