@@ -35,7 +35,7 @@ import numpy as np
 from ..dsp.heatmap import RangeAzimuth
 from ..dsp.processor import POINT_DTYPE
 from ..errors import CaptureError, CaptureFormatError, UsageError
-from ..tum import TumTrajectory, parse_numbers
+from ..tum import TumTrajectory, parse_numbers, quaternion_yaw
 
 log = logging.getLogger(__name__)
 
@@ -306,6 +306,18 @@ def pointcloud_to_points(pc: np.ndarray) -> np.ndarray:
     return pts
 
 
+def points_in_frame(points: np.ndarray, bearing_offset_rad: float) -> np.ndarray:
+    """*points* (POINT_DTYPE, TI sensor frame of one radar) as seen from a radar at the same
+    place turned *bearing_offset_rad* to the right of it (the lever arm between the two is
+    ignored, as the paper does): azimuth minus the offset, x and y turned with it."""
+    out = points.copy()
+    out["azimuth"] = points["azimuth"] - bearing_offset_rad
+    horizontal = np.hypot(points["x"], points["y"])
+    out["x"] = horizontal * np.sin(out["azimuth"])
+    out["y"] = horizontal * np.cos(out["azimuth"])
+    return out
+
+
 def heatmap_to_polar(hm: np.ndarray, cfg: HeatmapConfig, *, reduce: str = "max") -> RangeAzimuth:
     """A ColoRadar heatmap (el, az, range, 2) as a range-azimuth map in the TI convention.
 
@@ -539,6 +551,12 @@ class ColoRadarRun:
             self._transforms[sensor] = read_transform(self._calib_path("transforms", f"base_to_{sensor}.txt"))
         t, q = self._transforms[sensor]
         return t.copy(), q.copy()
+
+    def mount_yaw(self, sensor: str) -> float:
+        """Yaw (rad, counter-clockwise) of *sensor*'s frame in the base frame, from its calib
+        quaternion."""
+        _, q = self.base_to_sensor(sensor)
+        return float(quaternion_yaw(q[None])[0])
 
     def groundtruth(self) -> TumTrajectory:
         """The base frame's pose in the world at the ground-truth times (lines of

@@ -96,6 +96,10 @@ class ReplaySource(Source):
                 self.frames_played += 1
             passes += 1
 
+    def groundtruth(self):
+        """The recording's groundtruth.tum (TI recorder files have none)."""
+        return getattr(self.store, "groundtruth", None)
+
     def describe(self) -> dict:
         return {"url": self.url, "path": self.store.directory, "frames": self.count,
                 "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop}

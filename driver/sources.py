@@ -25,6 +25,7 @@ import numpy as np
 from ..cfg import RadarConfig
 from ..errors import SourceError
 from ..rawframe import RawLayout
+from ..tum import TumTrajectory
 
 log = logging.getLogger(__name__)
 
@@ -34,6 +35,7 @@ SCHEMES: dict[str, str] = {
     "replay": "radarodom.driver.replay:open_replay",
     "sim": "radarodom.driver.sim.source:open_sim",
     "dca1000": "radarodom.driver.live:open_live",
+    "coloradar": "radarodom.driver.coloradar_source:open_coloradar",
 }
 
 
@@ -42,17 +44,29 @@ def register_scheme(scheme: str, opener: str | Callable[..., "Source"]) -> None:
     SCHEMES[scheme] = opener  # type: ignore[assignment]
 
 
+#: What a frame feeds the estimator (:attr:`Frame.role`).
+ROLES = ("both", "velocity", "heatmap")
+
+
 @dataclass
 class Frame:
-    """One radar frame from a source."""
+    """One radar frame from a source.
+
+    Most sources give raw ADC bytes, and the DSP makes the point cloud and the heatmap from
+    them.  A dataset that ships products instead (ColoRadar's on-chip point clouds, its cascade
+    radar's heatmaps) gives :attr:`points` or :attr:`heatmap` and no raw bytes.  :attr:`role`
+    says which of the estimator's two streams the frame feeds: a multi-rate source interleaves
+    velocity frames with heatmap frames, in time order.
+    """
 
     #: Frame number in this stream, from 0.
     index: int
     #: Time of the frame's first chirp, s.
     timestamp: float
-    #: The frame's raw bytes as the DCA1000 streams them, uint8 (frame_bytes,).
-    raw: np.ndarray
-    layout: RawLayout
+    #: The frame's raw bytes as the DCA1000 streams them, uint8 (frame_bytes,); None when the
+    #: source gives products instead.
+    raw: np.ndarray | None
+    layout: RawLayout | None
     #: Bytes of the frame lost in transport (zero-filled in ``raw``).
     missing_bytes: int = 0
     #: Ground-truth body pose (x, y, z, qx, qy, qz, qw) where the source knows it.
@@ -60,13 +74,25 @@ class Frame:
     #: time.monotonic() when the frame was there to process: its last packet received (live),
     #: or made or read (simulator, replay).  End-to-end latencies are measured from it.
     ready_monotonic: float = field(default_factory=time.monotonic)
+    #: A point cloud the source already holds (dsp.processor.POINT_DTYPE, (n,), TI sensor frame).
+    points: np.ndarray | None = None
+    #: A range-azimuth heatmap the source already holds (dsp.heatmap.RangeAzimuth).
+    heatmap: Any = None
+    #: Which estimator stream the frame feeds: "both", "velocity" or "heatmap" (:data:`ROLES`).
+    role: str = "both"
 
     @property
     def complete(self) -> bool:
         return self.missing_bytes == 0
 
+    @property
+    def has_raw(self) -> bool:
+        return self.raw is not None
+
     def cube(self, out: np.ndarray | None = None) -> np.ndarray:
         """The frame as complex64 (loops, tx_slots, rx, samples); fills *out* if given."""
+        if self.raw is None or self.layout is None:
+            raise SourceError(f"frame {self.index} carries no raw ADC samples (a product-only source)")
         return self.layout.decode(self.raw, out)
 
 
@@ -75,8 +101,10 @@ class Source(abc.ABC):
 
     #: The URL the source was opened from.
     url: str = ""
-    #: The radar configuration the frames follow.
-    config: RadarConfig
+    #: The radar configuration the raw frames follow; None when no frame carries raw samples.
+    config: RadarConfig | None
+    #: True when every frame carries raw ADC bytes (so the stream can be recorded).
+    carries_raw: bool = True
 
     def __init__(self) -> None:
         self._stop_requested = False
@@ -100,6 +128,11 @@ class Source(abc.ABC):
     def describe(self) -> dict[str, Any]:
         """What a status display may show about the source."""
         return {"url": self.url}
+
+    def groundtruth(self) -> TumTrajectory | None:
+        """The true poses of the stream's pose-giving frames, where the source knows them
+        (a simulation's recording, a dataset with ground truth); None otherwise."""
+        return None
 
     def __enter__(self) -> "Source":
         return self

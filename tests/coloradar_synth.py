@@ -38,6 +38,9 @@ WAVEFORM = {
     "cascade": {"adc_sample_frequency": 8.0e6, "start_frequency": 77.0e9, "idle_time": 5.0e-6,
                 "adc_start_time": 6.0e-6, "ramp_end_time": 4.0e-5, "frequency_slope": 7.9e13},
 }
+#: antenna_cfg.txt TX positions (horizontal, vertical; half wavelengths) of each radar, by TX
+#: index.  The single chip's are the AWR1843BOOST's in TI's chirp order TX1, TX3, TX2.
+TX_POSITIONS = {"single_chip": ((0, 0), (4, 0), (2, 1)), "cascade": ((0, 0), (4, 0), (8, 0))}
 #: base_to_<sensor>.txt: translation (m) and a rotation about z (rad) of each sensor.
 TRANSFORMS = {"single_chip": ((0.10, -0.05, 0.20), 0.30), "cascade": ((0.25, 0.0, 0.15), -0.20),
               "imu": ((0.0, 0.0, 0.05), 0.0), "lidar": ((0.0, 0.0, 0.30), math.pi / 2),
@@ -164,6 +167,8 @@ def write_run(root, name: str = "ec_hallways_run0", *, numbering_base: int = 0, 
               times: Mapping[str, Sequence[float]] | None = None,
               groundtruth: tuple | None = None,
               transforms: Mapping[str, tuple] | None = None,
+              waveforms: Mapping[str, Mapping] | None = None,
+              tx_positions: Mapping[str, Sequence | None] | None = None,
               faults: Sequence[str] = ()) -> pathlib.Path:
     """Write a run ``root/name`` and its calibration; returns the run's path.
 
@@ -176,7 +181,8 @@ def write_run(root, name: str = "ec_hallways_run0", *, numbering_base: int = 0, 
     sensor's heatmap_cfg follows their shape unless *heatmap_cfgs* {sensor: values} says
     otherwise), *adc* {sensor: [(tx, rx, chirp, sample) complex]}, *times* {stream: (n,) s},
     *groundtruth* (times (n,), positions (n, 3), quaternions (n, 4) xyzw), *transforms*
-    {sensor: (t (3,), q (4,) xyzw)}.
+    {sensor: (t (3,), q (4,) xyzw)}, *waveforms* {sensor: waveform_cfg values to replace},
+    *tx_positions* {sensor: ((h, v) per TX index), or None for no antenna_cfg.txt}.
     """
     unknown = set(faults) - set(FAULTS)
     if unknown:
@@ -249,12 +255,12 @@ def write_run(root, name: str = "ec_hallways_run0", *, numbering_base: int = 0, 
 
     if calib is not None:
         _write_calib(root / "calib" if calib == "beside" else run / "calib", hm_shapes, heatmap_cfgs or {},
-                     adc_shapes, transforms or {}, faults)
+                     adc_shapes, transforms or {}, faults, waveforms or {}, tx_positions or {})
     return run
 
 
 def _write_calib(folder: pathlib.Path, heatmap_shapes: Mapping, heatmap_cfgs: Mapping, adc_shapes: Mapping,
-                 transforms: Mapping, faults: Sequence[str]) -> None:
+                 transforms: Mapping, faults: Sequence[str], waveforms: Mapping, tx_positions: Mapping) -> None:
     for sensor, (t, yaw) in TRANSFORMS.items():
         t, q = transforms.get(sensor, (t, yaw_quaternion(yaw)))
         _write_text(folder / "transforms" / f"base_to_{sensor}.txt", [_row(t), _row(q)])
@@ -265,14 +271,127 @@ def _write_calib(folder: pathlib.Path, heatmap_shapes: Mapping, heatmap_cfgs: Ma
         if not ("missing_heatmap_cfg" in faults and sensor == "cascade"):
             _write_cfg(folder / sensor / "heatmap_cfg.txt", hm)
         wf = default_waveform_cfg(sensor, adc_shapes.get(sensor))
+        wf.update(waveforms.get(sensor, {}))
         _write_cfg(folder / sensor / "waveform_cfg.txt", wf)
-        # antenna_cfg.txt: the layout, in half-wavelength units (the reader does not use it).
+        # antenna_cfg.txt: the layout, in half-wavelength units.
         ant = ["# synthetic antenna layout", f"num_rx {wf['num_rx']}", f"num_tx {wf['num_tx']}", "F_design 77"]
         ant += [f"rx {k} {k} 0" for k in range(wf["num_rx"])]
-        ant += [f"tx {k} {wf['num_rx'] * k} 0" for k in range(wf["num_tx"])]
-        _write_text(folder / sensor / "antenna_cfg.txt", ant)
+        positions = tx_positions.get(sensor, TX_POSITIONS[sensor])
+        if positions is not None:
+            ant += [f"tx {k} {h} {v}" for k, (h, v) in enumerate(positions)]
+            _write_text(folder / sensor / "antenna_cfg.txt", ant)
         n_range = int(hm["num_range_bins"])
         coupling = ",".join(["0"] * (2 * wf["num_tx"] * wf["num_rx"] * n_range))
         _write_text(folder / sensor / "coupling_calib.txt",
                     [f"num_tx: {wf['num_tx']}", f"num_rx: {wf['num_rx']}", f"num_range_bins: {n_range}",
                      "num_doppler_bins: 16", f"data: {coupling}"])
+
+
+# ---------------------------------------------------------------------------------------------
+# A moving platform
+
+SPEED = 0.5  # m/s forward
+YAW_RATE = math.radians(10.0)  # rad/s
+DURATION = 4.0
+N_AZ, N_EL, N_RANGE, BIN_M = 64, 4, 128, 0.06
+
+
+def _pose(t):
+    """Base pose (x, y, yaw) at time t: a left arc, starting at the origin."""
+    yaw = YAW_RATE * t
+    radius = SPEED / YAW_RATE
+    return radius * np.sin(yaw), radius * (1 - np.cos(yaw)), yaw
+
+
+def _in_sensor(world: np.ndarray, t: float) -> np.ndarray:
+    x, y, yaw = _pose(t)
+    c, s = math.cos(yaw), math.sin(yaw)
+    d = world - [x, y]
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])  # x forward, y left
+
+
+def _world(rng) -> np.ndarray:
+    pts = np.column_stack([rng.uniform(-2, 9, 60), rng.uniform(-6, 7, 60)])
+    return pts[np.hypot(pts[:, 0] - 1.0, pts[:, 1]) > 1.5]
+
+
+def _pointcloud(world, t, rng) -> np.ndarray:
+    p = _in_sensor(world, t)
+    r = np.hypot(p[:, 0], p[:, 1])
+    keep = (p[:, 0] > 0.3) & (r < 8) & (np.abs(np.arctan2(p[:, 1], p[:, 0])) < math.radians(70))
+    p, r = p[keep], r[keep]
+    # The sensor moves at (SPEED, 0) in its own frame; a static point has v_r = -v . u.
+    doppler = -SPEED * p[:, 0] / r + rng.normal(0, 0.01, len(r))
+    return np.column_stack([p[:, 0], p[:, 1], np.zeros(len(r)), np.full(len(r), 20.0), doppler]).astype("<f4")
+
+
+def _heatmap(world, t, azimuth_bins, rng) -> np.ndarray:
+    p = _in_sensor(world, t)
+    r, az = np.hypot(p[:, 0], p[:, 1]), np.arctan2(p[:, 1], p[:, 0])
+    keep = (p[:, 0] > 0.3) & (r < N_RANGE * BIN_M - 0.3) & (np.abs(az) < math.radians(75))
+    r, az = r[keep], az[keep]
+    ranges = BIN_M * np.arange(N_RANGE)
+    # A cascade-like beam: narrow in sin(azimuth), about a bin in range.
+    beam_az = np.exp(-0.5 * ((np.sin(azimuth_bins)[None, :] - np.sin(az)[:, None]) / 0.015) ** 2)
+    beam_r = np.exp(-0.5 * ((ranges[None, :] - r[:, None]) / BIN_M) ** 2)
+    intensity = np.einsum("na,nr->ar", beam_az, beam_r) + rng.exponential(1e-3, (len(azimuth_bins), N_RANGE))
+    hm = np.zeros((N_EL, len(azimuth_bins), N_RANGE, 2), "<f4")
+    hm[N_EL // 2, :, :, 0] = intensity
+    hm[N_EL // 2 - 1, :, :, 0] = 0.5 * intensity
+    hm[..., 1] = -SPEED * np.cos(azimuth_bins)[None, :, None]  # what a static world shows
+    return hm
+
+
+def write_moving_run(root, name: str = "ec_hallways_run0") -> pathlib.Path:
+    """A run of a radar platform driving a left arc through scattered reflectors: single-chip
+    point clouds at 10 Hz, cascade-like heatmaps at 5 Hz (narrow beams), ground truth at 20 Hz,
+    identity mounts; files numbered from 1."""
+    rng = np.random.default_rng(8)
+    world = _world(rng)
+    azimuth_bins = np.arcsin(np.linspace(-0.97, 0.97, N_AZ))  # non-uniform in angle, ascending
+    t_single = 0.05 + 0.1 * np.arange(int(DURATION * 10))
+    t_cascade = 0.08 + 0.2 * np.arange(int(DURATION * 5))
+    t_gt = 0.05 * np.arange(int(DURATION * 20) + 4)
+    x, y, yaw = _pose(t_gt)
+    gt = (t_gt, np.column_stack([x, y, np.zeros_like(x)]), yaw_quaternion(yaw))
+    identity = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    run = write_run(root, name, numbering_base=1,
+                    pointclouds=[_pointcloud(world, t, rng) for t in t_single],
+                    heatmaps={"cascade": [_heatmap(world, t, azimuth_bins, rng) for t in t_cascade]},
+                    heatmap_cfgs={"cascade": {"num_range_bins": N_RANGE, "num_elevation_bins": N_EL,
+                                              "num_azimuth_bins": N_AZ, "range_bin_width": BIN_M,
+                                              "azimuth_bins": azimuth_bins,
+                                              "elevation_bins": np.linspace(-0.3, 0.3, N_EL)}},
+                    times={"single_chip/pointclouds": t_single, "cascade/heatmaps": t_cascade},
+                    groundtruth=gt, transforms={"single_chip": identity, "cascade": identity})
+    return run
+
+
+# ---------------------------------------------------------------------------------------------
+# From a recording of ours
+
+
+def write_run_from_capture(root, capture_dir, name: str = "sim_run0") -> pathlib.Path:
+    """A run whose single-chip ADC frames, waveform, antenna layout and ground truth are those of
+    a radarodom capture directory (a simulator recording): the same frames in ColoRadar's
+    layout.  The ADC frame's tx axis is the capture's TX slot order (chirp order), and
+    antenna_cfg.txt places each slot's TX; mounts are identity, so the single-chip radar's
+    poses are the recording's."""
+    from radarodom.antenna import TX_OFFSETS_HALF_WAVELENGTHS
+    from radarodom.driver.capture_dir import CaptureDirectory
+
+    store = CaptureDirectory(str(capture_dir))
+    cfg = store.config
+    cubes = [store.layout.decode(store.raw(i)).transpose(1, 2, 0, 3) for i in range(store.num_frames)]
+    p = cfg.profile
+    waveform = {"adc_sample_frequency": cfg.sample_rate_hz, "start_frequency": cfg.start_frequency_hz,
+                "idle_time": p.idle_time_us * 1e-6, "adc_start_time": p.adc_start_time_us * 1e-6,
+                "ramp_end_time": p.ramp_end_time_us * 1e-6, "frequency_slope": cfg.slope_hz_per_s}
+    gt = store.groundtruth
+    identity = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    return write_run(root, name, frames=len(cubes), adc={"single_chip": cubes},
+                     times={"single_chip/adc_samples": np.asarray(store.timestamps, float)},
+                     waveforms={"single_chip": waveform},
+                     tx_positions={"single_chip": [TX_OFFSETS_HALF_WAVELENGTHS[t - 1] for t in cfg.tx_order]},
+                     groundtruth=(gt.times, gt.positions, gt.quaternions),
+                     transforms={"single_chip": identity, "cascade": identity})

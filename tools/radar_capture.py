@@ -69,7 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
                "directory or TI recorder files (with --cfg); sim://SCENE[?seed=N&rate=1.0|max&duration=S] "
                "simulates a scene (corridor, room, lab, calibration, or a .toml/.json file). "
                "dca1000://[BOARD_IP][?cli=PORT&host=IP&delay=US&policy=latest|queue] streams the live "
-               "radar. Without --source: the live radar when one is plugged in, else "
+               "radar. coloradar://RUN_DIR[?velocity=single_chip|single_chip_adc&heatmap=cascade|single_chip|"
+               "single_chip_adc&rate=1.0|max&start=S&calib=DIR] plays a ColoRadar run. Without --source: the live radar when one is plugged in, else "
                f"{DEFAULT_SIM_URL}.")
     parser.add_argument("--cfg", metavar="FILE",
                         help="radar configuration (TI .cfg); for replay:// of a capture directory "
@@ -164,10 +165,12 @@ class _Processing:
             if path:
                 _check_destination(path, is_dir=path == args.heatmap_out)
         estimator_cfg = args.estimator
-        self.processor = FrameProcessor(source.config)
+        # Sources that ship point clouds and heatmaps (datasets) have no raw frames to process.
+        self.processor = FrameProcessor(source.config) if source.config is not None else None
         # The estimator needs each cell's Doppler only where features can be; the heatmap
         # export gets the full map.
-        self.heatmaps = HeatmapMaker(self.processor, doppler_cells=None if args.heatmap_out else 4 * estimator_cfg.features.k)
+        self.heatmaps = None if self.processor is None else HeatmapMaker(
+            self.processor, doppler_cells=None if args.heatmap_out else 4 * estimator_cfg.features.k)
         self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
         self.state = None
         # Recent figures only: a sensor node runs for days.
@@ -179,30 +182,56 @@ class _Processing:
         for writer in (self.heatmap_out, self.points_out, self.odom_out):
             if writer is not None:
                 outputs.callback(writer.close)
-        self._cube = np.empty(source.config.cube_shape, np.complex64)  # reused: no allocation per frame
+        # Reused: no allocation per frame.
+        self._cube = None if self.processor is None else np.empty(source.config.cube_shape, np.complex64)
         self.publisher = publisher
 
     def __call__(self, frame: Frame) -> None:
-        result = self.processor.process(frame.cube(out=self._cube))
-        if self.points_out is not None:
-            self.points_out.write(frame.index, frame.timestamp, result.points)
-        heatmap = None
-        if self.heatmap_out is not None or self.odometry is not None or self.publisher is not None:
+        result = None
+        if frame.raw is not None:
+            if self.processor is None:
+                raise CaptureError(f"frame {frame.index} carries raw samples but the source gave no radar configuration")
+            result = self.processor.process(frame.cube(out=self._cube))
+        points = frame.points if frame.points is not None else (None if result is None else result.points)
+        if points is not None and self.points_out is not None:
+            self.points_out.write(frame.index, frame.timestamp, points)
+        heatmap = frame.heatmap
+        wanted = self.heatmap_out is not None or self.odometry is not None or self.publisher is not None
+        # A velocity-only frame of a two-stream source needs no heatmap for the odometry.
+        if heatmap is None and result is not None and wanted and (frame.role != "velocity" or self.heatmap_out):
             heatmap = self.heatmaps.range_azimuth(result.spectrum)
-        if self.heatmap_out is not None:
+        if heatmap is not None and self.heatmap_out is not None:
             self.heatmap_out.write(frame.index, frame.timestamp, heatmap)
         if self.odometry is not None:
-            self.state = self.odometry.step(frame.timestamp, result.points, heatmap)
-            self.estimator_s.append(self.state.compute_s)
-            if self.publisher is not None:
-                self.publisher.odometry(self.state)
-            if self.odom_out is not None:
-                self.odom_out.write(self.state.t, self.state.x, self.state.y, self.state.yaw)
+            state = self._estimate(frame, points, heatmap)
+            if state is not None:
+                self.state = state
+                self.estimator_s.append(state.compute_s)
+                if self.publisher is not None:
+                    self.publisher.odometry(state)
+                if self.odom_out is not None:
+                    self.odom_out.write(state.t, state.x, state.y, state.yaw)
         # End to end: the frame's last packet (or its making) -> its odometry out.
         self.latency.add(time.monotonic() - frame.ready_monotonic)
         if self.publisher is not None:  # the bulky messages after the odometry, at low priority
-            self.publisher.pointcloud(frame.index, frame.timestamp, result.points)
-            self.publisher.heatmap(frame.index, frame.timestamp, heatmap)
+            if points is not None:
+                self.publisher.pointcloud(frame.index, frame.timestamp, points)
+            if heatmap is not None:
+                self.publisher.heatmap(frame.index, frame.timestamp, heatmap)
+
+    def _estimate(self, frame: Frame, points, heatmap):
+        """Feed the frame to the estimator's stream(s) its role names; the new state, or None
+        for a velocity-only frame (the pose moves on the heatmap frames)."""
+        if frame.role == "velocity":
+            if points is None:
+                raise CaptureError(f"frame {frame.index}: a velocity frame without a point cloud")
+            self.odometry.add_points(frame.timestamp, points)
+            return None
+        if heatmap is None:
+            raise CaptureError(f"frame {frame.index}: a {frame.role} frame without a heatmap")
+        if frame.role == "heatmap":
+            return self.odometry.add_heatmap(frame.timestamp, heatmap)
+        return self.odometry.step(frame.timestamp, points, heatmap)
 
     def status(self) -> str:
         st = self.state
@@ -256,6 +285,10 @@ def _open_publisher(args: argparse.Namespace):
 
 def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: StatusLine, rate: RateMeter) -> str:
     with open_source(args.source, cfg) as source, contextlib.ExitStack() as outputs:
+        if args.record and not source.carries_raw:
+            raise UsageError(f"{args.source} gives point clouds and heatmaps, not raw ADC frames only: "
+                             "--record needs a raw source (for ColoRadar: velocity=single_chip_adc"
+                             "&heatmap=single_chip_adc)")
         needed = not args.no_odom or args.points_out or args.heatmap_out or publisher is not None
         process = _Processing(source, args, outputs, publisher) if needed else None
         reporter = None if publisher is None else _StatusReporter(publisher, source, process, rate)

@@ -15,18 +15,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from typing import Sequence
 
 import numpy as np
 
-from ..driver.coloradar import ColoRadarRun, heatmap_to_polar, pointcloud_to_points
-from ..errors import UsageError
+from ..driver.coloradar import ColoRadarRun
+from ..driver.coloradar_source import ColoRadarSource
+from ..errors import SourceError, UsageError
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
-from ..tum import TumTrajectory, TumWriter, quaternion_yaw
+from ..tum import TumTrajectory, TumWriter
 from . import cli
 
 #: The paper's numbers (Tables III and IV), by run name.
@@ -43,48 +45,34 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
     return {**paper_variants(), "radarodom default": ("both", EstimatorConfig())}
 
 
-def _mount_yaw(run: ColoRadarRun, sensor: str) -> float:
-    """Yaw of *sensor*'s frame relative to the base frame (from its calib quaternion)."""
-    _, q = run.base_to_sensor(sensor)
-    return float(quaternion_yaw(np.asarray(q, float)[None])[0])
-
-
 class RunData:
-    """A run's two streams, read once: point clouds (velocity) and polar heatmaps (yaw)."""
+    """A run's two streams, read once through the ``coloradar://`` source: the single-chip
+    point clouds (velocity, turned into the heatmap radar's frame) and the polar heatmaps (yaw)."""
 
     def __init__(self, run: ColoRadarRun, heatmap_sensor: str) -> None:
-        for stream in ("single_chip/pointclouds", f"{heatmap_sensor}/heatmaps"):
-            if not run.has(stream):
-                raise UsageError(f"{run.run_dir}: the run has no {stream}")
+        try:
+            source = ColoRadarSource(run, velocity="single_chip", heatmap=heatmap_sensor, rate=math.inf)
+        except SourceError as exc:
+            raise UsageError(str(exc)) from None
         self.run, self.sensor = run, heatmap_sensor
-        # Point clouds are in the single-chip radar's frame; the yaw comes from the heatmap
-        # radar's: turn the points' bearings by the mounting difference so the velocity is
-        # in the heatmap radar's frame (the lever arm is ignored, as in the paper).
-        offset = _mount_yaw(run, "single_chip") - _mount_yaw(run, heatmap_sensor)
-        self.point_times = run.timestamps("single_chip/pointclouds")
-        self.points = []
-        for i in range(len(self.point_times)):
-            pts = pointcloud_to_points(run.pointcloud(i))
-            pts["azimuth"] -= offset  # TI azimuth is positive to the right: minus the bearing turn
-            self.points.append(pts)
-        cfg = run.heatmap_config(heatmap_sensor)
-        self.heatmap_times = run.timestamps(f"{heatmap_sensor}/heatmaps")
-        self.heatmaps = [heatmap_to_polar(run.heatmap(heatmap_sensor, i), cfg) for i in range(len(self.heatmap_times))]
-        self.groundtruth, self.kept = run.sensor_poses(heatmap_sensor, self.heatmap_times)
+        #: (t, role, points or heatmap) of every frame, in time order.
+        self.frames = [(f.timestamp, f.role, f.points if f.role == "velocity" else f.heatmap) for f in source]
+        self.heatmap_times = np.array([t for t, role, _ in self.frames if role == "heatmap"])
+        self.groundtruth = source.groundtruth()
+        self.kept = np.isin(self.heatmap_times, self.groundtruth.times)
 
     def estimate(self, config: EstimatorConfig) -> tuple[TumTrajectory, np.ndarray]:
         """The estimated trajectory at the heatmap times kept by the ground truth, and the
         estimator's time per heatmap frame (s)."""
         odom = RadarOdometry(config)
-        events = sorted([(t, 0, i) for i, t in enumerate(self.point_times)]
-                        + [(t, 1, i) for i, t in enumerate(self.heatmap_times)])
         poses, times, compute = [], [], []
-        for t, kind, i in events:
-            if kind == 0:
-                odom.add_points(t, self.points[i])
+        kept = iter(self.kept)
+        for t, role, data in self.frames:
+            if role == "velocity":
+                odom.add_points(t, data)
                 continue
-            state = odom.add_heatmap(t, self.heatmaps[i])
-            if self.kept[i]:
+            state = odom.add_heatmap(t, data)
+            if next(kept):
                 poses.append((state.x, state.y, state.yaw))
                 times.append(t)
                 compute.append(state.compute_s)

@@ -1,6 +1,10 @@
-"""radar-eval: compare an estimated trajectory with ground truth (both TUM files).
+"""radar-eval: compare an estimated trajectory with ground truth.
 
-    radar-eval EST.tum GT.tum [--plot DIR] [--json FILE] [--delta-m M] [--max-diff S] [-v|-q]
+    radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR] [--json FILE] [--delta-m M] [--max-diff S] [-v|-q]
+
+The ground truth is a TUM file, or the source URL the estimate was made from when that source
+knows the truth: ``coloradar://RUN_DIR?heatmap=...`` (the heatmap radar's poses from the run's
+lidar ground truth and calib transforms) or ``replay://DIR`` (a recording's groundtruth.tum).
 
 Prints a table of relative pose errors (per frame and per distance), the
 yaw-increment error, the absolute trajectory error after Umeyama alignment and
@@ -18,7 +22,8 @@ from typing import Sequence
 from ..driver.capture_dir import write_json_atomically
 from ..errors import CaptureError, UsageError
 from ..estimator.evaluation import EvaluationResult, Stats, evaluate
-from ..tum import read_tum
+from ..driver.sources import open_source
+from ..tum import TumTrajectory, read_tum
 from . import cli, plots
 
 
@@ -30,7 +35,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "trajectory error after Umeyama alignment, final drift. Numbers follow evo "
                     "(evo_rpe, evo_ape -a).")
     parser.add_argument("estimate", metavar="EST.tum", help="the estimated trajectory")
-    parser.add_argument("reference", metavar="GT.tum", help="the ground truth")
+    parser.add_argument("reference", metavar="GT.tum|URL",
+                        help="the ground truth: a TUM file, or the source URL the estimate came from "
+                             "(coloradar://RUN_DIR?heatmap=..., replay://DIR with a groundtruth.tum)")
     parser.add_argument("--plot", metavar="DIR", help="write PNG plots into DIR (needs matplotlib)")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE")
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
@@ -44,10 +51,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(args: argparse.Namespace) -> int:
     if args.plot:
         plots.require_matplotlib()  # before the work, not after it
-    for path in (args.estimate, args.reference):
+    for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
         if not os.path.isfile(path):
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
-    result = evaluate(read_tum(args.estimate), read_tum(args.reference),
+    estimate = read_tum(args.estimate)
+    reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
+    result = evaluate(estimate, reference,
                       delta_m=args.delta_m, max_diff=args.max_diff)
     print(format_table(result))
     if args.json:
@@ -60,6 +69,17 @@ def _main(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"plots: {', '.join(written)}")
     return 0
+
+
+def _source_groundtruth(url: str) -> TumTrajectory:
+    """The ground truth a frame source knows (its frames are not read)."""
+    with open_source(url) as source:
+        truth = source.groundtruth()
+    if truth is None:
+        raise UsageError(f"{url}: the source knows no ground truth")
+    if len(truth) == 0:
+        raise UsageError(f"{url}: no frame falls inside the ground truth")
+    return truth
 
 
 _COLUMNS = ("rmse", "mean", "median", "std", "min", "max")

@@ -1,0 +1,218 @@
+"""``coloradar://`` : a ColoRadar run played as a radar stream.
+
+``coloradar://RUN_DIR?velocity=single_chip&heatmap=cascade&rate=1.0&start=0&calib=DIR``
+
+The paper's setup reads two streams: the velocity comes from one, the yaw from the other's
+heatmaps.  Their frames are interleaved in time order, each marked with the estimator stream it
+feeds (:attr:`Frame.role <radarodom.driver.sources.Frame.role>`).
+
+- ``velocity``: ``single_chip`` (default), the AWR1843's on-chip point clouds, about 10 Hz;
+  or ``single_chip_adc``, its ADC frames through radarodom's DSP (only with a single-chip
+  heatmap: the DSP's points are in that radar's frame).
+- ``heatmap``: ``cascade`` (default, as in the paper), the cascade radar's heatmaps, about
+  5 Hz; ``single_chip``, the single-chip heatmaps the dataset ships; or ``single_chip_adc``,
+  the ADC frames through radarodom's DSP and heatmaps.
+- ``rate``: 1.0 plays in real time from the timestamps, ``max`` as fast as the consumer takes
+  frames.
+- ``start``: seconds from the run's first frame to start at (``start=20`` or ``20s``).
+- ``calib``: the calibration folder (default: ``calib/`` beside the run, or inside it).
+
+With both streams from ADC every frame is a raw frame (``role`` both): the run plays like a
+recording of our own and can be recorded with ``--record``.  Otherwise frames carry the
+dataset's products (:attr:`Frame.points`, :attr:`Frame.heatmap`).  Point clouds are turned into
+the heatmap radar's frame (the bearing offset of the two mounts); poses (:attr:`Frame.pose`,
+:meth:`ColoRadarSource.groundtruth`) are those of the heatmap radar, from the lidar ground
+truth through the calib transforms.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from ..cfg import RadarConfig
+from ..errors import SourceError
+from ..rawframe import RawLayout
+from ..tum import TumTrajectory
+from .coloradar import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
+from .coloradar_waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
+from .sources import Frame, Pacer, Source, UrlOptions, one_of, parse_rate
+
+log = logging.getLogger(__name__)
+
+VELOCITY_MODES = ("single_chip", "single_chip_adc")
+HEATMAP_MODES = ("cascade", "single_chip", "single_chip_adc")
+ADC_STREAM = "single_chip/adc_samples"
+
+
+@dataclass(frozen=True)
+class _Event:
+    """One frame to play: a record of one stream, at its time."""
+
+    t: float
+    order: int  # at equal times the velocity comes first: the heatmap frame then uses it
+    stream: str
+    i: int
+    role: str
+
+
+class ColoRadarSource(Source):
+    """Plays a ColoRadar run's velocity and heatmap streams, interleaved in time."""
+
+    carries_raw = False
+
+    def __init__(self, run: ColoRadarRun, *, velocity: str = "single_chip", heatmap: str = "cascade",
+                 rate: float = 1.0, start_s: float = 0.0, config: RadarConfig | None = None) -> None:
+        super().__init__()
+        if velocity not in VELOCITY_MODES:
+            raise SourceError(f"velocity={velocity!r}: one of {', '.join(VELOCITY_MODES)}")
+        if heatmap not in HEATMAP_MODES:
+            raise SourceError(f"heatmap={heatmap!r}: one of {', '.join(HEATMAP_MODES)}")
+        if velocity == "single_chip_adc" and heatmap == "cascade":
+            raise SourceError("velocity=single_chip_adc needs heatmap=single_chip or single_chip_adc: "
+                              "the DSP's points are in the single-chip radar's frame, not the cascade's")
+        self.run, self.velocity, self.heatmap, self.rate = run, velocity, heatmap, rate
+        #: The radar whose frame the odometry is in (it gives the yaw).
+        self.sensor = "cascade" if heatmap == "cascade" else "single_chip"
+        uses_adc = "single_chip_adc" in (velocity, heatmap)
+        both_adc = velocity == heatmap == "single_chip_adc"
+        self.carries_raw = both_adc
+        streams = {"single_chip/pointclouds": velocity == "single_chip",
+                   f"{heatmap}/heatmaps": heatmap != "single_chip_adc",
+                   ADC_STREAM: uses_adc}
+        for stream, wanted in streams.items():
+            if wanted and not run.has(stream):
+                raise SourceError(f"{run.run_dir}: the run has no {stream} "
+                                  f"({os.path.join(run.run_dir, *stream.split('/'), 'timestamps.txt')} is missing)")
+
+        events: list[_Event] = []
+        if both_adc:
+            events += self._events(ADC_STREAM, 0, "both")
+        else:
+            if velocity == "single_chip":
+                events += self._events("single_chip/pointclouds", 0, "velocity")
+            else:
+                events += self._events(ADC_STREAM, 0, "velocity")
+            if heatmap == "single_chip_adc":
+                events += self._events(ADC_STREAM, 1, "heatmap")
+            else:
+                events += self._events(f"{heatmap}/heatmaps", 1, "heatmap")
+        events.sort(key=lambda e: (e.t, e.order))
+        if not events:
+            raise SourceError(f"{run.run_dir}: the chosen streams hold no frames")
+        t0 = events[0].t
+        self.events = [e for e in events if e.t - t0 >= start_s - 1e-9]
+        if not self.events:
+            raise SourceError(f"start={start_s:g}s is past the run's {events[-1].t - t0:.2f} s")
+
+        self.config: RadarConfig | None = None
+        self.layout: RawLayout | None = None
+        if uses_adc:
+            self.config = config if config is not None else self._adc_config()
+            wf = run.waveform_config("single_chip")
+            adc_shape = (wf.num_chirps_per_frame, wf.num_tx, wf.num_rx, wf.num_adc_samples_per_chirp)
+            if self.config.cube_shape != adc_shape:
+                raise SourceError(f"the radar configuration's cube {self.config.cube_shape} (loops, tx, rx, "
+                                  f"samples) does not match the run's ADC frames {adc_shape}")
+            self.layout = RawLayout.from_config(self.config)
+        elif config is not None:
+            raise SourceError("a radar configuration applies to ADC frames: this stream uses none "
+                              "(give velocity=single_chip_adc or heatmap=single_chip_adc)")
+        self._mount_offset = (run.mount_yaw("single_chip") - run.mount_yaw(self.sensor)
+                              if velocity == "single_chip" and self.sensor != "single_chip" else 0.0)
+        self._poses = self._pose_table()
+        self.frames_played = 0
+
+    def _events(self, stream: str, order: int, role: str) -> list[_Event]:
+        self.run.count(stream)  # the timestamps and the files pair up
+        return [_Event(float(t), order, stream, i, role) for i, t in enumerate(self.run.timestamps(stream))]
+
+    def _adc_config(self) -> RadarConfig:
+        wf = self.run.waveform_config("single_chip")
+        antenna_path = self.run._calib_path("single_chip", "antenna_cfg.txt")
+        if os.path.exists(antenna_path):
+            tx_order = tx_order_from_antennas(read_antenna_config(antenna_path))
+        else:
+            log.warning("%s: missing: assuming TI's TX order %s", antenna_path, TI_TX_ORDER)
+            tx_order = TI_TX_ORDER
+        times = self.run.timestamps(ADC_STREAM)
+        period = float(np.median(np.diff(times))) if len(times) > 1 else 0.1
+        return waveform_to_config(wf, tx_order=tx_order, frame_period_s=round(period, 4),
+                                  origin=self.run._calib_path("single_chip", "waveform_cfg.txt"))
+
+    def _pose_table(self) -> dict[float, tuple[float, ...]]:
+        """The heatmap radar's pose at every event time inside the ground truth."""
+        if not self.run.has("groundtruth"):
+            log.info("%s: no ground truth", self.run.run_dir)
+            return {}
+        times = np.array([e.t for e in self.events])
+        traj, kept = self.run.sensor_poses(self.sensor, times)
+        return {float(t): (*p, *q) for t, p, q in zip(traj.times, traj.positions, traj.quaternions)}
+
+    def groundtruth(self) -> TumTrajectory | None:
+        """The heatmap radar's poses at the times of the frames that give a pose (heatmap
+        frames), inside the ground truth's span; None when the run has no ground truth."""
+        if not self.run.has("groundtruth"):
+            return None
+        times = np.array([e.t for e in self.events if e.role != "velocity"])
+        traj, _ = self.run.sensor_poses(self.sensor, times)
+        return traj
+
+    def _frame(self, k: int, e: _Event) -> Frame:
+        pose = self._poses.get(e.t)
+        if e.stream == ADC_STREAM:
+            cube = adc_to_cube(self.run.adc("single_chip", e.i))
+            raw = np.frombuffer(self.layout.encode(cube), np.uint8)
+            return Frame(k, e.t, raw, self.layout, pose=pose, role=e.role)
+        if e.stream == "single_chip/pointclouds":
+            points = pointcloud_to_points(self.run.pointcloud(e.i))
+            if self._mount_offset:
+                points = points_in_frame(points, self._mount_offset)
+            return Frame(k, e.t, None, None, pose=pose, points=points, role=e.role)
+        sensor = e.stream.split("/")[0]
+        heatmap = heatmap_to_polar(self.run.heatmap(sensor, e.i), self.run.heatmap_config(sensor))
+        return Frame(k, e.t, None, None, pose=pose, heatmap=heatmap, role=e.role)
+
+    def __iter__(self) -> Iterator[Frame]:
+        pacer = Pacer(self.rate, self)
+        t0 = self.events[0].t
+        for k, e in enumerate(self.events):
+            if self.stop_requested:
+                return
+            pacer.wait(e.t - t0)
+            if self.stop_requested:
+                return
+            yield self._frame(k, e)
+            self.frames_played += 1
+
+    def describe(self) -> dict:
+        return {"url": self.url, "run": self.run.run_dir, "velocity": self.velocity, "heatmap": self.heatmap,
+                "frames": len(self.events), "rate": "max" if self.rate == math.inf else self.rate}
+
+
+def _seconds(text: str) -> float:
+    value = float(text[:-1] if text.endswith("s") else text)
+    if not 0 <= value < math.inf:
+        raise ValueError(text)
+    return value
+
+
+def open_coloradar(path: str, options: UrlOptions, config: RadarConfig | None) -> ColoRadarSource:
+    velocity = options.take("velocity", one_of(*VELOCITY_MODES), "single_chip", "|".join(VELOCITY_MODES))
+    heatmap = options.take("heatmap", one_of(*HEATMAP_MODES), "cascade", "|".join(HEATMAP_MODES))
+    rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
+    start = options.take("start", _seconds, 0.0, "seconds from the first frame, like 20 or 20s")
+    calib = options.take("calib", str, None, "the calib directory")
+    options.finish()
+    if not path:
+        raise SourceError(f"{options.url}: no path: use coloradar://RUN_DIR")
+    run = ColoRadarRun(os.path.expanduser(path), os.path.expanduser(calib) if calib else None)
+    try:
+        return ColoRadarSource(run, velocity=velocity, heatmap=heatmap, rate=rate, start_s=start, config=config)
+    except SourceError as exc:
+        raise SourceError(f"{options.url}: {exc}") from None

@@ -1,0 +1,289 @@
+"""The ``coloradar://`` source: a ColoRadar run played through radar-capture and scored by
+radar-eval against the run's own ground truth.
+
+Two kinds of synthetic runs in the dataset's exact layout:
+
+- a simulator recording of ours rewritten as ColoRadar single-chip ADC frames (waveform_cfg,
+  antenna_cfg, ground truth).  Played with both streams from ADC, the run must give exactly the
+  odometry the recording gives through ``replay://``: the waveform -> cfg mapping, the TX order
+  from the antenna layout and the ADC layout conversion are all exact or the numbers differ.
+  Recorded once in TI's TX order (chirp masks 1, 4, 2) and once in xwr's (1, 2, 4).
+- a platform on a left arc with on-chip point clouds at 10 Hz and cascade-like heatmaps at
+  5 Hz (coloradar_synth.write_moving_run): the paper's two-radar setup.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import console_command
+from coloradar_synth import TX_POSITIONS, write_moving_run, write_run, write_run_from_capture
+from test_cli_capture import one_error_line, run_capture_cli
+
+from radarodom.cfg import RadarConfig, shipped_config_path
+from radarodom.driver.coloradar import ColoRadarRun, WaveformConfig
+from radarodom.driver.coloradar_waveform import (AntennaConfig, read_antenna_config, tx_order_from_antennas,
+                                                 waveform_to_config)
+from radarodom.driver.sources import open_source
+from radarodom.errors import CaptureFormatError, SourceError
+from radarodom.tum import read_tum
+
+SIM_SECONDS = 3
+
+
+def _capture(*args) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-capture") + ["--no-publish", "-q", *map(str, args)],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+
+
+def _eval(*args) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120)
+
+
+def _xwr_order_cfg(path: pathlib.Path) -> pathlib.Path:
+    """The shipped cfg with the chirps on TX1, TX2, TX3 (masks 1, 2, 4) instead of TI's 1, 4, 2."""
+    text = pathlib.Path(shipped_config_path()).read_text()
+    text = text.replace("chirpCfg 1 1 0 0 0 0 0 4", "chirpCfg 1 1 0 0 0 0 0 2")
+    text = text.replace("chirpCfg 2 2 0 0 0 0 0 2", "chirpCfg 2 2 0 0 0 0 0 4")
+    path.write_text(text)
+    assert RadarConfig.from_file(path).tx_order == (1, 2, 3)
+    return path
+
+
+@pytest.fixture(scope="module", params=["ti_order", "xwr_order"])
+def sim_pair(request, tmp_path_factory):
+    """(recording, its odometry TUM, the same frames as a ColoRadar run)."""
+    root = tmp_path_factory.mktemp(f"coloradar_{request.param}")
+    cfg_args = [] if request.param == "ti_order" else ["--cfg", _xwr_order_cfg(root / "xwr.cfg")]
+    rec, odom = root / "rec", root / "replay.tum"
+    proc = _capture("--source", f"sim://corridor?rate=max&duration={SIM_SECONDS}", *cfg_args, "--record", rec,
+                    "--no-odom")
+    assert proc.returncode == 0, proc.stderr
+    proc = _capture("--source", f"replay://{rec}?rate=max", "--odom-out", odom)
+    assert proc.returncode == 0, proc.stderr
+    return rec, odom, write_run_from_capture(root, rec)
+
+
+def test_adc_frames_give_exactly_the_recordings_odometry(sim_pair, tmp_path):
+    rec, replay_odom, run = sim_pair
+    odom = tmp_path / "coloradar.tum"
+    url = f"coloradar://{run}?velocity=single_chip_adc&heatmap=single_chip_adc&rate=max"
+    proc = _capture("--source", url, "--odom-out", odom)
+    assert proc.returncode == 0, proc.stderr
+    assert odom.read_text() == replay_odom.read_text()  # bit for bit
+    assert len(odom.read_text().splitlines()) == 10 * SIM_SECONDS
+    # The run's ground truth, through the source URL, is the recording's.
+    a, b = _eval(odom, url), _eval(odom, f"replay://{rec}")
+    assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
+    assert a.stdout.splitlines()[1:] == b.stdout.splitlines()[1:]  # all but the header naming the files
+
+
+def test_the_derived_cfg_matches_the_recordings(sim_pair):
+    rec, _, run = sim_pair
+    with open_source(f"coloradar://{run}?velocity=single_chip_adc&heatmap=single_chip_adc") as source:
+        derived = source.config
+        frames = iter(source)
+        first = next(frames)
+    original = RadarConfig.from_file(rec / "radar.cfg")
+    assert derived.tx_order == original.tx_order
+    assert derived.cube_shape == original.cube_shape
+    for prop in ("range_resolution_m", "max_velocity_mps", "carrier_frequency_hz", "frame_period_s",
+                 "chirp_repetition_s"):
+        assert getattr(derived, prop) == pytest.approx(getattr(original, prop), rel=1e-9), prop
+    assert first.role == "both" and first.pose is not None
+    np.testing.assert_array_equal(first.raw, np.fromfile(rec / "adc_data.bin", np.uint8, count=first.raw.size))
+
+
+def test_a_coloradar_adc_run_records_to_a_capture_directory(sim_pair, tmp_path):
+    rec, replay_odom, run = sim_pair
+    out = tmp_path / "from_coloradar"
+    proc = _capture("--source", f"coloradar://{run}?velocity=single_chip_adc&heatmap=single_chip_adc&rate=max",
+                    "--record", out, "--no-odom")
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "adc_data.bin").read_bytes() == (rec / "adc_data.bin").read_bytes()
+    gt, gt0 = read_tum(out / "groundtruth.tum"), read_tum(rec / "groundtruth.tum")
+    np.testing.assert_allclose(gt.positions, gt0.positions, atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def moving_run(tmp_path_factory):
+    return write_moving_run(tmp_path_factory.mktemp("coloradar_moving"))
+
+
+def test_the_paper_setup_plays_velocity_and_heatmap_frames_in_time_order(moving_run):
+    with open_source(f"coloradar://{moving_run}?rate=max") as source:
+        assert source.config is None and not source.carries_raw
+        frames = list(source)
+    roles = [f.role for f in frames]
+    assert roles.count("velocity") == 40 and roles.count("heatmap") == 20
+    times = [f.timestamp for f in frames]
+    assert times == sorted(times) and [f.index for f in frames] == list(range(60))
+    for f in frames:
+        assert f.raw is None
+        assert (f.points is not None) == (f.role == "velocity")
+        assert (f.heatmap is not None) == (f.role == "heatmap")
+    with pytest.raises(SourceError, match="no raw ADC samples"):
+        frames[0].cube()
+
+
+def test_the_paper_setup_through_radar_capture_and_radar_eval(moving_run, tmp_path):
+    odom = tmp_path / "est.tum"
+    proc = _capture("--source", f"coloradar://{moving_run}?rate=max", "--odom-out", odom)
+    assert proc.returncode == 0, proc.stderr
+    assert "60 frames" in proc.stdout
+    est = read_tum(odom)
+    assert len(est.times) == 20  # one pose per cascade heatmap
+    ev = _eval(odom, f"coloradar://{moving_run}", "--json", tmp_path / "e.json")
+    assert ev.returncode == 0, ev.stderr
+    numbers = json.loads((tmp_path / "e.json").read_text())
+    assert numbers["poses"]["matched"] == 20
+    # 10 deg/s on a 2.9 m radius: the arc is followed (cascade-like beams, exact velocities).
+    assert numbers["yaw_increment_error_deg"]["rmse"] < 0.3  # 0.10 when written
+    assert numbers["final_drift"]["percent_of_path"] < 1.0  # 0.18
+
+
+def test_radar_capture_and_radar_coloradar_agree(moving_run, tmp_path):
+    """Both run the default estimator on the same frames: the same trajectory."""
+    odom, out = tmp_path / "est.tum", tmp_path / "tables"
+    assert _capture("--source", f"coloradar://{moving_run}?rate=max", "--odom-out", odom).returncode == 0
+    proc = subprocess.run(console_command("radar-coloradar") + [str(moving_run), "--out", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    a, b = read_tum(odom), read_tum(out / "radarodom_default.tum")
+    np.testing.assert_allclose(a.times, b.times)
+    np.testing.assert_allclose(a.positions, b.positions, atol=1e-4)
+
+
+def test_point_clouds_are_turned_into_the_heatmap_radars_frame(tmp_path):
+    run = write_run(tmp_path, "aspen_run5", frames=6)  # mounts differ: single chip 0.30 rad, cascade -0.20
+    with open_source(f"coloradar://{run}?rate=max&heatmap=single_chip") as source:
+        assert source.sensor == "single_chip"
+        direct = [f.points for f in source if f.role == "velocity"]
+    with open_source(f"coloradar://{run}?rate=max") as source:
+        turned = [f.points for f in source if f.role == "velocity"]
+    offset = 0.30 - (-0.20)
+    for p, q in zip(direct, turned):
+        np.testing.assert_allclose(q["azimuth"], p["azimuth"] - offset, atol=1e-6)
+        np.testing.assert_allclose(np.hypot(q["x"], q["y"]), np.hypot(p["x"], p["y"]), atol=1e-5)
+        np.testing.assert_allclose(np.arctan2(q["x"], q["y"]), q["azimuth"], atol=1e-5)
+
+
+@pytest.mark.parametrize("query, message", [
+    ("velocity=single_chip_adc&heatmap=cascade", "velocity=single_chip_adc needs heatmap=single_chip"),
+    ("heatmap=lidar", "option heatmap='lidar': expected cascade|single_chip|single_chip_adc"),
+    ("speed=2", "unknown option(s) speed"),
+    ("start=99s", "start=99s is past"),
+])
+def test_bad_urls_give_one_error_line(tmp_path, query, message):
+    run = write_run(tmp_path, "ec_hallways_run0", frames=3)
+    proc = _capture("--source", f"coloradar://{run}?{query}")
+    assert proc.returncode == 2
+    assert message in one_error_line(proc)
+
+
+def test_a_missing_stream_is_named(tmp_path):
+    run = write_run(tmp_path, "ec_hallways_run0", frames=3)
+    (run / "cascade" / "heatmaps" / "timestamps.txt").unlink()
+    proc = _capture("--source", f"coloradar://{run}")
+    assert proc.returncode != 0
+    assert "cascade/heatmaps" in one_error_line(proc)
+
+
+def test_record_and_cfg_are_refused_where_there_are_no_raw_frames(tmp_path):
+    run = write_run(tmp_path, "ec_hallways_run0", frames=3)
+    proc = _capture("--source", f"coloradar://{run}?rate=max", "--record", tmp_path / "rec")
+    assert proc.returncode == 2 and "--record needs a raw source" in one_error_line(proc)
+    assert not (tmp_path / "rec").exists()
+    proc = _capture("--source", f"coloradar://{run}?rate=max", "--cfg", shipped_config_path())
+    assert proc.returncode == 2 and "applies to ADC frames" in one_error_line(proc)
+
+
+def test_without_antenna_cfg_tis_order_is_assumed(tmp_path, caplog):
+    run = write_run(tmp_path, "ec_hallways_run0", frames=3, tx_positions={"single_chip": None})
+    with open_source(f"coloradar://{run}?velocity=single_chip_adc&heatmap=single_chip_adc") as source:
+        assert source.config.tx_order == (1, 3, 2)
+    assert "assuming TI's TX order" in caplog.text
+
+
+def test_radar_eval_refuses_a_source_without_ground_truth(tmp_path):
+    est = tmp_path / "est.tum"
+    est.write_text("0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n")
+    proc = _eval(est, "sim://corridor")
+    assert proc.returncode != 0 and "knows no ground truth" in proc.stderr and "Traceback" not in proc.stderr
+
+
+# --------------------------------------------------------------------------- waveform -> cfg
+
+
+def _waveform(**changes) -> WaveformConfig:
+    values = dict(num_rx=4, num_tx=3, num_adc_samples_per_chirp=128, num_chirps_per_frame=128,
+                  adc_sample_frequency=4.0e6, start_frequency=77.0e9, idle_time=1.0e-5, adc_start_time=6.0e-6,
+                  ramp_end_time=6.0e-5, frequency_slope=6.0e13)
+    values.update(changes)
+    return WaveformConfig(**values)
+
+
+def test_the_waveform_maps_to_the_radar_physics():
+    cfg = waveform_to_config(_waveform(), frame_period_s=0.1)
+    c = 299792458.0
+    assert cfg.cube_shape == (128, 3, 4, 128)
+    assert cfg.sample_rate_hz == 4.0e6 and cfg.slope_hz_per_s == pytest.approx(6.0e13)
+    assert cfg.range_resolution_m == pytest.approx(c / (2 * 6.0e13 * 128 / 4.0e6))
+    assert cfg.chirp_time_s == pytest.approx(7.0e-5)
+    assert cfg.frame_period_s == pytest.approx(0.1)
+    assert cfg.tx_order == (1, 3, 2)
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(num_tx=12, num_rx=16), "not supported"),
+    (dict(adc_sample_frequency=1.0e6), "ADC sampling ends"),
+])
+def test_a_waveform_that_is_no_awr1843_is_refused(change, message):
+    with pytest.raises(CaptureFormatError, match=message):
+        waveform_to_config(_waveform(**change), origin="calib/single_chip/waveform_cfg.txt")
+
+
+RX = np.array([[0, 0], [1, 0], [2, 0], [3, 0]], float)
+
+
+@pytest.mark.parametrize("tx, rx, order", [
+    (TX_POSITIONS["single_chip"], RX, (1, 3, 2)),  # TI's chirp order
+    (((0, 0), (2, 1), (4, 0)), RX, (1, 2, 3)),  # xwr's
+    (((4, 0), (0, 0), (2, 1)), RX, (3, 1, 2)),
+    (((3, 0), (-1, 0), (1, -1)), RX[::-1], (1, 3, 2)),  # RX counted the other way, rows downwards
+    (((0, 0), (8, 0), (4, 2)), RX * 2, (1, 3, 2)),  # in quarter wavelengths
+])
+def test_the_tx_order_follows_the_antenna_positions(tx, rx, order):
+    assert tx_order_from_antennas(AntennaConfig(np.asarray(rx, float), np.asarray(tx, float), 77.0)) == order
+
+
+@pytest.mark.parametrize("tx", [((0, 0), (4, 0), (8, 0)), ((0, 0), (4, 0), (3, 1)), ((0, 0), (2, 0), (1, 1))])
+def test_a_layout_that_is_no_awr1843_is_refused(tx):
+    with pytest.raises(CaptureFormatError, match="not an AWR1843BOOST's"):
+        tx_order_from_antennas(AntennaConfig(RX, np.asarray(tx, float), 77.0, "antenna_cfg.txt"))
+
+
+def test_antenna_cfg_errors_name_file_and_line(tmp_path):
+    path = tmp_path / "antenna_cfg.txt"
+    path.write_text("# layout\nnum_rx 4\nnum_tx 3\nrx 0 0 0\nrx 1 1 0\nrx 2 2 0\nrx 3 3 0\ntx 0 0 0\ntx 1 4 0\ntx 1 2 1\n")
+    with pytest.raises(CaptureFormatError, match=r"antenna_cfg.txt:10: tx 1 placed twice"):
+        read_antenna_config(path)
+    path.write_text("num_rx 4\nnum_tx 3\nrx 0 0 0\nrx 1 1 0\nrx 2 2 0\nrx 3 3 0\ntx 0 0 0\ntx 1 4 x\n")
+    with pytest.raises(CaptureFormatError, match=r"antenna_cfg.txt:8"):
+        read_antenna_config(path)
+    path.write_text("num_rx 4\nnum_tx 3\nrx 0 0 0\nrx 1 1 0\nrx 2 2 0\nrx 3 3 0\ntx 0 0 0\ntx 2 2 1\nF_design 77\n")
+    with pytest.raises(CaptureFormatError, match=r"num_tx is 3 but tx lines place \[0, 2\]"):
+        read_antenna_config(path)
+
+
+def test_the_run_reader_gives_the_mount_yaw(tmp_path):
+    run = ColoRadarRun(write_run(tmp_path, "ec_hallways_run0", frames=2))
+    assert run.mount_yaw("single_chip") == pytest.approx(0.30)
+    assert run.mount_yaw("cascade") == pytest.approx(-0.20)
+    assert math.isclose(run.mount_yaw("imu"), 0.0, abs_tol=1e-12)
