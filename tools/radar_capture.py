@@ -154,9 +154,8 @@ class _Processing:
 
     def __init__(self, source: Source, args: argparse.Namespace, outputs: contextlib.ExitStack,
                  publisher=None) -> None:
-        from ..dsp.heatmap import HeatmapMaker
-        from ..dsp.processor import FrameProcessor
         from ..estimator.odometry import RadarOdometry
+        from ..products import FrameProducts
         from ..tum import TumWriter
         from .exports import HeatmapWriter, PointsCsvWriter
 
@@ -165,12 +164,9 @@ class _Processing:
             if path:
                 _check_destination(path, is_dir=path == args.heatmap_out)
         estimator_cfg = args.estimator
-        # Sources that ship point clouds and heatmaps (datasets) have no raw frames to process.
-        self.processor = FrameProcessor(source.config) if source.config is not None else None
-        # The estimator needs each cell's Doppler only where features can be; the heatmap
-        # export gets the full map.
-        self.heatmaps = None if self.processor is None else HeatmapMaker(
-            self.processor, doppler_cells=None if args.heatmap_out else 4 * estimator_cfg.features.k)
+        # The heatmap export gets the full map; the estimator needs less.
+        self.products = (FrameProducts(source.config) if args.heatmap_out
+                         else FrameProducts.for_estimator(source.config, estimator_cfg.features.k))
         self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
         self.state = None
         # Recent figures only: a sensor node runs for days.
@@ -182,24 +178,15 @@ class _Processing:
         for writer in (self.heatmap_out, self.points_out, self.odom_out):
             if writer is not None:
                 outputs.callback(writer.close)
-        # Reused: no allocation per frame.
-        self._cube = None if self.processor is None else np.empty(source.config.cube_shape, np.complex64)
         self.publisher = publisher
 
     def __call__(self, frame: Frame) -> None:
-        result = None
-        if frame.raw is not None:
-            if self.processor is None:
-                raise CaptureError(f"frame {frame.index} carries raw samples but the source gave no radar configuration")
-            result = self.processor.process(frame.cube(out=self._cube))
-        points = frame.points if frame.points is not None else (None if result is None else result.points)
-        if points is not None and self.points_out is not None:
-            self.points_out.write(frame.index, frame.timestamp, points)
-        heatmap = frame.heatmap
         wanted = self.heatmap_out is not None or self.odometry is not None or self.publisher is not None
         # A velocity-only frame of a two-stream source needs no heatmap for the odometry.
-        if heatmap is None and result is not None and wanted and (frame.role != "velocity" or self.heatmap_out):
-            heatmap = self.heatmaps.range_azimuth(result.spectrum)
+        products = self.products(frame, heatmap=wanted and (frame.role != "velocity" or self.heatmap_out is not None))
+        points, heatmap = products.points, products.heatmap
+        if points is not None and self.points_out is not None:
+            self.points_out.write(frame.index, frame.timestamp, points)
         if heatmap is not None and self.heatmap_out is not None:
             self.heatmap_out.write(frame.index, frame.timestamp, heatmap)
         if self.odometry is not None:

@@ -1,9 +1,12 @@
 """radar-coloradar: the paper's two-radar pipeline on a ColoRadar run, and its two tables.
 
-    radar-coloradar RUN_DIR [--calib DIR] [--heatmap cascade|single_chip] [--out DIR] [--json FILE]
+    radar-coloradar RUN_DIR [--calib DIR] [--heatmap cascade|single_chip|single_chip_adc]
+                    [--velocity single_chip|single_chip_adc] [--out DIR] [--json FILE]
 
-Velocity from the single-chip radar's point clouds (about 10 Hz), yaw from the
-heatmaps of ``--heatmap`` (the cascade radar's, about 5 Hz, as in the paper),
+Velocity from the single-chip radar's point clouds (about 10 Hz; ``--velocity
+single_chip_adc``: radarodom's DSP on its ADC frames), yaw from the heatmaps of
+``--heatmap`` (the cascade radar's, about 5 Hz, as in the paper; ``single_chip_adc``:
+radarodom's DSP and heatmaps on the single-chip ADC frames),
 ground truth from the run's lidar poses moved into the heatmap radar's frame with
 the calib transforms.  Every variant of the paper's tables runs on the same data:
 yaw RMSE by preprocessing (CFAR, Ray-max, Top-k; sampling + mwICP) and relative
@@ -23,11 +26,12 @@ from typing import Sequence
 import numpy as np
 
 from ..driver.coloradar import ColoRadarRun
-from ..driver.coloradar_source import ColoRadarSource
+from ..driver.coloradar_source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
 from ..errors import SourceError, UsageError
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
+from ..products import FrameProducts
 from ..tum import TumTrajectory, TumWriter
 from . import cli
 
@@ -46,17 +50,27 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
 
 
 class RunData:
-    """A run's two streams, read once through the ``coloradar://`` source: the single-chip
-    point clouds (velocity, turned into the heatmap radar's frame) and the polar heatmaps (yaw)."""
+    """A run's two streams, read once through the ``coloradar://`` source: point clouds
+    (velocity, in the heatmap radar's frame) and polar heatmaps (yaw); ADC frames go through
+    radarodom's DSP once."""
 
-    def __init__(self, run: ColoRadarRun, heatmap_sensor: str) -> None:
+    def __init__(self, run: ColoRadarRun, heatmap: str, velocity: str = "single_chip") -> None:
         try:
-            source = ColoRadarSource(run, velocity="single_chip", heatmap=heatmap_sensor, rate=math.inf)
+            source = ColoRadarSource(run, velocity=velocity, heatmap=heatmap, rate=math.inf)
         except SourceError as exc:
             raise UsageError(str(exc)) from None
-        self.run, self.sensor = run, heatmap_sensor
-        #: (t, role, points or heatmap) of every frame, in time order.
-        self.frames = [(f.timestamp, f.role, f.points if f.role == "velocity" else f.heatmap) for f in source]
+        self.run, self.sensor = run, source.sensor
+        # As radar-capture makes them, so both give the same trajectory on the same frames.
+        products = FrameProducts.for_estimator(source.config, EstimatorConfig().features.k)
+        #: (t, role, points or heatmap) of every frame, in time order; a frame giving both
+        #: is a velocity then a heatmap at the same time (what RadarOdometry.step does).
+        self.frames: list[tuple[float, str, object]] = []
+        for f in source:
+            got = products(f, heatmap=f.role != "velocity")
+            if f.role != "heatmap":
+                self.frames.append((f.timestamp, "velocity", got.points))
+            if f.role != "velocity":
+                self.frames.append((f.timestamp, "heatmap", got.heatmap))
         self.heatmap_times = np.array([t for t, role, _ in self.frames if role == "heatmap"])
         self.groundtruth = source.groundtruth()
         self.kept = np.isin(self.heatmap_times, self.groundtruth.times)
@@ -114,8 +128,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "heatmaps) and radarodom's default on a ColoRadar run; print the paper's two tables.")
     parser.add_argument("run", metavar="RUN_DIR", help="a ColoRadar run directory (e.g. ec_hallways_run0)")
     parser.add_argument("--calib", metavar="DIR", help="the calib directory (default: beside the run, or in it)")
-    parser.add_argument("--heatmap", choices=("cascade", "single_chip"), default="cascade",
-                        help="whose heatmaps give the yaw (default: cascade, as in the paper)")
+    parser.add_argument("--heatmap", choices=HEATMAP_MODES, default="cascade",
+                        help="whose heatmaps give the yaw: the cascade radar's (default, as in the paper), "
+                             "the single-chip radar's as shipped, or radarodom's from its ADC frames")
+    parser.add_argument("--velocity", choices=VELOCITY_MODES, default="single_chip",
+                        help="what gives the velocity: the single-chip radar's on-chip point clouds (default, "
+                             "as in the paper) or radarodom's DSP on its ADC frames (with a single-chip heatmap)")
     parser.add_argument("--out", metavar="DIR",
                         help="write each variant's trajectory and the ground truth (heatmap radar's frame) as "
                              "TUM files here, for radar-eval")
@@ -126,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _main(args: argparse.Namespace) -> int:
     run = ColoRadarRun(args.run, args.calib)
-    data = RunData(run, args.heatmap)
+    data = RunData(run, args.heatmap, args.velocity)
     if data.kept.sum() < 2:
         raise UsageError(f"{run.run_dir}: fewer than two {args.heatmap} heatmaps fall inside the ground truth")
     results = {}
@@ -148,7 +166,7 @@ def _main(args: argparse.Namespace) -> int:
     print(_tables(run.name, results))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump({"run": run.name, "heatmap": args.heatmap, "results": results,
+            json.dump({"run": run.name, "heatmap": args.heatmap, "velocity": args.velocity, "results": results,
                        "paper": _paper_numbers(run.name)}, fh, indent=2)
     return 0
 

@@ -1,0 +1,69 @@
+"""The point cloud and the heatmap of a source frame: the source's own, or the DSP's.
+
+Most sources give raw ADC frames, and the DSP makes both products.  A dataset may ship them
+instead (ColoRadar's on-chip point clouds, its cascade radar's heatmaps), or ship one kind for
+some frames and raw frames for others.  :class:`FrameProducts` hides the difference from the
+pipeline: built once per source, called once per frame.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .cfg import RadarConfig
+from .errors import CaptureError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Products:
+    """What one frame gives: a point cloud (POINT_DTYPE (n,)) and a range-azimuth heatmap
+    (dsp.heatmap.RangeAzimuth); either may be None (a velocity-only frame has no heatmap)."""
+
+    points: np.ndarray | None
+    heatmap: Any
+
+
+class FrameProducts:
+    """Products of the frames of one source.
+
+    *config*: the radar configuration of the source's raw frames (None when it has none: then
+    no DSP is built).  *doppler_cells*: how many of the heatmap's strongest cells get their
+    dominant Doppler (None: every cell, the full map; see dsp.heatmap.HeatmapMaker).
+    """
+
+    def __init__(self, config: RadarConfig | None, *, doppler_cells: int | None = None) -> None:
+        from .dsp.heatmap import HeatmapMaker
+        from .dsp.processor import FrameProcessor
+
+        self.processor = FrameProcessor(config) if config is not None else None
+        self.heatmaps = None if self.processor is None else HeatmapMaker(self.processor, doppler_cells=doppler_cells)
+        # Reused: no allocation per frame.
+        self._cube = None if config is None else np.empty(config.cube_shape, np.complex64)
+
+    @classmethod
+    def for_estimator(cls, config: RadarConfig | None, features_k: int) -> "FrameProducts":
+        """Products for an estimator taking *features_k* heatmap features a frame: the Doppler of
+        the strongest 4 k cells is enough for its dynamic-object rejection, and much cheaper
+        than the full map's."""
+        return cls(config, doppler_cells=4 * features_k)
+
+    def __call__(self, frame, *, heatmap: bool = True) -> Products:
+        """The products of *frame* (a driver.sources.Frame).  The DSP's heatmap is made only
+        when *heatmap* is true (it is the costly half of a velocity-only frame)."""
+        result = None
+        if frame.raw is not None:
+            if self.processor is None:
+                raise CaptureError(f"frame {frame.index} carries raw samples but the source gave no radar "
+                                   "configuration")
+            result = self.processor.process(frame.cube(out=self._cube))
+        points = frame.points if frame.points is not None else (None if result is None else result.points)
+        hm = frame.heatmap
+        if hm is None and result is not None and heatmap:
+            hm = self.heatmaps.range_azimuth(result.spectrum)
+        return Products(points, hm)
