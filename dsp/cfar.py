@@ -367,8 +367,22 @@ def _check_length(n: int, params: CfarParams, what: str) -> None:
 
 
 def _pad_last(x: np.ndarray, p: int, cyclic: bool) -> np.ndarray:
-    widths = [(0, 0)] * (x.ndim - 1) + [(p, p)]
-    return np.pad(x, widths, mode="wrap") if cyclic else np.pad(x, widths, mode="constant")
+    """*x* padded by *p* cells each side of its last axis: zeros, or wrapped around.  The
+    same values as np.pad's "constant" and "wrap", by slices (np.pad's generality cost
+    70 us a call, a tenth of the map's CFAR)."""
+    n = x.shape[-1]
+    if p > n:  # wraps more than once: np.pad's rule
+        widths = [(0, 0)] * (x.ndim - 1) + [(p, p)]
+        return np.pad(x, widths, mode="wrap") if cyclic else np.pad(x, widths, mode="constant")
+    out = np.empty(x.shape[:-1] + (n + 2 * p,), x.dtype)
+    out[..., p:p + n] = x
+    if cyclic:
+        out[..., :p] = x[..., n - p:]
+        out[..., p + n:] = x[..., :p]
+    else:
+        out[..., :p] = 0
+        out[..., p + n:] = 0
+    return out
 
 
 def _noise_ca_family(x: np.ndarray, params: CfarParams) -> np.ndarray:

@@ -27,6 +27,10 @@ import scipy.ndimage
 
 from .processor import FrameProcessor
 
+#: Doppler bins per block of the azimuth row's transposing copy (8 complex64: 64 bytes, a
+#: cache line).
+_DOPPLER_BLOCK = 8
+
 
 @dataclass
 class RangeAzimuth:
@@ -71,16 +75,30 @@ class HeatmapMaker:
         # DFT of the azimuth row at its elements' positions onto the centred bins:
         # exp(-j 2 pi h k / n_az) for signed k ascending (what fft + fftshift give).
         self._az_dft_t = np.exp(-2j * np.pi * np.outer(k, processor.az_h) / n_az).astype(np.complex64)
-        self._az_dft_h = np.ascontiguousarray(np.conj(self._az_dft_t).T)  # (row, n_az)
+        # a^H R a for every azimuth bin a and range bin, with R the azimuth row's covariance
+        # (row x row) and a the DFT row: sum_hg R_hg D_ah conj(D_ag), one real matrix product
+        # of R's interleaved (re, im) values with this (2 row^2, n_az) matrix (Re(R M) =
+        # Re R Re M - Im R Im M).  Eight times faster than products per range bin.
+        n_row = len(processor.az_elements)
+        quad = (self._az_dft_t[:, :, None] * np.conj(self._az_dft_t)[:, None, :]).reshape(n_az, -1).T
+        self._az_quad = np.empty((2 * n_row * n_row, n_az), np.float32)
+        self._az_quad[0::2], self._az_quad[1::2] = quad.real, -quad.imag
+        # The azimuth row's elements: a slice (a view of the spectrum, no copy) where they are
+        # consecutive, as on the xWR18xx's, else their indices.
+        az = processor.az_elements
+        consecutive = len(az) > 0 and np.array_equal(az, np.arange(az[0], az[0] + len(az)))
+        self._az_select = slice(int(az[0]), int(az[0]) + len(az)) if consecutive else az
         # Work buffers, reused by every frame (fresh large arrays cost page faults); the full
-        # Doppler x azimuth spectrum's (tens of MB) only where it is made.
-        nr, nd, n_row = len(processor.range_m), processor.n_doppler, len(processor.az_elements)
-        self._row = np.empty((nr, n_row, nd), np.complex64)
+        # Doppler x azimuth spectrum's (tens of MB) only where it is made.  The azimuth row is
+        # kept as (row, n_range, n_doppler): see _azimuth_row.
+        nr, nd = len(processor.range_m), processor.n_doppler
+        self._row = np.empty((n_row, nr, nd), np.complex64)
+        self._row_conj = np.empty((n_row, nr, nd), np.complex64) if doppler_cells is not None else None
         self._full = None if doppler_cells is not None else (
-            np.empty((nr, n_az, nd), np.complex64), np.empty((nr, n_az, nd), np.float32),
-            np.empty((nr, n_az, nd), np.float32))
+            np.empty((n_az, nr, nd), np.complex64), np.empty((n_az, nr, nd), np.float32),
+            np.empty((n_az, nr, nd), np.float32))
         self._tdm_row = (None if self._tdm is None else np.ascontiguousarray(
-            self._tdm[:, processor._slot_of_element[processor.az_elements]].T)[None])  # (1, row, n_doppler)
+            self._tdm[:, processor._slot_of_element[az]].T)[:, None, :])  # (row, 1, n_doppler)
         n_el = elevation_bins or processor.params.elevation_fft_size
         kz = np.arange(n_el) - n_el // 2
         self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
@@ -103,30 +121,37 @@ class HeatmapMaker:
 
     def _azimuth_row(self, spectrum: np.ndarray) -> np.ndarray:
         """The azimuth row's Doppler spectra, TDM-compensated, in the work buffer:
-        complex64 (n_range, row, n_doppler)."""
+        complex64 (n_range, row, n_doppler), Doppler along memory (so that matrix products and
+        the sums and argmax over Doppler run along it); a view of the (row, n_range,
+        n_doppler) buffer, whose (row, n_doppler) matrices are strided as BLAS takes them."""
         nd, slots, nrx, nr = spectrum.shape
-        row = spectrum.reshape(nd, slots * nrx, nr)[:, self.proc.az_elements, :]  # (n_doppler, row, n_range)
-        # Doppler last, so that the sums and the argmax over Doppler run along memory.
-        x = self._row
-        x[...] = np.transpose(row, (2, 1, 0))
+        row = spectrum.reshape(nd, slots * nrx, nr)[:, self._az_select, :]  # (n_doppler, row, n_range)
+        buf = self._row
+        # The transposing copy, _DOPPLER_BLOCK Doppler bins at a time: each output line then
+        # gets a whole cache line per pass, where one whole-array copy writes 8 bytes per line
+        # and pass (measured 0.26 ms against 0.6-0.8 ms for this 2 MB on the 2-core EPYC).
+        for d in range(0, nd, _DOPPLER_BLOCK):
+            np.copyto(buf[:, :, d:d + _DOPPLER_BLOCK], np.transpose(row[d:d + _DOPPLER_BLOCK], (1, 2, 0)))
         if self._tdm_row is not None:
-            x *= self._tdm_row
-        return x
+            buf *= self._tdm_row
+        return np.transpose(buf, (1, 0, 2))
 
     def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
         if self._full is None:
             return self._range_azimuth_strong(spectrum)
         proc = self.proc
-        x = self._azimuth_row(spectrum)
-        az, power, scratch = self._full
-        # A zero-padded FFT of a few elements is a small DFT matrix: matrix products.
-        np.matmul(self._az_dft_t, x, out=az)  # (n_range, n_az, n_doppler), azimuth bins ascending
+        self._azimuth_row(spectrum)
+        row = self._row  # (row, n_range, n_doppler)
+        az, power, scratch = self._full  # (n_az, n_range, n_doppler)
+        # A zero-padded FFT of a few elements is a small DFT matrix: one matrix product for
+        # every range and Doppler bin at once, azimuth bins ascending.
+        np.matmul(self._az_dft_t, row.reshape(len(row), -1), out=az.reshape(len(az), -1))
         np.square(az.real, out=power)
         np.square(az.imag, out=scratch)
         power += scratch
-        intensity = power.sum(axis=-1)
-        static = power[..., self._static_rows].sum(axis=-1)
-        dominant = proc.velocity_mps[power.argmax(axis=-1)].astype(np.float32)
+        intensity = np.ascontiguousarray(power.sum(axis=-1).T)
+        static = np.ascontiguousarray(power[..., self._static_rows].sum(axis=-1).T)
+        dominant = proc.velocity_mps[power.argmax(axis=-1).T].astype(np.float32)
         return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)
 
     def _range_azimuth_strong(self, spectrum: np.ndarray) -> RangeAzimuth:
@@ -134,22 +159,28 @@ class HeatmapMaker:
         proc = self.proc
         x = self._azimuth_row(spectrum)
         dft = self._az_dft_t  # (n_az, row)
-        cov = np.matmul(x, np.conj(np.transpose(x, (0, 2, 1))))  # (n_range, row, row)
-        # a^H R a for every azimuth bin, with a the DFT row: sum_hg D_ah R_hg conj(D_ag): one
-        # batched product, then a sum over h (einsum's optimizer would pick BLAS paths that cost
-        # more in setup and threads than these small products do).
-        rd = np.matmul(cov, self._az_dft_h)  # (n_range, row, n_az)
-        rd *= self._az_dft_t.T[None]
-        intensity = rd.sum(axis=1).real.astype(np.float32)
-        zero = x[:, :, self._static_rows]
-        # Batched matrix products, not einsum: einsum does not reach BLAS for these (5x slower).
-        zero_az = np.matmul(dft, zero)  # (n_range, n_az, static Doppler bins)
-        static = (zero_az.real ** 2 + zero_az.imag ** 2).sum(axis=-1).astype(np.float32)
+        xc = np.transpose(np.conjugate(self._row, out=self._row_conj), (1, 2, 0))  # (n_range, n_doppler, row)
+        cov = np.matmul(x, xc)  # (n_range, row, row)
+        nr, n_row = cov.shape[:2]
+        intensity = cov.view(np.float32).reshape(nr, 2 * n_row * n_row) @ self._az_quad  # (n_range, n_az)
+        zero = self._row[:, :, self._static_rows]  # (row, n_range, static Doppler bins)
+        # One matrix product for all ranges and static bins (not one per range bin).
+        zero_az = np.matmul(dft, zero.reshape(n_row, -1)).reshape(len(dft), nr, -1)  # (n_az, n_range, bins)
+        static = np.ascontiguousarray((zero_az.real ** 2 + zero_az.imag ** 2).sum(axis=-1).T)
         dominant = np.full(intensity.shape, np.nan, np.float32)
         n = min(self.doppler_cells, intensity.size)
-        cells = np.argpartition(intensity.ravel(), -n)[-n:]
-        r, a = np.unravel_index(cells, intensity.shape)
-        spectra = np.matmul(dft[a][:, None, :], x[r])[:, 0, :]  # (cells, n_doppler)
+        # The strongest cells, sorted: those of one range bin are then consecutive, and get
+        # their Doppler spectra in one matrix product straight from the work buffer, one
+        # product per range bin (the cells crowd into a few dozen range bins; gathering every
+        # cell's (row, n_doppler) block, 8 kB, for one batched product cost three times more).
+        cells = np.sort(np.argpartition(intensity.ravel(), -n)[-n:])
+        r, a = np.divmod(cells, intensity.shape[1])
+        first = np.flatnonzero(np.diff(r, prepend=-1))  # first cell of each range bin
+        last = np.append(first[1:], n)
+        steer = dft[a]  # (cells, row)
+        spectra = np.empty((n, x.shape[2]), np.complex64)  # (cells, n_doppler)
+        for i, j in zip(first.tolist(), last.tolist()):
+            np.matmul(steer[i:j], self._row[:, r[i], :], out=spectra[i:j])
         best = (spectra.real**2 + spectra.imag**2).argmax(axis=1)
         dominant[r, a] = proc.velocity_mps[best]
         return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)
