@@ -410,10 +410,9 @@ def _noise_ca_family(x: np.ndarray, params: CfarParams) -> np.ndarray:
         noise = np.maximum(left, right)
     else:
         noise = np.minimum(left, right)
-    if not params.cyclic:
-        i = np.arange(n)
-        noise = np.where(i < p, right, noise)          # left window off the start
-        noise = np.where(i > n - 1 - p, left, noise)   # right window off the end
+    if not params.cyclic:  # (noise is a new array here, never a view of sums)
+        noise[..., :p] = right[..., :p]          # left window off the start
+        noise[..., n - p:] = left[..., n - p:]   # right window off the end
     return noise
 
 
@@ -515,18 +514,23 @@ class Detections:
         return int(self.range_idx.size)
 
 
-def _local_max(p: np.ndarray, axis: int, cyclic: bool) -> np.ndarray:
-    """True where p >= both neighbours along *axis* (missing neighbours at
-    non-cyclic ends are ignored)."""
-    if p.shape[axis] < 2:
-        return np.ones(p.shape, dtype=bool)
+def _local_max(p: np.ndarray, cells: tuple[np.ndarray, np.ndarray], axis: int, cyclic: bool) -> np.ndarray:
+    """For each of *cells* (row indices, column indices into 2-D *p*): True where its value
+    is >= both its neighbours along *axis* (missing neighbours at non-cyclic ends are
+    ignored).  Only the given cells are read (a few hundred detections, not the map's tens
+    of thousands of cells)."""
+    n = p.shape[axis]
+    value = p[cells]
+    if n < 2:
+        return np.ones(value.shape, dtype=bool)
+    i = cells[axis]
+    before, after = list(cells), list(cells)
     if cyclic:
-        return (p >= np.roll(p, 1, axis=axis)) & (p >= np.roll(p, -1, axis=axis))
-    q = np.moveaxis(p, axis, -1)
-    ok = np.ones(q.shape, dtype=bool)
-    ok[..., 1:] &= q[..., 1:] >= q[..., :-1]
-    ok[..., :-1] &= q[..., :-1] >= q[..., 1:]
-    return np.moveaxis(ok, -1, axis)
+        before[axis], after[axis] = (i - 1) % n, (i + 1) % n
+        return (value >= p[tuple(before)]) & (value >= p[tuple(after)])
+    before[axis], after[axis] = np.maximum(i - 1, 0), np.minimum(i + 1, n - 1)
+    # At an end the clamped neighbour is the cell itself: value >= value holds.
+    return (value >= p[tuple(before)]) & (value >= p[tuple(after)])
 
 
 def cfar_2d_ti(power_rd: np.ndarray, range_params: CfarParams, doppler_params: CfarParams, *,
@@ -568,10 +572,11 @@ def cfar_2d_ti(power_rd: np.ndarray, range_params: CfarParams, doppler_params: C
     if cols.size:
         det_d, _ = _cfar_last_axis(np.ascontiguousarray(p[:, cols].T), doppler_params)
         det[:, cols] &= det_d.T
-    if peak_grouping and cols.size:
-        det &= _local_max(p, 1, range_params.cyclic)
-        det &= _local_max(p, 0, doppler_params.cyclic)
     d_idx, r_idx = np.nonzero(det)
+    if peak_grouping and d_idx.size:
+        peak = (_local_max(p, (d_idx, r_idx), 1, range_params.cyclic)
+                & _local_max(p, (d_idx, r_idx), 0, doppler_params.cyclic))
+        d_idx, r_idx = d_idx[peak], r_idx[peak]
     noise = noise_r[d_idx, r_idx]
     with np.errstate(divide="ignore"):
         snr_db = 10.0 * np.log10(p[d_idx, r_idx].astype(np.float64) / noise)

@@ -99,6 +99,12 @@ class HeatmapMaker:
             np.empty((n_az, nr, nd), np.float32))
         self._tdm_row = (None if self._tdm is None else np.ascontiguousarray(
             self._tdm[:, processor._slot_of_element[az]].T)[:, None, :])  # (row, 1, n_doppler)
+        # The first TX slot's phase is 1 at every Doppler bin: only the rows from the first
+        # other slot's on are multiplied (half the row on the xWR18xx), a slice of the buffer.
+        self._tdm_rows = slice(0, n_row)
+        if self._tdm_row is not None:
+            moved = np.flatnonzero(np.any(self._tdm_row != 1, axis=(1, 2)))
+            self._tdm_rows = slice(int(moved[0]), n_row) if len(moved) else slice(0, 0)
         n_el = elevation_bins or processor.params.elevation_fft_size
         kz = np.arange(n_el) - n_el // 2
         self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
@@ -133,7 +139,7 @@ class HeatmapMaker:
         for d in range(0, nd, _DOPPLER_BLOCK):
             np.copyto(buf[:, :, d:d + _DOPPLER_BLOCK], np.transpose(row[d:d + _DOPPLER_BLOCK], (1, 2, 0)))
         if self._tdm_row is not None:
-            buf *= self._tdm_row
+            buf[self._tdm_rows] *= self._tdm_row[self._tdm_rows]
         return np.transpose(buf, (1, 0, 2))
 
     def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
