@@ -110,7 +110,7 @@ def test_radar_echo_skips_malformed_messages_with_a_warning(run):
                 publisher.put(b'{"schema": "radarodom/odom", "version": 1}')
                 publisher.put(messages.odometry_json(run[3][0]))
                 time.sleep(0.05)
-            out, err = proc.communicate(timeout=10)
+            out, err = proc.communicate(timeout=30)
         finally:
             proc.kill()
     assert proc.returncode == 0, err
@@ -126,11 +126,11 @@ def test_radar_echo_stops_on_ctrl_c_with_status_0():
         assert "Ctrl-C stops" in proc.stderr.readline()
         proc.send_signal(signal.SIGINT)
         started = time.monotonic()
-        out, _ = proc.communicate(timeout=10)
+        out, _ = proc.communicate(timeout=30)
     finally:
         proc.kill()
     assert proc.returncode == 0 and out == ""
-    assert time.monotonic() - started < 5.0
+    assert time.monotonic() - started < 20.0  # a hang guard (under the communicate timeout), not a speed figure
 
 
 def test_radar_echo_finds_a_default_publisher_without_options(run):

@@ -80,7 +80,8 @@ def replay_url(sim_run) -> str:
 # ------------------------------------------------------------------ the run itself
 def test_summary_has_the_odometry_part(sim_run):
     proc = sim_run.proc
-    assert proc.stderr == ""
+    # Nothing but, on a loaded machine, the status line a log gets every 10 s.
+    assert [ln for ln in proc.stderr.splitlines() if not ln.startswith("frames ")] == []
     line = proc.stdout.rstrip("\n")
     assert proc.stdout.count("\n") == 1, proc.stdout
     assert re.fullmatch(summary_re(FRAMES, 0, 0, "2.90", "end of source", sim_run.rec), line), line
