@@ -30,6 +30,8 @@ from .processor import FrameProcessor
 #: Doppler bins per block of the azimuth row's transposing copy (8 complex64: 64 bytes, a
 #: cache line).
 _DOPPLER_BLOCK = 8
+#: Range bins per block of the full map's Doppler x azimuth spectrum.
+_RANGE_BLOCK = 16
 
 
 @dataclass
@@ -94,9 +96,12 @@ class HeatmapMaker:
         nr, nd = len(processor.range_m), processor.n_doppler
         self._row = np.empty((n_row, nr, nd), np.complex64)
         self._row_conj = np.empty((n_row, nr, nd), np.complex64) if doppler_cells is not None else None
+        # The full map's Doppler x azimuth spectrum, _RANGE_BLOCK range bins at a time (1 MB:
+        # it stays in cache from the product to the argmax; the whole map's is 16 MB).
+        rb = min(_RANGE_BLOCK, nr)
         self._full = None if doppler_cells is not None else (
-            np.empty((n_az, nr, nd), np.complex64), np.empty((n_az, nr, nd), np.float32),
-            np.empty((n_az, nr, nd), np.float32))
+            np.empty((n_az, rb, nd), np.complex64), np.empty((n_az, rb, nd), np.float32),
+            np.empty((n_az, rb, nd), np.float32))
         self._tdm_row = (None if self._tdm is None else np.ascontiguousarray(
             self._tdm[:, processor._slot_of_element[az]].T)[:, None, :])  # (row, 1, n_doppler)
         # The first TX slot's phase is 1 at every Doppler bin: only the rows from the first
@@ -148,17 +153,27 @@ class HeatmapMaker:
         proc = self.proc
         self._azimuth_row(spectrum)
         row = self._row  # (row, n_range, n_doppler)
-        az, power, scratch = self._full  # (n_az, n_range, n_doppler)
-        # A zero-padded FFT of a few elements is a small DFT matrix: one matrix product for
-        # every range and Doppler bin at once, azimuth bins ascending.
-        np.matmul(self._az_dft_t, row.reshape(len(row), -1), out=az.reshape(len(az), -1))
-        np.square(az.real, out=power)
-        np.square(az.imag, out=scratch)
-        power += scratch
-        intensity = np.ascontiguousarray(power.sum(axis=-1).T)
-        static = np.ascontiguousarray(power[..., self._static_rows].sum(axis=-1).T)
-        dominant = proc.velocity_mps[power.argmax(axis=-1).T].astype(np.float32)
-        return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)
+        n_row, nr, nd = row.shape
+        az, power, scratch = self._full  # (n_az, range block, n_doppler)
+        n_az, rb = az.shape[:2]
+        intensity = np.empty((n_az, nr), np.float32)
+        static = np.empty((n_az, nr), np.float32)
+        best = np.empty((n_az, nr), np.intp)
+        for r0 in range(0, nr, rb):
+            m = min(rb, nr - r0)
+            a, p, q = az[:, :m], power[:, :m], scratch[:, :m]
+            # A zero-padded FFT of a few elements is a small DFT matrix: one matrix product for
+            # the block's range and Doppler bins, azimuth bins ascending.
+            np.matmul(self._az_dft_t, row[:, r0:r0 + m].reshape(n_row, m * nd), out=a.reshape(n_az, m * nd))
+            np.square(a.real, out=p)
+            np.square(a.imag, out=q)
+            p += q
+            p.sum(axis=-1, out=intensity[:, r0:r0 + m])
+            p[..., self._static_rows].sum(axis=-1, out=static[:, r0:r0 + m])
+            p.argmax(axis=-1, out=best[:, r0:r0 + m])
+        dominant = proc.velocity_mps[best.T].astype(np.float32)
+        return RangeAzimuth(np.ascontiguousarray(intensity.T), np.ascontiguousarray(static.T), dominant,
+                            proc.range_m, self.azimuth_rad)
 
     def _range_azimuth_strong(self, spectrum: np.ndarray) -> RangeAzimuth:
         """Intensities from per-range covariances; dominant Doppler for the strongest cells."""
