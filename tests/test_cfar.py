@@ -265,6 +265,43 @@ def test_cfar_2d_ti_finds_point_targets():
     assert len(ungrouped) == 9 * len(TARGETS) > len(det)
 
 
+@pytest.mark.parametrize("range_cyclic, doppler_cyclic", [(False, True), (True, False), (False, False)])
+def test_peak_grouping_matches_cell_by_cell_reference(range_cyclic, doppler_cyclic):
+    """Grouping keeps exactly the ungrouped detections that are >= their neighbours at
+    +/-1 range and +/-1 Doppler bin (wrapping where the pass is cyclic, missing
+    neighbours ignored at non-cyclic ends), on a map with ties and detections at edges."""
+    rng = np.random.default_rng(7)
+    power = rng.integers(1, 4, (32, 48)).astype(np.float32)  # small integers: many ties
+    power[[0, 31, 5], [0, 47, 20]] = [400.0, 300.0, 200.0]  # corners and a plain target
+    power[10, 10:13] = 150.0  # a plateau along range
+    power[19:22, 29:32] = 120.0  # a target with its lobe: detected cells that are no peaks
+    power[20, 30] = 500.0
+    rp = CfarParams(method="ca", guard=1, train=3, threshold_db=3.0, cyclic=range_cyclic)
+    dp = CfarParams(method="ca", guard=1, train=3, threshold_db=3.0, cyclic=doppler_cyclic)
+    ungrouped = cfar_2d_ti(power, rp, dp, peak_grouping=False)
+    grouped = cfar_2d_ti(power, rp, dp, peak_grouping=True)
+    n_d, n_r = power.shape
+
+    def peak(d, r):
+        for axis_cyclic, neighbours in ((range_cyclic, [(d, r - 1), (d, r + 1)]),
+                                        (doppler_cyclic, [(d - 1, r), (d + 1, r)])):
+            for dd, rr in neighbours:
+                if axis_cyclic:
+                    dd, rr = dd % n_d, rr % n_r
+                elif not (0 <= dd < n_d and 0 <= rr < n_r):
+                    continue
+                if power[d, r] < power[dd, rr]:
+                    return False
+        return True
+
+    expected = [(d, r) for d, r in zip(ungrouped.doppler_idx.tolist(), ungrouped.range_idx.tolist()) if peak(d, r)]
+    assert len(ungrouped) > len(expected) > 3
+    assert list(zip(grouped.doppler_idx.tolist(), grouped.range_idx.tolist())) == expected  # row-major order
+    keep = np.isin(ungrouped.doppler_idx * n_r + ungrouped.range_idx, grouped.doppler_idx * n_r + grouped.range_idx)
+    np.testing.assert_array_equal(grouped.snr_db, ungrouped.snr_db[keep])
+    np.testing.assert_array_equal(grouped.noise, ungrouped.noise[keep])
+
+
 def test_cfar_2d_ti_nothing_in_noise():
     power = _rd_map([], seed=3)
     rp, dp = _ti_params()
