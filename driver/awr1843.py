@@ -107,8 +107,8 @@ class Awr1843Cli:
         for ln in cfg.commands_to_send():
             try:
                 reply = self.send(str(ln))
-            except DeviceTimeout as exc:
-                raise DeviceTimeout(f"{cfg.path}:{ln.line}: {ln.text}: {exc}") from None
+            except DeviceError as exc:  # a timeout, or the port gone: say which line it hit
+                raise type(exc)(f"{cfg.path}:{ln.line}: {ln.text}: {exc}") from None
             if reply.outcome in (Outcome.ERROR, Outcome.UNKNOWN_COMMAND, Outcome.UNCLEAR):
                 raise RadarCommandError(f"{cfg.path}:{ln.line}: {ln.text}: the radar refused it: "
                                         f"{reply.text or 'no Done'}")

@@ -264,6 +264,9 @@ def test_cli_port_disappearing_during_configuration_is_a_device_error(small_capt
     message = str(info.value)
     assert not isinstance(info.value, DeviceTimeout)
     assert path in message and "unplugged" in message, message
+    if command == "profileCfg":  # a cfg line, not the preamble: the message says which
+        line = cfg_line(small_cfg.to_text(), "profileCfg")
+        assert message.startswith(f"{small_cfg.path}:{line}: profileCfg"), message
 
 
 def test_cli_port_disappearing_at_stop_is_a_warning_and_the_board_still_stops(small_capture, small_cfg,
