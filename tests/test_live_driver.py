@@ -316,18 +316,20 @@ def test_cli_capture_with_packet_loss_lists_incomplete_frames(loss_capture, tmp_
     directory, frames = loss_capture
     out = tmp_path / "rec"
     with Emulator("--capture", directory, "--loss", "0.1", "--seed", "3") as emu:
-        capture = Process(emu.capture_argv("--record", out, "--frames", 40))
+        # Recording only: at 100 frames/s a full pipeline on a loaded 2-core machine drops
+        # frames (policy latest), and this test is about what the recording says of the loss.
+        capture = Process(emu.capture_argv("--record", out, "--frames", 40, "--no-odom", "--no-publish"))
         code = capture.wait(30)
         capture.kill()
         stdout, stderr = capture.output()
         assert code == 0, stderr
         assert emu.stop() == 0
+    assert_one_period_apart(CaptureDirectory(out).timestamps, 0.01)  # no frame dropped: k is stream frame k
     rec = _check_recording(out, frames, 40)
     incomplete = rec.metadata["incomplete_frames"]
     assert incomplete, "10 % loss and no incomplete frame"
     assert all(0 < e["missing_bytes"] <= rec.config.frame_bytes for e in incomplete)
     assert rec.metadata["lost_bytes"] == sum(e["missing_bytes"] for e in incomplete)
-    assert_one_period_apart(rec.timestamps, 0.01)  # no frame went missing from the recording
     assert f"40 frames ({len(incomplete)} incomplete, {rec.metadata['lost_bytes']} bytes lost)" in stdout
     emu_out, _ = emu.output()
     dropped = re.search(r"\((\d+) dropped", emu_out)
