@@ -192,12 +192,16 @@ class LogHeatmap:
     """A heatmap's log intensity over its region of interest, for sampling at any polar point.
 
     The median is subtracted so that scores of different frames are comparable; sampling
-    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform."""
+    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform.  With
+    *smoothing_bins* the log intensity is smoothed by a Gaussian of that sigma, in bins."""
 
-    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig) -> None:
+    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig, smoothing_bins: float = 0.0) -> None:
         log_i = np.log(np.maximum(np.asarray(heatmap.intensity, dtype=np.float64), 1e-30))
         valid = roi_mask(heatmap, config)
         self.values = log_i - (np.median(log_i[valid]) if valid.any() else 0.0)
+        if smoothing_bins > 0:
+            # A likelihood field: smoothing widens each bright cell's basin and averages speckle.
+            self.values = scipy.ndimage.gaussian_filter(self.values, smoothing_bins, mode="nearest")
         self._range = _Axis(np.asarray(heatmap.range_m, dtype=float))
         self._sin_az = _Axis(np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)))
         self.region = config
