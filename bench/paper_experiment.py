@@ -57,18 +57,13 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
 def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
     """Variants of the yaw research (issue #6), measured against the default."""
     d = EstimatorConfig()
-    out = {}
-    for n in (2, 3, 4, 6):
-        out[f"map {n}"] = d.with_(odometry={"map_keyframes": n})
-    for n, dist, ang in ((3, 0.25, 5.0), (4, 0.25, 5.0), (6, 0.25, 5.0), (4, 0.15, 4.0)):
-        out[f"map {n} kf {dist} m {ang} deg"] = d.with_(odometry={"map_keyframes": n, "keyframe_distance_m": dist,
-                                                                  "keyframe_angle_rad": np.radians(ang)})
     f = d.with_(icp={"refinement": "field"})
-    out["field"] = f
-    out["field s0"] = f.with_(icp={"field_smoothing_bins": 0.0})
-    out["field s2"] = f.with_(icp={"field_smoothing_bins": 2.0})
-    out["field 800"] = f.with_(icp={"scan_points": 800})
-    out["field map 3"] = f.with_(odometry={"map_keyframes": 3})
+    out = {
+        "default + field refinement": f,
+        "default + field, smoothing 0": f.with_(icp={"field_smoothing_bins": 0.0}),
+        "default + field, smoothing 1.5": f.with_(icp={"field_smoothing_bins": 1.5}),
+        "default + map of 3 keyframes": d.with_(odometry={"map_keyframes": 3}),
+    }
     return {k: ("beyond", v) for k, v in out.items()}
 
 

@@ -238,11 +238,9 @@ def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: f
 def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndarray:
     """Weighted mean log intensity of *target* at the *source* points rotated by each of
     *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside."""
-    values = target.sample(source.range_m[None, :], wrap(source.bearing_rad[None, :] + shifts[:, None]))
-    inside = np.isfinite(values)
-    w = np.where(inside, source.weight[None, :], 0.0)
+    values, inside = target.sample_rotated(source.range_m, source.bearing_rad, shifts)
     enough = inside.sum(axis=1) >= max(3, len(source) // 4)
-    weighted = (np.where(inside, values, 0.0) * w).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-30)
+    weighted = (values @ source.weight) / np.maximum(inside @ source.weight, 1e-30)
     return np.where(enough, weighted, -np.inf)
 
 

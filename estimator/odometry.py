@@ -51,6 +51,9 @@ MOTION_LOST = "motion_lost"  # nothing good for longer than hold_s: no motion re
 
 #: Correlation guess: bearing grid step, rad.
 _PROFILE_STEP = math.radians(0.25)
+#: Field refinement: rotation grid step, rad (the smoothed field is smooth at this scale, a
+#: parabola refines the best; measured as good as 0.25 degrees at half the time).
+_FIELD_STEP = math.radians(0.5)
 
 
 @dataclass
@@ -234,7 +237,7 @@ class RadarOdometry:
         if icp.refinement != "field":
             return None
         points = guide if icp.initial_guess == "scan" else extract(heatmap, self._scan_features)
-        return points, LogHeatmap(heatmap, self.config.features, icp.field_smoothing_bins)
+        return points, self._log_heatmap(heatmap).smoothed(icp.field_smoothing_bins)
 
     def _refined(self, source_field, target_field, translation: np.ndarray, rotation: float) -> float:
         """The registration's *rotation* refined on the likelihood fields of both frames (when
@@ -243,7 +246,7 @@ class RadarOdometry:
             return rotation
         icp = self.config.icp
         refined = field_rotation(source_field[0], target_field[0], source_field[1], target_field[1],
-                                 translation, rotation, icp.field_search_rad, _PROFILE_STEP)
+                                 translation, rotation, icp.field_search_rad, _FIELD_STEP)
         return rotation if refined is None else refined
 
     def _finish(self, state: OdometryState, t: float, features: Features, guide, field, heatmap,
@@ -297,8 +300,13 @@ class RadarOdometry:
                                cfg.odometry.keyframe_search_rad, initial)
             if found is not None and found[1] >= cfg.icp.min_scan_score:
                 initial = found[0]
-        registration, _ = register_two_way(key_features.shifted(t_rel), features, cfg.icp, initial_rad=initial,
-                                           region=self._region)
+        if key_field is not None and field is not None:
+            # The field search alone, around the scan's start (within a degree or so here):
+            # ICP before it changed nothing measurable and cost 2 ms a frame.
+            registration = Registration(initial, 0, "ok", variance=0.0)
+        else:
+            registration, _ = register_two_way(key_features.shifted(t_rel), features, cfg.icp, initial_rad=initial,
+                                               region=self._region)
         measured = -registration.rotation_rad
         if registration.status != FEW_MATCHES:
             measured = -self._refined(key_field, field, t_rel, registration.rotation_rad)
