@@ -50,7 +50,21 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "+ yaw-rate filter": ("beyond", paper.with_(odometry={"yaw_rate_filter": True})),
         "default without keyframes": ("beyond", EstimatorConfig().with_(odometry={"keyframe_distance_m": 0.0})),
         "default (all of the above, keyframes)": ("beyond", EstimatorConfig()),
+        **research_variants(),
     }
+
+
+def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
+    """Variants of the yaw research (issue #6), measured against the default."""
+    d = EstimatorConfig()
+    f = d.with_(icp={"refinement": "field"})
+    out = {
+        "default + field refinement": f,
+        "default + field, smoothing 0": f.with_(icp={"field_smoothing_bins": 0.0}),
+        "default + field, smoothing 1.5": f.with_(icp={"field_smoothing_bins": 1.5}),
+        "default + map of 3 keyframes": d.with_(odometry={"map_keyframes": 3}),
+    }
+    return {k: ("beyond", v) for k, v in out.items()}
 
 
 def run(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[TumTrajectory, np.ndarray, int]:

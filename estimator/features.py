@@ -192,15 +192,68 @@ class LogHeatmap:
     """A heatmap's log intensity over its region of interest, for sampling at any polar point.
 
     The median is subtracted so that scores of different frames are comparable; sampling
-    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform."""
+    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform.  With
+    *smoothing_bins* the log intensity is smoothed by a Gaussian of that sigma, in bins."""
 
-    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig) -> None:
+    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig, smoothing_bins: float = 0.0) -> None:
         log_i = np.log(np.maximum(np.asarray(heatmap.intensity, dtype=np.float64), 1e-30))
         valid = roi_mask(heatmap, config)
         self.values = log_i - (np.median(log_i[valid]) if valid.any() else 0.0)
+        if smoothing_bins > 0:
+            # A likelihood field: smoothing widens each bright cell's basin and averages speckle.
+            self.values = scipy.ndimage.gaussian_filter(self.values, smoothing_bins, mode="nearest")
         self._range = _Axis(np.asarray(heatmap.range_m, dtype=float))
         self._sin_az = _Axis(np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)))
         self.region = config
+        self._sin_max = float(np.sin(config.max_azimuth_rad))
+
+    def smoothed(self, sigma_bins: float) -> "LogHeatmap":
+        """A copy whose log intensity is smoothed by a Gaussian of *sigma_bins* (the median
+        is not computed again)."""
+        out = object.__new__(LogHeatmap)
+        out.__dict__.update(self.__dict__)
+        if sigma_bins > 0:
+            out.values = scipy.ndimage.gaussian_filter(self.values, sigma_bins, mode="nearest")
+        return out
+
+    def sample_rotated(self, range_m: np.ndarray, bearing_rad: np.ndarray,
+                       shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Log intensity at the points (n,) rotated by each of *shifts* (m,): values and
+        whether inside, both (m, n) (values 0 outside).  The same numbers as :meth:`sample`,
+        computed for speed (it is most of the scan guess's and the field's time): the range
+        index once for all rotations, sin(bearing + shift) from the angle-sum formula, one
+        gather per corner."""
+        nr, na = self.values.shape
+        shifts = np.asarray(shifts, dtype=float)
+        if not self._sin_az.uniform or np.max(np.abs(bearing_rad), initial=0.0) + np.max(np.abs(shifts)) >= 0.5 * np.pi:
+            # Rotations that may leave the half-plane (or a non-uniform axis): the general path.
+            from .icp import wrap  # noqa: PLC0415  (icp imports this module)
+            values = self.sample(range_m[None, :], wrap(bearing_rad[None, :] + shifts[:, None]))
+            inside = np.isfinite(values)
+            return np.where(inside, values, 0.0), inside
+        fr = self._range.index(range_m)
+        ok_r = np.isfinite(fr)
+        fr = np.where(ok_r, fr, 0.0)
+        r0 = np.minimum(fr.astype(np.intp), nr - 2)
+        dr = fr - r0
+        # sin(azimuth) = sin(-(bearing + shift)); within the half-plane |bearing| <= max is
+        # |sin| <= sin(max).
+        sin_az = np.multiply.outer(-np.cos(shifts), np.sin(bearing_rad))
+        sin_az -= np.multiply.outer(np.sin(shifts), np.cos(bearing_rad))
+        fa = (sin_az - self._sin_az.start) * (1.0 / self._sin_az.step)
+        inside = (fa >= 0.0) & (fa <= na - 1) & ok_r[None, :] & (np.abs(sin_az) <= self._sin_max)
+        np.clip(fa, 0.0, na - 1, out=fa)
+        a0 = np.minimum(fa.astype(np.intp), na - 2)
+        da = fa - a0
+        flat = self.values.ravel()
+        idx = a0 + (r0 * na)[None, :]
+        lo = flat.take(idx)
+        lo += (flat.take(idx + 1) - lo) * da
+        hi = flat.take(idx + na)
+        hi += (flat.take(idx + na + 1) - hi) * da
+        lo += (hi - lo) * dr[None, :]
+        lo[~inside] = 0.0
+        return lo, inside
 
     def sample(self, range_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
         """Log intensity at body-frame polar points (any shape); NaN outside the heatmap."""

@@ -235,13 +235,39 @@ def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: f
     return _scan(source, target, best[0] + step_rad * np.arange(-4, 5))
 
 
-def _scan(source: Features, target: LogHeatmap, shifts: np.ndarray) -> tuple[float, float] | None:
-    values = target.sample(source.range_m[None, :], wrap(source.bearing_rad[None, :] + shifts[:, None]))
-    inside = np.isfinite(values)
-    w = np.where(inside, source.weight[None, :], 0.0)
+def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndarray:
+    """Weighted mean log intensity of *target* at the *source* points rotated by each of
+    *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside."""
+    values, inside = target.sample_rotated(source.range_m, source.bearing_rad, shifts)
     enough = inside.sum(axis=1) >= max(3, len(source) // 4)
-    weighted = (np.where(inside, values, 0.0) * w).sum(axis=1) / np.maximum(w.sum(axis=1), 1e-30)
-    scores = np.where(enough, weighted, -np.inf)
+    weighted = (values @ source.weight) / np.maximum(inside @ source.weight, 1e-30)
+    return np.where(enough, weighted, -np.inf)
+
+
+def field_rotation(source: Features, target: Features, source_field: LogHeatmap, target_field: LogHeatmap,
+                   translation: np.ndarray, centre_rad: float, max_rad: float, step_rad: float) -> float | None:
+    """Rotation (source -> target, ``y = R (x - translation)``) within centre +/- max that
+    maximises the two-way likelihood field: the mean log intensity of *target_field* at the
+    *source* points moved to the target's position and rotated, plus that of *source_field*
+    at the *target* points taken back to the source's position; searched every *step_rad*,
+    refined by a parabola.  No correspondences: nothing to mismatch along walls.  None when
+    too few points fall inside the heatmaps."""
+    reach = max(1, math.ceil(max_rad / step_rad))
+    deltas = step_rad * np.arange(-reach, reach + 1)
+    forward = source.shifted(translation)
+    c, s = math.cos(centre_rad), math.sin(centre_rad)
+    xy = target.xy  # back to the source: x = R(-centre) y + translation, then rotated by -delta
+    back = Features.from_xy(np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1]])
+                            + np.asarray(translation, dtype=float)[None, :], target.weight, target.intensity)
+    scores = _scores(forward, target_field, centre_rad + deltas) + _scores(back, source_field, -deltas)
+    best = _peak(scores)
+    if best is None:
+        return None
+    return centre_rad + float(np.interp(best, np.arange(len(deltas)), deltas))
+
+
+def _scan(source: Features, target: LogHeatmap, shifts: np.ndarray) -> tuple[float, float] | None:
+    scores = _scores(source, target, shifts)
     best = _peak(scores)
     if best is None:
         return None
