@@ -48,6 +48,7 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "+ heatmap-scan guess": ("beyond", paper.with_(icp={"initial_guess": "scan"})),
         "+ peaks, sub-bin angles": ("beyond", paper.with_(features={"peaks_only": True, "subbin": True})),
         "+ yaw-rate filter": ("beyond", paper.with_(odometry={"yaw_rate_filter": True})),
+        "+ likelihood-field refinement": ("beyond", paper.with_(icp={"refinement": "field"})),
         "default without keyframes": ("beyond", EstimatorConfig().with_(odometry={"keyframe_distance_m": 0.0})),
         "default (all of the above, keyframes)": ("beyond", EstimatorConfig()),
         **research_variants(),
@@ -57,12 +58,10 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
 def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
     """Variants of the yaw research (issue #6), measured against the default."""
     d = EstimatorConfig()
-    f = d.with_(icp={"refinement": "field"})
     out = {
-        "default + field refinement": f,
-        "default + field, smoothing 0": f.with_(icp={"field_smoothing_bins": 0.0}),
-        "default + field, smoothing 1.5": f.with_(icp={"field_smoothing_bins": 1.5}),
-        "default + map of 3 keyframes": d.with_(odometry={"map_keyframes": 3}),
+        "default without the field refinement (ICP's yaw)": d.with_(icp={"refinement": "none"}),
+        "default, field smoothing 0": d.with_(icp={"field_smoothing_bins": 0.0}),
+        "default, field smoothing 1.5": d.with_(icp={"field_smoothing_bins": 1.5}),
     }
     return {k: ("beyond", v) for k, v in out.items()}
 

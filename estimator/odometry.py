@@ -126,11 +126,8 @@ class RadarOdometry:
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate) of the last good ICP
         self._good_velocity_t: float | None = None
         self._rate_filter: tuple[float, float] | None = None  # (yaw rate rad/s, variance)
-        # ((x, y, yaw), map features, guide, yaw variance since it, field)
+        # ((x, y, yaw), features, guide, yaw variance since it, field)
         self._key: tuple | None = None
-        # The last keyframes' (pose, features), of which the map is made.
-        self._keyframes: deque[tuple[tuple[float, float, float], Features]] = deque(
-            maxlen=self.config.odometry.map_keyframes)
         self._log: tuple | None = None  # (heatmap, its LogHeatmap)
         self._frames = 0
         grid_max = self.config.features.max_azimuth_rad
@@ -330,11 +327,7 @@ class RadarOdometry:
                     and abs(state.yaw - kyaw) < odo.keyframe_angle_rad)
             if near:
                 return
-        pose = (state.x, state.y, state.yaw)
-        if not ok:
-            self._keyframes.clear()  # the step to it is a guess: older keyframes would not fit
-        self._keyframes.append((pose, features))
-        self._key = (pose, _local_map(pose, self._keyframes), guide, 0.0, field)
+        self._key = ((state.x, state.y, state.yaw), features, guide, 0.0, field)
 
     def _filtered(self, dyaw: float, var_yaw: float, dt: float) -> tuple[float, float]:
         """A scalar Kalman filter on the yaw rate (constant rate, white yaw acceleration): the
@@ -425,26 +418,6 @@ class RadarOdometry:
         return OdometryState(t=t, frame=frame, x=float(x), y=float(y), yaw=float(previous.yaw + dyaw),
                              vx=float(v[0]), vy=float(v[1]), yaw_rate=float(dyaw / dt),
                              pose_covariance=pose_cov, twist_covariance=twist, yaw_increment=float(dyaw))
-
-
-def _local_map(anchor: tuple[float, float, float],
-               keyframes: deque[tuple[tuple[float, float, float], Features]]) -> Features:
-    """The keyframes' features in the body frame of *anchor* (the newest keyframe's pose),
-    each placed by its estimated pose; each keyframe's weights are scaled to sum to
-    1 / len(keyframes), so the map's sum to one.  One keyframe: its features as they are."""
-    if len(keyframes) == 1:
-        return keyframes[-1][1]
-    ax, ay, ayaw = anchor
-    ca, sa = math.cos(ayaw), math.sin(ayaw)
-    parts, weights, intensities = [], [], []
-    for (x, y, yaw), features in keyframes:
-        c, s = math.cos(yaw - ayaw), math.sin(yaw - ayaw)
-        dx, dy = x - ax, y - ay
-        t = np.array([ca * dx + sa * dy, -sa * dx + ca * dy])  # keyframe origin in the anchor frame
-        parts.append(features.xy @ np.array([[c, s], [-s, c]]) + t)
-        weights.append(features.weight / len(keyframes))
-        intensities.append(features.intensity)
-    return Features.from_xy(np.concatenate(parts), np.concatenate(weights), np.concatenate(intensities))
 
 
 def _chord(yaw: float, dyaw: float, v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
