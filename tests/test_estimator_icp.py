@@ -680,19 +680,26 @@ class TestLogHeatmap:
     """The scan guess's sampler: exact at the bins, bilinear between, NaN outside; uniform
     (FFT) and non-uniform (ColoRadar-like) axes alike."""
 
-    @pytest.mark.parametrize("uniform", [True, False])
-    def test_samples_at_and_between_bins(self, uniform):
+    @staticmethod
+    def _random_map(rng, uniform: bool, sin_span: float, max_azimuth_rad: float):
+        """A random 40 x 32 log heatmap over +/- *sin_span* in sin(azimuth), uniform or not;
+        returns it, its range axis and its azimuth axis."""
         from radarodom.dsp.heatmap import RangeAzimuth
         from radarodom.estimator.features import LogHeatmap
 
-        rng = np.random.default_rng(40)
         n_r, n_a = 40, 32
         range_m = 0.1 * np.arange(n_r) + 0.2
-        sin_az = np.linspace(-0.9, 0.9, n_a) if uniform else np.sort(rng.uniform(-0.9, 0.9, n_a))
+        sin_az = (np.linspace(-sin_span, sin_span, n_a) if uniform
+                  else np.sort(rng.uniform(-sin_span, sin_span, n_a)))
         az = np.arcsin(sin_az)
         intensity = np.exp(rng.uniform(0, 5, (n_r, n_a))).astype(np.float32)
-        cfg = FeatureConfig(max_azimuth_rad=math.radians(89.0), min_range_m=0.0)
-        lh = LogHeatmap(RangeAzimuth(intensity, intensity, intensity * np.nan, range_m, az), cfg)
+        cfg = FeatureConfig(max_azimuth_rad=max_azimuth_rad, min_range_m=0.0)
+        return LogHeatmap(RangeAzimuth(intensity, intensity, intensity * np.nan, range_m, az), cfg), range_m, az
+
+    @pytest.mark.parametrize("uniform", [True, False])
+    def test_samples_at_and_between_bins(self, uniform):
+        rng = np.random.default_rng(40)
+        lh, range_m, az = self._random_map(rng, uniform, 0.9, math.radians(89.0))
         i, j = 7, 11
         # Body bearing = -TI azimuth.
         assert lh.sample(np.array([range_m[i]]), np.array([-az[j]]))[0] == pytest.approx(lh.values[i, j], abs=1e-9)
@@ -706,16 +713,8 @@ class TestLogHeatmap:
     def test_sample_rotated_equals_sample(self, uniform):
         # The fast path of the scan and the field gives sample()'s numbers (0 and not inside
         # where sample() says NaN), on uniform and non-uniform azimuth axes.
-        from radarodom.dsp.heatmap import RangeAzimuth
-        from radarodom.estimator.features import LogHeatmap
-
         rng = np.random.default_rng(41)
-        n_r, n_a = 40, 32
-        range_m = 0.1 * np.arange(n_r) + 0.2
-        sin_az = np.linspace(-0.95, 0.95, n_a) if uniform else np.sort(rng.uniform(-0.95, 0.95, n_a))
-        intensity = np.exp(rng.uniform(0, 5, (n_r, n_a))).astype(np.float32)
-        cfg = FeatureConfig(max_azimuth_rad=math.radians(65.0), min_range_m=0.0)
-        lh = LogHeatmap(RangeAzimuth(intensity, intensity, intensity * np.nan, range_m, np.arcsin(sin_az)), cfg)
+        lh, range_m, _ = self._random_map(rng, uniform, 0.95, math.radians(65.0))
         r = rng.uniform(0.0, 5.0, 300)  # some beyond the last range bin
         b = rng.uniform(-1.2, 1.2, 300)  # some outside the region
         shifts = np.radians(np.arange(-5.0, 5.01, 0.5))
