@@ -16,16 +16,20 @@ exception family), :mod:`radarodom.cfg` (the TI ``.cfg`` model),
 
 import logging
 
-from .errors import (  # noqa: F401  (re-exported API)
-    CaptureError,
-    ConfigError,
-    DeviceError,
-    RadarodomError,
-    SourceError,
-    UsageError,
-)
-
 __version__ = "0.1.0"
+
+# pytest imports the checkout's root (this file) as a test package, and alone as a module named
+# "__init__" when the folder's name is no identifier ("radarodom-main" from a zip): then there is
+# no package to import from, and nothing to re-export.
+if __spec__ is not None and __spec__.parent:
+    from .errors import (  # noqa: F401  (re-exported API)
+        CaptureError,
+        ConfigError,
+        DeviceError,
+        RadarodomError,
+        SourceError,
+        UsageError,
+    )
 
 # Library code only logs; applications decide where records go.
 logging.getLogger(__name__).addHandler(logging.NullHandler())

@@ -87,3 +87,21 @@ def test_library_never_prints_or_exits():
             if isinstance(node, ast.Assert):
                 offenders.append(f"{rel}:{node.lineno} (assert used for validation)")
     assert offenders == []
+
+
+def test_the_suite_runs_from_a_checkout_whose_folder_name_is_no_identifier(tmp_path):
+    """A zip download unpacks to "radarodom-main": pytest then imports the root __init__.py
+    alone, as "__init__", and a relative import there broke every test's setup."""
+    import shutil
+
+    root = tmp_path / "radarodom-main"
+    (root / "tests").mkdir(parents=True)
+    for name in ("__init__.py", "pyproject.toml"):
+        shutil.copy(REPO / name, root / name)
+    shutil.copy(REPO / "tests" / "conftest.py", root / "tests" / "conftest.py")
+    (root / "tests" / "test_one.py").write_text("import radarodom\n\n\ndef test_one():\n"
+                                                "    assert radarodom.RadarodomError\n")
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests"], cwd=root,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert "1 passed" in proc.stdout
