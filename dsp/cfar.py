@@ -527,9 +527,8 @@ def _local_max(p: np.ndarray, cells: tuple[np.ndarray, np.ndarray], axis: int, c
     before, after = list(cells), list(cells)
     if cyclic:
         before[axis], after[axis] = (i - 1) % n, (i + 1) % n
-        return (value >= p[tuple(before)]) & (value >= p[tuple(after)])
-    before[axis], after[axis] = np.maximum(i - 1, 0), np.minimum(i + 1, n - 1)
-    # At an end the clamped neighbour is the cell itself: value >= value holds.
+    else:  # at an end the clamped neighbour is the cell itself: value >= value holds
+        before[axis], after[axis] = np.maximum(i - 1, 0), np.minimum(i + 1, n - 1)
     return (value >= p[tuple(before)]) & (value >= p[tuple(after)])
 
 

@@ -13,6 +13,7 @@ to the left, with weights from their intensities normalised to sum to one.
 
 from __future__ import annotations
 
+import copy
 import logging
 from dataclasses import dataclass
 from typing import Protocol
@@ -192,16 +193,12 @@ class LogHeatmap:
     """A heatmap's log intensity over its region of interest, for sampling at any polar point.
 
     The median is subtracted so that scores of different frames are comparable; sampling
-    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform.  With
-    *smoothing_bins* the log intensity is smoothed by a Gaussian of that sigma, in bins."""
+    is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform."""
 
-    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig, smoothing_bins: float = 0.0) -> None:
+    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig) -> None:
         log_i = np.log(np.maximum(np.asarray(heatmap.intensity, dtype=np.float64), 1e-30))
         valid = roi_mask(heatmap, config)
         self.values = log_i - (np.median(log_i[valid]) if valid.any() else 0.0)
-        if smoothing_bins > 0:
-            # A likelihood field: smoothing widens each bright cell's basin and averages speckle.
-            self.values = scipy.ndimage.gaussian_filter(self.values, smoothing_bins, mode="nearest")
         self._range = _Axis(np.asarray(heatmap.range_m, dtype=float))
         self._sin_az = _Axis(np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)))
         self.region = config
@@ -209,9 +206,9 @@ class LogHeatmap:
 
     def smoothed(self, sigma_bins: float) -> "LogHeatmap":
         """A copy whose log intensity is smoothed by a Gaussian of *sigma_bins* (the median
-        is not computed again)."""
-        out = object.__new__(LogHeatmap)
-        out.__dict__.update(self.__dict__)
+        is not computed again): a likelihood field, each bright cell's basin widened and
+        speckle averaged."""
+        out = copy.copy(self)
         if sigma_bins > 0:
             out.values = scipy.ndimage.gaussian_filter(self.values, sigma_bins, mode="nearest")
         return out

@@ -255,10 +255,10 @@ def field_rotation(source: Features, target: Features, source_field: LogHeatmap,
     reach = max(1, math.ceil(max_rad / step_rad))
     deltas = step_rad * np.arange(-reach, reach + 1)
     forward = source.shifted(translation)
-    c, s = math.cos(centre_rad), math.sin(centre_rad)
-    xy = target.xy  # back to the source: x = R(-centre) y + translation, then rotated by -delta
-    back = Features.from_xy(np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1]])
-                            + np.asarray(translation, dtype=float)[None, :], target.weight, target.intensity)
+    # Back to the source: x = R(-centre) y + translation (a turn of the bearings, then the
+    # sensor moved by -translation), then rotated by -delta.
+    back = Features(target.range_m, target.bearing_rad - centre_rad, target.weight,
+                    target.intensity).shifted(-np.asarray(translation, dtype=float))
     scores = _scores(forward, target_field, centre_rad + deltas) + _scores(back, source_field, -deltas)
     best = _peak(scores)
     if best is None:
