@@ -125,7 +125,7 @@ class ColoRadarSource(Source):
                               "(give velocity=single_chip_adc or heatmap=single_chip_adc)")
         self._mount_offset = (run.mount_yaw("single_chip") - run.mount_yaw(self.sensor)
                               if velocity == "single_chip" and self.sensor != "single_chip" else 0.0)
-        self._poses = self._pose_table()
+        self._poses = self._truth()
         self.frames_played = 0
 
     def _events(self, stream: str, order: int, role: str) -> list[_Event]:
@@ -145,26 +145,29 @@ class ColoRadarSource(Source):
         return waveform_to_config(wf, tx_order=tx_order, frame_period_s=round(period, 4),
                                   origin=self.run._calib_path("single_chip", "waveform_cfg.txt"))
 
-    def _pose_table(self) -> dict[float, tuple[float, ...]]:
-        """The heatmap radar's pose at every event time inside the ground truth."""
+    def _truth(self) -> tuple[TumTrajectory, np.ndarray] | None:
+        """The heatmap radar's poses at the event times inside the ground truth, and each
+        event's row among them (-1: outside); None when the run has no ground truth."""
         if not self.run.has("groundtruth"):
             log.info("%s: no ground truth", self.run.run_dir)
-            return {}
-        times = np.array([e.t for e in self.events])
-        traj, kept = self.run.sensor_poses(self.sensor, times)
-        return {float(t): (*p, *q) for t, p, q in zip(traj.times, traj.positions, traj.quaternions)}
+            return None
+        traj, kept = self.run.sensor_poses(self.sensor, np.array([e.t for e in self.events]))
+        return traj, np.where(kept, np.cumsum(kept) - 1, -1)
 
     def groundtruth(self) -> TumTrajectory | None:
         """The heatmap radar's poses at the times of the frames that give a pose (heatmap
         frames), inside the ground truth's span; None when the run has no ground truth."""
-        if not self.run.has("groundtruth"):
+        if self._poses is None:
             return None
-        times = np.array([e.t for e in self.events if e.role != "velocity"])
-        traj, _ = self.run.sensor_poses(self.sensor, times)
-        return traj
+        traj, rows = self._poses
+        rows = rows[(rows >= 0) & np.array([e.role != "velocity" for e in self.events])]
+        return TumTrajectory(traj.times[rows], traj.positions[rows], traj.quaternions[rows], source=traj.source)
 
     def _frame(self, k: int, e: _Event) -> Frame:
-        pose = self._poses.get(e.t)
+        pose = None
+        if self._poses is not None and self._poses[1][k] >= 0:
+            traj, rows = self._poses
+            pose = (*traj.positions[rows[k]], *traj.quaternions[rows[k]])
         if e.stream == ADC_STREAM:
             cube = adc_to_cube(self.run.adc("single_chip", e.i))
             raw = np.frombuffer(self.layout.encode(cube), np.uint8)
