@@ -265,7 +265,7 @@ def test_cli_port_disappearing_during_configuration_is_a_device_error(small_capt
     assert not isinstance(info.value, DeviceTimeout)
     assert path in message and "unplugged" in message, message
     if command == "profileCfg":  # a cfg line, not the preamble: the message says which
-        line = cfg_line(small_cfg.to_text(), "profileCfg")
+        line = cfg_line(SMALL_CFG, "profileCfg")
         assert message.startswith(f"{small_cfg.path}:{line}: profileCfg"), message
 
 
