@@ -502,7 +502,8 @@ class ColoRadarRun:
             raise UsageError(f"unknown ColoRadar radar {sensor!r}; one of {', '.join(RADARS)}")
         return sensor
 
-    def _calib_path(self, *parts: str) -> str:
+    def calib_path(self, *parts: str) -> str:
+        """The path of calib/<parts...>; raises when the run has no calibration folder."""
         if self.calib_dir is None:
             raise CaptureError(f"{self.run_dir}: no calibration: neither "
                                f"{os.path.join(os.path.dirname(self.run_dir), 'calib')} nor "
@@ -512,13 +513,13 @@ class ColoRadarRun:
     def heatmap_config(self, sensor: str) -> HeatmapConfig:
         """The axes of *sensor*'s heatmaps (calib/<sensor>/heatmap_cfg.txt)."""
         if self._radar(sensor) not in self._heatmap_cfg:
-            self._heatmap_cfg[sensor] = read_heatmap_config(self._calib_path(sensor, "heatmap_cfg.txt"))
+            self._heatmap_cfg[sensor] = read_heatmap_config(self.calib_path(sensor, "heatmap_cfg.txt"))
         return self._heatmap_cfg[sensor]
 
     def waveform_config(self, sensor: str) -> WaveformConfig:
         """The chirp waveform of *sensor* (calib/<sensor>/waveform_cfg.txt)."""
         if self._radar(sensor) not in self._waveform_cfg:
-            self._waveform_cfg[sensor] = read_waveform_config(self._calib_path(sensor, "waveform_cfg.txt"))
+            self._waveform_cfg[sensor] = read_waveform_config(self.calib_path(sensor, "waveform_cfg.txt"))
         return self._waveform_cfg[sensor]
 
     def heatmap(self, sensor: str, i: int) -> np.ndarray:
@@ -527,7 +528,7 @@ class ColoRadarRun:
         cfg = self.heatmap_config(sensor)
         path = self._file(f"{sensor}/heatmaps", i)
         cells = self._read_fixed(path, HEATMAP_CELL, cfg.shape[:3],
-                                 self._calib_path(sensor, "heatmap_cfg.txt"))
+                                 self.calib_path(sensor, "heatmap_cfg.txt"))
         return cells.view("<f4").reshape(cfg.shape).astype(np.float32)
 
     def adc(self, sensor: str, i: int) -> np.ndarray:
@@ -535,7 +536,7 @@ class ColoRadarRun:
         imaginary, in ADC counts."""
         wf = self.waveform_config(sensor)
         path = self._file(f"{sensor}/adc_samples", i)
-        samples = self._read_fixed(path, ADC_SAMPLE, wf.adc_shape, self._calib_path(sensor, "waveform_cfg.txt"))
+        samples = self._read_fixed(path, ADC_SAMPLE, wf.adc_shape, self.calib_path(sensor, "waveform_cfg.txt"))
         out = np.empty(wf.adc_shape, np.complex64)
         out.real, out.imag = samples["i"], samples["q"]
         return out
@@ -548,7 +549,7 @@ class ColoRadarRun:
         if not isinstance(sensor, str) or not re.fullmatch(r"[A-Za-z0-9_]+", sensor):
             raise UsageError(f"bad sensor name {sensor!r}")
         if sensor not in self._transforms:
-            self._transforms[sensor] = read_transform(self._calib_path("transforms", f"base_to_{sensor}.txt"))
+            self._transforms[sensor] = read_transform(self.calib_path("transforms", f"base_to_{sensor}.txt"))
         t, q = self._transforms[sensor]
         return t.copy(), q.copy()
 

@@ -134,7 +134,7 @@ class ColoRadarSource(Source):
 
     def _adc_config(self) -> RadarConfig:
         wf = self.run.waveform_config("single_chip")
-        antenna_path = self.run._calib_path("single_chip", "antenna_cfg.txt")
+        antenna_path = self.run.calib_path("single_chip", "antenna_cfg.txt")
         if os.path.exists(antenna_path):
             tx_order = tx_order_from_antennas(read_antenna_config(antenna_path))
         else:
@@ -143,7 +143,7 @@ class ColoRadarSource(Source):
         times = self.run.timestamps(ADC_STREAM)
         period = float(np.median(np.diff(times))) if len(times) > 1 else 0.1
         return waveform_to_config(wf, tx_order=tx_order, frame_period_s=round(period, 4),
-                                  origin=self.run._calib_path("single_chip", "waveform_cfg.txt"))
+                                  origin=self.run.calib_path("single_chip", "waveform_cfg.txt"))
 
     def _truth(self) -> tuple[TumTrajectory, np.ndarray] | None:
         """The heatmap radar's poses at the event times inside the ground truth, and each
