@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import EvaluationError
 from ..tum import TumTrajectory
+from .angles import wrap
 
 log = logging.getLogger(__name__)
 
@@ -77,23 +78,18 @@ def _json_number(v):
 
 
 # ------------------------------------------------------------------------ SE(2)
-def wrap_angle(a):
-    """Angles (rad, any shape) wrapped into [-pi, pi)."""
-    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
-
-
 def se2_relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a^-1 b`` for poses (..., 3) x, y (m), yaw (rad): b seen from a."""
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
-    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[..., 2] - a[..., 2])], axis=-1)
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[..., 2] - a[..., 2])], axis=-1)
 
 
 def se2_compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a b`` for poses (..., 3) x, y (m), yaw (rad)."""
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     return np.stack([a[..., 0] + c * b[..., 0] - s * b[..., 1], a[..., 1] + s * b[..., 0] + c * b[..., 1],
-                     wrap_angle(a[..., 2] + b[..., 2])], axis=-1)
+                     wrap(a[..., 2] + b[..., 2])], axis=-1)
 
 
 def se2_inverse(a: np.ndarray) -> np.ndarray:
@@ -314,7 +310,7 @@ class EvaluationResult:
     @property
     def drift_yaw_deg(self) -> float:
         """Final yaw error (deg, signed) with the estimate aligned by its first pose."""
-        return float(np.degrees(wrap_angle(self.est_first_pose[-1, 2] - self.ref[-1, 2])))
+        return float(np.degrees(wrap(self.est_first_pose[-1, 2] - self.ref[-1, 2])))
 
     def to_dict(self) -> dict[str, Any]:
         """The numbers (no series), JSON-ready: undefined values are None."""

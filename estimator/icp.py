@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.spatial
 
+from .angles import wrap
 from .config import IcpConfig
 from .features import Features, LogHeatmap
 
@@ -63,11 +64,6 @@ class Registration:
     @property
     def ok(self) -> bool:
         return self.status == OK
-
-
-def wrap(angle):
-    """Angle(s) into [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def rotation_svd(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
@@ -117,6 +113,9 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
     query = _scaled(source.range_m, source.bearing_rad, config)
     sqrt_beta = math.sqrt(config.beta)
     in_range = None if region is None else region.in_range(source.range_m)
+    # With sampling, points beyond eps_max are removed whatever their nearest target: the
+    # tree need not look that far (a little beyond, so that e = eps_max is still found).
+    bound = math.sqrt(config.eps_max) * (1.0 + 1e-9) if config.sampling else math.inf
     status, matched, removed, neglected = NOT_CONVERGED, 0, 0, 0
     iteration = 0
     pairs = None
@@ -124,7 +123,7 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
     for iteration in range(1, config.iterations + 1):
         bearing = wrap(source.bearing_rad + rotation)
         np.multiply(sqrt_beta, bearing, out=query[:, 1])
-        distance, nearest = tree.query(query)
+        distance, nearest = tree.query(query, distance_upper_bound=bound)  # inf, n beyond
         e_min = distance * distance
         match, usable, aligned, removed = _sample(e_min, bearing, in_range, region, config)
         matched = int(np.count_nonzero(match))
@@ -260,7 +259,8 @@ def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndar
     *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside."""
     values, inside = target.sample_rotated(source.range_m, source.bearing_rad, shifts)
     enough = inside.sum(axis=1) >= max(3, len(source) // 4)
-    weighted = (values @ source.weight) / np.maximum(inside @ source.weight, 1e-30)
+    weight = source.weight.astype(values.dtype)  # float32 values stay float32 (no upcast copy)
+    weighted = (values @ weight) / np.maximum(inside @ weight, 1e-30)
     return np.where(enough, weighted, -np.inf)
 
 

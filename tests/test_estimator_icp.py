@@ -730,10 +730,11 @@ class TestLogHeatmap:
         lh, range_m, az = self._random_map(rng, uniform, 0.9, math.radians(89.0))
         i, j = 7, 11
         # Body bearing = -TI azimuth.
-        assert lh.sample(np.array([range_m[i]]), np.array([-az[j]]))[0] == pytest.approx(lh.values[i, j], abs=1e-9)
+        # The log heatmap is float32: equal to its rounding.
+        assert lh.sample(np.array([range_m[i]]), np.array([-az[j]]))[0] == pytest.approx(lh.values[i, j], abs=1e-6)
         mid_r = 0.5 * (range_m[i] + range_m[i + 1])
         mid = lh.sample(np.array([mid_r]), np.array([-az[j]]))[0]
-        assert mid == pytest.approx(0.5 * (lh.values[i, j] + lh.values[i + 1, j]), abs=1e-9)
+        assert mid == pytest.approx(0.5 * (lh.values[i, j] + lh.values[i + 1, j]), abs=1e-6)
         assert np.isnan(lh.sample(np.array([100.0]), np.array([0.0]))[0])
         assert np.isnan(lh.sample(np.array([range_m[i]]), np.array([math.radians(80.0)]))[0])
 
@@ -753,7 +754,7 @@ class TestLogHeatmap:
         values, inside = lh.sample_rotated(r, b, shifts)
         ref = lh.sample(r[None, :], icp.wrap(b[None, :] + shifts[:, None]))
         np.testing.assert_array_equal(inside, np.isfinite(ref))
-        np.testing.assert_allclose(values[inside], ref[inside], atol=1e-9)
+        np.testing.assert_allclose(values[inside], ref[inside], atol=1e-5)  # float32 index and values
         assert np.all(values[~inside] == 0.0)
         assert 0 < inside.sum() < inside.size
 

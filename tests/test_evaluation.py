@@ -13,6 +13,7 @@ from conftest import warning_messages
 
 from radarodom.driver.capture_dir import CaptureWriter
 from radarodom.errors import CaptureExistsError, CaptureFormatError, EvaluationError, UsageError
+from radarodom.estimator.angles import wrap
 from radarodom.estimator.evaluation import (
     Stats,
     associate,
@@ -20,7 +21,6 @@ from radarodom.estimator.evaluation import (
     evaluate,
     se2_compose,
     umeyama_se2,
-    wrap_angle,
 )
 from radarodom.tum import TumTrajectory, TumWriter, quaternion_yaw, read_tum, yaw_quaternion
 
@@ -70,7 +70,7 @@ def traj(times, poses, source="") -> TumTrajectory:
 # ------------------------------------------------------------------------ tum.py
 def test_tum_writer_round_trip_planar_poses(tmp_path):
     t, ref, _ = drive(50)
-    ref[:, 2] = wrap_angle(ref[:, 2])
+    ref[:, 2] = wrap(ref[:, 2])
     gt = read_tum(write_tum(tmp_path / "a.tum", t, ref))
     assert gt.source == str(tmp_path / "a.tum") and len(gt) == 50
     np.testing.assert_allclose(gt.times, t, atol=1e-9)
@@ -183,7 +183,7 @@ def test_a_rotated_and_shifted_copy_aligns_to_zero_ate():
     moved = se2_compose(np.array([3.0, -7.0, math.radians(135)]), ref)
     r = evaluate(traj(t, moved), traj(t, ref))
     assert np.max(r.ate_m) < 1e-9
-    assert math.degrees(wrap_angle(r.alignment[2])) == pytest.approx(-135.0, abs=1e-9)
+    assert math.degrees(wrap(r.alignment[2])) == pytest.approx(-135.0, abs=1e-9)
     assert np.max(r.rpe_frame.translation_m) < 1e-9 and np.max(r.rpe_distance.rotation_deg) < 1e-9
     assert r.drift_m < 1e-9
     np.testing.assert_allclose(r.est_umeyama, r.ref, atol=1e-9)

@@ -1,0 +1,10 @@
+"""Angle helpers shared by the registration, the features and the evaluation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def wrap(angle):
+    """Angle(s) in rad (any shape) wrapped into [-pi, pi)."""
+    return (np.asarray(angle, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
