@@ -323,7 +323,7 @@ class LogHeatmap:
         na = self.values.shape[1]
         a0 = fa.astype(np.intp)
         np.minimum(a0, na - 2, out=a0)
-        da = fa - a0
+        da = np.subtract(fa, a0, dtype=fa.dtype)  # not float64, as an integer operand would make it
         a0 += r0 * na
         value, d_az, d_r, d_both = (a.take(a0) for a in self._cells)
         d_az *= da

@@ -21,7 +21,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.spatial
 
 from .angles import wrap
 from .config import IcpConfig
@@ -87,13 +86,6 @@ def rotation_2d(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
     return math.atan2(h01 - h10, h00 + h11)
 
 
-def _scaled(range_m: np.ndarray, bearing_rad: np.ndarray, config: IcpConfig) -> np.ndarray:
-    """Polar points scaled so that squared Euclidean distance is e of eq. 4, (n, 2).
-    Bearings are wrapped into [-pi, pi) and a radar sees a half-plane, so bearing
-    differences need no wrapping."""
-    return np.column_stack([math.sqrt(config.alpha) * range_m, math.sqrt(config.beta) * bearing_rad])
-
-
 def register_rotation(source: Features, target: Features, config: IcpConfig, *,
                       initial_rad: float = 0.0, region: Region | None = None) -> Registration:
     """Rotate *source* onto *target* (both in the same sensor position after rectification).
@@ -106,25 +98,20 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
     rotation = float(initial_rad)
     xy_src = source.xy
     tgt_xy = target.xy
-    # The target stays put: one k-d tree of it answers every iteration's nearest-error query.
-    tree = scipy.spatial.cKDTree(_scaled(target.range_m, target.bearing_rad, config))
-    # Only the bearing column of the query turns with the rotation; the range part of the
-    # region test does not change either.
-    query = _scaled(source.range_m, source.bearing_rad, config)
-    sqrt_beta = math.sqrt(config.beta)
+    sqrt_alpha, sqrt_beta = math.sqrt(config.alpha), math.sqrt(config.beta)
+    # With sampling, points beyond eps_max are removed whatever their nearest target, so
+    # only targets that near need be searched.
+    nearest_of = _NearestTargets(sqrt_alpha * target.range_m, sqrt_beta * target.bearing_rad,
+                                 sqrt_alpha * source.range_m,
+                                 math.sqrt(config.eps_max) if config.sampling else math.inf)
     in_range = None if region is None else region.in_range(source.range_m)
-    # With sampling, points beyond eps_max are removed whatever their nearest target: the
-    # tree need not look that far (a little beyond, so that e = eps_max is still found).
-    bound = math.sqrt(config.eps_max) * (1.0 + 1e-9) if config.sampling else math.inf
     status, matched, removed, neglected = NOT_CONVERGED, 0, 0, 0
     iteration = 0
     pairs = None
     best = (math.inf, rotation, None)  # (mean error, rotation, pairs) of the best iterate
     for iteration in range(1, config.iterations + 1):
         bearing = wrap(source.bearing_rad + rotation)
-        np.multiply(sqrt_beta, bearing, out=query[:, 1])
-        distance, nearest = tree.query(query, distance_upper_bound=bound)  # inf, n beyond
-        e_min = distance * distance
+        e_min, nearest = nearest_of(sqrt_beta * bearing)
         match, usable, aligned, removed = _sample(e_min, bearing, in_range, region, config)
         matched = int(np.count_nonzero(match))
         neglected = len(source) - removed - matched
@@ -134,16 +121,16 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
             status = OK if aligned + matched >= config.min_matches else FEW_MATCHES
             break
         w_usable = source.weight[usable]
-        error = float(np.sum(w_usable * e_min[usable]) / np.sum(w_usable))
+        error = float(w_usable @ e_min[usable]) / float(w_usable.sum())
         if error < best[0]:
             best = (error, rotation, pairs)
-        c, s = math.cos(rotation), math.sin(rotation)
-        x = xy_src[match] @ np.array([[c, s], [-s, c]])  # rows rotated by `rotation`
         y = tgt_xy[nearest[match]]
         w = source.weight[match]
         if config.weight == "product":
             w = w * target.weight[nearest[match]]
-        step = rotation_2d(x, y, w)
+        # The whole rotation from the unturned source (eq. 6 on this iteration's pairs): the
+        # same as turning the source by the current rotation and solving for the step.
+        step = float(wrap(rotation_2d(xy_src[match], y, w) - rotation))
         rotation += step
         pairs = (match, nearest, w)
         if abs(step) < config.tolerance_rad:
@@ -153,6 +140,44 @@ def register_rotation(source: Features, target: Features, config: IcpConfig, *,
         _, rotation, pairs = best
     return Registration(rotation, iteration, status, matched, removed, neglected,
                         _variance(source, target, rotation, pairs))
+
+
+class _NearestTargets:
+    """Each source point's nearest target by the error of eq. 4 (squared distance in the
+    polar space scaled by sqrt(alpha), sqrt(beta)), searched within *bound*.
+
+    Rotation changes only the sources' bearings, so the targets within *bound* in range
+    of each source (targets sorted by range, a band each) are listed once, with their
+    squared range differences; a query is then a difference, a square and a minimum over
+    each band (a k-d tree costs three times as much to build and query for a few hundred
+    points).  Without a bound every band is every target.  Bearings are wrapped into
+    [-pi, pi) and a radar sees a half-plane, so bearing differences need no wrapping."""
+
+    def __init__(self, target_r: np.ndarray, target_b: np.ndarray, source_r: np.ndarray, bound: float) -> None:
+        """Scaled target ranges and bearings (m,), scaled source ranges (n,), bound (scaled)."""
+        order = np.argsort(target_r, kind="stable")
+        sorted_r = target_r[order]
+        lo = np.searchsorted(sorted_r, source_r - bound, "left")
+        hi = np.searchsorted(sorted_r, source_r + bound, "right")
+        width = int((hi - lo).max(initial=0))
+        cand = lo[:, None] + np.arange(width)  # (n, width) into the sorted targets
+        inside = cand < hi[:, None]
+        cand = np.where(inside, cand, 0)  # padding: any target, at infinite error
+        self._dr2 = np.where(inside, (source_r[:, None] - sorted_r[cand]) ** 2, np.inf)
+        self._bearing = target_b[order][cand]
+        self._index = order[cand]
+        self._rows = np.arange(len(source_r))
+
+    def __call__(self, source_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Smallest errors (n,) (inf when no target is within the bound) and the nearest
+        targets' indices (n,) (any index where the error is inf), for scaled source bearings (n,)."""
+        if self._dr2.shape[1] == 0:
+            return np.full(len(source_b), np.inf), np.zeros(len(source_b), np.intp)
+        e = source_b[:, None] - self._bearing
+        e *= e
+        e += self._dr2
+        best = e.argmin(axis=1)
+        return e[self._rows, best], self._index[self._rows, best]
 
 
 def _sample(e_min: np.ndarray, bearing: np.ndarray, in_range: np.ndarray | None, region: Region | None,
@@ -180,8 +205,8 @@ def _variance(source: Features, target: Features, rotation: float, pairs) -> flo
     match, nearest, w = pairs
     residual = wrap(source.bearing_rad[match] + rotation - target.bearing_rad[nearest[match]])
     w = w / w.sum()
-    n_eff = 1.0 / float(np.sum(w * w))
-    return float(np.sum(w * residual * residual)) / max(n_eff - 1.0, 1.0)
+    n_eff = 1.0 / float(w @ w)
+    return float(w @ (residual * residual)) / max(n_eff - 1.0, 1.0)
 
 
 def register_two_way(previous: Features, current: Features, config: IcpConfig, *,
@@ -258,7 +283,7 @@ def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndar
     """Weighted mean log intensity of *target* at the *source* points rotated by each of
     *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside."""
     values, inside = target.sample_rotated(source.range_m, source.bearing_rad, shifts)
-    enough = inside.sum(axis=1) >= max(3, len(source) // 4)
+    enough = np.count_nonzero(inside, axis=1) >= max(3, len(source) // 4)
     weight = source.weight.astype(values.dtype)  # float32 values stay float32 (no upcast copy)
     weighted = (values @ weight) / np.maximum(inside @ weight, 1e-30)
     return np.where(enough, weighted, -np.inf)

@@ -403,6 +403,38 @@ class TestRotationSvd:
             assert abs(icp.wrap(rotation_svd(x, x @ rot(angle).T, np.ones(3)) - angle)) < 1e-9
 
 
+class TestNearestTargets:
+    """ICP's nearest-target search (range bands listed once) against brute force."""
+
+    @pytest.mark.parametrize("bound", [5.0, 0.3, math.inf])
+    @pytest.mark.parametrize("seed", range(3))
+    def test_matches_brute_force(self, seed, bound):
+        rng = np.random.default_rng(seed)
+        # Scaled polar coordinates like ICP's: ranges 0-12 m x sqrt(100), bearings x sqrt(820);
+        # clusters at one range (a wall) make wide bands.
+        tr = np.concatenate([rng.uniform(0, 120, 150), np.full(40, 37.5)])
+        tb = rng.uniform(-30, 30, len(tr))
+        sr = np.concatenate([rng.uniform(-5, 125, 120), np.full(10, 37.5), [500.0]])
+        sb = rng.uniform(-30, 30, len(sr))
+        search = icp._NearestTargets(tr, tb, sr, bound)
+        for turn in (0.0, 2.5, -7.0):
+            e, nearest = search(sb + turn)
+            full = (sr[:, None] - tr[None, :]) ** 2 + (sb[:, None] + turn - tb[None, :]) ** 2
+            want = full.min(axis=1)
+            found = want <= bound ** 2
+            np.testing.assert_allclose(e[found], want[found], rtol=1e-12)
+            np.testing.assert_array_equal(full[found, nearest[found]], want[found])  # a nearest one
+            # Beyond the bound: either infinite or at least the bound (and removed by eps_max).
+            assert np.all(e[~found] > bound ** 2)
+            # The far source has a target only without a bound.
+            assert found.any() and found[-1] == (bound == math.inf)
+
+    def test_no_targets_in_any_band(self):
+        search = icp._NearestTargets(np.array([1.0, 2.0]), np.zeros(2), np.array([50.0, 60.0]), 5.0)
+        e, nearest = search(np.zeros(2))
+        assert np.all(np.isinf(e)) and nearest.shape == (2,)
+
+
 class TestRegisterRotation:
     @pytest.mark.parametrize("angle_deg", [3.0, -5.0, 1.0, 0.3, 8.0])
     @pytest.mark.parametrize("sampling", [True, False])
