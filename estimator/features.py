@@ -205,6 +205,26 @@ def _subbin(intensity: np.ndarray, ri: np.ndarray, ai: np.ndarray, range_m: np.n
     return rng, np.arcsin(np.clip(sin_az, -1.0, 1.0))
 
 
+def heatmap_doppler_points(heatmap: PolarHeatmap, config: FeatureConfig, cells: int) -> np.ndarray | None:
+    """The *cells* strongest local maxima of the heatmap in the region of interest whose
+    dominant Doppler is known, as a point cloud for :func:`~.velocity.estimate_velocity`:
+    a structured array (n,) with fields azimuth (rad, TI frame), elevation (0: a range-azimuth
+    heatmap has none) and velocity (m/s, positive receding).  Local maxima only: a strong
+    reflector's sidelobes carry its Doppler and would outvote the rest.  None when the
+    heatmap has no Doppler channel."""
+    doppler = getattr(heatmap, "doppler_mps", None)
+    if doppler is None:
+        return None
+    intensity = np.asarray(heatmap.intensity, dtype=np.float32)
+    valid = roi_mask(heatmap, config) & (intensity > 0) & np.isfinite(doppler)
+    valid &= intensity >= _neighbourhood_max(intensity)
+    ri, ai = _top_k(intensity, valid, cells)
+    out = np.zeros(len(ri), dtype=[("azimuth", "f8"), ("elevation", "f8"), ("velocity", "f8")])
+    out["azimuth"] = heatmap.azimuth_rad[ai]
+    out["velocity"] = doppler[ri, ai]
+    return out
+
+
 def azimuth_profile(heatmap: PolarHeatmap, config: FeatureConfig, grid_rad: np.ndarray) -> np.ndarray:
     """The heatmap's power summed over range in the region of interest, in dB, resampled
     onto body-frame bearings *grid_rad* (ascending, uniform); for the correlation guess

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from .config import EstimatorConfig
-from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract
+from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract, heatmap_doppler_points
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess)
 from .velocity import VelocityEstimate, estimate_velocity
@@ -42,6 +42,7 @@ log.addHandler(logging.NullHandler())
 FIRST_FRAME = "first_frame"
 VELOCITY_FAILED = "velocity_failed"  # no good velocity near this frame
 VELOCITY_HELD = "velocity_held"  # ... the last good one was used
+VELOCITY_FROM_HEATMAP = "velocity_from_heatmap"  # ... the heatmap's Doppler gave it
 FEW_FEATURES = "few_features"
 NO_STRUCTURE = "no_structure"  # the heatmaps hold nothing to register (the scan guess's verdict)
 ICP_FAILED = "icp_failed"  # registration found too few matches
@@ -126,6 +127,9 @@ class RadarOdometry:
     def __init__(self, config: EstimatorConfig | None = None) -> None:
         self.config = config or EstimatorConfig()
         self.rng = np.random.default_rng(self.config.velocity.seed)
+        # Its own generator, so that the fallback leaves the point clouds' RANSAC draws as they were.
+        self._fallback_rng = np.random.default_rng(self.config.velocity.seed + 1)
+        self._fallback: VelocityEstimate | None = None  # the heatmap's velocity of the last frame that needed it
         self._velocities = _Velocities()
         self._last_velocity: VelocityEstimate | None = None  # latest, good or not
         self._previous: tuple[float, Features, Any, Any] | None = None  # (t, features, guide, field)
@@ -198,7 +202,7 @@ class RadarOdometry:
 
         # Velocity at the middle of the two frames (eq. 2), or the last good one held.
         velocity = self._velocities.at(0.5 * (t + t_prev), cfg.odometry.velocity_sync)
-        v, v_cov = self._velocity_or_hold(velocity, t, flags)
+        v, v_cov = self._velocity_or_hold(velocity, t, t_prev, flags, heatmap)
 
         # Yaw: rectify (eq. 3), register both ways, average.
         initial = self._initial_rotation(prev_guide, heatmap, guide, v * dt, dt)
@@ -275,16 +279,50 @@ class RadarOdometry:
         state.compute_s = time.perf_counter() - start + self._velocity_s
         self._velocity_s = 0.0
 
-    def _velocity_or_hold(self, velocity: VelocityEstimate | None, t: float,
-                          flags: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    def _velocity_or_hold(self, velocity: VelocityEstimate | None, t: float, t_prev: float,
+                          flags: list[str], heatmap: PolarHeatmap) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity (2,) m/s of the step from *t_prev* to *t* and its covariance (2, 2): the
+        point clouds' when the latest was good, else the heatmap's Doppler
+        (``velocity_fallback``), else the last good one held."""
         last = self._last_velocity
         fresh = last is not None and last.ok
         if velocity is not None and fresh:
+            self._fallback = None
             return velocity.velocity, velocity.covariance
         flags.append(VELOCITY_FAILED)
+        if self.config.odometry.velocity_fallback == "heatmap":
+            est = self._heatmap_velocity(t, t_prev, heatmap)
+            if est is not None:
+                flags.append(VELOCITY_FROM_HEATMAP)
+                return est
         if velocity is not None and self._held(self._good_velocity_t, t, VELOCITY_HELD, flags):
             return velocity.velocity, velocity.covariance * 4.0
         return np.zeros(2), np.eye(2)
+
+    def _heatmap_velocity(self, t: float, t_prev: float,
+                          heatmap: PolarHeatmap) -> tuple[np.ndarray, np.ndarray] | None:
+        """The step's velocity (2,) m/s and covariance (2, 2) from the heatmap's Doppler at *t*,
+        averaged with the velocity at *t_prev* (the step's mid-time, as eq. 2 for the point
+        clouds: a robot slowing down is 0.05-0.1 m/s slower at the frame than at mid-step);
+        None when the heatmap gives none."""
+        points = heatmap_doppler_points(heatmap, self.config.features, self.config.odometry.fallback_cells)
+        if points is None:
+            return None
+        est = estimate_velocity(points, t, self.config.velocity, self._fallback_rng)
+        if not est.ok:
+            self._fallback = None
+            return None
+        # Kept apart from the point clouds' estimates: those may come from another sensor, later.
+        before = self._fallback if self._fallback is not None and self._fallback.t == t_prev else None
+        if before is None:
+            good = self._velocities.at(t_prev, "nearest")
+            # Only an estimate of the previous frame's own time (within half a step) stands for it.
+            if good is not None and abs(good.t - t_prev) <= 0.5 * (t - t_prev):
+                before = good
+        self._fallback = est
+        if before is None:
+            return est.velocity, est.covariance
+        return 0.5 * (before.velocity + est.velocity), 0.25 * (before.covariance + est.covariance)
 
     def _log_heatmap(self, heatmap: PolarHeatmap) -> LogHeatmap:
         """The log heatmap of the frame being processed, made once for both registrations."""

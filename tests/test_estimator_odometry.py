@@ -118,6 +118,8 @@ class TestConfig:
         ("odometry", "velocity_sync", "spline"),
         ("odometry", "keyframe_start", "icp"),
         ("odometry", "keyframe_noise_rad", 0.0),
+        ("odometry", "velocity_fallback", "zero"),
+        ("odometry", "fallback_cells", 1),
     ])
     def test_bad_values_name_the_field(self, tmp_path, section, fld, value):
         with pytest.raises(ConfigError) as exc:
@@ -177,6 +179,7 @@ class TestConfig:
         assert cfg.icp.initial_guess == "zero"
         assert cfg.features.peaks_only is False and cfg.features.subbin is False
         assert cfg.features.dynamic_rejection_mps is None
+        assert cfg.odometry.velocity_fallback == "hold"
         assert cfg.velocity.elevation_projection in config_mod.PROJECTIONS
         assert cfg.features.k == 200
 
@@ -185,6 +188,12 @@ class TestConfig:
         assert (cfg.features.method, cfg.icp.sampling, cfg.icp.two_way) == ("topk", True, True)
         with pytest.raises(ConfigError):
             EstimatorConfig.paper(method="orb")
+
+    def test_defaults_beyond_the_paper(self):
+        # The measured best combination (README): the heatmap's Doppler stands in for a failed
+        # point-cloud velocity.
+        odo = EstimatorConfig().odometry
+        assert odo.velocity_fallback == "heatmap" and odo.fallback_cells == 50
 
     def test_sections_construct_alone(self):
         for cls in (VelocityConfig, FeatureConfig, IcpConfig, OdometryConfig):
@@ -385,7 +394,7 @@ class TestFlags:
         assert states[-1].x == pytest.approx(0.3, abs=1e-6)  # the velocity still counts
 
     def test_velocity_failure_holds_then_motion_lost(self):
-        cfg = EstimatorConfig().with_(odometry={"hold_s": 0.25})
+        cfg = EstimatorConfig().with_(odometry={"hold_s": 0.25, "velocity_fallback": "hold"})
         odom = RadarOdometry(cfg)
         hm = scene_heatmap()
         dt = 0.1
@@ -413,6 +422,52 @@ class TestFlags:
         # Recovery: a good cloud again clears the flags.
         s = odom.step(1.0, static_cloud((0.4, 0.0)), hm)
         assert odo_mod.VELOCITY_FAILED not in s.flags
+
+    @pytest.mark.parametrize("fallback", ["hold", "heatmap"])
+    def test_velocity_fallback_while_slowing_down(self, fallback):
+        # Driving at 0.6 m/s, then braking at 1.5 m/s^2 to a stop while the point cloud has too
+        # few points to fit (as it has when the static world crowds into a few Doppler bins).
+        # The heatmap's Doppler still shows the speed: the "heatmap" fallback follows it, where
+        # "hold" carries 0.6 m/s on for hold_s and overshoots the stop.
+        cfg = EstimatorConfig().with_(odometry={"velocity_fallback": fallback})
+        odom = RadarOdometry(cfg)
+        dt, brake_t, decel = 0.1, 0.3, 1.5
+        speed = lambda t: max(0.6 - decel * max(t - brake_t, 0.0), 0.0)
+        # Distance driven: 0.6 t until the brake, then the braking parabola until the stop.
+        def distance(t):
+            d = 0.6 * min(t, brake_t)
+            tb = min(max(t - brake_t, 0.0), 0.6 / decel)
+            return d + 0.6 * tb - 0.5 * decel * tb * tb
+        states = []
+        for i in range(10):
+            t = i * dt
+            cloud = static_cloud((speed(t), 0.0)) if t <= brake_t + 1e-9 else few_points_cloud()
+            hm = scene_heatmap((distance(t), 0.0, 0.0), velocity_xy=(speed(t), 0.0))
+            states.append(odom.step(t, cloud, hm))
+        slowing = states[4:]
+        assert all(odo_mod.VELOCITY_FAILED in s.flags for s in slowing)
+        if fallback == "hold":
+            assert all(odo_mod.VELOCITY_HELD in s.flags for s in slowing[:3])
+            assert states[4].vx == pytest.approx(0.6, abs=1e-3)
+            assert states[-1].x - distance(states[-1].t) > 0.1  # the held speed overshoots
+        else:
+            assert all(odo_mod.VELOCITY_FROM_HEATMAP in s.flags for s in slowing)
+            for prev, s in itertools.pairwise(states[3:]):
+                # The mid-step speed, as the point clouds' velocity would give it (eq. 2).
+                assert s.vx == pytest.approx(0.5 * (speed(prev.t) + speed(s.t)), abs=0.03)
+                assert abs(s.vy) < 0.03
+                assert finite_state(s)
+            assert states[-1].x == pytest.approx(distance(states[-1].t), abs=0.02)
+
+    def test_heatmap_fallback_without_doppler_holds(self):
+        # A heatmap without a Doppler channel (NaN everywhere) gives no fallback: the last good
+        # velocity is held as before.
+        odom = RadarOdometry(EstimatorConfig().with_(odometry={"velocity_fallback": "heatmap"}))
+        states = [odom.step(0.1 * i, static_cloud((0.4, 0.0)) if i < 3 else few_points_cloud(),
+                            scene_heatmap(doppler_channel=False)) for i in range(5)]
+        for s in states[3:]:
+            assert odo_mod.VELOCITY_HELD in s.flags and odo_mod.VELOCITY_FROM_HEATMAP not in s.flags
+            assert s.vx == pytest.approx(0.4, abs=1e-5)
 
     def test_yaw_rate_held_then_lost(self):
         # Turning in place at 30 deg/s with a good heatmap, then heatmaps with too few features:
