@@ -177,6 +177,13 @@ class IcpConfig(Settings):
     refinement: str = "field"
     field_search_rad: float = math.radians(3.0)
     field_smoothing_bins: float = 2.0
+    #: Grid step of the field search, rad; the best rotation on the grid is refined by a
+    #: parabola through it and its two neighbours.  The field's peak is some degrees wide
+    #: (beams of about 15 degrees, smoothed): a parabola through points 1.5 degrees apart fits
+    #: that peak, one through points 0.5 degrees apart fits the speckle on it.  The default:
+    #: yaw RMSE 0.41 / 0.46 / 0.45 degrees instead of 0.45 / 0.51 / 0.52 with 0.5 degrees, drift
+    #: lower in every scene, a third of the samples (18 simulated sequences, README).
+    field_step_rad: float = math.radians(1.5)
     #: Where the frame-to-frame field search looks: "icp", +/- ``field_search_rad`` around ICP's
     #: rotation; "icp_and_scan", from the smaller of ICP's rotation and the scan guess to the
     #: larger, widened by ``field_search_rad`` each side.  ICP drawn off by wrong pairs (near
@@ -204,6 +211,7 @@ class IcpConfig(Settings):
         check_choice(self.refinement, REFINEMENTS, "refinement")
         _check(self.field_search_rad > 0, "must be positive", "field_search_rad")
         _check(self.field_smoothing_bins >= 0, "must be >= 0 (0: not smoothed)", "field_smoothing_bins")
+        _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
 
 

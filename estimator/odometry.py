@@ -52,9 +52,6 @@ MOTION_LOST = "motion_lost"  # nothing good for longer than hold_s: no motion re
 
 #: Correlation guess: bearing grid step, rad.
 _PROFILE_STEP = math.radians(0.25)
-#: Field refinement: rotation grid step, rad (the smoothed field is smooth at this scale, a
-#: parabola refines the best; measured as good as 0.25 degrees at half the time).
-_FIELD_STEP = math.radians(0.5)
 #: Two-model yaw-rate filter: per frame, the probability of staying in (diagonal) or switching
 #: between the steady model and the manoeuvre model, rows "from", columns "to".  A turn's start
 #: or end takes a few frames; straight drives and steady turns last tens.  The filter starts
@@ -265,7 +262,7 @@ class RadarOdometry:
         if other is not None:
             centre, reach = 0.5 * (rotation + other), reach + 0.5 * abs(rotation - other)
         refined = field_rotation(source_field[0], target_field[0], source_field[1], target_field[1],
-                                 translation, centre, reach, _FIELD_STEP)
+                                 translation, centre, reach, self.config.icp.field_step_rad)
         return rotation if refined is None else refined
 
     def _finish(self, state: OdometryState, t: float, features: Features, guide, field, heatmap,

@@ -845,4 +845,6 @@ class TestFieldRotation:
             IcpConfig(field_smoothing_bins=-1.0)
         with pytest.raises(ConfigError, match="field_search_rad"):
             IcpConfig(field_search_rad=0.0)
+        with pytest.raises(ConfigError, match="field_step_rad"):
+            IcpConfig(field_step_rad=0.0)
         assert IcpConfig.from_dict(IcpConfig().to_dict()) == IcpConfig()
