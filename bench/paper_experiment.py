@@ -63,6 +63,8 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default without the field refinement (ICP's yaw)": d.with_(icp={"refinement": "none"}),
         "default, field smoothing 0": d.with_(icp={"field_smoothing_bins": 0.0}),
         "default, field smoothing 1.5": d.with_(icp={"field_smoothing_bins": 1.5}),
+        "default, field step 0.5 degrees (before)": d.with_(icp={"field_step_rad": math.radians(0.5)}),
+        "default, speed held when the cloud fails": d.with_(odometry={"velocity_fallback": "hold"}),
         # The three yaw options of the per-stage diagnosis (default since they were measured),
         # each turned off, and all three.
         "default, field window around ICP alone": d.with_(icp={"field_window": "icp"}),
