@@ -265,18 +265,13 @@ def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: f
                centre_rad: float = 0.0) -> tuple[float, float] | None:
     """Rotation (source -> target) that puts the rectified *source* points on the brightest
     part of the target heatmap: the maximum of the weighted mean log intensity sampled at
-    the rotated points, searched over centre +/- max on a grid four times coarser than
-    *step_rad*, then on *step_rad* around the best, refined by a parabola.
+    the rotated points, searched over centre +/- max every *step_rad*, refined by a parabola.
 
     Returns (rotation, score), the score being that mean log intensity over the target's
     median (natural-log units: ~0 when the heatmaps hold only noise), or None when too
     few points stay inside the heatmap."""
-    coarse = 4.0 * step_rad
-    reach = math.ceil(max_rad / coarse)
-    best = _scan(source, target, centre_rad + coarse * np.arange(-reach, reach + 1))
-    if best is None:
-        return None
-    return _scan(source, target, best[0] + step_rad * np.arange(-4, 5))
+    reach = max(1, math.ceil(max_rad / step_rad))
+    return _scan(source, target, centre_rad + step_rad * np.arange(-reach, reach + 1))
 
 
 def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndarray:

@@ -349,7 +349,7 @@ class RadarOdometry:
         key.yaw_var += var_yaw
         initial, other = -predicted, None  # the search's start, and what its window spans
         if start in ("scan", "predicted_and_scan") and key.guide is not None and cfg.icp.initial_guess == "scan":
-            found = scan_guess(key.guide.shifted(t_rel), self._log_heatmap(heatmap), _PROFILE_STEP,
+            found = scan_guess(key.guide.shifted(t_rel), self._log_heatmap(heatmap), cfg.icp.scan_step_rad,
                                cfg.odometry.keyframe_search_rad, initial)
             if found is not None and found[1] >= cfg.icp.min_scan_score:
                 if start == "scan":
@@ -434,7 +434,7 @@ class RadarOdometry:
             guess = correlation_guess(prev_guide, guide, _PROFILE_STEP, icp.max_rotation_rad, predicted)
         elif prev_guide is not None and icp.initial_guess == "scan":
             found = scan_guess(prev_guide.shifted(translation), self._log_heatmap(heatmap),
-                               _PROFILE_STEP, icp.max_rotation_rad, predicted)
+                               icp.scan_step_rad, icp.max_rotation_rad, predicted)
             if found is None or found[1] < icp.min_scan_score:
                 return None
             guess = found[0]

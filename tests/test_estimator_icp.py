@@ -847,4 +847,6 @@ class TestFieldRotation:
             IcpConfig(field_search_rad=0.0)
         with pytest.raises(ConfigError, match="field_step_rad"):
             IcpConfig(field_step_rad=0.0)
+        with pytest.raises(ConfigError, match="scan_step_rad"):
+            IcpConfig(scan_step_rad=-1.0)
         assert IcpConfig.from_dict(IcpConfig().to_dict()) == IcpConfig()
