@@ -58,7 +58,11 @@ class Features:
 
     @classmethod
     def from_xy(cls, xy: np.ndarray, weight: np.ndarray, intensity: np.ndarray) -> "Features":
-        return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity)
+        out = cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity)
+        # The positions are known: ICP would otherwise make them again from range and bearing.
+        xy.flags.writeable = False
+        out.__dict__["xy"] = xy
+        return out
 
     def shifted(self, dxy: np.ndarray) -> "Features":
         """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3)."""
@@ -331,9 +335,14 @@ class LogHeatmap:
     def _range_cells(self, range_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Lower range bin, fraction above it and whether inside the axis (bin 0, fraction 0
         outside), each of range_m's shape."""
-        fr = self._range.index(range_m)
-        inside = np.isfinite(fr)
-        fr = np.where(inside, fr, 0.0)
+        axis = self._range
+        if axis.uniform:
+            fr = (range_m - axis.start) * (1.0 / axis.step)
+            inside = (fr >= 0.0) & (fr <= len(axis.axis) - 1)
+        else:
+            fr = axis.index(range_m)
+            inside = np.isfinite(fr)
+        fr[~inside] = 0.0
         r0 = np.minimum(fr.astype(np.intp), self.values.shape[0] - 2)
         return r0, fr - r0, inside
 
