@@ -74,13 +74,29 @@ def design(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, velocity_mps: np.
     return rows, rhs
 
 
-def _least_squares(rows: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Solution, normal matrix and residual variance of rows @ v = rhs."""
-    normal = rows.T @ rows
-    v = np.linalg.solve(normal, rows.T @ rhs)
-    dof = max(len(rhs) - 2, 1)
-    sigma2 = float(np.sum((rhs - rows @ v) ** 2) / dof)
-    return v, normal, sigma2
+def _least_squares(rows: np.ndarray, rhs: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Solution, inverse normal matrix and residual variance of rows @ v = rhs, given the
+    (well-conditioned) normal matrix rows^T rows."""
+    inverse = _inverse(normal)
+    v = inverse @ (rows.T @ rhs)
+    residual = rhs - rows @ v
+    sigma2 = float(residual @ residual) / max(len(rhs) - 2, 1)
+    return v, inverse, sigma2
+
+
+def _condition(normal: np.ndarray) -> float:
+    """2-norm condition number of a symmetric positive semi-definite 2x2 matrix, inf when
+    singular: its eigenvalues written out (np.linalg.cond's SVD cost more than the fit)."""
+    a, b, c = float(normal[0, 0]), float(normal[0, 1]), float(normal[1, 1])
+    mean, radius = 0.5 * (a + c), math.hypot(0.5 * (a - c), b)
+    low = mean - radius
+    return (mean + radius) / low if low > 0.0 else math.inf
+
+
+def _inverse(normal: np.ndarray) -> np.ndarray:
+    """Inverse of a symmetric non-singular 2x2 matrix, written out."""
+    a, b, c = float(normal[0, 0]), float(normal[0, 1]), float(normal[1, 1])
+    return np.array([[c, -b], [-b, a]]) / (a * c - b * b)
 
 
 def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
@@ -136,12 +152,12 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
     if fit is None:
         out.status, out.inliers = ILL_CONDITIONED, int(inliers.sum())
         return out
-    v, normal, sigma2 = fit
+    v, inverse, sigma2 = fit
     # The Doppler grid quantises every measurement: the residual variance never drops
     # below the bin's uniform-quantisation variance, whatever few points agree.
     sigma2 = max(sigma2, config.inlier_threshold_mps ** 2 / 12.0)
     out.vx, out.vy = float(v[0]), float(v[1])
-    out.covariance = sigma2 * np.linalg.inv(normal)
+    out.covariance = sigma2 * inverse
     out.inliers = int(inliers.sum())
     out.inlier_mask[np.flatnonzero(keep)[inliers]] = True
     out.status = OK
@@ -151,15 +167,17 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
 def _fit(rows: np.ndarray, rhs: np.ndarray, inliers: np.ndarray,
          config: VelocityConfig) -> tuple[np.ndarray, np.ndarray, float] | None:
     """Least squares on *inliers*, or None when their bearings cannot tell vx from vy."""
-    if not _well_conditioned(rows[inliers], config):
+    rows, rhs = rows[inliers], rhs[inliers]
+    normal = rows.T @ rows
+    if len(rows) < 2 or _condition(normal) > config.max_condition:
         return None
-    return _least_squares(rows[inliers], rhs[inliers])
+    return _least_squares(rows, rhs, normal)
 
 
 def _well_conditioned(rows: np.ndarray, config: VelocityConfig) -> bool:
     if len(rows) < 2:
         return False
-    return bool(np.linalg.cond(rows.T @ rows) <= config.max_condition)
+    return _condition(rows.T @ rows) <= config.max_condition
 
 
 def _zero_covariance(rows: np.ndarray, config: VelocityConfig) -> np.ndarray:
