@@ -288,8 +288,13 @@ def _check_recording(out, frames, n_frames=None) -> CaptureDirectory:
 
 
 def assert_one_period_apart(timestamps, period: float) -> None:
+    """No frame skipped or repeated: consecutive stamps more than 0 and less than 1.5 periods
+    apart.  A step may be much shorter than a period: the frame clock's grid starts at the
+    least receive delay seen so far, which a loaded machine (the first frames delayed by
+    several ms) lowers later, shortening that step; it never lengthens one (these captures
+    fit in the clock's window), so a skipped frame still shows as two periods."""
     steps = np.diff(timestamps)
-    assert ((steps > 0.5 * period) & (steps < 1.5 * period)).all(), steps
+    assert ((steps > 0) & (steps < 1.5 * period)).all(), steps
 
 
 def test_cli_emulate_then_capture_records_the_source_frames(small_capture, tmp_path):
