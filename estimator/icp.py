@@ -169,8 +169,9 @@ class _NearestTargets:
         self._rows = np.arange(len(source_r))
 
     def __call__(self, source_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Smallest errors (n,) (inf when no target is within the bound) and the nearest
-        targets' indices (n,) (any index where the error is inf), for scaled source bearings (n,)."""
+        """Smallest errors (n,) and the nearest targets' indices (n,), for scaled source
+        bearings (n,).  Where no target is within the bound the error exceeds the bound's
+        square (inf when no target is within it in range) and the index is meaningless."""
         if self._dr2.shape[1] == 0:
             return np.full(len(source_b), np.inf), np.zeros(len(source_b), np.intp)
         e = source_b[:, None] - self._bearing
