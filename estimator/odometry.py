@@ -20,6 +20,7 @@ last good motion forward for ``odometry.hold_s``, then reports no motion.
 
 from __future__ import annotations
 
+import bisect
 import logging
 import math
 import time
@@ -95,22 +96,25 @@ class _Velocities:
 
     def __init__(self, size: int = 32) -> None:
         self.items: deque[VelocityEstimate] = deque(maxlen=size)
+        self._times: deque[float] = deque(maxlen=size)  # the items' times, for bisection
 
     def add(self, est: VelocityEstimate) -> None:
         if self.items and est.t < self.items[-1].t:
             raise ValueError(f"velocity at t={est.t} after one at t={self.items[-1].t}: feed in time order")
         self.items.append(est)
+        self._times.append(est.t)
 
     def at(self, t: float, mode: str) -> VelocityEstimate | None:
         """The velocity at *t*: linear between the bracketing estimates (eq. 2), else the
-        nearest; None when there is none."""
-        if not self.items:
+        nearest (the first of equal times; the earlier of two as near); None when there is none."""
+        times = self._times
+        if not times:
             return None
-        times = np.fromiter((e.t for e in self.items), float, len(self.items))
-        k = int(np.searchsorted(times, t))
+        k = bisect.bisect_left(times, t)
         if mode == "nearest" or k == 0 or k == len(times):
-            e = self.items[int(np.argmin(np.abs(times - t)))]
-            return e
+            if k > 0 and (k == len(times) or t - times[k - 1] <= times[k] - t):
+                k = bisect.bisect_left(times, times[k - 1])
+            return self.items[k]
         a, b = self.items[k - 1], self.items[k]
         f = (t - a.t) / (b.t - a.t) if b.t > a.t else 0.0
         return VelocityEstimate(t=t, vx=a.vx + f * (b.vx - a.vx), vy=a.vy + f * (b.vy - a.vy),

@@ -717,3 +717,28 @@ def test_field_fallback_when_icp_fails(fallback):
             assert s.yaw_rate == pytest.approx(rate, abs=3 * DEG)
         else:
             assert s.yaw == 0.0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_velocity_lookup_nearest_and_interpolated(seed):
+    # The velocity store's lookup against a plain numpy reference: the nearest estimate (the
+    # first of equal times, the earlier of two as near) and the linear interpolation between
+    # the bracketing ones, with repeated times and queries on, between and beyond them.
+    rng = np.random.default_rng(seed)
+    times = np.sort(np.round(rng.uniform(0.0, 2.0, 40), 1))  # repeats and exact ties
+    store = odo_mod._Velocities(size=32)
+    for i, t in enumerate(times):
+        store.add(VelocityEstimate(t=float(t), vx=float(i), vy=-float(i), covariance=np.eye(2), status="ok"))
+    kept = times[-32:]
+    first = len(times) - 32
+    for q in np.concatenate([kept, rng.uniform(-0.5, 2.5, 50), (kept[:-1] + kept[1:]) / 2]):
+        nearest = store.at(float(q), "nearest")
+        assert nearest.vx == first + int(np.argmin(np.abs(kept - q))), q
+        k = int(np.searchsorted(kept, q))
+        got = store.at(float(q), "interpolate")
+        if 0 < k < len(kept):
+            a, b = kept[k - 1], kept[k]
+            f = (q - a) / (b - a) if b > a else 0.0
+            assert got.vx == pytest.approx(first + k - 1 + f * 1.0), q
+        else:
+            assert got.vx == first + int(np.argmin(np.abs(kept - q))), q
