@@ -58,15 +58,16 @@ class Features:
 
     @classmethod
     def from_xy(cls, xy: np.ndarray, weight: np.ndarray, intensity: np.ndarray) -> "Features":
-        out = cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity)
+        return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity)
+
+    def shifted(self, dxy: np.ndarray) -> "Features":
+        """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3)."""
+        xy = self.xy - np.asarray(dxy, dtype=float)[None, :]
+        out = Features.from_xy(xy, self.weight, self.intensity)
         # The positions are known: ICP would otherwise make them again from range and bearing.
         xy.flags.writeable = False
         out.__dict__["xy"] = xy
         return out
-
-    def shifted(self, dxy: np.ndarray) -> "Features":
-        """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3)."""
-        return Features.from_xy(self.xy - np.asarray(dxy, dtype=float)[None, :], self.weight, self.intensity)
 
 
 def roi_mask(heatmap: PolarHeatmap, config: FeatureConfig) -> np.ndarray:
@@ -327,22 +328,15 @@ class LogHeatmap:
 
     def sample(self, range_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
         """Log intensity at body-frame polar points (any shape); NaN outside the heatmap."""
-        fa = self._sin_az.index(np.sin(-bearing_rad))
+        fa, ok_a = self._sin_az.fraction(np.sin(-bearing_rad))
         r0, dr, ok_r = self._range_cells(range_m)
-        inside = np.isfinite(fa) & ok_r & (np.abs(bearing_rad) <= self.region.max_azimuth_rad)
-        return np.where(inside, self._bilinear(r0, dr, np.where(inside, fa, 0.0)), np.nan)
+        inside = ok_a & ok_r & (np.abs(bearing_rad) <= self.region.max_azimuth_rad)
+        return np.where(inside, self._bilinear(r0, dr, fa), np.nan)
 
     def _range_cells(self, range_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Lower range bin, fraction above it and whether inside the axis (bin 0, fraction 0
         outside), each of range_m's shape."""
-        axis = self._range
-        if axis.uniform:
-            fr = (range_m - axis.start) * (1.0 / axis.step)
-            inside = (fr >= 0.0) & (fr <= len(axis.axis) - 1)
-        else:
-            fr = axis.index(range_m)
-            inside = np.isfinite(fr)
-        fr[~inside] = 0.0
+        fr, inside = self._range.fraction(range_m)
         r0 = np.minimum(fr.astype(np.intp), self.values.shape[0] - 2)
         return r0, fr - r0, inside
 
@@ -376,9 +370,14 @@ class _Axis:
         self.uniform = len(axis) > 1 and bool(np.all(np.abs(step - step[0]) <= 1e-6 * abs(step[0])))
         self.start, self.step = float(axis[0]), float(step[0]) if len(axis) > 1 else 1.0
 
-    def index(self, values: np.ndarray) -> np.ndarray:
-        """(same shape as values); NaN outside the axis."""
-        if not self.uniform:
-            return np.interp(values, self.axis, np.arange(len(self.axis)), left=np.nan, right=np.nan)
-        f = (values - self.start) / self.step
-        return np.where((f >= 0) & (f <= len(self.axis) - 1), f, np.nan)
+    def fraction(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional indices of *values* (0 outside the axis) and whether inside, both of
+        values' shape."""
+        if self.uniform:
+            f = (values - self.start) * (1.0 / self.step)
+            inside = (f >= 0.0) & (f <= len(self.axis) - 1)
+        else:
+            f = np.interp(values, self.axis, np.arange(len(self.axis)), left=np.nan, right=np.nan)
+            inside = np.isfinite(f)
+        f[~inside] = 0.0
+        return f, inside

@@ -271,8 +271,10 @@ def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: f
     Returns (rotation, score), the score being that mean log intensity over the target's
     median (natural-log units: ~0 when the heatmaps hold only noise), or None when too
     few points stay inside the heatmap."""
-    reach = max(1, math.ceil(max_rad / step_rad))
-    return _scan(source, target, centre_rad + step_rad * np.arange(-reach, reach + 1))
+    shifts = centre_rad + _offsets(max_rad, step_rad)
+    scores = _scores(source, target, shifts)
+    best = _peak_at(scores, shifts)
+    return None if best is None else (best, float(np.max(scores)))
 
 
 def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndarray:
@@ -293,26 +295,28 @@ def field_rotation(source: Features, target: Features, source_field: LogHeatmap,
     at the *target* points taken back to the source's position; searched every *step_rad*,
     refined by a parabola.  No correspondences: nothing to mismatch along walls.  None when
     too few points fall inside the heatmaps."""
-    reach = max(1, math.ceil(max_rad / step_rad))
-    deltas = step_rad * np.arange(-reach, reach + 1)
+    deltas = _offsets(max_rad, step_rad)
     forward = source.shifted(translation)
     # Back to the source: x = R(-centre) y + translation (a turn of the bearings, then the
     # sensor moved by -translation), then rotated by -delta.
     back = Features(target.range_m, target.bearing_rad - centre_rad, target.weight,
                     target.intensity).shifted(-np.asarray(translation, dtype=float))
     scores = _scores(forward, target_field, centre_rad + deltas) + _scores(back, source_field, -deltas)
-    best = _peak(scores)
-    if best is None:
-        return None
-    return centre_rad + float(np.interp(best, np.arange(len(deltas)), deltas))
+    best = _peak_at(scores, deltas)
+    return None if best is None else centre_rad + best
 
 
-def _scan(source: Features, target: LogHeatmap, shifts: np.ndarray) -> tuple[float, float] | None:
-    scores = _scores(source, target, shifts)
+def _offsets(max_rad: float, step_rad: float) -> np.ndarray:
+    """A search grid every *step_rad* over +/- *max_rad* (at least one step each side), rad."""
+    reach = max(1, math.ceil(max_rad / step_rad))
+    return step_rad * np.arange(-reach, reach + 1)
+
+
+def _peak_at(scores: np.ndarray, grid: np.ndarray) -> float | None:
+    """The value of *grid* at the (parabola-refined) maximum of *scores* over it, None if
+    no score is finite."""
     best = _peak(scores)
-    if best is None:
-        return None
-    return float(np.interp(best, np.arange(len(shifts)), shifts)), float(np.max(scores))
+    return None if best is None else float(np.interp(best, np.arange(len(grid)), grid))
 
 
 def _peak(scores: np.ndarray) -> float | None:

@@ -350,6 +350,9 @@ class TestFeaturesObject:
         g = Features.from_xy(f.xy, f.weight, f.intensity)
         np.testing.assert_allclose(g.range_m, f.range_m)
         np.testing.assert_allclose(g.bearing_rad, f.bearing_rad, atol=1e-12)
+        mine = np.array([[1.0, 1.0], [2.0, -1.0]])
+        Features.from_xy(mine, np.ones(2), np.ones(2))
+        mine[0, 0] = 5.0  # the caller's array stays the caller's
 
     def test_shifted_is_p_minus_dxy(self):
         rng = np.random.default_rng(12)
