@@ -458,6 +458,14 @@ class RadarConfig:
         return self._value("compRangeBiasAndRxChanPhase")
 
     @property
+    def channel_calibration(self):
+        """The compRangeBiasAndRxChanPhase line as numbers (:class:`radarodom.calibration.
+        ChannelCalibration`: range bias, gain and phase per path); the identity without the line."""
+        from .calibration import ChannelCalibration
+
+        return ChannelCalibration.from_config(self)
+
+    @property
     def extended_max_velocity(self) -> cc.ExtendedMaxVelocity | None:
         return self._value("extendedMaxVelocity")
 
@@ -654,4 +662,5 @@ class RadarConfig:
             "dca1000_capacity_mbps": dca1000_capacity_mbps(packet_delay_us),
             "dca1000_load": self.dca1000_load(packet_delay_us),
             "streams_raw_adc": self.streams_raw_adc,
+            "calibration": self.channel_calibration.describe(),
         }

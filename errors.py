@@ -98,6 +98,12 @@ class CaptureFormatError(CaptureError):
     exit_code = 2
 
 
+class CalibrationError(RadarodomError):
+    """A channel calibration cannot be measured from what the radar sees: the corner reflector
+    too weak, not alone, off boresight or moving, or a cfg that does not use every path.  The
+    message says which, and how to set it up."""
+
+
 class EvaluationError(UsageError):
     """Two trajectories cannot be compared as given: too few poses match in
     time, timestamps out of order, a bad evaluation parameter."""

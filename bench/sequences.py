@@ -1,15 +1,19 @@
 """Simulated sequences for the estimator experiment: record, run the DSP once, cache.
 
 A sequence is a capture directory written by ``radar-sim`` (exact fidelity, with
-groundtruth.tum) and, beside it, ``dsp.npz``: every frame's point cloud and
-range-azimuth heatmap (intensity and dominant Doppler), so that estimator
-variants can be compared without repeating the DSP.  The cache records which DSP
-made it (its source files and FFT backend): a cache from another DSP is made anew.
+groundtruth.tum; a simulated board of its own with ``board``) and, beside it,
+``dsp-<key>.npz``: every frame's point cloud and range-azimuth heatmap (intensity
+and dominant Doppler), so that estimator variants can be compared without
+repeating the DSP.  The key names what made it: the DSP's source files, its FFT
+backend, the DspConfig and the radar cfg the recording is read with (its own, or
+another one: the same recording with and without a calibration line); a cache
+from anything else is made anew.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import subprocess
 import sys
@@ -18,13 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from radarodom import dsp
+from radarodom.cfg import RadarConfig
 from radarodom.driver.sources import open_source
+from radarodom.dsp.config import DspConfig
 from radarodom.dsp.fft import resolve_backend
 from radarodom.dsp.heatmap import HeatmapMaker, RangeAzimuth
 from radarodom.dsp.processor import POINT_DTYPE, FrameProcessor
 from radarodom.tum import TumTrajectory, read_tum
 
-CACHE = "dsp.npz"
 
 
 @dataclass
@@ -47,12 +52,12 @@ class Sequence:
         return len(self.times)
 
 
-def record(scene: str, seed: int, directory: str, duration: float | None = None) -> None:
-    """Simulate *scene* with ``radar-sim`` unless *directory* already holds it."""
+def record(scene: str, seed: int, directory: str, duration: float | None = None, board: str = "ideal") -> None:
+    """Simulate *scene* on *board* with ``radar-sim`` unless *directory* already holds it."""
     if os.path.exists(os.path.join(directory, "capture.json")):
         return
     cmd = [sys.executable, "-m", "radarodom.tools.radar_sim", scene, "--seed", str(seed),
-           "--out", directory, "-q"]
+           "--board", board, "--out", directory, "-q"]
     if duration is not None:
         cmd += ["--duration", str(duration)]
     subprocess.run(cmd, check=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
@@ -69,10 +74,18 @@ def dsp_fingerprint() -> str:
     return f"{digest.hexdigest()[:16]}/{resolve_backend('auto')}"
 
 
-def _process(directory: str) -> dict:
+def _key(dsp_config: DspConfig | None, cfg: RadarConfig | None) -> str:
+    """What makes a cache: the DSP's sources and backend, its settings, the cfg."""
+    digest = hashlib.sha256(dsp_fingerprint().encode())
+    digest.update(json.dumps((dsp_config or DspConfig()).to_dict(), sort_keys=True).encode())
+    digest.update(b"" if cfg is None else cfg.to_text().encode())
+    return digest.hexdigest()[:16]
+
+
+def _process(directory: str, dsp_config: DspConfig | None, cfg: RadarConfig | None) -> dict:
     points, intensity, doppler, times = [], [], [], []
-    with open_source(f"replay://{directory}?rate=max") as source:
-        processor = FrameProcessor(source.config)
+    with open_source(f"replay://{directory}?rate=max", cfg) as source:
+        processor = FrameProcessor(source.config, dsp_config)
         maker = HeatmapMaker(processor)
         cube = np.empty(source.config.cube_shape, np.complex64)
         for frame in source:
@@ -86,15 +99,17 @@ def _process(directory: str) -> dict:
     return dict(times=np.array(times), counts=counts,
                 points=np.concatenate(points) if points else np.zeros(0, POINT_DTYPE),
                 intensity=np.stack(intensity), doppler=np.stack(doppler),
-                range_m=hm.range_m, azimuth_rad=hm.azimuth_rad, fingerprint=np.array(dsp_fingerprint()))
+                range_m=hm.range_m, azimuth_rad=hm.azimuth_rad)
 
 
-def load(directory: str, name: str | None = None) -> Sequence:
-    """The sequence in *directory*, running the DSP into its cache on first use (and again when
-    the DSP has changed since)."""
-    cache = os.path.join(directory, CACHE)
-    if not _fresh(cache):
-        data = _process(directory)
+def load(directory: str, name: str | None = None, *, dsp_config: DspConfig | None = None,
+         cfg: RadarConfig | None = None) -> Sequence:
+    """The sequence in *directory* through the DSP (*dsp_config*, default settings; the recording
+    read with *cfg*, default its own radar.cfg), from its cache, made on first use and again
+    whenever what makes it has changed."""
+    cache = os.path.join(directory, f"dsp-{_key(dsp_config, cfg)}.npz")
+    if not os.path.exists(cache):
+        data = _process(directory, dsp_config, cfg)
         tmp = cache + ".tmp.npz"
         np.savez(tmp, **data)
         os.replace(tmp, cache)
@@ -105,9 +120,3 @@ def load(directory: str, name: str | None = None) -> Sequence:
                     data["range_m"], data["azimuth_rad"],
                     read_tum(os.path.join(directory, "groundtruth.tum")))
 
-
-def _fresh(cache: str) -> bool:
-    if not os.path.exists(cache):
-        return False
-    with np.load(cache) as data:
-        return "fingerprint" in data.files and str(data["fingerprint"]) == dsp_fingerprint()

@@ -522,6 +522,17 @@ class ColoRadarRun:
             self._waveform_cfg[sensor] = read_waveform_config(self.calib_path(sensor, "waveform_cfg.txt"))
         return self._waveform_cfg[sensor]
 
+    def coupling(self, sensor: str):
+        """*sensor*'s TX-to-RX coupling (calib/<sensor>/coupling_calib.txt) as a
+        :class:`radarodom.calibration.RangeCoupling`, or None when the file is not there."""
+        from .coloradar_coupling import read_coupling
+
+        path = self.calib_path(sensor, "coupling_calib.txt")
+        if not os.path.exists(path):
+            log.info("%s: missing: no coupling removed", path)
+            return None
+        return read_coupling(path, self.waveform_config(sensor).num_adc_samples_per_chirp)
+
     def heatmap(self, sensor: str, i: int) -> np.ndarray:
         """Heatmap *i* of *sensor*: (el, az, range, 2) float32, [..., 0] the intensity and
         [..., 1] the Doppler (m/s), axes as in :meth:`heatmap_config`."""

@@ -120,6 +120,7 @@ class ColoRadarSource(Source):
                 raise SourceError(f"the radar configuration's cube {self.config.cube_shape} (loops, tx, rx, "
                                   f"samples) does not match the run's ADC frames {adc_shape}")
             self.layout = RawLayout.from_config(self.config)
+            self.coupling = run.coupling("single_chip")
         elif config is not None:
             raise SourceError("a radar configuration applies to ADC frames: this stream uses none "
                               "(give velocity=single_chip_adc or heatmap=single_chip_adc)")

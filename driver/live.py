@@ -24,6 +24,7 @@ import logging
 import time
 from typing import Iterator
 
+from ..calibration import uncalibrated_note
 from ..cfg import RadarConfig, shipped_config_path
 from ..errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..rawframe import RawLayout
@@ -63,6 +64,9 @@ class LiveSource(Source):
                  cli_timeout_s: float = COMMAND_TIMEOUT_S) -> None:
         super().__init__()
         config.check_raw_capture()
+        note = uncalibrated_note(config)
+        if note is not None:
+            log.warning("%s", note)
         self.config = config
         self.settings = settings
         self.layout = RawLayout.from_config(config)

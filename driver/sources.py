@@ -105,6 +105,9 @@ class Source(abc.ABC):
     config: RadarConfig | None
     #: True when every frame carries raw ADC bytes (so the stream can be recorded).
     carries_raw: bool = True
+    #: The TX-to-RX coupling a dataset ships for its raw frames, removed by the DSP
+    #: (:class:`radarodom.calibration.RangeCoupling`); None for most sources.
+    coupling: Any = None
 
     def __init__(self) -> None:
         self._stop_requested = False

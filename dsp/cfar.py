@@ -532,6 +532,21 @@ def _local_max(p: np.ndarray, cells: tuple[np.ndarray, np.ndarray], axis: int, c
     return (value >= p[tuple(before)]) & (value >= p[tuple(after)])
 
 
+def check_map(power_rd: Any, range_params: CfarParams, doppler_params: CfarParams) -> np.ndarray:
+    """*power_rd* as an array, after checking it is a linear-power (doppler_bins, range_bins) map
+    on which both detectors' windows fit (:class:`UsageError` otherwise)."""
+    for name, prm in (("range_params", range_params), ("doppler_params", doppler_params)):
+        if not isinstance(prm, CfarParams):
+            raise UsageError(f"{name} must be CfarParams, got {type(prm).__name__}")
+    p = _check_power(power_rd, "power_rd")
+    if p.ndim != 2:
+        raise UsageError(f"power_rd must be 2-D (doppler_bins, range_bins), got shape {p.shape}")
+    n_d, n_r = p.shape
+    _check_length(n_r, range_params, f"the range axis of power_rd shaped {p.shape}")
+    _check_length(n_d, doppler_params, f"the Doppler axis of power_rd shaped {p.shape}")
+    return p
+
+
 def cfar_2d_ti(power_rd: np.ndarray, range_params: CfarParams, doppler_params: CfarParams, *,
                peak_grouping: bool = True) -> Detections:
     """TI-like two-pass CFAR on a range-Doppler power map.
@@ -557,15 +572,7 @@ def cfar_2d_ti(power_rd: np.ndarray, range_params: CfarParams, doppler_params: C
     -------
     :class:`Detections`; ``noise`` and ``snr_db`` come from the range pass.
     """
-    for name, prm in (("range_params", range_params), ("doppler_params", doppler_params)):
-        if not isinstance(prm, CfarParams):
-            raise UsageError(f"{name} must be CfarParams, got {type(prm).__name__}")
-    p = _check_power(power_rd, "power_rd")
-    if p.ndim != 2:
-        raise UsageError(f"power_rd must be 2-D (doppler_bins, range_bins), got shape {p.shape}")
-    n_d, n_r = p.shape
-    _check_length(n_r, range_params, f"the range axis of power_rd shaped {p.shape}")
-    _check_length(n_d, doppler_params, f"the Doppler axis of power_rd shaped {p.shape}")
+    p = check_map(power_rd, range_params, doppler_params)
     det, noise_r = _cfar_last_axis(p, range_params)
     cols = np.flatnonzero(det.any(axis=0))
     if cols.size:

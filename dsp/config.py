@@ -61,11 +61,31 @@ class DspConfig(Settings):
     doppler_cfar: CfarParams = field(default_factory=_default_doppler_cfar)
     #: Keep only detections that are local maxima in range and Doppler.
     peak_grouping: bool = True
-    #: A second azimuth peak per detection when at least this share of the first (None: off).
+    #: A second azimuth peak per detection when at least this share of the first (None: off);
+    #: TI's multiObjBeamForming rule.  When set, it replaces the further peaks below.
     second_peak_threshold: float | None = None
+    #: Reflectors kept per detected range-Doppler cell, one azimuth peak at a time, each taken
+    #: out of the cell before the next is looked for (dsp/azimuth_peaks.py): a sensor at rest
+    #: puts the static world in one Doppler bin, and left and right at the same angle share
+    #: one while driving.  1: the strongest azimuth only.
+    max_azimuth_peaks: int = 1
+    #: A further peak's beamformed power over the cell's noise, dB, at least.
+    azimuth_peak_snr_db: float = 15.0
+    #: A further peak's power against the cell's first peak, dB, at least (what a removed plane
+    #: wave leaves of itself on an imperfectly calibrated array stays below it).
+    azimuth_peak_ratio_db: float = -15.0
     #: Detections closer than this are dropped (the ADC's DC and TX-RX leakage live there), m.
     min_range_m: float = 0.3
+    #: Detections farther than this are dropped, and the heatmaps end there, m.  None: the cfg's
+    #: cfarFovCfg range maximum when it has one, else the usable range, beat frequencies up to
+    #: 80 % of the IF band (radar-cfg's "max range"): the IF filter rolls off beyond, and the
+    #: TX-RX leakage's negative-frequency side lies at the end of the range FFT.  (A cfarFovCfg
+    #: range minimum above min_range_m applies too.)
     max_range_m: float | None = None
+    #: Apply the board's channel calibration, the cfg's compRangeBiasAndRxChanPhase line (each
+    #: virtual antenna times its coefficient before angle processing, the range bias taken off
+    #: every range), as TI's firmware does.  Off: the samples as the board gives them.
+    channel_calibration: bool = True
     #: Follow the radar cfg's cfarCfg, cfarFovCfg, aoaFovCfg, multiObjBeamForming, clutterRemoval.
     ti_like: bool = False
     #: FFT backend of the range and Doppler FFTs: "scipy" (scipy.fft), "fftw" (pyFFTW, the
@@ -76,7 +96,7 @@ class DspConfig(Settings):
     workers: int = 1
 
     def __post_init__(self) -> None:
-        for name in ("azimuth_fft_size", "elevation_fft_size", "workers"):
+        for name in ("azimuth_fft_size", "elevation_fft_size", "workers", "max_azimuth_peaks"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"must be at least 1, got {getattr(self, name)}", field=name)
         for name in ("range_fft_size", "doppler_fft_size"):
@@ -85,3 +105,8 @@ class DspConfig(Settings):
         check_choice(self.fft, BACKENDS, "fft")
         if self.second_peak_threshold is not None and not 0 < self.second_peak_threshold <= 1:
             raise ConfigError("must be in (0, 1]", field="second_peak_threshold")
+        if self.min_range_m < 0:
+            raise ConfigError(f"must be >= 0, got {self.min_range_m}", field="min_range_m")
+        if self.max_range_m is not None and not self.max_range_m > self.min_range_m:
+            raise ConfigError(f"must be above min_range_m ({self.min_range_m}), got {self.max_range_m}",
+                              field="max_range_m")

@@ -73,7 +73,11 @@ class HeatmapMaker:
         self.azimuth_rad = np.arcsin(np.clip(2.0 * k / n_az, -1.0, 1.0))
         centre = processor.n_doppler // 2
         self._static_rows = slice(centre - static_bins, centre + static_bins + 1)
-        self._tdm = processor._tdm if processor.params.tdm_compensation else None
+        weights = processor.angle_weights
+        # TDM phases and calibration (FrameProcessor.angle_weights); None when all are 1.
+        self._weights = None if np.all(weights == 1) else weights
+        #: Range of each heatmap row, m: the processor's range bins up to its detection range.
+        self.range_m = processor.range_m[:processor.heatmap_range_bins]
         # DFT of the azimuth row at its elements' positions onto the centred bins:
         # exp(-j 2 pi h k / n_az) for signed k ascending (what fft + fftshift give).
         self._az_dft_t = np.exp(-2j * np.pi * np.outer(k, processor.az_h) / n_az).astype(np.complex64)
@@ -93,7 +97,7 @@ class HeatmapMaker:
         # Work buffers, reused by every frame (fresh large arrays cost page faults); the full
         # Doppler x azimuth spectrum's (tens of MB) only where it is made.  The azimuth row is
         # kept as (row, n_range, n_doppler): see _azimuth_row.
-        nr, nd = len(processor.range_m), processor.n_doppler
+        nr, nd = len(self.range_m), processor.n_doppler
         self._row = np.empty((n_row, nr, nd), np.complex64)
         self._row_conj = np.empty((n_row, nr, nd), np.complex64) if doppler_cells is not None else None
         # The full map's Doppler x azimuth spectrum, _RANGE_BLOCK range bins at a time (1 MB:
@@ -102,14 +106,15 @@ class HeatmapMaker:
         self._full = None if doppler_cells is not None else (
             np.empty((n_az, rb, nd), np.complex64), np.empty((n_az, rb, nd), np.float32),
             np.empty((n_az, rb, nd), np.float32))
-        self._tdm_row = (None if self._tdm is None else np.ascontiguousarray(
-            self._tdm[:, processor._slot_of_element[az]].T)[:, None, :])  # (row, 1, n_doppler)
-        # The first TX slot's phase is 1 at every Doppler bin: only the rows from the first
-        # other slot's on are multiplied (half the row on the xWR18xx), a slice of the buffer.
-        self._tdm_rows = slice(0, n_row)
-        if self._tdm_row is not None:
-            moved = np.flatnonzero(np.any(self._tdm_row != 1, axis=(1, 2)))
-            self._tdm_rows = slice(int(moved[0]), n_row) if len(moved) else slice(0, 0)
+        self._row_weights = (None if self._weights is None else np.ascontiguousarray(
+            self._weights[:, az].T)[:, None, :])  # (row, 1, n_doppler)
+        # Without calibration the first TX slot's phase is 1 at every Doppler bin: only the rows
+        # from the first other slot's on are multiplied (half the row on the xWR18xx), a slice of
+        # the buffer.
+        self._weighted_rows = slice(0, n_row)
+        if self._row_weights is not None:
+            moved = np.flatnonzero(np.any(self._row_weights != 1, axis=(1, 2)))
+            self._weighted_rows = slice(int(moved[0]), n_row) if len(moved) else slice(0, 0)
         n_el = elevation_bins or processor.params.elevation_fft_size
         kz = np.arange(n_el) - n_el // 2
         self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
@@ -123,28 +128,29 @@ class HeatmapMaker:
         self._steer = np.exp(1j * phase).reshape(-1, len(h)).astype(np.complex64)  # (el*az, elems)
 
     def _compensated(self, spectrum: np.ndarray) -> np.ndarray:
-        """Doppler spectrum per element, TDM-compensated: (n_doppler, elements, n_range)."""
-        nd, slots, nrx, nr = spectrum.shape
-        data = spectrum.reshape(nd, slots * nrx, nr)
-        if self._tdm is not None:
-            data = data * self._tdm[:, self.proc._slot_of_element, None]
+        """Doppler spectrum per element over the heatmap's range bins, TDM-compensated and
+        calibrated: (n_doppler, elements, n_range)."""
+        nd, slots, nrx, _ = spectrum.shape
+        data = spectrum.reshape(nd, slots * nrx, -1)[:, :, :len(self.range_m)]
+        if self._weights is not None:
+            data = data * self._weights[:, :, None]
         return data
 
     def _azimuth_row(self, spectrum: np.ndarray) -> np.ndarray:
-        """The azimuth row's Doppler spectra, TDM-compensated, in the work buffer:
+        """The azimuth row's Doppler spectra, TDM-compensated and calibrated, in the work buffer:
         complex64 (n_range, row, n_doppler), Doppler along memory (so that matrix products and
         the sums and argmax over Doppler run along it); a view of the (row, n_range,
         n_doppler) buffer, whose (row, n_doppler) matrices are strided as BLAS takes them."""
-        nd, slots, nrx, nr = spectrum.shape
-        row = spectrum.reshape(nd, slots * nrx, nr)[:, self._az_select, :]  # (n_doppler, row, n_range)
+        nd, slots, nrx, _ = spectrum.shape
+        row = spectrum.reshape(nd, slots * nrx, -1)[:, self._az_select, :len(self.range_m)]  # (n_doppler, row, n_range)
         buf = self._row
         # The transposing copy, _DOPPLER_BLOCK Doppler bins at a time: each output line then
         # gets a whole cache line per pass, where one whole-array copy writes 8 bytes per line
         # and pass (measured 0.26 ms against 0.6-0.8 ms for this 2 MB on the 2-core EPYC).
         for d in range(0, nd, _DOPPLER_BLOCK):
             np.copyto(buf[:, :, d:d + _DOPPLER_BLOCK], np.transpose(row[d:d + _DOPPLER_BLOCK], (1, 2, 0)))
-        if self._tdm_row is not None:
-            buf[self._tdm_rows] *= self._tdm_row[self._tdm_rows]
+        if self._row_weights is not None:
+            buf[self._weighted_rows] *= self._row_weights[self._weighted_rows]
         return np.transpose(buf, (1, 0, 2))
 
     def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
@@ -173,7 +179,7 @@ class HeatmapMaker:
             p.argmax(axis=-1, out=best[:, r0:r0 + m])
         dominant = proc.velocity_mps[best.T].astype(np.float32)
         return RangeAzimuth(np.ascontiguousarray(intensity.T), np.ascontiguousarray(static.T), dominant,
-                            proc.range_m, self.azimuth_rad)
+                            self.range_m, self.azimuth_rad)
 
     def _range_azimuth_strong(self, spectrum: np.ndarray) -> RangeAzimuth:
         """Intensities from per-range covariances; dominant Doppler for the strongest cells."""
@@ -204,7 +210,7 @@ class HeatmapMaker:
             np.matmul(steer[i:j], self._row[:, r[i], :], out=spectra[i:j])
         best = (spectra.real**2 + spectra.imag**2).argmax(axis=1)
         dominant[r, a] = proc.velocity_mps[best]
-        return RangeAzimuth(intensity, static, dominant, proc.range_m, self.azimuth_rad)
+        return RangeAzimuth(intensity, static, dominant, self.range_m, self.azimuth_rad)
 
     def range_azimuth_elevation(self, spectrum: np.ndarray) -> RangeAzimuthElevation:
         data = self._compensated(spectrum)  # (n_doppler, elements, n_range)
@@ -215,10 +221,10 @@ class HeatmapMaker:
         intensity = np.einsum("ce,ref,cf->rc", np.conj(a), cov, a, optimize=True).real
         xs = data[self._static_rows].sum(axis=0).T  # (n_range, elements)
         static = np.abs(xs @ np.conj(a).T) ** 2  # (n_range, cells)
-        shape = (len(self.proc.range_m), len(self.elevation_rad), len(self.azimuth_rad))
+        shape = (len(self.range_m), len(self.elevation_rad), len(self.azimuth_rad))
         return RangeAzimuthElevation(intensity.reshape(shape).astype(np.float32),
                                      static.reshape(shape).astype(np.float32),
-                                     self.proc.range_m, self.azimuth_rad, self.elevation_rad)
+                                     self.range_m, self.azimuth_rad, self.elevation_rad)
 
 
 class CartesianGrid:
@@ -233,11 +239,12 @@ class CartesianGrid:
         xx, yy = np.meshgrid(self.x, self.y)  # (ny, nx)
         r = np.hypot(xx, yy)
         theta = np.arctan2(xx, yy)
-        # Fractional indices into the polar arrays (range bins are uniform; azimuth is not).
-        ri = r / (range_m[1] - range_m[0])
+        # Fractional indices into the polar arrays (range bins are uniform, from the range bias's
+        # offset; azimuth is not uniform).
+        ri = (r - range_m[0]) / (range_m[1] - range_m[0])
         ai = np.interp(theta, azimuth_rad, np.arange(len(azimuth_rad)), left=-1.0, right=-1.0)
         self._coords = np.stack([ri, ai])
-        self._outside = (ai < 0) | (r > r_max)
+        self._outside = (ai < 0) | (ri < 0) | (r > r_max)
 
     def resample(self, polar: np.ndarray) -> np.ndarray:
         """A (n_range, n_azimuth) array on the grid: (len(y), len(x))."""

@@ -41,9 +41,12 @@ import numpy as np
 import scipy.fft
 import scipy.signal
 
+from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
 from ..errors import ConfigError
-from .cfar import CfarParams, cfar_2d_ti, params_from_ti
+from .azimuth_peaks import CellCleaner, apart
+from .cfar import CfarParams, cfar_2d_ti, fov_mask, params_from_ti
+from .cfar_peaks import cfar_peaks
 from .config import DspConfig
 from .fft import SpectrumFFTs, resolve_backend
 
@@ -135,9 +138,14 @@ def _fitted(params: CfarParams, n: int, axis: str) -> CfarParams:
 
 
 class FrameProcessor:
-    """Range/Doppler/angle processing for one radar configuration."""
+    """Range/Doppler/angle processing for one radar configuration.
 
-    def __init__(self, cfg: RadarConfig, params: DspConfig | None = None) -> None:
+    *coupling*: a dataset's TX-to-RX coupling in the range domain (ColoRadar's), removed from
+    every chirp's range spectrum; the range FFT then uses the window it was measured with.
+    """
+
+    def __init__(self, cfg: RadarConfig, params: DspConfig | None = None, *,
+                 coupling: RangeCoupling | None = None) -> None:
         params = params or DspConfig()
         if params.ti_like:
             params = ti_like_params(cfg, params)
@@ -155,9 +163,20 @@ class FrameProcessor:
         self.cfg = cfg
         self.params = params
         self.w_range = make_window(params.range_window, ns)
+        if coupling is not None and coupling.is_zero:
+            coupling = None
+        if coupling is not None:
+            _check_coupling(coupling, cfg, self.n_range)
+            log.info("%s: range FFT behind the coupling's own window", coupling.origin)
+            self.w_range = coupling.window
         self.w_doppler = make_window(params.doppler_window, loops)
-        #: Range of each range bin, m, (n_range,).
-        self.range_m = np.arange(self.n_range) * cfg.range_resolution_m * ns / self.n_range
+        #: The board's channel calibration in use (the cfg's compRangeBiasAndRxChanPhase, unless
+        #: DspConfig.channel_calibration is off).
+        self.calibration = (ChannelCalibration.from_config(cfg) if params.channel_calibration
+                            else ChannelCalibration.identity())
+        beat_range_m = np.arange(self.n_range) * cfg.range_resolution_m * ns / self.n_range
+        #: Range of each range bin, m, (n_range,), the calibration's range bias taken off.
+        self.range_m = beat_range_m - self.calibration.range_bias_m
         #: Signed Doppler bin of each row of the centred spectrum, (n_doppler,).
         self.doppler_bins = np.arange(self.n_doppler) - self.n_doppler // 2
         #: Radial velocity of each row, m/s, (n_doppler,).
@@ -171,6 +190,10 @@ class FrameProcessor:
         self._doppler_weights = (self.w_doppler * sign).astype(np.float32)
         self._window_2d = (self._doppler_weights[:, None, None, None]
                            * self.w_range[None, None, None, :]).astype(np.float32)
+        # The coupling as the range FFT of the windowed cube carries it: each chirp's coupling
+        # times that chirp's Doppler weight (both windows are applied before the range FFT).
+        self._coupling = None if coupling is None else (
+            self._doppler_weights[:, None, None, None] * coupling.spectrum(self.n_range)[None]).astype(np.complex64)
         self._power = np.empty((self.n_doppler, self.n_range), np.float32)
         # Virtual array: which flat (slot, rx) element sits where.
         va = cfg.virtual_array
@@ -185,15 +208,37 @@ class FrameProcessor:
         #: (ratio, offset) of three_bin_response for sub-bin azimuth, or None (the FFT grid).
         self._azimuth_table = (three_bin_response(aperture, self.n_az, "azimuth_interpolation")
                                if params.azimuth_interpolation else None)
+        self._cleaner = CellCleaner(self.az_elements, self.az_h, self.el_elements, self.el_h)
+        # Two reflectors closer than three quarters of the azimuth row's resolution (2 / its length
+        # in Wx) are one peak: a further peak nearer a taken one is what removing it left.
+        self._peak_separation_bins = 0.75 * self.n_az / (int(self.az_h.max()) + 1)
         self._slot_of_element = np.repeat(np.arange(slots), nrx)
         self._tdm = self._slot_phases(self.doppler_bins)  # (n_doppler, slots)
+        coefficients = self.calibration.for_array(va).ravel()
+        #: Each virtual element's calibration coefficient, complex64 (elements,); None when
+        #: every one is 1 (then nothing is multiplied).
+        self._calib = None if np.all(coefficients == 1) else coefficients
+        weights = (self._tdm[:, self._slot_of_element] if params.tdm_compensation
+                   else np.ones((self.n_doppler, slots * nrx), np.complex64))
+        #: What each virtual element's Doppler spectrum is multiplied by before angle processing,
+        #: per row of the centred spectrum: its TX slot's TDM-MIMO phase and its calibration
+        #: coefficient.  complex64 (n_doppler, elements); the heatmaps use it.
+        self.angle_weights = weights if self._calib is None else (weights * self._calib).astype(np.complex64)
         #: (ratio, offset) of three_bin_response for sub-bin Doppler, or None (bin centres).
         self._offset_table = (three_bin_response(self.w_doppler, self.n_doppler)
                               if params.doppler_interpolation else None)
-        self._range_ok = self.range_m >= params.min_range_m
-        if params.max_range_m is not None:
-            self._range_ok &= self.range_m <= params.max_range_m
-        self._fov = cfg.cfar_fov if params.ti_like else {}
+        #: Shortest and longest range of a detection, m: from DspConfig.min_range_m (or the cfg's
+        #: cfarFovCfg minimum, if higher) to DspConfig.max_range_m, else the cfg's cfarFovCfg
+        #: maximum, else the usable range (beat frequencies up to 80 % of the IF band,
+        #: RadarConfig.max_range_m).
+        self.detection_range_m = _detection_range(cfg, params, self.calibration.range_bias_m)
+        lo, hi = self.detection_range_m
+        self._range_ok = (self.range_m >= lo) & (self.range_m <= hi)
+        #: Range bins the heatmaps span: from 0 to the last bin within the detection range
+        #: (beyond it lie the IF filter's roll-off and the TX-RX leakage's negative-frequency side).
+        self.heatmap_range_bins = int(np.searchsorted(self.range_m, hi, side="right"))
+        #: The cfg's cfarFovCfg Doppler limits, with ti_like.
+        self._fov = {k: v for k, v in cfg.cfar_fov.items() if k == 1} if params.ti_like else {}
         self._aoa = cfg.aoa_fov if params.ti_like else None
 
     # ---------------------------------------------------------------- stages
@@ -205,7 +250,10 @@ class FrameProcessor:
         they commute with the range FFT.
         """
         np.multiply(cube, self._window_2d, out=self._ffts.samples)
-        return self._ffts.range()
+        spectrum = self._ffts.range()
+        if self._coupling is not None:
+            spectrum -= self._coupling
+        return spectrum
 
     def doppler_fft(self, range_spectrum: np.ndarray) -> np.ndarray:
         """Centred Doppler FFT of the (already windowed) range spectrum, which it may
@@ -233,12 +281,12 @@ class FrameProcessor:
             raise ConfigError(f"cube shaped {cube.shape}, the cfg gives {self.cfg.cube_shape}")
         spectrum = self.doppler_fft(self.range_fft(cube))
         power = self.power(spectrum)
-        det = cfar_2d_ti(power, self.params.range_cfar, self.params.doppler_cfar,
-                         peak_grouping=self.params.peak_grouping)
+        if self.params.peak_grouping:
+            det = cfar_peaks(power, self.params.range_cfar, self.params.doppler_cfar, range_bins=self._range_ok)
+        else:
+            det = cfar_2d_ti(power, self.params.range_cfar, self.params.doppler_cfar, peak_grouping=False)
         keep = self._range_ok[det.range_idx]
         if self._fov:
-            from .cfar import fov_mask
-
             keep &= fov_mask(self.range_m[det.range_idx], self.velocity_mps[det.doppler_idx], self._fov)
         points = self.points(spectrum, det.doppler_idx[keep], det.range_idx[keep], det.snr_db[keep],
                              det.noise[keep])
@@ -251,6 +299,8 @@ class FrameProcessor:
         n = len(range_idx)
         slots = self.cfg.num_tx_slots
         elements = spectrum[doppler_idx, :, :, range_idx].reshape(n, slots * self.cfg.num_rx)
+        if self._calib is not None:
+            elements *= self._calib
         doppler = self.doppler_bins[doppler_idx].astype(float)
         if self.params.tdm_compensation and self.params.velocity_disambiguation and slots > 1:
             elements, doppler = self._disambiguate(elements, doppler)
@@ -271,6 +321,9 @@ class FrameProcessor:
                 more = self._points_at(az[rows], k2, elements[rows], range_idx[rows], doppler[rows],
                                        snr_db[rows], noise[rows], None if neighbours is None else neighbours[rows])
                 out = np.concatenate([out, more])
+        elif self.params.max_azimuth_peaks > 1 and n:
+            out = np.concatenate([out, *self._further_peaks(az, peak, elements, range_idx, doppler, snr_db, noise,
+                                                            neighbours)])
         if self._aoa is not None and len(out):
             a = self._aoa
             az_deg, el_deg = np.degrees(out["azimuth"]), np.degrees(out["elevation"])
@@ -283,10 +336,7 @@ class FrameProcessor:
         *neighbours* its azimuth row in the Doppler rows either side (:meth:`_neighbours`), or
         None for bin-centre velocities."""
         n = len(peak)
-        k = np.where(peak >= self.n_az // 2, peak - self.n_az, peak)  # signed FFT bin
-        if self._azimuth_table is not None:
-            k = k + self._azimuth_offsets(az, peak)
-        wx = np.clip(2.0 * k / self.n_az, -1.0, 1.0)
+        wx = np.clip(2.0 * self._bins_at(az, peak) / self.n_az, -1.0, 1.0)
         wz = np.zeros(n)
         if len(self.el_elements):
             el_in = np.zeros((n, self.n_az), np.complex64)
@@ -294,14 +344,21 @@ class FrameProcessor:
             el = scipy.fft.fft(el_in, axis=1, workers=self.params.workers)
             rows = np.arange(n)
             wz = np.angle(az[rows, peak] * np.conj(el[rows, peak])) / np.pi
+        wz = np.clip(wz, -1.0, 1.0)
+        # (Wx, Wz) are the direction's x and z components: noise and sidelobes can put them
+        # outside the unit circle at the edge of the field of view; the direction is then the
+        # nearest one on it, so that |xyz| stays the range.
+        length = np.hypot(wx, wz)
+        outside = length > 1.0
+        if outside.any():
+            wx = np.where(outside, wx / np.maximum(length, 1e-12), wx)
+            wz = np.where(outside, wz / np.maximum(length, 1e-12), wz)
+        wy = np.sqrt(np.maximum(1.0 - wx * wx - wz * wz, 0.0))
         r = self.range_m[range_idx]
-        x = r * wx
-        z = r * np.clip(wz, -1.0, 1.0)
-        y = np.sqrt(np.maximum(r * r - x * x - z * z, 0.0))
         pts = np.empty(n, POINT_DTYPE)
-        pts["x"], pts["y"], pts["z"], pts["range"] = x, y, z, r
-        pts["azimuth"] = np.arctan2(x, y)
-        pts["elevation"] = np.arcsin(np.clip(z / np.maximum(r, 1e-9), -1.0, 1.0))
+        pts["x"], pts["y"], pts["z"], pts["range"] = r * wx, r * wy, r * wz, r
+        pts["azimuth"] = np.arctan2(wx, wy)
+        pts["elevation"] = np.arcsin(wz)
         velocity_bins = doppler
         if neighbours is not None:
             velocity_bins = doppler + self._doppler_offsets(az[np.arange(n), peak], peak, neighbours)
@@ -311,6 +368,48 @@ class FrameProcessor:
         pts["range_bin"] = range_idx
         pts["doppler_bin"] = np.round(doppler).astype(np.int16)
         return pts
+
+    def _bins_at(self, az: np.ndarray, peak: np.ndarray) -> np.ndarray:
+        """Signed azimuth FFT bins of peaks *peak* of the FFTs *az*, between bins where
+        DspConfig.azimuth_interpolation asks (n,)."""
+        k = np.where(peak >= self.n_az // 2, peak - self.n_az, peak)
+        return k + self._azimuth_offsets(az, peak) if self._azimuth_table is not None else k.astype(float)
+
+    def _further_peaks(self, az, peak, elements, range_idx, doppler, snr_db, noise, neighbours) -> list[np.ndarray]:
+        """Points of further reflectors in the detections' cells (:mod:`.azimuth_peaks`): up to
+        DspConfig.max_azimuth_peaks a cell, each azimuth_peak_snr_db over the cell's noise (the
+        range CFAR's estimate, per element, through the azimuth row's gain) and at most
+        -azimuth_peak_ratio_db under the cell's first peak."""
+        p = self.params
+        rows = np.arange(len(peak))
+        first = np.abs(az[rows, peak]) ** 2
+        n_row = len(self.az_elements)
+        per_element = noise / (self.cfg.num_tx_slots * self.cfg.num_rx)
+        floor = np.maximum(10 ** (p.azimuth_peak_snr_db / 10) * n_row * per_element,
+                           10 ** (p.azimuth_peak_ratio_db / 10) * first)
+        elements = elements.copy()
+        sides = None if neighbours is None else neighbours.copy()
+        taken = [self._bins_at(az, peak)]
+        az_in = np.zeros((len(peak), self.n_az), np.complex64)
+        out = []
+        for _ in range(1, p.max_azimuth_peaks):
+            self._cleaner.remove(elements, sides, 2.0 * taken[-1] / self.n_az)
+            az_in[:, self.az_h] = elements[:, self.az_elements]
+            az = scipy.fft.fft(az_in, axis=1, workers=p.workers)
+            peak = np.abs(az).argmax(axis=1)
+            power = np.abs(az[np.arange(len(peak)), peak]) ** 2
+            k = self._bins_at(az, peak)
+            ok = (power > floor) & apart(k, taken, self.n_az, self._peak_separation_bins)
+            if not ok.any():
+                break
+            gain_db = 10 * np.log10(power[ok] / first[ok])
+            out.append(self._points_at(az[ok], peak[ok], elements[ok], range_idx[ok], doppler[ok],
+                                       snr_db[ok] + gain_db, noise[ok], None if sides is None else sides[ok]))
+            elements, range_idx, doppler, snr_db, noise = elements[ok], range_idx[ok], doppler[ok], snr_db[ok], noise[ok]
+            sides = None if sides is None else sides[ok]
+            first, floor, az_in = first[ok], floor[ok], az_in[ok]
+            taken = [t[ok] for t in taken] + [k[ok]]
+        return out
 
     def _slot_phases(self, doppler: np.ndarray) -> np.ndarray:
         """TDM-MIMO phase correction of each TX slot for (signed, possibly disambiguated,
@@ -334,6 +433,8 @@ class FrameProcessor:
         for j, step in enumerate((-1, 1)):
             rows = (doppler_idx + step) % self.n_doppler  # the spectrum is periodic in Doppler
             side = spectrum[rows, :, :, range_idx].reshape(n, self.cfg.num_tx_slots * self.cfg.num_rx)
+            if self._calib is not None:
+                side *= self._calib
             if self.params.tdm_compensation:
                 side = side * self._compensation(doppler + step)
             out[:, j] = side[:, self.az_elements]
@@ -387,6 +488,33 @@ class FrameProcessor:
         return (rows[ok], k2[ok]) if ok.any() else None
 
 
+def _check_coupling(coupling: RangeCoupling, cfg: RadarConfig, n_range: int) -> None:
+    where = coupling.origin
+    if coupling.values.shape[:2] != (cfg.num_tx_slots, cfg.num_rx):
+        raise ConfigError(f"the coupling is for {coupling.values.shape[0]} TX x {coupling.values.shape[1]} RX, the cfg "
+                          f"has {cfg.num_tx_slots} TX slots x {cfg.num_rx} RX", path=where)
+    if len(coupling.window) != cfg.num_samples or n_range != cfg.num_samples:
+        raise ConfigError(f"the coupling was measured behind a {len(coupling.window)}-point range FFT without zero "
+                          f"padding; the cfg has {cfg.num_samples} samples and the DSP a {n_range}-point FFT "
+                          "(leave DspConfig.range_fft_size unset)", path=where)
+
+
+def _detection_range(cfg: RadarConfig, params: DspConfig, range_bias_m: float) -> tuple[float, float]:
+    """(shortest, longest) range of a detection, m (see FrameProcessor.detection_range_m)."""
+    fov = cfg.cfar_fov.get(0)
+    lo = params.min_range_m if fov is None else max(params.min_range_m, fov.min_value)
+    if params.max_range_m is not None:
+        hi = params.max_range_m
+    elif fov is not None:
+        hi = fov.max_value
+    else:  # the IF band's limit is on the beat frequency, before the range bias comes off
+        hi = cfg.max_range_m - range_bias_m
+    if hi <= lo:
+        raise ConfigError(f"no range is left to detect in: {lo:g} m to {hi:g} m (DspConfig min_range_m, "
+                          "max_range_m and the cfg's cfarFovCfg range limits)", field="max_range_m")
+    return lo, hi
+
+
 def ti_like_params(cfg: RadarConfig, params: DspConfig) -> DspConfig:
     """*params* with detection set from the cfg's own TI lines, where present."""
     changes = {}
@@ -403,7 +531,8 @@ def ti_like_params(cfg: RadarConfig, params: DspConfig) -> DspConfig:
         changes["second_peak_threshold"] = mobf.threshold if mobf.enabled and mobf.threshold > 0 else None
     if cfg.extended_max_velocity is not None:
         changes["velocity_disambiguation"] = bool(cfg.extended_max_velocity.enabled)
-    return dataclasses.replace(params, ti_like=True, **changes)
+    # One azimuth peak a cell, and multiObjBeamForming's second one, as TI's demo.
+    return dataclasses.replace(params, ti_like=True, max_azimuth_peaks=1, **changes)
 
 
 __all__ = ["POINT_DTYPE", "FrameProcessor", "FrameResult", "CfarParams", "make_window", "three_bin_response",

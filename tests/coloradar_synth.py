@@ -280,11 +280,11 @@ def _write_calib(folder: pathlib.Path, heatmap_shapes: Mapping, heatmap_cfgs: Ma
         if positions is not None:
             ant += [f"tx {k} {h} {v}" for k, (h, v) in enumerate(positions)]
             _write_text(folder / sensor / "antenna_cfg.txt", ant)
-        n_range = int(hm["num_range_bins"])
+        n_range = int(wf["num_adc_samples_per_chirp"]) // 2  # the dataset's: the positive half, DC skipped
         coupling = ",".join(["0"] * (2 * wf["num_tx"] * wf["num_rx"] * n_range))
         _write_text(folder / sensor / "coupling_calib.txt",
                     [f"num_tx: {wf['num_tx']}", f"num_rx: {wf['num_rx']}", f"num_range_bins: {n_range}",
-                     "num_doppler_bins: 16", f"data: {coupling}"])
+                     f"num_doppler_bins: {wf['num_chirps_per_frame']}", f"data: {coupling}"])
 
 
 # ---------------------------------------------------------------------------------------------

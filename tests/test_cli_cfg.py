@@ -54,7 +54,13 @@ def _table(stdout: str) -> dict[str, tuple[float, str]]:
 def test_shipped_cfg_prints_derived_quantities_with_units(shipped_cfg):
     proc = run_cfg("configs/awr1843_raw.cfg", cwd=REPO)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stderr == ""
+    # The shipped cfg carries the identity calibration line: one warning, naming the line and the fix.
+    line = next(n for n, text in enumerate(SHIPPED.read_text().splitlines(), start=1)
+                if text.startswith("compRangeBiasAndRxChanPhase"))
+    assert proc.stderr.startswith(f"radar-cfg: warning: configs/awr1843_raw.cfg:{line}: "
+                                  "compRangeBiasAndRxChanPhase is the identity")
+    assert "radar-calibrate" in proc.stderr and len(proc.stderr.splitlines()) == 1
+    assert "channel calibration      identity" in proc.stdout
     lines = proc.stdout.splitlines()
     assert lines[0] == "configs/awr1843_raw.cfg: valid xWR18xx configuration"
     assert "note:" not in proc.stdout  # the shipped cfg streams raw ADC and fits the DCA1000
@@ -110,20 +116,26 @@ def _check_stable_keys(data: dict, cfg: RadarConfig) -> None:
 def test_json_subprocess_has_stable_keys(shipped_cfg):
     proc = run_cfg(SHIPPED, "--json")
     assert proc.returncode == 0, proc.stderr
-    assert proc.stderr == ""
+    assert "compRangeBiasAndRxChanPhase is the identity" in proc.stderr  # the warning, on stderr only
     data = json.loads(proc.stdout)  # nothing but JSON on stdout
     _check_stable_keys(data, shipped_cfg)
     assert data["frame_bytes"] == 786432 and data["tx_order"] == [1, 3, 2]
     assert data["num_tx"] == 3 and data["num_rx"] == 4
     assert data["num_samples"] == 256 and data["num_loops"] == 64
     assert data["streams_raw_adc"] is True
+    calibration = data["calibration"]
+    assert calibration["identity"] is True and calibration["range_bias_m"] == 0.0
+    assert calibration["coefficients"] == [[1.0, 0.0]] * 12
+    assert calibration["gain_db"] == [0.0] * 12 and calibration["phase_deg"] == [0.0] * 12
 
 
 def test_json_in_process(tmp_path, small_cfg, capsys):
     path, _ = write_cfg(tmp_path)
     assert radar_cfg.main([str(path), "--json"]) == 0
     out, err = capsys.readouterr()
-    assert err == ""
+    # The small cfg streams raw ADC (meant for a board) and has no calibration line: one warning.
+    assert err.startswith(f"radar-cfg: warning: {path}: compRangeBiasAndRxChanPhase is missing")
+    assert len(err.splitlines()) == 1
     data = json.loads(out)
     _check_stable_keys(data, small_cfg)
     assert data == json.loads(json.dumps(small_cfg.summary()))

@@ -669,16 +669,18 @@ def test_ti_like_takes_detection_settings_from_shipped_cfg(shipped_cfg):
 
 def test_ti_like_threshold_and_fov(shipped_cfg):
     """On the shipped cfg, ti_like detects with 15 dB over the range pass's noise
-    (every snr_db > 15) and cfarFovCfg's 0..10 m: a target at 10.8 m, found without
-    ti_like, is dropped."""
+    (every snr_db > 15); the cfg's cfarFovCfg 0..10 m bounds detection with or without
+    ti_like: a target at 10.8 m, found when DspConfig.max_range_m reaches past it, is dropped."""
     points = [(10.8, 0.0, 0.4), (4.0, -1.4, 0.4), (5.6, 1.6, 0.4)]
     scene = point_scene(points, STILL)
     f, cube = simulate(shipped_cfg, scene, frame=1)
+    wide = FrameProcessor(shipped_cfg, DspConfig(max_range_m=12.0)).process(cube).points.copy()
     plain = FrameProcessor(shipped_cfg).process(cube).points.copy()
     ti = FrameProcessor(shipped_cfg, DspConfig(ti_like=True)).process(cube).points
     far = geometry(scene, shipped_cfg, points[0], f.timestamp)["r"]
     assert far > 10.0
-    assert np.any(np.abs(plain["range"] - far) <= range_tol(shipped_cfg))
+    assert np.any(np.abs(wide["range"] - far) <= range_tol(shipped_cfg))
+    assert len(plain) == 2 and np.all(plain["range"] <= 10.0)
     assert len(ti) == 2 and np.all(ti["range"] <= 10.0)
     assert np.all(ti["snr_db"] > 15.0)
     for point in points[1:]:
@@ -715,7 +717,7 @@ def test_range_azimuth_heatmap_static_target(shipped_cfg, point):
     hm = HeatmapMaker(proc)
     ra = hm.range_azimuth(proc.process(cube).spectrum)
     tr = geometry(scene, cfg, point, f.timestamp)
-    assert ra.intensity.shape == ra.static.shape == ra.doppler_mps.shape == (proc.n_range, proc.n_az)
+    assert ra.intensity.shape == ra.static.shape == ra.doppler_mps.shape == (proc.heatmap_range_bins, proc.n_az)
     assert np.all(np.diff(ra.azimuth_rad) > 0)
     tol = azimuth_tol(proc.n_az, tr["az"], tr["el"])
     for name in ("intensity", "static"):
@@ -760,7 +762,7 @@ def test_range_azimuth_elevation_heatmap_signs(shipped_cfg, point, sign):
     hm = HeatmapMaker(proc)
     rae = hm.range_azimuth_elevation(proc.process(cube).spectrum)
     tr = geometry(scene, cfg, point, f.timestamp)
-    assert rae.intensity.shape == (proc.n_range, len(rae.elevation_rad), len(rae.azimuth_rad))
+    assert rae.intensity.shape == (proc.heatmap_range_bins, len(rae.elevation_rad), len(rae.azimuth_rad))
     ri, ei, ai = np.unravel_index(int(np.argmax(rae.intensity)), rae.intensity.shape)
     assert abs(rae.range_m[ri] - tr["r"]) <= range_tol(cfg)
     assert np.sign(rae.elevation_rad[ei]) == sign == np.sign(tr["el"])

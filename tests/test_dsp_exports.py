@@ -30,7 +30,7 @@ CAPTURE = console_command("radar-capture")
 SOURCE = "sim://calibration?rate=max&duration=1"
 HEADER = "frame,t,x,y,z,range,azimuth,elevation,velocity,snr_db"
 N_FRAMES = 10  # 1 s at the shipped cfg's 10 frames/s
-N_RANGE, N_AZ = 256, 64  # shipped cfg: 256 samples, 64-point azimuth FFT
+N_RANGE, N_AZ = 205, 64  # shipped cfg: range bins up to its cfarFovCfg 10 m (of 256), 64-point azimuth FFT
 XY_TOL_M = 0.3
 #: The shipped cfg's Doppler bin, m/s.
 VELOCITY_BIN_MPS = RadarConfig.from_file(shipped_config_path()).velocity_resolution_mps

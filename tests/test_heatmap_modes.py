@@ -45,9 +45,11 @@ def test_strong_cells_mode_with_more_cells_than_the_map(spectrum_and_processor):
 def _reference_range_azimuth(proc, spectrum, static_bins):
     """Cell by cell, from the definition: each range bin's TDM-compensated azimuth row
     through the zero-padded azimuth FFT (fftshifted), power summed over Doppler (all),
-    over the static rows, and the Doppler bin of the strongest power."""
-    nd, slots, nrx, nr = spectrum.shape
-    flat = spectrum.reshape(nd, slots * nrx, nr).astype(np.complex128)
+    over the static rows, and the Doppler bin of the strongest power; range bins up to the
+    processor's detection range."""
+    nd, slots, nrx, _ = spectrum.shape
+    nr = proc.heatmap_range_bins
+    flat = spectrum[..., :nr].reshape(nd, slots * nrx, nr).astype(np.complex128)
     row = flat[:, proc.az_elements, :]  # (n_doppler, row, n_range)
     if proc.params.tdm_compensation:
         row = row * proc._tdm[:, proc._slot_of_element[proc.az_elements], None]

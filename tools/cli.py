@@ -61,6 +61,20 @@ def positive_float(text: str) -> float:
     return value
 
 
+def check_new_path(path: str, *, is_dir: bool = False) -> None:
+    """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
+    created (no parent directory): radarodom never overwrites what a user has."""
+    import os
+
+    from ..errors import CaptureError, CaptureExistsError
+
+    if not is_dir and os.path.exists(path):
+        raise CaptureExistsError(f"{path} already exists; choose a new file")
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):
+        raise CaptureError(f"cannot create {path}: no directory {parent}")
+
+
 def add_verbosity(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group()
     group.add_argument("-v", "--verbose", action="store_true",

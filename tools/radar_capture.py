@@ -33,7 +33,7 @@ from ..cfg import RadarConfig
 from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Frame, Source, open_source
-from ..errors import CaptureError, CaptureExistsError, UsageError
+from ..errors import CaptureError, UsageError
 from ..estimator.config import EstimatorConfig
 from . import cli
 from .status import LatencyMeter, RateMeter, StatusLine, format_duration
@@ -139,15 +139,6 @@ def _summary(stats: CaptureStats, record: str | None) -> str:
     return text
 
 
-def _check_destination(path: str, *, is_dir: bool = False) -> None:
-    """Refuse an output that exists (a file) or cannot be created (no parent directory)."""
-    if not is_dir and os.path.exists(path):
-        raise CaptureExistsError(f"{path} already exists; choose a new file")
-    parent = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(parent):
-        raise CaptureError(f"cannot create {path}: no directory {parent}")
-
-
 class _Processing:
     """The per-frame DSP and estimator, and the files they write (--points-out,
     --heatmap-out, --odom-out)."""
@@ -162,11 +153,12 @@ class _Processing:
         # Check every destination before writing to any, so a refusal leaves nothing behind.
         for path in (args.points_out, args.odom_out if not args.no_odom else None, args.heatmap_out):
             if path:
-                _check_destination(path, is_dir=path == args.heatmap_out)
+                cli.check_new_path(path, is_dir=path == args.heatmap_out)
         estimator_cfg = args.estimator
         # The heatmap export gets the full map; the estimator needs less.
-        self.products = (FrameProducts(source.config) if args.heatmap_out
-                         else FrameProducts.for_estimator(source.config, estimator_cfg.features.k))
+        self.products = (FrameProducts(source.config, coupling=source.coupling) if args.heatmap_out
+                         else FrameProducts.for_estimator(source.config, estimator_cfg.features.k,
+                                                          coupling=source.coupling))
         self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
         self.state = None
         # Recent figures only: a sensor node runs for days.

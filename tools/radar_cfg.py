@@ -7,8 +7,13 @@ import json
 import sys
 from typing import Sequence
 
+import logging
+
+from ..calibration import uncalibrated_note
 from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, RAW_LVDS_LINE, RadarConfig
 from . import cli
+
+log = logging.getLogger("radarodom.tools.radar_cfg")
 
 #: (summary key, label, unit, scale, format) for the human table.
 _ROWS = (
@@ -46,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(args: argparse.Namespace) -> int:
     cfg = RadarConfig.from_file(args.cfg)
     summary = cfg.summary(args.packet_delay_us)
+    note = uncalibrated_note(cfg) if cfg.streams_raw_adc else None  # a cfg meant for a real board
+    if note is not None:
+        log.warning("%s", note)
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -58,6 +66,13 @@ def _main(args: argparse.Namespace) -> int:
     for key, label, unit, scale, fmt in _ROWS:
         value = summary[key] * scale
         out.append(f"  {label:<24} {value:{fmt}} {unit}")
+    calibration = cfg.channel_calibration
+    if calibration.is_identity:
+        out.append(f"  {'channel calibration':<24} identity (compRangeBiasAndRxChanPhase corrects nothing)")
+    else:
+        out.append(f"  {'channel calibration':<24} the board's paths, as its compRangeBiasAndRxChanPhase line "
+                   "corrects them (relative to TX1 RX1):")
+        out += [f"    {text}" for text in calibration.table()]
     if not cfg.streams_raw_adc:
         ln = cfg.line_of("lvdsStreamCfg")
         where = f"line {ln.line}: '{ln}'" if ln else "no lvdsStreamCfg line"

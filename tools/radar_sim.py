@@ -1,6 +1,6 @@
 """radar-sim: simulate a scene and write a capture directory with ground truth.
 
-    radar-sim SCENE [--cfg CFG] [--duration S] [--seed N] --out DIR
+    radar-sim SCENE [--cfg CFG] [--duration S] [--seed N] [--board NAME|FILE] --out DIR
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from typing import Sequence
 
 from ..cfg import RadarConfig, shipped_config_path
 from ..driver.capture_dir import CaptureWriter
+from ..driver.sim.board import BUILTIN_BOARDS, load_board
 from ..driver.sim.scene import BUILTIN_SCENES, load_scene
 from ..driver.sim.simulator import Simulator
 from . import cli
@@ -30,6 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=cli.positive_float, metavar="S",
                         help="seconds to simulate (default: the whole trajectory)")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N", help="random seed (default 0)")
+    parser.add_argument("--board", default="ideal", metavar="NAME|FILE",
+                        help=f"the board's imperfections: {', '.join(BUILTIN_BOARDS)} or a board .toml file "
+                             "(default: ideal)")
     parser.add_argument("--out", required=True, metavar="DIR", help="new capture directory to write")
     cli.add_verbosity(parser)
     return parser
@@ -44,10 +48,12 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     cfg = RadarConfig.from_file(args.cfg or shipped_config_path())
     scene = load_scene(args.scene, seed=args.seed)
-    sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration)
+    board = load_board(args.board)
+    sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board)
     start = time.monotonic()
-    with CaptureWriter(args.out, cfg, source=f"sim://{args.scene}?seed={args.seed}",
-                       extra={"simulator": {"scene": scene.name, "seed": args.seed}}) as writer:
+    url = f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={args.board}")
+    with CaptureWriter(args.out, cfg, source=url,
+                       extra={"simulator": {"scene": scene.name, "seed": args.seed, "board": board.name}}) as writer:
         for i in range(sim.num_frames):
             f = sim.frame(i)
             writer.write(f.raw, f.timestamp, 0, f.pose)

@@ -102,11 +102,13 @@ class FmcwSynthesizer:
     """
 
     def __init__(self, cfg: RadarConfig, *, loops_per_chunk: int | None = None,
-                 fidelity: str = "exact") -> None:
+                 fidelity: str = "exact", extra_path_m: float = 0.0) -> None:
         if fidelity not in FIDELITIES:
             raise ValueError(f"fidelity {fidelity!r}: use {' or '.join(FIDELITIES)}")
         #: "exact": every chirp's delay drift to 1e-3 rad; "fast": chunked, for real-time streaming.
         self.fidelity = fidelity
+        #: Added to every path's round trip, m: the front end's delay (twice a board's range bias).
+        self.extra_path_m = float(extra_path_m)
         self.cfg = cfg
         loops, slots, rx, samples = cfg.cube_shape
         self.shape = cfg.cube_shape
@@ -164,7 +166,7 @@ class FmcwSynthesizer:
         slot_of_chirp = np.tile(np.arange(slots), loops)
         tx = self.tx_pos[slot_of_chirp]  # (C, 3); TX antennas lie in the x-z plane
         tx_term = (p_tx[0] * tx[:, 0:1] + p_tx[2] * tx[:, 2:3]) / r_tx
-        cycles = (r_tx + r_rx - tx_term) * (self.f_c / SPEED_OF_LIGHT)  # (C, K)
+        cycles = (r_tx + r_rx - tx_term + self.extra_path_m) * (self.f_c / SPEED_OF_LIGHT)  # (C, K)
         main = _unit_phasor(np.mod(cycles, 1.0))
         main *= amp.astype(np.complex64)[None, :]
         step = _unit_phasor(0.5 * p_rx[0] / r_rx)  # exp(j pi u_x), (C, K)
@@ -181,8 +183,8 @@ class FmcwSynthesizer:
             chunk = self._chunk_loops(r_tx, r_rx) * slots
             for c0 in range(0, loops * slots, chunk):
                 c1 = min(c0 + chunk, loops * slots)
-                tau = (r_tx[c0:c1] + r_rx[c0:c1]).mean(axis=0) / SPEED_OF_LIGHT  # (K,)
-                beat = self._beat_tone(tau)
+                tau = ((r_tx[c0:c1] + r_rx[c0:c1]).mean(axis=0) + self.extra_path_m) / SPEED_OF_LIGHT  # (K,)
+                beat = self.beat_tone(tau)
                 np.matmul(a[c0:c1].reshape((c1 - c0) * nrx, k), beat,
                           out=flat[c0:c1].reshape((c1 - c0) * nrx, ns))
             return out
@@ -202,7 +204,7 @@ class FmcwSynthesizer:
         """
         chirps, nrx, k = a.shape
         ns = flat.shape[-1]
-        tau_all = (r_tx + r_rx).astype(np.float64) / SPEED_OF_LIGHT  # (C, K)
+        tau_all = ((r_tx + r_rx).astype(np.float64) + self.extra_path_m) / SPEED_OF_LIGHT  # (C, K)
         half_window = (ns - 1) / (2 * self.cfg.sample_rate_hz)
         z_scale = 2 * np.pi * self.slope * half_window
         spread = float((tau_all.max(axis=0) - tau_all.min(axis=0)).max()) / 2 * z_scale
@@ -220,7 +222,7 @@ class FmcwSynthesizer:
             while bound > EXACT_PHASE_ERROR_RAD and terms < 12:
                 terms += 1
                 bound *= zmax / terms
-            tone = self._beat_tone(tau)  # (K, ns)
+            tone = self.beat_tone(tau)  # (K, ns)
             rows = (c1 - c0) * nrx
             a_stack = np.empty((c1 - c0, nrx, terms * k), np.complex64)
             b_stack = np.empty((terms * k, ns), np.complex64)
@@ -252,7 +254,7 @@ class FmcwSynthesizer:
         chunks = max(1, int(np.ceil(error_one_chunk / MAX_BEAT_PHASE_ERROR_RAD)))
         return max(1, loops // chunks)
 
-    def _beat_tone(self, tau: np.ndarray) -> np.ndarray:
+    def beat_tone(self, tau: np.ndarray) -> np.ndarray:
         """exp(j 2 pi S tau (t_n - t_mid)) for delays *tau* (K,): complex64 (K, samples).
 
         A tone over n factors into blocks, z^n = z^(b q) z^j for n = b q + j, so

@@ -5,8 +5,10 @@ Per frame: the sensor pose at every chirp's time; the scatterers seen from
 the frame's middle (inside the unambiguous range, in front of the antenna,
 not hidden by a wall); their amplitude ``sqrt(RCS) / R^2`` times the antenna
 pattern and the reflectivity at the angle of incidence; optional one-bounce
-multipath images; the beat signal (:mod:`.physics`); thermal noise; and int16
-quantization, scaled down only where a frame would otherwise clip.
+multipath images; the beat signal (:mod:`.physics`); the board's own
+imperfections (:mod:`.board`: path gains, range bias, TX-to-RX leakage);
+thermal noise; and int16 quantization, scaled down only where a frame would
+otherwise clip.
 """
 
 from __future__ import annotations
@@ -17,9 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...cfg import RadarConfig
+from ...cfg import SPEED_OF_LIGHT, RadarConfig
 from ...rawframe import INT16_MAX, RawLayout
 from ...tum import yaw_quaternion
+from .board import Board
 from .physics import AntennaPattern, FmcwSynthesizer
 from .scene import Scene
 
@@ -119,11 +122,23 @@ class Simulator:
 
     def __init__(self, cfg: RadarConfig, scene: Scene, *, seed: int = 0,
                  duration_s: float | None = None, pattern: AntennaPattern | None = None,
-                 fidelity: str = "exact") -> None:
+                 fidelity: str = "exact", board: Board | None = None) -> None:
         self.cfg = cfg
         self.scene = scene
         self.seed = seed
-        self.synth = FmcwSynthesizer(cfg, fidelity=fidelity)
+        #: The board's imperfections (default: the perfect board).
+        self.board = board or Board()
+        self.synth = FmcwSynthesizer(cfg, fidelity=fidelity, extra_path_m=2.0 * self.board.range_bias_m)
+        # The board's path gains per cube element (None: all 1) and its leakage, the same in
+        # every chirp (None: none): (1, tx_slots, rx, 1) and (1, tx_slots, rx, samples).
+        gains = self.board.for_array(cfg.virtual_array)
+        self._gains = gains[None, :, :, None] if self.board.has_channel_errors else None
+        self._leakage = None
+        if self.board.leakage_counts > 0:
+            tau = 2.0 * (self.board.leakage_range_m + self.board.range_bias_m) / SPEED_OF_LIGHT
+            carrier = np.exp(2j * np.pi * self.synth.f_c * tau)
+            tone = self.synth.beat_tone(np.array([tau]))[0] * carrier * self.board.leakage_counts * math.sqrt(2.0)
+            self._leakage = (gains[:, :, None] * tone[None, None, :]).astype(np.complex64)[None]
         self.pattern = pattern or AntennaPattern()
         self.layout = RawLayout.from_config(cfg)
         self.period = cfg.frame_period_s
@@ -254,6 +269,10 @@ class Simulator:
         t0 = self.frame_time(i)
         p_tx, p_rx, amp = self.paths(t0)
         cube = self.synth.synthesize(p_tx, p_rx, amp, out=self._cube)
+        if self._gains is not None:
+            cube *= self._gains
+        if self._leakage is not None:
+            cube += self._leakage
         rng = np.random.default_rng([self.seed, i])
         noise = self._noise
         noise.real[...] = rng.standard_normal(cube.shape, dtype=np.float32)

@@ -8,6 +8,9 @@
 - ``rate``: 1.0 streams in real time (default), 2 twice as fast, ``max`` as
   fast as frames can be made.
 - ``duration``: seconds of stream; default the scene's trajectory.
+- ``board``: the board's imperfections, ``ideal`` (default), ``uncalibrated`` (TX
+  and RX paths tens of degrees and about a dB apart, a range bias, TX-to-RX
+  leakage) or a board file (``board=/path/board.toml``; see :mod:`.board`).
 - ``fidelity``: ``exact`` models every chirp's delay drift to 1e-3 rad (the
   default with ``rate=max``, and what ``radar-sim`` writes); ``fast`` holds
   each path's delay over chunks of loops, which leaves spurious Doppler lines
@@ -26,6 +29,7 @@ import numpy as np
 
 from ...cfg import RadarConfig, shipped_config_path
 from ..sources import Frame, Pacer, Source, UrlOptions, at_least, one_of, parse_rate, positive_number
+from .board import load_board
 from .physics import FIDELITIES
 from .scene import load_scene
 from .simulator import Simulator
@@ -57,7 +61,8 @@ class SimSource(Source):
 
     def describe(self) -> dict:
         return {"url": self.url, "scene": self.sim.scene.name, "frames": self.sim.num_frames,
-                "seed": self.sim.seed, "rate": "max" if self.rate == float("inf") else self.rate}
+                "seed": self.sim.seed, "board": self.sim.board.name,
+                "rate": "max" if self.rate == float("inf") else self.rate}
 
 
 def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimSource:
@@ -65,9 +70,11 @@ def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimS
     rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
     duration = options.take("duration", positive_number, None, "seconds > 0")
     fidelity = options.take("fidelity", one_of(*FIDELITIES), None, " or ".join(FIDELITIES))
+    board = options.take("board", str, "ideal", "ideal, uncalibrated or a board .toml file")
     options.finish()
     if fidelity is None:
         fidelity = "exact" if rate == float("inf") else "fast"
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     scene = load_scene(path or DEFAULT_SCENE, seed=seed)
-    return SimSource(Simulator(cfg, scene, seed=seed, duration_s=duration, fidelity=fidelity), rate=rate)
+    sim = Simulator(cfg, scene, seed=seed, duration_s=duration, fidelity=fidelity, board=load_board(board))
+    return SimSource(sim, rate=rate)

@@ -1,0 +1,274 @@
+"""Measuring a board's channel calibration (``compRangeBiasAndRxChanPhase``) from a corner reflector.
+
+The method is TI's ``measureRangeBiasAndRxChanPhase`` (mmWave SDK 3.5, ``objectdetection.c``
+``DPC_ObjDet_rangeBiasRxChPhaseMeasure``): a corner reflector on boresight at a known distance;
+the strongest zero-Doppler range peak within distance +/- window; its complex value x on each of
+the 12 virtual antennas; the coefficient ``conj(x) * min|x| / |x|^2`` (so that, corrected, all
+antennas agree); the range bias the peak's range minus the true distance.  Where it differs, for
+accuracy: TI takes one frame's first chirp of each TX at the peak's bin; here the zero-Doppler
+bin of the Doppler FFT (every loop integrated) is averaged over frames, and the peak is placed
+between range bins through the range window's own three-bin response (TI fits a parabola).
+
+A set-up that would give a wrong line is refused with the reason (:class:`CalibrationError`):
+
+- the reflector too weak: its zero-Doppler cell less than :data:`MIN_SNR_DB` over the noise
+  (the phases would carry the noise);
+- not alone: another return in the window within :data:`ALONE_MARGIN_DB` of it, or its 12
+  responses not those of one point (a 3 x 4 matrix of TX times RX paths is of rank one for one
+  reflector; a second reflector at the same range or multipath breaks that by more than
+  :data:`MAX_RANK_ONE_RESIDUAL_DEG`);
+- off boresight: the azimuth row's phases fit a plane wave from more than
+  :data:`MAX_APPARENT_AZIMUTH_DEG` to the side.  Board errors of up to +/- 45 degrees per path
+  put that apparent direction within 6.3 degrees (500 random boards); a reflector farther off
+  would be built into the line and turn every angle.  (The elevation cannot be checked this
+  way: one raised row's phase is all it has, and that is what the line corrects.)
+- moving (or the radar): its range changing by more than :data:`MAX_RANGE_SPREAD_BINS` of a bin
+  over the frames, or its strongest Doppler bin off zero.
+
+The residual phase error reported is what remains after the correction: the RMS over frames
+and antennas of each corrected sample's phase against its frame's mean phase (noise and
+instability; 0 for a perfect measurement).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
+from ..calibration import ChannelCalibration
+from ..cfg import RadarConfig
+from ..errors import CalibrationError, ConfigError
+from .config import DspConfig
+from .processor import FrameProcessor, three_bin_response
+
+#: The reflector's zero-Doppler cell over the noise, dB, at least (summed over the antennas,
+#: one frame): 25 dB leaves each antenna's phase within 2.3 degrees RMS in one frame.
+MIN_SNR_DB = 25.0
+#: Another return inside the window (outside the reflector's main lobe) must be this much
+#: weaker than the reflector, dB.
+ALONE_MARGIN_DB = 15.0
+#: The 12 responses' phase against their best rank-one (TX times RX) fit, RMS, degrees, at most:
+#: a second reflector at the reflector's range, 15 dB weaker, makes 6 degrees of it and errors of
+#: 17 degrees in the line; noise at 26 dB SNR makes 0.6.
+MAX_RANK_ONE_RESIDUAL_DEG = 3.0
+#: The azimuth row's plane-wave direction, degrees from boresight, at most.
+MAX_APPARENT_AZIMUTH_DEG = 8.0
+#: The reflector's range over the frames, max - min, in range bins, at most.
+MAX_RANGE_SPREAD_BINS = 0.5
+#: Another local maximum of the range profile this many bins or more from the reflector's peak
+#: is another return (a single reflector's main lobe has one maximum; its sidelobes are more
+#: than ALONE_MARGIN_DB down for the Hann and Blackman windows).
+SEPARATE_PEAK_BINS = 2
+
+
+@dataclass(frozen=True)
+class CalibrationMeasurement:
+    """What :class:`ChannelCalibrator` measured."""
+
+    #: The line: coefficients and range bias.
+    calibration: ChannelCalibration
+    #: The reflector's true distance, and its range as measured (before the bias is taken off), m.
+    distance_m: float
+    measured_range_m: float
+    #: The reflector's zero-Doppler cell over the noise, dB (mean over frames, summed antennas).
+    snr_db: float
+    #: Phase error left after the correction, RMS over frames and antennas, degrees.
+    residual_phase_deg: float
+    #: The responses' phase against their rank-one fit, RMS, degrees.
+    rank_one_residual_deg: float
+    #: The azimuth row's plane-wave direction, degrees (positive right).
+    apparent_azimuth_deg: float
+    frames: int
+
+    def describe(self) -> dict:
+        """JSON-ready: ``range_bias_m``, ``coefficients`` (12 [re, im], TI's order), ``cfg_line``,
+        ``snr_db``, ``residual_phase_deg``, and ``gain_db``, ``phase_deg``, ``distance_m``,
+        ``measured_range_m``, ``frames``, ``rank_one_residual_deg``, ``apparent_azimuth_deg``."""
+        cal = self.calibration.describe()
+        return {"range_bias_m": cal["range_bias_m"], "coefficients": cal["coefficients"],
+                "cfg_line": cal["cfg_line"], "snr_db": self.snr_db,
+                "residual_phase_deg": self.residual_phase_deg, "gain_db": cal["gain_db"],
+                "phase_deg": cal["phase_deg"], "distance_m": self.distance_m,
+                "measured_range_m": self.measured_range_m, "frames": self.frames,
+                "rank_one_residual_deg": self.rank_one_residual_deg,
+                "apparent_azimuth_deg": self.apparent_azimuth_deg}
+
+
+class ChannelCalibrator:
+    """Accumulates raw frames of a corner reflector at *distance_m* on boresight and measures
+    the line from them (:meth:`add`, then :meth:`result`).
+
+    *window_m*: the reflector's peak is searched within distance +/- window (TI's searchWin is
+    the whole width, twice this).  The cfg must use all 3 TX, each once a loop, and all 4 RX.
+    """
+
+    def __init__(self, cfg: RadarConfig, distance_m: float, window_m: float = 0.2) -> None:
+        if not (math.isfinite(distance_m) and distance_m > 0):
+            raise CalibrationError(f"the reflector's distance must be a positive number of metres, got {distance_m!r}")
+        if not (math.isfinite(window_m) and window_m > 0):
+            raise CalibrationError(f"the search window must be a positive number of metres, got {window_m!r}")
+        if sorted(cfg.tx_order) != [1, 2, 3] or cfg.num_rx != NUM_RX_ANTENNAS:
+            line = cfg.line_of("channelCfg")
+            raise ConfigError(
+                "the calibration line has a coefficient for every TX and RX path: measure it with a cfg that "
+                f"uses TX1, TX2 and TX3 once a loop and all four RX (this one uses TX "
+                f"{', '.join(map(str, cfg.tx_order))} and RX {', '.join(str(r + 1) for r in cfg.rx_indices)})",
+                path=cfg.path, line=line.line if line is not None else None, command="channelCfg")
+        self.cfg = cfg
+        self.distance_m = float(distance_m)
+        self.window_m = float(window_m)
+        # The board's samples as they come: no calibration, no clutter removal.
+        self.proc = FrameProcessor(cfg, DspConfig(channel_calibration=False, clutter_removal=False))
+        step = float(self.proc.range_m[1] - self.proc.range_m[0])
+        self.bin_m = step
+        lo, hi = self.distance_m - self.window_m, self.distance_m + self.window_m
+        bins = np.flatnonzero((self.proc.range_m >= lo) & (self.proc.range_m <= hi))
+        if hi > self.proc.range_m[-1] or lo < self.proc.params.min_range_m:
+            raise CalibrationError(f"{lo:.2f} m to {hi:.2f} m is outside the range this cfg measures "
+                                   f"({self.proc.params.min_range_m:g} m to {self.proc.range_m[-1]:.2f} m): "
+                                   "place the reflector within it")
+        if len(bins) < 3:
+            raise CalibrationError(f"the search window +/- {self.window_m:g} m holds {len(bins)} range bin(s) of "
+                                   f"{step * 100:.1f} cm: widen it to at least {1.5 * step:.2f} m")
+        # One bin more either side, to tell a peak at the window's edge from a slope.
+        self._bins = np.arange(max(bins[0] - 1, 0), min(bins[-1] + 2, self.proc.n_range))
+        self._inside = (self._bins >= bins[0]) & (self._bins <= bins[-1])
+        # Each slot's TX and each RX, for the (3, 4) matrix of physical paths.
+        self._tx_of_slot = np.array(cfg.tx_order) - 1
+        self._zero = self.proc.n_doppler // 2
+        self._frames: list[np.ndarray] = []  # (n_doppler, slots, rx, window bins) per frame
+        self._table = three_bin_response(self.proc.w_range, self.proc.n_range, "range_window")
+
+    def add(self, cube: np.ndarray) -> None:
+        """One frame's raw cube, complex (loops, tx_slots, rx, samples)."""
+        spectrum = self.proc.doppler_fft(self.proc.range_fft(cube))
+        self._frames.append(spectrum[:, :, :, self._bins].copy())
+
+    @property
+    def frames(self) -> int:
+        return len(self._frames)
+
+    def result(self) -> CalibrationMeasurement:
+        """The measurement, or :class:`CalibrationError` saying what is wrong with the set-up."""
+        if not self._frames:
+            raise CalibrationError("no frame to measure: the source gave none")
+        data = np.stack(self._frames)  # (frames, n_doppler, slots, rx, bins)
+        power = (np.abs(data) ** 2).sum(axis=(2, 3))  # (frames, n_doppler, bins)
+        zero = power[:, self._zero].mean(axis=0)  # (bins,)
+        # Noise per cell: Doppler rows far from zero hold no static return.
+        far = np.abs(np.arange(self.proc.n_doppler) - self._zero) >= self.proc.n_doppler // 4
+        noise = float(np.median(power[:, far]))
+        inside = np.flatnonzero(self._inside)
+        k = int(inside[np.argmax(zero[inside])])
+        bins = self._bins
+        range_of = lambda j: float(self.proc.range_m[bins[j]])  # noqa: E731
+        snr_db = 10 * math.log10(zero[k] / max(noise, 1e-30))
+        if k in (0, len(bins) - 1) or not (zero[k] >= zero[k - 1] and zero[k] >= zero[k + 1]):
+            raise CalibrationError(
+                f"no reflector peak within {self.distance_m:g} m +/- {self.window_m:g} m: the strongest return there "
+                f"is at the window's edge ({range_of(k):.2f} m), the slope of something outside it; check "
+                f"--distance, or widen --search-window")
+        if snr_db < MIN_SNR_DB:
+            raise CalibrationError(
+                f"no reflector strong enough within {self.distance_m:g} m +/- {self.window_m:g} m: the strongest "
+                f"return there, at {range_of(k):.2f} m, is {snr_db:.1f} dB over the noise (at least {MIN_SNR_DB:g} dB "
+                "needed); check --distance, use a larger corner reflector, or bring it closer")
+        self._check_alone(zero, k, range_of)
+        self._check_still(data, power, k, range_of)
+        # The reflector's range between bins, from the summed magnitude's three bins (range
+        # migration is ruled out above, so the frames' mean profile is the reflector's).
+        mag = np.sqrt(zero)
+        offset = float(np.interp((mag[k + 1] - mag[k - 1]) / mag[k], *self._table))
+        measured = float(self.proc.range_m[bins[k]]) + offset * self.bin_m
+        # The responses: each frame's zero-Doppler sample at the peak, turned to the first frame's
+        # common phase (a frame-to-frame phase drift common to all antennas changes no coefficient).
+        samples = data[:, self._zero, :, :, k].reshape(len(data), -1)  # (frames, elements)
+        turn = np.exp(-1j * np.angle(samples @ np.conj(samples[0])))
+        response_elements = (samples * turn[:, None]).mean(axis=0)
+        response = np.empty((NUM_TX_ANTENNAS, NUM_RX_ANTENNAS), np.complex128)
+        response[self._tx_of_slot[:, None], np.array(self.cfg.rx_indices)[None, :]] = \
+            response_elements.reshape(len(self._tx_of_slot), -1)
+        rank_one = _rank_one_residual_deg(response)
+        if rank_one > MAX_RANK_ONE_RESIDUAL_DEG:
+            raise CalibrationError(
+                f"the reflector at {measured:.2f} m does not answer as one point: its 12 antenna phases are "
+                f"{rank_one:.1f} deg RMS from any TX-times-RX pattern (more than {MAX_RANK_ONE_RESIDUAL_DEG:g}); another "
+                "reflector at the same range or a reflection off something nearby; clear the area around it")
+        azimuth = self._apparent_azimuth_deg(response_elements)
+        if abs(azimuth) > MAX_APPARENT_AZIMUTH_DEG:
+            side = "right" if azimuth > 0 else "left"
+            raise CalibrationError(
+                f"the reflector at {measured:.2f} m looks {abs(azimuth):.1f} deg {side} of boresight (its azimuth "
+                f"phases fit a plane wave from there; board errors stay within {MAX_APPARENT_AZIMUTH_DEG:g} deg): put "
+                "it on the radar's boresight, at the antennas' height")
+        calibration = ChannelCalibration.from_response(response, measured - self.distance_m)
+        corrected = samples * calibration.for_array(self.cfg.virtual_array).ravel()[None, :]
+        common = np.sum(corrected, axis=1, keepdims=True)
+        residual = float(np.degrees(np.sqrt(np.mean(np.angle(corrected * np.conj(common)) ** 2))))
+        return CalibrationMeasurement(calibration, self.distance_m, measured, snr_db, residual, rank_one,
+                                      azimuth, len(self._frames))
+
+    def _check_alone(self, zero: np.ndarray, k: int, range_of) -> None:
+        peaks = [j for j in np.flatnonzero(self._inside) if 0 < j < len(zero) - 1
+                 and abs(j - k) >= SEPARATE_PEAK_BINS and zero[j] >= zero[j - 1] and zero[j] >= zero[j + 1]]
+        for j in sorted(peaks, key=lambda j: -zero[j]):
+            below = 10 * math.log10(zero[k] / zero[j])
+            if below < ALONE_MARGIN_DB:
+                raise CalibrationError(
+                    f"the reflector at {range_of(k):.2f} m is not alone in the window: another return at "
+                    f"{range_of(j):.2f} m is only {below:.1f} dB weaker (at least {ALONE_MARGIN_DB:g} dB needed); "
+                    "clear the area around the reflector, or narrow --search-window")
+
+    def _check_still(self, data: np.ndarray, power: np.ndarray, k: int, range_of) -> None:
+        # Strongest Doppler row at the reflector's bin, frame by frame.
+        rows = power[:, :, k].argmax(axis=1) - self._zero
+        if np.any(np.abs(rows) > 1):
+            speed = float(np.max(np.abs(rows))) * self.cfg.velocity_resolution_mps
+            raise CalibrationError(
+                f"the reflector at {range_of(k):.2f} m moves: {speed:.2f} m/s radial in some frames; keep the "
+                "reflector and the radar still while measuring")
+        zero = power[:, self._zero]  # (frames, bins)
+        peaks = zero.argmax(axis=1)
+        spread = 0.0
+        if len(zero) > 1 and np.all((peaks > 0) & (peaks < zero.shape[1] - 1)):
+            mag = np.sqrt(zero)
+            f = np.arange(len(zero))
+            ratio = (mag[f, peaks + 1] - mag[f, peaks - 1]) / mag[f, peaks]
+            position = peaks + np.interp(ratio, *self._table)
+            spread = float(position.max() - position.min())
+        elif len(set(peaks.tolist())) > 1:
+            spread = float(peaks.max() - peaks.min())
+        if spread > MAX_RANGE_SPREAD_BINS:
+            raise CalibrationError(
+                f"the reflector at {range_of(k):.2f} m moves: its range changed by {spread * self.bin_m * 100:.1f} cm "
+                f"over {len(zero)} frames; keep the reflector and the radar still while measuring")
+
+    def _apparent_azimuth_deg(self, elements: np.ndarray) -> float:
+        """Direction of the plane wave that best fits the azimuth row's responses, degrees."""
+        proc = self.proc
+        wx = np.linspace(-1.0, 1.0, 2001)
+        steer = np.exp(-1j * np.pi * np.outer(wx, proc.az_h))  # the DSP's azimuth FFT, continuous
+        beam = np.abs(steer @ elements[proc.az_elements])
+        return float(np.degrees(np.arcsin(wx[int(np.argmax(beam))])))
+
+
+def _rank_one_residual_deg(response: np.ndarray) -> float:
+    """RMS phase of a (3, 4) response against its best rank-one fit, degrees."""
+    u, s, vh = np.linalg.svd(response)
+    fit = s[0] * np.outer(u[:, 0], vh[0])
+    return float(np.degrees(np.sqrt(np.mean(np.angle(response * np.conj(fit)) ** 2))))
+
+
+def measure(cfg: RadarConfig, cubes, distance_m: float, window_m: float = 0.2) -> CalibrationMeasurement:
+    """The line measured from an iterable of raw cubes of a corner reflector on boresight."""
+    calibrator = ChannelCalibrator(cfg, distance_m, window_m)
+    for cube in cubes:
+        calibrator.add(cube)
+    return calibrator.result()
+
+
+__all__ = ["ALONE_MARGIN_DB", "CalibrationMeasurement", "ChannelCalibrator", "MAX_APPARENT_AZIMUTH_DEG",
+           "MAX_RANGE_SPREAD_BINS", "MAX_RANK_ONE_RESIDUAL_DEG", "MIN_SNR_DB", "measure"]

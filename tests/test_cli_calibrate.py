@@ -1,0 +1,183 @@
+"""radar-calibrate: the board's line measured from a corner reflector, on simulated boards whose
+true line is known (Board.calibration), and every bad set-up refused with its reason.
+
+The program runs as a user runs it (the console script, in a subprocess) on sim:// scenes
+written here; the library function is checked on more boards than the CLI.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import console_command
+
+from radarodom.cfg import RadarConfig, shipped_config_path
+from radarodom.driver.sim.board import Board, load_board
+from radarodom.driver.sim.scene import load_scene, scene_from_dict
+from radarodom.driver.sim.simulator import Simulator
+from radarodom.dsp.calibrate import measure
+from radarodom.errors import CalibrationError, ConfigError
+
+
+def run(*args, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-calibrate") + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def reflector(r: float, azimuth_deg: float = 0.0, *, z: float = 0.4, rcs_dbsm: float = 15.0) -> dict:
+    """A corner reflector *r* m away at *azimuth_deg* (positive right, as TI's azimuth), *z* m
+    high (the sensor is at 0.4 m)."""
+    a = math.radians(azimuth_deg)
+    return {"type": "corner_reflector", "position": [r * math.cos(a), -r * math.sin(a), z], "rcs_dbsm": rcs_dbsm}
+
+
+def scene_file(tmp_path, objects, segments=({"pause": 3.0},)) -> str:
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps({"name": "bench", "objects": list(objects),
+                                "trajectory": {"height": 0.4, "segments": list(segments)}}))
+    return str(path)
+
+
+def errors_against(measured, board: Board) -> tuple[float, float, float]:
+    """(worst gain error dB, worst phase error deg, bias error m) of a measured line against
+    the board's true one."""
+    true = board.calibration()
+    gain = float(np.abs(measured.gain_db - true.gain_db).max())
+    phase = float(np.abs((measured.phase_deg - true.phase_deg + 180.0) % 360.0 - 180.0).max())
+    return gain, phase, abs(measured.range_bias_m - true.range_bias_m)
+
+
+def random_board(seed: int) -> Board:
+    rng = np.random.default_rng(seed)
+    return Board(name=f"random{seed}", range_bias_m=float(rng.uniform(-0.05, 0.12)),
+                 tx_gain_db=tuple(rng.uniform(-1.5, 1.5, 3)), tx_phase_deg=tuple(rng.uniform(-40, 40, 3)),
+                 rx_gain_db=tuple(rng.uniform(-1.5, 1.5, 4)), rx_phase_deg=tuple(rng.uniform(-40, 40, 4)),
+                 leakage_counts=float(rng.uniform(0, 400)))
+
+
+# ------------------------------------------------------------------ it recovers the line
+@pytest.mark.parametrize("board", [load_board("uncalibrated"), random_board(1), random_board(2), Board()],
+                         ids=lambda b: b.name)
+def test_measure_recovers_the_boards_line(board):
+    """Within 5 degrees, 0.5 dB and 1 cm of the line that corrects the simulated board."""
+    cfg = RadarConfig.from_file(shipped_config_path())
+    sim = Simulator(cfg, load_scene("calibration"), seed=3, board=board)
+    result = measure(cfg, (sim.layout.decode(sim.frame(i).raw) for i in range(10)), 3.0)
+    gain, phase, bias = errors_against(result.calibration, board)
+    assert gain <= 0.5 and phase <= 5.0 and bias <= 0.01, (gain, phase, bias)
+    assert result.snr_db > 40 and result.residual_phase_deg < 1.0 and result.frames == 10
+    if board.is_ideal:  # a perfect board's line is the identity, to the noise
+        np.testing.assert_allclose(result.calibration.coefficients, 1.0, atol=0.01)
+        assert abs(result.calibration.range_bias_m) < 1e-3
+
+
+def test_cli_prints_the_line_and_writes_the_cfg(tmp_path):
+    board = load_board("uncalibrated")
+    out_cfg = tmp_path / "board.cfg"
+    proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--write-cfg", out_cfg)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("reflector at 3.06") and "SNR" in lines[0] and "residual phase" in lines[0]
+    assert any(line.strip().startswith("range bias +6.5") for line in lines)
+    assert sum(line.strip().startswith(("TX1", "TX2", "TX3")) for line in lines) == 3
+    assert lines[-1].startswith("compRangeBiasAndRxChanPhase 0.06")
+    written = RadarConfig.from_file(out_cfg)
+    gain, phase, bias = errors_against(written.channel_calibration, board)
+    assert gain <= 0.5 and phase <= 5.0 and bias <= 0.01
+    # The rest of the cfg is the source's (the shipped one), line for line.
+    shipped = RadarConfig.from_file(shipped_config_path())
+    assert [str(ln) for ln in written.lines if "compRange" not in str(ln)] == \
+        [str(ln) for ln in shipped.lines if "compRange" not in str(ln)]
+    # Never over an existing file.
+    again = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--write-cfg", out_cfg)
+    assert again.returncode == 2 and "already exists" in again.stderr
+
+
+def test_cli_json(tmp_path):
+    proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--frames", 5, "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    for key in ("range_bias_m", "coefficients", "cfg_line", "snr_db", "residual_phase_deg"):
+        assert key in data, key
+    assert len(data["coefficients"]) == 12 and all(len(pair) == 2 for pair in data["coefficients"])
+    assert data["range_bias_m"] == pytest.approx(0.065, abs=0.01) and data["frames"] == 5
+    true = load_board("uncalibrated").calibration()
+    measured = np.array([complex(*pair) for pair in data["coefficients"]]).reshape(3, 4)
+    np.testing.assert_allclose(np.angle(measured * np.conj(true.coefficients)), 0.0, atol=math.radians(5))
+
+
+def test_cli_on_a_recording(tmp_path):
+    """Any raw source: a recording of the board made with radar-sim."""
+    rec = tmp_path / "rec"
+    sim = subprocess.run(console_command("radar-sim") + ["calibration", "--board", "uncalibrated", "--duration", "1",
+                                                        "--out", str(rec), "-q"],
+                         capture_output=True, text=True, timeout=120)
+    assert sim.returncode == 0, sim.stderr
+    assert json.loads((rec / "capture.json").read_text())["source"].endswith("board=uncalibrated")
+    proc = run("--source", f"replay://{rec}?rate=max", "--distance", 3, "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["range_bias_m"] == pytest.approx(0.065, abs=0.01)
+
+
+# ------------------------------------------------------------------ bad set-ups, refused
+REFUSALS = {  # objects, the words of the refusal, more arguments
+    "too weak": ([reflector(3.0, rcs_dbsm=-25.0)], "strong enough", ()),
+    "not alone": ([reflector(3.0), reflector(3.14, -15.0)], "not alone", ("--search-window", 0.25)),
+    "second reflector at its range": ([reflector(3.0), reflector(3.0, 25.0, rcs_dbsm=0.0)], "one point", ()),
+    "off boresight": ([reflector(3.0, 14.0)], "right of boresight", ()),
+    "nothing there": ([reflector(5.0)], "strong enough", ()),
+}
+
+
+@pytest.mark.parametrize("case", list(REFUSALS))
+def test_bad_set_ups_are_refused(tmp_path, case):
+    objects, words, more = REFUSALS[case]
+    url = f"sim://{scene_file(tmp_path, objects)}?board=uncalibrated&rate=max"
+    proc = run("--source", url, "--distance", 3, "--frames", 5, *more)
+    assert proc.returncode == 1, proc.stdout
+    assert proc.stderr.startswith("radar-calibrate: error: ") and words in proc.stderr
+    assert len(proc.stderr.splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert proc.stdout == ""
+
+
+def test_moving_reflector_is_refused(tmp_path):
+    """The radar creeping toward the reflector at 0.3 m/s: refused, nothing written."""
+    url = f"sim://{scene_file(tmp_path, [reflector(3.0)], [{'straight': 2.0, 'speed': 0.3}])}?rate=max"
+    out_cfg = tmp_path / "never.cfg"
+    proc = run("--source", url, "--distance", 2.9, "--frames", 5, "--write-cfg", out_cfg)
+    assert proc.returncode == 1 and "moves" in proc.stderr and "still" in proc.stderr
+    assert not out_cfg.exists()
+
+
+def test_cfg_without_every_path_is_refused(tmp_path, shipped_cfg):
+    text = shipped_cfg.to_text().replace("channelCfg 15 7 0", "channelCfg 3 7 0")
+    path = tmp_path / "two_rx.cfg"
+    path.write_text(text)
+    proc = run("--source", "sim://calibration?rate=max", "--cfg", path, "--distance", 3)
+    assert proc.returncode == 2
+    assert f"{path}:" in proc.stderr and "channelCfg" in proc.stderr and "all four RX" in proc.stderr
+    with pytest.raises(ConfigError):
+        measure(RadarConfig.from_file(path), [], 3.0)
+
+
+def test_library_refusals_say_which_limit():
+    cfg = RadarConfig.from_file(shipped_config_path())
+    sim = Simulator(cfg, scene_from_dict({"objects": [reflector(3.0, -14.0)],
+                                          "trajectory": {"segments": [{"pause": 1.0}]}}))
+    with pytest.raises(CalibrationError, match=r"looks 1\d\.\d deg left of boresight"):
+        measure(cfg, [sim.layout.decode(sim.frame(0).raw)], 3.0)
+    with pytest.raises(CalibrationError, match="no frame"):
+        measure(cfg, [], 3.0)
+    with pytest.raises(CalibrationError, match="range bin"):
+        measure(cfg, [], 3.0, window_m=0.03)
+    with pytest.raises(CalibrationError, match="outside the range"):
+        measure(cfg, [], 12.4)
+
+
+def test_no_source_and_no_radar_says_what_to_do():
+    proc = run("--distance", 3)
+    assert proc.returncode == 2 and "no radar found" in proc.stderr and "sim://calibration" in proc.stderr

@@ -1,0 +1,129 @@
+"""radar-calibrate: measure a board's compRangeBiasAndRxChanPhase line from a corner reflector.
+
+    radar-calibrate --source URL --distance M [--search-window M] [--frames N] [--cfg FILE]
+                    [--write-cfg OUT.cfg] [--json]
+
+A corner reflector on the radar's boresight, at the antennas' height, alone, at a known
+distance; the radar and the reflector still.  Works on any raw source: the live radar, a
+recording, the simulator (``sim://calibration?board=uncalibrated`` has one at 3 m).
+"""
+
+from __future__ import annotations
+
+import os
+
+# One BLAS thread (as radar-capture: OpenBLAS threads stall when the other core is busy).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402  (after the BLAS setting)
+import json  # noqa: E402
+import logging  # noqa: E402
+import sys  # noqa: E402
+from typing import Sequence  # noqa: E402
+
+from ..cfg import RadarConfig  # noqa: E402
+from ..errors import UsageError  # noqa: E402
+from . import cli  # noqa: E402
+
+log = logging.getLogger("radarodom.tools.radar_calibrate")
+
+#: Frames averaged by default: a second at 10 Hz.
+DEFAULT_FRAMES = 10
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="radar-calibrate",
+        description="Measure the board's channel calibration (the cfg line compRangeBiasAndRxChanPhase: "
+                    "range bias and a phase and gain correction per TX/RX path) from a corner reflector "
+                    "on boresight at a known distance, as TI's measureRangeBiasAndRxChanPhase does.",
+        epilog="Set-up: one corner reflector on the radar's boresight, at the antennas' height, 1-5 m away, "
+               "nothing else within the search window; the radar and the reflector still. Try it on the "
+               "simulator: radar-calibrate --source 'sim://calibration?board=uncalibrated' --distance 3")
+    parser.add_argument("--source", metavar="URL",
+                        help="raw frame source (dca1000://, replay://, sim://, coloradar://...adc; default: the "
+                             "live radar if one is plugged in)")
+    parser.add_argument("--distance", type=cli.positive_float, required=True, metavar="M",
+                        help="the reflector's true distance from the radar, m")
+    parser.add_argument("--search-window", type=cli.positive_float, default=0.2, metavar="M",
+                        help="search the reflector within distance +/- this, m (default %(default)g; TI's "
+                             "searchWin is the whole width, twice this)")
+    parser.add_argument("--frames", type=cli.positive_int, default=DEFAULT_FRAMES, metavar="N",
+                        help="frames to average (default %(default)d)")
+    parser.add_argument("--cfg", metavar="FILE",
+                        help="radar configuration (TI .cfg); for replay:// of a capture directory it defaults "
+                             "to the directory's radar.cfg")
+    parser.add_argument("--write-cfg", metavar="OUT.cfg",
+                        help="write a copy of the cfg with the measured line in place of its own (a new file)")
+    parser.add_argument("--json", action="store_true",
+                        help="print JSON: range_bias_m, coefficients (12 [re, im] in TI's order), cfg_line, "
+                             "snr_db, residual_phase_deg, gain_db, phase_deg, ...")
+    cli.add_verbosity(parser)
+    return parser
+
+
+def _default_source() -> str:
+    from ..driver.discovery import default_cli_port, no_radar_message
+
+    port = default_cli_port()
+    if port is None:
+        raise UsageError(f"{no_radar_message()}; give --source (for instance "
+                         "'sim://calibration?board=uncalibrated' to try it on the simulator)")
+    return f"dca1000://?cli={port}"
+
+
+def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
+    from ..driver.sources import open_source
+    from ..dsp.calibrate import ChannelCalibrator
+
+    with open_source(args.source, cfg) as source:
+        if not source.carries_raw or source.config is None:
+            raise UsageError(f"{args.source} gives no raw ADC frames: the measurement needs them")
+        calibrator = ChannelCalibrator(source.config, args.distance, args.search_window)
+        skipped = 0
+        for frame in source:
+            if not frame.complete:  # zero-filled samples would pull the phases
+                skipped += 1
+                continue
+            calibrator.add(frame.cube())
+            if calibrator.frames >= args.frames:
+                break
+        if skipped:
+            log.warning("%d incomplete frame(s) skipped", skipped)
+        if calibrator.frames < args.frames:
+            log.warning("the source ended after %d whole frame(s) of the %d asked", calibrator.frames, args.frames)
+        return calibrator.result(), source.config
+
+
+def _main(args: argparse.Namespace) -> int:
+    if args.write_cfg:
+        cli.check_new_path(args.write_cfg)
+    cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
+    source = args.source or _default_source()
+    args.source = source
+    result, used_cfg = _measure(args, cfg)
+    line = result.calibration.cfg_line()
+    if args.write_cfg:
+        used_cfg.replace(result.calibration.to_command()).write(args.write_cfg)
+    if args.json:
+        json.dump(result.describe(), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    out = [f"reflector at {result.measured_range_m:.3f} m ({result.distance_m:g} m true), "
+           f"SNR {result.snr_db:.1f} dB, {result.frames} frames; "
+           f"residual phase after correction {result.residual_phase_deg:.2f} deg RMS",
+           "channel response corrected (relative to TX1 RX1):"]
+    out += ["  " + text for text in result.calibration.table()]
+    if args.write_cfg:
+        out.append(f"wrote {args.write_cfg}: the cfg with this line")
+    out.append(line)
+    print("\n".join(out))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli.run(_main, build_parser(), argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
