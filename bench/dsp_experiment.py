@@ -51,8 +51,8 @@ from radarodom.tum import TumTrajectory, quaternion_yaw  # noqa: E402
 VELOCITY_FLAGS = {"velocity_failed", "velocity_held", "velocity_from_heatmap"}
 
 
-def _cfar(method: str) -> CfarParams:
-    return CfarParams(method, guard=2, train=8, pfa=1e-5, cyclic=False)
+def _cfar(method: str, rank: int | None = None) -> CfarParams:
+    return CfarParams(method, guard=2, train=8, pfa=1e-5, cyclic=False, os_rank=rank)
 
 
 def variants(measured_line) -> dict[str, tuple[str, DspConfig, RadarConfig | None]]:
@@ -62,14 +62,19 @@ def variants(measured_line) -> dict[str, tuple[str, DspConfig, RadarConfig | Non
     exact = cfg.replace(load_board("uncalibrated").calibration().to_command())
     return {
         "before: CAGO range CFAR, one azimuth a cell, detections to 12.4 m": (
-            "ideal", dataclasses.replace(d, range_cfar=_cfar("cago"), max_azimuth_peaks=1, max_range_m=12.45), None),
-        "CAGO, one azimuth a cell (usable range 10 m)": (
-            "ideal", dataclasses.replace(d, range_cfar=_cfar("cago"), max_azimuth_peaks=1), None),
+            "ideal", dataclasses.replace(d, range_cfar=_cfar("cago"), max_azimuth_peaks=1, max_range_m=12.45,
+                                         range_skirt_db=None), None),
+        "CAGO, one azimuth a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("cago"), max_azimuth_peaks=1), None),
         "CASO, one azimuth a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("caso"), max_azimuth_peaks=1), None),
-        "OS, one azimuth a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("os"), max_azimuth_peaks=1), None),
-        "OS, up to 2 azimuths a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("os"), max_azimuth_peaks=2), None),
-        "OS, up to 3 azimuths a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("os"), max_azimuth_peaks=3), None),
-        "default": ("ideal", d, None),
+        "CASO, up to 2 azimuths a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("caso")), None),
+        "OS rank 12 of 16, one azimuth a cell": (
+            "ideal", dataclasses.replace(d, range_cfar=_cfar("os", 12), max_azimuth_peaks=1), None),
+        "OS rank 12 of 16, up to 2 azimuths a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("os", 12)), None),
+        "OS rank 10 of 16, up to 2 azimuths a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("os", 10)), None),
+        "OS median, one azimuth a cell": ("ideal", dataclasses.replace(d, max_azimuth_peaks=1), None),
+        "default: OS median, up to 2 azimuths a cell, skirts dropped": ("ideal", d, None),
+        "default, skirts kept": ("ideal", dataclasses.replace(d, range_skirt_db=None), None),
+        "default, up to 3 azimuths a cell": ("ideal", dataclasses.replace(d, max_azimuth_peaks=3), None),
         "uncalibrated board, identity line": ("uncalibrated", d, None),
         "uncalibrated board, line from radar-calibrate": ("uncalibrated", d, cfg.replace(measured_line.to_command())),
         "uncalibrated board, its exact line": ("uncalibrated", d, exact),

@@ -11,34 +11,19 @@ Conventions
 
   - ``ca``: the mean of the N training cells;
   - ``cago`` / ``caso``: the greater / smaller of the left and right training means;
-  - ``os``: the ``k``-th smallest of the N training cells (``k = os_rank``).  This is
-    the order statistic itself, not a mean-power estimate: for exponential noise of
-    mean ``mu`` its expectation is ``mu * sum_{i=0}^{k-1} 1 / (N - i)`` (about
-    ``1.30 mu`` for N = 16, k = 12), so an OS ``snr_db`` reads that much low.
+  - ``os``: the ``k``-th smallest of the N training cells (``k = os_rank``, by default
+    0.75 N rounded half up).  This is the order statistic itself, not a mean-power
+    estimate: for exponential noise of mean ``mu`` its expectation is
+    ``mu * sum_{i=0}^{k-1} 1 / (N - i)`` (about ``1.30 mu`` for N = 16, k = 12);
+    :attr:`CfarParams.noise_factor` gives that ratio for every method, so that an SNR can be
+    against the mean noise.
 
 * A cell is detected when ``power > scale * noise``.  ``scale`` (alpha, a linear power
   ratio) is either ``10 ** (threshold_db / 10)`` or derived from a false-alarm
-  probability ``pfa`` for square-law detected Gaussian noise, i.e. exponentially
-  distributed power, independent from cell to cell:
-
-  - CA (Finn & Johnson 1968; Richards, *Fundamentals of Radar Signal Processing*,
-    2nd ed., sec. 16.4): ``Pfa = (1 + alpha / N) ** -N``, so
-    ``alpha = N * (Pfa ** (-1 / N) - 1)``.
-  - CASO and CAGO, with ``n = train`` cells a side and ``T = alpha / n`` the factor on a
-    side's *sum* (Weiss 1982, "Analysis of some modified cell-averaging CFAR processors
-    in multiple-target situations", IEEE TAES 18(1); Gandhi & Kassam 1988, IEEE TAES
-    24(4); Richards sec. 16.5), exact:
-
-    ``Pfa_SO(T) = 2 (2 + T) ** -n * sum_{j=0}^{n-1} C(n - 1 + j, j) (2 + T) ** -j``
-
-    ``Pfa_GO(T) = 2 (1 + T) ** -n - Pfa_SO(T)``
-
-    (``Pfa_SO = E[exp(-T min(L, R))]`` for independent Gamma(n, 1) side sums L and R;
-    the GO form follows from ``exp(-T min) + exp(-T max) = exp(-T L) + exp(-T R)``).
-    Solved for alpha numerically (Brent's method on log Pfa).
-  - OS (Rohling 1983, "Radar CFAR thresholding in clutter and multiple target
-    situations", IEEE TAES 19(4)): ``Pfa = prod_{i=0}^{k-1} (N - i) / (N - i + alpha)``,
-    solved numerically; ``k`` defaults to ``0.75 N`` rounded half up.
+  probability ``pfa`` (:mod:`.cfar_pfa` has the formulas): for exponentially distributed
+  power independent from cell to cell, for cells that sum several channels' powers
+  (:attr:`CfarParams.channels`), and for neighbouring cells correlated by a window
+  (:attr:`CfarParams.correlation`).
 
 * Edges.  ``cyclic=True`` wraps the window around (right for Doppler, whose FFT bins
   are periodic).  ``cyclic=False`` uses, for a cell whose window runs off one end, the
@@ -48,17 +33,14 @@ Conventions
   (:attr:`CfarParams.edge_scale`) so the false-alarm rate holds there too.  With
   ``threshold_db`` the one threshold applies everywhere, as on the radar.
 
-The implementation is vectorised: cumulative sums for the cell-averaging family and
-``sliding_window_view`` + ``np.partition`` for OS; no Python loop runs over cells.  The
-sums run in float64: a cell P_max times the noise floor costs the estimates after it a
-relative error of about 1e-16 * P_max / (train * noise), negligible below ~120 dB.
+The implementation is vectorised: shifted sums for the cell-averaging family and
+``sliding_window_view`` + ``np.partition`` for OS; no Python loop runs over cells.
 
 Imports neither :mod:`radarodom.driver` nor zenoh.
 """
 
 from __future__ import annotations
 
-import functools
 import logging
 import math
 from collections.abc import Mapping
@@ -68,17 +50,13 @@ from typing import Any
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..cfg_commands import CfarCfg, CfarFovCfg
 from ..errors import ConfigError, UsageError
+from .cfar_pfa import log_pfa_go, log_pfa_os, log_pfa_so, noise_factor, solve_alpha, summed_scale
 
 log = logging.getLogger(__name__)
 
 #: CFAR methods :class:`CfarParams` accepts.
 METHODS = ("ca", "cago", "caso", "os")
-#: TI ``cfarCfg`` mode -> our method (SDK 3.x: 0 CFAR_CA, 1 CFAR_CAGO, 2 CFAR_CASO).
-TI_MODES = {0: "ca", 1: "cago", 2: "caso"}
-#: ``cfarFovCfg`` procDirection -> what its limits bound.
-FOV_DIRECTIONS = {0: "range (m)", 1: "radial velocity (m/s)"}
 
 _COMMAND = "CfarParams"
 
@@ -110,92 +88,6 @@ def _as_optional_float(value: Any, name: str) -> float | None:
     return value
 
 
-# --------------------------------------------------------------------------- Pfa(alpha)
-def _log_pfa_ca(alpha: float, n: int) -> float:
-    """log Pfa of CA-CFAR over *n* cells, threshold ``alpha * mean``."""
-    return -n * math.log1p(alpha / n)
-
-
-def _log_pfa_so(alpha: float, n: int) -> float:
-    """log Pfa of CASO with *n* cells a side, threshold ``alpha * min(side means)``."""
-    from scipy.special import gammaln, logsumexp
-
-    t = alpha / n
-    j = np.arange(n, dtype=np.float64)
-    log_terms = gammaln(n + j) - gammaln(j + 1.0) - gammaln(float(n)) - j * math.log(2.0 + t)
-    return math.log(2.0) - n * math.log(2.0 + t) + float(logsumexp(log_terms))
-
-
-def _log_pfa_go(alpha: float, n: int) -> float:
-    """log Pfa of CAGO with *n* cells a side, threshold ``alpha * max(side means)``."""
-    t = alpha / n
-    both = 2.0 * math.exp(-n * math.log1p(t))  # 2 * Pfa of CA over one side
-    so = math.exp(_log_pfa_so(alpha, n))
-    return math.log(max(both - so, 1e-300))
-
-
-def _log_pfa_os(alpha: float, n: int, k: int) -> float:
-    """log Pfa of OS-CFAR over *n* cells, threshold ``alpha * (k-th smallest)``."""
-    m = n - np.arange(k, dtype=np.float64)
-    return float(np.sum(np.log(m) - np.log(m + alpha)))
-
-
-def _log_pfa_summed(alpha: float, method: str, n: int, channels: int, k: int | None = None) -> float:
-    """log Pfa when every cell is the sum of *channels* independent exponential
-    powers (a Gamma(channels) variable), as a map summed over virtual antennas is.
-
-    CA (n cells): the cell over the training mean is F(2L, 2nL) distributed, so
-    Pfa = I_{n/(n+alpha)}(nL, L) (regularized incomplete beta).  CASO/CAGO (n cells
-    a side): Pfa = E[Q(L, alpha S / n)] over S the smaller / larger of two Gamma(nL)
-    side sums; OS (n cells, rank k): the same over the k-th smallest of n Gamma(L)
-    cells; Q is the regularized upper incomplete gamma function.  The expectations
-    are one-dimensional integrals.
-    """
-    import scipy.integrate
-    from scipy.special import betainc, gammainc, gammaincc, gammaln
-
-    L = float(channels)
-    if method == "ca":
-        return math.log(max(float(betainc(n * L, L, n / (n + alpha))), 1e-300))
-    if method in ("caso", "cago"):
-        a = n * L  # each side's sum is Gamma(nL)
-
-        def density(s):
-            pdf = np.exp((a - 1) * np.log(s) - s - gammaln(a))
-            other = gammaincc(a, s) if method == "caso" else gammainc(a, s)
-            return 2 * pdf * other
-        scale, upper = alpha / n, a + 40 * math.sqrt(a) + 40
-    else:  # os: the k-th smallest of n Gamma(L) cells
-        log_c = gammaln(n + 1) - gammaln(k) - gammaln(n - k + 1)
-
-        def density(y):
-            log_pdf = (L - 1) * np.log(y) - y - gammaln(L)
-            return np.exp(log_c + (k - 1) * np.log(gammainc(L, y)) + (n - k) * np.log(gammaincc(L, y)) + log_pdf)
-        scale, upper = alpha, L + 40 * math.sqrt(L) + 40
-    value, _ = scipy.integrate.quad(lambda s: density(s) * gammaincc(L, scale * s), 1e-12, upper,
-                                    limit=200, epsabs=0.0, epsrel=1e-9)
-    return math.log(max(value, 1e-300))
-
-
-@functools.lru_cache(maxsize=256)
-def _summed_scale(method: str, n: int, channels: int, k: int | None, pfa: float) -> float:
-    """The solved alpha for summed noise (solving takes milliseconds: cached)."""
-    return _solve_alpha(lambda a: _log_pfa_summed(a, method, n, channels, k), pfa)
-
-
-def _solve_alpha(log_pfa, pfa: float) -> float:
-    """The alpha > 0 where the decreasing function ``log_pfa(alpha)`` equals log(pfa)."""
-    from scipy.optimize import brentq
-
-    target = math.log(pfa)
-    hi = 1.0
-    while log_pfa(hi) > target:  # bracket the root: Pfa falls monotonically in alpha
-        hi *= 2.0
-        if hi > 1e300:
-            raise _fail(f"no finite scale reaches Pfa {pfa:g}", "pfa")
-    return float(brentq(lambda a: log_pfa(a) - target, 0.0, hi, xtol=1e-14, rtol=1e-13))
-
-
 # --------------------------------------------------------------------------- parameters
 @dataclass(frozen=True)
 class CfarParams:
@@ -225,6 +117,12 @@ class CfarParams:
     #: map summed over them): the noise is then Gamma(channels), far less spread,
     #: and a Pfa needs a lower scale.  The frame processor sets it.
     channels: int = 1
+    #: Correlation of the powers of cells 1, 2, ... apart along the axis (0..1 each; cells
+    #: further apart: 0).  A window before the FFT makes neighbouring cells correlated (Hann:
+    #: 0.45 one apart, 0.03 two apart), so a training window holds fewer independent cells than
+    #: it has and its noise estimate spreads more: a Pfa then needs a higher scale.  The frame
+    #: processor sets it from its windows.  Empty: independent cells.
+    correlation: tuple[float, ...] = ()
 
     _scale: float = field(init=False, repr=False, compare=False)
     _edge_scale: float = field(init=False, repr=False, compare=False)
@@ -263,6 +161,13 @@ class CfarParams:
                             "os_rank")
             set_(self, "os_rank", rank)
         set_(self, "channels", _as_int(self.channels, "channels", 1))
+        try:
+            correlation = tuple(float(c) for c in self.correlation)
+        except (TypeError, ValueError):
+            raise _fail(f"must be a list of numbers, got {self.correlation!r}", "correlation") from None
+        if not all(0.0 <= c <= 1.0 for c in correlation):
+            raise _fail(f"each must be within 0..1, got {correlation}", "correlation")
+        set_(self, "correlation", correlation)
         set_(self, "_scale", self._compute_scale(n, self.rank))
         edge = self._scale if pfa is None or self.cyclic else self._compute_scale(self.train,
                                                                                   self.edge_rank,
@@ -307,35 +212,64 @@ class CfarParams:
         :attr:`scale` with ``threshold_db`` or ``cyclic``."""
         return self._edge_scale
 
+    def effective_cells(self, m: int) -> float:
+        """Independent cells that *m* contiguous training cells are worth: m^2 over the sum of
+        their powers' correlations (the cells whose mean has the same spread), m without
+        :attr:`correlation`."""
+        c = self.correlation
+        total = m + 2.0 * sum((m - k) * c[k - 1] for k in range(1, min(m, len(c) + 1)))
+        return m * m / total
+
+    @property
+    def noise_factor(self) -> float:
+        """The noise estimate's mean over the noise's, for the noise the Pfa is designed for
+        (Gamma(channels) cells, :attr:`correlation`): 1 for CA, above 1 for CAGO and OS's upper
+        ranks, below for CASO.  An estimate over it is the mean noise power, which an SNR is
+        against."""
+        rank = None if self.method != "os" else self.rank * self.effective_cells(self.train) / self.train
+        return noise_factor(self.method, self.effective_cells(self.train), self.channels, rank)
+
     def _compute_scale(self, n: int, k: int | None, one_sided: bool = False) -> float:
         if self.threshold_db is not None:
             return 10.0 ** (self.threshold_db / 10.0)
         pfa = self.pfa
+        if self.correlation:
+            # The formulas below with the training window's independent-cell worth in place of
+            # its cell count (moment matching: exact for the cell-averaging family on a Hann
+            # window; for OS the rank scales with it, measured conservative).
+            side = self.effective_cells(self.train)
+            if one_sided or self.method in ("cago", "caso"):
+                method = self.method if not one_sided or self.method == "os" else "ca"
+                cells = side
+            else:
+                method, cells = self.method, 2.0 * side
+            rank = None if k is None else k * cells / n
+            return summed_scale(method, cells, self.channels, rank, pfa)
         if self.channels > 1:
             method = "ca" if one_sided and self.method != "os" else self.method
             side = n if method in ("ca", "os") else n // 2
-            return _summed_scale(method, side, self.channels, k, pfa)
+            return summed_scale(method, side, self.channels, k, pfa)
         if self.method == "os":
-            return _solve_alpha(lambda a: _log_pfa_os(a, n, k), pfa)
+            return solve_alpha(lambda a: log_pfa_os(a, n, k), pfa)
         if self.method == "ca" or one_sided:
             return n * (pfa ** (-1.0 / n) - 1.0)
         side = n // 2
-        fn = _log_pfa_go if self.method == "cago" else _log_pfa_so
-        return _solve_alpha(lambda a: fn(a, side), pfa)
+        fn = log_pfa_go if self.method == "cago" else log_pfa_so
+        return solve_alpha(lambda a: fn(a, side), pfa)
 
     # ------------------------------------------------------------------ (de)serialise
     def to_dict(self) -> dict[str, Any]:
         """The constructor's arguments, JSON-ready."""
         return {"method": self.method, "guard": self.guard, "train": self.train,
                 "threshold_db": self.threshold_db, "pfa": self.pfa, "cyclic": self.cyclic,
-                "os_rank": self.os_rank, "channels": self.channels}
+                "os_rank": self.os_rank, "channels": self.channels, "correlation": list(self.correlation)}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> CfarParams:
         """Inverse of :meth:`to_dict`; unknown or missing keys raise :class:`ConfigError`."""
         if not isinstance(data, Mapping):
             raise _fail(f"expected a mapping, got {type(data).__name__}")
-        known = ("method", "guard", "train", "threshold_db", "pfa", "cyclic", "os_rank", "channels")
+        known = ("method", "guard", "train", "threshold_db", "pfa", "cyclic", "os_rank", "channels", "correlation")
         unknown = sorted(set(data) - set(known))
         if unknown:
             raise _fail(f"unknown key(s) {', '.join(map(str, unknown))}; known: {', '.join(known)}")
@@ -589,104 +523,4 @@ def cfar_2d_ti(power_rd: np.ndarray, range_params: CfarParams, doppler_params: C
     return Detections(d_idx, r_idx, snr_db, noise)
 
 
-# --------------------------------------------------------------------------- TI mapping
-def params_from_ti(cfar_cfg: CfarCfg) -> CfarParams:
-    """Our detector for one of the cfg's ``cfarCfg`` lines.
-
-    ``mode`` 0/1/2 -> 'ca'/'cago'/'caso'; ``noiseWin`` -> ``train``; ``guardLen`` ->
-    ``guard``; ``cyclic`` -> ``cyclic``; ``thresholdScale`` (dB) -> ``threshold_db``.
-    ``divShift`` is not used: we divide by the exact number of training cells (TI
-    shifts by ``divShift`` bits, meant to be ceil(log2(2 noiseWin)) for CA and
-    ceil(log2(noiseWin)) for CAGO/CASO; other values are logged).  ``peakGrouping`` is
-    not part of :class:`CfarParams`: pass ``bool(cfar_cfg.peak_grouping)`` to
-    :func:`cfar_2d_ti`.  ``subFrameIdx`` is ignored (legacy frames only).
-
-    How the threshold relates (an approximation, stated honestly)
-    ------------------------------------------------------------
-    In the xWR18xx demo (SDK 3.x, DSP chain) the detection matrix holds, per cell, the
-    sum over the Nv virtual antennas of log2|X| in Q8 (``log2Abs``), shifted right by
-    ceil(log2 Nv) bits; CFAR averages those log values over the training cells
-    (``noise sum >> divShift``) and detects when ``CUT > noise + thresholdScale``, with
-    the CLI's dB converted as ``dB * 256 / 6 * Nv / 2**ceil(log2 Nv)`` (the demo's
-    ``MmwDemo_convertCfarToLinear``; TI E2E threads 623550 and 642095 explain the 256
-    (Q8), the Nv (non-coherent sum) and the 6 (dB per log2 unit)).  Per antenna that
-    is mean(log2|X_CUT|) - mean(log2|X_train|) > dB / 6, and since 20 log10|X| =
-    6.02 log2|X|: 10 log10 P_CUT - mean(10 log10 P_train) > 1.0034 dB, i.e. a **power
-    ratio of about 10^(dB/10) over the geometric mean** of the training power.  We use
-    that ratio over the **arithmetic mean** of linear power.  The two differ:
-
-    * for exponential (Rayleigh-amplitude) noise, E[ln P] = ln(mean P) - 0.5772 (the
-      Euler-Mascheroni constant), so the geometric mean is 2.5 dB below the arithmetic
-      mean.  A steady target must be about (dB - 2.5) dB above the mean noise power to
-      pass TI's test, and dB above it to pass ours: ours is ~2.5 dB stricter;
-    * TI averages logs over antennas before detecting (a different statistic), so the
-      false-alarm rate at a given dB differs too.  For a controlled false-alarm rate
-      build :class:`CfarParams` with ``pfa`` instead.
-    """
-    if not isinstance(cfar_cfg, CfarCfg):
-        raise UsageError(f"expected a CfarCfg, got {type(cfar_cfg).__name__}")
-    try:
-        method = TI_MODES[cfar_cfg.mode]
-    except KeyError:
-        raise ConfigError(f"mode {cfar_cfg.mode} is not one of 0 (CA), 1 (CAGO), 2 (CASO)",
-                          command="cfarCfg", field="mode") from None
-    cells = 2 * cfar_cfg.noise_win if method == "ca" else cfar_cfg.noise_win
-    expected_shift = math.ceil(math.log2(cells)) if cells > 1 else 0
-    if cfar_cfg.div_shift != expected_shift:
-        log.info("cfarCfg (procDirection %d): divShift %d is not ceil(log2(%d)) = %d; radarodom "
-                 "divides by the exact number of training cells and ignores it",
-                 cfar_cfg.proc_direction, cfar_cfg.div_shift, cells, expected_shift)
-    try:
-        return CfarParams(method=method, guard=cfar_cfg.guard_len, train=cfar_cfg.noise_win,
-                          threshold_db=float(cfar_cfg.threshold_db), cyclic=bool(cfar_cfg.cyclic))
-    except ConfigError as exc:
-        raise ConfigError(exc.message, command="cfarCfg", field=exc.field) from None
-
-
-def fov_mask(range_m: np.ndarray, velocity_mps: np.ndarray,
-             fov: Mapping[int, CfarFovCfg]) -> np.ndarray:
-    """Which cells or detections lie inside the cfg's ``cfarFovCfg`` limits.
-
-    Parameters
-    ----------
-    range_m
-        Range, m, any shape.
-    velocity_mps
-        Radial velocity, m/s, a shape that broadcasts with ``range_m`` (equal shapes for
-        per-detection values; ``velocity[:, None]`` and ``range[None, :]`` for a map).
-    fov
-        ``RadarConfig.cfar_fov``: procDirection 0 -> range limits in m, 1 -> Doppler
-        (radial velocity) limits in m/s; a missing direction leaves that axis unbounded.
-
-    Returns
-    -------
-    bool array of the broadcast shape: ``min <= value <= max`` on every given direction.
-    """
-    r = np.asarray(range_m, dtype=np.float64)
-    v = np.asarray(velocity_mps, dtype=np.float64)
-    try:
-        shape = np.broadcast_shapes(r.shape, v.shape)
-    except ValueError:
-        raise UsageError(f"range_m shaped {r.shape} and velocity_mps shaped {v.shape} do not "
-                         f"broadcast") from None
-    if not isinstance(fov, Mapping):
-        raise UsageError(f"fov must be a mapping procDirection -> CfarFovCfg, got {type(fov).__name__}")
-    mask = np.ones(shape, dtype=bool)
-    for direction, lim in fov.items():  # at most two entries
-        if direction not in FOV_DIRECTIONS:
-            raise ConfigError(f"procDirection {direction!r} is not 0 (range) or 1 (Doppler)",
-                              command="cfarFovCfg", field="procDirection")
-        if not isinstance(lim, CfarFovCfg):
-            raise UsageError(f"fov[{direction}] must be a CfarFovCfg, got {type(lim).__name__}")
-        if lim.proc_direction != direction:
-            raise ConfigError(f"keyed as {direction} but its procDirection is {lim.proc_direction}",
-                              command="cfarFovCfg", field="procDirection")
-        if lim.min_value > lim.max_value:
-            raise ConfigError(f"min {lim.min_value:g} is above max {lim.max_value:g}",
-                              command="cfarFovCfg", field="min (meters or m/s)")
-        values = r if direction == 0 else v
-        mask &= (values >= lim.min_value) & (values <= lim.max_value)
-    return mask
-
-
-__all__ = ["METHODS", "CfarParams", "Detections", "cfar_1d", "cfar_2d_ti", "fov_mask", "params_from_ti"]
+__all__ = ["METHODS", "CfarParams", "Detections", "cfar_1d", "cfar_2d_ti", "check_map"]

@@ -126,4 +126,24 @@ def cfar_peaks(power_rd: np.ndarray, range_params: CfarParams, doppler_params: C
     return Detections(d_idx, r_idx, snr_db, noise_r)
 
 
-__all__ = ["cfar_peaks", "local_maxima"]
+def above_skirts(power_rd: np.ndarray, det: Detections, below_db: float, span: int) -> np.ndarray:
+    """bool (len(det),): detections that are not more than *below_db* weaker than another
+    detection within *span* range bins in their Doppler row.
+
+    A strong target's range spectrum has a skirt: the window's sidelobes (a Hann window's are
+    31 dB down at 2.5 bins and fall 18 dB an octave) lifted by its range migration over the
+    frame; an ordered-statistic or smallest-of CFAR, which looks past the strong target, can
+    find a peak of that skirt.  A reflector that much weaker that close is below the range
+    spectrum's dynamic range anyway.
+    """
+    n = len(det)
+    if n < 2:
+        return np.ones(n, bool)
+    value = power_rd[det.doppler_idx, det.range_idx].astype(np.float64)
+    near = (det.doppler_idx[:, None] == det.doppler_idx[None, :]) & \
+        (np.abs(det.range_idx[:, None] - det.range_idx[None, :]) <= span)
+    strongest = np.where(near, value[None, :], 0.0).max(axis=1)
+    return value * 10 ** (below_db / 10) >= strongest
+
+
+__all__ = ["above_skirts", "cfar_peaks", "local_maxima"]

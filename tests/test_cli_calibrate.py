@@ -110,17 +110,42 @@ def test_cli_json(tmp_path):
     np.testing.assert_allclose(np.angle(measured * np.conj(true.coefficients)), 0.0, atol=math.radians(5))
 
 
-def test_cli_on_a_recording(tmp_path):
-    """Any raw source: a recording of the board made with radar-sim."""
+def _points_csv(path) -> np.ndarray:
+    """radar-capture --points-out's rows: columns frame,t,x,y,z,range,azimuth,elevation,velocity,snr_db."""
+    return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def test_measure_then_use_the_line_on_a_recording(tmp_path):
+    """The user's round trip on a recording of the uncalibrated board (radar-sim): measure the
+    line, write the cfg, replay the recording with it: the boresight reflector at 3 m comes out
+    at 3 m, azimuth and elevation 0, and the raised one (6.0 m ahead, 0.6 m up) at its elevation;
+    replayed with its own identity line, the elevations are wrong."""
     rec = tmp_path / "rec"
     sim = subprocess.run(console_command("radar-sim") + ["calibration", "--board", "uncalibrated", "--duration", "1",
                                                         "--out", str(rec), "-q"],
                          capture_output=True, text=True, timeout=120)
     assert sim.returncode == 0, sim.stderr
     assert json.loads((rec / "capture.json").read_text())["source"].endswith("board=uncalibrated")
-    proc = run("--source", f"replay://{rec}?rate=max", "--distance", 3, "--json")
+    board_cfg = tmp_path / "board.cfg"
+    proc = run("--source", f"replay://{rec}?rate=max", "--distance", 3, "--write-cfg", board_cfg)
     assert proc.returncode == 0, proc.stderr
-    assert json.loads(proc.stdout)["range_bias_m"] == pytest.approx(0.065, abs=0.01)
+    rows = {}
+    for name, cfg in (("with", board_cfg), ("without", rec / "radar.cfg")):
+        out = tmp_path / f"{name}.csv"
+        capture = subprocess.run(console_command("radar-capture") + [
+            "--source", f"replay://{rec}?rate=max", "--cfg", str(cfg), "--no-odom", "--no-publish", "-q",
+            "--points-out", str(out)], capture_output=True, text=True, timeout=120)
+        assert capture.returncode == 0, capture.stderr
+        rows[name] = _points_csv(out)
+    for name, expect_ok in (("with", True), ("without", False)):
+        pts = rows[name]
+        boresight = pts[np.abs(pts[:, 5] - 3.0) < 0.1]
+        raised = pts[np.abs(pts[:, 5] - math.hypot(6.0, 0.5, 0.6)) < 0.1]
+        assert len(boresight) and len(raised)
+        ok = (np.all(np.abs(boresight[:, 5] - 3.0) <= 0.025) and np.all(np.abs(np.degrees(boresight[:, 6])) < 1.0)
+              and np.all(np.abs(np.degrees(boresight[:, 7])) < 1.0)
+              and np.all(np.abs(np.degrees(raised[:, 7]) - math.degrees(math.asin(0.6 / math.hypot(6.0, 0.5, 0.6)))) < 1.5))
+        assert ok == expect_ok, (name, boresight[:, 5:8], raised[:, 5:8])
 
 
 # ------------------------------------------------------------------ bad set-ups, refused

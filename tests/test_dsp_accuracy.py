@@ -47,7 +47,7 @@ from radarodom.driver.sim.simulator import Simulator
 from radarodom.dsp.cfar import CfarParams, cfar_2d_ti
 from radarodom.dsp.config import DspConfig
 from radarodom.dsp.heatmap import CartesianGrid, HeatmapMaker
-from radarodom.dsp.processor import POINT_DTYPE, FrameProcessor, make_window, three_bin_response
+from radarodom.dsp.processor import POINT_DTYPE, FrameProcessor, make_window, three_bin_response, window_correlation
 from radarodom.errors import ConfigError
 
 STILL = [{"pause": 3.0}]
@@ -663,8 +663,12 @@ def test_ti_like_takes_detection_settings_from_shipped_cfg(shipped_cfg):
     assert p.clutter_removal is False
     assert p.second_peak_threshold is None
     assert p.velocity_disambiguation is False
-    # Without ti_like the defaults stay.
-    assert FrameProcessor(shipped_cfg).params.range_cfar == dataclasses.replace(DspConfig().range_cfar, channels=12)
+    # Without ti_like the defaults stay, with the Hann window's correlation between neighbouring
+    # cells (what their Pfa's scale depends on).
+    plain = FrameProcessor(shipped_cfg)
+    assert plain.params.range_cfar == dataclasses.replace(
+        DspConfig().range_cfar, channels=12, correlation=window_correlation(plain.w_range, plain.n_range, 8))
+    assert plain.params.range_cfar.correlation[0] == pytest.approx(4 / 9, abs=0.01)
 
 
 def test_ti_like_threshold_and_fov(shipped_cfg):

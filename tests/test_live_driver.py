@@ -126,6 +126,9 @@ def test_clean_run_delivers_the_source_frames_in_order_on_the_frame_grid(small_c
     assert during["fpga"] == "2.8 [Record]"
     assert during["rcvbuf_bytes"] >= 2 * small_cfg.frame_bytes
     assert not [m for m in warning_messages(warnings_log) if "rmem_max" in m]
+    # The small cfg has no compRangeBiasAndRxChanPhase line: a real board's live stream says so, once.
+    uncalibrated = [m for m in warning_messages(warnings_log) if "compRangeBiasAndRxChanPhase is missing" in m]
+    assert len(uncalibrated) == 1 and "radar-calibrate" in uncalibrated[0], warning_messages(warnings_log)
 
 
 def test_start_order_record_before_sensor_start_and_stop_in_reverse(small_capture, small_cfg):
