@@ -40,7 +40,7 @@ import numpy as np
 from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ..calibration import ChannelCalibration
 from ..cfg import RadarConfig
-from ..errors import CalibrationError, ConfigError
+from ..errors import CalibrationError, ConfigError, UsageError
 from .config import DspConfig
 from .processor import FrameProcessor, three_bin_response
 
@@ -107,9 +107,9 @@ class ChannelCalibrator:
 
     def __init__(self, cfg: RadarConfig, distance_m: float, window_m: float = 0.2) -> None:
         if not (math.isfinite(distance_m) and distance_m > 0):
-            raise CalibrationError(f"the reflector's distance must be a positive number of metres, got {distance_m!r}")
+            raise UsageError(f"the reflector's distance must be a positive number of metres, got {distance_m!r}")
         if not (math.isfinite(window_m) and window_m > 0):
-            raise CalibrationError(f"the search window must be a positive number of metres, got {window_m!r}")
+            raise UsageError(f"the search window must be a positive number of metres, got {window_m!r}")
         if sorted(cfg.tx_order) != [1, 2, 3] or cfg.num_rx != NUM_RX_ANTENNAS:
             line = cfg.line_of("channelCfg")
             raise ConfigError(
@@ -127,11 +127,11 @@ class ChannelCalibrator:
         lo, hi = self.distance_m - self.window_m, self.distance_m + self.window_m
         bins = np.flatnonzero((self.proc.range_m >= lo) & (self.proc.range_m <= hi))
         if hi > self.proc.range_m[-1] or lo < self.proc.params.min_range_m:
-            raise CalibrationError(f"{lo:.2f} m to {hi:.2f} m is outside the range this cfg measures "
+            raise UsageError(f"{lo:.2f} m to {hi:.2f} m is outside the range this cfg measures "
                                    f"({self.proc.params.min_range_m:g} m to {self.proc.range_m[-1]:.2f} m): "
                                    "place the reflector within it")
         if len(bins) < 3:
-            raise CalibrationError(f"the search window +/- {self.window_m:g} m holds {len(bins)} range bin(s) of "
+            raise UsageError(f"the search window +/- {self.window_m:g} m holds {len(bins)} range bin(s) of "
                                    f"{step * 100:.1f} cm: widen it to at least {1.5 * step:.2f} m")
         # One bin more either side, to tell a peak at the window's edge from a slope.
         self._bins = np.arange(max(bins[0] - 1, 0), min(bins[-1] + 2, self.proc.n_range))

@@ -20,7 +20,7 @@ from radarodom.driver.sim.board import Board, load_board
 from radarodom.driver.sim.scene import load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.dsp.calibrate import measure
-from radarodom.errors import CalibrationError, ConfigError
+from radarodom.errors import CalibrationError, ConfigError, UsageError
 
 
 def run(*args, timeout: float = 120) -> subprocess.CompletedProcess:
@@ -197,10 +197,12 @@ def test_library_refusals_say_which_limit():
         measure(cfg, [sim.layout.decode(sim.frame(0).raw)], 3.0)
     with pytest.raises(CalibrationError, match="no frame"):
         measure(cfg, [], 3.0)
-    with pytest.raises(CalibrationError, match="range bin"):
+    with pytest.raises(UsageError, match="range bin"):  # arguments that cannot work: exit 2
         measure(cfg, [], 3.0, window_m=0.03)
-    with pytest.raises(CalibrationError, match="outside the range"):
+    with pytest.raises(UsageError, match="outside the range"):
         measure(cfg, [], 12.4)
+    proc = run("--source", "sim://calibration?rate=max", "--distance", 3, "--search-window", 0.01)
+    assert proc.returncode == 2 and "widen it" in proc.stderr
 
 
 def test_no_source_and_no_radar_says_what_to_do():

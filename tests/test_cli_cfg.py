@@ -249,3 +249,25 @@ def test_help_exits_0():
     assert proc.stdout.startswith("usage: radar-cfg")
     assert "--json" in proc.stdout and "--verbose" in proc.stdout
     assert proc.stderr == ""
+
+
+def test_a_boards_line_is_shown_and_not_warned_about(tmp_path, shipped_cfg):
+    """A cfg carrying a board's compRangeBiasAndRxChanPhase: the range bias and each path's gain
+    and phase relative to TX1 RX1, as the line corrects them; no warning."""
+    from radarodom.driver.sim.board import load_board
+
+    board = load_board("uncalibrated")
+    path = tmp_path / "board.cfg"
+    shipped_cfg.replace(board.calibration().to_command()).write(path)
+    proc = run_cfg(path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    lines = proc.stdout.splitlines()
+    at = next(i for i, line in enumerate(lines) if "channel calibration" in line)
+    assert lines[at + 1].strip() == "range bias +6.50 cm"
+    rows = {line.split()[0]: line for line in lines[at + 2:at + 5]}
+    assert set(rows) == {"TX1", "TX2", "TX3"}
+    # TX2 RX3: the board's -0.8 - 1.0 dB and 28 + 22 degrees.
+    assert "RX3 -1.80 dB   +50.0 deg" in rows["TX2"], rows["TX2"]
+    data = json.loads(run_cfg(path, "--json").stdout)["calibration"]
+    assert data["identity"] is False and data["range_bias_m"] == pytest.approx(0.065)
+    assert data["gain_db"][6] == pytest.approx(-1.8, abs=0.01) and data["phase_deg"][6] == pytest.approx(50.0, abs=0.1)
