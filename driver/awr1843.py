@@ -17,7 +17,8 @@ import serial
 
 from ..cfg import RadarConfig
 from ..errors import DeviceError, DeviceTimeout, RadarCommandError
-from .awr1843_protocol import CLI_BAUDRATE, Outcome, Reply, ReplyFramer, classify, split_lines
+from .awr1843_protocol import (CLI_BAUDRATE, REPEATABLE, Outcome, Reply, ReplyFramer, classify,
+                               is_boot_banner, split_lines)
 
 log = logging.getLogger(__name__)
 
@@ -84,12 +85,20 @@ class Awr1843Cli:
         try:
             self._port.write((command + "\n").encode("ascii", errors="replace"))
             deadline = time.monotonic() + timeout_s
+            resent = command not in REPEATABLE
             while True:
                 for text in self._framer.feed(self._port.read(self._port.in_waiting or 1)):
                     if _belongs_to(text, command):
                         reply = classify(text, command)
                         log.debug("%s -> %s %s", command, reply.outcome.value, reply.text)
                         return reply
+                    if is_boot_banner(text) and not resent:
+                        # A radar that was booting (a reset moments ago) dropped the command; a
+                        # stale banner in front of the echo instead gets the command answered twice.
+                        log.info("the radar on %s has just booted; sending %r again", self.url, command)
+                        self._port.write((command + "\n").encode("ascii", errors="replace"))
+                        deadline, resent = time.monotonic() + timeout_s, True
+                        continue
                     log.debug("unsolicited text from the radar: %r", text[:200])
                 if time.monotonic() > deadline:
                     heard = " ".join(split_lines(self._framer.pending.decode("ascii", "replace")))[:200]

@@ -34,6 +34,11 @@ FIRMWARE_EOL = "\n\r"
 CLI_BAUDRATE = 115200
 
 _ERROR = re.compile(r"^Error\s+(-?\d+)\s*$")
+#: Commands that change nothing when sent twice, so one a booting radar may have lost can be
+#: sent again (a configuration line cannot: "chirp 0 is already defined").
+REPEATABLE = frozenset({"sensorStop", "flushCfg", "version", "queryDemoStatus"})
+#: The line the demo prints at boot, between rows of asterisks ("xWR18xx MMW Demo 03.05.00.04").
+_BANNER = re.compile(r"^xWR\d\dxx MMW Demo\b")
 
 
 class Outcome(enum.Enum):
@@ -88,6 +93,12 @@ class ReplyFramer:
 
     def clear(self) -> None:
         self._buffer.clear()
+
+
+def is_boot_banner(text: str) -> bool:
+    """True when *text* (the bytes before a prompt) is the banner a radar prints
+    as it boots, unasked: whatever it was sent before was lost."""
+    return any(_BANNER.match(ln) for ln in split_lines(text))
 
 
 def split_lines(text: str) -> list[str]:

@@ -51,6 +51,28 @@ WANTED_RCVBUF = 64 * 1024 * 1024
 DRAIN_S = 0.5
 
 
+def bind_problem(exc: OSError, ip: str, port: int, what: str) -> str:
+    """One line saying why binding *what* to ip:port failed, and the fix."""
+    import errno
+
+    base = f"cannot {what} on {ip}:{port}: {exc.strerror or exc}"
+    if exc.errno == errno.EADDRNOTAVAIL:
+        names = [name for _, name in socket.if_nameindex() if name != "lo"] if hasattr(socket, "if_nameindex") else []
+        iface = names[0] if len(names) == 1 else "IFACE"
+        listed = f" (interfaces here: {', '.join(names)})" if names else ""
+        return (f"{base}. This computer has no address {ip}: give it to the network interface the DCA1000 "
+                f"is plugged into{listed}, e.g. 'sudo ip addr add {ip}/24 dev {iface}', or to keep it, "
+                f"'sudo nmcli con add type ethernet ifname {iface} con-name dca1000 ipv4.method manual "
+                f"ipv4.addresses {ip}/24 && sudo nmcli con up dca1000'; or give this host's address with "
+                f"?host= in the dca1000:// URL")
+    if exc.errno == errno.EADDRINUSE:
+        return (f"{base}. Another program holds that port (TI's DCA1000 CLI, mmWave Studio, another "
+                f"radar-capture?): stop it ('sudo ss -ulpn sport = :{port}' shows which)")
+    if exc.errno == errno.EACCES:
+        return f"{base}. Ports below 1024 need root: use the board's default ports (4096, 4098)"
+    return f"{base}. Does this host have the address {ip} (ip addr), and is no other capture program running?"
+
+
 @dataclass
 class Dca1000Settings:
     """Where the board and the host are (defaults: UG Table 11)."""
@@ -68,6 +90,9 @@ class Dca1000Settings:
     #: Seconds to wait for one command's response, and how many tries.
     timeout_s: float = 1.0
     retries: int = 3
+    #: Seconds to wait after RECORD_STOP for RECORD_COMPLETED and the last frame's held-back
+    #: packet (the real board sent both 2.0 s after the last data: pcaps).
+    stop_timeout_s: float = 3.0
 
 
 @dataclass
@@ -100,9 +125,7 @@ class Dca1000Client:
             sock.bind((s.host_ip, s.config_port))
         except OSError as exc:
             sock.close()
-            raise DeviceError(f"cannot use {s.host_ip}:{s.config_port} for the DCA1000's config port: "
-                              f"{exc.strerror or exc}. Does this host have the address {s.host_ip} "
-                              f"(ip addr), and is no other capture program running?") from None
+            raise DeviceError(bind_problem(exc, s.host_ip, s.config_port, "talk to the DCA1000's config port")) from None
         self._sock = sock
         return self
 
@@ -142,14 +165,15 @@ class Dca1000Client:
             f"{s.retries} tries of {s.timeout_s:g} s: is it powered (and switched to Ethernet), its cable "
             f"plugged in, and does this host have the address {s.host_ip}?")
 
-    def _await(self, command: Command | None, timeout: float) -> Response | None:
+    def _await(self, command: Command | None, timeout: float, *, wait: bool = False) -> Response | None:
         """The response to *command* within *timeout* s, handling asynchronous
         status messages on the way; with *command* None, read only what is
-        waiting (non-blocking) and return None."""
+        waiting (non-blocking; up to *timeout* s for the first datagram when *wait*) and
+        return None."""
         deadline = time.monotonic() + timeout
         while True:
             left = deadline - time.monotonic()
-            if left <= 0 and command is not None:
+            if left <= 0 and (command is not None or wait):
                 return None
             self._sock.settimeout(max(left, 0.0))  # 0: non-blocking, to drain
             try:
@@ -181,6 +205,20 @@ class Dca1000Client:
         """Read the status messages waiting on the config port (non-blocking)."""
         if self._sock is not None:
             self._await(None, 0.0)
+
+    def await_async(self, bit: AsyncStatus, timeout: float) -> bool:
+        """Wait up to *timeout* s for a status message with *bit* (one not seen before this
+        call); True when it came."""
+        if self._sock is None:
+            return False
+        seen = self.async_status.counts.get(bit.name, 0)
+        deadline = time.monotonic() + timeout
+        while self.async_status.counts.get(bit.name, 0) == seen:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            self._await(None, min(left, 0.05), wait=True)
+        return True
 
     def connect(self) -> None:
         self.command(Command.SYSTEM_CONNECT)
@@ -258,7 +296,7 @@ class Dca1000Receiver:
     """Receives the data port in a thread and assembles frames into a ring."""
 
     def __init__(self, settings: Dca1000Settings, frame_bytes: int, ring: FrameRing, *,
-                 reorder_bytes: int | None = None, idle_flush_s: float = 0.5) -> None:
+                 reorder_bytes: int | None = None) -> None:
         self.settings = settings
         self.frame_bytes = frame_bytes
         self.ring = ring
@@ -272,7 +310,6 @@ class Dca1000Receiver:
         #: time.monotonic() of the last packet from the board (0: none yet).
         self.last_packet_monotonic = 0.0
         self.stats = ReceiverStats()
-        self.idle_flush_s = idle_flush_s
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
@@ -287,8 +324,7 @@ class Dca1000Receiver:
             sock.bind((s.host_ip, s.data_port))
         except OSError as exc:
             sock.close()
-            raise DeviceError(f"cannot receive DCA1000 data on {s.host_ip}:{s.data_port}: "
-                              f"{exc.strerror or exc}") from None
+            raise DeviceError(bind_problem(exc, s.host_ip, s.data_port, "receive DCA1000 data")) from None
         granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
         self.stats.rcvbuf_bytes = granted
         if granted < 2 * self.frame_bytes:
@@ -326,18 +362,21 @@ class Dca1000Receiver:
         self._thread = threading.Thread(target=self._run, name="dca1000-receiver", daemon=True)
         self._thread.start()
 
-    def stop(self) -> None:
-        """Stop receiving (after the datagrams already queued), hand on the frames still open,
-        and close the ring."""
+    def stop(self, *, hand_on: bool = True) -> None:
+        """Stop receiving (after the datagrams already queued), hand on the frames still open
+        (or, without *hand_on*, drop them uncounted: nobody will take them), and close the ring."""
         self._running.clear()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
-        self.assembler.expire()
+        if hand_on:
+            self.assembler.expire()
+        else:
+            self.assembler.discard()
         self.ring.close()
 
     def close(self) -> None:
-        self.stop()
+        self.stop(hand_on=False)
         if self._sock is not None:
             self._sock.close()
             self._sock = None
@@ -356,7 +395,6 @@ class Dca1000Receiver:
         st = self.stats
         asm = self.assembler
         header = DATA_HEADER
-        last_packet = time.monotonic()
         gaps = self.gaps
         draining = False
         try:
@@ -373,13 +411,14 @@ class Dca1000Receiver:
                 try:
                     n, addr = sock.recvfrom_into(buf)
                 except socket.timeout:
-                    if asm.open_frames and time.monotonic() - last_packet > self.idle_flush_s:
-                        asm.expire()  # the stream paused: hand on what we have
+                    # No frame is given up for a pause: the board holds a frame's last short
+                    # packet until the next frame's bytes fill it, or until the recording stops
+                    # (pcaps: 2 s later, with RECORD_COMPLETED).  stop() hands on what is open.
                     continue
                 except (BlockingIOError, InterruptedError):
                     break  # drained
                 now = time.time()
-                last_packet = self.last_packet_monotonic = time.monotonic()
+                self.last_packet_monotonic = time.monotonic()
                 if addr[0] != board:
                     st.foreign_packets += 1
                     continue

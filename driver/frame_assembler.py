@@ -7,7 +7,11 @@ each packet's bytes there, splitting packets that straddle a frame boundary.
 Frame alignment therefore cannot be lost, whatever is lost, duplicated,
 reordered or truncated on the way:
 
-- a gap stays zero and is counted in the frame's ``missing_bytes``;
+- a gap stays zero and is counted in the frame's ``missing_bytes``, and attributed: bytes
+  before the newest byte received were sent (a later byte came) and lost on the way
+  (:attr:`AssemblyStats.lost_bytes`: lost, malformed or truncated packets); bytes from it
+  on never came before the frame was handed on (:attr:`AssemblyStats.cut_bytes`: the stream
+  stopped, or paused, before them);
 - bytes already received (a duplicate) are not counted twice;
 - a packet for a frame already handed on is too late: dropped and counted;
 - frames are handed on in order: a frame is complete when all its bytes are
@@ -53,9 +57,16 @@ class AssemblyStats:
     implausible_packets: int = 0
     frames_complete: int = 0
     frames_incomplete: int = 0
+    #: Bytes missing from frames handed on incomplete: lost_bytes + cut_bytes.
     missing_bytes: int = 0
+    #: Missing bytes that the stream had already passed (a later byte arrived): lost in transit.
+    lost_bytes: int = 0
+    #: Missing bytes the stream had not reached when their frame was handed on: cut at stop.
+    cut_bytes: int = 0
     #: Frames the ring had no buffer for (consumer too slow, policy ``queue``).
     frames_dropped: int = 0
+    #: Frames still open when the stream was closed with nobody to take them.
+    frames_discarded: int = 0
 
 
 @dataclass
@@ -189,6 +200,11 @@ class FrameAssembler:
         if missing:
             st.frames_incomplete += 1
             st.missing_bytes += missing
+            # Every byte below the newest one received is, or was, before it in the stream.
+            end = (frame.index + 1) * self.frame_bytes
+            cut = max(0, end - max(self._newest_end, frame.index * self.frame_bytes))
+            st.cut_bytes += cut
+            st.lost_bytes += missing - cut
         else:
             st.frames_complete += 1
         self.on_frame(RingFrame(frame.slot, frame.index, self.ring.buffer(frame.slot), missing,
@@ -198,6 +214,15 @@ class FrameAssembler:
         """Hand on every frame still open (the stream paused or stopped)."""
         if self._open:
             self._give_up_before(max(self._open) + 1)
+
+    def discard(self) -> None:
+        """Drop every frame still open, uncounted (nobody will take them: the consumer left);
+        their buffers go back to the ring."""
+        for frame in self._open.values():
+            if frame.slot is not None:
+                self.ring.discard(frame.slot)
+        self.stats.frames_discarded += len(self._open)
+        self._open.clear()
 
     @property
     def open_frames(self) -> int:

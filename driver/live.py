@@ -9,12 +9,19 @@ URL; default found automatically), ``config_port`` / ``data_port`` (host ports,
 ``policy`` (``latest`` or ``queue``: which frames to drop when the consumer
 is slower than the radar), ``buffers`` (frames in the ring, 8), ``timeout``
 (seconds per board command, 1), ``start_timeout`` (seconds for sensorStart, 5) and
-``cli_timeout`` (seconds per radar CLI command, 2).
+``cli_timeout`` (seconds per radar CLI command, 2) and ``stop_timeout`` (seconds to wait
+for the board's RECORD_COMPLETED after RECORD_STOP, 3).
 
 Start order (TI's CLI and xwr do the same): open and flush the data socket,
 configure the board, RECORD_START, configure the radar, sensorStart; stop in
 reverse.  ``sensorStop`` is sent on every exit, errors and Ctrl-C included.
 A hung sensorStart is answered with the DCA1000's RESET_AR_DEV.
+
+Asked to stop (:meth:`Source.stop`), the source stops the radar and the recording, waits for
+the board's RECORD_COMPLETED (the board holds the last frame's short packet until then), and
+delivers the frames still in flight before it ends: nothing the board sent is left behind.
+A frame is not given up for a pause in the stream (its last packet waits for the next
+frame's bytes on the real board); lost packets are known from the stream's later bytes.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ from ..errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
+from .dca1000_wire import AsyncStatus
 from .frame_ring import POLICIES, FrameRing
 from .sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
 
@@ -72,14 +80,15 @@ class LiveSource(Source):
         self.layout = RawLayout.from_config(config)
         self.ring = FrameRing(config.frame_bytes, buffers, policy)
         self.board = Dca1000Client(settings)
-        self.receiver = Dca1000Receiver(settings, config.frame_bytes, self.ring,
-                                        idle_flush_s=max(0.5, 2 * config.frame_period_s))
+        self.receiver = Dca1000Receiver(settings, config.frame_bytes, self.ring)
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.clock = FrameClock(config.frame_period_s)
         #: Seconds without any data packet before the stream is declared dead.
         self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
         self.fpga_version = None
         self._recording = False
+        self._record_stopped = False
+        self._radar_stopped = False
         self._closed = False
         try:
             self._prepare()
@@ -141,12 +150,42 @@ class LiveSource(Source):
                     self._check_data_flows(now, started)
                     continue
                 held = frame.slot
-                yield Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
-                            raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
-                            ready_monotonic=frame.done_monotonic)
+                yield self._frame(frame)
+            # Asked to stop: what the board has already sent is the consumer's too.
+            if held is not None:
+                self.ring.release(held)
+                held = None
+            self._finish()
+            while (frame := self.ring.get(timeout=0)) is not None:
+                held = frame.slot
+                yield self._frame(frame)
+                self.ring.release(held)
+                held = None
         finally:
             if held is not None:
                 self.ring.release(held)
+
+    def _frame(self, frame) -> Frame:
+        return Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
+                     raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
+                     ready_monotonic=frame.done_monotonic)
+
+    def _finish(self) -> None:
+        """Stop as the boards want it, and take in what they still send: the radar ends its
+        frame and stops; the board, told to stop recording, sends the last frame's short packet
+        it held back and then RECORD_COMPLETED (pcaps: 2 s later), waited for up to
+        Dca1000Settings.stop_timeout_s; then the receiver hands on every frame still open."""
+        for step in (self._stop_radar, self._stop_recording):
+            try:
+                step()
+            except RadarodomError as exc:
+                log.warning("while stopping: %s", exc)
+        if self._record_stopped:
+            done = self.board.await_async(AsyncStatus.RECORD_COMPLETED, self.settings.stop_timeout_s)
+            if not done:
+                log.warning("the DCA1000 did not report RECORD_COMPLETED within %g s of RECORD_STOP: "
+                            "frames still open are handed on as they are", self.settings.stop_timeout_s)
+        self.receiver.stop()
 
     def _check_data_flows(self, now: float, started: float) -> None:
         last = self.receiver.last_packet_monotonic or started
@@ -159,12 +198,16 @@ class LiveSource(Source):
                                 f"(frame period {self.config.frame_period_s:g} s).{hint}")
 
     def describe(self) -> dict:
+        """The live stream's accounting: packets (received, lost: sequence gaps, foreign,
+        malformed, duplicate, late), frames (complete, incomplete, dropped by a slow consumer)
+        and missing bytes (lost in transit + cut at stop), the board's status messages."""
         r, a = self.receiver.stats, self.receiver.assembler.stats
         return {
             "url": self.url, "fpga": str(self.fpga_version), "packets": r.packets,
             "foreign_packets": r.foreign_packets, "malformed_packets": r.malformed_packets,
             "seq_gaps": self.receiver.gaps.lost, "duplicate_packets": a.duplicate_packets, "late_packets": a.late_packets,
-            "missing_bytes": a.missing_bytes, "frames_incomplete": a.frames_incomplete,
+            "missing_bytes": a.missing_bytes, "lost_bytes": a.lost_bytes, "cut_bytes": a.cut_bytes,
+            "frames_complete": a.frames_complete, "frames_incomplete": a.frames_incomplete,
             "frames_dropped": self.ring.dropped_frames, "async_status": dict(self.board.async_status.counts),
             "rcvbuf_bytes": r.rcvbuf_bytes,
         }
@@ -186,8 +229,9 @@ class LiveSource(Source):
             log.debug("%d step(s) failed while stopping", len(failures))
 
     def _stop_radar(self) -> None:
-        if not self.radar.is_open:
+        if not self.radar.is_open or self._radar_stopped:
             return
+        self._radar_stopped = True
         try:
             self.radar.stop()
         except DeviceTimeout:
@@ -199,6 +243,7 @@ class LiveSource(Source):
         if self._recording:
             self._recording = False
             self.board.stop_recording()
+            self._record_stopped = True
 
 
 def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> LiveSource:
@@ -215,6 +260,8 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")
     start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
+    stop_timeout = options.take("stop_timeout", positive_number, defaults.stop_timeout_s,
+                                "seconds to wait for RECORD_COMPLETED after RECORD_STOP")
     options.finish()
     if cli is None:
         from .discovery import default_cli_port  # pyusb and sysfs only when needed
@@ -224,7 +271,8 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
             raise SourceError(f"{options.url}: no AWR1843 CLI port found; give it with cli=/dev/ttyACM0 "
                               f"(radar-devices lists what is connected)")
     settings = Dca1000Settings(host_ip=host, board_ip=board, config_port=config_port, board_port=board_port,
-                               data_port=data_port, packet_delay_us=delay, timeout_s=timeout)
+                               data_port=data_port, packet_delay_us=delay, timeout_s=timeout,
+                               stop_timeout_s=stop_timeout)
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout,
                       cli_timeout_s=cli_timeout)

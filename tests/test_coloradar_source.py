@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from conftest import console_command
 from coloradar_synth import TX_POSITIONS, write_moving_run, write_run, write_run_from_capture
-from test_cli_capture import one_error_line, run_capture_cli
+from test_cli_capture import one_error_line
 
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.coloradar import ColoRadarRun, WaveformConfig

@@ -113,6 +113,14 @@ def start_recording(client, board) -> None:
     assert command(client, board, Command.RECORD_START) == ok(0x05)
 
 
+def stop_and_collect(client, board, receiver, quiet: float = 0.25) -> list:
+    """RECORD_STOP, then every datagram until RECORD_COMPLETED: the board sends the short
+    packet it held back just before it (as the real capture shows)."""
+    assert command(client, board, Command.RECORD_STOP) == ok(0x06)
+    assert client.recvfrom(64)[0] == bytes.fromhex("5aa50a000001aaee")
+    return collect(receiver, quiet=quiet)
+
+
 def collect(sock, quiet: float = 0.25, timeout: float = 10.0, stamp: bool = False):
     """Datagrams until *quiet* s pass without one: [(payload, addr[, monotonic])]."""
     out = []
@@ -201,19 +209,27 @@ def test_one_frame_session_equals_the_real_capture(client, receiver, make_board,
     frame = b"".join(DataPacket.parse(p).data for p in data)
     assert len(frame) == 16384
     board = make_board(frames=lambda: iter([frame]), loop=False, rate="max",
-                       record_completed_delay_s=0.02, faults=Faults(burst_flush=burst_flush))
+                       record_completed_delay_s=0.3, faults=Faults(burst_flush=burst_flush))
     requests = {Command.CONFIG_FPGA_GEN: FpgaConfig().pack(),
                 Command.CONFIG_PACKET_DATA: PacketConfig(1472, 25).pack()}
     for reply in config_replies[:5]:
         code = Response.parse(reply).command
         assert command(client, board, code, requests.get(code, b"")) == reply
     board.lvds_start()
-    assert board.wait_frames(1)
+    assert board.wait_frames(1, streamed=True)
     got = collect(receiver)
-    assert [p for p, _ in got] == data
+    # The real board holds the short last packet back until the recording stops (it came 2.0 s
+    # after the others, with RECORD_COMPLETED); burst_flush sends it at once.
+    held = 0 if burst_flush else 1
+    assert [p for p, _ in got] == data[:len(data) - held]
     assert {a for _, a in got} == {board.source_address}
+    stopped = time.monotonic()
     assert command(client, board, Command.RECORD_STOP) == ok(0x06)
+    tail = collect(receiver, quiet=0.6)
+    assert [p for p, _ in tail] == data[len(data) - held:]
     assert client.recvfrom(64)[0] == config_replies[-1] == bytes.fromhex("5aa50a000001aaee")
+    if held:
+        assert time.monotonic() - stopped >= 0.3
 
 
 @pytest.mark.parametrize("fpga, accepted", [
@@ -394,7 +410,7 @@ def test_async_errors_fault_at_a_frame(client, receiver, make_board):
     start_recording(client, board)
     board.lvds_start()
     assert client.recvfrom(64)[0] == bytes.fromhex("5aa50a000002aaee")
-    assert board.wait_frames(5)
+    assert board.wait_frames(5, streamed=True)
     assert board.async_sent == [AsyncStatus.LVDS_BUFFER_FULL]
 
 
@@ -402,12 +418,14 @@ def test_async_errors_fault_at_a_frame(client, receiver, make_board):
 
 def test_stream_reassembles_to_the_frames(client, receiver, make_board):
     frames = pattern_frames(10)
-    board = make_board(frames=lambda: iter(frames), rate="max", loop=False)
+    board = make_board(frames=lambda: iter(frames), rate="max", loop=False, record_completed_delay_s=0.05)
     start_recording(client, board)
     expect_silence(receiver, 0.1)  # recording, but the radar is not streaming
     board.lvds_start()
-    assert board.wait_frames(10)
+    assert board.wait_frames(10, streamed=True)
     got = collect(receiver)
+    assert board.stats.frames_sent == 9  # the last frame's short tail is held back
+    got += stop_and_collect(client, board, receiver)
     assert {a for _, a in got} == {board.source_address}
     packets, bad = parse_data(got, board.source_address)
     assert bad == 0
@@ -439,7 +457,7 @@ def test_burst_flush_ends_every_frame_with_a_short_packet(client, receiver, make
 
 def test_lvds_gates_the_stream_and_it_resumes_where_it_stopped(client, receiver, make_board):
     frames = pattern_frames(50)
-    board = make_board(frames=lambda: iter(frames), frame_period_s=0.01)
+    board = make_board(frames=lambda: iter(frames), frame_period_s=0.01, record_completed_delay_s=0.05)
     start_recording(client, board)
     expect_silence(receiver, 0.1)
     board.lvds_start()
@@ -449,17 +467,22 @@ def test_lvds_gates_the_stream_and_it_resumes_where_it_stopped(client, receiver,
     packets, _ = parse_data(first, board.source_address)
     sent = board.stats
     total = sum(len(p.data) for p in packets)
-    # The frame in progress was finished and the rest flushed: whole frames only.
-    assert total == sent.bytes_sent and total % FRAME == 0 and total // FRAME == sent.frames_sent
-    assert reassemble(packets, total)[0] == b"".join(frames[: total // FRAME])
+    # The frame in progress was finished; its bytes that do not fill a packet wait.
+    streamed = sent.frames_in * FRAME
+    assert total == sent.bytes_sent and 0 <= streamed - total < 1456 and all(len(p.data) == 1456 for p in packets)
+    assert reassemble(packets, total)[0] == b"".join(frames)[:total]
     expect_silence(receiver, 0.1)
     board.lvds_start()
-    assert board.wait_frames(sent.frames_sent + 2)
+    assert board.wait_frames(sent.frames_in + 2, streamed=True)
     board.lvds_stop()
     more, _ = parse_data(collect(receiver, quiet=0.15), board.source_address)
+    # The stream goes on where it stopped: the waiting bytes lead the next packet.
     assert more[0].seq == packets[-1].seq + 1 and more[0].byte_count == total
-    assert command(client, board, Command.RECORD_STOP) == ok(0x06)
-    assert client.recvfrom(64)[0] == bytes.fromhex("5aa50a000001aaee")
+    rest, _ = parse_data(stop_and_collect(client, board, receiver), board.source_address)
+    everything = packets + more + rest
+    end = board.stats.frames_in * FRAME
+    assert sum(len(p.data) for p in everything) == end
+    assert reassemble(everything, end)[0] == b"".join(frames)[:end]
 
 
 def test_record_start_restarts_the_stream(client, receiver, make_board):
@@ -512,11 +535,13 @@ ALL_FAULTS = Faults(loss=0.05, duplicate=0.05, reorder=0.06, truncate=0.05, malf
 
 def faulty_run(client, receiver, make_board, n: int, faults: Faults, seed: int):
     frames = pattern_frames(n)
-    board = make_board(frames=lambda: iter(frames), rate="max", loop=False, faults=faults, seed=seed)
+    board = make_board(frames=lambda: iter(frames), rate="max", loop=False, faults=faults, seed=seed,
+                       record_completed_delay_s=0.05)
     start_recording(client, board)
     board.lvds_start()
-    assert board.wait_frames(n)
-    return board, frames, collect(receiver, quiet=0.2)
+    assert board.wait_frames(n, streamed=True)
+    got = collect(receiver, quiet=0.2)
+    return board, frames, got + stop_and_collect(client, board, receiver, quiet=0.2)
 
 
 def test_faults_ground_truth_equals_what_the_receiver_sees(client, receiver, make_board):

@@ -32,6 +32,7 @@ from live_helpers import (
     wait_until,
 )
 from radarodom.driver.awr1843 import COMMAND_TIMEOUT_S, SensorStartHung
+from radarodom.driver.awr1843_protocol import REPEATABLE
 from radarodom.driver.dca1000_wire import AsyncStatus, Command, FpgaVersion
 from radarodom.driver.emulators.fake_awr1843 import CliFaults
 from radarodom.driver.emulators.fake_dca1000 import Faults
@@ -222,7 +223,13 @@ def test_radar_line_noise_does_not_break_configuration(small_capture, small_cfg,
                      cli_faults=CliFaults(garbage=garbage)) as rig:
         with open_source(rig.url(**URL_TIMEOUTS), small_cfg) as src:
             got = collect(src, 3)
-        assert rig.radar.received[-2:] == ["sensorStart", "sensorStop"]
+        # A banner in front of an echo looks like a boot that lost the command, so the driver may
+        # send sensorStop or flushCfg twice (harmless); no configuration line is ever repeated.
+        received = rig.radar.received
+        once = [c for i, c in enumerate(received) if i == 0 or c != received[i - 1] or c not in REPEATABLE]
+        assert once[-2:] == ["sensorStart", "sensorStop"]
+        lines = [c for c in once if c not in REPEATABLE]
+        assert len(set(lines)) == len(lines)
         assert not rig.radar.started
         assert rig.radar.config is not None and rig.radar.config.frame_bytes == small_cfg.frame_bytes
     assert [g.index for g in got] == [0, 1, 2]

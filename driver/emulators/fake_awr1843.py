@@ -127,6 +127,13 @@ _STATE_OPENED, _STATE_STARTED, _STATE_STOPPED = 1, 2, 3
 #: dropped (a real UART never waits: its bytes are lost).
 WRITE_TIMEOUT_S = 2.0
 
+#: Seconds from a reset (RESET_AR_DEV) to the boot banner, during which the radar answers
+#: nothing and what it is sent is lost.  No TI document gives the xWR18xx's boot time from
+#: flash; it lies between the 22 ms after nRESET at which TI's E2E forum has the AWR1642 start
+#: reading its flash and the 1 s pyRadar waits after RESET_AR_DEV before talking to a CLI that
+#: then answers.  A client that talks to it sooner sees its first command lost, as on a board.
+BOOT_TIME_S = 0.5
+
 
 def known_commands() -> tuple[str, ...]:
     """Every command name the fake firmware recognises."""
@@ -178,8 +185,12 @@ class FakeAwr1843:
         on_sensor_start: Callable[[RadarConfig], None] | None = None,
         on_sensor_stop: Callable[[], None] | None = None,
         name: str | None = None,
+        boot_time_s: float = BOOT_TIME_S,
     ) -> None:
         self.faults = faults if faults is not None else CliFaults()
+        #: Seconds a reset takes before the banner (:data:`BOOT_TIME_S`).
+        self.boot_time_s = float(boot_time_s)
+        self._booted_at = 0.0  # time.monotonic() a reset's boot ends
         self.on_sensor_start = on_sensor_start
         self.on_sensor_stop = on_sensor_stop
         self.started = False
@@ -275,8 +286,10 @@ class FakeAwr1843:
         """What the DCA1000's RESET_AR_DEV does: reboot the radar.
 
         Stops the sensor (calling :attr:`on_sensor_stop` if it ran), forgets
-        the configuration, recovers from a hang and prints the boot banner and
-        a prompt, unsolicited, like a real reset.
+        the configuration and recovers from a hang at once; then boots for
+        :attr:`boot_time_s`, answering nothing (what it is sent meanwhile is
+        lost), and prints the boot banner and a prompt, unsolicited, like a
+        real reset.  Returns at once.
         """
         with self._lock:
             was_started = self.started
@@ -286,9 +299,23 @@ class FakeAwr1843:
             self._ever_started = False
             self._hung = False
             self._inbuf.clear()
-        log.info("fake AWR1843 reset%s", " (sensor was running)" if was_started else "")
+            self._booted_at = time.monotonic() + self.boot_time_s
+        log.info("fake AWR1843 reset%s; booting for %g s", " (sensor was running)" if was_started else "",
+                 self.boot_time_s)
         if was_started:
             self._call(self.on_sensor_stop)
+        timer = threading.Timer(self.boot_time_s, self._boot_done)
+        timer.daemon = True
+        timer.start()
+
+    @property
+    def booting(self) -> bool:
+        """True while a reset's boot lasts (nothing is answered)."""
+        return time.monotonic() < self._booted_at
+
+    def _boot_done(self) -> None:
+        with self._lock:
+            self._inbuf.clear()  # what arrived during the boot is lost
         banner = "".join(ln + FIRMWARE_EOL for ln in ("", *BOOT_BANNER)).encode() + PROMPT
         self._send(banner, slow=False)
 
@@ -316,8 +343,11 @@ class FakeAwr1843:
         log.debug("fake AWR1843 serving thread ends")
 
     def _feed(self, data: bytes) -> None:
-        """Cut *data* into lines and answer each complete one."""
+        """Cut *data* into lines and answer each complete one (nothing while booting)."""
         with self._lock:
+            if self.booting:
+                log.debug("fake AWR1843 is booting; %d bytes lost", len(data))
+                return
             self._inbuf += data
         while True:
             with self._lock:

@@ -13,9 +13,9 @@ without hardware) over the same code path it uses with a real board:
   get no answer and are counted (:attr:`FakeDca1000.malformed_requests`).
 - **Asynchronous status** (``SYSTEM_ERROR`` responses whose status is an
   :class:`~radarodom.driver.dca1000_wire.AsyncStatus` bitmask) goes to the
-  address the last command came from: ``RECORD_COMPLETED`` about
-  ``record_completed_delay_s`` after ``RECORD_STOP`` (once the stream has
-  drained), ``NO_LVDS_DATA`` once when a recording runs for
+  address the last command came from: ``RECORD_COMPLETED``
+  ``record_completed_delay_s`` (2.0 s, the real capture's gap) after ``RECORD_STOP``,
+  once the stream has drained, ``NO_LVDS_DATA`` once when a recording runs for
   ``no_lvds_timeout_s`` without :meth:`FakeDca1000.lvds_start`, and whatever
   :attr:`Faults.async_errors` asks for.
 - **Data port.**  While recording *and* while the (fake) radar streams LVDS
@@ -28,10 +28,12 @@ without hardware) over the same code path it uses with a real board:
   bytes each.  Frame *k* of a recording occupies stream bytes
   ``[k * frame_bytes, (k + 1) * frame_bytes)`` and packets straddle frame
   boundaries; the bytes left over at the end of a frame wait for the next
-  frame, and are sent as one short packet when the stream pauses or ends
-  (``lvds_stop``, ``RECORD_STOP``, end of a non-looping source) -- like the
-  real capture, whose short last packet arrives with ``RECORD_COMPLETED``.
-  :attr:`Faults.burst_flush` instead ends every frame with a short packet.
+  frame's, and when the radar stops streaming (``lvds_stop``, the end of a
+  non-looping source) they wait for the recording to stop: they go out as one
+  short packet ``record_completed_delay_s`` after ``RECORD_STOP``, just before
+  ``RECORD_COMPLETED`` -- as in the real capture (pcaps), where the short last
+  packet and ``RECORD_COMPLETED`` arrive together 2.0 s after the last full
+  packet.  :attr:`Faults.burst_flush` instead ends every frame with a short packet.
 
 Timing (``rate="paced"``): frame *k* after the stream (re)starts is due at
 ``start + k * frame_period_s``; its bytes leave at the board's Ethernet rate
@@ -79,6 +81,7 @@ from typing import Any, Callable, Iterable, Iterator
 import numpy as np
 
 from ...cfg import RadarConfig, dca1000_capacity_mbps
+from ...rawframe import RawLayout
 from ..dca1000_wire import (
     DATA_HEADER,
     MAX_DATA_BYTES,
@@ -115,6 +118,15 @@ PACKET_DELAY_RANGE_US = (5.0, 500.0)
 _RECV_BYTES = 65535
 
 _RUN, _DRAIN, _ABORT = "run", "drain", "abort"
+#: Seconds from RECORD_STOP to the held-back short packet and RECORD_COMPLETED: the real capture
+#: (pcaps, test_one_frame.pcap) has both 2.000 s after the last full data packet.  Whether a
+#: host's RECORD_STOP starts that wait or the board ends a recording by itself 2 s after its LVDS
+#: data stop is not in the references; here the wait starts at RECORD_STOP.
+RECORD_COMPLETED_DELAY_S = 2.0
+#: Seconds of recording without LVDS data before NO_LVDS_DATA.  Undocumented: TI's DCA1000 CLI
+#: calls CONFIG_FPGA_GEN's last byte (30) the "timeout for LVDS data", units not given, and users
+#: report the status "after a few seconds"; 3 s is within that.
+NO_LVDS_TIMEOUT_S = 3.0
 #: READ_FPGA_VERSION's answer by default: the real board's 2.8, record image (pcaps).
 DEFAULT_FPGA_VERSION = FpgaVersion(2, 8, False)
 
@@ -197,6 +209,9 @@ class StreamStats:
     bytes_sent: int = 0
     #: Frames all of whose bytes have been packetized.
     frames_sent: int = 0
+    #: Frames the radar has streamed into the board (the last one's short tail may still be
+    #: held back: it goes out when the recording stops).
+    frames_in: int = 0
     #: Packets not sent (``Faults.loss``).
     dropped: int = 0
     #: Packets replaced by a garbage datagram (``Faults.malformed``).
@@ -230,6 +245,8 @@ class _Stream:
         self.frames: collections.deque[tuple[int, int, int]] = collections.deque()
         self.frame_index = 0
         self.iterator: Iterator[Any] | None = None
+        #: The board's source generation the iterator belongs to.
+        self.generation = 0
         #: A frame taken from the source whose start the stream paused before.
         self.pending: bytes | None = None
         self.exhausted = False
@@ -283,8 +300,8 @@ class FakeDca1000:
         fpga_version: FpgaVersion = DEFAULT_FPGA_VERSION,
         rate: str = "paced",
         loop: bool = True,
-        record_completed_delay_s: float = 0.2,
-        no_lvds_timeout_s: float = 1.0,
+        record_completed_delay_s: float = RECORD_COMPLETED_DELAY_S,
+        no_lvds_timeout_s: float = NO_LVDS_TIMEOUT_S,
         foreign_ip: str = "127.0.0.3",
         on_reset_ar_dev: Callable[[], Any] | None = None,
     ) -> None:
@@ -306,9 +323,12 @@ class FakeDca1000:
         self.foreign_ip = foreign_ip
         #: Called on RESET_AR_DEV (e.g. to reset a fake radar); an exception answers FAILURE.
         self.on_reset_ar_dev = on_reset_ar_dev
-        #: The radar configuration of the source (set by :meth:`from_url`).
+        #: The radar configuration of the source (set by :meth:`from_url`; the radar's, once it
+        #: starts with another one).
         self.config: RadarConfig | None = None
+        self._source_url: str | None = None
         self._frames = frames
+        self._frames_generation = 0  # bumped when the source is replaced: the stream restarts it
         self._owned: list[Any] = []  # closed by close()
         self._async_by_frame: dict[int, list[int]] = collections.defaultdict(list)
         for k, status in self.faults.async_errors:
@@ -329,6 +349,10 @@ class FakeDca1000:
         self._eeprom_config: EepromConfig | None = None
         self._host_config_address: tuple[str, int] | None = None
         self._events: list[tuple[float, str, int]] = []  # (due, kind, recording id)
+        #: Recording id -> when its held-back tail goes out (RECORD_STOP + record_completed_delay_s).
+        self._tail_due: dict[int, float] = {}
+        #: (recording id, bytes) of the short packet the streamer holds back.
+        self._held_tail = (0, 0)
         self._stats = StreamStats()
         self._lost: dict[int, int] = {}
         self._async_log: list[int] = []
@@ -369,6 +393,7 @@ class FakeDca1000:
             source.close()
             raise
         board.config = source.config
+        board._source_url = url
         board._owned.append(source)
         return board
 
@@ -426,17 +451,59 @@ class FakeDca1000:
         """The radar starts streaming LVDS data (its ``sensorStart``).
 
         *config* is the radar's configuration, as a fake radar's
-        ``on_sensor_start(config)`` hands it over; when both it and the board's
-        source configuration are known and their frame sizes differ, a warning
-        says so (the stream is still the source's)."""
-        if config is not None and self.config is not None and \
-                config.frame_bytes != self.config.frame_bytes:
-            log.warning("fake DCA1000: the radar streams %d-byte frames but the board's source "
-                        "has %d-byte frames", config.frame_bytes, self.config.frame_bytes)
+        ``on_sensor_start(config)`` hands it over.  The board then streams that
+        configuration's frames where it can: a simulator source (``sim://``)
+        makes them anew (any TX order, size, period); a recording's TX slots are
+        put in the configured order when only that differs.  Otherwise a
+        warning says what differs and the stream is the source's."""
+        if config is not None and self.config is not None and config != self.config:
+            self._follow(config)
         with self._cond:
             self._lvds = True
             self._lvds_seen = True
             self._cond.notify_all()
+
+    def _follow(self, config: RadarConfig) -> None:
+        """Stream *config*'s frames from now on (see :meth:`lvds_start`)."""
+        old = self.config
+        url = self._source_url
+        if url is not None and url.startswith("sim:"):
+            from ..sources import open_source
+
+            source = open_source(_url_with_rate_max(url), config)
+            self._replace_source(lambda: (f.raw for f in source), config, source)
+            log.info("fake DCA1000: the simulator now makes the radar's frames (TX order %s, %d bytes)",
+                     " ".join(f"TX{t}" for t in config.tx_order), config.frame_bytes)
+        elif (old.cube_shape == config.cube_shape and old.rx_indices == config.rx_indices
+              and sorted(old.tx_order) == sorted(config.tx_order) and len(set(old.tx_order)) == len(old.tx_order)):
+            if old.tx_order != config.tx_order:
+                order = [old.tx_order.index(t) for t in config.tx_order]
+                source_layout, radar_layout = RawLayout.from_config(old), RawLayout.from_config(config)
+                frames = self._frames
+                self._replace_source(lambda: (radar_layout.encode(source_layout.decode(_frame_bytes(f))[:, order])
+                                              for f in frames()), config, None)
+                log.info("fake DCA1000: the recording's TX slots %s streamed in the radar's order %s",
+                         old.tx_order, config.tx_order)
+        elif old.frame_bytes != config.frame_bytes:
+            log.warning("fake DCA1000: the radar streams %d-byte frames but the board's source "
+                        "has %d-byte frames", config.frame_bytes, old.frame_bytes)
+        else:
+            log.warning("fake DCA1000: the radar's configuration differs from the recording's (cube %s, "
+                        "TX %s against %s, TX %s): the recording is streamed as it is", config.cube_shape,
+                        config.tx_order, old.cube_shape, old.tx_order)
+
+    def _replace_source(self, frames: Callable[[], Iterable[Any]], config: RadarConfig, owned: Any) -> None:
+        with self._cond:
+            self._frames = frames
+            self.config = config
+            self.frame_period_s = config.frame_period_s
+            self._frames_generation += 1
+            if owned is not None:
+                stale, self._owned = self._owned, [owned]
+            else:
+                stale = []
+        for obj in stale:
+            obj.close()
 
     def lvds_stop(self) -> None:
         """The radar stops streaming (its ``sensorStop``): the frame being sent is
@@ -527,11 +594,13 @@ class FakeDca1000:
         with self._cond:
             return dict(self._commands)
 
-    def wait_frames(self, n: int, timeout: float = 5.0) -> bool:
-        """Wait until the current recording has packetized *n* frames; False on timeout."""
+    def wait_frames(self, n: int, timeout: float = 5.0, *, streamed: bool = False) -> bool:
+        """Wait until the current recording has packetized *n* frames (with *streamed*: until
+        the radar has streamed *n* frames into the board, the last one's tail perhaps held
+        back); False on timeout."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while self._stats.frames_sent < n:
+            while (self._stats.frames_in if streamed else self._stats.frames_sent) < n:
                 left = deadline - time.monotonic()
                 if left <= 0 or self._closed:
                     return False
@@ -684,8 +753,9 @@ class FakeDca1000:
             with self._cond:
                 if self._recording:
                     self._recording = False
-                    self._events.append((time.monotonic() + self.record_completed_delay_s,
-                                         "record_completed", self._recording_id))
+                    due = time.monotonic() + self.record_completed_delay_s
+                    self._tail_due[self._recording_id] = due
+                    self._events.append((due, "record_completed", self._recording_id))
                     self._cond.notify_all()
                     log.info("fake DCA1000: recording %d stopped", self._recording_id)
             return ok
@@ -702,8 +772,9 @@ class FakeDca1000:
                 if due > now:
                     keep.append((due, kind, rec))
                 elif kind == "record_completed":
-                    if self._streamer_busy and not self._recording and rec == self._recording_id:
-                        keep.append((now + 0.01, kind, rec))  # still draining the stream
+                    still_sending = self._streamer_busy or self._held_tail[0] == rec and self._held_tail[1] > 0
+                    if still_sending and not self._recording and rec == self._recording_id:
+                        keep.append((now + 0.01, kind, rec))  # the stream or its tail is still going out
                     else:
                         send.append(int(AsyncStatus.RECORD_COMPLETED))
                 elif kind == "no_lvds":
@@ -745,25 +816,36 @@ class FakeDca1000:
     def _run_streamer(self) -> None:
         st: _Stream | None = None
         while True:
+            flush = False
             with self._cond:
-                while not self._closed and not (
-                        self._recording and self._lvds
-                        and not (st is not None and st.recording_id == self._recording_id
-                                 and st.exhausted)):
+                while not self._closed:
+                    if self._recording and self._lvds and not (
+                            st is not None and st.recording_id == self._recording_id and st.exhausted):
+                        break
+                    due = None if st is None else self._tail_due.get(st.recording_id)
+                    if due is not None and time.monotonic() >= due and st.buf and st.abort_id == self._abort_id:
+                        flush = True
+                        break
                     self._cond.wait(_WAIT_SLICE_S)
                 if self._closed:
                     return
-                if st is None or st.recording_id != self._recording_id:
+                if not flush and (st is None or st.recording_id != self._recording_id):
                     rng = random.Random(f"{self.seed}:{self._recording_id}")
                     st = _Stream(self._recording_id, self._abort_id, rng)
                 self._streamer_busy = True
             try:
-                self._pump(st)
+                if flush:  # the recording stopped: the held-back tail goes out now
+                    if self._send_buffer(st, final=True, available=time.monotonic()) == _ABORT:
+                        self._abort(st)
+                    self._release_held(st, all_=True)
+                else:
+                    self._pump(st)
             except Exception:
                 log.exception("fake DCA1000: the data stream failed")
                 st.exhausted = True
             finally:
                 with self._cond:
+                    self._held_tail = (st.recording_id, len(st.buf))
                     self._streamer_busy = False
                     self._cond.notify_all()
 
@@ -788,8 +870,8 @@ class FakeDca1000:
             state = self._state(st)
             if state == _ABORT:
                 return self._abort(st)
-            if state == _DRAIN:
-                if self._send_buffer(st, final=True, available=time.monotonic()) == _ABORT:
+            if state == _DRAIN:  # the radar or the recording stopped: the short tail waits
+                if self._send_buffer(st, final=self.faults.burst_flush, available=time.monotonic()) == _ABORT:
                     return self._abort(st)
                 return self._release_held(st, all_=True)
             frame = st.pending if st.pending is not None else self._next_frame(st)
@@ -797,7 +879,7 @@ class FakeDca1000:
             if frame is None:
                 st.exhausted = True
                 log.info("fake DCA1000: source ended after %d frames", st.frame_index)
-                if self._send_buffer(st, final=True, available=time.monotonic()) == _ABORT:
+                if self._send_buffer(st, final=self.faults.burst_flush, available=time.monotonic()) == _ABORT:
                     return self._abort(st)
                 return self._release_held(st, all_=True)
             due = time.monotonic()
@@ -809,11 +891,13 @@ class FakeDca1000:
                 late = time.monotonic() - due
                 if late > self.frame_period_s and not st.warned_late:
                     st.warned_late = True
-                    log.warning("fake DCA1000: frame %d is %.3f s late: %.1f Mbit/s at %.1f us "
-                                "packet delay cannot carry this frame rate", st.frame_index,
-                                late, self.link_rate_mbps, self._packet_config.delay_us)
+                    self._warn_late(st, late, len(frame))
             k = st.frame_index
             st.frame_index += 1
+            with self._cond:
+                if self._recording_id == st.recording_id:
+                    self._stats.frames_in += 1
+                    self._cond.notify_all()
             for status in self._async_by_frame.get(k, ()):
                 self._send_async(status)
             start = st.buf_start + len(st.buf)
@@ -822,9 +906,26 @@ class FakeDca1000:
             if self._send_buffer(st, final=self.faults.burst_flush, available=due) == _ABORT:
                 return self._abort(st)
 
+    def _warn_late(self, st: _Stream, late: float, frame_bytes: int) -> None:
+        """Say why frame st.frame_index is *late* s late: the link (its frames do not fit the
+        period at the packet delay) or this computer (the source makes them too slowly)."""
+        link_s = frame_bytes * 8 / (self.link_rate_mbps * 1e6)
+        if link_s > self.frame_period_s:
+            log.warning("fake DCA1000: frame %d is %.3f s late: the link, %.1f Mbit/s at %.1f us packet delay, "
+                        "needs %.1f ms for a %d-byte frame, more than the %.1f ms frame period", st.frame_index,
+                        late, self.link_rate_mbps, self._packet_config.delay_us, link_s * 1e3, frame_bytes,
+                        self.frame_period_s * 1e3)
+        else:
+            log.warning("fake DCA1000: frame %d is %.3f s late: its source makes frames slower than the %.1f ms "
+                        "frame period on this computer's CPU (the %.1f Mbit/s link needs %.1f ms a frame); the "
+                        "frames still arrive whole, later", st.frame_index, late, self.frame_period_s * 1e3,
+                        self.link_rate_mbps, link_s * 1e3)
+
     def _next_frame(self, st: _Stream) -> bytes | None:
         if self._frames is None:
             return None
+        if st.generation != self._frames_generation:  # a new source: from its first frame
+            st.iterator, st.generation = None, self._frames_generation
         for _ in range(2):
             if st.iterator is None:
                 st.iterator = iter(self._frames())
