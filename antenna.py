@@ -90,6 +90,12 @@ class VirtualArray:
         """Flat element indices of the raised v = 1 row, sorted by h (int array)."""
         return self._row(1)
 
+    def per_element(self, paths: np.ndarray) -> np.ndarray:
+        """A value per physical path, *paths* shaped (3, 4) [TX number - 1, RX index], as one per
+        element of this array: shaped (tx_slots, rx), slot s on TX ``tx_order[s]``."""
+        tx = np.array(self.tx_order) - 1
+        return np.asarray(paths)[tx[:, None], np.array(self.rx)[None, :]]
+
     def _row(self, v: int) -> np.ndarray:
         flat_h, flat_v = self.h.ravel(), self.v.ravel()
         idx = np.flatnonzero(flat_v == v)

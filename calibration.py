@@ -10,7 +10,8 @@ firmware does with it (mmWave SDK 3.5, xWR18xx demo: ``mmw_cli.c``
 
 - pair ``t * 4 + r`` belongs to physical TX t (TX1, TX2, TX3 as 0, 1, 2) and RX r, whatever
   order the chirps transmit in: the firmware reorders the table into the frame's TX-slot order
-  (``rxChPhaseComp[slot * numRx + rx] = table[txAntOrder[slot] * 4 + rx]``), as
+  (``rxChPhaseComp[slot * numRx + i] = table[txAntOrder[slot] * 4 + rxAntOrder[i]]``, the i-th
+  enabled RX by its physical index), as
   :meth:`ChannelCalibration.for_array` does;
 - every virtual antenna's sample is multiplied by its coefficient before any angle processing
   (the detected points' 12 antennas, the azimuth heatmap, the elevation row);
@@ -80,7 +81,27 @@ class ChannelCalibration:
         """The cfg's ``compRangeBiasAndRxChanPhase`` line (a :class:`radarodom.cfg.RadarConfig`);
         the identity when it has none."""
         command = cfg.comp_range_bias_and_rx_chan_phase
-        return cls.identity() if command is None else cls.from_command(command)
+        if command is None:
+            return cls.identity()
+        try:
+            return cls.from_command(command)
+        except ConfigError as exc:  # the parser accepted each value; say which line holds them
+            at = cfg.line_of("compRangeBiasAndRxChanPhase")
+            raise ConfigError(exc.message, path=cfg.path, line=None if at is None else at.line,
+                              command=exc.command, field=exc.field) from None
+
+    @classmethod
+    def from_description(cls, description) -> "ChannelCalibration":
+        """Back from :meth:`describe`'s ``range_bias_m`` and ``coefficients`` (12 [re, im])."""
+        try:
+            pairs = np.array(description["coefficients"], dtype=float)
+            bias = float(description["range_bias_m"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(f"not a channel calibration: {exc}", command="compRangeBiasAndRxChanPhase") from None
+        if pairs.shape != (NUM_TX_ANTENNAS * NUM_RX_ANTENNAS, 2):
+            raise ConfigError(f"12 [re, im] coefficients expected, got shape {pairs.shape}",
+                              command="compRangeBiasAndRxChanPhase")
+        return cls(bias, (pairs[:, 0] + 1j * pairs[:, 1]).reshape(NUM_TX_ANTENNAS, NUM_RX_ANTENNAS))
 
     @classmethod
     def from_response(cls, response: np.ndarray, range_bias_m: float) -> "ChannelCalibration":
@@ -121,9 +142,16 @@ class ChannelCalibration:
     def for_array(self, array: VirtualArray) -> np.ndarray:
         """The coefficient of each element of a frame's virtual array: complex64 (tx_slots, rx),
         slot s transmitting on TX ``array.tx_order[s]`` (the firmware's txAntOrder reordering)."""
-        tx = np.array(array.tx_order) - 1
-        rx = np.array(array.rx)
-        return self.coefficients[tx[:, None], rx[None, :]].astype(np.complex64)
+        return array.per_element(self.coefficients).astype(np.complex64)
+
+    def matches(self, other: "ChannelCalibration", *, phase_deg: float = 1.0, gain_db: float = 0.1,
+                bias_m: float = 1e-3) -> bool:
+        """True when both lines correct the same paths to within *phase_deg*, *gain_db* and
+        *bias_m* (a common gain and phase, which changes no angle, does not count)."""
+        ratio = self.response / other.response
+        return (abs(self.range_bias_m - other.range_bias_m) <= bias_m
+                and float(np.abs(20 * np.log10(np.abs(ratio))).max()) <= gain_db
+                and float(np.abs(np.degrees(np.angle(ratio))).max()) <= phase_deg)
 
     # ------------------------------------------------------------------ writing
     def to_command(self) -> cc.CompRangeBiasAndRxChanPhase:

@@ -36,26 +36,28 @@ class FrameProducts:
     *config*: the radar configuration of the source's raw frames (None when it has none: then
     no DSP is built).  *doppler_cells*: how many of the heatmap's strongest cells get their
     dominant Doppler (None: every cell, the full map; see dsp.heatmap.HeatmapMaker).
-    *coupling*: the source's TX-to-RX coupling to remove (``Source.coupling``).
+    *coupling*: the source's TX-to-RX coupling to remove (``Source.coupling``); *calibrated*:
+    whether the cfg's channel calibration is known to fit the source's board (``Source.calibrated``).
     """
 
     def __init__(self, config: RadarConfig | None, *, doppler_cells: int | None = None,
-                 coupling: RangeCoupling | None = None) -> None:
+                 coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> None:
         from .dsp.heatmap import HeatmapMaker
         from .dsp.processor import FrameProcessor
 
-        self.processor = FrameProcessor(config, coupling=coupling) if config is not None else None
+        self.processor = (FrameProcessor(config, coupling=coupling, calibrated=calibrated) if config is not None
+                          else None)
         self.heatmaps = None if self.processor is None else HeatmapMaker(self.processor, doppler_cells=doppler_cells)
         # Reused: no allocation per frame.
         self._cube = None if config is None else np.empty(config.cube_shape, np.complex64)
 
     @classmethod
     def for_estimator(cls, config: RadarConfig | None, features_k: int, *,
-                      coupling: RangeCoupling | None = None) -> "FrameProducts":
+                      coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> "FrameProducts":
         """Products for an estimator taking *features_k* heatmap features a frame: the Doppler of
         the strongest 4 k cells is enough for its dynamic-object rejection, and much cheaper
         than the full map's."""
-        return cls(config, doppler_cells=4 * features_k, coupling=coupling)
+        return cls(config, doppler_cells=4 * features_k, coupling=coupling, calibrated=calibrated)
 
     def __call__(self, frame, *, heatmap: bool = True) -> Products:
         """The products of *frame* (a driver.sources.Frame).  The DSP's heatmap is made only

@@ -351,7 +351,7 @@ def main() -> None:
     cfg_path = shipped_config_path()
     cfg = RadarConfig.from_file(cfg_path)
     dsp = DspConfig.load(args.dsp_config) if args.dsp_config else DspConfig()
-    proc = FrameProcessor(cfg, dsp)
+    proc = FrameProcessor(cfg, dsp, calibrated=True)  # the simulator's ideal board: the identity line fits it
     module, why = import_openradar_dsp()
     orad = OpenRadar(module, cfg, dsp) if module else None
     result = {

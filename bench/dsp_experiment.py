@@ -16,8 +16,8 @@ on its point clouds and heatmaps.  Per scene, means over the seeds:
 
 Variants: the detection (range CFAR method, azimuth peaks per cell, the usable range) on the
 perfect board, and the uncalibrated board (driver/sim/boards/uncalibrated.toml) read with its
-recording's identity line, with the line radar-calibrate measures on the calibration scene,
-and with its exact line.
+recording's identity line (which leaves one azimuth a cell: further peaks need a calibrated
+array), with the line radar-calibrate measures on the calibration scene, and with its exact line.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def variants(measured_line) -> dict[str, tuple[str, DspConfig, RadarConfig | Non
     cfg = RadarConfig.from_file(shipped_config_path())
     exact = cfg.replace(load_board("uncalibrated").calibration().to_command())
     return {
-        "before: CAGO range CFAR, one azimuth a cell, detections to 12.4 m": (
+        "as before: CAGO range CFAR, one azimuth a cell, detections to 12.4 m (today's Pfa, CFAR at the peaks)": (
             "ideal", dataclasses.replace(d, range_cfar=_cfar("cago"), max_azimuth_peaks=1, max_range_m=12.45,
                                          range_skirt_db=None), None),
         "CAGO, one azimuth a cell": ("ideal", dataclasses.replace(d, range_cfar=_cfar("cago"), max_azimuth_peaks=1), None),
@@ -75,11 +75,9 @@ def variants(measured_line) -> dict[str, tuple[str, DspConfig, RadarConfig | Non
         "default: OS median, up to 2 azimuths a cell, skirts dropped": ("ideal", d, None),
         "default, skirts kept": ("ideal", dataclasses.replace(d, range_skirt_db=None), None),
         "default, up to 3 azimuths a cell": ("ideal", dataclasses.replace(d, max_azimuth_peaks=3), None),
-        "uncalibrated board, identity line": ("uncalibrated", d, None),
+        "uncalibrated board, identity line (so one azimuth a cell)": ("uncalibrated", d, None),
         "uncalibrated board, line from radar-calibrate": ("uncalibrated", d, cfg.replace(measured_line.to_command())),
         "uncalibrated board, its exact line": ("uncalibrated", d, exact),
-        "uncalibrated board, identity line, one azimuth a cell": (
-            "uncalibrated", dataclasses.replace(d, max_azimuth_peaks=1), None),
     }
 
 

@@ -85,7 +85,7 @@ def _key(dsp_config: DspConfig | None, cfg: RadarConfig | None) -> str:
 def _process(directory: str, dsp_config: DspConfig | None, cfg: RadarConfig | None) -> dict:
     points, intensity, doppler, times = [], [], [], []
     with open_source(f"replay://{directory}?rate=max", cfg) as source:
-        processor = FrameProcessor(source.config, dsp_config)
+        processor = FrameProcessor(source.config, dsp_config, calibrated=source.calibrated)
         maker = HeatmapMaker(processor)
         cube = np.empty(source.config.cube_shape, np.complex64)
         for frame in source:

@@ -26,9 +26,11 @@ from typing import Iterator
 
 import numpy as np
 
+from ..calibration import ChannelCalibration
 from ..cfg import RadarConfig
 from ..errors import CaptureFormatError, ConfigError, SourceError
 from .capture_dir import ADC_DATA, RADAR_CFG, CaptureDirectory
+from .sim.board import load_board
 from .sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
 
@@ -62,6 +64,7 @@ class ReplaySource(Source):
             raise CaptureFormatError(f"{store.directory}: holds no whole frame")
         self.store = store
         self.config: RadarConfig = store.config
+        self.calibrated = _board_fits(getattr(store, "metadata", {}), store.config)
         self.rate = rate
         self.loop = loop
         if start >= store.num_frames:
@@ -103,6 +106,24 @@ class ReplaySource(Source):
     def describe(self) -> dict:
         return {"url": self.url, "path": self.store.directory, "frames": self.count,
                 "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop}
+
+
+def _board_fits(metadata: dict, config: RadarConfig) -> bool | None:
+    """Whether *config*'s channel calibration fits the simulated board a recording was made on
+    (its metadata names it); None for a real board's recording, or a board it cannot tell."""
+    sim = metadata.get("simulator")
+    if not isinstance(sim, dict):
+        return None
+    try:
+        if "board_calibration" in sim:
+            truth = ChannelCalibration.from_description(sim["board_calibration"])
+        else:  # recorded before the board's calibration was kept: a built-in board by its name
+            truth = load_board(str(sim.get("board", "ideal"))).calibration()
+        return ChannelCalibration.from_config(config).matches(truth)
+    except ConfigError as exc:
+        log.info("the simulated board of the recording is unknown (%s): its channel calibration is taken "
+                 "from the cfg alone", exc)
+        return None
 
 
 def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:

@@ -108,6 +108,10 @@ class Source(abc.ABC):
     #: The TX-to-RX coupling a dataset ships for its raw frames, removed by the DSP
     #: (:class:`radarodom.calibration.RangeCoupling`); None for most sources.
     coupling: Any = None
+    #: Whether the config's channel calibration (compRangeBiasAndRxChanPhase) is known to fit
+    #: the board that made the frames: a simulation and its recordings know their board.  None:
+    #: unknown (a real board), and then a line other than the identity is taken to fit.
+    calibrated: bool | None = None
 
     def __init__(self) -> None:
         self._stop_requested = False
@@ -131,6 +135,11 @@ class Source(abc.ABC):
     def describe(self) -> dict[str, Any]:
         """What a status display may show about the source."""
         return {"url": self.url}
+
+    def recording_metadata(self) -> dict[str, Any]:
+        """What a recording of this stream keeps in its metadata besides the frames (a
+        simulation's scene, seed and board: :mod:`.replay` reads the board back)."""
+        return {}
 
     def groundtruth(self) -> TumTrajectory | None:
         """The true poses of the stream's pose-giving frames, where the source knows them

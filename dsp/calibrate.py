@@ -18,12 +18,13 @@ A set-up that would give a wrong line is refused with the reason (:class:`Calibr
   reflector; a second reflector at the same range or multipath breaks that by more than
   :data:`MAX_RANK_ONE_RESIDUAL_DEG`);
 - off boresight: the azimuth row's phases fit a plane wave from more than
-  :data:`MAX_APPARENT_AZIMUTH_DEG` to the side.  Board errors of up to +/- 45 degrees per path
-  put that apparent direction within 6.3 degrees (500 random boards); a reflector farther off
-  would be built into the line and turn every angle.  (The elevation cannot be checked this
-  way: one raised row's phase is all it has, and that is what the line corrects.)
+  :data:`MAX_APPARENT_AZIMUTH_DEG` (or the caller's limit) to the side.  A board's own errors
+  give an apparent direction too, small for nearly every board (docs/calibration.md has the
+  measurement); a reflector farther off would be built into the line and turn every angle.
+  (The elevation cannot be checked this way: one raised row's phase is all it has, and that is
+  what the line corrects.)
 - moving (or the radar): its range changing by more than :data:`MAX_RANGE_SPREAD_BINS` of a bin
-  over the frames, or its strongest Doppler bin off zero.
+  over the frames, or its strongest Doppler bin more than one bin off zero.
 
 The residual phase error reported is what remains after the correction: the RMS over frames
 and antennas of each corrected sample's phase against its frame's mean phase (noise and
@@ -38,10 +39,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
-from ..calibration import ChannelCalibration
+from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
 from ..errors import CalibrationError, ConfigError, UsageError
 from .config import DspConfig
+from .points import invert_three_bins
 from .processor import FrameProcessor, three_bin_response
 
 #: The reflector's zero-Doppler cell over the noise, dB, at least (summed over the antennas,
@@ -51,8 +53,8 @@ MIN_SNR_DB = 25.0
 #: weaker than the reflector, dB.
 ALONE_MARGIN_DB = 15.0
 #: The 12 responses' phase against their best rank-one (TX times RX) fit, RMS, degrees, at most:
-#: a second reflector at the reflector's range, 15 dB weaker, makes 6 degrees of it and errors of
-#: 17 degrees in the line; noise at 26 dB SNR makes 0.6.
+#: between what noise at MIN_SNR_DB makes and what a second reflector ALONE_MARGIN_DB weaker at
+#: the same range makes (docs/calibration.md, "What it refuses").
 MAX_RANK_ONE_RESIDUAL_DEG = 3.0
 #: The azimuth row's plane-wave direction, degrees from boresight, at most.
 MAX_APPARENT_AZIMUTH_DEG = 8.0
@@ -103,13 +105,19 @@ class ChannelCalibrator:
 
     *window_m*: the reflector's peak is searched within distance +/- window (TI's searchWin is
     the whole width, twice this).  The cfg must use all 3 TX, each once a loop, and all 4 RX.
+    *max_azimuth_deg*: the apparent direction allowed (a board with larger errors of its own).
+    *coupling*: the source's TX-to-RX coupling (``Source.coupling``), taken out first.
     """
 
-    def __init__(self, cfg: RadarConfig, distance_m: float, window_m: float = 0.2) -> None:
+    def __init__(self, cfg: RadarConfig, distance_m: float, window_m: float = 0.2, *,
+                 max_azimuth_deg: float = MAX_APPARENT_AZIMUTH_DEG, coupling: RangeCoupling | None = None) -> None:
         if not (math.isfinite(distance_m) and distance_m > 0):
             raise UsageError(f"the reflector's distance must be a positive number of metres, got {distance_m!r}")
         if not (math.isfinite(window_m) and window_m > 0):
             raise UsageError(f"the search window must be a positive number of metres, got {window_m!r}")
+        if not (math.isfinite(max_azimuth_deg) and 0 < max_azimuth_deg < 90):
+            raise UsageError(f"the largest apparent azimuth must be between 0 and 90 degrees, got {max_azimuth_deg!r}")
+        self.max_azimuth_deg = float(max_azimuth_deg)
         if sorted(cfg.tx_order) != [1, 2, 3] or cfg.num_rx != NUM_RX_ANTENNAS:
             line = cfg.line_of("channelCfg")
             raise ConfigError(
@@ -121,15 +129,16 @@ class ChannelCalibrator:
         self.distance_m = float(distance_m)
         self.window_m = float(window_m)
         # The board's samples as they come: no calibration, no clutter removal.
-        self.proc = FrameProcessor(cfg, DspConfig(channel_calibration=False, clutter_removal=False))
+        self.proc = FrameProcessor(cfg, DspConfig(channel_calibration=False, clutter_removal=False),
+                                   coupling=coupling)
         step = float(self.proc.range_m[1] - self.proc.range_m[0])
         self.bin_m = step
         lo, hi = self.distance_m - self.window_m, self.distance_m + self.window_m
         bins = np.flatnonzero((self.proc.range_m >= lo) & (self.proc.range_m <= hi))
-        if hi > self.proc.range_m[-1] or lo < self.proc.params.min_range_m:
-            raise UsageError(f"{lo:.2f} m to {hi:.2f} m is outside the range this cfg measures "
-                                   f"({self.proc.params.min_range_m:g} m to {self.proc.range_m[-1]:.2f} m): "
-                                   "place the reflector within it")
+        near, far = self.proc.detection_range_m  # beyond: the IF filter's roll-off
+        if hi > far or lo < near:
+            raise UsageError(f"{lo:.2f} m to {hi:.2f} m is outside the range this cfg measures well "
+                             f"({near:g} m to {far:.2f} m): place the reflector within it")
         if len(bins) < 3:
             raise UsageError(f"the search window +/- {self.window_m:g} m holds {len(bins)} range bin(s) of "
                                    f"{step * 100:.1f} cm: widen it to at least {1.5 * step:.2f} m")
@@ -140,7 +149,8 @@ class ChannelCalibrator:
         self._tx_of_slot = np.array(cfg.tx_order) - 1
         self._zero = self.proc.n_doppler // 2
         self._frames: list[np.ndarray] = []  # (n_doppler, slots, rx, window bins) per frame
-        self._table = three_bin_response(self.proc.w_range, self.proc.n_range, "range_window")
+        self._table = three_bin_response(self.proc.w_range, self.proc.n_range, "range_window",
+                                         fix="measure with a Hann or Blackman range window")
 
     def add(self, cube: np.ndarray) -> None:
         """One frame's raw cube, complex (loops, tx_slots, rx, samples)."""
@@ -154,7 +164,7 @@ class ChannelCalibrator:
     def result(self) -> CalibrationMeasurement:
         """The measurement, or :class:`CalibrationError` saying what is wrong with the set-up."""
         if not self._frames:
-            raise CalibrationError("no frame to measure: the source gave none")
+            raise CalibrationError("no frame to measure: the source gave no complete frame")
         data = np.stack(self._frames)  # (frames, n_doppler, slots, rx, bins)
         power = (np.abs(data) ** 2).sum(axis=(2, 3))  # (frames, n_doppler, bins)
         zero = power[:, self._zero].mean(axis=0)  # (bins,)
@@ -180,9 +190,7 @@ class ChannelCalibrator:
         self._check_still(data, power, k, range_of)
         # The reflector's range between bins, from the summed magnitude's three bins (range
         # migration is ruled out above, so the frames' mean profile is the reflector's).
-        mag = np.sqrt(zero)
-        offset = float(np.interp((mag[k + 1] - mag[k - 1]) / mag[k], *self._table))
-        measured = float(self.proc.range_m[bins[k]]) + offset * self.bin_m
+        measured = float(self.proc.range_m[bins[k]]) + float(self._offsets(zero[None], np.array([k]))[0]) * self.bin_m
         # The responses: each frame's zero-Doppler sample at the peak, turned to the first frame's
         # common phase (a frame-to-frame phase drift common to all antennas changes no coefficient).
         samples = data[:, self._zero, :, :, k].reshape(len(data), -1)  # (frames, elements)
@@ -198,12 +206,13 @@ class ChannelCalibrator:
                 f"{rank_one:.1f} deg RMS from any TX-times-RX pattern (more than {MAX_RANK_ONE_RESIDUAL_DEG:g}); another "
                 "reflector at the same range or a reflection off something nearby; clear the area around it")
         azimuth = self._apparent_azimuth_deg(response_elements)
-        if abs(azimuth) > MAX_APPARENT_AZIMUTH_DEG:
+        if abs(azimuth) > self.max_azimuth_deg:
             side = "right" if azimuth > 0 else "left"
             raise CalibrationError(
                 f"the reflector at {measured:.2f} m looks {abs(azimuth):.1f} deg {side} of boresight (its azimuth "
-                f"phases fit a plane wave from there; board errors stay within {MAX_APPARENT_AZIMUTH_DEG:g} deg): put "
-                "it on the radar's boresight, at the antennas' height")
+                f"phases fit a plane wave from there, more than {self.max_azimuth_deg:g} deg): put it on the radar's "
+                "boresight, at the antennas' height; if it is there, the board's own errors are that large: allow "
+                "them with --max-azimuth DEG")
         calibration = ChannelCalibration.from_response(response, measured - self.distance_m)
         corrected = samples * calibration.for_array(self.cfg.virtual_array).ravel()[None, :]
         common = np.sum(corrected, axis=1, keepdims=True)
@@ -234,10 +243,7 @@ class ChannelCalibrator:
         peaks = zero.argmax(axis=1)
         spread = 0.0
         if len(zero) > 1 and np.all((peaks > 0) & (peaks < zero.shape[1] - 1)):
-            mag = np.sqrt(zero)
-            f = np.arange(len(zero))
-            ratio = (mag[f, peaks + 1] - mag[f, peaks - 1]) / mag[f, peaks]
-            position = peaks + np.interp(ratio, *self._table)
+            position = peaks + self._offsets(zero, peaks)
             spread = float(position.max() - position.min())
         elif len(set(peaks.tolist())) > 1:
             spread = float(peaks.max() - peaks.min())
@@ -245,6 +251,13 @@ class ChannelCalibrator:
             raise CalibrationError(
                 f"the reflector at {range_of(k):.2f} m moves: its range changed by {spread * self.bin_m * 100:.1f} cm "
                 f"over {len(zero)} frames; keep the reflector and the radar still while measuring")
+
+    def _offsets(self, power: np.ndarray, peaks: np.ndarray) -> np.ndarray:
+        """Sub-bin offsets (-0.5 .. 0.5) of range profiles *power* (n, bins) peaking at bins
+        *peaks* (n,), from the magnitudes of each peak's three bins (the range window's response)."""
+        mag = np.sqrt(power)
+        f = np.arange(len(peaks))
+        return invert_three_bins(mag[f, peaks - 1], mag[f, peaks], mag[f, peaks + 1], self._table)
 
     def _apparent_azimuth_deg(self, elements: np.ndarray) -> float:
         """Direction of the plane wave that best fits the azimuth row's responses, degrees."""
@@ -262,9 +275,10 @@ def _rank_one_residual_deg(response: np.ndarray) -> float:
     return float(np.degrees(np.sqrt(np.mean(np.angle(response * np.conj(fit)) ** 2))))
 
 
-def measure(cfg: RadarConfig, cubes, distance_m: float, window_m: float = 0.2) -> CalibrationMeasurement:
-    """The line measured from an iterable of raw cubes of a corner reflector on boresight."""
-    calibrator = ChannelCalibrator(cfg, distance_m, window_m)
+def measure(cfg: RadarConfig, cubes, distance_m: float, window_m: float = 0.2, **options) -> CalibrationMeasurement:
+    """The line measured from an iterable of raw cubes of a corner reflector on boresight
+    (*options*: :class:`ChannelCalibrator`'s)."""
+    calibrator = ChannelCalibrator(cfg, distance_m, window_m, **options)
     for cube in cubes:
         calibrator.add(cube)
     return calibrator.result()

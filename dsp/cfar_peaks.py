@@ -16,26 +16,28 @@ one end uses the other side's ``train`` cells only, with the one-sided scale
 from __future__ import annotations
 
 import numpy as np
+import scipy.ndimage
 
 from .cfar import CfarParams, Detections, _cfar_last_axis, check_map
 
 
-def local_maxima(power: np.ndarray, range_cyclic: bool = False, doppler_cyclic: bool = True) -> np.ndarray:
-    """Cells at least as strong as their neighbours at +/-1 range bin and +/-1 Doppler bin:
-    bool, the shape of *power* (doppler_bins, range_bins).  A neighbour beyond a non-cyclic end
-    does not count."""
+def local_maxima(power: np.ndarray, range_cyclic: bool = False, doppler_cyclic: bool = True,
+                 reach: tuple[int, int] = (1, 1)) -> np.ndarray:
+    """Cells at least as strong as their neighbours up to *reach* = (Doppler, range) cells either
+    side (1, 1: the +/-1 bin neighbours): bool, the shape of *power* (doppler_bins, range_bins).
+    A neighbour beyond a non-cyclic end does not count."""
     p = power
     peak = np.ones(p.shape, bool)
-    for axis, cyclic in ((1, range_cyclic), (0, doppler_cyclic)):
-        if p.shape[axis] < 2:
-            continue
+    for axis, cyclic, cells in ((1, range_cyclic, reach[1]), (0, doppler_cyclic, reach[0])):
         q = np.moveaxis(p, axis, 0)
         out = np.moveaxis(peak, axis, 0)  # a view: writing it writes peak
-        out[1:] &= q[1:] >= q[:-1]
-        out[:-1] &= q[:-1] >= q[1:]
-        if cyclic:
-            out[0] &= q[0] >= q[-1]
-            out[-1] &= q[-1] >= q[0]
+        n = q.shape[0]
+        for s in range(1, min(cells, n - 1) + 1):
+            out[s:] &= q[s:] >= q[:-s]
+            out[:-s] &= q[:-s] >= q[s:]
+            if cyclic:
+                out[:s] &= q[:s] >= q[n - s:]
+                out[n - s:] &= q[n - s:] >= q[:s]
     return peak
 
 
@@ -83,7 +85,7 @@ def _one_sided(values: np.ndarray, params: CfarParams) -> np.ndarray:
 
 
 def cfar_peaks(power_rd: np.ndarray, range_params: CfarParams, doppler_params: CfarParams, *,
-               range_bins: np.ndarray | None = None) -> Detections:
+               range_bins: np.ndarray | None = None, reach: tuple[int, int] = (1, 1)) -> Detections:
     """The map's local maxima that both CFAR passes detect.
 
     Parameters
@@ -95,6 +97,8 @@ def cfar_peaks(power_rd: np.ndarray, range_params: CfarParams, doppler_params: C
     range_bins
         Optional bool (range_bins,): only peaks in these range bins are tested (the rest of the
         map still serves as their training cells).
+    reach
+        (Doppler, range) cells either side a peak is the strongest of (:func:`local_maxima`).
 
     Returns
     -------
@@ -103,7 +107,7 @@ def cfar_peaks(power_rd: np.ndarray, range_params: CfarParams, doppler_params: C
     """
     p = check_map(power_rd, range_params, doppler_params)
     n_d, n_r = p.shape
-    peaks = local_maxima(p, range_params.cyclic, doppler_params.cyclic)
+    peaks = local_maxima(p, range_params.cyclic, doppler_params.cyclic, reach)
     if range_bins is not None:
         peaks &= np.asarray(range_bins, bool)[None, :]
     # The Doppler pass first: it leaves the range pass (the ordered statistic, by default) a few
@@ -140,10 +144,12 @@ def above_skirts(power_rd: np.ndarray, det: Detections, below_db: float, span: i
     if n < 2:
         return np.ones(n, bool)
     value = power_rd[det.doppler_idx, det.range_idx].astype(np.float64)
-    near = (det.doppler_idx[:, None] == det.doppler_idx[None, :]) & \
-        (np.abs(det.range_idx[:, None] - det.range_idx[None, :]) <= span)
-    strongest = np.where(near, value[None, :], 0.0).max(axis=1)
-    return value * 10 ** (below_db / 10) >= strongest
+    # The detections alone on a map of zeros, each cell's strongest within span along range:
+    # linear in the map's size whatever the number of detections.
+    only = np.zeros(power_rd.shape, np.float64)
+    only[det.doppler_idx, det.range_idx] = value
+    strongest = scipy.ndimage.maximum_filter1d(only, size=2 * span + 1, axis=1, mode="constant", cval=0.0)
+    return value * 10 ** (below_db / 10) >= strongest[det.doppler_idx, det.range_idx]
 
 
 __all__ = ["above_skirts", "cfar_peaks", "local_maxima"]

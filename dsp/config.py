@@ -8,6 +8,7 @@ and ``clutterRemoval`` lines, as TI's demo does.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from ..errors import ConfigError
@@ -109,8 +110,23 @@ class DspConfig(Settings):
 
     def __post_init__(self) -> None:
         for name in ("azimuth_fft_size", "elevation_fft_size", "workers", "max_azimuth_peaks"):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"must be at least 1, got {getattr(self, name)}", field=name)
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ConfigError(f"must be an integer, got {value!r}", field=name)
+            if value < 1:
+                raise ConfigError(f"must be at least 1, got {value}", field=name)
+        for name, lo, hi in (("range_skirt_db", 0.0, math.inf), ("azimuth_peak_snr_db", -math.inf, math.inf),
+                             ("azimuth_peak_ratio_db", -math.inf, 0.0)):
+            value = getattr(self, name)
+            if value is None and name == "range_skirt_db":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi \
+                    or not math.isfinite(value):
+                bounds = {"range_skirt_db": "a finite number of dB >= 0 (or null: keep every detection)",
+                          "azimuth_peak_snr_db": "a finite number of dB",
+                          "azimuth_peak_ratio_db": "a finite number of dB <= 0 (a further peak is weaker "
+                                                   "than the first)"}[name]
+                raise ConfigError(f"must be {bounds}, got {value!r}", field=name)
         for name in ("range_fft_size", "doppler_fft_size"):
             if getattr(self, name) is not None and getattr(self, name) < 2:
                 raise ConfigError(f"must be at least 2, got {getattr(self, name)}", field=name)

@@ -41,24 +41,26 @@ POINT_DTYPE = np.dtype([
 
 
 #: A cell whose strongest azimuth peak grows by this factor (0.6 dB) under another TDM
-#: hypothesis holds one aliased target, not several reflectors (_further_peaks).
+#: hypothesis holds one aliased target, not several reflectors (_further_peaks; chosen between
+#: what the two cases measure, README "Several reflectors in one cell").
 ALIASED_GAIN = 10 ** 0.06
 
 
-
-def three_bin_response(window: np.ndarray, n_fft: int, setting: str = "doppler_interpolation"
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def three_bin_response(window: np.ndarray, n_fft: int, setting: str = "doppler_interpolation",
+                       fix: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """How an FFT of *n_fft* points of the *window*ed tone answers the tone's offset from a bin.
 
     Returns (ratio, offset): for a tone ``offset`` bins from bin k (-0.5 .. 0.5, 1001 steps),
     ``ratio = (|X(k+1)| - |X(k-1)|) / |X(k)|``, increasing, so that
     ``np.interp(measured_ratio, ratio, offset)`` inverts it (clamped to the bin).  Taken from
     the window itself, so it holds for any window and zero padding (a window with zero taps
-    is an aperture with gaps).  *setting* is the DspConfig field that asked, for errors.
+    is an aperture with gaps).  *setting* is the DspConfig field that asked, for errors, and
+    *fix* what to do about one (default: set it false).
     """
+    fix = fix or f"set {setting} false"
     if n_fft < 3:
-        raise ConfigError(f"interpolating between FFT bins needs three bins, the FFT has {n_fft}: "
-                          f"set {setting} false", field=setting)
+        raise ConfigError(f"interpolating between FFT bins needs three bins, the FFT has {n_fft}: {fix}",
+                          field=setting)
     offset = np.linspace(-0.5, 0.5, 1001)
     taps = np.arange(len(window))
     weights = np.asarray(window, dtype=float)
@@ -69,17 +71,16 @@ def three_bin_response(window: np.ndarray, n_fft: int, setting: str = "doppler_i
     ratio = (magnitude(1.0 - offset) - magnitude(-1.0 - offset)) / magnitude(-offset)
     if not np.all(np.diff(ratio) > 0):
         raise ConfigError("the window's three-bin response does not grow with the tone's offset, "
-                          f"so it cannot be inverted: set {setting} false", field=setting)
+                          f"so it cannot be inverted: {fix}", field=setting)
     return ratio, offset
 
 
-def _invert(below: np.ndarray, centre: np.ndarray, above: np.ndarray,
-            table: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+def invert_three_bins(below: np.ndarray, centre: np.ndarray, above: np.ndarray,
+                      table: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Sub-bin offsets from the magnitudes of a peak's bin and its neighbours, through a
     :func:`three_bin_response` table."""
     ratio = (above - below) / np.maximum(centre, np.finfo(np.float32).tiny)
     return np.interp(ratio, *table)
-
 
 
 class PointMaker:
@@ -121,13 +122,14 @@ class PointMaker:
         coefficients = calibration.for_array(va).ravel()
         #: Each virtual element's calibration coefficient, complex64 (elements,); None when
         #: every one is 1 (then nothing is multiplied).
-        self._calib = None if np.all(coefficients == 1) else coefficients
+        self.calibration_weights = None if np.all(coefficients == 1) else coefficients
         weights = (self._tdm[:, self._slot_of_element] if params.tdm_compensation
                    else np.ones((self.n_doppler, slots * nrx), np.complex64))
         #: What each virtual element's Doppler spectrum is multiplied by before angle processing,
         #: per row of the centred spectrum: its TX slot's TDM-MIMO phase and its calibration
         #: coefficient.  complex64 (n_doppler, elements); the heatmaps use it.
-        self.angle_weights = weights if self._calib is None else (weights * self._calib).astype(np.complex64)
+        self.angle_weights = (weights if self.calibration_weights is None
+                              else (weights * self.calibration_weights).astype(np.complex64))
         #: (ratio, offset) of three_bin_response for sub-bin Doppler, or None (bin centres).
         self._offset_table = (three_bin_response(w_doppler, self.n_doppler)
                               if params.doppler_interpolation else None)
@@ -139,8 +141,8 @@ class PointMaker:
         n = len(range_idx)
         slots = self.cfg.num_tx_slots
         elements = spectrum[doppler_idx, :, :, range_idx].reshape(n, slots * self.cfg.num_rx)
-        if self._calib is not None:
-            elements *= self._calib
+        if self.calibration_weights is not None:
+            elements *= self.calibration_weights
         doppler = self.doppler_bins[doppler_idx].astype(float)
         if self.params.tdm_compensation and self.params.velocity_disambiguation and slots > 1:
             elements, doppler = self._disambiguate(elements, doppler)
@@ -230,9 +232,8 @@ class PointMaker:
         if self._check_aliasing:
             # A target beyond the unambiguous velocity, compensated for the wrong TDM hypothesis,
             # splits its azimuth spectrum in two: another hypothesis that merges it into one
-            # stronger peak marks the cell as that, not as two reflectors.  (Measured on the
-            # shipped cfg: aliased targets' peaks grow by 1.1 dB under the right hypothesis;
-            # two reflectors in one cell lose 0-1 dB under any other.)
+            # stronger peak marks the cell as that, not as two reflectors (ALIASED_GAIN's
+            # measurement: README, "Several reflectors in one cell").
             floor = np.where(self._aliased(elements) > ALIASED_GAIN * first, np.inf, floor)
         elements = elements.copy()
         sides = None if neighbours is None else neighbours.copy()
@@ -261,17 +262,24 @@ class PointMaker:
     def _aliased(self, elements: np.ndarray) -> np.ndarray:
         """The strongest azimuth peak power (n,) of detections' *elements* (compensated for
         their own Doppler bin) under the other TDM hypotheses (bin + j n_doppler, j != 0)."""
-        slots = self.cfg.num_tx_slots
         best = np.zeros(len(elements))
+        for _, _, peak in self._hypotheses(elements, np.zeros(len(elements)), skip_own=True):
+            best = np.maximum(best, peak ** 2)
+        return best
+
+    def _hypotheses(self, elements: np.ndarray, doppler: np.ndarray, skip_own: bool = False):
+        """Per TDM-MIMO hypothesis, Doppler bins ``doppler + j n_doppler`` (j centred on 0; j = 0
+        left out with *skip_own*): those bins (n,), *elements* (n, elements) compensated for them,
+        and the magnitude of their strongest azimuth peak (n,)."""
+        slots = self.cfg.num_tx_slots
         az_in = np.zeros((len(elements), self.n_az), np.complex64)
         for j in np.arange(slots) - (slots - 1) // 2:
-            if j == 0:
+            if skip_own and j == 0:
                 continue
-            turned = elements * self._compensation(np.full(len(elements), float(j * self.n_doppler)))
+            k = doppler + j * self.n_doppler
+            turned = elements * self._compensation(k)
             az_in[:, self.az_h] = turned[:, self.az_elements]
-            power = np.abs(scipy.fft.fft(az_in, axis=1, workers=self.params.workers)).max(axis=1) ** 2
-            best = np.maximum(best, power)
-        return best
+            yield k, turned, np.abs(scipy.fft.fft(az_in, axis=1, workers=self.params.workers)).max(axis=1)
 
     def _slot_phases(self, doppler: np.ndarray) -> np.ndarray:
         """TDM-MIMO phase correction of each TX slot for (signed, possibly disambiguated,
@@ -295,8 +303,8 @@ class PointMaker:
         for j, step in enumerate((-1, 1)):
             rows = (doppler_idx + step) % self.n_doppler  # the spectrum is periodic in Doppler
             side = spectrum[rows, :, :, range_idx].reshape(n, self.cfg.num_tx_slots * self.cfg.num_rx)
-            if self._calib is not None:
-                side *= self._calib
+            if self.calibration_weights is not None:
+                side *= self.calibration_weights
             if self.params.tdm_compensation:
                 side = side * self._compensation(doppler + step)
             out[:, j] = side[:, self.az_elements]
@@ -309,29 +317,22 @@ class PointMaker:
         magnitudes against the window's three-bin response."""
         steer = np.exp(-2j * np.pi * np.outer(peak, self.az_h) / self.n_az)  # the azimuth FFT at bin peak
         side = np.abs(np.einsum("nse,ne->ns", neighbours, steer))
-        return _invert(side[:, 0], np.abs(centre), side[:, 1], self._offset_table)
+        return invert_three_bins(side[:, 0], np.abs(centre), side[:, 1], self._offset_table)
 
     def _azimuth_offsets(self, az: np.ndarray, peak: np.ndarray) -> np.ndarray:
         """Sub-bin offsets (-0.5 .. 0.5) of the azimuth FFT *az*'s peaks at bins *peak*, from
         each peak's bin and its neighbours (the FFT is cyclic)."""
         rows = np.arange(len(peak))
         below, centre, above = (np.abs(az[rows, (peak + step) % self.n_az]) for step in (-1, 0, 1))
-        return _invert(below, centre, above, self._azimuth_table)
+        return invert_three_bins(below, centre, above, self._azimuth_table)
 
     def _disambiguate(self, elements: np.ndarray, doppler: np.ndarray):
         """TI's extended velocity: of the N_tx Doppler hypotheses k + j n_doppler,
         keep the one whose compensation gives the strongest azimuth peak."""
-        slots = self.cfg.num_tx_slots
-        js = np.arange(slots) - (slots - 1) // 2
         best_power = np.full(len(doppler), -1.0)
         best_el = elements
         best_k = doppler
-        for j in js:  # a handful of hypotheses, each vectorised over detections
-            k = doppler + j * self.n_doppler
-            cand = elements * self._compensation(k)
-            az_in = np.zeros((len(k), self.n_az), np.complex64)
-            az_in[:, self.az_h] = cand[:, self.az_elements]
-            peak_power = np.abs(scipy.fft.fft(az_in, axis=1)).max(axis=1)
+        for k, cand, peak_power in self._hypotheses(elements, doppler):
             better = peak_power > best_power
             best_power = np.where(better, peak_power, best_power)
             best_el = np.where(better[:, None], cand, best_el)

@@ -80,7 +80,7 @@ class FrameResult:
 
 def _fitted(params: CfarParams, n: int, axis: str) -> CfarParams:
     """*params* with guard and training cells cut down to fit an axis of *n* cells (small
-    test configurations), with a warning; unchanged when they fit."""
+    test configurations; logged), an OS rank kept at the same quantile; unchanged when they fit."""
     if n >= params.window:
         return params
     room = (n - 1) // 2  # guard + train that fit around the cell under test
@@ -88,10 +88,22 @@ def _fitted(params: CfarParams, n: int, axis: str) -> CfarParams:
         raise ConfigError(f"the {axis} axis has {n} cells: too few for any CFAR window", field=f"{axis} CFAR")
     guard = min(params.guard, room - 1)
     train = room - guard
-    os_rank = params.os_rank if params.os_rank is None or params.os_rank <= 2 * train else None
     log.info("the %s axis has only %d cells: CFAR guard %d -> %d and train %d -> %d cells", axis, n,
-                params.guard, guard, params.train, train)
-    return dataclasses.replace(params, guard=guard, train=train, os_rank=os_rank)
+             params.guard, guard, params.train, train)
+    return dataclasses.replace(params, guard=guard, train=train, os_rank=_scaled_rank(params, train))
+
+
+def _scaled_rank(params: CfarParams, train: int) -> int | None:
+    """An explicit OS rank for *train* cells a side, at the quantile it has in *params*."""
+    if params.os_rank is None:
+        return None
+    return min(max(round(params.os_rank * train / params.train), 1), 2 * train)
+
+
+def cells_per_bin(n_fft: int, samples: int) -> int:
+    """FFT cells per resolution bin of a *samples*-point window zero-padded to *n_fft* (1 unpadded;
+    the nearest whole number)."""
+    return max(1, round(n_fft / samples))
 
 
 class FrameProcessor:
@@ -99,10 +111,17 @@ class FrameProcessor:
 
     *coupling*: a dataset's TX-to-RX coupling in the range domain (ColoRadar's), removed from
     every chirp's range spectrum; the range FFT then uses the window it was measured with.
+    *calibrated*: whether the cfg's channel calibration is known to fit the board that made the
+    frames (``Source.calibrated``: a simulation knows its board); None: unknown, so a line other
+    than the identity is taken to be the board's.
+
+    Guard and training cells, and the peak's neighbourhood, are counted in resolution bins: with
+    zero padding (DspConfig.range_fft_size, doppler_fft_size) each spans as many map cells as a
+    bin has, so that a window's sidelobes, which padding resolves, are neither a peak nor noise.
     """
 
     def __init__(self, cfg: RadarConfig, params: DspConfig | None = None, *,
-                 coupling: RangeCoupling | None = None) -> None:
+                 coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> None:
         params = params or DspConfig()
         if params.ti_like:
             params = ti_like_params(cfg, params)
@@ -126,14 +145,25 @@ class FrameProcessor:
             range_cfar=_fitted(_for_map(params.range_cfar, n_virtual, self.w_range, self.n_range), self.n_range, "range"),
             doppler_cfar=_fitted(_for_map(params.doppler_cfar, n_virtual, self.w_doppler, self.n_doppler),
                                  self.n_doppler, "Doppler"))
-        self.cfg = cfg
-        self.params = params
-        # A threshold in dB is over the estimate as it is (TI's semantics): no factor then.
-        self._noise_factor = params.range_cfar.noise_factor if params.range_cfar.pfa is not None else 1.0
         #: The board's channel calibration in use (the cfg's compRangeBiasAndRxChanPhase, unless
         #: DspConfig.channel_calibration is off).
         self.calibration = (ChannelCalibration.from_config(cfg) if params.channel_calibration
                             else ChannelCalibration.identity())
+        #: True when the array's paths are lined up: the calibration in use is known to fit the
+        #: board (*calibrated*), or, unknown, is not the identity.  Further azimuth peaks in a cell
+        #: are looked for on a calibrated array only: on an uncalibrated one, what a removed plane
+        #: wave leaves of itself is a second, false peak (docs/calibration.md).
+        self.array_calibrated = (calibrated if calibrated is not None and params.channel_calibration
+                                 else not self.calibration.is_identity)
+        if not self.array_calibrated and params.max_azimuth_peaks > 1 and params.second_peak_threshold is None:
+            log.info("%s: the channel calibration is the identity: one azimuth a range-Doppler cell "
+                     "(DspConfig.max_azimuth_peaks needs a calibrated board)", cfg.path)
+            params = dataclasses.replace(params, max_azimuth_peaks=1)
+        self.cfg = cfg
+        self.params = params
+        # The CFAR's estimate to the mean noise power (an order statistic or a greatest-of sits
+        # above it), so that snr_db and noise_db mean the same whatever the method.
+        self._noise_factor = params.range_cfar.noise_factor
         beat_range_m = np.arange(self.n_range) * cfg.range_resolution_m * ns / self.n_range
         #: Range of each range bin, m, (n_range,), the calibration's range bias taken off.
         self.range_m = beat_range_m - self.calibration.range_bias_m
@@ -163,7 +193,6 @@ class FrameProcessor:
         # every element is multiplied by before angle processing (TDM phases, calibration).
         self.az_elements, self.az_h, self.el_elements, self.el_h = pm.az_elements, pm.az_h, pm.el_elements, pm.el_h
         self.n_az, self.angle_weights = pm.n_az, pm.angle_weights
-        self._tdm, self._slot_of_element, self._calib = pm._tdm, pm._slot_of_element, pm._calib
         #: Shortest and longest range of a detection, m: from DspConfig.min_range_m (or the cfg's
         #: cfarFovCfg minimum, if higher) to DspConfig.max_range_m, else the cfg's cfarFovCfg
         #: maximum, else the usable range (beat frequencies up to 80 % of the IF band,
@@ -174,6 +203,8 @@ class FrameProcessor:
         #: Range bins the heatmaps span: from 0 to the last bin within the detection range
         #: (beyond it lie the IF filter's roll-off and the TX-RX leakage's negative-frequency side).
         self.heatmap_range_bins = int(np.searchsorted(self.range_m, hi, side="right"))
+        # A peak is the strongest within a resolution bin either side (one map cell unpadded).
+        self._peak_reach = (cells_per_bin(self.n_doppler, loops), cells_per_bin(self.n_range, ns))
         #: The cfg's cfarFovCfg Doppler limits, with ti_like.
         self._fov = {k: v for k, v in cfg.cfar_fov.items() if k == 1} if params.ti_like else {}
 
@@ -218,7 +249,8 @@ class FrameProcessor:
         spectrum = self.doppler_fft(self.range_fft(cube))
         power = self.power(spectrum)
         if self.params.peak_grouping:
-            det = cfar_peaks(power, self.params.range_cfar, self.params.doppler_cfar, range_bins=self._range_ok)
+            det = cfar_peaks(power, self.params.range_cfar, self.params.doppler_cfar, range_bins=self._range_ok,
+                             reach=self._peak_reach)
         else:
             det = cfar_2d_ti(power, self.params.range_cfar, self.params.doppler_cfar, peak_grouping=False)
         keep = self._range_ok[det.range_idx]
@@ -227,8 +259,6 @@ class FrameProcessor:
             keep &= above_skirts(power, det, self.params.range_skirt_db, span)
         if self._fov:
             keep &= fov_mask(self.range_m[det.range_idx], self.velocity_mps[det.doppler_idx], self._fov)
-        # The CFAR's estimate to the mean noise power (an order statistic or a greatest-of sits
-        # above it), so that snr_db and noise_db mean the same whatever the method.
         factor = self._noise_factor
         points = self.points(spectrum, det.doppler_idx[keep], det.range_idx[keep],
                              det.snr_db[keep] + 10 * np.log10(factor), det.noise[keep] / factor)
@@ -242,9 +272,15 @@ class FrameProcessor:
 
     # ---------------------------------------------------------------- angles
 def _for_map(params: CfarParams, channels: int, window: np.ndarray, n_fft: int) -> CfarParams:
-    """*params* for the processor's map: cells summing *channels* antennas' powers, neighbours
-    correlated by *window* (what a Pfa's scale depends on; a threshold in dB depends on neither)."""
-    correlation = window_correlation(window, n_fft, params.train) if params.pfa is not None else ()
+    """*params* for the processor's map: guard and training cells counted in resolution bins,
+    so as many map cells as a bin has after zero padding; cells summing *channels* antennas'
+    powers, neighbours correlated by *window* (what a Pfa's scale and the noise factor depend on;
+    a threshold in dB depends on neither)."""
+    per_bin = cells_per_bin(n_fft, len(window))
+    if per_bin > 1:
+        params = dataclasses.replace(params, guard=params.guard * per_bin, train=params.train * per_bin,
+                                     os_rank=_scaled_rank(params, params.train * per_bin))
+    correlation = window_correlation(window, n_fft, params.train)
     return dataclasses.replace(params, channels=channels, correlation=correlation)
 
 
@@ -291,8 +327,8 @@ def ti_like_params(cfg: RadarConfig, params: DspConfig) -> DspConfig:
         changes["second_peak_threshold"] = mobf.threshold if mobf.enabled and mobf.threshold > 0 else None
     if cfg.extended_max_velocity is not None:
         changes["velocity_disambiguation"] = bool(cfg.extended_max_velocity.enabled)
-    # One azimuth peak a cell, and multiObjBeamForming's second one, as TI's demo.
-    return dataclasses.replace(params, ti_like=True, max_azimuth_peaks=1, **changes)
+    # One azimuth peak a cell, and multiObjBeamForming's second one, and no skirt rule, as TI's demo.
+    return dataclasses.replace(params, ti_like=True, max_azimuth_peaks=1, range_skirt_db=None, **changes)
 
 
 __all__ = ["POINT_DTYPE", "FrameProcessor", "FrameResult", "CfarParams", "make_window", "three_bin_response",

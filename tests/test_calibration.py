@@ -16,6 +16,7 @@ from sim_helpers import truth
 from radarodom import cfg_commands as cc
 from radarodom.calibration import ChannelCalibration, uncalibrated_note
 from radarodom.cfg import RadarConfig, shipped_config_path
+from radarodom.driver.capture_dir import CaptureWriter
 from radarodom.driver.sim.board import BUILTIN_BOARDS, Board, board_from_dict, load_board
 from radarodom.driver.sim.scene import load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator
@@ -146,7 +147,8 @@ def test_calibrated_board_finds_every_reflector_at_its_place(shipped_cfg, masks)
     with_line = FrameProcessor(calibrated(cfg, board.calibration())).process(cube).points
     ok, worst = _check_reflectors(cfg, with_line, scene, 0.0)
     assert ok, worst
-    assert worst[2] <= 1.0 and worst[0] <= 0.5, worst  # elevation and range as good as a perfect board's
+    # Range, azimuth and elevation as good as a perfect board's (docs/calibration.md, "Accuracy").
+    assert worst[0] <= 0.5 and worst[1] <= 1.0 and worst[2] <= 1.0, worst
     without = FrameProcessor(cfg).process(cube).points
     ok, worst = _check_reflectors(cfg, without, scene, 0.0)
     assert not ok and worst[2] > 8.0, worst  # the uncorrected phases put the reflectors far off in elevation
@@ -165,7 +167,8 @@ def test_calibrated_board_looks_like_a_perfect_one(shipped_cfg):
     assert len(res.points) == len(ideal.points) == 5
     for q in ideal.points:
         p = _nearest(res.points, (q["x"], q["y"]))
-        # Both on their own range grid (the bias moves it by 1.3 bins): each within half a bin.
+        # Both on their own range grid (the bias moves it by 1.3 bins): each within half a bin of
+        # the truth, so within a bin of each other.
         assert abs(p["range"] - q["range"]) <= shipped_cfg.range_resolution_m + 1e-6
         assert abs(p["azimuth"] - q["azimuth"]) <= math.radians(1.0)
         assert abs(p["elevation"] - q["elevation"]) <= math.radians(1.0)
@@ -191,13 +194,15 @@ def test_identity_line_costs_no_arithmetic(shipped_cfg):
     """The identity line multiplies nothing: no coefficient table, and the heatmap weights are
     the TDM phases alone (the first TX slot's rows untouched)."""
     proc = FrameProcessor(shipped_cfg)
-    assert proc._calib is None and proc.calibration.is_identity
-    np.testing.assert_array_equal(proc.angle_weights, proc._tdm[:, proc._slot_of_element])
+    assert proc.point_maker.calibration_weights is None and proc.calibration.is_identity
+    slots, nrx = shipped_cfg.num_tx_slots, shipped_cfg.num_rx
+    tdm = np.exp(-2j * np.pi * np.outer(proc.doppler_bins, np.repeat(np.arange(slots), nrx)) / (slots * proc.n_doppler))
+    np.testing.assert_allclose(proc.angle_weights, tdm, atol=1e-6)
     maker = HeatmapMaker(proc)
     assert maker._weighted_rows.start == 4  # TX1's four elements are not multiplied
     board = load_board("uncalibrated")
     off = FrameProcessor(calibrated(shipped_cfg, board.calibration()), DspConfig(channel_calibration=False))
-    assert off._calib is None and off.range_m[0] == 0.0
+    assert off.point_maker.calibration_weights is None and off.range_m[0] == 0.0
 
 
 def test_every_point_has_range_equal_to_its_length(shipped_cfg):
@@ -342,3 +347,95 @@ def test_uncalibrated_board_with_its_line_drives_like_a_perfect_one(shipped_cfg)
         assert with_line[key] <= 1.1 * perfect[key], (key, with_line, perfect)
     assert identity["yaw_rmse_deg"] > 1.5 * perfect["yaw_rmse_deg"], (identity, perfect)
     assert identity["velocity_rmse"] > 1.3 * perfect["velocity_rmse"], (identity, perfect)
+
+
+# ------------------------------------------------------------------ one point a reflector
+def random_board(seed: int) -> Board:
+    """A board like a real one before calibration: paths up to 40 degrees and 1.5 dB apart."""
+    rng = np.random.default_rng(seed)
+    return Board(name=f"random{seed}", tx_gain_db=tuple(rng.uniform(-1.5, 1.5, 3)),
+                 tx_phase_deg=tuple(rng.uniform(-40, 40, 3)), rx_gain_db=tuple(rng.uniform(-1.5, 1.5, 4)),
+                 rx_phase_deg=tuple(rng.uniform(-40, 40, 4)))
+
+
+def test_an_uncalibrated_board_gives_one_point_a_reflector(shipped_cfg):
+    """What every new board does (the cfg's identity line on paths tens of degrees apart):
+    taking a reflector's plane wave out of its cell leaves a second, false peak of itself, 30-90
+    degrees off, so an uncalibrated array gets one azimuth a cell, the five reflectors five
+    points.  Told (falsely) that the line fits, most boards show the ghosts; with each board's
+    own line, one point each again, every one in its place."""
+    scene = load_scene("calibration")
+    ghosted = 0
+    for seed in range(1, 9):
+        board = random_board(seed)
+        cube = cube_of(shipped_cfg, scene, board)
+        assert not board.fits(shipped_cfg)
+        proc = FrameProcessor(shipped_cfg, calibrated=board.fits(shipped_cfg))
+        assert not proc.array_calibrated and proc.params.max_azimuth_peaks == 1
+        assert len(proc.process(cube).points) == 5, board
+        ghosted += len(FrameProcessor(shipped_cfg, calibrated=True).process(cube).points) > 5
+        cfg = calibrated(shipped_cfg, board.calibration())
+        proc = FrameProcessor(cfg, calibrated=board.fits(cfg))
+        assert proc.array_calibrated and proc.params.max_azimuth_peaks == DspConfig().max_azimuth_peaks
+        points = proc.process(cube).points
+        ok, worst = _check_reflectors(cfg, points, scene, 0.0, azimuth_deg=1.0, elevation_deg=1.0)
+        assert len(points) == 5 and ok, (board, worst)
+    assert ghosted >= 4
+
+
+def test_sources_say_whether_the_line_fits_their_board(tmp_path, shipped_cfg):
+    """sim:// knows its board; a recording of it keeps the board, so replay:// knows too, with its
+    own cfg or another; a recording without a simulated board (a real one's) does not know."""
+    board = load_board("uncalibrated")
+    line_cfg = calibrated(shipped_cfg, board.calibration())
+    with open_source("sim://calibration?duration=0.3", shipped_cfg) as src:
+        assert src.calibrated is True
+    with open_source("sim://calibration?duration=0.3&board=uncalibrated", shipped_cfg) as src:
+        assert src.calibrated is False
+        meta = src.recording_metadata()
+    with open_source("sim://calibration?duration=0.3&board=uncalibrated", line_cfg) as src:
+        assert src.calibrated is True
+    sim = Simulator(shipped_cfg, load_scene("calibration"), board=board, duration_s=0.3)
+    for name, extra in (("sim", meta), ("real", {})):
+        with CaptureWriter(tmp_path / name, shipped_cfg, source="test", extra=extra) as writer:
+            for i in range(sim.num_frames):
+                f = sim.frame(i)
+                writer.write(f.raw, f.timestamp, 0, f.pose)
+    with open_source(f"replay://{tmp_path / 'sim'}") as src:
+        assert src.calibrated is False
+    with open_source(f"replay://{tmp_path / 'sim'}", line_cfg) as src:
+        assert src.calibrated is True
+    with open_source(f"replay://{tmp_path / 'real'}") as src:
+        assert src.calibrated is None
+        assert not FrameProcessor(src.config, calibrated=src.calibrated).array_calibrated  # the identity line
+    with open_source(f"replay://{tmp_path / 'real'}", line_cfg) as src:
+        assert FrameProcessor(src.config, calibrated=src.calibrated).array_calibrated  # a measured line
+
+
+def test_lines_match_within_tolerance_whatever_their_common_phase():
+    board = load_board("uncalibrated")
+    exact = board.calibration()
+    turned = ChannelCalibration(exact.range_bias_m, exact.coefficients * 0.7 * np.exp(1j))  # no angle changes
+    assert exact.matches(turned) and turned.matches(exact)
+    written = ChannelCalibration.from_command(exact.to_command())  # rounded to 5 decimals
+    assert exact.matches(written)
+    assert ChannelCalibration.from_description(exact.describe()).matches(exact)
+    off = exact.coefficients.copy()
+    off[2, 3] *= np.exp(1j * math.radians(2.0))
+    assert not exact.matches(ChannelCalibration(exact.range_bias_m, off))
+    assert not exact.matches(ChannelCalibration(exact.range_bias_m + 0.01, exact.coefficients))
+    assert not exact.matches(ChannelCalibration.identity())
+    with pytest.raises(ConfigError, match="12"):
+        ChannelCalibration.from_description({"range_bias_m": 0.0, "coefficients": [[1, 0]] * 11})
+
+
+def test_a_bad_line_is_reported_at_its_place_in_the_cfg(tmp_path, shipped_cfg):
+    """The parser accepts each value of the line; a zero pair is refused with the file and line."""
+    text = shipped_cfg.to_text().splitlines()
+    at = next(i for i, ln in enumerate(text) if ln.startswith("compRangeBiasAndRxChanPhase"))
+    text[at] = "compRangeBiasAndRxChanPhase 0.0 " + " ".join(["1 0"] * 11 + ["0 0"])
+    path = tmp_path / "zero.cfg"
+    path.write_text("\n".join(text) + "\n")
+    cfg = RadarConfig.from_file(path)
+    with pytest.raises(ConfigError, match=rf"zero.cfg:{at + 1}: compRangeBiasAndRxChanPhase: .*TX3 RX4 is 0"):
+        FrameProcessor(cfg)

@@ -526,3 +526,69 @@ def test_cfar_at_peaks_equals_the_full_map_with_grouping(trial):
     some = cfar_peaks(power, rp, dp, range_bins=bins)
     keep = bins[full.range_idx]
     np.testing.assert_array_equal(some.range_idx, full.range_idx[keep])
+
+
+# ----------------------------------------------------------------- wider peaks, range skirts
+@pytest.mark.parametrize("reach", [(1, 2), (2, 1), (3, 3)])
+@pytest.mark.parametrize("cyclic", [False, True])
+def test_local_maxima_over_a_wider_reach_match_a_brute_force_search(reach, cyclic):
+    """A cell is a peak when no cell within reach = (Doppler, range) cells either side along
+    each axis is stronger; beyond a non-cyclic end nothing counts, a cyclic axis wraps."""
+    from radarodom.dsp.cfar_peaks import local_maxima
+
+    rng = np.random.default_rng(sum(reach) + cyclic)
+    power = rng.exponential(1.0, (12, 20)).astype(np.float32)
+    power[3, 4:6] = 9.0  # a tie
+    got = local_maxima(power, range_cyclic=cyclic, doppler_cyclic=cyclic, reach=reach)
+    n_d, n_r = power.shape
+    want = np.ones_like(got)
+    for d in range(n_d):
+        for r in range(n_r):
+            for axis, cells, n in ((0, reach[0], n_d), (1, reach[1], n_r)):
+                for s in range(-cells, cells + 1):
+                    j = (d if axis == 0 else r) + s
+                    if s == 0 or (not cyclic and not 0 <= j < n):
+                        continue
+                    other = power[j % n, r] if axis == 0 else power[d, j % n]
+                    want[d, r] &= power[d, r] >= other
+    np.testing.assert_array_equal(got, want)
+
+
+def test_range_skirts_match_a_brute_force_comparison():
+    """above_skirts keeps a detection unless another one in its Doppler row, within span range
+    bins, is more than below_db stronger; detections in other rows or farther never count."""
+    from radarodom.dsp.cfar_peaks import above_skirts
+
+    rng = np.random.default_rng(3)
+    power = rng.exponential(1.0, (16, 64)) * 10.0 ** rng.uniform(0, 6, (16, 64))
+    cells = rng.choice(16 * 64, 200, replace=False)
+    det = Detections(cells // 64, cells % 64, np.zeros(200), np.ones(200))
+    got = above_skirts(power, det, 40.0, 5)
+    value = power[det.doppler_idx, det.range_idx]
+    want = np.array([all(value[i] * 1e4 >= value[j] for j in range(200)
+                         if det.doppler_idx[j] == det.doppler_idx[i]
+                         and abs(int(det.range_idx[j]) - int(det.range_idx[i])) <= 5)
+                     for i in range(200)])
+    assert 0 < (~want).sum() < 200
+    np.testing.assert_array_equal(got, want)
+
+
+def test_range_skirt_of_a_strong_target_is_dropped():
+    """A skirt peak 45 dB under a strong target, 5 bins from it in its Doppler row: the median
+    CFAR looks past the target and detects it; the skirt rule (40 dB) drops it, a reflector
+    30 dB under the target at the same distance stays."""
+    from radarodom.dsp.cfar_peaks import above_skirts, cfar_peaks
+
+    rng = np.random.default_rng(5)
+    power = rng.exponential(1.0, (32, 128))
+    power[8, 40] = 1e8  # 80 dB
+    power[8, 45] = 10 ** 3.5  # 35 dB: 45 dB under it
+    power[20, 60], power[20, 65] = 1e8, 1e5  # 50 dB, 30 dB under its neighbour
+    rp = CfarParams("os", 2, 8, pfa=1e-5, os_rank=8, channels=1)
+    dp = CfarParams("ca", 1, 4, pfa=1e-3, cyclic=True)
+    det = cfar_peaks(power, rp, dp)
+    cells = set(zip(det.doppler_idx.tolist(), det.range_idx.tolist()))
+    assert {(8, 40), (8, 45), (20, 60), (20, 65)} <= cells
+    kept = above_skirts(power, det, 40.0, rp.guard + rp.train)
+    kept_cells = {c for c, k in zip(zip(det.doppler_idx.tolist(), det.range_idx.tolist()), kept) if k}
+    assert (8, 45) not in kept_cells and {(8, 40), (20, 60), (20, 65)} <= kept_cells

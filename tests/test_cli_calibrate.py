@@ -63,12 +63,13 @@ def random_board(seed: int) -> Board:
 @pytest.mark.parametrize("board", [load_board("uncalibrated"), random_board(1), random_board(2), Board()],
                          ids=lambda b: b.name)
 def test_measure_recovers_the_boards_line(board):
-    """Within 5 degrees, 0.5 dB and 1 cm of the line that corrects the simulated board."""
+    """Within 0.5 degrees, 0.05 dB and 2 mm of the line that corrects the simulated board (ten
+    times what the measurement makes on these boards: docs/calibration.md, "Accuracy")."""
     cfg = RadarConfig.from_file(shipped_config_path())
     sim = Simulator(cfg, load_scene("calibration"), seed=3, board=board)
     result = measure(cfg, (sim.layout.decode(sim.frame(i).raw) for i in range(10)), 3.0)
     gain, phase, bias = errors_against(result.calibration, board)
-    assert gain <= 0.5 and phase <= 5.0 and bias <= 0.01, (gain, phase, bias)
+    assert gain <= 0.05 and phase <= 0.5 and bias <= 0.002, (gain, phase, bias)
     assert result.snr_db > 40 and result.residual_phase_deg < 1.0 and result.frames == 10
     if board.is_ideal:  # a perfect board's line is the identity, to the noise
         np.testing.assert_allclose(result.calibration.coefficients, 1.0, atol=0.01)
@@ -178,6 +179,61 @@ def test_moving_reflector_is_refused(tmp_path):
     assert not out_cfg.exists()
 
 
+def test_creeping_reflector_is_refused_by_its_range(tmp_path):
+    """Creeping at 0.05 m/s, under one Doppler bin (0.07 m/s) so the Doppler check lets it by:
+    its range moves by a bin over the second the frames span, and that refuses it."""
+    url = f"sim://{scene_file(tmp_path, [reflector(3.0)], [{'straight': 1.5, 'speed': 0.05}])}?rate=max"
+    proc = run("--source", url, "--distance", 2.97, "--frames", 10)
+    assert proc.returncode == 1, proc.stdout
+    assert "moves: its range changed by" in proc.stderr and "still" in proc.stderr
+
+
+def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path):
+    """A reflector 14 degrees off looks like what a board's own errors could make: refused by
+    default; --max-azimuth lets it through (the user's word that it is on boresight)."""
+    url = f"sim://{scene_file(tmp_path, [reflector(3.0, 14.0)])}?rate=max"
+    refused = run("--source", url, "--distance", 3, "--frames", 3)
+    assert refused.returncode == 1 and "--max-azimuth" in refused.stderr
+    allowed = run("--source", url, "--distance", 3, "--frames", 3, "--max-azimuth", 20, "--json")
+    assert allowed.returncode == 0, allowed.stderr
+    assert json.loads(allowed.stdout)["apparent_azimuth_deg"] == pytest.approx(14.0, abs=1.0)
+
+
+def test_a_source_of_incomplete_frames_only_says_so(tmp_path, shipped_cfg):
+    from radarodom.driver.capture_dir import CaptureWriter
+
+    sim = Simulator(shipped_cfg, load_scene("calibration"), duration_s=0.3)
+    with CaptureWriter(tmp_path / "rec", shipped_cfg, source="test") as writer:
+        for i in range(sim.num_frames):
+            writer.write(sim.frame(i).raw, sim.frame_time(i), 1456)
+    proc = run("--source", f"replay://{tmp_path / 'rec'}?rate=max", "--distance", 3)
+    assert proc.returncode == 1
+    assert f"all {sim.num_frames} frame(s)" in proc.stderr and "incomplete" in proc.stderr
+
+
+def test_a_datasets_coupling_is_taken_out_first(shipped_cfg):
+    """A static TX-to-RX coupling 30 cm behind the reflector (as ColoRadar's boards have, with its
+    calibration file): left in, it is a second return in the window and refuses the set-up; taken
+    out (the source's coupling), the board's line comes out as on a clean board."""
+    from test_coloradar_coupling import coupling_values
+
+    from radarodom.calibration import RangeCoupling
+    from radarodom.driver.coloradar_coupling import FIRST_BIN, periodic_blackman
+
+    board = load_board("uncalibrated")
+    sim = Simulator(shipped_cfg, load_scene("calibration"), board=board, seed=3)
+    rng = np.random.default_rng(1)
+    cycles = 3.3 / shipped_cfg.range_resolution_m / shipped_cfg.num_samples
+    amp = rng.uniform(400, 800, (3, 4)) * np.exp(1j * rng.uniform(0, 2 * np.pi, (3, 4)))
+    signal = amp[..., None] * np.exp(2j * np.pi * cycles * np.arange(shipped_cfg.num_samples))[None, None, :]
+    cubes = [sim.layout.decode(sim.frame(i).raw) + signal[None] for i in range(5)]
+    with pytest.raises(CalibrationError, match="not alone"):
+        measure(shipped_cfg, cubes, 3.0, 0.4)
+    coupling = RangeCoupling(coupling_values(signal, 128), FIRST_BIN, periodic_blackman(shipped_cfg.num_samples))
+    gain, phase, bias = errors_against(measure(shipped_cfg, cubes, 3.0, 0.4, coupling=coupling).calibration, board)
+    assert gain <= 0.05 and phase <= 0.5 and bias <= 0.002, (gain, phase, bias)
+
+
 def test_cfg_without_every_path_is_refused(tmp_path, shipped_cfg):
     text = shipped_cfg.to_text().replace("channelCfg 15 7 0", "channelCfg 3 7 0")
     path = tmp_path / "two_rx.cfg"
@@ -201,6 +257,8 @@ def test_library_refusals_say_which_limit():
         measure(cfg, [], 3.0, window_m=0.03)
     with pytest.raises(UsageError, match="outside the range"):
         measure(cfg, [], 12.4)
+    with pytest.raises(UsageError, match=r"outside the range this cfg measures well \(0.3 m to 10.00 m\)"):
+        measure(cfg, [], 11.0)  # within the FFT, beyond the usable range: the IF filter's roll-off
     proc = run("--source", "sim://calibration?rate=max", "--distance", 3, "--search-window", 0.01)
     assert proc.returncode == 2 and "widen it" in proc.stderr
 

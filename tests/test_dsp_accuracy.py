@@ -656,9 +656,15 @@ def test_ti_like_takes_detection_settings_from_shipped_cfg(shipped_cfg):
     proc = FrameProcessor(shipped_cfg, DspConfig(ti_like=True))
     p = proc.params
     assert p.ti_like
-    # The processor records that its map sums the 12 virtual antennas (channels).
-    assert p.range_cfar == CfarParams("caso", guard=4, train=8, threshold_db=15.0, cyclic=False, channels=12)
-    assert p.doppler_cfar == CfarParams("ca", guard=4, train=8, threshold_db=15.0, cyclic=True, channels=12)
+    # The processor records that its map sums the 12 virtual antennas (channels), and the window's
+    # correlation between cells (a threshold in dB does not depend on it; the SNR's noise factor does).
+    corr_r = window_correlation(proc.w_range, proc.n_range, 8)
+    corr_d = window_correlation(proc.w_doppler, proc.n_doppler, 8)
+    assert p.range_cfar == CfarParams("caso", guard=4, train=8, threshold_db=15.0, cyclic=False, channels=12,
+                                      correlation=corr_r)
+    assert p.doppler_cfar == CfarParams("ca", guard=4, train=8, threshold_db=15.0, cyclic=True, channels=12,
+                                        correlation=corr_d)
+    assert p.range_skirt_db is None  # TI's demo keeps every detection
     assert p.peak_grouping is True
     assert p.clutter_removal is False
     assert p.second_peak_threshold is None
@@ -833,6 +839,14 @@ def test_dsp_config_rejects_unknown_and_bad_settings(tmp_path):
         DspConfig.from_dict({"azimuth_fft_size": 0})
     with pytest.raises(ConfigError):
         DspConfig(second_peak_threshold=1.5)
+    # A negative skirt margin would drop every detection (each is compared with itself); a further
+    # peak stronger than the first cannot be; a fractional count of peaks; NaN.
+    for bad, fld in ((dict(range_skirt_db=-3.0), "range_skirt_db"), (dict(azimuth_peak_ratio_db=2.0), "azimuth_peak_ratio_db"),
+                     (dict(max_azimuth_peaks=2.5), "max_azimuth_peaks"), (dict(azimuth_peak_snr_db=math.nan), "azimuth_peak_snr_db"),
+                     (dict(range_skirt_db=math.inf), "range_skirt_db")):
+        with pytest.raises(ConfigError, match=fld):
+            DspConfig(**bad)
+    assert DspConfig(range_skirt_db=None).range_skirt_db is None
     path = tmp_path / "list.json"
     path.write_text("[1, 2]")
     with pytest.raises(ConfigError):

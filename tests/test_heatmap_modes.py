@@ -51,8 +51,9 @@ def _reference_range_azimuth(proc, spectrum, static_bins):
     nr = proc.heatmap_range_bins
     flat = spectrum[..., :nr].reshape(nd, slots * nrx, nr).astype(np.complex128)
     row = flat[:, proc.az_elements, :]  # (n_doppler, row, n_range)
-    if proc.params.tdm_compensation:
-        row = row * proc._tdm[:, proc._slot_of_element[proc.az_elements], None]
+    if proc.params.tdm_compensation:  # slot m of Doppler bin k lags by 2 pi k m / (slots n_doppler)
+        slot = np.repeat(np.arange(slots), nrx)[proc.az_elements]
+        row = row * np.exp(-2j * np.pi * np.outer(proc.doppler_bins, slot) / (slots * proc.n_doppler))[:, :, None]
     padded = np.zeros((nd, proc.n_az, nr), np.complex128)
     padded[:, proc.az_h, :] = row
     power = np.abs(np.fft.fftshift(np.fft.fft(padded, axis=1), axes=1)) ** 2  # (n_doppler, n_az, n_range)

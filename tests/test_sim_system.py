@@ -19,6 +19,7 @@ from sim_helpers import decode, detect, point_scene, range_doppler, rd_power, tr
 
 from radarodom.cfg import RadarConfig
 from radarodom.driver.capture_dir import CaptureDirectory
+from radarodom.driver.sim.board import load_board
 from radarodom.driver.sim.scene import BUILTIN_SCENES, load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.driver.sim.trajectory import from_segments, from_spec
@@ -588,6 +589,30 @@ def test_radar_sim_writes_capture_directory(tmp_path, shipped_cfg):
             assert bytes(cap.raw(i)) == bytes(frame.raw), i
             assert cap.pose(i) == pytest.approx(frame.pose, abs=1e-8)
     assert i == 9
+
+
+def test_radar_sim_records_its_board_so_the_recording_plays_back_as_made(tmp_path, shipped_cfg):
+    """A board file whose path holds a space, '&' and '?': the recorded source URL opens the same
+    simulation again (the path quoted), and the metadata keeps the board's exact line, so a replay
+    knows whether a cfg's line fits it."""
+    folder = tmp_path / "my boards & more?"
+    folder.mkdir()
+    board_path = folder / "b.toml"
+    board_path.write_text('tx_phase_deg = [0.0, 30.0, -20.0]\nrange_bias_m = 0.05\n')
+    out = tmp_path / "cap"
+    proc = _run("radar-sim", "calibration", "--duration", "0.5", "--board", board_path, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    meta = json.loads((out / "capture.json").read_text())
+    with open_source(meta["source"] + "&rate=max") as src:
+        assert src.sim.board.tx_phase_deg == (0.0, 30.0, -20.0)
+        frames = [bytes(f.raw) for f, _ in zip(src, range(5))]  # the URL has no duration: the first 5
+        assert frames == [bytes(CaptureDirectory(out).raw(i)) for i in range(5)]
+    assert meta["simulator"]["board"] == "b" and len(meta["simulator"]["board_calibration"]["coefficients"]) == 12
+    with open_source(f"replay://{out}") as src:
+        assert src.calibrated is False  # the recording's cfg has the identity line
+    board_cfg = shipped_cfg.replace(load_board(str(board_path)).calibration().to_command())
+    with open_source(f"replay://{out}", board_cfg) as src:
+        assert src.calibrated is True
 
 
 def test_radar_sim_bad_scene_exits_2(tmp_path):

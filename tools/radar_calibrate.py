@@ -1,7 +1,7 @@
 """radar-calibrate: measure a board's compRangeBiasAndRxChanPhase line from a corner reflector.
 
-    radar-calibrate --source URL --distance M [--search-window M] [--frames N] [--cfg FILE]
-                    [--write-cfg OUT.cfg] [--json]
+    radar-calibrate --source URL --distance M [--search-window M] [--max-azimuth DEG] [--frames N]
+                    [--cfg FILE] [--write-cfg OUT.cfg] [--json]
 
 A corner reflector on the radar's boresight, at the antennas' height, alone, at a known
 distance; the radar and the reflector still.  Works on any raw source: the live radar, a
@@ -22,7 +22,8 @@ import sys  # noqa: E402
 from typing import Sequence  # noqa: E402
 
 from ..cfg import RadarConfig  # noqa: E402
-from ..errors import UsageError  # noqa: E402
+from ..dsp.calibrate import MAX_APPARENT_AZIMUTH_DEG  # noqa: E402
+from ..errors import CalibrationError, UsageError  # noqa: E402
 from . import cli  # noqa: E402
 
 log = logging.getLogger("radarodom.tools.radar_calibrate")
@@ -48,6 +49,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--search-window", type=cli.positive_float, default=0.2, metavar="M",
                         help="search the reflector within distance +/- this, m (default %(default)g; TI's "
                              "searchWin is the whole width, twice this)")
+    parser.add_argument("--max-azimuth", type=cli.positive_float, default=None, metavar="DEG",
+                        help="the reflector's apparent direction allowed, degrees from boresight (default "
+                             "%g: a board's own errors rarely look larger; raise it only with the reflector "
+                             "surely on boresight)" % MAX_APPARENT_AZIMUTH_DEG)
     parser.add_argument("--frames", type=cli.positive_int, default=DEFAULT_FRAMES, metavar="N",
                         help="frames to average (default %(default)d)")
     parser.add_argument("--cfg", metavar="FILE",
@@ -79,7 +84,9 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
     with open_source(args.source, cfg) as source:
         if not source.carries_raw or source.config is None:
             raise UsageError(f"{args.source} gives no raw ADC frames: the measurement needs them")
-        calibrator = ChannelCalibrator(source.config, args.distance, args.search_window)
+        options = {} if args.max_azimuth is None else {"max_azimuth_deg": args.max_azimuth}
+        calibrator = ChannelCalibrator(source.config, args.distance, args.search_window, coupling=source.coupling,
+                                       **options)
         skipped = 0
         for frame in source:
             if not frame.complete:  # zero-filled samples would pull the phases
@@ -88,6 +95,9 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
             calibrator.add(frame.cube())
             if calibrator.frames >= args.frames:
                 break
+        if skipped and not calibrator.frames:
+            raise CalibrationError(f"no frame to measure: all {skipped} frame(s) {args.source} gave were incomplete "
+                                   "(packets lost); check the link (radar-capture names the cause)")
         if skipped:
             log.warning("%d incomplete frame(s) skipped", skipped)
         if calibrator.frames < args.frames:

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from typing import Sequence
-
-import logging
 
 from ..calibration import uncalibrated_note
 from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, RAW_LVDS_LINE, RadarConfig

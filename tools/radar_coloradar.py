@@ -62,7 +62,7 @@ class RunData:
         self.run, self.sensor = run, source.sensor
         # As radar-capture makes them, so both give the same trajectory on the same frames.
         products = FrameProducts.for_estimator(source.config, EstimatorConfig().features.k,
-                                               coupling=source.coupling)
+                                               coupling=source.coupling, calibrated=source.calibrated)
         #: (t, role, points or heatmap) of every frame, in time order; a frame giving both
         #: is a velocity then a heatmap at the same time (what RadarOdometry.step does).
         self.frames: list[tuple[float, str, object]] = []

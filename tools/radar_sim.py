@@ -9,12 +9,14 @@ import argparse
 import sys
 import time
 from typing import Sequence
+from urllib.parse import quote
 
 from ..cfg import RadarConfig, shipped_config_path
 from ..driver.capture_dir import CaptureWriter
 from ..driver.sim.board import BUILTIN_BOARDS, load_board
 from ..driver.sim.scene import BUILTIN_SCENES, load_scene
 from ..driver.sim.simulator import Simulator
+from ..driver.sim.source import SimSource
 from . import cli
 from .status import StatusLine, format_duration
 
@@ -51,9 +53,9 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     board = load_board(args.board)
     sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board)
     start = time.monotonic()
-    url = f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={args.board}")
-    with CaptureWriter(args.out, cfg, source=url,
-                       extra={"simulator": {"scene": scene.name, "seed": args.seed, "board": board.name}}) as writer:
+    # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
+    url = f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
+    with CaptureWriter(args.out, cfg, source=url, extra=SimSource(sim).recording_metadata()) as writer:
         for i in range(sim.num_frames):
             f = sim.frame(i)
             writer.write(f.raw, f.timestamp, 0, f.pose)

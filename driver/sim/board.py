@@ -85,12 +85,17 @@ class Board:
 
     def for_array(self, array: VirtualArray) -> np.ndarray:
         """The complex gain of each element of a frame's virtual array, complex64 (tx_slots, rx)."""
-        tx = np.array(array.tx_order) - 1
-        return self.response[tx[:, None], np.array(array.rx)[None, :]].astype(np.complex64)
+        return array.per_element(self.response).astype(np.complex64)
 
     def calibration(self) -> ChannelCalibration:
         """The compRangeBiasAndRxChanPhase line that corrects this board exactly."""
         return ChannelCalibration.from_response(self.response, self.range_bias_m)
+
+    def fits(self, cfg) -> bool:
+        """True when the cfg's (:class:`radarodom.cfg.RadarConfig`) compRangeBiasAndRxChanPhase line
+        corrects this board (to :meth:`ChannelCalibration.matches`' tolerances; no line: the
+        identity)."""
+        return ChannelCalibration.from_config(cfg).matches(self.calibration())
 
 
 def _complex(gain_db, phase_deg) -> np.ndarray:

@@ -45,6 +45,7 @@ class SimSource(Source):
         self.sim = sim
         self.config: RadarConfig = sim.cfg
         self.rate = rate
+        self.calibrated = sim.board.fits(sim.cfg)
 
     def __iter__(self) -> Iterator[Frame]:
         pacer = Pacer(self.rate, self)
@@ -58,6 +59,11 @@ class SimSource(Source):
             f = self.sim.frame(i)
             yield Frame(index=i, timestamp=f.timestamp, raw=np.frombuffer(f.raw, np.uint8),
                         layout=self.sim.layout, pose=f.pose)
+
+    def recording_metadata(self) -> dict:
+        board = self.sim.board
+        return {"simulator": {"scene": self.sim.scene.name, "seed": self.sim.seed, "board": board.name,
+                              "board_calibration": board.calibration().describe()}}
 
     def describe(self) -> dict:
         return {"url": self.url, "scene": self.sim.scene.name, "frames": self.sim.num_frames,
