@@ -14,7 +14,7 @@ TDM phases alone leave the first TX slot untouched).  Two cases:
 - ``same work``: a perfect board's frame, the line one common phase on every antenna: the same
   detections and angles, so the difference is the calibration's arithmetic alone;
 - ``a board``: the uncalibrated simulated board's frame, uncorrected against corrected by its
-  own line (the detections differ too).
+  own line (the detections differ too, and uncorrected it keeps one azimuth a cell).
 
 The chains are timed alternately, run by run, so that both see the same machine; each round
 gives the two medians and their ratio, the summary the ratios' median over the rounds (the
@@ -44,8 +44,8 @@ from radarodom.dsp.processor import FrameProcessor  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 
 
-def chain(cfg: RadarConfig):
-    proc = FrameProcessor(cfg)
+def chain(cfg: RadarConfig, calibrated: bool | None):
+    proc = FrameProcessor(cfg, calibrated=calibrated)
     maker = HeatmapMaker(proc, doppler_cells=4 * EstimatorConfig().features.k)
 
     def run(cube):
@@ -65,10 +65,14 @@ def main(argv=None) -> int:
     board = load_board("uncalibrated")
     common = ChannelCalibration(0.0, np.full((3, 4), np.exp(0.5j)))
     cases = {}
-    for name, frame_board, line in (("same work", Board(), common), ("a board", board, board.calibration())):
+    # What the source would say: the perfect board's identity line fits it (so both chains look
+    # for two azimuths a cell); the uncalibrated board's does not (one azimuth, against two).
+    for name, frame_board, line, fits in (("same work", Board(), common, True),
+                                          ("a board", board, board.calibration(), None)):
         sim = Simulator(cfg, load_scene("corridor"), board=frame_board, fidelity="fast")
         cube = sim.layout.decode(sim.frame(sim.num_frames // 2).raw)
-        cases[name] = _rounds(chain(cfg), chain(cfg.replace(line.to_command())), cube, args.rounds, args.repeats)
+        cases[name] = _rounds(chain(cfg, fits), chain(cfg.replace(line.to_command()), fits), cube, args.rounds,
+                              args.repeats)
     result = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
                          f"Python {platform.python_version()}", "date": time.strftime("%Y-%m-%d"),
               "fft": FrameProcessor(cfg).fft_backend, "cases": cases}
