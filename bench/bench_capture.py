@@ -156,7 +156,7 @@ def _bench_with_dsp(seconds: float, frame_bits: int, doppler_cells: int | None) 
     # 128 loops at 30 Hz need short chirps: idle 7 us as in TI's profiles (18 ms of chirping).
     cfg = cfg.replace(dataclasses.replace(cfg.profile, idle_time_us=7.0))
     cfg = cfg.replace(dataclasses.replace(cfg.frame, num_loops=LAYOUT.num_loops, frame_period_ms=1000 / 30))
-    proc = FrameProcessor(cfg)
+    proc = FrameProcessor(cfg, calibrated=True)  # the simulator's ideal board, as sim:// says
     heatmaps = HeatmapMaker(proc, doppler_cells=doppler_cells)
 
     def dsp(cube):

@@ -168,7 +168,8 @@ def make_cube(cfg: RadarConfig, frame: int | None) -> tuple[np.ndarray, dict]:
 
 
 def bench_radarodom(cfg: RadarConfig, cube: np.ndarray, repeats: int, workers: int = 1, fft: str = "auto") -> dict:
-    proc = FrameProcessor(cfg, DspConfig(workers=workers, fft=fft))
+    # The simulator's ideal board: its identity line fits (Source.calibrated), as radar-capture on sim:// has it.
+    proc = FrameProcessor(cfg, DspConfig(workers=workers, fft=fft), calibrated=True)
     maker = HeatmapMaker(proc)
     prm = proc.params
 
@@ -215,7 +216,7 @@ def bench_capture_chain(cfg: RadarConfig, cube: np.ndarray, repeats: int, backen
     runs = [(mode, doppler_cells, "auto") for mode, doppler_cells in (("fast", cells), ("full", None))]
     runs += [(f"fast_{b}", cells, b) for b in backends if b != out["fft"]]
     for mode, doppler_cells, fft in runs:
-        proc = FrameProcessor(cfg, DspConfig(fft=fft))
+        proc = FrameProcessor(cfg, DspConfig(fft=fft), calibrated=True)  # the ideal board, as sim:// says
         maker = HeatmapMaker(proc, doppler_cells=doppler_cells)
         out[mode] = _summary_ms(_times_ms(lambda: maker.range_azimuth(proc.process(cube).spectrum), repeats))
         spec = proc.process(cube).spectrum
