@@ -28,9 +28,33 @@ Odometry: ``<prefix>/odom``, encoding ``application/json``
     raises ``version``.
 
 Status: ``<prefix>/status``, encoding ``application/json``
-    A free-form JSON object about once a second with ``"schema":
-    "radarodom/status", "version": 1`` and whatever the publisher reports
-    (rates, drops, lost packets, latency percentiles, radar and board state).
+    A JSON object about once a second with ``"schema": "radarodom/status",
+    "version": 1`` and whatever the publisher reports.  ``radar-capture``
+    sends (readers ignore keys they do not know; keys are only ever added)::
+
+        {"schema": "radarodom/status", "version": 1,
+         "time": 1700000000.0,     # s, host clock, when the status was made
+         "running": true,          # false in the last message of a run
+         "frames": 412,            # frames processed so far
+         "rate_hz": 10.0,          # frames per second, last 2 s
+         "incomplete_frames": 3,   # frames processed with zero-filled bytes
+         "missing_bytes": 4368,    # their zero-filled bytes = lost_bytes + cut_bytes
+         "lost_bytes": 2912,       #   lost on the way (lost, truncated or late packets)
+         "cut_bytes": 1456,        #   never sent before the stream stopped (cut at stop)
+         "stream_s": 41.1,         # s of stream time (frame timestamps)
+         "frames_dropped": 0,      # whole frames dropped for slow processing (live; else 0)
+         "packets_lost": 2,        # data packets never received: sequence gaps (live; else 0)
+         "source": {...},          # the source's own figures: for dca1000:// the packet counts
+                                   # (packets, packets_lost, truncated_packets, late_packets,
+                                   # duplicate_packets, foreign_packets, malformed_packets),
+                                   # frames_complete/incomplete/dropped, async_status, fpga, url
+         "latency_ms": {"p50": 12.0, "p90": 15.0, "p99": 20.0, "max": 31.0},
+         "estimator_ms": 4.1,      # median estimator time per frame
+         "odometry": {"ok": true, "flags": [], "frame": 411}}
+
+    ``lost_bytes``, ``cut_bytes`` and the source's ``packets_lost``,
+    ``truncated_packets`` and ``frames_complete`` are newer than the rest: an
+    older publisher does not send them.
 
 Point cloud: ``<prefix>/pointcloud``, encoding ``application/octet-stream;radarodom/pointcloud/v1``
     A 32-byte little-endian header, then ``count`` records of 36 bytes::

@@ -27,13 +27,20 @@ class CaptureStats:
 
     frames: int = 0
     incomplete_frames: int = 0
+    #: Zero-filled bytes of the frames streamed; of them, ``cut_bytes`` were never sent before
+    #: the stream stopped, the rest were lost on the way (:attr:`lost_bytes`).
     missing_bytes: int = 0
+    cut_bytes: int = 0
     first_timestamp: float | None = None
     last_timestamp: float | None = None
     started_monotonic: float = field(default_factory=time.monotonic)
     elapsed_s: float = 0.0
     #: Why the run ended: "end of source", "frame limit", "duration limit", "stopped".
     reason: str = ""
+
+    @property
+    def lost_bytes(self) -> int:
+        return self.missing_bytes - self.cut_bytes
 
     @property
     def stream_duration_s(self) -> float:
@@ -79,11 +86,13 @@ def run_capture(
                 stats.reason = "duration limit"
                 break
             if writer is not None:
-                writer.write(frame.raw, frame.timestamp, frame.missing_bytes, frame.pose)
+                writer.write(frame.raw, frame.timestamp, frame.missing_bytes, frame.pose,
+                             cut_bytes=frame.cut_bytes)
             stats.frames += 1
             if frame.missing_bytes:
                 stats.incomplete_frames += 1
                 stats.missing_bytes += frame.missing_bytes
+                stats.cut_bytes += frame.cut_bytes
             if stats.first_timestamp is None:
                 stats.first_timestamp = frame.timestamp
             stats.last_timestamp = frame.timestamp
@@ -102,6 +111,9 @@ def run_capture(
     finally:
         stats.elapsed_s = time.monotonic() - stats.started_monotonic
         if writer is not None:
+            dropped = source.describe().get("frames_dropped")
+            if dropped is not None:  # a live stream: the recording lacks the frames it dropped
+                writer.annotate(dropped_frames=dropped)
             writer.close()
     log.debug("capture ended (%s) after %d frames", stats.reason, stats.frames)
     return stats

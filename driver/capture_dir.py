@@ -89,6 +89,7 @@ class CaptureWriter:
         self._frames = 0
         self._saved_frames = 0
         self._lost_bytes = 0
+        self._cut_bytes = 0
         self._closed = False
         self._start_time = time.time()
         self._last_meta = 0.0
@@ -119,10 +120,15 @@ class CaptureWriter:
         timestamp: float,
         missing_bytes: int = 0,
         pose: Sequence[float] | None = None,
+        *,
+        cut_bytes: int = 0,
     ) -> None:
         """Append one frame: its *raw* bytes (exactly ``frame_bytes``), the time of
         its first chirp, how many of its bytes were lost (zero-filled), and
-        optionally the ground-truth pose ``(x, y, z, qx, qy, qz, qw)``."""
+        optionally the ground-truth pose ``(x, y, z, qx, qy, qz, qw)``.  *cut_bytes*: of the
+        missing bytes, those never sent because the stream stopped (listed with the frame)."""
+        if not 0 <= cut_bytes <= missing_bytes:
+            raise CaptureError(f"{cut_bytes} bytes cut at stop of a frame missing {missing_bytes}")
         if self._closed:
             raise CaptureError(f"{self.directory}: the capture is closed")
         n = memoryview(raw).nbytes
@@ -142,8 +148,12 @@ class CaptureWriter:
         self._last_ts = timestamp
         now = time.monotonic()
         if missing_bytes:
-            self._incomplete.append({"frame": index, "missing_bytes": int(missing_bytes)})
+            entry = {"frame": index, "missing_bytes": int(missing_bytes)}
+            if cut_bytes:
+                entry["cut_bytes"] = int(cut_bytes)
+            self._incomplete.append(entry)
             self._lost_bytes += int(missing_bytes)
+            self._cut_bytes += int(cut_bytes)
         # capture.json is the only place that says a frame is zero-filled, so an
         # incomplete frame is listed before the next frame is written; once the
         # list is long (heavy loss), at most every quarter second to bound the cost.
@@ -176,11 +186,17 @@ class CaptureWriter:
             "first_timestamp": self._first_ts,
             "last_timestamp": self._last_ts,
             "incomplete_frames": list(self._incomplete),
+            # Every zero-filled byte (the key predates cut_bytes, which it includes).
             "lost_bytes": self._lost_bytes,
+            "cut_bytes": self._cut_bytes,
             "closed": self._closed,
         }
         meta.update(self._extra)
         return meta
+
+    def annotate(self, **items: Any) -> None:
+        """Add *items* to capture.json (written with the next update, at the latest on close)."""
+        self._extra.update(items)
 
     def _write_metadata(self) -> None:
         self._saved_frames = self._frames
@@ -274,9 +290,10 @@ class CaptureDirectory:
         self.num_frames = whole
         self._data = (np.memmap(data_path, dtype=np.uint8, mode="r", shape=(whole * config.frame_bytes,))
                       if whole else np.empty(0, np.uint8))
-        self._missing = {int(e["frame"]): int(e["missing_bytes"])
-                         for e in self.metadata.get("incomplete_frames", [])
-                         if isinstance(e, dict) and "frame" in e and "missing_bytes" in e}
+        listed = [e for e in self.metadata.get("incomplete_frames", [])
+                  if isinstance(e, dict) and "frame" in e and "missing_bytes" in e]
+        self._missing = {int(e["frame"]): int(e["missing_bytes"]) for e in listed}
+        self._cut = {int(e["frame"]): int(e["cut_bytes"]) for e in listed if e.get("cut_bytes")}
         gt_path = os.path.join(self.directory, GROUNDTRUTH)
         self.groundtruth = read_tum(gt_path) if os.path.exists(gt_path) else None
         self._pose_row = self._match_poses()
@@ -310,6 +327,10 @@ class CaptureDirectory:
 
     def missing_bytes(self, i: int) -> int:
         return self._missing.get(i, 0)
+
+    def cut_bytes(self, i: int) -> int:
+        """Of frame *i*'s missing bytes, those cut when its live stream stopped."""
+        return self._cut.get(i, 0)
 
     def _match_poses(self) -> np.ndarray:
         """Row of groundtruth.tum for each frame (by time), -1 where none."""

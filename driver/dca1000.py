@@ -41,6 +41,7 @@ from .dca1000_wire import (
 )
 from .frame_assembler import DEFAULT_REORDER_PACKETS, FrameAssembler
 from .frame_ring import FrameRing
+from .host_network import bind_problem
 
 log = logging.getLogger(__name__)
 
@@ -49,28 +50,6 @@ WANTED_RCVBUF = 64 * 1024 * 1024
 #: At most this long, s, is spent on the datagrams still queued when the receiver stops (an
 #: 8 MiB buffer at the board's 706 Mbit/s is under 0.1 s of work).
 DRAIN_S = 0.5
-
-
-def bind_problem(exc: OSError, ip: str, port: int, what: str) -> str:
-    """One line saying why binding *what* to ip:port failed, and the fix."""
-    import errno
-
-    base = f"cannot {what} on {ip}:{port}: {exc.strerror or exc}"
-    if exc.errno == errno.EADDRNOTAVAIL:
-        names = [name for _, name in socket.if_nameindex() if name != "lo"] if hasattr(socket, "if_nameindex") else []
-        iface = names[0] if len(names) == 1 else "IFACE"
-        listed = f" (interfaces here: {', '.join(names)})" if names else ""
-        return (f"{base}. This computer has no address {ip}: give it to the network interface the DCA1000 "
-                f"is plugged into{listed}, e.g. 'sudo ip addr add {ip}/24 dev {iface}', or to keep it, "
-                f"'sudo nmcli con add type ethernet ifname {iface} con-name dca1000 ipv4.method manual "
-                f"ipv4.addresses {ip}/24 && sudo nmcli con up dca1000'; or give this host's address with "
-                f"?host= in the dca1000:// URL")
-    if exc.errno == errno.EADDRINUSE:
-        return (f"{base}. Another program holds that port (TI's DCA1000 CLI, mmWave Studio, another "
-                f"radar-capture?): stop it ('sudo ss -ulpn sport = :{port}' shows which)")
-    if exc.errno == errno.EACCES:
-        return f"{base}. Ports below 1024 need root: use the board's default ports (4096, 4098)"
-    return f"{base}. Does this host have the address {ip} (ip addr), and is no other capture program running?"
 
 
 @dataclass
@@ -125,7 +104,8 @@ class Dca1000Client:
             sock.bind((s.host_ip, s.config_port))
         except OSError as exc:
             sock.close()
-            raise DeviceError(bind_problem(exc, s.host_ip, s.config_port, "talk to the DCA1000's config port")) from None
+            raise DeviceError(bind_problem(exc, s.host_ip, s.config_port,
+                                           "talk to the DCA1000's config port")) from None
         self._sock = sock
         return self
 
@@ -261,6 +241,9 @@ class ReceiverStats:
     bytes: int = 0
     foreign_packets: int = 0
     malformed_packets: int = 0
+    #: Packets that arrived shorter than the stream says they were (the next packet's byte
+    #: count starts past their end, with no sequence number between).
+    truncated_packets: int = 0
     rcvbuf_bytes: int = 0
 
 
@@ -362,15 +345,17 @@ class Dca1000Receiver:
         self._thread = threading.Thread(target=self._run, name="dca1000-receiver", daemon=True)
         self._thread.start()
 
-    def stop(self, *, hand_on: bool = True) -> None:
+    def stop(self, *, hand_on: bool = True, sent_all: bool = False) -> None:
         """Stop receiving (after the datagrams already queued), hand on the frames still open
-        (or, without *hand_on*, drop them uncounted: nobody will take them), and close the ring."""
+        (or, without *hand_on*, drop them uncounted: nobody will take them), and close the ring.
+        *sent_all*: the board reported the recording complete, so bytes still missing were lost
+        on the way rather than cut at stop (:meth:`FrameAssembler.expire`)."""
         self._running.clear()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
         if hand_on:
-            self.assembler.expire()
+            self.assembler.expire(sent_all=sent_all)
         else:
             self.assembler.discard()
         self.ring.close()
@@ -396,6 +381,7 @@ class Dca1000Receiver:
         asm = self.assembler
         header = DATA_HEADER
         gaps = self.gaps
+        prev_seq, prev_end = -1, 0
         draining = False
         try:
             while True:
@@ -426,10 +412,14 @@ class Dca1000Receiver:
                     st.malformed_packets += 1
                     continue
                 seq, count = header.unpack_from(buf)
+                byte_count = int.from_bytes(count, "little")
                 st.packets += 1
                 st.bytes += n - header.size
+                if seq == prev_seq + 1 and byte_count > prev_end:
+                    st.truncated_packets += 1
+                prev_seq, prev_end = seq, byte_count + n - header.size
                 gaps.add(seq)
-                asm.add(seq, int.from_bytes(count, "little"), view[header.size:n], now)
+                asm.add(seq, byte_count, view[header.size:n], now)
         except Exception as exc:  # reported by the source, which owns the user interface
             self._error = exc
             log.error("the DCA1000 receiver stopped: %s", exc)

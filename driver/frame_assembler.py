@@ -9,9 +9,10 @@ reordered or truncated on the way:
 
 - a gap stays zero and is counted in the frame's ``missing_bytes``, and attributed: bytes
   before the newest byte received were sent (a later byte came) and lost on the way
-  (:attr:`AssemblyStats.lost_bytes`: lost, malformed or truncated packets); bytes from it
-  on never came before the frame was handed on (:attr:`AssemblyStats.cut_bytes`: the stream
-  stopped, or paused, before them);
+  (:attr:`AssemblyStats.lost_bytes`: lost, malformed, truncated or late packets), and so were
+  all of them when the sender confirmed the stream's end (:meth:`expire` with ``sent_all``);
+  otherwise bytes from the newest one on never came before the stream stopped
+  (:attr:`AssemblyStats.cut_bytes`, also on each :class:`RingFrame`);
 - bytes already received (a duplicate) are not counted twice;
 - a packet for a frame already handed on is too late: dropped and counted;
 - frames are handed on in order: a frame is complete when all its bytes are
@@ -197,6 +198,7 @@ class FrameAssembler:
         st = self.stats
         if frame.slot is None:
             return
+        cut = 0
         if missing:
             st.frames_incomplete += 1
             st.missing_bytes += missing
@@ -208,12 +210,18 @@ class FrameAssembler:
         else:
             st.frames_complete += 1
         self.on_frame(RingFrame(frame.slot, frame.index, self.ring.buffer(frame.slot), missing,
-                                frame.first_time, time.monotonic()))
+                                frame.first_time, time.monotonic(), cut))
 
-    def expire(self) -> None:
-        """Hand on every frame still open (the stream paused or stopped)."""
+    def expire(self, *, sent_all: bool = False) -> None:
+        """Hand on every frame still open (the stream stopped).  With *sent_all* the sender has
+        said it sent everything (the DCA1000's RECORD_COMPLETED; the radar stops at a frame's
+        end), so what is missing was lost on the way; otherwise the bytes the stream had not
+        reached are counted as cut at stop."""
         if self._open:
-            self._give_up_before(max(self._open) + 1)
+            last = max(self._open)
+            if sent_all:
+                self._newest_end = max(self._newest_end, (last + 1) * self.frame_bytes)
+            self._give_up_before(last + 1)
 
     def discard(self) -> None:
         """Drop every frame still open, uncounted (nobody will take them: the consumer left);

@@ -42,6 +42,9 @@ class RingFrame:
     #: time.monotonic() when the frame was completed or given up on (its last packet, or
     #: the packet that proved it would not complete): the start of its end-to-end latency.
     done_monotonic: float = 0.0
+    #: Of missing_bytes, those the stream had not reached when the frame was handed on (cut at
+    #: stop); the rest were lost on the way.
+    cut_bytes: int = 0
 
 
 class FrameRing:

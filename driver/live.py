@@ -86,9 +86,13 @@ class LiveSource(Source):
         #: Seconds without any data packet before the stream is declared dead.
         self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
         self.fpga_version = None
+        #: Frames handed to the consumer: whole, with zero-filled bytes, and those bytes
+        #: (all of them; of them, cut at stop).
+        self._delivered = {"complete": 0, "incomplete": 0, "missing": 0, "cut": 0}
         self._recording = False
         self._record_stopped = False
         self._radar_stopped = False
+        self._frame_end_stop = False  # sensorStop answered: the radar finished its frame
         self._closed = False
         try:
             self._prepare()
@@ -166,9 +170,16 @@ class LiveSource(Source):
                 self.ring.release(held)
 
     def _frame(self, frame) -> Frame:
+        d = self._delivered
+        if frame.missing_bytes:
+            d["incomplete"] += 1
+            d["missing"] += frame.missing_bytes
+            d["cut"] += frame.cut_bytes
+        else:
+            d["complete"] += 1
         return Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
                      raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
-                     ready_monotonic=frame.done_monotonic)
+                     ready_monotonic=frame.done_monotonic, cut_bytes=frame.cut_bytes)
 
     def _finish(self) -> None:
         """Stop as the boards want it, and take in what they still send: the radar ends its
@@ -180,12 +191,16 @@ class LiveSource(Source):
                 step()
             except RadarodomError as exc:
                 log.warning("while stopping: %s", exc)
+        done = False
         if self._record_stopped:
             done = self.board.await_async(AsyncStatus.RECORD_COMPLETED, self.settings.stop_timeout_s)
             if not done:
                 log.warning("the DCA1000 did not report RECORD_COMPLETED within %g s of RECORD_STOP: "
-                            "frames still open are handed on as they are", self.settings.stop_timeout_s)
-        self.receiver.stop()
+                            "frames still open are handed on as they are, their missing bytes counted "
+                            "as cut at stop (stop_timeout= in the URL waits longer)",
+                            self.settings.stop_timeout_s)
+        # A radar that answered sensorStop ended its last frame, so the stream ends at a frame's end.
+        self.receiver.stop(sent_all=done and self._frame_end_stop)
 
     def _check_data_flows(self, now: float, started: float) -> None:
         last = self.receiver.last_packet_monotonic or started
@@ -198,18 +213,31 @@ class LiveSource(Source):
                                 f"(frame period {self.config.frame_period_s:g} s).{hint}")
 
     def describe(self) -> dict:
-        """The live stream's accounting: packets (received, lost: sequence gaps, foreign,
-        malformed, duplicate, late), frames (complete, incomplete, dropped by a slow consumer)
-        and missing bytes (lost in transit + cut at stop), the board's status messages."""
-        r, a = self.receiver.stats, self.receiver.assembler.stats
+        """The live stream's accounting, where every frame and every missing byte went.
+
+        Frames handed to the consumer: ``frames_complete``, ``frames_incomplete`` (with
+        zero-filled bytes); ``frames_dropped``: whole frames the consumer was too slow for
+        (policy).  Once a stop (:meth:`stop`) has delivered the rest, their sum is every frame
+        the radar sent.  Zero-filled bytes of the frames handed on: ``missing_bytes`` =
+        ``lost_bytes`` (the stream went past them: lost, truncated or late packets) +
+        ``cut_bytes`` (never sent before the stream stopped).  Packets: ``packets`` received,
+        ``packets_lost`` (sequence numbers never received; also ``seq_gaps``),
+        ``truncated_packets``, ``late_packets`` (after their frame was handed on, its missing
+        bytes counted in ``lost_bytes``), and ignored ones: ``duplicate_packets``,
+        ``foreign_packets`` (another address), ``malformed_packets``.  Also the board's status
+        messages (``async_status``) and the receive buffer granted (``rcvbuf_bytes``)."""
+        r, a, d = self.receiver.stats, self.receiver.assembler.stats, self._delivered
+        lost_packets = self.receiver.gaps.lost
         return {
-            "url": self.url, "fpga": str(self.fpga_version), "packets": r.packets,
-            "foreign_packets": r.foreign_packets, "malformed_packets": r.malformed_packets,
-            "seq_gaps": self.receiver.gaps.lost, "duplicate_packets": a.duplicate_packets, "late_packets": a.late_packets,
-            "missing_bytes": a.missing_bytes, "lost_bytes": a.lost_bytes, "cut_bytes": a.cut_bytes,
-            "frames_complete": a.frames_complete, "frames_incomplete": a.frames_incomplete,
-            "frames_dropped": self.ring.dropped_frames, "async_status": dict(self.board.async_status.counts),
-            "rcvbuf_bytes": r.rcvbuf_bytes,
+            "url": self.url, "fpga": str(self.fpga_version),
+            "frames_complete": d["complete"], "frames_incomplete": d["incomplete"],
+            "frames_dropped": self.ring.dropped_frames,
+            "missing_bytes": d["missing"], "lost_bytes": d["missing"] - d["cut"], "cut_bytes": d["cut"],
+            "packets": r.packets, "packets_lost": lost_packets, "seq_gaps": lost_packets,
+            "truncated_packets": r.truncated_packets, "late_packets": a.late_packets,
+            "duplicate_packets": a.duplicate_packets, "foreign_packets": r.foreign_packets,
+            "malformed_packets": r.malformed_packets,
+            "async_status": dict(self.board.async_status.counts), "rcvbuf_bytes": r.rcvbuf_bytes,
         }
 
     def close(self) -> None:
@@ -234,6 +262,7 @@ class LiveSource(Source):
         self._radar_stopped = True
         try:
             self.radar.stop()
+            self._frame_end_stop = True
         except DeviceTimeout:
             # A radar that no longer answers (hung, or interrupted mid-command)
             # is reset so that the next session finds it usable.

@@ -95,6 +95,7 @@ class ReplaySource(Source):
                     layout=self.store.layout,
                     missing_bytes=self.store.missing_bytes(i),
                     pose=self.store.pose(i),
+                    cut_bytes=self.store.cut_bytes(i),
                 )
                 self.frames_played += 1
             passes += 1

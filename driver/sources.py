@@ -80,6 +80,9 @@ class Frame:
     heatmap: Any = None
     #: Which estimator stream the frame feeds: "both", "velocity" or "heatmap" (:data:`ROLES`).
     role: str = "both"
+    #: Of ``missing_bytes``, those never sent before the stream stopped (cut at stop); the
+    #: rest were lost on the way (lost, truncated or late packets).
+    cut_bytes: int = 0
 
     @property
     def complete(self) -> bool:

@@ -95,6 +95,9 @@ class TiRecording:
             begin, k = stop, k + 1
         return np.concatenate(parts)
 
+    def cut_bytes(self, i: int) -> int:
+        return 0
+
     def missing_bytes(self, i: int) -> int:
         return 0
 

@@ -63,6 +63,8 @@ class Got:
     raw: bytes
     #: time.time() when the consumer got it.
     received: float
+    #: Of missing_bytes, those cut at stop.
+    cut_bytes: int = 0
 
 
 def collect(source, n: int, timeout: float = 5.0, *, on_frame=None) -> list[Got]:
@@ -76,11 +78,33 @@ def collect(source, n: int, timeout: float = 5.0, *, on_frame=None) -> list[Got]
     try:
         for frame in source:
             got.append(Got(frame.index, frame.timestamp, frame.missing_bytes,
-                           frame.raw.tobytes(), time.time()))
+                           frame.raw.tobytes(), time.time(), frame.cut_bytes))
             if on_frame is not None:
                 on_frame(frame, got)
             if len(got) >= n:
                 break
+    finally:
+        timer.cancel()
+    return got
+
+
+def collect_until_stopped(source, stop_after: int, timeout: float = 10.0, *, on_frame=None) -> list[Got]:
+    """Every frame of *source*: after *stop_after* frames it is asked to stop (as Ctrl-C does),
+    and the frames it still delivers are taken too, to its end.  A watchdog asks it to stop
+    after *timeout* s if it has not been asked yet.  ``on_frame(frame, got_so_far)`` as in
+    :func:`collect`."""
+    timer = threading.Timer(timeout, source.stop)
+    timer.daemon = True
+    timer.start()
+    got: list[Got] = []
+    try:
+        for frame in source:
+            got.append(Got(frame.index, frame.timestamp, frame.missing_bytes,
+                           frame.raw.tobytes(), time.time(), frame.cut_bytes))
+            if on_frame is not None:
+                on_frame(frame, got)
+            if len(got) == stop_after:
+                source.stop()
     finally:
         timer.cancel()
     return got

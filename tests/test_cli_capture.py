@@ -48,7 +48,8 @@ def popen_capture(*args, **kw) -> subprocess.Popen:
 
 def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
     noun = "frame" if frames == 1 else "frames"
-    text = (rf"radar-capture: {frames} {noun} \({incomplete} incomplete, {lost} bytes lost\) "
+    causes = f": {lost} lost on the way" if lost else ""
+    text = (rf"radar-capture: {frames} {noun} \({incomplete} incomplete, {lost} bytes missing{causes}\) "
             rf"in \d+\.\d s, \d+\.\d Hz, {stream_s} s of stream; {re.escape(reason)}")
     if record is not None:
         text += rf"; recorded to {re.escape(str(record))}"

@@ -155,6 +155,11 @@ def test_status_of_a_live_capture_carries_the_board_state(recording):
     status = [json.loads(p) for p in inbox.payloads()]
     last = status[-1]
     assert last["frames"] == 25 and last["frames_dropped"] == 0 and last["packets_lost"] == 0
+    # Every missing byte has its cause: lost on the way or cut at stop (none here).
+    assert last["missing_bytes"] == last["lost_bytes"] + last["cut_bytes"] == 0
+    source = last["source"]
+    assert source["packets_lost"] == source["truncated_packets"] == source["late_packets"] == 0, source
+    assert source["frames_complete"] + source["frames_incomplete"] == 25, source
     assert last["source"]["url"].startswith("dca1000://") and last["source"]["fpga"]
     assert isinstance(last["source"]["async_status"], dict)  # the board's status counts
     assert last["latency_ms"]["p99"] < 1000.0 and last["rate_hz"] > 0

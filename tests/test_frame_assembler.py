@@ -213,3 +213,46 @@ def test_receiver_stopping_takes_the_datagrams_already_queued():
         got.append((frame.index, bytes(frame.data), frame.missing_bytes))
     assert got == [(i, stream[i * fb:(i + 1) * fb], 0) for i in range(n)]
     assert receiver.assembler.stats.frames_incomplete == 0
+
+
+def _stopped_stream(sent_all: bool):
+    """Two 3072-byte frames, the second without the 320-byte packet that ends it (a tail
+    never received)."""
+    fb = 3072
+    stream = stream_bytes(2, fb)
+    packets = packetize(stream)[:-1]
+    assert len(packetize(stream)[-1][2]) == 320
+    ring = FrameRing(fb, 4)
+    got = []
+
+    def take(frame):
+        got.append((frame.index, frame.missing_bytes, frame.cut_bytes))
+        ring.release(frame.slot)
+
+    asm = FrameAssembler(fb, ring, on_frame=take)
+    for seq, count, data in packets:
+        asm.add(seq, count, memoryview(data), 0.0)
+    asm.expire(sent_all=sent_all)
+    return asm.stats, got
+
+
+def test_a_tail_that_never_came_is_cut_at_stop():
+    stats, got = _stopped_stream(sent_all=False)
+    assert got == [(0, 0, 0), (1, 320, 320)]
+    assert (stats.missing_bytes, stats.cut_bytes, stats.lost_bytes) == (320, 320, 0)
+
+
+def test_a_tail_the_sender_confirmed_sending_was_lost_on_the_way():
+    """After RECORD_COMPLETED (and a radar that ended its frame) every byte was sent."""
+    stats, got = _stopped_stream(sent_all=True)
+    assert got == [(0, 0, 0), (1, 320, 0)]
+    assert (stats.missing_bytes, stats.cut_bytes, stats.lost_bytes) == (320, 0, 320)
+
+
+def test_a_gap_before_the_newest_byte_is_lost_not_cut():
+    fb = 3072
+    packets = packetize(stream_bytes(2, fb))
+    del packets[1]  # bytes 1456..2911 of frame 0
+    asm, frames = assemble(packets, fb)
+    assert [f[2] for f in frames] == [1456, 0]
+    assert (asm.stats.lost_bytes, asm.stats.cut_bytes) == (1456, 0)

@@ -147,6 +147,9 @@ def test_stream_faults_never_corrupt_or_misalign_a_frame(loss_capture, loss_cfg,
         assert d["malformed_packets"] == 0, d
     if faults.truncate:
         assert stats.truncated > 0 and any(g.missing_bytes for g in got)
+        assert 0 < d["truncated_packets"] <= stats.truncated, d
+    else:  # neither loss, nor duplicates, nor reordering look like truncation
+        assert d["truncated_packets"] == 0, d
     if name in ("duplicate", "reorder", "foreign"):  # nothing is lost
         assert not lost and all(g.missing_bytes == 0 for g in got)
         assert d["missing_bytes"] == 0, d

@@ -125,18 +125,37 @@ def _status_text(stats: CaptureStats, rate: RateMeter, recording: bool, source: 
     text = (f"frames {stats.frames}  rate {rate.rate_hz:5.1f} Hz  incomplete {stats.incomplete_frames}"
             f"  elapsed {format_duration(stats.elapsed_s)}")
     live = source.describe()
-    if "frames_dropped" in live:  # a live capture: what the consumer and the network lost
-        text += f"  dropped {live['frames_dropped']}  lost packets {live['seq_gaps']}"
+    if "frames_dropped" in live:  # a live capture: why frames are incomplete or missing
+        text += f"  dropped {live['frames_dropped']}  lost packets {live['packets_lost']}"
+        for key, name in (("truncated_packets", "truncated"), ("late_packets", "late")):
+            if live.get(key):
+                text += f"  {name} {live[key]}"
     return text + ("  [rec]" if recording else "")
 
 
+def _missing_text(stats: CaptureStats) -> str:
+    """"3 incomplete, 4368 bytes missing: 2912 lost on the way, 1456 cut at stop"."""
+    text = f"{stats.incomplete_frames} incomplete, {stats.missing_bytes} bytes missing"
+    causes = [f"{n} {cause}" for n, cause in ((stats.lost_bytes, "lost on the way"),
+                                              (stats.cut_bytes, "cut at stop")) if n]
+    return text + (": " + ", ".join(causes) if causes else "")
+
+
 def _summary(stats: CaptureStats, record: str | None) -> str:
-    text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({stats.incomplete_frames} incomplete, {stats.missing_bytes} bytes "
-            f"lost) in {stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, "
-            f"{stats.stream_duration_s:.2f} s of stream; {stats.reason}")
+    text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({_missing_text(stats)}) in "
+            f"{stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, {stats.stream_duration_s:.2f} s of stream; "
+            f"{stats.reason}")
     if record:
         text += f"; recorded to {record}"
     return text
+
+
+def _live_summary(live: dict) -> str:
+    """Where a live stream's frames and packets went (describe()'s accounting)."""
+    return (f"; {live['frames_dropped']} frames dropped by slow processing, {live['packets_lost']} packets "
+            f"lost (sequence gaps), {live['truncated_packets']} truncated and {live['late_packets']} late "
+            f"of {live['packets']} received; {live['duplicate_packets']} duplicate, {live['foreign_packets']} "
+            f"foreign and {live['malformed_packets']} malformed packets ignored")
 
 
 class _Processing:
@@ -293,9 +312,7 @@ def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: S
         live = source.describe()
     summary = _summary(stats, args.record) + (process.summary() if process is not None else "")
     if "frames_dropped" in live:
-        summary += (f"; {live['frames_dropped']} frames dropped by slow processing, {live['seq_gaps']} "
-                    f"packets lost, {live['foreign_packets']} foreign and {live['malformed_packets']} "
-                    f"malformed packets ignored")
+        summary += _live_summary(live)
     if publisher is not None:
         counts = publisher.counts
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
@@ -329,10 +346,11 @@ class _StatusReporter:
     def send(self, stats: CaptureStats, final: bool = False) -> None:
         info = {"time": time.time(), "running": not final, "frames": stats.frames,
                 "rate_hz": round(self.rate.rate_hz, 2), "incomplete_frames": stats.incomplete_frames,
-                "missing_bytes": stats.missing_bytes, "stream_s": round(stats.stream_duration_s, 3)}
+                "missing_bytes": stats.missing_bytes, "lost_bytes": stats.lost_bytes,
+                "cut_bytes": stats.cut_bytes, "stream_s": round(stats.stream_duration_s, 3)}
         live = self.source.describe()
         info["frames_dropped"] = live.get("frames_dropped", 0)
-        info["packets_lost"] = live.get("seq_gaps", 0)
+        info["packets_lost"] = live.get("packets_lost", 0)
         info["source"] = {k: v for k, v in live.items() if _plain(v)}  # radar and board state
         if self.process is not None:
             p50, p90, p99, worst = self.process.latency.percentiles_ms(50, 90, 99, 100)

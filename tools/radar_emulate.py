@@ -2,15 +2,16 @@
 streaming a recording or the simulator, to try the live path without hardware.
 
     radar-emulate --capture DIR [--loss P] [--reorder P] ...
-    radar-emulate --source sim://lab
+    radar-emulate --source sim://lab [--command-port 4096 --data-port 4098]
 
-It prints the --source URL (and --cfg) to give to radar-capture, then runs
-until Ctrl-C.
+It prints the --source URL (and --cfg) to give to radar-capture (and, with --command-port,
+the settings for xwr), then runs until Ctrl-C.  docs/live.md describes the emulators' timings.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import shlex
 import signal
@@ -22,7 +23,7 @@ from ..cfg import RadarConfig
 from ..driver.capture_dir import RADAR_CFG
 from ..driver.emulators.fake_awr1843 import CliFaults
 from ..driver.emulators.fake_dca1000 import Faults
-from ..driver.emulators.rig import EmulatedRig
+from ..driver.emulators.rig import BOARD_IP, EmulatedRig
 from ..errors import UsageError
 from . import cli
 
@@ -34,6 +35,16 @@ def _probability(text: str) -> float:
         value = -1.0
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"expected a probability in 0..1, got {text!r}")
+    return value
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a UDP port number 0..65535, got {text!r}")
     return value
 
 
@@ -55,6 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="end every frame with a short packet instead of straddling frames")
     faults.add_argument("--hang-on-start", action="store_true",
                         help="the radar never answers sensorStart (until RESET_AR_DEV)")
+    ports = parser.add_argument_group("ports (default: free ones)")
+    ports.add_argument("--command-port", type=_port, default=0, metavar="PORT",
+                       help="the board's config port (a real board's is 4096; xwr sends to the port "
+                            "number it binds on the host, so give it that one, free on both addresses)")
+    ports.add_argument("--data-port", type=_port, default=0, metavar="PORT",
+                       help="the host port the board streams data to (a real board's: 4098)")
     parser.add_argument("--max-rate", action="store_true", help="stream as fast as possible, not paced")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N")
     cli.add_verbosity(parser)
@@ -74,24 +91,45 @@ def _main(args: argparse.Namespace) -> int:
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        with EmulatedRig(url, config=config, faults=faults, cli_faults=CliFaults(hang_on_start=args.hang_on_start),
-                         rate="max" if args.max_rate else "paced", seed=args.seed) as rig:
+        with _open_rig(url, args, config=config, faults=faults,
+                       cli_faults=CliFaults(hang_on_start=args.hang_on_start),
+                       rate="max" if args.max_rate else "paced", seed=args.seed) as rig:
             command = ["radar-capture", "--source", rig.url()]
             if cfg_path:
                 command += ["--cfg", cfg_path]
             print(f"radar-emulate: radar CLI on {rig.cli_path}, DCA1000 at {rig.board.command_address[0]}; "
                   f"streaming {url}")
             print(shlex.join(command), flush=True)
+            if args.command_port:  # a client that sends to the port number it binds (xwr)
+                print(f"xwr: XWRConfig(port={rig.cli_path!r}, ...), DCAConfig(sys_ip={rig.host_ip!r}, "
+                      f"fpga_ip={rig.board.board_ip!r}, config_port={rig.board.command_port}, "
+                      f"data_port={rig.data_port})", flush=True)
             while not stop.wait(0.5):
                 pass
             stats = rig.board.stats
+            held = stats.frames_in - stats.frames_sent
             print(f"radar-emulate: sent {stats.frames_sent} frames in {stats.packets_sent} packets "
                   f"({stats.dropped} dropped, {stats.duplicates} duplicated, {stats.reordered} reordered, "
-                  f"{stats.truncated} truncated by the fault injector)")
+                  f"{stats.truncated} truncated by the fault injector)"
+                  + (f"; the tail of {held} more was held back (its recording had not ended)" if held else ""))
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
     return 0
+
+
+def _open_rig(url: str, args: argparse.Namespace, **kw) -> EmulatedRig:
+    try:
+        return EmulatedRig(url, command_port=args.command_port, data_port=args.data_port, **kw)
+    except OSError as exc:
+        if exc.errno == errno.EADDRINUSE and args.command_port:
+            raise UsageError(f"--command-port {args.command_port}: in use on {BOARD_IP} by another program "
+                             f"(a radar-emulate still running?): choose another port") from None
+        if exc.errno == errno.EADDRNOTAVAIL:
+            raise UsageError(f"cannot bind {BOARD_IP}, the fake board's address: {exc.strerror}. Linux has all "
+                             f"of 127.0.0.0/8 on its loopback; elsewhere add it, e.g. 'sudo ifconfig lo0 "
+                             f"alias {BOARD_IP}' on macOS") from None
+        raise
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -876,6 +876,10 @@ class FakeDca1000:
                 return self._release_held(st, all_=True)
             frame = st.pending if st.pending is not None else self._next_frame(st)
             st.pending = None
+            if st.frame_index == st.epoch_frame:
+                # The radar's frames start once it chirps: a source's start-up (a simulator
+                # building its scene) delays the first frame, not the period of the rest.
+                st.epoch = st.link_free = time.monotonic()
             if frame is None:
                 st.exhausted = True
                 log.info("fake DCA1000: source ended after %d frames", st.frame_index)

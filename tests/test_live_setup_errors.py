@@ -1,0 +1,120 @@
+"""The network set-up errors a first live capture meets, and what they tell the user to do:
+this computer without the board's host address, and a port another program holds.  The
+library raises one DeviceError naming the fix; radar-capture prints it as one line and exits
+1, without a traceback, having released what it opened."""
+
+from __future__ import annotations
+
+import errno
+import socket
+import subprocess
+
+import pytest
+from conftest import console_command, make_capture
+from live_helpers import URL_TIMEOUTS, port_is_free
+from radarodom.driver.emulators.rig import HOST_IP, EmulatedRig, free_udp_port
+from radarodom.driver.host_network import bind_problem
+from radarodom.driver.sources import open_source
+from radarodom.errors import DeviceError, DeviceTimeout
+
+#: TEST-NET-1 (RFC 5737): documentation only, on no interface of a test machine.
+ABSENT_IP = "192.0.2.1"
+
+
+def _address_is_absent(ip: str) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind((ip, 0))
+        except OSError as exc:
+            return exc.errno == errno.EADDRNOTAVAIL
+        return False
+
+
+@pytest.fixture
+def absent_ip():
+    for ip in (ABSENT_IP, "192.168.33.30"):
+        if _address_is_absent(ip):
+            return ip
+    pytest.skip(f"this machine has both {ABSENT_IP} and 192.168.33.30: no absent address to test with")
+
+
+@pytest.fixture
+def small_capture(tmp_path, small_cfg):
+    directory = tmp_path / "src"
+    make_capture(directory, small_cfg, 3)
+    return str(directory)
+
+
+def assert_names_the_fix(message: str, ip: str) -> None:
+    assert f"This computer has no address {ip}" in message, message
+    assert f"sudo ip addr add {ip}/24 dev " in message, message
+    assert "nmcli con add" in message and f"ipv4.addresses {ip}/24" in message, message
+    assert "?host=" in message, message
+
+
+def test_host_address_not_on_any_interface_names_the_command_that_adds_it(absent_ip, small_cfg):
+    # The data socket is bound first: no board and no radar are needed to hit this.
+    with pytest.raises(DeviceError) as info:
+        open_source(f"dca1000://192.168.33.180?host={absent_ip}&cli=/dev/null", small_cfg)
+    message = str(info.value)
+    assert not isinstance(info.value, DeviceTimeout)
+    assert message.startswith(f"cannot receive DCA1000 data on {absent_ip}:4098: "), message
+    assert_names_the_fix(message, absent_ip)
+
+
+def test_the_hint_names_the_one_wired_interface_and_skips_virtual_ones(monkeypatch):
+    monkeypatch.setattr(socket, "if_nameindex", lambda: [(1, "lo"), (2, "docker0"), (3, "veth12ab"),
+                                                          (4, "enp3s0"), (5, "ifb0")])
+    message = bind_problem(OSError(errno.EADDRNOTAVAIL, "Cannot assign requested address"),
+                           "192.168.33.30", 4098, "receive DCA1000 data")
+    assert "(interfaces here: enp3s0)" in message
+    assert "'sudo ip addr add 192.168.33.30/24 dev enp3s0'" in message
+    assert "ifname enp3s0 con-name dca1000" in message
+    monkeypatch.setattr(socket, "if_nameindex", lambda: [(1, "lo"), (2, "eth0"), (3, "eth1")])
+    message = bind_problem(OSError(errno.EADDRNOTAVAIL, "Cannot assign requested address"),
+                           "192.168.33.30", 4098, "receive DCA1000 data")
+    assert "(interfaces here: eth0, eth1)" in message and "dev IFACE" in message, message
+
+
+def test_radar_capture_says_it_in_one_line_and_exits_1(absent_ip):
+    proc = subprocess.run([*console_command("radar-capture"), "--source",
+                           f"dca1000://?host={absent_ip}&cli=/dev/null", "--no-publish"],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("radar-capture: error: ")]
+    assert len(errors) == 1, proc.stderr
+    assert_names_the_fix(errors[0], absent_ip)
+
+
+@pytest.mark.parametrize("which", ["data_port", "config_port"])
+def test_a_port_another_program_holds_says_so_and_how_to_find_it(small_capture, small_cfg, which):
+    port = free_udp_port(HOST_IP)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder, \
+            EmulatedRig(f"replay://{small_capture}", config=small_cfg) as rig:
+        holder.bind((HOST_IP, port))  # no SO_REUSEADDR: like a program that owns the port
+        with pytest.raises(DeviceError) as info:
+            open_source(rig.url(**{which: port}, **URL_TIMEOUTS), small_cfg)
+        assert rig.radar.received == [] and rig.board.commands == {}
+        if which == "config_port":
+            assert port_is_free(HOST_IP, rig.data_port), "the data socket was left open"
+    message = str(info.value)
+    what = "receive DCA1000 data" if which == "data_port" else "talk to the DCA1000's config port"
+    assert message.startswith(f"cannot {what} on {HOST_IP}:{port}: "), message
+    assert "Another program holds that port" in message, message
+    assert f"sudo ss -ulpn sport = :{port}" in message, message
+
+
+def test_radar_emulate_refuses_a_command_port_in_use_in_one_line():
+    from radarodom.driver.emulators.rig import BOARD_IP
+
+    port = free_udp_port(BOARD_IP)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder:
+        holder.bind((BOARD_IP, port))
+        proc = subprocess.run([*console_command("radar-emulate"), "--source", "sim://calibration",
+                               "--command-port", str(port)],
+                              stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.splitlines() == [f"radar-emulate: error: --command-port {port}: in use on {BOARD_IP} by "
+                                        f"another program (a radar-emulate still running?): choose another port"]
