@@ -113,3 +113,25 @@ def _restore_radarodom_logger():
     yield
     logger.handlers[:] = handlers
     logger.setLevel(level)
+
+
+# The live tests' sources (tests/test_live_*.py).
+@pytest.fixture
+def small_capture(request, tmp_path, small_cfg):
+    """(directory, frames) of a SMALL_CFG capture of the test module's N_SRC frames (5 when unset)."""
+    directory = tmp_path / "src"
+    return str(directory), make_capture(directory, small_cfg, getattr(request.module, "N_SRC", 5), seed=3)
+
+
+@pytest.fixture
+def loss_cfg() -> RadarConfig:
+    from live_helpers import LOSS_CFG
+
+    return RadarConfig.from_text(LOSS_CFG, "loss.cfg")
+
+
+@pytest.fixture
+def loss_capture(tmp_path, loss_cfg):
+    """(directory, frames) of a 7-frame LOSS_CFG capture (12288 bytes every 10 ms)."""
+    directory = tmp_path / "src_loss"
+    return str(directory), make_capture(directory, loss_cfg, 7, seed=1)

@@ -71,21 +71,7 @@ def collect(source, n: int, timeout: float = 5.0, *, on_frame=None) -> list[Got]
     """Up to *n* frames from *source*; a watchdog stops the source after
     *timeout* s, so this returns (with fewer frames) instead of hanging.
     ``on_frame(frame, got_so_far)`` runs while the consumer holds the frame."""
-    timer = threading.Timer(timeout, source.stop)
-    timer.daemon = True
-    timer.start()
-    got: list[Got] = []
-    try:
-        for frame in source:
-            got.append(Got(frame.index, frame.timestamp, frame.missing_bytes,
-                           frame.raw.tobytes(), time.time(), frame.cut_bytes))
-            if on_frame is not None:
-                on_frame(frame, got)
-            if len(got) >= n:
-                break
-    finally:
-        timer.cancel()
-    return got
+    return _gather(source, timeout, on_frame, lambda got: len(got) >= n, stop=False)
 
 
 def collect_until_stopped(source, stop_after: int, timeout: float = 10.0, *, on_frame=None) -> list[Got]:
@@ -93,6 +79,12 @@ def collect_until_stopped(source, stop_after: int, timeout: float = 10.0, *, on_
     and the frames it still delivers are taken too, to its end.  A watchdog asks it to stop
     after *timeout* s if it has not been asked yet.  ``on_frame(frame, got_so_far)`` as in
     :func:`collect`."""
+    return _gather(source, timeout, on_frame, lambda got: len(got) == stop_after, stop=True)
+
+
+def _gather(source, timeout: float, on_frame, enough, *, stop: bool) -> list[Got]:
+    """Frames of *source* until ``enough(got)``: then break out (*stop* false) or ask the source
+    to stop and take what it still delivers (*stop* true); the watchdog stops it after *timeout* s."""
     timer = threading.Timer(timeout, source.stop)
     timer.daemon = True
     timer.start()
@@ -103,7 +95,9 @@ def collect_until_stopped(source, stop_after: int, timeout: float = 10.0, *, on_
                            frame.raw.tobytes(), time.time(), frame.cut_bytes))
             if on_frame is not None:
                 on_frame(frame, got)
-            if len(got) == stop_after:
+            if enough(got):
+                if not stop:
+                    break
                 source.stop()
     finally:
         timer.cancel()

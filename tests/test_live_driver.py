@@ -19,10 +19,9 @@ import time
 
 import numpy as np
 import pytest
-from conftest import make_capture, warning_messages
+from conftest import warning_messages
 from live_helpers import (
     BIG_CFG,
-    LOSS_CFG,
     URL_TIMEOUTS,
     Emulator,
     Process,
@@ -44,25 +43,6 @@ from radarodom.driver.sources import open_source
 from radarodom.errors import DeviceTimeout
 
 N_SRC = 5  # frames in the streamed capture (the board loops it)
-
-
-@pytest.fixture
-def small_capture(tmp_path, small_cfg):
-    """(directory, frames) of a 5-frame SMALL_CFG capture."""
-    directory = tmp_path / "src"
-    return str(directory), make_capture(directory, small_cfg, N_SRC)
-
-
-@pytest.fixture
-def loss_cfg():
-    return config(LOSS_CFG, "loss.cfg")
-
-
-@pytest.fixture
-def loss_capture(tmp_path, loss_cfg):
-    """(directory, frames) of a 7-frame LOSS_CFG capture (12288 bytes every 10 ms)."""
-    directory = tmp_path / "src_loss"
-    return str(directory), make_capture(directory, loss_cfg, 7, seed=1)
 
 
 def spy_on_sensor(rig: EmulatedRig) -> list[tuple]:

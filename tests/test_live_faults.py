@@ -16,9 +16,8 @@ from __future__ import annotations
 import time
 
 import pytest
-from conftest import SMALL_CFG, make_capture, warning_messages
+from conftest import SMALL_CFG, warning_messages
 from live_helpers import (
-    LOSS_CFG,
     NO_LVDS_CFG,
     URL_TIMEOUTS,
     assert_continuous,
@@ -41,23 +40,6 @@ from radarodom.driver.sources import open_source
 from radarodom.errors import ConfigError, DeviceError, DeviceTimeout, RadarCommandError
 
 N_SRC = 7
-
-
-@pytest.fixture
-def loss_cfg():
-    return config(LOSS_CFG, "loss.cfg")
-
-
-@pytest.fixture
-def loss_capture(tmp_path, loss_cfg):
-    directory = tmp_path / "src_loss"
-    return str(directory), make_capture(directory, loss_cfg, N_SRC, seed=2)
-
-
-@pytest.fixture
-def small_capture(tmp_path, small_cfg):
-    directory = tmp_path / "src"
-    return str(directory), make_capture(directory, small_cfg, N_SRC, seed=3)
 
 
 def assert_released(rig: EmulatedRig) -> None:

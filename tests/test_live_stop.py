@@ -15,16 +15,14 @@ import re
 import time
 
 import pytest
-from conftest import make_capture, warning_messages
+from conftest import warning_messages
 from live_helpers import (
-    LOSS_CFG,
     URL_TIMEOUTS,
     Emulator,
     Process,
     assert_continuous,
     assert_frames_match,
     collect_until_stopped,
-    config,
 )
 from radarodom.driver.capture import run_capture
 from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
@@ -34,23 +32,6 @@ from radarodom.driver.emulators.rig import EmulatedRig
 from radarodom.driver.sources import open_source
 
 N_SRC = 5
-
-
-@pytest.fixture
-def small_capture(tmp_path, small_cfg):
-    directory = tmp_path / "src"
-    return str(directory), make_capture(directory, small_cfg, N_SRC, seed=11)
-
-
-@pytest.fixture
-def loss_cfg():
-    return config(LOSS_CFG, "loss.cfg")
-
-
-@pytest.fixture
-def loss_capture(tmp_path, loss_cfg):
-    directory = tmp_path / "src_loss"
-    return str(directory), make_capture(directory, loss_cfg, 7, seed=12)
 
 
 def tail_bytes(frames: int, frame_bytes: int) -> int:

@@ -24,6 +24,7 @@ from radarodom.driver.sim.scene import BUILTIN_SCENES, load_scene, scene_from_di
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.driver.sim.trajectory import from_segments, from_spec
 from radarodom.driver.sources import open_source
+from radarodom.dsp.processor import FrameProcessor
 from radarodom.errors import ConfigError, SourceError
 from radarodom.tum import read_tum
 
@@ -636,3 +637,30 @@ def test_radar_capture_records_sim_frames(tmp_path):
     assert all(cap.pose(i) == pytest.approx((0, 0, 0, 0, 0, 0, 1)) for i in range(5))
     with open_source("sim://calibration?rate=max&duration=0.5") as src:
         assert [bytes(f.raw) for f in src] == [bytes(cap.raw(i)) for i in range(5)]
+    # The recording keeps the simulated board, so its replay knows the identity line fits it.
+    assert cap.metadata["simulator"]["board"] == "ideal"
+    with open_source(f"replay://{out}") as src:
+        assert src.calibrated is True
+
+
+def test_radar_capture_reads_a_simulation_as_the_library_does(tmp_path, shipped_cfg):
+    """radar-capture's points on sim:// are the DSP's with the source's word on the line (the
+    ideal board: two azimuths a cell), frame for frame."""
+    # Two reflectors at one range, 40 degrees apart: one range-Doppler cell.
+    pair = [{"type": "corner_reflector", "rcs_dbsm": 10.0, "position": [5.5 * math.cos(a), 5.5 * math.sin(a), 0.4]}
+            for a in (math.radians(20), math.radians(-20))]
+    scene = tmp_path / "pair.json"
+    scene.write_text(json.dumps({"objects": pair, "trajectory": {"height": 0.4, "segments": [{"pause": 1.0}]}}))
+    url = f"sim://{scene}?rate=max&duration=0.3"
+    out = tmp_path / "points.csv"
+    proc = _run("radar-capture", "--source", url, "--no-odom", "--no-publish", "-q", "--points-out", out)
+    assert proc.returncode == 0, proc.stderr
+    rows = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+    with open_source(url) as src:
+        assert src.calibrated is True
+        proc_ = FrameProcessor(src.config, calibrated=src.calibrated)
+        expected = [proc_.process(f.cube()).points for f in src]
+    assert len(rows) == sum(len(p) for p in expected) == 2 * len(expected)
+    for i, pts in enumerate(expected):
+        mine = rows[rows[:, 0] == i]
+        np.testing.assert_allclose(np.sort(mine[:, 5]), np.sort(pts["range"]), atol=1e-4)  # the CSV has 0.1 mm

@@ -175,9 +175,10 @@ class _Processing:
                 cli.check_new_path(path, is_dir=path == args.heatmap_out)
         estimator_cfg = args.estimator
         # The heatmap export gets the full map; the estimator needs less.
-        self.products = (FrameProducts(source.config, coupling=source.coupling) if args.heatmap_out
+        self.products = (FrameProducts(source.config, coupling=source.coupling, calibrated=source.calibrated)
+                         if args.heatmap_out
                          else FrameProducts.for_estimator(source.config, estimator_cfg.features.k,
-                                                          coupling=source.coupling))
+                                                          coupling=source.coupling, calibrated=source.calibrated))
         self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
         self.state = None
         # Recent figures only: a sensor node runs for days.
@@ -300,7 +301,8 @@ def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: S
             status.update(_status_text(stats, rate, args.record is not None, source)
                           + (process.status() if process is not None else ""))
 
-        writer = CaptureWriter(args.record, source.config, source=args.source) if args.record else None
+        writer = (CaptureWriter(args.record, source.config, source=args.source, extra=source.recording_metadata())
+                  if args.record else None)
         with _stop_on_signals(source):
             try:
                 stats = run_capture(source, writer=writer, max_frames=args.frames,
