@@ -25,7 +25,8 @@ Odometry: ``<prefix>/odom``, encoding ``application/json``
 
     No value is ever NaN or infinite (an encoder refuses; JSON has no NaN).
     Readers ignore keys they do not know; a change that would break a reader
-    raises ``version``.
+    raises ``version``.  A reader refuses a JSON message larger than
+    :data:`MAX_JSON_BYTES` or nested deeper than 32, before parsing it.
 
 Status: ``<prefix>/status``, encoding ``application/json``
     A JSON object about once a second with ``"schema": "radarodom/status",
@@ -54,7 +55,14 @@ Status: ``<prefix>/status``, encoding ``application/json``
 
     ``lost_bytes``, ``cut_bytes`` and the source's ``packets_lost``,
     ``truncated_packets`` and ``frames_complete`` are newer than the rest: an
-    older publisher does not send them.
+    older publisher does not send them.  A number the publisher does not have
+    (the latency percentiles before the first frame) is ``null``: the publisher
+    sends every NaN or infinite value as ``null``, as JSON has neither.
+
+Binary messages.  A reader checks the header's sizes against the payload's
+length before it reads an array, refuses a payload larger than
+:data:`MAX_BINARY_BYTES`, and refuses a header whose ``t`` is NaN or infinite
+(the arrays may hold NaN: see ``doppler_mps``).
 
 Point cloud: ``<prefix>/pointcloud``, encoding ``application/octet-stream;radarodom/pointcloud/v1``
     A 32-byte little-endian header, then ``count`` records of 36 bytes::
@@ -111,6 +119,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from . import strict_json
 from .errors import MessageError
 from .tum import yaw_quaternion
 
@@ -128,6 +137,16 @@ HEATMAP_ENCODING = f"application/octet-stream;{HEATMAP_SCHEMA}/v{VERSION}"
 #: The odometry's frames (REP-105 names).
 ODOM_FRAME_ID = "odom"
 CHILD_FRAME_ID = "base_radar"
+
+#: The largest JSON message a reader parses: odometry and status are a few KB; a payload
+#: beyond this is refused before it is parsed.
+MAX_JSON_BYTES = 1 << 20
+#: The largest binary message a reader takes (a heatmap of 1024 x 1024 cells is 12 MiB).
+MAX_BINARY_BYTES = 64 << 20
+#: Frame numbers travel as uint64.
+MAX_FRAME = 2**64 - 1
+#: How much of a bad value a message error quotes.
+_QUOTE_CHARS = 60
 
 POINTCLOUD_MAGIC = b"RPC1"
 HEATMAP_MAGIC = b"RHM1"
@@ -170,45 +189,72 @@ _PLANAR_IN_6D = (0, 1, 5)
 # ---------------------------------------------------------------------- JSON
 def _json_bytes(obj: Mapping[str, Any], what: str) -> bytes:
     try:
-        return json.dumps(obj, allow_nan=False, separators=(",", ":")).encode()
+        data = json.dumps(obj, allow_nan=False, separators=(",", ":")).encode()
     except ValueError as exc:  # NaN or infinity: JSON has no way to say it
         raise MessageError(f"{what}: cannot encode a non-finite number ({exc})") from None
     except TypeError as exc:
         raise MessageError(f"{what}: {exc}") from None
+    _check_bound(len(data), MAX_JSON_BYTES, what)
+    return data
 
 
-def _reject_constant(name: str) -> None:
-    raise ValueError(f"{name} is not a number JSON allows")
+def _check_bound(size: int, limit: int, what: str) -> None:
+    # A publisher never sends what every reader would refuse.
+    if size > limit:
+        raise MessageError(f"{what}: {size} bytes, more than the {limit} a message may have")
+
+
+def _quote(value: Any) -> str:
+    """*value*'s repr, cut: a message error never echoes a whole hostile payload."""
+    text = repr(value)
+    return text if len(text) <= _QUOTE_CHARS else text[:_QUOTE_CHARS] + f"... ({len(text)} characters)"
+
+
+def _payload_bytes(payload: Any, schema: str, limit: int) -> bytes:
+    """*payload* (any bytes-like object) as bytes, refused before the copy when over *limit*."""
+    try:
+        view = memoryview(payload)
+    except TypeError:
+        raise MessageError(f"{schema}: a payload is bytes, not {type(payload).__name__}") from None
+    if view.nbytes > limit:
+        raise MessageError(f"{schema}: {view.nbytes} bytes, more than the {limit} a message may have")
+    return view.tobytes()
 
 
 def _json_object(payload: bytes, schema: str) -> dict:
     """The JSON object in *payload*, checked to be of *schema* at a version this reader knows."""
+    data = _payload_bytes(payload, schema, MAX_JSON_BYTES)
     try:
-        obj = json.loads(bytes(payload).decode("utf-8"), parse_constant=_reject_constant)
-    except ValueError as exc:  # not UTF-8, not JSON, or NaN/Infinity in it
-        raise MessageError(f"not a {schema} message: not UTF-8 JSON ({exc})") from None
+        obj = strict_json.loads(data, max_bytes=MAX_JSON_BYTES)
+    except ValueError as exc:  # not UTF-8, not JSON, too deep, or NaN/Infinity/1e999 in it
+        raise MessageError(f"not a {schema} message: {exc}") from None
     if not isinstance(obj, dict):
         raise MessageError(f"not a {schema} message: a JSON {type(obj).__name__}, not an object")
     if obj.get("schema") != schema:
-        raise MessageError(f"not a {schema} message: schema {obj.get('schema')!r}")
+        raise MessageError(f"not a {schema} message: schema {_quote(obj.get('schema'))}")
     _check_version(obj.get("version"), schema)
     return obj
 
 
 def _check_version(version: Any, schema: str) -> None:
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
-        raise MessageError(f"{schema}: bad version {version!r}")
+        raise MessageError(f"{schema}: bad version {_quote(version)}")
     if version > VERSION:
         raise MessageError(f"{schema} version {version} is newer than this reader understands "
                            f"({VERSION}); upgrade radarodom")
 
 
 def _finite(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer beyond every float
+        return False
 
 
 def _count(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= MAX_FRAME
 
 
 def _covariance(value: Any) -> bool:
@@ -222,13 +268,13 @@ def _strings(value: Any) -> bool:
 #: Every field of odometry v1 and what its value must be.
 _ODOM_FIELDS = {
     "t": (_finite, "a finite number"),
-    "frame": (_count, "a whole number >= 0"),
+    "frame": (_count, "a whole number from 0 to 2**64 - 1"),
     **{name: (_finite, "a finite number") for name in ("x", "y", "yaw", "vx", "vy", "yaw_rate", "compute_ms")},
     "pose_covariance": (_covariance, "a list of 9 finite numbers"),
     "twist_covariance": (_covariance, "a list of 9 finite numbers"),
     "flags": (_strings, "a list of strings"),
     "ok": (lambda v: isinstance(v, bool), "true or false"),
-    "features": (_count, "a whole number >= 0"),
+    "features": (_count, "a whole number from 0 to 2**64 - 1"),
     "frame_id": (lambda v: isinstance(v, str), "a string"),
     "child_frame_id": (lambda v: isinstance(v, str), "a string"),
 }
@@ -272,7 +318,7 @@ def parse_odometry(payload: bytes) -> dict:
         if name not in obj:
             raise MessageError(f"{ODOM_SCHEMA}: field {name!r} is missing")
         if not valid(obj[name]):
-            raise MessageError(f"{ODOM_SCHEMA}: field {name!r} must be {what}, got {obj[name]!r}")
+            raise MessageError(f"{ODOM_SCHEMA}: field {name!r} must be {what}, got {_quote(obj[name])}")
     return obj
 
 
@@ -286,16 +332,16 @@ def status_json(status: Mapping[str, Any]) -> bytes:
 
 
 def parse_status(payload: bytes) -> dict:
-    """The status object in *payload* (schema and version checked)."""
+    """The status object in *payload* (schema and version checked; every number finite)."""
     return _json_object(payload, STATUS_SCHEMA)
 
 
 # ---------------------------------------------------------------------- binary
 def _header(dtype: np.dtype, magic: bytes, frame: int, t: float, **fields: int) -> np.ndarray:
-    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
-        raise MessageError(f"frame must be a whole number >= 0, got {frame!r}")
-    if not math.isfinite(t):
-        raise MessageError(f"t must be finite, got {t!r}")
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or not 0 <= frame <= MAX_FRAME:
+        raise MessageError(f"frame must be a whole number from 0 to 2**64 - 1, got {_quote(frame)}")
+    if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)) or not _finite(float(t)):
+        raise MessageError(f"t must be a finite number, got {_quote(t)}")
     header = np.zeros((), dtype)
     header["magic"], header["version"], header["header_bytes"] = magic, VERSION, dtype.itemsize
     header["frame"], header["t"] = frame, t
@@ -305,6 +351,8 @@ def _header(dtype: np.dtype, magic: bytes, frame: int, t: float, **fields: int) 
 
 
 def _read_header(payload: bytes, dtype: np.dtype, magic: bytes, schema: str) -> np.ndarray:
+    """The header of *payload* (already bytes, within the size bound), its magic, version,
+    size and time checked."""
     if len(payload) < dtype.itemsize:
         raise MessageError(f"{schema}: {len(payload)} bytes, shorter than its {dtype.itemsize}-byte header")
     header = np.frombuffer(payload, dtype, 1)[0]
@@ -313,6 +361,8 @@ def _read_header(payload: bytes, dtype: np.dtype, magic: bytes, schema: str) -> 
     _check_version(int(header["version"]), schema)
     if header["header_bytes"] != dtype.itemsize:
         raise MessageError(f"{schema}: header of {header['header_bytes']} bytes, expected {dtype.itemsize}")
+    if not math.isfinite(header["t"]):
+        raise MessageError(f"{schema}: t is {float(header['t'])}, not a finite time")
     return header
 
 
@@ -328,6 +378,8 @@ def encode_pointcloud(frame: int, t: float, points: np.ndarray) -> bytes:
     missing = [f for f in POINTCLOUD_RECORD.names if f not in names]
     if missing:
         raise MessageError(f"point cloud: the points lack field(s) {', '.join(missing)}")
+    _check_bound(POINTCLOUD_HEADER.itemsize + len(points) * POINTCLOUD_RECORD.itemsize, MAX_BINARY_BYTES,
+                 "point cloud")
     records = np.empty(len(points), POINTCLOUD_RECORD)
     for name in POINTCLOUD_RECORD.names:
         records[name] = points[name]
@@ -339,7 +391,7 @@ def encode_pointcloud(frame: int, t: float, points: np.ndarray) -> bytes:
 def decode_pointcloud(payload: bytes) -> tuple[dict, np.ndarray]:
     """(header, points) of a point cloud message; points are a writable
     :data:`POINTCLOUD_RECORD` array.  The header has ``schema, version, frame, t, count``."""
-    payload = bytes(payload)
+    payload = _payload_bytes(payload, POINTCLOUD_SCHEMA, MAX_BINARY_BYTES)
     header = _read_header(payload, POINTCLOUD_HEADER, POINTCLOUD_MAGIC, POINTCLOUD_SCHEMA)
     layout = (int(header["record_bytes"]), int(header["fields"]))
     if layout != (POINTCLOUD_RECORD.itemsize, len(POINTCLOUD_RECORD.names)):
@@ -363,6 +415,8 @@ def encode_heatmap(frame: int, t: float, heatmap: Any) -> bytes:
         raise MessageError(f"heatmap: the axes must be 1-D, got range_m {range_m.shape} and "
                            f"azimuth_rad {azimuth.shape}")
     shape = (len(range_m), len(azimuth))
+    _check_bound(HEATMAP_HEADER.itemsize + 4 * (sum(shape) + len(HEATMAP_CHANNELS) * shape[0] * shape[1]),
+                 MAX_BINARY_BYTES, "heatmap")
     parts = [range_m, azimuth]
     for name in HEATMAP_CHANNELS:
         channel = np.ascontiguousarray(getattr(heatmap, name), "<f4")
@@ -379,7 +433,7 @@ def decode_heatmap(payload: bytes) -> tuple[dict, dict[str, np.ndarray]]:
     """(header, arrays) of a heatmap message.  The arrays are float32 keyed like
     RangeAzimuth's attributes, so ``RangeAzimuth(**arrays)`` rebuilds one.  The
     header has ``schema, version, frame, t, n_range, n_azimuth, channels``."""
-    payload = bytes(payload)
+    payload = _payload_bytes(payload, HEATMAP_SCHEMA, MAX_BINARY_BYTES)
     header = _read_header(payload, HEATMAP_HEADER, HEATMAP_MAGIC, HEATMAP_SCHEMA)
     nr, na, channels = int(header["n_range"]), int(header["n_azimuth"]), int(header["channels"])
     if channels != len(HEATMAP_CHANNELS):
@@ -441,6 +495,9 @@ def ros2_odometry(state: Any, typestore: Any) -> Any:
 
 def ros2_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
     """rmw_zenoh_cpp's attachment of one sample (see :data:`ROS2_ATTACHMENT`)."""
-    if len(gid) != ROS2_GID_BYTES:
-        raise MessageError(f"ROS 2 gid must be {ROS2_GID_BYTES} bytes, got {len(gid)}")
-    return ROS2_ATTACHMENT.pack(sequence, timestamp_ns, ROS2_GID_BYTES, gid)
+    if not isinstance(gid, bytes) or len(gid) != ROS2_GID_BYTES:
+        raise MessageError(f"ROS 2 gid must be {ROS2_GID_BYTES} bytes, got {_quote(gid)}")
+    try:
+        return ROS2_ATTACHMENT.pack(sequence, timestamp_ns, ROS2_GID_BYTES, gid)
+    except struct.error as exc:  # a sequence or time beyond int64
+        raise MessageError(f"ROS 2 attachment: {exc}") from None

@@ -54,7 +54,7 @@ from typing import Any, Mapping, Sequence
 
 import zenoh
 
-from . import messages
+from . import messages, strict_json
 from .errors import PublishConfigError, PublishError
 
 log = logging.getLogger(__name__)
@@ -466,8 +466,11 @@ class Publisher:
         self._put("heatmap", messages.encode_heatmap(frame, t, heatmap))
 
     def status(self, info: Mapping[str, Any]) -> None:
-        """Publish a status message: *info* with the schema's ``schema`` and ``version``."""
-        self._put("status", messages.status_json(info))
+        """Publish a status message: *info* with the schema's ``schema`` and ``version``.
+        A NaN or infinite value in *info* (a figure not known yet, such as the latency before
+        the first frame) goes out as ``null``, and numpy values as plain numbers and lists: a
+        status is never lost for one unknown figure."""
+        self._put("status", messages.status_json(strict_json.finite(info)))
 
     def close(self) -> None:
         """Close the session (undeclaring everything); safe to call twice."""

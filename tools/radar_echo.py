@@ -7,20 +7,25 @@ one line per message.
 Without endpoints it connects to a publisher on this machine (its default
 endpoint, tcp/127.0.0.1:7448).  Stops after --count messages, or on Ctrl-C;
 the session is always closed.
+
+Any peer may put anything on these keys: a message that does not decode is
+skipped with one warning line on stderr (its key and why), and the listing goes
+on.  When messages arrive faster than they are printed, those beyond a backlog
+of :data:`_BACKLOG` are dropped, and a warning says how many.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import math
 import queue
 import sys
+import threading
 import time
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
-from .. import messages
+from .. import messages, strict_json
 from ..errors import MessageError
 from ..publish import KINDS, open_session
 from . import cli
@@ -33,6 +38,13 @@ DEFAULT_KINDS = ("odom", "status")
 _POLL_S = 0.25
 #: After this long with nothing received and no peer, say what to check.
 _QUIET_HINT_S = 5.0
+#: Messages received and not yet printed, at most; a flood beyond is dropped and counted.
+_BACKLOG = 1000
+#: The longest reason a warning about a bad message quotes.
+_REASON_CHARS = 200
+#: The largest payload taken off the network, per kind (the readers' own bounds).
+_MAX_BYTES = {"odom": messages.MAX_JSON_BYTES, "status": messages.MAX_JSON_BYTES,
+              "pointcloud": messages.MAX_BINARY_BYTES, "heatmap": messages.MAX_BINARY_BYTES}
 
 
 def _kind(text: str) -> str:
@@ -58,16 +70,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _printable(text: str, limit: int) -> str:
+    """*text* safe on one terminal line: control characters (newlines, escapes) and lone
+    surrogates escaped, cut to *limit* characters."""
+    if not text.isprintable():
+        text = "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace").decode("ascii")
+                       for c in text)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _odom_line(payload: bytes) -> tuple[str, dict]:
     m = messages.parse_odometry(payload)
     text = (f"odom frame {m['frame']} t {m['t']:.3f} x {m['x']:.3f} y {m['y']:.3f} m "
             f"yaw {math.degrees(m['yaw']):.2f} deg v {math.hypot(m['vx'], m['vy']):.3f} m/s")
-    return text + (f" [{','.join(m['flags'])}]" if m["flags"] else ""), m
+    # The flags are any peer's strings: escaped and cut, so a message stays one line.
+    return text + (f" [{_printable(','.join(m['flags']), _REASON_CHARS)}]" if m["flags"] else ""), m
 
 
 def _status_line(payload: bytes) -> tuple[str, dict]:
     m = messages.parse_status(payload)
-    return "status " + json.dumps(m, separators=(",", ":")), m
+    return "status " + strict_json.dumps(m, separators=(",", ":")), m
 
 
 def _pointcloud_line(payload: bytes) -> tuple[str, dict]:
@@ -88,23 +110,55 @@ _FORMATS: dict[str, Callable[[bytes], tuple[str, dict]]] = {
 
 
 def format_message(kind: str, key: str, payload: bytes, as_json: bool = False) -> str:
-    """The line radar-echo prints for one message (raises MessageError when it is malformed)."""
+    """The line radar-echo prints for one message (raises MessageError when it is malformed).
+    With *as_json*, standard JSON (ASCII, no NaN or infinity) with ``key`` first: the Zenoh
+    key, which wins over a ``key`` field of the message."""
     text, obj = _FORMATS[kind](payload)
-    return json.dumps({"key": key, **obj}, separators=(",", ":")) if as_json else text
+    if not as_json:
+        return text
+    return strict_json.dumps({"key": key, **{k: v for k, v in obj.items() if k != "key"}}, separators=(",", ":"))
+
+
+class _Inbox:
+    """What the Zenoh threads received, for the main thread: (kind, key, payload or None,
+    size).  At most *backlog* wait; the rest are counted, not kept.  A payload over its kind's
+    bound is not copied off the network (None, with its size)."""
+
+    def __init__(self, backlog: int = _BACKLOG) -> None:
+        self._queue: queue.Queue = queue.Queue(backlog)
+        self._lock = threading.Lock()
+        self._dropped: dict[str, int] = {}
+
+    def receiver(self, kind: str) -> Callable[[Any], None]:
+        limit = _MAX_BYTES[kind]
+
+        # Runs on a zenoh thread: it must never raise, and never wait on the main thread.
+        def receive(sample: Any) -> None:
+            key, size = str(sample.key_expr), len(sample.payload)
+            try:
+                self._queue.put_nowait((kind, key, sample.payload.to_bytes() if size <= limit else None, size))
+            except queue.Full:
+                with self._lock:
+                    self._dropped[key] = self._dropped.get(key, 0) + 1
+        return receive
+
+    def get(self, timeout: float) -> tuple[str, str, bytes | None, int]:
+        return self._queue.get(timeout=timeout)
+
+    def take_dropped(self) -> dict[str, int]:
+        with self._lock:
+            dropped, self._dropped = self._dropped, {}
+        return dropped
 
 
 def _main(args: argparse.Namespace) -> int:
     options = options_from_args(args).for_subscriber()
     kinds = list(dict.fromkeys(args.kinds or DEFAULT_KINDS))
-    inbox: queue.SimpleQueue = queue.SimpleQueue()
+    inbox = _Inbox()
     session, options = open_session(options)
     try:
-        subscribers = []  # kept referenced while the loop runs
-        for kind in kinds:
-            # Runs on a zenoh thread: copy the bytes out and hand them to the main thread.
-            def receive(sample, kind=kind):
-                inbox.put((kind, str(sample.key_expr), sample.payload.to_bytes()))
-            subscribers.append(session.declare_subscriber(options.key(kind), receive))
+        # Kept referenced while the loop runs.
+        subscribers = [session.declare_subscriber(options.key(kind), inbox.receiver(kind)) for kind in kinds]
         if not args.quiet:
             print(f"radar-echo: {', '.join(options.key(k) for k in kinds)} via {options.describe()}; "
                   "Ctrl-C stops", file=sys.stderr, flush=True)
@@ -115,13 +169,15 @@ def _main(args: argparse.Namespace) -> int:
         session.close()
 
 
-def _print_loop(args: argparse.Namespace, session, inbox: queue.SimpleQueue) -> int:
+def _print_loop(args: argparse.Namespace, session, inbox: _Inbox) -> int:
     printed = 0
     started = time.monotonic()
     hinted = False
     while args.count is None or printed < args.count:
+        for key, n in inbox.take_dropped().items():
+            log.warning("%s: dropped %d message(s): they came faster than they could be printed", key, n)
         try:
-            kind, key, payload = inbox.get(timeout=_POLL_S)
+            kind, key, payload, size = inbox.get(timeout=_POLL_S)
         except queue.Empty:
             if not hinted and not printed and time.monotonic() - started > _QUIET_HINT_S:
                 hinted = True
@@ -130,9 +186,11 @@ def _print_loop(args: argparse.Namespace, session, inbox: queue.SimpleQueue) -> 
                                 "(otherwise give --connect with its endpoint)")
             continue
         try:
+            if payload is None:
+                raise MessageError(f"{size} bytes, more than the {_MAX_BYTES[kind]} a {kind} message may have")
             line = format_message(kind, key, payload, args.json)
         except MessageError as exc:
-            log.warning("%s: ignored a malformed message: %s", key, exc)
+            log.warning("%s: ignored a malformed message: %s", key, _printable(str(exc), _REASON_CHARS))
             continue
         print(line, flush=True)
         printed += 1
