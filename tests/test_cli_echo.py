@@ -5,17 +5,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import signal
+import struct
 import subprocess
 import threading
 import time
 
 import pytest
+import zenoh
 from conftest import console_command
 from zenoh_helpers import default_endpoint_free, estimator_run, free_endpoint, peer, wait_for
 
-from radarodom import messages
+from radarodom import messages, strict_json
+from radarodom.errors import MessageError
 from radarodom.publish import Publisher, ZenohOptions
 from radarodom.tools import radar_echo
 from radarodom.tools.zenoh_args import add_zenoh_arguments, options_from_args
@@ -188,3 +192,89 @@ def test_the_shared_session_arguments_make_zenoh_options():
         ZenohOptions(config_file="z.json5")
     with pytest.raises(SystemExit):
         without.parse_args(["--ros2"])
+
+
+# =========================================================================== issue 18: hostile peers
+def _patched(payload: bytes, offset: int, fmt: str, value) -> bytes:
+    out = bytearray(payload)
+    struct.pack_into(fmt, out, offset, value)
+    return bytes(out)
+
+
+def _hostile_payloads(run) -> dict[str, list[bytes]]:
+    """Per kind, payloads a peer may put that no reader can take: deep nesting, NaN and
+    overflowing numbers, wrong magic, truncation, headers claiming huge sizes, non-UTF-8 and
+    oversized payloads."""
+    state, cloud, heatmap = run[3]
+    odom = messages.odometry_json(state)
+    pc = messages.encode_pointcloud(state.frame, state.t, cloud)
+    hm = messages.encode_heatmap(state.frame, state.t, heatmap)
+    status = messages.status_json({"rate_hz": 10.0})
+    return {
+        "odom": [b"[" * 1000, b'{"a":' * 1000, odom.replace(b'"x":', b'"x":NaN,"_":'),
+                 odom.replace(b'"t":', b'"t":1e999,"_":'), b"\xff\xfe" + odom, odom[:-5], b"",
+                 b'{"pad":"' + b"x" * messages.MAX_JSON_BYTES + b'"}'],
+        "status": [b"[" * 1000, status.replace(b"10.0", b"1e999"), status.replace(b"10.0", b"Infinity"),
+                   status.replace(b"10.0", b"NaN"), b"\xc3\x28" + status, b"[1, 2]", status[:-1]],
+        "pointcloud": [_patched(pc, 16, "<d", math.nan), b"XPC1" + pc[4:], pc[:20], pc[:-1],
+                       _patched(pc, 24, "<I", 2**32 - 1), b""],
+        "heatmap": [_patched(hm, 16, "<d", math.inf), b"RPC1" + hm[4:], hm[:30], hm[:-4],
+                    _patched(hm, 24, "<I", 2**32 - 1), bytes(messages.MAX_BINARY_BYTES + 1)],
+    }
+
+
+def test_radar_echo_never_formats_nan_or_infinity_as_json(run):
+    """Regression (issue 18): a NaN t in a point cloud or heatmap header and 1e999 in a status
+    were printed by --json as "t":NaN / "x":Infinity; now each is a MessageError."""
+    for kind, payloads in _hostile_payloads(run).items():
+        for payload in payloads:
+            with pytest.raises(MessageError):
+                radar_echo.format_message(kind, f"radar/awr1843/{kind}", payload, as_json=True)
+    state = run[3][0]
+    line = radar_echo.format_message("status", "k", messages.status_json({"lat": 10.0**308, "n": 10**400}), True)
+    assert strict_json.loads(line, max_bytes=1 << 20)["lat"] == 1e308
+    assert "NaN" not in radar_echo.format_message("odom", "k", messages.odometry_json(state), True)
+
+
+def test_radar_echo_survives_a_burst_of_malformed_payloads(run):
+    """Regression (issue 18): `[` x 1000 on odom or status ended every radar-echo with an internal
+    error.  A peer now puts every kind of bad payload on all four keys: radar-echo prints one
+    warning line per message ignored, then the next good message of each key, and exits 0 at
+    --count."""
+    endpoint = free_endpoint()
+    hostile = _hostile_payloads(run)
+    state, cloud, heatmap = run[5]
+    good = {"odom": messages.odometry_json(state), "status": messages.status_json({"frame": state.frame}),
+            "pointcloud": messages.encode_pointcloud(state.frame, state.t, cloud),
+            "heatmap": messages.encode_heatmap(state.frame, state.t, heatmap)}
+    with peer(listen=[endpoint]) as session:
+        # Blocking puts: every payload reaches radar-echo, in order on each key.
+        publishers = {kind: session.declare_publisher(f"radar/awr1843/{kind}",
+                                                      congestion_control=zenoh.CongestionControl.BLOCK)
+                      for kind in good}
+        proc = subprocess.Popen(ECHO + ["--connect", endpoint, "--count", "4", "--json", *good],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            assert wait_for(lambda: all(p.matching_status.matching for p in publishers.values()), timeout=30)
+            for kind, payloads in hostile.items():
+                for payload in payloads:
+                    publishers[kind].put(payload)
+            for kind, payload in good.items():
+                publishers[kind].put(payload)
+            out, err = proc.communicate(timeout=60)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, err
+    warnings = [line for line in err.splitlines() if "ignored a malformed message" in line]
+    assert len(warnings) == sum(len(p) for p in hostile.values()), err
+    for kind, payloads in hostile.items():
+        assert sum(line.startswith(f"radar/awr1843/{kind}: ") or f" radar/awr1843/{kind}: " in line
+                   for line in warnings) == len(payloads), err
+    others = [line for line in err.splitlines() if line not in warnings]
+    assert len(others) == 1 and "Ctrl-C stops" in others[0], err  # the banner, nothing else
+    assert "Traceback" not in err and "internal error" not in err
+    objects = [strict_json.loads(line, max_bytes=1 << 20) for line in out.splitlines()]
+    assert sorted(o["key"] for o in objects) == sorted(f"radar/awr1843/{kind}" for kind in good)
+    by_key = {o["key"].rsplit("/", 1)[1]: o for o in objects}
+    assert by_key["odom"]["frame"] == by_key["pointcloud"]["frame"] == by_key["heatmap"]["frame"] == state.frame
+    assert by_key["status"]["frame"] == state.frame

@@ -299,6 +299,60 @@ def test_ros2_attachment_is_zenoh_serialization_of_rmw_zenohs_fields():
         messages.ros2_attachment(1, 0, b"short")
 
 
+# =========================================================================== issue 18: hostile payloads
+# Any peer on the network may put anything on these keys; each case below once ended a reader.
+@pytest.mark.parametrize("parse", [messages.parse_odometry, messages.parse_status])
+@pytest.mark.parametrize("payload", [b"[" * 1000, b'{"a":' * 1000, b"[" * 200_000])
+def test_deeply_nested_json_is_a_message_error_not_a_recursion_error(parse, payload):
+    with pytest.raises(MessageError, match="nested .* deep, more than the 32 allowed"):
+        parse(payload)
+
+
+@pytest.mark.parametrize("parse", [messages.parse_odometry, messages.parse_status])
+def test_json_over_the_size_bound_is_refused_before_parsing(parse):
+    payload = b'{"schema":"radarodom/status","version":1,"pad":"' + b"x" * messages.MAX_JSON_BYTES + b'"}'
+    with pytest.raises(MessageError, match=f"more than the {messages.MAX_JSON_BYTES}"):
+        parse(payload)
+
+
+@pytest.mark.parametrize("number", [b"1e999", b"-1e999", b"NaN", b"Infinity", b"-Infinity"])
+def test_a_status_with_a_non_finite_number_is_refused(number):
+    payload = b'{"schema":"radarodom/status","version":1,"latency_ms":{"p50":' + number + b"}}"
+    with pytest.raises(MessageError, match="not a radarodom/status message"):
+        messages.parse_status(payload)
+
+
+@pytest.mark.parametrize("t", [math.nan, math.inf, -math.inf])
+def test_a_point_cloud_header_with_a_non_finite_t_is_refused(t):
+    payload = _patched(messages.encode_pointcloud(1, 1.0, points(2)), 16, "<d", t)
+    with pytest.raises(MessageError, match=f"radarodom/pointcloud: t is {t}, not a finite time"):
+        messages.decode_pointcloud(payload)
+
+
+@pytest.mark.parametrize("t", [math.nan, math.inf, -math.inf])
+def test_a_heatmap_header_with_a_non_finite_t_is_refused(t):
+    payload = _patched(messages.encode_heatmap(1, 1.0, heatmap(5, 4)), 16, "<d", t)
+    with pytest.raises(MessageError, match=f"radarodom/heatmap: t is {t}, not a finite time"):
+        messages.decode_heatmap(payload)
+
+
+@pytest.mark.parametrize("decode, header_bytes, offset", [
+    (messages.decode_pointcloud, 32, 24), (messages.decode_heatmap, 36, 24)])
+def test_a_header_claiming_a_huge_size_is_checked_against_the_payload(decode, header_bytes, offset):
+    payload = (messages.encode_pointcloud(1, 1.0, points(2)) if header_bytes == 32
+               else messages.encode_heatmap(1, 1.0, heatmap(5, 4)))
+    with pytest.raises(MessageError, match="but its header says"):
+        decode(_patched(payload, offset, "<I", 2**32 - 1))
+
+
+@pytest.mark.parametrize("decode", [messages.decode_pointcloud, messages.decode_heatmap])
+def test_a_binary_payload_over_its_bound_is_refused_before_it_is_copied(decode):
+    with pytest.raises(MessageError, match=f"more than the {messages.MAX_BINARY_BYTES}"):
+        decode(memoryview(bytearray(messages.MAX_BINARY_BYTES + 1)))
+    with pytest.raises(MessageError, match="a payload is bytes, not str"):
+        decode("RPC1")
+
+
 def test_messages_import_neither_zenoh_nor_the_dsp():
     """radar-echo and other readers stay light: no zenoh, scipy or rosbags behind the schemas."""
     code = ("import sys, radarodom.messages; "

@@ -28,6 +28,7 @@ from zenoh_helpers import Inbox, estimator_run, free_endpoint, peer, subscribe, 
 
 from radarodom import messages, publish
 from radarodom.errors import PublishConfigError, PublishError
+from radarodom.tools.status import LatencyMeter
 from radarodom.publish import (CONNECT_RETRY, DEFAULT_ENDPOINT, ROS2_ROUTER_ENDPOINT, Publisher, ZenohOptions,
                                open_session, ros2_liveliness_keys, ros2_topic_key)
 
@@ -107,6 +108,23 @@ def test_status_messages(publisher, endpoint):
     assert messages.parse_status(inbox.samples[0][2]) == {"schema": "radarodom/status", "version": 1,
                                                           "rate_hz": 10.0, "dropped": 0}
     assert inbox.samples[0][1] == "application/json"
+
+
+def test_status_figures_not_known_yet_go_out_as_null(publisher, endpoint):
+    """Regression (issue 18): a status holds NaN before the first frame (the latency meter's
+    percentiles); it is sent as standard JSON with null there, never NaN, and never lost."""
+    p50, p99 = LatencyMeter().percentiles_ms(50, 99)
+    assert math.isnan(p50)
+    with peer(connect=[endpoint]) as session:
+        inbox = subscribe(session, "radar/awr1843/status")
+        assert matched(publisher, "status")
+        publisher.status({"latency_ms": {"p50": p50, "p99": p99}, "rate_hz": np.float64(np.inf),
+                          "frames": np.int64(3), "ok": np.bool_(True), "gains": np.array([1.0, np.nan])})
+        assert wait_for(lambda: inbox.samples)
+    payload = inbox.samples[0][2]
+    assert json.loads(payload, parse_constant=pytest.fail) == messages.parse_status(payload) == {
+        "schema": "radarodom/status", "version": 1, "latency_ms": {"p50": None, "p99": None}, "rate_hz": None,
+        "frames": 3, "ok": True, "gains": [1.0, None]}
 
 
 def test_a_late_joiner_gets_the_latest_odometry_by_query(publisher, endpoint, run):

@@ -187,7 +187,8 @@ def _print_loop(args: argparse.Namespace, session, inbox: _Inbox) -> int:
             continue
         try:
             if payload is None:
-                raise MessageError(f"{size} bytes, more than the {_MAX_BYTES[kind]} a {kind} message may have")
+                raise MessageError(f"{size} bytes, more than the {_MAX_BYTES[kind]} a message may have "
+                                   "(not read)")
             line = format_message(kind, key, payload, args.json)
         except MessageError as exc:
             log.warning("%s: ignored a malformed message: %s", key, _printable(str(exc), _REASON_CHARS))
