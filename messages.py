@@ -425,8 +425,9 @@ def encode_heatmap(frame: int, t: float, heatmap: Any) -> bytes:
         parts.append(channel)
     header = _header(HEATMAP_HEADER, HEATMAP_MAGIC, frame, t, n_range=shape[0], n_azimuth=shape[1],
                      channels=len(HEATMAP_CHANNELS))
-    # One copy of each array into the message (join takes their buffers as they are).
-    return b"".join([header.tobytes(), *(memoryview(p).cast("B") for p in parts)])
+    # One copy of each array into the message (join takes their buffers as they are; a byte
+    # view, as memoryview.cast refuses an empty 2-D array).
+    return b"".join([header.tobytes(), *(p.reshape(-1).view(np.uint8) for p in parts)])
 
 
 def decode_heatmap(payload: bytes) -> tuple[dict, dict[str, np.ndarray]]:

@@ -249,6 +249,18 @@ def test_decode_heatmap_refuses_bad_messages(change, words):
         messages.decode_heatmap(change(messages.encode_heatmap(1, 1.0, heatmap(5, 4))))
 
 
+@pytest.mark.parametrize("n_range, n_az", [(0, 0), (0, 4), (5, 0)])
+def test_an_empty_heatmap_round_trips(n_range, n_az):
+    """Found by the fuzz suite: a heatmap with no cell (which readers take) failed to encode
+    with a TypeError from memoryview.cast."""
+    hm = heatmap(n_range, n_az) if n_range and n_az else RangeAzimuth(
+        *(np.zeros((n_range, n_az), np.float32) for _ in range(3)), 0.05 * np.arange(n_range),
+        np.linspace(-1.0, 1.0, n_az))
+    header, arrays = messages.decode_heatmap(messages.encode_heatmap(3, 2.5, hm))
+    assert (header["n_range"], header["n_azimuth"]) == (n_range, n_az)
+    assert arrays["intensity"].shape == (n_range, n_az) and arrays["range_m"].shape == (n_range,)
+
+
 def test_encode_heatmap_refuses_inconsistent_shapes():
     hm = heatmap(5, 4)
     with pytest.raises(MessageError, match="static has shape"):
