@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import strict_json
 from ..errors import EvaluationError
 from ..tum import TumTrajectory
 from .angles import wrap
@@ -67,14 +68,8 @@ class Stats:
                    max=float(np.max(e)), n=len(e))
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: _json_number(getattr(self, k)) for k in ("rmse", "mean", "median", "std", "min", "max", "n")}
-
-
-def _json_number(v):
-    """JSON has no NaN: an undefined number is null."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
+        # JSON has no NaN: an undefined number is null.
+        return strict_json.finite({k: getattr(self, k) for k in ("rmse", "mean", "median", "std", "min", "max", "n")})
 
 
 # ------------------------------------------------------------------------ SE(2)
@@ -313,8 +308,9 @@ class EvaluationResult:
         return float(np.degrees(wrap(self.est_first_pose[-1, 2] - self.ref[-1, 2])))
 
     def to_dict(self) -> dict[str, Any]:
-        """The numbers (no series), JSON-ready: undefined values are None."""
-        return {
+        """The numbers (no series), JSON-ready: undefined values (NaN, and infinity where
+        coordinates so large that a length overflows) are None, numbers plain floats."""
+        return strict_json.finite({
             "estimate": self.est_source,
             "reference": self.ref_source,
             "poses": {"estimate": self.est_poses, "reference": self.ref_poses, "matched": self.matched},
@@ -328,9 +324,9 @@ class EvaluationResult:
             "ate_m": Stats.of(self.ate_m).to_dict(),
             "ate_alignment": {"x_m": float(self.alignment[0]), "y_m": float(self.alignment[1]),
                               "rotation_deg": float(np.degrees(self.alignment[2]))},
-            "final_drift": {"position_m": self.drift_m, "percent_of_path": _json_number(self.drift_pct),
+            "final_drift": {"position_m": self.drift_m, "percent_of_path": self.drift_pct,
                             "yaw_deg": self.drift_yaw_deg},
-        }
+        })
 
 
 def _warn_if_not_planar(traj: TumTrajectory) -> None:

@@ -8,6 +8,7 @@ import pathlib
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from conftest import console_command
 from test_evaluation import drive, write_tum
@@ -106,3 +107,43 @@ def test_bad_options_are_usage_errors(run_files):
     for option in (["--delta-m", "0"], ["--max-diff", "-1"]):
         proc = run_eval(est, gt, *option)
         assert proc.returncode == 2 and "expected a number > 0" in proc.stderr, option
+
+
+# =========================================================================== issue 18: no NaN in JSON
+def _strict(text: str):
+    def refuse(name):
+        raise AssertionError(f"{name} in the --json file: not JSON")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_json_of_a_run_that_never_moves_says_null(tmp_path):
+    """Regression (issue 18): a path of zero length leaves the drift in % and every per-distance
+    figure undefined; --json writes them as null (standard JSON), never NaN."""
+    t = 1000.0 + np.arange(5) / 10.0
+    still = np.zeros((5, 3))
+    est, gt = write_tum(tmp_path / "est.tum", t, still), write_tum(tmp_path / "gt.tum", t, still)
+    proc = run_eval(est, gt, "--json", tmp_path / "eval.json")
+    assert proc.returncode == 0, proc.stderr
+    data = _strict((tmp_path / "eval.json").read_text())
+    assert data["final_drift"] == {"position_m": 0.0, "percent_of_path": None, "yaw_deg": 0.0}
+    assert data["rpe_per_distance"]["translation_m"] == {
+        "rmse": None, "mean": None, "median": None, "std": None, "min": None, "max": None, "n": 0}
+    assert "- % of the path" in proc.stdout
+
+
+def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
+    """Regression (issue 18): positions near the float limit made path lengths and errors
+    infinite, and --json wrote "Infinity" (and numpy printed a RuntimeWarning per operation):
+    now one warning, and null in the file."""
+    t = 1000.0 + np.arange(3) / 10.0
+    ref = np.array([[-1e308, 0.0, 0.0], [1e308, 0.0, 0.0], [-1e308, 0.0, 0.0]])
+    est, gt = write_tum(tmp_path / "est.tum", t, ref[::-1]), write_tum(tmp_path / "gt.tum", t, ref)
+    proc = run_eval(est, gt, "--json", tmp_path / "eval.json")
+    assert proc.returncode == 0, proc.stderr
+    text = (tmp_path / "eval.json").read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    data = _strict(text)
+    assert data["reference_path_length_m"] is None and data["estimate_path_length_m"] is None
+    assert data["poses"]["matched"] == 3
+    assert proc.stderr.count("\n") == 1 and "radar-eval: warning: the coordinates are too large" in proc.stderr
+    assert "null in --json" in proc.stderr and "RuntimeWarning" not in proc.stderr

@@ -4,6 +4,7 @@ numbers checked against evo on the same files."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -345,3 +346,15 @@ def test_json_numbers_are_the_result(noisy_run):
     assert d["yaw_increment_error_deg"]["rmse"] == pytest.approx(r.yaw_rmse_deg)
     assert d["yaw_increment_error_deg"]["rmse"] == pytest.approx(d["rpe_per_frame"]["rotation_deg"]["rmse"])
     assert d["final_drift"]["percent_of_path"] == pytest.approx(100 * r.drift_m / r.ref_path_m)
+
+
+def test_to_dict_is_standard_json_when_figures_are_undefined(tmp_path):
+    """Issue 18: a result with undefined figures (no motion: no per-distance pairs, no drift in
+    %) gives null for them; json.dumps(allow_nan=False) takes the whole dict."""
+    t = T0 + np.arange(4) / RATE_HZ
+    r = evaluate(read_tum(write_tum(tmp_path / "e.tum", t, np.zeros((4, 3)))),
+                 read_tum(write_tum(tmp_path / "g.tum", t, np.zeros((4, 3)))))
+    assert math.isnan(r.drift_pct)
+    d = json.loads(json.dumps(r.to_dict(), allow_nan=False))
+    assert d["final_drift"]["percent_of_path"] is None and d["ate_m"]["n"] == 4
+    assert d["rpe_per_distance"]["rotation_deg"]["rmse"] is None

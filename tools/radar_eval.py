@@ -14,10 +14,13 @@ the final drift; ``--json`` writes the same numbers, ``--plot`` PNGs.
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import os
 import sys
 from typing import Sequence
+
+import numpy as np
 
 from ..driver.capture_dir import write_json_atomically
 from ..errors import CaptureError, UsageError
@@ -25,6 +28,8 @@ from ..estimator.evaluation import EvaluationResult, Stats, evaluate
 from ..driver.sources import open_source
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
+
+log = logging.getLogger("radarodom.tools.radar_eval")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -56,12 +61,21 @@ def _main(args: argparse.Namespace) -> int:
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
     estimate = read_tum(args.estimate)
     reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
-    result = evaluate(estimate, reference,
-                      delta_m=args.delta_m, max_diff=args.max_diff)
-    print(format_table(result))
+    # Coordinates near the float limit make lengths overflow: one warning below, not numpy's
+    # one per operation.
+    with np.errstate(over="ignore", invalid="ignore"):
+        result = evaluate(estimate, reference,
+                          delta_m=args.delta_m, max_diff=args.max_diff)
+        table = format_table(result)
+        overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
+        data = result.to_dict() if args.json else None
+    if overflow:
+        log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
+                    "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
+    print(table)
     if args.json:
         try:
-            write_json_atomically(args.json, result.to_dict())
+            write_json_atomically(args.json, data)  # standard JSON: null for an undefined figure
         except OSError as exc:
             raise CaptureError(f"cannot write {args.json}: {exc.strerror or exc}") from None
     if args.plot:
