@@ -16,11 +16,11 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402  (after the BLAS setting)
-import json  # noqa: E402
 import logging  # noqa: E402
 import sys  # noqa: E402
 from typing import Sequence  # noqa: E402
 
+from .. import strict_json  # noqa: E402
 from ..cfg import RadarConfig  # noqa: E402
 from ..dsp.calibrate import MAX_APPARENT_AZIMUTH_DEG  # noqa: E402
 from ..errors import CalibrationError, UsageError  # noqa: E402
@@ -116,8 +116,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.write_cfg:
         used_cfg.replace(result.calibration.to_command()).write(args.write_cfg)
     if args.json:
-        json.dump(result.describe(), sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print(json_report(result))
         return 0
     out = [f"reflector at {result.measured_range_m:.3f} m ({result.distance_m:g} m true), "
            f"SNR {result.snr_db:.1f} dB, {result.frames} frames; "
@@ -129,6 +128,11 @@ def _main(args: argparse.Namespace) -> int:
     out.append(line)
     print("\n".join(out))
     return 0
+
+
+def json_report(result) -> str:
+    """--json's text of a measurement: standard JSON, a figure that is not finite as null."""
+    return strict_json.dumps(result.describe(), indent=2)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

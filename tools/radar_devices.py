@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import argparse
 import grp
-import json
 import os
 import sys
 from typing import Sequence
 
+from .. import strict_json
 from ..driver import discovery
 from ..driver.discovery import DeviceReport, RadarInfo, SerialPortInfo, UsbDeviceInfo
 from . import cli
@@ -41,8 +41,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.json:
         data = report.to_dict()
         data["hints"] = hints
-        json.dump(data, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        print(strict_json.dumps(data, indent=2))
         return 0
     print(format_report(report, hints, quiet=args.quiet))
     return 0
