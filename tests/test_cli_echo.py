@@ -278,3 +278,24 @@ def test_radar_echo_survives_a_burst_of_malformed_payloads(run):
     by_key = {o["key"].rsplit("/", 1)[1]: o for o in objects}
     assert by_key["odom"]["frame"] == by_key["pointcloud"]["frame"] == by_key["heatmap"]["frame"] == state.frame
     assert by_key["status"]["frame"] == state.frame
+
+
+class _Payload(bytes):
+    def to_bytes(self) -> bytes:
+        return bytes(self)
+
+
+def test_the_inbox_keeps_a_bounded_backlog_and_counts_what_it_drops():
+    """A flood faster than radar-echo prints is dropped beyond the backlog and counted per key
+    (one warning per key and batch), and a payload over its kind's bound is never copied."""
+    inbox = radar_echo._Inbox(backlog=3)
+    receive = inbox.receiver("odom")
+    for i in range(5):
+        receive(argparse.Namespace(key_expr="radar/awr1843/odom", payload=_Payload(b"%d" % i)))
+    big = _Payload(bytes(messages.MAX_JSON_BYTES + 1))
+    inbox.receiver("status")(argparse.Namespace(key_expr="radar/awr1843/status", payload=big))
+    assert [inbox.get(0.1)[2] for _ in range(3)] == [b"0", b"1", b"2"]
+    assert inbox.take_dropped() == {"radar/awr1843/odom": 2, "radar/awr1843/status": 1}
+    assert inbox.take_dropped() == {}
+    inbox.receiver("status")(argparse.Namespace(key_expr="radar/awr1843/status", payload=big))
+    assert inbox.get(0.1) == ("status", "radar/awr1843/status", None, messages.MAX_JSON_BYTES + 1)
