@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import re
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -39,19 +40,43 @@ def quaternion_yaw(quaternions) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
 
+#: A number as the files radarodom reads write it: decimal digits, an optional sign, point and
+#: exponent.  Python's float() also takes ``0_5``, ``nan``, ``inf`` and full-width digits,
+#: which no writer of these files produces.
+PLAIN_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def plain_float(text: str) -> float | None:
+    """*text* as a float when it is a plain decimal number (:data:`PLAIN_NUMBER`), else None.
+    The value may still be infinite (``1e999``)."""
+    return float(text) if PLAIN_NUMBER.fullmatch(text) else None
+
+
 def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: str) -> list[float]:
     """The finite numbers of one line of a text file: exactly *count* of them when given,
-    else at least one; :class:`CaptureFormatError` naming ``path:lineno`` and *what* was
-    expected otherwise."""
-    try:
-        values = [float(v) for v in text.split()]
-    except ValueError:
-        values = []
-    if not values or (count is not None and len(values) != count):
+    else at least one, each a plain decimal number (:data:`PLAIN_NUMBER`);
+    :class:`CaptureFormatError` naming ``path:lineno`` and *what* was expected otherwise."""
+    tokens = text.split()
+    values = [plain_float(v) for v in tokens]
+    if not values or (count is not None and len(values) != count) or None in values:
+        odd = [t for t, v in zip(tokens, values) if v is None]
+        if odd and all(_python_float(t) is not None for t in odd) and \
+                all(not math.isfinite(_python_float(t)) for t in odd):
+            raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
+        if odd and all(_python_float(t) is not None for t in odd):
+            raise CaptureFormatError(f"{path}:{lineno}: {odd[0][:20]!r} is not a plain decimal number "
+                                     f"(expected {what})")
         raise CaptureFormatError(f"{path}:{lineno}: expected {what}, got {text[:60]!r}")
     if not all(math.isfinite(v) for v in values):
         raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
     return values
+
+
+def _python_float(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
 
 
 def format_tum_line(t: float, position: Sequence[float], quaternion: Sequence[float]) -> str:

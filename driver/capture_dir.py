@@ -4,32 +4,70 @@ Layout (conventions.md)::
 
     DIR/radar.cfg        the TI CLI configuration that produced the data
     DIR/adc_data.bin     frames back to back, the DCA1000 raw stream bytes
-    DIR/timestamps.txt   one float per frame, s: time of the frame's first chirp
-    DIR/capture.json     metadata (software, source, start time, frame count,
-                         incomplete frames with their missing bytes)
+    DIR/timestamps.txt   one line per frame: the time (s) of its first chirp
+    DIR/capture.json     metadata (schema below)
     DIR/groundtruth.tum  optional: body-frame pose per frame (TUM)
+
+timestamps.txt: one plain decimal number per line (digits, optional sign, point and
+exponent: no ``0_5``, ``nan``, ``inf`` or hex), finite, at most 1e10 s in magnitude,
+strictly increasing, one line per frame of adc_data.bin.
+
+capture.json, format version 1: a JSON object of at most 1 MiB plus 128 bytes per frame
+of adc_data.bin, nested at most 32 deep, every number finite.  Fields (others are kept and
+ignored):
+
+    format             string, required: "radarodom-capture"
+    format_version     integer, required: 1 (a larger one is refused: a newer radarodom wrote it)
+    frame_bytes        integer >= 1, required: bytes per frame; equals the cfg's frame size
+    frame_count        integer >= 0, required: frames recorded when the file was last written
+    closed             boolean, required: true once the writer closed the capture
+    incomplete_frames  list, optional (default empty): one object per frame with lost bytes,
+                       in increasing frame order:
+        frame              integer, 0 <= frame < frame_count
+        missing_bytes      integer, 1 <= missing_bytes <= frame_bytes (zero-filled in the data)
+        cut_bytes          integer, optional, 0 <= cut_bytes <= missing_bytes: of them, those
+                           never sent because the stream stopped
+    lost_bytes         integer, optional: the sum of missing_bytes over incomplete_frames
+    cut_bytes          integer, optional: the sum of cut_bytes over incomplete_frames
+    software, source, start_time   strings, optional
+    start_time_unix    number, optional: 0 to 1e10 (s)
+    first_timestamp, last_timestamp   null or a number within +-1e10 (s), optional
+    dropped_frames     integer >= 0, optional: frames a live stream dropped (not recorded)
+    simulator          object, optional: the simulated scene, seed and board
+
+Agreement: a closed capture holds exactly frame_count frames in adc_data.bin (no byte more)
+and as many timestamp lines.  A capture that was not closed (its process died) plays its
+whole frames with a warning: the data may end in a cut-off frame, the last frame may lack
+its timestamp line, and frame_count may lag behind, but never exceed, the frames and the
+timestamps.  Anything else is refused (:class:`~radarodom.errors.CaptureFormatError`) with
+what disagrees.  Without capture.json (a directory put together by hand) the data's whole
+frames are played, each needing its timestamp line if timestamps.txt is there.
 
 Crash safety: the writer hands every frame to the kernel before the next one
 (one unbuffered write for the data, then its timestamp line), and replaces
 capture.json atomically, so a process killed at any moment leaves a directory
-that reads back up to its last whole frame.
+that reads back up to its last whole frame.  A capture that recorded no frame
+is removed on close, and one left by a killed run is recorded over.
 """
 
 from __future__ import annotations
 
-import json
+import contextlib
 import logging
+import math
 import os
 import time
 from typing import Any, Sequence
 
 import numpy as np
 
-from .. import __version__
+from .. import __version__, strict_json
 from ..cfg import RadarConfig
 from ..errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
 from ..rawframe import RawLayout
 from ..tum import TumWriter, read_tum
+from . import capture_check
+from .capture_check import FORMAT_NAME, FORMAT_VERSION
 
 log = logging.getLogger(__name__)
 
@@ -43,18 +81,46 @@ GROUNDTRUTH = "groundtruth.tum"
 #: beyond, the list is rewritten at most every _INCOMPLETE_FLUSH_S seconds.
 _IMMEDIATE_INCOMPLETE_LIMIT = 1000
 _INCOMPLETE_FLUSH_S = 0.25
-#: Value of capture.json's "format" key, and its version.
-FORMAT_NAME = "radarodom-capture"
-FORMAT_VERSION = 1
 
 
 def write_json_atomically(path: str, obj: Any) -> None:
     """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
     tmp = path + ".tmp"
     with open(tmp, "w", encoding="utf-8") as fh:
-        json.dump(obj, fh, indent=1)
+        fh.write(strict_json.dumps(obj, indent=1))
         fh.write("\n")
     os.replace(tmp, path)
+
+
+def missing_data_message(directory: str) -> str:
+    """Why *directory* cannot be played for want of its frame data."""
+    present = [name for name in (RADAR_CFG, TIMESTAMPS, METADATA) if os.path.exists(os.path.join(directory, name))]
+    if present:
+        return (f"{directory}: no {ADC_DATA}: the capture's frame data is missing "
+                f"(the directory holds {', '.join(present)})")
+    return f"{directory}: no {ADC_DATA}: not a capture directory"
+
+
+_CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
+
+
+def _holds_no_frame(directory: str) -> bool:
+    """Whether the capture in *directory* recorded nothing: no frame data, no timestamp, no pose."""
+    for name in (ADC_DATA, TIMESTAMPS, GROUNDTRUTH):
+        try:
+            if os.path.getsize(os.path.join(directory, name)):
+                return False
+        except FileNotFoundError:
+            pass
+    return True
+
+
+def _remove_capture_files(directory: str) -> None:
+    for name in _CAPTURE_FILES:
+        try:
+            os.remove(os.path.join(directory, name))
+        except FileNotFoundError:
+            pass
 
 
 def _write_all(fd: int, data) -> None:
@@ -96,10 +162,15 @@ class CaptureWriter:
         self._first_ts: float | None = None
         self._last_ts: float | None = None
         try:
+            self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
             if os.path.exists(os.path.join(self.directory, ADC_DATA)):
-                raise CaptureExistsError(f"{self.directory} already holds a capture ({ADC_DATA}); "
-                                   f"choose a new directory")
+                if not _holds_no_frame(self.directory):
+                    raise CaptureExistsError(f"{self.directory} already holds a capture ({ADC_DATA}); "
+                                             f"choose a new directory")
+                # A run that recorded nothing and was killed before it could clean up.
+                log.info("%s holds a capture of no frame; recording over it", self.directory)
+                _remove_capture_files(self.directory)
             config.write(os.path.join(self.directory, RADAR_CFG))
             self._data_fd = os.open(os.path.join(self.directory, ADC_DATA),
                                     os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
@@ -127,10 +198,19 @@ class CaptureWriter:
         its first chirp, how many of its bytes were lost (zero-filled), and
         optionally the ground-truth pose ``(x, y, z, qx, qy, qz, qw)``.  *cut_bytes*: of the
         missing bytes, those never sent because the stream stopped (listed with the frame)."""
-        if not 0 <= cut_bytes <= missing_bytes:
-            raise CaptureError(f"{cut_bytes} bytes cut at stop of a frame missing {missing_bytes}")
+        if not 0 <= cut_bytes <= missing_bytes <= self.frame_bytes:
+            raise CaptureError(f"{cut_bytes} bytes cut at stop of a frame missing {missing_bytes} of "
+                               f"{self.frame_bytes}")
         if self._closed:
             raise CaptureError(f"{self.directory}: the capture is closed")
+        # The reader refuses such times, so recording them would lose the recording.
+        if not (isinstance(timestamp, (int, float, np.floating)) and math.isfinite(timestamp)
+                and abs(timestamp) <= capture_check.TIMESTAMP_LIMIT_S):
+            raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp!r} is not a finite "
+                               f"time of at most {capture_check.TIMESTAMP_LIMIT_S:g} s; recording stops here")
+        if self._last_ts is not None and not float(f"{timestamp:.9f}") > float(f"{self._last_ts:.9f}"):
+            raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp:.9f} is not after "
+                               f"the previous frame's {self._last_ts:.9f}; recording stops here")
         n = memoryview(raw).nbytes
         if n != self.frame_bytes:
             raise CaptureFormatError(f"frame of {n} bytes, the configuration needs {self.frame_bytes}")
@@ -204,6 +284,8 @@ class CaptureWriter:
         self._last_meta = time.monotonic()
 
     def close(self) -> None:
+        """Mark the capture closed in capture.json; a capture of no frame (a radar that never
+        started) is removed instead, so that the directory can take the next run."""
         if self._closed:
             return
         self._closed = True
@@ -212,7 +294,14 @@ class CaptureWriter:
             self._ts.close()
             if self._gt is not None:
                 self._gt.close()
-            self._write_metadata()
+            if self._frames:
+                self._write_metadata()
+                return
+            _remove_capture_files(self.directory)
+            if self._made_directory:
+                with contextlib.suppress(OSError):  # something else was put there: leave it
+                    os.rmdir(self.directory)
+            log.info("%s: no frame recorded; the capture directory was removed", self.directory)
         except OSError as exc:
             raise CaptureError(f"closing {self.directory} failed: {exc.strerror or exc}") from None
 
@@ -223,24 +312,11 @@ class CaptureWriter:
         self.close()
 
 
-def _read_timestamps(path: str) -> np.ndarray:
-    values = []
-    with open(path, encoding="ascii", errors="replace") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            if not line.endswith("\n"):
-                log.warning("%s:%d: ignoring a partly written last line", path, lineno)
-                break
-            try:
-                values.append(float(line))
-            except ValueError:
-                raise CaptureFormatError(f"{path}:{lineno}: not a timestamp: {line.strip()[:40]!r}") from None
-    return np.array(values, dtype=float)
-
-
 class CaptureDirectory:
     """A capture directory opened for reading.
 
-    Frames are read through a memory map, so opening is cheap for any size.
+    Everything is checked on opening (:mod:`.capture_check`), before a frame is played;
+    frames are then read through a memory map, so opening is cheap for any size.
     """
 
     def __init__(self, directory: str | os.PathLike, config: RadarConfig | None = None) -> None:
@@ -250,7 +326,7 @@ class CaptureDirectory:
         cfg_path = os.path.join(self.directory, RADAR_CFG)
         data_path = os.path.join(self.directory, ADC_DATA)
         if not os.path.exists(data_path):
-            raise CaptureFormatError(f"{self.directory}: no {ADC_DATA}: not a capture directory")
+            raise CaptureFormatError(missing_data_message(self.directory))
         if config is None:
             if not os.path.exists(cfg_path):
                 raise ConfigError(f"missing {RADAR_CFG}: give the radar configuration with --cfg",
@@ -263,60 +339,30 @@ class CaptureDirectory:
                             "the given one", self.directory, config.path, RADAR_CFG)
         self.config = config
         self.layout = RawLayout.from_config(config)
-        self.metadata = self._read_metadata()
-
-        size = os.path.getsize(data_path)
-        whole, tail = divmod(size, config.frame_bytes)
-        if tail and whole:
-            log.warning("%s: %s ends with %d bytes of a cut-off frame after frame %d; they are ignored",
-                        self.directory, ADC_DATA, tail, whole - 1)
-        elif tail:
-            log.warning("%s: %s holds %d bytes, less than one %d-byte frame of %s", self.directory,
-                        ADC_DATA, tail, config.frame_bytes, config.path)
+        cfg_name = config.path or RADAR_CFG
+        try:
+            size = os.path.getsize(data_path)
+        except OSError as exc:
+            raise CaptureError(f"cannot read {data_path}: {exc.strerror or exc}") from None
+        fb = config.frame_bytes
+        meta = capture_check.read_metadata(os.path.join(self.directory, METADATA), size // fb)
+        if meta is None:
+            log.info("%s: no %s; assuming every frame complete", self.directory, METADATA)
+        capture_check.check_frame_bytes(self.directory, meta, fb, cfg_name)
+        self.metadata: dict[str, Any] = meta or {}
         ts_path = os.path.join(self.directory, TIMESTAMPS)
-        stamps = _read_timestamps(ts_path) if os.path.exists(ts_path) else np.empty(0)
-        if len(stamps) > whole:
-            log.warning("%s: %d timestamps for %d whole frames; the extra ones are ignored",
-                        self.directory, len(stamps), whole)
-            stamps = stamps[:whole]
-        elif len(stamps) < whole:
-            # The frame's data reached the disk, its timestamp line did not.
-            start = stamps[-1] + config.frame_period_s if len(stamps) else 0.0
-            missing = whole - len(stamps)
-            log.warning("%s: %d frame(s) have no timestamp; extrapolating from the frame period",
-                        self.directory, missing)
-            stamps = np.concatenate([stamps, start + config.frame_period_s * np.arange(missing)])
-        self.timestamps = stamps
+        stamps = (capture_check.read_timestamps(ts_path, size // fb) if os.path.exists(ts_path) else None)
+        whole = capture_check.frame_count(self.directory, size, fb, cfg_name, meta, stamps)
+        self.timestamps = capture_check.timestamps_for(self.directory, stamps, whole, config.frame_period_s)
         self.num_frames = whole
-        self._data = (np.memmap(data_path, dtype=np.uint8, mode="r", shape=(whole * config.frame_bytes,))
+        self._data = (np.memmap(data_path, dtype=np.uint8, mode="r", shape=(whole * fb,))
                       if whole else np.empty(0, np.uint8))
-        listed = [e for e in self.metadata.get("incomplete_frames", [])
-                  if isinstance(e, dict) and "frame" in e and "missing_bytes" in e]
-        self._missing = {int(e["frame"]): int(e["missing_bytes"]) for e in listed}
-        self._cut = {int(e["frame"]): int(e["cut_bytes"]) for e in listed if e.get("cut_bytes")}
+        listed = self.metadata.get("incomplete_frames", [])
+        self._missing = {e["frame"]: e["missing_bytes"] for e in listed}
+        self._cut = {e["frame"]: e["cut_bytes"] for e in listed if e.get("cut_bytes")}
         gt_path = os.path.join(self.directory, GROUNDTRUTH)
         self.groundtruth = read_tum(gt_path) if os.path.exists(gt_path) else None
         self._pose_row = self._match_poses()
-        if self.metadata and not self.metadata.get("closed", False):
-            log.warning("%s: the capture was not closed cleanly (process killed?); reading its "
-                        "%d whole frames", self.directory, whole)
-
-    def _read_metadata(self) -> dict[str, Any]:
-        path = os.path.join(self.directory, METADATA)
-        try:
-            with open(path, encoding="utf-8") as fh:
-                meta = json.load(fh)
-        except FileNotFoundError:
-            log.info("%s: no %s; assuming every frame complete", self.directory, METADATA)
-            return {}
-        except (OSError, ValueError) as exc:
-            log.warning("%s: unreadable %s (%s); assuming every frame complete", self.directory,
-                        METADATA, exc)
-            return {}
-        if not isinstance(meta, dict):
-            log.warning("%s: %s is not a JSON object; ignored", self.directory, METADATA)
-            return {}
-        return meta
 
     def raw(self, i: int) -> np.ndarray:
         """Frame *i*'s bytes, a read-only uint8 view of ``frame_bytes``."""

@@ -29,7 +29,8 @@ import numpy as np
 from ..calibration import ChannelCalibration
 from ..cfg import RadarConfig
 from ..errors import CaptureFormatError, ConfigError, SourceError
-from .capture_dir import ADC_DATA, RADAR_CFG, CaptureDirectory
+from ..tum import plain_float
+from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
 from .sim.board import load_board
 from .sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
@@ -38,12 +39,12 @@ log = logging.getLogger(__name__)
 
 def _start(text: str) -> tuple[str, float]:
     if text.endswith("s"):
-        value = float(text[:-1])
+        value = plain_float(text[:-1])
         kind = "seconds"
     else:
-        value = int(text)
+        value = int(text) if text.isascii() and text.isdigit() else None
         kind = "frame"
-    if value < 0:
+    if value is None or not 0 <= value < float("inf"):
         raise ValueError(text)
     return kind, value
 
@@ -127,6 +128,13 @@ def _board_fits(metadata: dict, config: RadarConfig) -> bool | None:
         return None
 
 
+def _capture_without_data(path: str) -> bool:
+    """Whether directory *path* holds a capture's files but its adc_data.bin (and no TI recording)."""
+    names = os.listdir(path)
+    return (any(name in names for name in (RADAR_CFG, METADATA, TIMESTAMPS))
+            and not any(_TI_SERIES.match(name) for name in names))
+
+
 def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:
     rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
@@ -141,6 +149,8 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
         raise SourceError(f"{options.url}: {path}: no such file or directory")
 
     is_capture_dir = os.path.isdir(path) and os.path.exists(os.path.join(path, ADC_DATA))
+    if os.path.isdir(path) and not is_capture_dir and _capture_without_data(path):
+        raise CaptureFormatError(missing_data_message(path))
     if is_capture_dir:
         if reordered is not None:
             raise SourceError(f"{options.url}: reordered= applies to TI recorder files, not to a "

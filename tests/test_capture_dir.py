@@ -197,23 +197,59 @@ def test_writer_cannot_create_directory(tmp_path, small_cfg):
 
 # --------------------------------------------------------------- damaged directories
 
-def test_truncated_tail_is_ignored_with_warning(tmp_path, small_cfg, warnings_log):
+def _crashed(d, **changes) -> None:
+    """Make capture.json say what it says while the writer runs (not closed), as a kill leaves it."""
+    meta = json.loads((d / "capture.json").read_text())
+    meta.update(closed=False, **changes)
+    (d / "capture.json").write_text(json.dumps(meta))
+
+
+def test_cut_off_frame_of_a_crashed_capture_is_ignored_with_warning(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     frames = make_capture(d, small_cfg, 6)
+    _crashed(d)
     with open(d / "adc_data.bin", "ab") as fh:
-        fh.write(b"\x55" * 1536)  # half a frame
+        fh.write(b"\x55" * 1536)  # half a frame: the writer was killed in the middle of it
     cap = CaptureDirectory(d)
     assert cap.num_frames == 6
     assert [bytes(cap.raw(i)) for i in range(6)] == frames
     warnings = warning_messages(warnings_log)
-    assert any("1536" in m for m in warnings), warnings
+    assert any("not closed" in m and "6 whole frames" in m and "1536 bytes of a cut-off frame" in m
+               for m in warnings), warnings
+
+
+def test_cut_off_frame_without_capture_json_is_ignored_with_warning(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 6)
+    os.remove(d / "capture.json")
+    with open(d / "adc_data.bin", "ab") as fh:
+        fh.write(b"\x55" * 1536)
+    cap = CaptureDirectory(d)
+    assert [bytes(cap.raw(i)) for i in range(cap.num_frames)] == frames
+    assert any("1536 bytes of a cut-off frame" in m for m in warning_messages(warnings_log))
+
+
+@pytest.mark.parametrize("extra", [1536, 3072, 3 * 3072 + 5])
+def test_data_appended_to_a_closed_capture_is_refused(tmp_path, small_cfg, extra):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 6)
+    with open(d / "adc_data.bin", "ab") as fh:
+        fh.write(b"\x55" * extra)
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert str(d) in message and "closed recording has 6 frames" in message, message
+    assert f"{6 * 3072 + extra} bytes" in message and "appended" in message, message
 
 
 def test_partial_last_timestamp_line_is_ignored(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 6, t0=T0)
+    _crashed(d)
+    with open(d / "adc_data.bin", "ab") as fh:
+        fh.write(b"\x55" * 100)  # a seventh frame begun ...
     with open(d / "timestamps.txt", "a") as fh:
-        fh.write("1000.3")  # a seventh line cut short, no frame for it
+        fh.write("1000.3")  # ... and its line cut short (not the writer's order, but harmless)
     cap = CaptureDirectory(d)
     np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
     assert any("partly written" in m for m in warning_messages(warnings_log))
@@ -222,41 +258,53 @@ def test_partial_last_timestamp_line_is_ignored(tmp_path, small_cfg, warnings_lo
 def test_cut_timestamp_of_last_frame_is_extrapolated(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 6, t0=T0)
+    _crashed(d, frame_count=5)
     text = (d / "timestamps.txt").read_text()
     (d / "timestamps.txt").write_text(text[:-8])  # the last line loses its end
     cap = CaptureDirectory(d)
     assert cap.num_frames == 6
     np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
+    assert any("last frame has no timestamp" in m for m in warning_messages(warnings_log))
 
 
-def test_fewer_timestamps_are_extrapolated(tmp_path, small_cfg, warnings_log):
+@pytest.mark.parametrize("closed", [True, False])
+def test_frames_without_timestamps_are_refused(tmp_path, small_cfg, closed):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 6, t0=T0)
+    if not closed:
+        _crashed(d, frame_count=3)
     lines = (d / "timestamps.txt").read_text().splitlines(keepends=True)
     (d / "timestamps.txt").write_text("".join(lines[:3]))
-    cap = CaptureDirectory(d)
-    assert cap.num_frames == 6
-    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
-    assert any("3 frame(s)" in m and "timestamp" in m for m in warning_messages(warnings_log))
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert "timestamps.txt has 3 lines" in message and "6 frames" in message, message
 
 
-def test_no_timestamps_file_starts_at_zero(tmp_path, small_cfg, warnings_log):
+def test_no_timestamps_file_without_capture_json_starts_at_zero(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 4, t0=T0)
     os.remove(d / "timestamps.txt")
+    os.remove(d / "capture.json")
     cap = CaptureDirectory(d)
     np.testing.assert_allclose(cap.timestamps, PERIOD * np.arange(4), atol=1e-12)
 
 
-def test_extra_timestamps_are_ignored(tmp_path, small_cfg, warnings_log):
+def test_no_timestamps_file_with_capture_json_is_refused(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, t0=T0)
+    os.remove(d / "timestamps.txt")
+    with pytest.raises(CaptureFormatError, match="timestamps.txt is missing, capture.json counts 4 frames"):
+        CaptureDirectory(d)
+
+
+def test_extra_timestamps_are_refused(tmp_path, small_cfg):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 4, t0=T0)
     with open(d / "timestamps.txt", "a") as fh:
         fh.write("2000.0\n2000.05\n")
-    cap = CaptureDirectory(d)
-    assert len(cap.timestamps) == 4
-    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(4), atol=1e-9)
-    assert warning_messages(warnings_log)
+    with pytest.raises(CaptureFormatError, match=r"timestamps.txt:5: more lines than the 4 whole frames"):
+        CaptureDirectory(d)
 
 
 def test_garbage_timestamp_line_is_an_error(tmp_path, small_cfg):
@@ -279,13 +327,14 @@ def test_missing_capture_json_still_readable(tmp_path, small_cfg, warnings_log):
     assert warning_messages(warnings_log) == []
 
 
-def test_unreadable_capture_json_warns(tmp_path, small_cfg, warnings_log):
+def test_unreadable_capture_json_is_refused(tmp_path, small_cfg):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 3)
     (d / "capture.json").write_text('{"format": "radarodom-capt')
-    cap = CaptureDirectory(d)
-    assert cap.num_frames == 3 and cap.metadata == {}
-    assert any("capture.json" in m for m in warning_messages(warnings_log))
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert f"{d / 'capture.json'}: not JSON" in message and "move it away" in message, message
 
 
 def test_not_closed_capture_warns(tmp_path, small_cfg, warnings_log):
@@ -329,9 +378,20 @@ def test_not_a_capture_directory(tmp_path, small_cfg):
         CaptureDirectory(tmp_path / "empty")
 
 
-def test_given_config_overrides_recorded(tmp_path, small_cfg, warnings_log):
+def test_given_config_with_other_frames_is_refused(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4)
+    half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"), "half.cfg")
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d, half)
+    assert "half.cfg makes frames of 1536 bytes, capture.json says the recording's are 3072" in str(info.value)
+
+
+def test_given_config_without_capture_json_overrides_recorded(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     frames = make_capture(d, small_cfg, 4)
+    os.remove(d / "capture.json")
+    os.remove(d / "timestamps.txt")
     half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"), "half.cfg")
     cap = CaptureDirectory(d, half)
     assert cap.config is half
@@ -354,7 +414,7 @@ writer = CaptureWriter(out, cfg, source="crash-test", metadata_interval_s=0.002)
 i = 0
 while True:
     raw = np.random.default_rng(i).integers(-32768, 32768, cfg.frame_bytes // 2, dtype="<i2").tobytes()
-    missing = 17 + i if i % 50 == 7 else 0
+    missing = 17 + i % 1000 if i % 50 == 7 else 0
     writer.write(raw, 1000.0 + 0.05 * i, missing, (0.01 * i, -0.5, 0.0, 0.0, 0.0, 0.0, 1.0))
     i += 1
 """
@@ -419,7 +479,7 @@ def test_writer_survives_sigkill(tmp_path, small_cfg, warnings_log):
         assert cap.metadata["frame_count"] <= n, where
         assert any("not closed" in m for m in warning_messages(warnings_log)), where
         for i in range(n - 1):  # the last frame's loss may not have reached capture.json
-            assert cap.missing_bytes(i) == (17 + i if i % 50 == 7 else 0), f"{where}: frame {i}"
+            assert cap.missing_bytes(i) == (17 + i % 1000 if i % 50 == 7 else 0), f"{where}: frame {i}"
         # poses: written after the timestamp, so at most the last one is missing
         assert cap.groundtruth is not None
         assert n - 1 <= len(cap.groundtruth.times) <= n, where
