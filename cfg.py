@@ -15,16 +15,17 @@ velocity figures are larger by ``carrier_frequency_hz / start_frequency_hz``
 
 from __future__ import annotations
 
-import codecs
 import logging
 import os
-import re
-from dataclasses import dataclass, field
 from typing import Any, Iterator, Sequence
 
 from . import cfg_commands as cc
 from .antenna import VirtualArray, enabled_rx, tx_number
-from .errors import ConfigError
+from .cfg_fields import shown
+from .cfg_text import MAX_CFG_BYTES, CfgLine, WarningSummary, read_cfg_file, tokenize
+from .errors import ConfigError, UsageError
+
+__all__ = ["RadarConfig", "CfgLine", "MAX_CFG_BYTES", "shipped_config_path", "dca1000_capacity_mbps"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +41,8 @@ DCA1000_PACKET_DATA_BYTES = 1456
 DCA1000_THROUGHPUT_TABLE = ((5.0, 706.0), (10.0, 545.0), (25.0, 325.0), (50.0, 193.0))
 #: The packet delay TI's DCA1000 CLI uses by default, us.
 DCA1000_DEFAULT_PACKET_DELAY_US = 25.0
+#: Packet delays the DCA1000 documents, us.
+DCA1000_PACKET_DELAY_RANGE_US = (5.0, 500.0)
 
 #: Commands that must appear once, and describe the raw data layout.
 REQUIRED_COMMANDS = ("channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")
@@ -55,6 +58,18 @@ RAW_LVDS_LINE = "lvdsStreamCfg -1 0 1 0"
 DEFAULT_CONFIG_NAME = "awr1843_raw.cfg"
 
 
+def _path_text(path: Any) -> str:
+    """A cfg's origin as text for messages (bytes paths decoded, None as ``<cfg>``)."""
+    if path is None:
+        return "<cfg>"
+    if isinstance(path, bytes):
+        return os.fsdecode(path)
+    if isinstance(path, (str, os.PathLike)):
+        where = os.fspath(path)
+        return os.fsdecode(where) if isinstance(where, bytes) else where
+    raise ConfigError(f"expected a file path or None, got {type(path).__name__}")
+
+
 def shipped_config_path(name: str = DEFAULT_CONFIG_NAME) -> str:
     """Path of a cfg shipped with radarodom (``configs/<name>``), installed or not."""
     from importlib import resources
@@ -66,8 +81,13 @@ def dca1000_capacity_mbps(packet_delay_us: float) -> float:
     """DCA1000 Ethernet throughput at a packet delay, Mbit/s of ADC data.
 
     Interpolates UG Table 19 in time per packet (linear in the delay), and
-    extrapolates along the end segments.
+    extrapolates along the end segments.  A delay outside
+    :data:`DCA1000_PACKET_DELAY_RANGE_US` is a :class:`UsageError`.
     """
+    lo, hi = DCA1000_PACKET_DELAY_RANGE_US
+    if not (isinstance(packet_delay_us, (int, float)) and lo <= packet_delay_us <= hi):
+        raise UsageError(f"packet delay: expected a number of us in {lo:g}..{hi:g} (the DCA1000's "
+                         f"documented range), got {shown(str(packet_delay_us))}")
     bits = DCA1000_PACKET_DATA_BYTES * 8
     pts = [(d, bits / r) for d, r in DCA1000_THROUGHPUT_TABLE]  # (delay us, us per packet)
     for (d0, t0), (d1, t1) in zip(pts, pts[1:]):
@@ -75,54 +95,6 @@ def dca1000_capacity_mbps(packet_delay_us: float) -> float:
             t = t0 + (t1 - t0) * (packet_delay_us - d0) / (d1 - d0)
             return bits / max(t, 1e-9)
     raise AssertionError("unreachable")  # pragma: no cover
-
-
-@dataclass(frozen=True)
-class CfgLine:
-    """One line of a cfg file: a command, a ``%`` comment, or a blank line.
-
-    Two configurations are equal when their lines are; the line number is
-    where the line came from and does not take part.
-    """
-
-    kind: str  # "command", "comment" or "blank"
-    #: Command name, or the whole comment text (with its ``%``).
-    text: str = ""
-    #: Argument tokens exactly as written.
-    args: tuple[str, ...] = ()
-    #: The typed command object for typed commands, else None.
-    value: Any = field(default=None, compare=False)
-    line: int | None = field(default=None, compare=False)
-
-    def __str__(self) -> str:
-        return " ".join((self.text, *self.args)) if self.kind == "command" else self.text
-
-
-def _tokenize(text: str, path: str) -> list[CfgLine]:
-    lines: list[CfgLine] = []
-    # Only CR/LF end a line, as for the radar's CLI (str.splitlines also splits
-    # at form feeds and Unicode separators, which would shift line numbers).
-    pieces = re.split(r"\r\n|\r|\n", text.removeprefix("\ufeff"))
-    if pieces and pieces[-1] == "":
-        pieces.pop()
-    for lineno, raw in enumerate(pieces, start=1):
-        stripped = raw.strip()
-        if not stripped:
-            lines.append(CfgLine("blank", line=lineno))
-        elif stripped.startswith("%"):
-            lines.append(CfgLine("comment", stripped, line=lineno))
-        else:
-            name, *args = stripped.split()
-            lines.append(CfgLine("command", name, tuple(args), line=lineno))
-    return lines
-
-
-def _is_enabled(token: str) -> bool:
-    """A CLI flag argument as the firmware reads it (atoi): anything but 0 is on."""
-    try:
-        return float(token) != 0
-    except ValueError:
-        return True
 
 
 class RadarConfig:
@@ -134,37 +106,35 @@ class RadarConfig:
     """
 
     def __init__(self, lines: Sequence[CfgLine], path: str | os.PathLike | None = None) -> None:
-        self.path = os.fspath(path) if path is not None else "<cfg>"
+        self.path = _path_text(path)
+        self._warnings = WarningSummary(log, self.path)
         typed = []
-        for ln in lines:
-            if ln.kind == "command" and ln.value is None:
-                ln = self._type_line(ln)
-            typed.append(ln)
-        self.lines: tuple[CfgLine, ...] = tuple(typed)
-        self._index()
-        self._validate()
+        try:
+            for ln in lines:
+                if ln.kind == "command" and ln.value is None:
+                    ln = self._type_line(ln)
+                typed.append(ln)
+            self.lines: tuple[CfgLine, ...] = tuple(typed)
+            self._index()
+            self._validate()
+        finally:  # what was noticed before an error is still said
+            self._warnings.emit()
 
     # ------------------------------------------------------------------ parsing
     @classmethod
     def from_text(cls, text: str, path: str | os.PathLike | None = None) -> "RadarConfig":
         """Parse cfg text; *path* only names the origin in messages."""
-        where = os.fspath(path) if path is not None else "<cfg>"
-        return cls(_tokenize(text, where), where)
+        where = _path_text(path)
+        if not isinstance(text, str):
+            raise ConfigError(f"expected cfg text, got {type(text).__name__}", path=where)
+        return cls(tokenize(text, where), where)
 
     @classmethod
     def from_file(cls, path: str | os.PathLike) -> "RadarConfig":
-        """Read and parse a cfg file."""
-        try:
-            data = open(path, "rb").read()
-        except OSError as exc:
-            raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=path) from None
-        data = data.removeprefix(codecs.BOM_UTF8)  # Windows editors save one
-        try:
-            text = data.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            line = data[: exc.start].count(b"\n") + 1
-            raise ConfigError("not a text file (invalid UTF-8)", path=path, line=line) from None
-        return cls.from_text(text, path)
+        """Read and parse a cfg file of at most :data:`MAX_CFG_BYTES`.  Any failure, a path
+        that is no file or no path at all included, is a :class:`ConfigError`."""
+        where, text = read_cfg_file(path)
+        return cls.from_text(text, where)
 
     def _fail(self, message: str, ln: CfgLine | None = None, fld: str | None = None) -> ConfigError:
         return ConfigError(
@@ -187,10 +157,27 @@ class RadarConfig:
             if len(ln.args) not in counts:
                 expected = " or ".join(map(str, counts))
                 raise self._fail(f"expected {expected} arguments, got {len(ln.args)}", ln)
+            if name in cc.CHECKED_COMMANDS:
+                value = cc.parse_args(name, ln.args, path=self.path, line=ln.line)
+                return CfgLine("command", name, ln.args, value, ln.line)
+            self._check_ascii(ln)
+            if name in cc.UNCHECKED_COMMANDS:
+                self._warnings.add(f"{name} not checked", ln.line, f"{name}: arguments not checked by "
+                                   f"radarodom; sent to the radar as written")
             return ln
-        log.warning("%s:%s: unknown command %r kept as is; the radar may reject it",
-                    self.path, ln.line, name)
+        self._check_ascii(ln)
+        self._warnings.add("unknown command", ln.line,
+                           f"unknown command {shown(name)}: not checked, sent to the radar as written; "
+                           f"the radar may reject it")
         return ln
+
+    def _check_ascii(self, ln: CfgLine) -> None:
+        """A line sent as written must be one the radar's ASCII CLI can read."""
+        for i, token in enumerate((ln.text, *ln.args)):
+            if not token.isascii():
+                where = "the command name" if i == 0 else f"argument {i}"
+                raise ConfigError(f"{where} {shown(token)} is not ASCII: the radar's CLI reads ASCII only",
+                                  path=self.path, line=ln.line)
 
     def _index(self) -> None:
         self._first: dict[str, CfgLine] = {}
@@ -210,7 +197,7 @@ class RadarConfig:
                 if name in self._first:
                     raise self._fail(f"given twice (first at line {self._first[name].line})", ln)
                 self._first[name] = ln
-            elif name == "bpmCfg" and _is_enabled(ln.args[1]):
+            elif name == "bpmCfg" and ln.value.enabled:
                 raise self._fail("BPM-MIMO is not supported: use TDM (bpmCfg -1 0 0 0)", ln, "enabled")
         self._chirp_lines = tuple(chirps)
 
@@ -282,8 +269,8 @@ class RadarConfig:
                                  f"(one TX per chirp) is supported", ln, "txEnable")
             if any((c.start_freq_var_hz, c.freq_slope_var_khz_us, c.idle_time_var_us,
                     c.adc_start_time_var_us)):
-                log.warning("%s:%s: chirpCfg variations are ignored by radarodom's signal model",
-                            self.path, ln.line)
+                self._warnings.add("chirp variations", ln.line,
+                                   "chirpCfg variations are ignored by radarodom's signal model")
             for i in range(c.start_idx, c.end_idx + 1):
                 if i in owner:
                     raise self._fail(f"chirp {i} is already defined at line {owner[i].line}", ln,

@@ -8,7 +8,10 @@ and the values the firmware accepts.  One generic parser
 described exactly once.
 
 Commands that only need to reach the radar unchanged are listed in
-:data:`VERBATIM_COMMANDS` with their argument counts.
+:data:`VERBATIM_COMMANDS` with their argument counts; those of them in
+:data:`CHECKED_COMMANDS` have their fields checked the same way (and are still
+sent as written), the rest (:data:`UNCHECKED_COMMANDS`) are sent with a warning
+that they are not checked.  How tokens are read is :mod:`radarodom.cfg_fields`.
 
 Source: TI mmWave SDK 3.5 user guide, "Configuration (.cfg) File Format", and
 the demo's ``mmw_cli.c``.
@@ -17,33 +20,15 @@ the demo's ``mmw_cli.c``.
 from __future__ import annotations
 
 import dataclasses
-import math
-import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Sequence
 
-from .errors import ConfigError
+from .cfg_fields import (LEGACY_SUBFRAME, arg, config_error, convert, check_range, flag_arg,
+                         format_fields, format_number, parse_fields, subframe_arg)
 
-#: The only sub-frame index the legacy (non-advanced) frame accepts.
-LEGACY_SUBFRAME = -1
-
-
-def arg(
-    ti_name: str,
-    *,
-    unit: str | None = None,
-    lo: float | None = None,
-    hi: float | None = None,
-    choices: Sequence[int] | None = None,
-) -> Any:
-    """Describe one CLI argument: TI's name, unit, and accepted values."""
-    return field(
-        metadata={"ti_name": ti_name, "unit": unit, "lo": lo, "hi": hi, "choices": choices}
-    )
-
-
-def subframe_arg() -> Any:
-    return arg("subFrameIdx", choices=(LEGACY_SUBFRAME,))
+__all__ = ["LEGACY_SUBFRAME", "TYPED_COMMANDS", "CHECKED_COMMANDS", "VERBATIM_COMMANDS",
+           "UNCHECKED_COMMANDS", "UNSUPPORTED_COMMANDS", "parse_args", "format_args", "format_number",
+           "cli_name"]
 
 
 @dataclass(frozen=True)
@@ -91,15 +76,24 @@ class ProfileCfg:
     rx_gain: int = arg("rxGain", lo=0, hi=255)
 
 
+#: (2**23 - 1) LSB of 3.6 GHz / 2**26: the largest per-chirp start frequency step mmWaveLink
+#: (rlChirpCfg_t.startFreqVar, unsigned) takes, Hz.
+MAX_START_FREQ_VAR_HZ = (2**23 - 1) * 3.6e9 / 2**26
+#: 63 LSB of 3.6e6 * 900 / 2**26 kHz/us (rlChirpCfg_t.freqSlopeVar, 6 bits unsigned).
+MAX_FREQ_SLOPE_VAR_KHZ_US = 63 * 3.6e6 * 900 / 2**26
+#: 4095 LSB of 10 ns (rlChirpCfg_t.idleTimeVar and adcStartTimeVar, 12 bits unsigned).
+MAX_TIME_VAR_US = 40.95
+
+
 @dataclass(frozen=True)
 class ChirpCfg:
     start_idx: int = arg("chirpStartIndex", lo=0, hi=511)
     end_idx: int = arg("chirpEndIndex", lo=0, hi=511)
     profile_id: int = arg("profileId", lo=0, hi=3)
-    start_freq_var_hz: float = arg("startFreqVar", unit="Hz")
-    freq_slope_var_khz_us: float = arg("freqSlopeVar", unit="kHz/us")
-    idle_time_var_us: float = arg("idleTimeVar", unit="us")
-    adc_start_time_var_us: float = arg("adcStartTimeVar", unit="us")
+    start_freq_var_hz: float = arg("startFreqVar", unit="Hz", lo=0.0, hi=MAX_START_FREQ_VAR_HZ)
+    freq_slope_var_khz_us: float = arg("freqSlopeVar", unit="kHz/us", lo=0.0, hi=MAX_FREQ_SLOPE_VAR_KHZ_US)
+    idle_time_var_us: float = arg("idleTimeVar", unit="us", lo=0.0, hi=MAX_TIME_VAR_US)
+    adc_start_time_var_us: float = arg("adcStartTimeVar", unit="us", lo=0.0, hi=MAX_TIME_VAR_US)
     tx_mask: int = arg("txEnable", lo=0, hi=7)
 
 
@@ -141,12 +135,17 @@ class CfarCfg:
     peak_grouping: int = arg("peak grouping", choices=(0, 1))
 
 
+#: Bound of cfarFovCfg's min and max, m or m/s.
+CFAR_FOV_LIMIT = 1000.0
+
+
 @dataclass(frozen=True)
 class CfarFovCfg:
     subframe: int = subframe_arg()
     proc_direction: int = arg("procDirection", choices=(0, 1))  # 0: range in m, 1: Doppler in m/s
-    min_value: float = arg("min (meters or m/s)")
-    max_value: float = arg("max (meters or m/s)")
+    # TI documents no bounds; these keep the numbers finite and beyond any xWR18xx range or speed.
+    min_value: float = arg("min (meters or m/s)", lo=-CFAR_FOV_LIMIT, hi=CFAR_FOV_LIMIT)
+    max_value: float = arg("max (meters or m/s)", lo=-CFAR_FOV_LIMIT, hi=CFAR_FOV_LIMIT)
 
 
 @dataclass(frozen=True)
@@ -219,6 +218,89 @@ TYPED_COMMANDS: dict[str, type] = {
     "extendedMaxVelocity": ExtendedMaxVelocity,
 }
 
+# Commands the radar receives that radarodom does not use: their fields are checked like the
+# typed commands' (syntax and the SDK user guide's ranges) but the line is sent as written.
+@dataclass(frozen=True)
+class SensorStart:
+    do_reconfig: int = flag_arg("doReconfig")
+
+
+@dataclass(frozen=True)
+class GuiMonitor:
+    subframe: int = subframe_arg()
+    detected_objects: int = arg("detected objects", choices=(0, 1, 2))  # 2: without side info
+    log_mag_range: int = flag_arg("log magnitude range")
+    noise_profile: int = flag_arg("noise profile")
+    range_azimuth_heat_map: int = flag_arg("rangeAzimuthHeatMap")
+    range_doppler_heat_map: int = flag_arg("rangeDopplerHeatMap")
+    stats_info: int = flag_arg("statsInfo")
+
+
+@dataclass(frozen=True)
+class MeasureRangeBiasAndRxChanPhase:
+    enabled: int = flag_arg("enabled")
+    target_distance_m: float = arg("targetDistance", unit="m", lo=0.0, hi=100.0)
+    search_window_m: float = arg("searchWin", unit="m", lo=0.0, hi=100.0)
+
+
+@dataclass(frozen=True)
+class CQRxSatMonitor:
+    profile: int = arg("profile", lo=0, hi=3)
+    sat_mon_sel: int = arg("satMonSel", lo=0, hi=3)
+    primary_slice_duration: int = arg("priSliceDuration", unit="x 0.16 us", lo=4, hi=65535)
+    num_slices: int = arg("numSlices", lo=1, hi=127)
+    rx_channel_mask: int = arg("rxChanMask", lo=0, hi=15)
+
+
+@dataclass(frozen=True)
+class CQSigImgMonitor:
+    profile: int = arg("profile", lo=0, hi=3)
+    num_slices: int = arg("numSlices", lo=1, hi=127)
+    num_samples_per_slice: int = arg("numSamplePerSlice", lo=4, hi=255)
+
+
+@dataclass(frozen=True)
+class AnalogMonitor:
+    rx_saturation: int = flag_arg("rxSaturation")
+    sig_img_band: int = flag_arg("sigImgBand")
+
+
+@dataclass(frozen=True)
+class CalibData:
+    save_enable: int = flag_arg("save enable")
+    restore_enable: int = flag_arg("restore enable")
+    #: Read by the firmware with sscanf("0x%x"): hexadecimal, or 0 (no offset).
+    flash_offset: int = arg("Flash offset", syntax="hex")
+
+
+@dataclass(frozen=True)
+class BpmCfg:
+    subframe: int = subframe_arg()
+    enabled: int = flag_arg("enabled")
+    chirp0_idx: int = arg("chirp0Idx", lo=0, hi=511)
+    chirp1_idx: int = arg("chirp1Idx", lo=0, hi=511)
+
+
+@dataclass(frozen=True)
+class ConfigDataPort:
+    baud_rate: int = arg("baudrate", lo=1, hi=2**32 - 1)
+    ack_ping: int = flag_arg("ackPing")
+
+
+#: Commands the radar receives whose fields are checked, but which are sent as written:
+#: CLI name -> command class.
+CHECKED_COMMANDS: dict[str, type] = {
+    "sensorStart": SensorStart,
+    "guiMonitor": GuiMonitor,
+    "measureRangeBiasAndRxChanPhase": MeasureRangeBiasAndRxChanPhase,
+    "CQRxSatMonitor": CQRxSatMonitor,
+    "CQSigImgMonitor": CQSigImgMonitor,
+    "analogMonitor": AnalogMonitor,
+    "calibData": CalibData,
+    "bpmCfg": BpmCfg,
+    "configDataPort": ConfigDataPort,
+}
+
 #: Known commands kept as text: CLI name -> accepted argument counts.
 VERBATIM_COMMANDS: dict[str, tuple[int, ...]] = {
     "sensorStart": (0, 1),
@@ -238,6 +320,10 @@ VERBATIM_COMMANDS: dict[str, tuple[int, ...]] = {
     "help": (0,),
 }
 
+#: Known commands whose arguments radarodom does not check (no documented layout for the
+#: xWR18xx demo): sent as written, with a warning that says so.
+UNCHECKED_COMMANDS = ("idlePowerCycle",)
+
 #: Commands that belong to modes radarodom does not support, with the reason.
 UNSUPPORTED_COMMANDS: dict[str, str] = {
     "advFrameCfg": "advanced frame configuration (sub-frames) is not supported; use frameCfg",
@@ -245,92 +331,40 @@ UNSUPPORTED_COMMANDS: dict[str, str] = {
 }
 
 
-#: Number syntax the radar's CLI reads (atoi/atof on ASCII digits).  Python's
-#: int()/float() also take "1_6" and non-ASCII digits, which the radar would
-#: read differently, so tokens are matched first.
-_INT_TOKEN = re.compile(r"[+-]?[0-9]+\Z")
-_FLOAT_TOKEN = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
-
-
-def _convert(token: str, kind: type, name: str) -> int | float:
-    """One CLI token as int or float; raises ValueError with a reason."""
-    if kind is int:
-        if not _INT_TOKEN.match(token):
-            raise ValueError(f"expected an integer, got {token!r}")
-        try:
-            return int(token, 10)
-        except ValueError:  # more digits than Python converts
-            raise ValueError(f"integer too large: {token[:20]}...") from None
-    if not _FLOAT_TOKEN.match(token):
-        if token.lower().lstrip("+-") in ("nan", "inf", "infinity"):
-            raise ValueError(f"expected a finite number, got {token!r}")
-        raise ValueError(f"expected a number, got {token!r}")
-    value = float(token)
-    if not math.isfinite(value):
-        raise ValueError(f"expected a finite number, got {token!r}")
-    return value
-
-
-def _check_range(value: float, meta: dict) -> None:
-    choices = meta.get("choices")
-    if choices is not None and value not in choices:
-        raise ValueError(f"{value!r} is not one of {', '.join(map(str, choices))}")
-    lo, hi = meta.get("lo"), meta.get("hi")
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
-        unit = f" {meta['unit']}" if meta.get("unit") else ""
-        raise ValueError(f"{value!r} is outside {lo:g}..{hi:g}{unit}")
-
-
 def parse_args(name: str, tokens: Sequence[str], *, path=None, line=None) -> Any:
-    """Turn the argument tokens of typed command *name* into its dataclass.
+    """Turn the argument tokens of command *name* (typed or checked) into its dataclass.
 
     Raises :class:`ConfigError` naming the command and the field at fault.
     """
-    cls = TYPED_COMMANDS[name]
-    fields = dataclasses.fields(cls)
-
-    def fail(message: str, fld: str | None = None) -> ConfigError:
-        return ConfigError(message, path=path, line=line, command=name, field=fld)
-
+    cls = TYPED_COMMANDS.get(name) or CHECKED_COMMANDS[name]
+    fail = config_error(path, line, name)
     if cls is CompRangeBiasAndRxChanPhase:
-        expected = 1 + 2 * NUM_COMP_VIRTUAL_ANTENNAS
-        if len(tokens) != expected:
-            raise fail(f"expected {expected} arguments (rangeBias and {NUM_COMP_VIRTUAL_ANTENNAS} "
-                       f"Re/Im pairs), got {len(tokens)}")
-        values = []
-        for i, token in enumerate(tokens):
-            meta = fields[0 if i == 0 else 1].metadata
-            try:
-                v = _convert(token, float, meta["ti_name"])
-                _check_range(v, meta)
-            except ValueError as exc:
-                raise fail(str(exc), meta["ti_name"] if i == 0 else f"value {i}") from None
-            values.append(v)
-        pairs = tuple(complex(values[k], values[k + 1]) for k in range(1, expected, 2))
-        return cls(values[0], pairs)
+        return _parse_comp_range_bias(tokens, fail)
+    if cls is SensorStart and not tokens:
+        return SensorStart(0)
+    value = parse_fields(cls, tokens, fail)
+    if cls is CalibData and value.save_enable and value.restore_enable:
+        raise fail("save and restore cannot both be enabled (the firmware refuses it)", "restore enable")
+    return value
 
-    if len(tokens) != len(fields):
-        raise fail(f"expected {len(fields)} arguments "
-                   f"({' '.join(f.metadata['ti_name'].split()[0] for f in fields)}), got {len(tokens)}")
+
+def _parse_comp_range_bias(tokens: Sequence[str], fail) -> CompRangeBiasAndRxChanPhase:
+    fields = dataclasses.fields(CompRangeBiasAndRxChanPhase)
+    expected = 1 + 2 * NUM_COMP_VIRTUAL_ANTENNAS
+    if len(tokens) != expected:
+        raise fail(f"expected {expected} arguments (rangeBias and {NUM_COMP_VIRTUAL_ANTENNAS} "
+                   f"Re/Im pairs), got {len(tokens)}", None)
     values = []
-    for fld, token in zip(fields, tokens):
-        meta = fld.metadata
-        kind = int if fld.type in ("int", int) else float
+    for i, token in enumerate(tokens):
+        meta = fields[0 if i == 0 else 1].metadata
         try:
-            v = _convert(token, kind, meta["ti_name"])
-            _check_range(v, meta)
+            v = convert(token, float)
+            check_range(v, meta)
         except ValueError as exc:
-            raise fail(str(exc), meta["ti_name"]) from None
+            raise fail(str(exc), meta["ti_name"] if i == 0 else f"value {i}") from None
         values.append(v)
-    return cls(*values)
-
-
-def format_number(value: float) -> str:
-    """Shortest text that parses back to exactly *value* (``77``, ``57.14``)."""
-    if isinstance(value, int):
-        return str(value)
-    text = repr(float(value))
-    return text[:-2] if text.endswith(".0") else text
+    pairs = tuple(complex(values[k], values[k + 1]) for k in range(1, expected, 2))
+    return CompRangeBiasAndRxChanPhase(values[0], pairs)
 
 
 def format_args(command: Any) -> tuple[str, ...]:
@@ -340,7 +374,7 @@ def format_args(command: Any) -> tuple[str, ...]:
         for c in command.rx_chan_phase:
             out += [format_number(c.real), format_number(c.imag)]
         return tuple(out)
-    return tuple(format_number(getattr(command, f.name)) for f in dataclasses.fields(command))
+    return format_fields(command)
 
 
 def cli_name(command: Any) -> str:

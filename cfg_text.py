@@ -1,0 +1,142 @@
+"""A cfg file as text: read with a size bound, split into lines and tokens the way the radar's
+CLI splits them, and the warnings about its lines summarised.
+
+The radar's CLI reads ASCII: only CR/LF end a line, only spaces and tabs separate arguments.
+Python's ``str.split`` and ``splitlines`` also split at no-break spaces, form feeds and Unicode
+line separators, so a line the radar reads as one garbled token would parse here as clean
+numbers; such characters are refused with the line and column.
+"""
+
+from __future__ import annotations
+
+import codecs
+import logging
+import os
+import re
+import unicodedata
+from collections import defaultdict
+from dataclasses import dataclass, field
+from typing import Any
+
+from .errors import ConfigError
+
+#: Largest cfg file read.  A cfg is a few KB; anything this large is another file.
+MAX_CFG_BYTES = 1 << 20
+#: Warnings of one kind shown in full before the rest are counted.
+WARNINGS_SHOWN = 5
+
+_LINE_END = re.compile(r"\r\n|\r|\n")
+_SEPARATORS = re.compile(r"[ \t]+")
+#: Anything but printable ASCII and tab: only these need a closer look.
+_NOT_PLAIN = re.compile(r"[^ -~\t]")
+
+
+@dataclass(frozen=True)
+class CfgLine:
+    """One line of a cfg file: a command, a ``%`` comment, or a blank line.
+
+    Two configurations are equal when their lines are; the line number is
+    where the line came from and does not take part.
+    """
+
+    kind: str  # "command", "comment" or "blank"
+    #: Command name, or the whole comment text (with its ``%``).
+    text: str = ""
+    #: Argument tokens exactly as written.
+    args: tuple[str, ...] = ()
+    #: The typed command object for typed and checked commands, else None.
+    value: Any = field(default=None, compare=False)
+    line: int | None = field(default=None, compare=False)
+
+    def __str__(self) -> str:
+        return " ".join((self.text, *self.args)) if self.kind == "command" else self.text
+
+
+def read_cfg_file(path: Any) -> tuple[str, str]:
+    """(the path as text, the file's text): at most :data:`MAX_CFG_BYTES`, UTF-8 (a leading BOM
+    dropped).  Every failure, a bad path included, is a :class:`ConfigError` naming the file."""
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise ConfigError(f"expected a file path, got {type(path).__name__}")
+    where = os.fspath(path)
+    if isinstance(where, bytes):
+        where = os.fsdecode(where)
+    if "\0" in where:
+        raise ConfigError("a path cannot contain a NUL character", path=where.replace("\0", "\\0"))
+    try:
+        with open(where, "rb") as fh:
+            data = fh.read(MAX_CFG_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=where) from None
+    if len(data) > MAX_CFG_BYTES:
+        raise ConfigError(f"larger than {MAX_CFG_BYTES // (1 << 20)} MiB, the most a cfg is read to "
+                          f"(a cfg is a few KB): not a radar configuration?", path=where)
+    data = data.removeprefix(codecs.BOM_UTF8)  # Windows editors save one
+    try:
+        return where, data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise ConfigError("not a text file (invalid UTF-8)", path=where, line=line) from None
+
+
+def _bad_character(stripped: str) -> tuple[int, str] | None:
+    """(column, name) of the first character in a command line the radar would not read as
+    written: a control character or a space other than ASCII space and tab."""
+    first = _NOT_PLAIN.search(stripped)
+    if first is None:
+        return None
+    for col, ch in enumerate(stripped[first.start():], start=first.start() + 1):
+        if ch in " \t" or (ch.isprintable() and not ch.isspace()):
+            continue
+        name = unicodedata.name(ch, "") or "control character"
+        return col, f"U+{ord(ch):04X} ({name.lower()})"
+    return None
+
+
+def tokenize(text: str, path: str) -> list[CfgLine]:
+    """The lines of *text*, commands split into name and argument tokens."""
+    lines: list[CfgLine] = []
+    pieces = _LINE_END.split(text.removeprefix("\ufeff"))
+    if pieces and pieces[-1] == "":
+        pieces.pop()
+    for lineno, raw in enumerate(pieces, start=1):
+        stripped = raw.strip(" \t")
+        if not stripped:
+            lines.append(CfgLine("blank", line=lineno))
+        elif stripped.startswith("%"):
+            lines.append(CfgLine("comment", stripped, line=lineno))
+        else:
+            bad = _bad_character(stripped)
+            if bad is not None:
+                col, what = bad
+                raise ConfigError(f"column {col}: character {what}: only ASCII spaces and tabs "
+                                  f"separate arguments, and the radar reads printable characters only",
+                                  path=path, line=lineno)
+            name, *args = _SEPARATORS.split(stripped)
+            lines.append(CfgLine("command", name, tuple(args), line=lineno))
+    return lines
+
+
+class WarningSummary:
+    """Warnings about cfg lines, grouped by kind: the first few of each kind logged in full,
+    the rest counted in one line, so a file of repeated mistakes gives a readable log."""
+
+    def __init__(self, logger: logging.Logger, path: str) -> None:
+        self._log = logger
+        self._path = path
+        self._by_kind: dict[str, list[tuple[int | None, str]]] = defaultdict(list)
+        self._counts: dict[str, int] = defaultdict(int)
+
+    def add(self, kind: str, line: int | None, message: str) -> None:
+        self._counts[kind] += 1
+        if len(self._by_kind[kind]) < WARNINGS_SHOWN:
+            self._by_kind[kind].append((line, message))
+
+    def emit(self) -> None:
+        for kind, shown in self._by_kind.items():
+            for line, message in shown:
+                self._log.warning("%s:%s: %s", self._path, line, message)
+            more = self._counts[kind] - len(shown)
+            if more:
+                self._log.warning("%s: ... and %d more lines like this (%s)", self._path, more, kind)
