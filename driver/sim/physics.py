@@ -23,6 +23,15 @@ own motion, to keep it within 0.25 rad (4 chunks of the shipped cfg at 1 m/s,
 one chunk when nothing moves in range); and 0.25 rad for the 8 mm antenna
 offsets.
 
+The sum over paths is the one reduction whose order could vary: a BLAS matrix product sums in
+an order that depends on its thread count and kernel, and float rounding then differs by an
+ADC count now and then.  :func:`exact_product` makes every term an integer held exactly in
+float64, so any order gives the same sum: with ``fidelity="exact"`` a seed gives the same bytes
+with any BLAS thread count (on one machine: numpy's own sin, cos and float32
+arithmetic may round differently on another CPU).  ``fidelity="fast"`` keeps the float32 BLAS
+product, half the cost, for real-time streaming: its bytes are the same for a seed at the same
+BLAS thread count.
+
 Antenna elements are placed in the TI sensor frame with the wavelength at
 ``f_c``, so the spatial phase between virtual elements is exactly
 ``pi h sin(azimuth)`` at the frequency the DSP assumes.  Each leg of a path is
@@ -32,6 +41,7 @@ phase beyond 0.3 m.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +88,48 @@ def _unit_phasor(cycles: np.ndarray) -> np.ndarray:
     np.cos(phase, out=out.real)
     np.sin(phase, out=out.imag)
     return out
+
+
+#: Columns summed by one BLAS call of exact_product, and the bits each factor is rounded to:
+#: 2 * 2**(2 * bits) * columns is at most 2**53, so every partial sum is an exact integer.
+EXACT_PRODUCT_COLUMNS = 512
+EXACT_PRODUCT_BITS = 21
+
+
+def _to_integers(x: np.ndarray) -> tuple[np.ndarray, float]:
+    """*x* (complex64) as complex128 with integer parts of at most EXACT_PRODUCT_BITS bits, and
+    the power of two it was divided by (0 when *x* is all zero)."""
+    peak = float(max(np.abs(x.real).max(initial=0.0), np.abs(x.imag).max(initial=0.0)))
+    if peak == 0.0:
+        return x.astype(np.complex128), 0.0
+    scale = math.ldexp(1.0, math.frexp(peak)[1] - EXACT_PRODUCT_BITS)
+    factor = 1.0 / scale  # a power of two: the scaling is exact
+    # float32 holds the integers exactly; float64 only where the factor would overflow float32.
+    y = x * np.float32(factor) if factor < 2.0**120 else x.astype(np.complex128) * factor
+    np.rint(y, out=y)
+    return y.astype(np.complex128), scale
+
+
+def exact_product(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out[...] = a @ b`` for complex64 *a* (m, k), *b* (k, n), the same bytes whatever the
+    BLAS kernel or thread count.
+
+    Per block of EXACT_PRODUCT_COLUMNS columns both factors are rounded to integers of
+    EXACT_PRODUCT_BITS bits (a step of 2**-21 of the block's largest part, far below the one count
+    the ADC rounds to), so the block's product is an exact integer sum in float64 whatever order
+    BLAS adds in; blocks are then added in a fixed order.
+    """
+    acc = np.zeros(out.shape, np.complex128)
+    for j0 in range(0, a.shape[1], EXACT_PRODUCT_COLUMNS):
+        j1 = j0 + EXACT_PRODUCT_COLUMNS
+        ai, sa = _to_integers(a[:, j0:j1])
+        bi, sb = _to_integers(b[j0:j1])
+        if sa == 0.0 or sb == 0.0:
+            continue
+        block = np.matmul(ai, bi)
+        block *= sa * sb
+        acc += block
+    out[...] = acc
 
 
 #: fidelity="exact": largest error of the drifting-delay expansion, rad, and the
@@ -185,6 +237,8 @@ class FmcwSynthesizer:
                 c1 = min(c0 + chunk, loops * slots)
                 tau = ((r_tx[c0:c1] + r_rx[c0:c1]).mean(axis=0) + self.extra_path_m) / SPEED_OF_LIGHT  # (K,)
                 beat = self.beat_tone(tau)
+                # BLAS in float32 for real time: the sum's order, so an ADC count now and then,
+                # may change with the BLAS thread count (exact_product would cost twice as much).
                 np.matmul(a[c0:c1].reshape((c1 - c0) * nrx, k), beat,
                           out=flat[c0:c1].reshape((c1 - c0) * nrx, ns))
             return out
@@ -234,7 +288,7 @@ class FmcwSynthesizer:
                     basis *= y
                 a_stack[:, :, m * k:(m + 1) * k] = a[c0:c1] * coeff[:, None, :]
                 np.multiply(tone, basis[None, :], out=b_stack[m * k:(m + 1) * k])
-            np.matmul(a_stack.reshape(rows, terms * k), b_stack, out=flat[c0:c1].reshape(rows, ns))
+            exact_product(a_stack.reshape(rows, terms * k), b_stack, out=flat[c0:c1].reshape(rows, ns))
 
     def _chunk_loops(self, r_tx: np.ndarray, r_rx: np.ndarray) -> int:
         """Loops per chunk: the fewest chunks that keep the beat tone's phase error

@@ -113,7 +113,7 @@ def _mirror(points_xy: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Mirror images of 2-D points across the line through a and b."""
     d = (b - a) / np.hypot(*(b - a))
     rel = points_xy - a
-    along = rel @ d
+    along = rel[..., 0] * d[0] + rel[..., 1] * d[1]  # not a BLAS product: the same bytes with any threads
     return a + 2 * along[..., None] * d - rel
 
 

@@ -4,7 +4,9 @@
 
 - SCENE: a built-in scene (``corridor``, ``room``, ``lab``, ``calibration``;
   default ``corridor``) or a scene file (``sim:///path/to/scene.toml``).
-- ``seed``: everything random (scatterers, phases, noise); same seed, same bytes.
+- ``seed``: everything random (scatterers, phases, noise); same seed, same bytes (with
+  ``fidelity=exact`` whatever the BLAS thread count; with ``fast`` at the same BLAS thread
+  count, as radar-capture runs it: one).
 - ``rate``: 1.0 streams in real time (default), 2 twice as fast, ``max`` as
   fast as frames can be made.
 - ``duration``: seconds of stream; default the scene's trajectory.
