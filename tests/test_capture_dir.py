@@ -400,6 +400,235 @@ def test_given_config_without_capture_json_overrides_recorded(tmp_path, small_cf
     assert any("differs" in m for m in warning_messages(warnings_log))
 
 
+# --------------------------------------------------------------- hostile files (issue 18)
+
+def _set_meta_text(d, text: str) -> None:
+    (d / "capture.json").write_text(text)
+
+
+def _meta_with(d, **changes) -> str:
+    meta = json.loads((d / "capture.json").read_text())
+    meta.update(changes)
+    return json.dumps(meta)
+
+
+def _meta_entry(d, **entry) -> str:
+    return _meta_with(d, incomplete_frames=[{"frame": 1, "missing_bytes": 10, **entry}], lost_bytes=10)
+
+
+# Each case: capture.json's text made from the 6-frame capture in d, and what the message says.
+BAD_METADATA = {
+    "incomplete-frames-a-number": (lambda d: _meta_with(d, incomplete_frames=5),
+                                   "incomplete_frames: expected a list"),
+    "frame-a-string": (lambda d: _meta_entry(d, frame="x"), "incomplete_frames[0].frame: expected an integer"),
+    "frame-nan": (lambda d: _meta_entry(d).replace('"frame": 1', '"frame": NaN'), "NaN is not a number JSON"),
+    "frame-past-the-count": (lambda d: _meta_entry(d, frame=6), "incomplete_frames[0].frame: expected an "
+                                                                  "integer from 0 to 5, got 6"),
+    "frames-out-of-order": (lambda d: _meta_with(d, incomplete_frames=[{"frame": 3, "missing_bytes": 1},
+                                                                       {"frame": 3, "missing_bytes": 1}]),
+                            "incomplete_frames[1].frame: expected an integer from 4 to 5, got 3"),
+    "missing-bytes-a-list": (lambda d: _meta_entry(d, missing_bytes=[1]),
+                             "incomplete_frames[0].missing_bytes: expected an integer from 1 to 3072, got [1]"),
+    "missing-bytes-negative": (lambda d: _meta_entry(d, missing_bytes=-5),
+                               "incomplete_frames[0].missing_bytes: expected an integer from 1 to 3072, got -5"),
+    "missing-bytes-absurd": (lambda d: _meta_entry(d, missing_bytes=99999999999),
+                             "missing_bytes: expected an integer from 1 to 3072, got 99999999999"),
+    "missing-bytes-a-float": (lambda d: _meta_entry(d, missing_bytes=10.0), "expected an integer from 1 to 3072"),
+    "missing-bytes-true": (lambda d: _meta_entry(d, missing_bytes=True), "expected an integer from 1 to 3072"),
+    "cut-beyond-missing": (lambda d: _meta_entry(d, cut_bytes=11),
+                           "incomplete_frames[0].cut_bytes: expected an integer from 0 to 10, got 11"),
+    "lost-bytes-disagree": (lambda d: _meta_with(d, lost_bytes=99999999994),
+                            "lost_bytes: expected 0, the sum of the missing_bytes"),
+    "entry-not-an-object": (lambda d: _meta_with(d, incomplete_frames=[[1, 2]]),
+                            "incomplete_frames[0]: expected an object"),
+    "nested-200000-deep": (lambda d: "[" * 200_000, "nested 200000 deep, more than the 32 allowed"),
+    "not-an-object": (lambda d: "[1, 2]", "expected a JSON object, got list"),
+    "overflowing-number": (lambda d: _meta_with(d, frame_count=1).replace('"frame_count": 1', '"frame_count": 1e999'),
+                           "out of range"),
+    "frame-count-a-string": (lambda d: _meta_with(d, frame_count="6"), "frame_count: expected an integer >= 0"),
+    "frame-count-negative": (lambda d: _meta_with(d, frame_count=-1), "frame_count: expected an integer >= 0"),
+    "frame-count-missing": (lambda d: _meta_with(d).replace('"frame_count"', '"frame_countX"'),
+                            "frame_count: missing (a required field)"),
+    "frame-bytes-zero": (lambda d: _meta_with(d, frame_bytes=0), "frame_bytes: expected an integer >= 1"),
+    "closed-a-string": (lambda d: _meta_with(d, closed="yes"), "closed: expected true or false"),
+    "wrong-format": (lambda d: _meta_with(d, format="other"), "format: expected 'radarodom-capture'"),
+    "newer-version": (lambda d: _meta_with(d, format_version=2), "written by a newer radarodom"),
+    "version-a-string": (lambda d: _meta_with(d, format_version="1"), "format_version: expected the integer 1"),
+    "source-a-number": (lambda d: _meta_with(d, source=5), "source: expected a string"),
+    "first-timestamp-huge": (lambda d: _meta_with(d, first_timestamp=1e300), "first_timestamp: expected null or"),
+    "start-time-negative": (lambda d: _meta_with(d, start_time_unix=-1), "start_time_unix: expected a number"),
+    "dropped-frames-negative": (lambda d: _meta_with(d, dropped_frames=-3), "dropped_frames: expected an integer"),
+    "not-utf8": (lambda d: b"\xff\xfe{}", "not UTF-8"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_METADATA))
+def test_bad_capture_json_is_refused_naming_file_and_field(tmp_path, small_cfg, case):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 6)
+    make, expected = BAD_METADATA[case]
+    text = make(d)
+    if isinstance(text, bytes):
+        (d / "capture.json").write_bytes(text)
+    else:
+        _set_meta_text(d, text)
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert message.startswith(f"{d / 'capture.json'}: "), message
+    assert expected in message, message
+
+
+def test_capture_json_size_is_bounded(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 2)
+    _set_meta_text(d, _meta_with(d, padding="x" * (2 << 20)))
+    with pytest.raises(CaptureFormatError, match=r"capture.json: \d+ bytes, more than the \d+ allowed"):
+        CaptureDirectory(d)
+
+
+def test_unknown_capture_json_fields_are_kept(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 2)
+    _set_meta_text(d, _meta_with(d, operator="me", note={"a": [1, 2]}))
+    assert CaptureDirectory(d).metadata["note"] == {"a": [1, 2]}
+
+
+BAD_TIMESTAMPS = {
+    "nan": ("nan", "expected a timestamp (a plain decimal number of seconds), got 'nan'"),
+    "inf": ("inf", "got 'inf'"),
+    "underscore": ("1000.0_5", "got '1000.0_5'"),
+    "hex": ("0x10", "got '0x10'"),
+    "overflow": ("1e300", "timestamp 1e300 is out of range"),
+    "overflow-to-infinity": ("1e999", "timestamp 1e999 is out of range"),
+    "duplicate": ("1000.050000000", "timestamp 1000.050000000 is not after the previous line's 1000.050000000"),
+    "out-of-order": ("999.0", "timestamp 999.0 is not after the previous line's 1000.050000000"),
+    "empty-line": ("", "got ''"),
+    "two-numbers": ("1000.1 1000.2", "got '1000.1 1000.2'"),
+    "full-width-digits": ("\uff11\uff10\uff10\uff10", "expected a timestamp"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_TIMESTAMPS))
+def test_bad_timestamp_is_refused_with_file_and_line(tmp_path, small_cfg, case):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, t0=T0)
+    bad, expected = BAD_TIMESTAMPS[case]
+    lines = (d / "timestamps.txt").read_text().splitlines()
+    lines[2] = bad
+    (d / "timestamps.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert message.startswith(f"{d / 'timestamps.txt'}:3: "), message
+    assert expected in message, message
+
+
+def test_bad_timestamp_is_refused_before_the_first_frame(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, t0=T0)
+    (d / "timestamps.txt").write_text("1000.0\n1000.05\nnan\n1000.15\n")
+    with pytest.raises(CaptureFormatError, match="timestamps.txt:3"):
+        open_source(f"replay://{d}?rate=max")
+
+
+def test_a_very_long_timestamp_line_is_refused(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 2, t0=T0)
+    (d / "timestamps.txt").write_text("1" * 10_000_000 + "\n1000.05\n")
+    with pytest.raises(CaptureFormatError, match=r"timestamps.txt:1: a line longer than 256 bytes"):
+        CaptureDirectory(d)
+
+
+def test_edited_radar_cfg_with_other_frames_is_refused(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 30)
+    (d / "radar.cfg").write_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert "radar.cfg makes frames of 1536 bytes, capture.json says the recording's are 3072 bytes" in message
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_frame_count_beyond_the_data_is_refused(tmp_path, small_cfg, closed):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 30)
+    _set_meta_text(d, _meta_with(d, frame_count=100, closed=closed))
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    message = str(info.value)
+    assert "100 frames" in message and "92160 bytes: 30 frames of 3072 bytes" in message, message
+
+
+def test_frame_count_below_the_data_of_a_closed_capture_is_refused(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 30)
+    _set_meta_text(d, _meta_with(d, frame_count=20))
+    with pytest.raises(CaptureFormatError, match="closed recording has 20 frames"):
+        CaptureDirectory(d)
+
+
+def test_metadata_behind_the_data_of_a_crashed_capture_plays_every_frame(tmp_path, small_cfg, warnings_log):
+    # capture.json is rewritten about once a second, so a killed writer leaves it behind the data.
+    d = tmp_path / "cap"
+    frames = make_capture(d, small_cfg, 30, incomplete={4: 8})
+    _crashed(d, frame_count=20)
+    cap = CaptureDirectory(d)
+    assert cap.num_frames == 30 and [bytes(cap.raw(i)) for i in range(30)] == frames
+    assert cap.missing_bytes(4) == 8
+    assert any("not closed" in m and "30 whole frames" in m for m in warning_messages(warnings_log))
+
+
+def test_missing_adc_data_says_so(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 2)
+    os.remove(d / "adc_data.bin")
+    for opener in (lambda: CaptureDirectory(d), lambda: open_source(f"replay://{d}"),
+                   lambda: open_source(f"replay://{d}", small_cfg)):
+        with pytest.raises(CaptureFormatError) as info:
+            opener()
+        message = str(info.value)
+        assert f"{d}: no adc_data.bin: the capture's frame data is missing" in message, message
+        assert "has no radar.cfg" not in message
+
+
+def test_writer_refuses_times_the_reader_would_refuse(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    raw = bytes(small_cfg.frame_bytes)
+    with CaptureWriter(d, small_cfg) as w:
+        w.write(raw, 10.0)
+        for bad in (float("nan"), float("inf"), 1e300, 10.0, 9.0, 10.0 + 1e-12):
+            with pytest.raises(CaptureError, match="frame 1: timestamp"):
+                w.write(raw, bad)
+        with pytest.raises(CaptureError, match="missing 3073 of 3072"):
+            w.write(raw, 11.0, missing_bytes=3073)
+        w.write(raw, 10.05)
+    cap = CaptureDirectory(d)
+    assert cap.num_frames == 2
+    np.testing.assert_allclose(cap.timestamps, [10.0, 10.05])
+
+
+def test_capture_of_no_frame_leaves_nothing(tmp_path, small_cfg):
+    made = tmp_path / "new" / "cap"
+    CaptureWriter(made, small_cfg).close()
+    assert not made.exists() and (tmp_path / "new").is_dir()
+    given = tmp_path / "given"
+    given.mkdir()
+    CaptureWriter(given, small_cfg).close()
+    assert given.is_dir() and os.listdir(given) == []
+
+
+def test_capture_of_no_frame_left_by_a_killed_run_is_recorded_over(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    left = CaptureWriter(d, small_cfg)  # never closed: as a run killed before its first frame
+    assert (d / "adc_data.bin").stat().st_size == 0
+    frames = make_capture(d, small_cfg, 2)
+    assert [bytes(CaptureDirectory(d).raw(i)) for i in range(2)] == frames
+    os.close(left._data_fd)
+    left._ts.close()
+
+
 # --------------------------------------------------------------- crash safety
 
 CHILD_WRITER = r"""

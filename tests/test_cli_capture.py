@@ -353,6 +353,134 @@ def test_help_exits_0():
         assert word in proc.stdout, word
 
 
+# ------------------------------------------------- hostile recordings (issue 18)
+def _refused_before_streaming(proc, out) -> str:
+    """The one error line of a run that stopped before its first frame, exit 2, nothing written."""
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
+    assert "internal error" not in proc.stderr
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert not out.exists()
+    return one_error_line(proc)
+
+
+@pytest.mark.parametrize("case", ["missing-bytes-absurd", "missing-bytes-negative", "frame-nan",
+                                  "incomplete-frames-a-number", "nested", "frame-count-past-the-data"])
+def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
+    path, _ = src
+    m = meta(path)
+    if case == "nested":
+        text = "[" * 200_000
+    elif case == "frame-nan":
+        text = json.dumps(m).replace('"frame": 3', '"frame": NaN')
+    elif case == "frame-count-past-the-data":
+        text = json.dumps({**m, "frame_count": 100})
+    else:
+        missing = {"missing-bytes-absurd": 99999999999, "missing-bytes-negative": -5}.get(case)
+        text = json.dumps({**m, "incomplete_frames": 5 if missing is None else
+                           [{"frame": 3, "missing_bytes": missing}]})
+    (path / "capture.json").write_text(text)
+    out = tmp_path / "out"
+    line = _refused_before_streaming(run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out),
+                                     out)
+    assert str(path) in line and "capture.json" in line, line
+    assert "bytes lost" not in line and "99999999994" not in line
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "0_5", "1e300", "1000.0"])
+def test_cli_refuses_bad_timestamps_before_streaming(src, tmp_path, bad):
+    path, _ = src
+    lines = (path / "timestamps.txt").read_text().splitlines()
+    lines[4] = bad  # "1000.0" repeats line 1: out of order
+    (path / "timestamps.txt").write_text("\n".join(lines) + "\n")
+    out, odom = tmp_path / "out", tmp_path / "odom.tum"
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--odom-out", odom)
+    line = _refused_before_streaming(proc, out)
+    assert f"{path / 'timestamps.txt'}:5: " in line, line
+    assert not odom.exists()
+
+
+def test_cli_missing_adc_data_says_so(src, tmp_path):
+    path, _ = src
+    (path / "adc_data.bin").unlink()
+    out = tmp_path / "out"
+    line = _refused_before_streaming(run_capture_cli("--source", f"replay://{path}", "--record", out), out)
+    assert "no adc_data.bin: the capture's frame data is missing" in line, line
+    assert "has no radar.cfg" not in line
+
+
+def test_cli_edited_radar_cfg_is_refused(src, tmp_path):
+    path, _ = src
+    (path / "radar.cfg").write_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
+    out = tmp_path / "out"
+    line = _refused_before_streaming(run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out),
+                                     out)
+    assert "makes frames of 1536 bytes, capture.json says the recording's are 3072 bytes" in line, line
+
+
+def test_cli_plays_a_recording_cut_by_a_crash_to_its_last_whole_frame(src, tmp_path):
+    path, frames = src
+    (path / "capture.json").write_text(json.dumps({**meta(path), "closed": False, "frame_count": 7}))
+    with open(path / "adc_data.bin", "ab") as fh:
+        fh.write(bytes(1000))
+    out = tmp_path / "out"
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out)
+    assert proc.returncode == 0, proc.stderr
+    assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source", out), proc.stdout.rstrip("\n"))
+    assert "was not closed" in proc.stderr and "1000 bytes of a cut-off frame" in proc.stderr, proc.stderr
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+
+
+def _hung_capture(emu, out, start_timeout):
+    from live_helpers import Process
+
+    return Process(emu.capture_argv("--record", out, url_extra=f"start_timeout={start_timeout}"))
+
+
+def test_radar_that_never_starts_leaves_no_capture_directory(tmp_path, small_cfg):
+    """--hang-on-start: the radar never answers sensorStart.  The run fails (exit 1) and takes its
+    empty recording with it, so the same --record works the next time."""
+    from live_helpers import Emulator
+
+    path = tmp_path / "src"
+    frames = make_capture(path, small_cfg, 5)
+    out = tmp_path / "rec"
+    with Emulator("--capture", path, "--hang-on-start", "-v") as emu:
+        for attempt in range(2):
+            capture = _hung_capture(emu, out, 0.5)
+            code = capture.wait(30)
+            capture.kill()
+            _, stderr = capture.output()
+            assert code == 1, stderr
+            assert "sensorStart got no answer" in stderr and "already holds a capture" not in stderr, stderr
+            assert not out.exists(), f"attempt {attempt}: {sorted(os.listdir(out))}"
+        assert emu.stop() == 0
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-odom")
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+
+
+def test_radar_capture_killed_before_its_first_frame_leaves_a_reusable_directory(tmp_path, small_cfg):
+    from live_helpers import Emulator
+
+    path = tmp_path / "src"
+    frames = make_capture(path, small_cfg, 5)
+    out = tmp_path / "rec"
+    with Emulator("--capture", path, "--hang-on-start", "-v") as emu:
+        capture = _hung_capture(emu, out, 20)
+        try:
+            hung = emu.stderr.wait_for(lambda ln: "hangs on 'sensorStart'" in ln, timeout=20)
+            assert hung is not None, capture.output()
+        finally:
+            capture.kill()  # SIGKILL: no clean-up runs
+        assert (out / "adc_data.bin").stat().st_size == 0
+        emu.stop()
+    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-odom")
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
+    assert CaptureDirectory(out).num_frames == 5
+
+
 # --------------------------------------------------------- Ctrl-C and SIGTERM
 def _wait_for_frames(proc, out, count, timeout=15.0):
     data = out / "adc_data.bin"
