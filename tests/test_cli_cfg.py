@@ -271,3 +271,36 @@ def test_a_boards_line_is_shown_and_not_warned_about(tmp_path, shipped_cfg):
     data = json.loads(run_cfg(path, "--json").stdout)["calibration"]
     assert data["identity"] is False and data["range_bias_m"] == pytest.approx(0.065)
     assert data["gain_db"][6] == pytest.approx(-1.8, abs=0.01) and data["phase_deg"][6] == pytest.approx(50.0, abs=0.1)
+
+
+# -------------------------------------------------- hostile options and files (issue 18)
+@pytest.mark.parametrize("value", ["inf", "1e308", "nan", "-5", "0", "4.99", "500.5", "1_0", "\u0665", " 25"])
+def test_packet_delay_outside_its_range_exits_2_naming_the_option(tmp_path, capsys, value):
+    path, _ = write_cfg(tmp_path)
+    assert radar_cfg.main([str(path), "--json", f"--packet-delay-us={value}"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert "argument --packet-delay-us: expected a number in 5..500 us" in err
+    assert "internal error" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("value", ["5", "25", "500", "1e2", "77.5"])
+def test_packet_delay_inside_its_range_prints_strict_json(tmp_path, capsys, value):
+    path, _ = write_cfg(tmp_path)
+    assert radar_cfg.main([str(path), "--json", "--packet-delay-us", value]) == 0
+    data = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} in --json"))
+    assert data["packet_delay_us"] == float(value) and data["dca1000_capacity_mbps"] > 0
+
+
+def test_dev_zero_exits_2_with_the_size_limit():
+    proc = run_cfg("/dev/zero")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith("radar-cfg: error: /dev/zero: larger than 1 MiB")
+    assert len(proc.stderr.splitlines()) == 1 and "MemoryError" not in proc.stderr
+
+
+def test_a_cfg_with_a_huge_token_is_not_echoed(tmp_path):
+    path, _ = write_cfg(tmp_path, "lowPower 0 0", "lowPower 0 " + "7" * 900_000)
+    proc = run_cfg(path)
+    assert proc.returncode == 2
+    assert len(proc.stderr) < 400 and "900000 characters" in proc.stderr

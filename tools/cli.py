@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
+import re
 import sys
 import traceback
 from typing import Callable, Sequence
@@ -30,35 +32,62 @@ class _Formatter(logging.Formatter):
         return f"{self.prog}: {record.levelname.lower()}{where}: {record.getMessage()}"
 
 
-def positive_int(text: str) -> int:
-    """argparse type: a whole number >= 1."""
-    return _whole(text, 1)
+#: Number syntax options take: ASCII decimal, as in a cfg.  Python's int()/float() also take
+#: "1_0", non-ASCII digits, surrounding spaces, "nan" and "inf".
+_INT_TEXT = re.compile(r"[+-]?[0-9]+\Z")
+_FLOAT_TEXT = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
+#: Largest whole number an option takes (a count or seed beyond it is a typo).
+MAX_INT_OPTION = 2**63 - 1
+#: Largest number a float option takes unless it says otherwise: far beyond any duration in
+#: seconds or distance in metres, and small enough that arithmetic on it stays finite.
+MAX_FLOAT_OPTION = 1e9
 
 
-def non_negative_int(text: str) -> int:
-    """argparse type: a whole number >= 0."""
-    return _whole(text, 0)
+def _shown(text: str) -> str:
+    return repr(text) if len(text) <= 40 else f"{text[:40]!r}... ({len(text)} characters)"
 
 
-def _whole(text: str, minimum: int) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = minimum - 1
-    if value < minimum:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= {minimum}, got {text!r}")
-    return value
+def int_in(lo: int, hi: int = MAX_INT_OPTION, what: str = "a whole number") -> Callable[[str], int]:
+    """argparse type: a whole number (ASCII digits) in lo..hi; the error names the range."""
+    def parse(text: str) -> int:
+        value = int(text, 10) if _INT_TEXT.match(text) and len(text) <= 30 else None
+        if value is None or not lo <= value <= hi:
+            span = f"in {lo}..{hi}" if hi < MAX_INT_OPTION else f">= {lo}"
+            raise argparse.ArgumentTypeError(f"expected {what} {span}, got {_shown(text)}")
+        return value
+    parse.__name__ = f"int_in_{lo}_{hi}"
+    return parse
 
 
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0 (seconds, rates)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return value
+def float_in(lo: float, hi: float = MAX_FLOAT_OPTION, *, lo_open: bool = False, unit: str = "",
+             what: str = "a number") -> Callable[[str], float]:
+    """argparse type: a finite decimal number in lo..hi (above lo when *lo_open*); the error
+    names the range and unit."""
+    def parse(text: str) -> float:
+        value = float(text) if _FLOAT_TEXT.match(text) else math.nan
+        if not (lo < value <= hi if lo_open else lo <= value <= hi):
+            span = f"> {lo:g} and <= {hi:g}" if lo_open else f"in {lo:g}..{hi:g}"
+            units = f" {unit}" if unit else ""
+            raise argparse.ArgumentTypeError(f"expected {what} {span}{units}, got {_shown(text)}")
+        return value
+    parse.__name__ = f"float_in_{lo:g}_{hi:g}"
+    return parse
+
+
+#: argparse type: a whole number >= 1 (counts of frames or messages).
+positive_int = int_in(1)
+#: argparse type: a whole number >= 0 (seeds).
+non_negative_int = int_in(0)
+#: argparse type: a finite number > 0 and at most MAX_FLOAT_OPTION (seconds, metres).
+positive_float = float_in(0.0, lo_open=True)
+#: argparse type: a probability, 0..1.
+probability = float_in(0.0, 1.0, what="a probability")
+#: argparse type: a UDP port number (0: a free one).
+port = int_in(0, 65535, what="a UDP port number")
+#: argparse type: an angle off boresight, degrees (> 0, at most 90).
+boresight_angle = float_in(0.0, 90.0, lo_open=True, unit="degrees")
+#: argparse type: a ROS 2 domain id (0..232, as ROS 2 allows).
+ros2_domain = int_in(0, 232, what="a ROS 2 domain id")
 
 
 def check_new_path(path: str, *, is_dir: bool = False) -> None:

@@ -49,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--search-window", type=cli.positive_float, default=0.2, metavar="M",
                         help="search the reflector within distance +/- this, m (default %(default)g; TI's "
                              "searchWin is the whole width, twice this)")
-    parser.add_argument("--max-azimuth", type=cli.positive_float, default=None, metavar="DEG",
+    parser.add_argument("--max-azimuth", type=cli.boresight_angle, default=None, metavar="DEG",
                         help="the reflector's apparent direction allowed, degrees from boresight (default "
                              "%g: a board's own errors rarely look larger; raise it only with the reflector "
                              "surely on boresight)" % MAX_APPARENT_AZIMUTH_DEG)

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 from typing import Sequence
 
 from ..calibration import uncalibrated_note
-from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, RAW_LVDS_LINE, RadarConfig
+from .. import strict_json
+from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, DCA1000_PACKET_DELAY_RANGE_US, RAW_LVDS_LINE, RadarConfig
 from . import cli
 
 log = logging.getLogger("radarodom.tools.radar_cfg")
@@ -40,9 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "quantities. Exit 2, with file:line, on an invalid cfg.")
     parser.add_argument("cfg", metavar="FILE", help="the .cfg file")
     parser.add_argument("--json", action="store_true", help="print JSON with stable keys")
-    parser.add_argument("--packet-delay-us", type=float, default=DCA1000_DEFAULT_PACKET_DELAY_US,
-                        metavar="US", help="DCA1000 packet delay for the capacity figure "
-                                           "(default %(default)g)")
+    parser.add_argument("--packet-delay-us", type=cli.float_in(*DCA1000_PACKET_DELAY_RANGE_US, unit="us"),
+                        default=DCA1000_DEFAULT_PACKET_DELAY_US, metavar="US",
+                        help="DCA1000 packet delay for the capacity figure, %g..%g us (default %%(default)g)"
+                             % DCA1000_PACKET_DELAY_RANGE_US)
     cli.add_verbosity(parser)
     return parser
 
@@ -54,8 +55,7 @@ def _main(args: argparse.Namespace) -> int:
     if note is not None:
         log.warning("%s", note)
     if args.json:
-        json.dump(summary, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        sys.stdout.write(strict_json.dumps(summary, indent=2) + "\n")
         return 0
     out = [f"{args.cfg}: valid xWR18xx configuration",
            f"  {'TX order':<24} {' '.join(f'TX{t}' for t in cfg.tx_order)}"

@@ -28,26 +28,6 @@ from ..errors import UsageError
 from . import cli
 
 
-def _probability(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a probability in 0..1, got {text!r}")
-    return value
-
-
-def _port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"expected a UDP port number 0..65535, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="radar-emulate",
@@ -61,16 +41,16 @@ def build_parser() -> argparse.ArgumentParser:
                                                        "(default: the source's own)")
     faults = parser.add_argument_group("faults (probabilities per data packet)")
     for name in ("loss", "duplicate", "reorder", "truncate", "malformed", "foreign"):
-        faults.add_argument(f"--{name}", type=_probability, default=0.0, metavar="P")
+        faults.add_argument(f"--{name}", type=cli.probability, default=0.0, metavar="P")
     faults.add_argument("--burst-flush", action="store_true",
                         help="end every frame with a short packet instead of straddling frames")
     faults.add_argument("--hang-on-start", action="store_true",
                         help="the radar never answers sensorStart (until RESET_AR_DEV)")
     ports = parser.add_argument_group("ports (default: free ones)")
-    ports.add_argument("--command-port", type=_port, default=0, metavar="PORT",
+    ports.add_argument("--command-port", type=cli.port, default=0, metavar="PORT",
                        help="the board's config port (a real board's is 4096; xwr sends to the port "
                             "number it binds on the host, so give it that one, free on both addresses)")
-    ports.add_argument("--data-port", type=_port, default=0, metavar="PORT",
+    ports.add_argument("--data-port", type=cli.port, default=0, metavar="PORT",
                        help="the host port the board streams data to (a real board's: 4098)")
     parser.add_argument("--max-rate", action="store_true", help="stream as fast as possible, not paced")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N")

@@ -32,7 +32,7 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser, *, ros2: bool = False) 
                            help="also publish nav_msgs/msg/Odometry for ROS 2 nodes using rmw_zenoh "
                                 '(needs pip install "radarodom[ros2]"; connects to tcp/localhost:7447 '
                                 "unless --connect is given)")
-        group.add_argument("--ros2-domain", type=cli.non_negative_int, default=0, metavar="N",
+        group.add_argument("--ros2-domain", type=cli.ros2_domain, default=0, metavar="N",
                            help="ROS_DOMAIN_ID (default 0)")
         group.add_argument("--ros2-topic", default=DEFAULT_ROS2_TOPIC, metavar="TOPIC",
                            help=f"ROS 2 topic (default {DEFAULT_ROS2_TOPIC})")
