@@ -4,12 +4,14 @@ given, :class:`RadarConfig` either builds a sound config or raises
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from conftest import REPO, SMALL_CFG
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from radarodom import cfg_commands as cc
 from radarodom.cfg import RadarConfig
 from radarodom.errors import ConfigError
 
@@ -21,7 +23,11 @@ SPECIAL_TOKENS = (
     "1_0", "\u0661\u0662", "\uff11", "-0", "+0", "1.", ".5", "-1", "1e308", "4.9e-324",
     "9" * 5000, "1" + "0" * 400, "-" + "9" * 4300, "\u00b5", "\U0001f4e1", "%", "\x00", "\ufeff",
     "\u2028", "\x0c", "\r", "\t", "chirpCfg", "sensorStart", "profileCfg", "bpmCfg",
+    # issue 18: what reached the radar unchecked
+    "None", "1,5", "\u00e9", "\u00a0", "5\u00a05", "0x1F0000", "0X10", "1e308", "-1e308", "x" * 3000,
 )
+#: Every command the radar can be sent, for random lines.
+COMMAND_NAMES = sorted({*cc.TYPED_COMMANDS, *cc.VERBATIM_COMMANDS, *cc.UNSUPPORTED_COMMANDS, "fancyCmd"})
 
 tokens = st.one_of(
     st.sampled_from(SPECIAL_TOKENS),
@@ -43,7 +49,7 @@ def mutated_cfg(draw) -> str:
             lines = [draw(junk)]
         i = draw(st.integers(0, len(lines) - 1))
         op = draw(st.sampled_from(["delete", "duplicate", "swap", "token", "token", "token",
-                                   "insert_token", "drop_token", "junk_in_line", "junk_line"]))
+                                   "insert_token", "drop_token", "junk_in_line", "junk_line", "command_line"]))
         if op == "delete":
             del lines[i]
         elif op == "duplicate":
@@ -64,12 +70,29 @@ def mutated_cfg(draw) -> str:
         elif op == "junk_in_line":
             pos = draw(st.integers(0, len(lines[i])))
             lines[i] = lines[i][:pos] + draw(junk) + lines[i][pos:]
+        elif op == "command_line":
+            args = draw(st.lists(tokens, max_size=26))
+            lines.insert(i, " ".join([draw(st.sampled_from(COMMAND_NAMES)), *args]))
         else:
             lines.insert(i, draw(junk))
     text = draw(st.sampled_from(["\n", "\r\n"])).join(lines) + "\n"
     if draw(st.integers(0, 9)) == 0:
         text = text[: draw(st.integers(0, len(text)))]
     return text
+
+
+def _check_fields_in_range(cfg: RadarConfig) -> None:
+    """Every typed or checked field of an accepted config is a finite number its field takes."""
+    for ln in cfg.commands():
+        if ln.value is None or isinstance(ln.value, cc.CompRangeBiasAndRxChanPhase):
+            continue
+        for fld in dataclasses.fields(ln.value):
+            value, meta = getattr(ln.value, fld.name), fld.metadata
+            assert isinstance(value, (int, float)) and math.isfinite(value), (ln, fld.name)
+            if meta.get("choices") is not None:
+                assert value in meta["choices"], (ln, fld.name)
+            if meta.get("lo") is not None:
+                assert meta["lo"] <= value <= meta["hi"], (ln, fld.name)
 
 
 def _check_sound(cfg: RadarConfig) -> None:
@@ -84,6 +107,7 @@ def _check_sound(cfg: RadarConfig) -> None:
     assert 0 < cfg.duty_cycle <= 1 + 1e-9
     assert cfg.frame_bytes == cfg.num_chirps_per_frame * cfg.num_rx * cfg.num_samples * 4
     assert len(cfg.tx_order) == cfg.num_tx_slots
+    _check_fields_in_range(cfg)
     again = RadarConfig.from_text(cfg.to_text())
     assert again == cfg
     assert again.to_text() == cfg.to_text()
@@ -98,6 +122,7 @@ def test_mutated_text_parses_or_raises_config_error(text):
     except ConfigError as exc:
         event("ConfigError")
         assert str(exc).startswith("fuzz.cfg")
+        assert len(str(exc)) < 400, "echoed input is cut"
         return
     event("accepted")
     _check_sound(cfg)
@@ -118,4 +143,41 @@ def test_random_bytes_from_file_raise_only_config_error(tmp_path_factory, data):
     except ConfigError as exc:
         assert str(exc).startswith(str(path))
         return
+    _check_sound(cfg)
+
+
+#: Lines the radar can receive beyond the shipped cfg's, each valid as written.
+EXTRA_LINES = ("bpmCfg -1 0 0 0", "configDataPort 921600 1", "calibData 0 1 0x1F0000", "idlePowerCycle 0 1")
+
+
+@st.composite
+def hostile_field_cfg(draw) -> tuple[str, int]:
+    """The shipped cfg (and EXTRA_LINES) with one argument of one command replaced by a hostile
+    token; returns (text, 1-based number of the edited line)."""
+    lines = SHIPPED_CFG.splitlines()
+    at = lines.index("sensorStart")
+    lines[at:at] = list(EXTRA_LINES)
+    commands = [i for i, ln in enumerate(lines) if ln and not ln.startswith("%") and len(ln.split()) > 1]
+    i = draw(st.sampled_from(commands))
+    toks = lines[i].split(" ")
+    k = draw(st.integers(1, len(toks) - 1))
+    toks[k] = draw(st.one_of(st.sampled_from(SPECIAL_TOKENS), tokens))
+    lines[i] = " ".join(toks)
+    return "\n".join(lines) + "\n", i + 1
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(hostile_field_cfg())
+def test_hostile_token_in_any_field_is_refused_at_its_line_or_is_a_number_it_takes(case):
+    text, lineno = case
+    try:
+        cfg = RadarConfig.from_text(text, "fuzz.cfg")
+    except ConfigError as exc:
+        event("ConfigError")
+        # At the edited line, or where another line stops agreeing with it.
+        assert exc.path == "fuzz.cfg" and (exc.line is None or 1 <= exc.line <= text.count("\n"))
+        assert exc.line == lineno or exc.field is not None or exc.line is None, str(exc)
+        assert len(str(exc)) < 400, "echoed input is cut"
+        return
+    event("accepted")
     _check_sound(cfg)

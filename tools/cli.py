@@ -56,6 +56,7 @@ def int_in(lo: int, hi: int = MAX_INT_OPTION, what: str = "a whole number") -> C
             raise argparse.ArgumentTypeError(f"expected {what} {span}, got {_shown(text)}")
         return value
     parse.__name__ = f"int_in_{lo}_{hi}"
+    parse.bounds = (lo, hi, False)  # type: ignore[attr-defined]  # for tests and help texts
     return parse
 
 
@@ -71,6 +72,7 @@ def float_in(lo: float, hi: float = MAX_FLOAT_OPTION, *, lo_open: bool = False, 
             raise argparse.ArgumentTypeError(f"expected {what} {span}{units}, got {_shown(text)}")
         return value
     parse.__name__ = f"float_in_{lo:g}_{hi:g}"
+    parse.bounds = (lo, hi, lo_open)  # type: ignore[attr-defined]
     return parse
 
 
