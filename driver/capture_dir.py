@@ -204,8 +204,12 @@ class CaptureWriter:
         if self._closed:
             raise CaptureError(f"{self.directory}: the capture is closed")
         # The reader refuses such times, so recording them would lose the recording.
-        if not (isinstance(timestamp, (int, float, np.floating)) and math.isfinite(timestamp)
-                and abs(timestamp) <= capture_check.TIMESTAMP_LIMIT_S):
+        try:
+            timestamp = float(timestamp)
+        except (TypeError, ValueError):
+            raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp!r} is not a "
+                               f"number") from None
+        if not (math.isfinite(timestamp) and abs(timestamp) <= capture_check.TIMESTAMP_LIMIT_S):
             raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp!r} is not a finite "
                                f"time of at most {capture_check.TIMESTAMP_LIMIT_S:g} s; recording stops here")
         if self._last_ts is not None and not float(f"{timestamp:.9f}") > float(f"{self._last_ts:.9f}"):
