@@ -147,7 +147,7 @@ def _read_lines(path: str) -> list[tuple[int, str]]:
         with open(path, encoding="utf-8", errors="replace") as fh:
             return [(n, s) for n, line in enumerate(fh, start=1) if (s := line.strip())]
     except FileNotFoundError:
-        raise CaptureError(f"{path}: no such file") from None
+        raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
     except OSError as exc:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
 
@@ -347,6 +347,33 @@ def heatmap_to_polar(hm: np.ndarray, cfg: HeatmapConfig, *, reduce: str = "max")
 # A run
 
 
+def _directory(path, what: str) -> str:
+    """*path* made absolute; :class:`UsageError` when it is no directory."""
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise UsageError(f"a ColoRadar {what} is a path, got {type(path).__name__}")
+    text = os.fspath(path)
+    if "\0" in text:
+        raise UsageError(f"{what} {text[:200]!r}: a path cannot hold a NUL byte")
+    full = os.path.abspath(text)
+    if not os.path.isdir(full):
+        raise UsageError(f"{full}: no such {what}")
+    return full
+
+
+def check_file_size(path: str, size: int, dtype: np.dtype, shape: tuple[int, ...] | None = None,
+                    cfg_path: str | None = None) -> None:
+    """One data file's size against what it must hold: exactly *shape* cells of *dtype* (the
+    calib file *cfg_path* says so), or with no *shape* a whole number of *dtype* points.  The one
+    check of both the up-front :meth:`ColoRadarRun.check` and every read."""
+    if shape is not None:
+        expected = math.prod(shape) * dtype.itemsize
+        if size != expected:
+            raise CaptureFormatError(f"{path}: {size} bytes, expected {expected} for shape {shape} "
+                                     f"of {dtype.itemsize}-byte cells ({cfg_path})")
+    elif size % dtype.itemsize:
+        raise CaptureFormatError(f"{path}: {size} bytes is not a whole number of {dtype.itemsize}-byte points")
+
+
 class ColoRadarRun:
     """One ColoRadar run on disk.
 
@@ -356,14 +383,11 @@ class ColoRadarRun:
     """
 
     def __init__(self, run_dir: str | os.PathLike, calib_dir: str | os.PathLike | None = None) -> None:
-        self.run_dir = os.path.abspath(os.fspath(run_dir))
-        if not os.path.isdir(self.run_dir):
-            raise CaptureError(f"{self.run_dir}: no such run directory")
+        # A directory that is not there is the caller's mistake (exit 2, as replay:// says).
+        self.run_dir = _directory(run_dir, "run directory")
         self.name = os.path.basename(self.run_dir)
         if calib_dir is not None:
-            calib_dir = os.path.abspath(os.fspath(calib_dir))
-            if not os.path.isdir(calib_dir):
-                raise CaptureError(f"{calib_dir}: no such calibration directory")
+            calib_dir = _directory(calib_dir, "calibration directory")
             self.calib_dir: str | None = calib_dir
         else:
             beside = os.path.join(os.path.dirname(self.run_dir), "calib")
@@ -372,6 +396,7 @@ class ColoRadarRun:
             if self.calib_dir is None:
                 log.info("%s: no calib/ beside or inside the run", self.run_dir)
         self._times: dict[str, np.ndarray] = {}
+        self._time_lines: dict[str, np.ndarray] = {}  # the line of each time in its file
         self._files: dict[str, list[str]] = {}
         self._heatmap_cfg: dict[str, HeatmapConfig] = {}
         self._waveform_cfg: dict[str, WaveformConfig] = {}
@@ -407,9 +432,10 @@ class ColoRadarRun:
             if len(back):
                 # Data files are matched to lines by position: a step back means a broken file.
                 raise CaptureFormatError(f"{path}:{lines[back[0] + 1]}: time goes backwards "
-                                         f"({times[back[0] + 1]!r} after {times[back[0]]!r})")
+                                         f"({float(times[back[0] + 1])!r} after {float(times[back[0]])!r})")
             times.setflags(write=False)  # shared by every caller: the cache must not change
             self._times[stream] = times
+            self._time_lines[stream] = lines
         return self._times[stream]
 
     def _data_files(self, stream: str) -> list[str]:
@@ -421,7 +447,7 @@ class ColoRadarRun:
             try:
                 names = os.listdir(folder)
             except FileNotFoundError:
-                raise CaptureError(f"{folder}: no such folder") from None
+                raise CaptureFormatError(f"{folder}: no such folder (the run is incomplete)") from None
             except OSError as exc:
                 raise CaptureError(f"cannot list {folder}: {exc.strerror or exc}") from None
             indices = sorted(int(m.group(1)) for name in names if (m := pattern.fullmatch(name)))
@@ -462,26 +488,61 @@ class ColoRadarRun:
             with open(path, "rb") as fh:
                 return fh.read()
         except FileNotFoundError:
-            raise CaptureError(f"{path}: no such file") from None
+            raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
         except OSError as exc:
             raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+    def _record_layout(self, stream: str) -> tuple[np.dtype, tuple[int, ...] | None, str | None]:
+        """What one file of *stream* holds: its cell type, and for fixed-size files their shape
+        and the calib file that gives it (None, None: any number of points)."""
+        if stream.endswith("/heatmaps"):
+            sensor = stream.split("/")[0]
+            return (HEATMAP_CELL, self.heatmap_config(sensor).shape[:3],
+                    self.calib_path(sensor, "heatmap_cfg.txt"))
+        if stream.endswith("/adc_samples"):
+            sensor = stream.split("/")[0]
+            return ADC_SAMPLE, self.waveform_config(sensor).adc_shape, self.calib_path(sensor, "waveform_cfg.txt")
+        return (RADAR_POINT if stream == "single_chip/pointclouds" else LIDAR_POINT), None, None
 
     def _read_fixed(self, path: str, dtype: np.dtype, shape: tuple[int, ...], cfg_path: str) -> np.ndarray:
         """Records of *dtype* shaped *shape* from *path*; its size must match exactly."""
         data = self._read_bytes(path)
-        expected = int(np.prod(shape)) * dtype.itemsize
-        if len(data) != expected:
-            raise CaptureFormatError(f"{path}: {len(data)} bytes, expected {expected} for shape {shape} "
-                                     f"of {dtype.itemsize}-byte cells ({cfg_path})")
+        check_file_size(path, len(data), dtype, shape, cfg_path)
         return np.frombuffer(data, dtype).reshape(shape)
 
     def _read_records(self, path: str, dtype: np.dtype) -> np.ndarray:
         """All records of *dtype* in *path* (n,); the size must be a whole number of them."""
         data = self._read_bytes(path)
-        if len(data) % dtype.itemsize:
-            raise CaptureFormatError(f"{path}: {len(data)} bytes is not a whole number of "
-                                     f"{dtype.itemsize}-byte points")
+        check_file_size(path, len(data), dtype)
         return np.frombuffer(data, dtype)
+
+    def check(self, stream: str) -> int:
+        """Check *stream* whole before any of it is played, so that a broken run is refused
+        before anything is written: its timestamps parse and advance line after line, there is
+        one file (or text line) per timestamp and at least one, and every file's size is what the
+        calibration's heatmap or waveform config says (point clouds: whole points).  Sizes come
+        from the directory, nothing is read.  Returns the number of records."""
+        n = self.count(stream)
+        layout = self._layout(stream)
+        times_path = self._path(layout.timestamps)
+        if n == 0:
+            raise CaptureFormatError(f"{times_path}: the run's {stream} holds no records (no timestamps, "
+                                     "no files): nothing to play")
+        times, lines = self.timestamps(stream), self._time_lines[stream]
+        same = np.flatnonzero(np.diff(times) <= 0)
+        if len(same):
+            # Two records at one time cannot both be a frame of the radar.
+            raise CaptureFormatError(f"{times_path}:{lines[same[0] + 1]}: time does not advance "
+                                     f"({float(times[same[0] + 1])!r} after {float(times[same[0]])!r})")
+        if layout.data_dir is not None:
+            dtype, shape, cfg_path = self._record_layout(stream)
+            for path in self._data_files(stream):
+                try:
+                    size = os.stat(path).st_size
+                except OSError as exc:
+                    raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+                check_file_size(path, size, dtype, shape, cfg_path)
+        return n
 
     # -- radar data --------------------------------------------------------------------------
 
@@ -505,7 +566,7 @@ class ColoRadarRun:
     def calib_path(self, *parts: str) -> str:
         """The path of calib/<parts...>; raises when the run has no calibration folder."""
         if self.calib_dir is None:
-            raise CaptureError(f"{self.run_dir}: no calibration: neither "
+            raise UsageError(f"{self.run_dir}: no calibration: neither "
                                f"{os.path.join(os.path.dirname(self.run_dir), 'calib')} nor "
                                f"{os.path.join(self.run_dir, 'calib')} exists (give calib_dir)")
         return os.path.join(self.calib_dir, *parts)

@@ -26,7 +26,7 @@ import os
 import numpy as np
 
 from ..calibration import RangeCoupling
-from ..errors import CaptureError, CaptureFormatError
+from ..errors import CaptureFormatError
 
 _KEYS = ("num_tx", "num_rx", "num_range_bins", "num_doppler_bins", "data")
 #: Range-FFT bin of the first value (the official processing skips the DC bin).
@@ -45,7 +45,7 @@ def read_coupling(path: str | os.PathLike, num_samples: int) -> RangeCoupling:
         with open(path, encoding="utf-8", errors="replace") as fh:
             lines = [(n, line.strip()) for n, line in enumerate(fh, start=1) if line.strip()]
     except FileNotFoundError:
-        raise CaptureError(f"{path}: no such file") from None
+        raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
     fields: dict[str, tuple[int, str]] = {}
     for lineno, text in lines:
         key, sep, rest = text.partition(":")

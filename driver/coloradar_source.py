@@ -130,7 +130,9 @@ class ColoRadarSource(Source):
         self.frames_played = 0
 
     def _events(self, stream: str, order: int, role: str) -> list[_Event]:
-        self.run.count(stream)  # the timestamps and the files pair up
+        # The whole stream is checked here, before the first frame is played: a broken file met
+        # halfway would end a run that has already written its output.
+        self.run.check(stream)
         return [_Event(float(t), order, stream, i, role) for i, t in enumerate(self.run.timestamps(stream))]
 
     def _adc_config(self) -> RadarConfig:

@@ -107,11 +107,11 @@ def test_calib_inside_the_run_given_or_absent(tmp_path):
     run = ColoRadarRun(bare)
     assert run.calib_dir is None
     np.testing.assert_array_equal(run.pointcloud(0), synth.default_pointcloud(0))  # no calib needed
-    with pytest.raises(CaptureError, match="no calibration") as exc:
+    with pytest.raises(UsageError, match="no calibration") as exc:
         run.heatmap("single_chip", 0)
     assert str(tmp_path / "b" / "calib") in str(exc.value)
     assert ColoRadarRun(bare, calib_dir=inside / "calib").waveform_config("cascade").num_tx == 3
-    with pytest.raises(CaptureError, match=re.escape(str(tmp_path / "nowhere"))):
+    with pytest.raises(UsageError, match=re.escape(str(tmp_path / "nowhere"))):
         ColoRadarRun(bare, calib_dir=tmp_path / "nowhere")
 
 
@@ -348,7 +348,7 @@ def test_cfg_accepts_comments_and_key_separators(tmp_path):
 
 
 def test_bad_arguments_and_missing_run(tmp_path, default_run):
-    with pytest.raises(CaptureError, match="no such run directory"):
+    with pytest.raises(UsageError, match="no such run directory"):
         ColoRadarRun(tmp_path / "absent")
     with pytest.raises(UsageError, match="unknown ColoRadar stream"):
         default_run.timestamps("single_chip/imu")

@@ -17,7 +17,6 @@ radarodom's default estimator beside them.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -25,6 +24,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .. import strict_json
 from ..driver.coloradar import ColoRadarRun
 from ..driver.coloradar_source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
 from ..errors import SourceError, UsageError
@@ -167,8 +167,9 @@ def _main(args: argparse.Namespace) -> int:
     print(_tables(run.name, results))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump({"run": run.name, "heatmap": args.heatmap, "velocity": args.velocity, "results": results,
-                       "paper": _paper_numbers(run.name)}, fh, indent=2)
+            # Standard JSON: a figure that cannot be computed (NaN) is written as null.
+            fh.write(strict_json.dumps({"run": run.name, "heatmap": args.heatmap, "velocity": args.velocity,
+                                        "results": results, "paper": _paper_numbers(run.name)}, indent=2))
     return 0
 
 

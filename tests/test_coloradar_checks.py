@@ -1,0 +1,136 @@
+"""Issue 18, sources: ``coloradar://`` (radar-capture) and radar-coloradar refuse a broken run
+with the same error, before anything is written; a missing run directory is a usage error
+(exit 2) as with replay://; messages show plain numbers.
+
+Both programs run in this process (their ``main``), each case on a run of coloradar_synth with
+one piece of damage."""
+
+from __future__ import annotations
+
+import pathlib
+
+import pytest
+from coloradar_synth import T0, write_run
+
+from radarodom.driver.coloradar import ColoRadarRun
+from radarodom.driver.coloradar_source import ColoRadarSource
+from radarodom.errors import CaptureFormatError, UsageError
+from radarodom.tools import radar_capture, radar_coloradar
+
+
+def _error_line(capsys, prog: str) -> str:
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "internal error" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.startswith(f"{prog}: error: ")]
+    assert len(lines) == 1, err
+    return lines[0][len(f"{prog}: error: "):]
+
+
+def _both_refuse(run: pathlib.Path, capsys, tmp_path, query: str = "", coloradar_args=()) -> str:
+    """radar-capture on coloradar://RUN and radar-coloradar RUN: both exit 2 with the same
+    message, and neither leaves an output file behind.  Returns the message."""
+    odom, out = tmp_path / "odom.tum", tmp_path / "tables"
+    url = f"coloradar://{run}?rate=max" + (f"&{query}" if query else "")
+    assert radar_capture.main(["--source", url, "--no-publish", "-q", "--odom-out", str(odom)]) == 2
+    capture_says = _error_line(capsys, "radar-capture")
+    assert radar_coloradar.main([str(run), "--out", str(out), "--json", str(tmp_path / "n.json"),
+                                 *coloradar_args]) == 2
+    coloradar_says = _error_line(capsys, "radar-coloradar")
+    assert capture_says.replace(url + ": ", "") == coloradar_says
+    assert not odom.exists() and not out.exists() and not (tmp_path / "n.json").exists()
+    return coloradar_says
+
+
+@pytest.mark.parametrize("how", ["zero_byte_files", "no_records"])
+def test_empty_cascade_heatmaps_are_refused_by_both_programs(tmp_path, capsys, how):
+    """The issue's first case: coloradar:// said "8 frames" and wrote an empty TUM file."""
+    run = write_run(tmp_path, frames=8)
+    folder = run / "cascade" / "heatmaps" / "data"
+    for f in folder.iterdir():
+        if how == "zero_byte_files":
+            f.write_bytes(b"")
+        else:
+            f.unlink()
+    if how == "no_records":
+        (run / "cascade" / "heatmaps" / "timestamps.txt").write_text("")
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    if how == "zero_byte_files":
+        assert f"{folder / 'heatmap_0.bin'}: 0 bytes, expected 16384" in said
+    else:
+        assert "cascade/heatmaps/timestamps.txt: the run's cascade/heatmaps holds no records" in said
+
+
+@pytest.mark.parametrize("stream, name, cut", [
+    ("cascade/heatmaps", "heatmap_7.bin", 8),  # the last frame: met only at the end before
+    ("single_chip/pointclouds", "radar_pointcloud_5.bin", 3),  # not a whole number of points
+])
+def test_a_truncated_file_is_found_before_any_output(tmp_path, capsys, stream, name, cut):
+    run = write_run(tmp_path, frames=8)
+    path = run / stream / "data" / name
+    path.write_bytes(path.read_bytes()[:-cut])
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert said.startswith(f"{path}: ")
+
+
+def test_a_truncated_adc_frame_is_found_before_recording(tmp_path, capsys):
+    run = write_run(tmp_path, frames=6)
+    path = run / "single_chip" / "adc_samples" / "data" / "frame_5.bin"
+    path.write_bytes(path.read_bytes()[:-4])
+    query = "velocity=single_chip_adc&heatmap=single_chip_adc"
+    record = tmp_path / "rec"
+    assert radar_capture.main(["--source", f"coloradar://{run}?rate=max&{query}", "--no-publish", "-q",
+                               "--record", str(record)]) == 2
+    said = _error_line(capsys, "radar-capture")
+    assert f"{path}: 6140 bytes, expected 6144" in said and "waveform_cfg.txt" in said
+    assert not record.exists()
+    with pytest.raises(CaptureFormatError, match="6140 bytes"):
+        ColoRadarSource(ColoRadarRun(run), velocity="single_chip_adc", heatmap="single_chip_adc")
+    _both_refuse(run, capsys, tmp_path / "out", query,
+                 ["--velocity", "single_chip_adc", "--heatmap", "single_chip_adc"])
+
+
+def test_mismatched_counts_are_refused_by_both_programs(tmp_path, capsys):
+    run = write_run(tmp_path, frames=6)
+    times = run / "cascade" / "heatmaps" / "timestamps.txt"
+    times.write_text(times.read_text() + repr(T0 + 9.0) + "\n")
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert said.startswith(f"{times} has 7 timestamps but there are 6 files in")
+
+
+@pytest.mark.parametrize("line3, words", [
+    ("same", "time does not advance (1608589800.27 after 1608589800.27)"),
+    ("back", "time goes backwards (1608589800.07 after 1608589800.27)"),
+])
+def test_times_that_do_not_advance_are_refused_with_plain_numbers(tmp_path, capsys, line3, words):
+    """The issue's numpy repr: "np.float64(1608589800.07)" in a message."""
+    run = write_run(tmp_path, frames=6)
+    path = run / "cascade" / "heatmaps" / "timestamps.txt"
+    lines = path.read_text().splitlines()
+    lines[2] = lines[1] if line3 == "same" else repr(T0 + 0.07)
+    path.write_text("\n".join(lines) + "\n")
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert said == f"{path}:3: {words}"
+    assert "np." not in said
+
+
+def test_a_missing_run_or_calibration_is_a_usage_error_everywhere(tmp_path, capsys):
+    absent = tmp_path / "no_such_run"
+    assert radar_capture.main(["--source", f"coloradar://{absent}", "--no-publish", "-q"]) == 2
+    assert _error_line(capsys, "radar-capture") == f"{absent}: no such run directory"
+    assert radar_coloradar.main([str(absent)]) == 2
+    assert _error_line(capsys, "radar-coloradar") == f"{absent}: no such run directory"
+    run = write_run(tmp_path, frames=3)
+    assert radar_coloradar.main([str(run), "--calib", str(tmp_path / "nowhere")]) == 2
+    assert _error_line(capsys, "radar-coloradar") == f"{tmp_path / 'nowhere'}: no such calibration directory"
+    (tmp_path / "calib").rename(tmp_path / "elsewhere")
+    _both_refuse(run, capsys, tmp_path / "out")
+    with pytest.raises(UsageError, match="NUL"):
+        ColoRadarRun(f"{run}\0x")
+    with pytest.raises(UsageError, match="is a path"):
+        ColoRadarRun(str(run).encode())
+
+
+def test_a_missing_data_folder_is_refused_as_an_incomplete_run(tmp_path, capsys):
+    run = write_run(tmp_path, frames=3, faults=["missing_data_dir"])
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert "cascade/heatmaps/data: no such folder (the run is incomplete)" in said
