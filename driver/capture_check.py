@@ -235,9 +235,8 @@ def frame_count(directory: str, data_bytes: int, frame_bytes: int, cfg_name: str
                 f"{n_ts} lines of timestamps.txt hold")
     if n_ts is not None and not whole - 1 <= n_ts <= whole:
         raise CaptureFormatError(
-            f"{directory}: timestamps.txt has {n_ts} lines for {whole} frames of {data}"
-            + ("" if meta is None else ": more than a crash leaves unwritten")
-            + "; every frame needs its line (a recording cut by a crash lacks at most the last one)")
+            f"{directory}: timestamps.txt has {n_ts} lines for {data}: every frame needs its line "
+            f"(a recording cut by a crash lacks at most the last one)")
     if meta is not None:
         log.warning("%s: the recording was not closed (its process was killed or crashed); playing "
                     "its %d whole frames%s", directory, whole,
