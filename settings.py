@@ -9,13 +9,17 @@ unknown keys and bad values raise :class:`ConfigError` naming the field.
 from __future__ import annotations
 
 import dataclasses
-import json
+import math
 import os
 import types
 import typing
 from typing import Any, Mapping, TypeVar
 
+from . import strict_json
 from .errors import ConfigError
+
+#: Largest settings file read (radarodom's own are a few KB).
+MAX_SETTINGS_BYTES = 1 << 20
 
 S = TypeVar("S", bound="Settings")
 
@@ -47,7 +51,13 @@ def _checked(value: Any, hint: Any, name: str) -> Any:
         if kind is int and isinstance(value, int) and not isinstance(value, bool):
             return value
         if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
+            try:
+                number = float(value)
+            except OverflowError:  # an int beyond any float
+                number = math.inf
+            if not math.isfinite(number):
+                raise ConfigError(f"must be a finite number, got {value!r:.40}", field=name)
+            return number
         if kind is str and isinstance(value, str):
             return value
     plain = [k for k in allowed if k in _KINDS]
@@ -114,15 +124,23 @@ class Settings:
 
     def dump(self, path: str | os.PathLike) -> None:
         with open(path, "w", encoding="utf-8") as fh:
-            json.dump(self.to_dict(), fh, indent=2)
-            fh.write("\n")
+            fh.write(strict_json.dumps(self.to_dict(), indent=2) + "\n")
 
     @classmethod
     def load(cls: type[S], path: str | os.PathLike) -> S:
+        """Settings from a JSON file of at most :data:`MAX_SETTINGS_BYTES`: standard JSON (no NaN
+        or Infinity), nested at most :data:`radarodom.strict_json.MAX_DEPTH` deep."""
+        if isinstance(path, bytes):
+            path = os.fsdecode(path)
+        if not isinstance(path, (str, os.PathLike)) or "\0" in os.fspath(path):
+            raise ConfigError(f"expected a settings file path, got {str(path)!r:.60}")
         try:
-            with open(path, encoding="utf-8") as fh:
-                data = json.load(fh)
-        except (OSError, ValueError) as exc:
+            with open(path, "rb") as fh:
+                raw = fh.read(MAX_SETTINGS_BYTES + 1)
+            data = strict_json.loads(raw, max_bytes=MAX_SETTINGS_BYTES)
+        except OSError as exc:
+            raise ConfigError(f"cannot read {cls._what} settings: {exc.strerror or exc}", path=path) from None
+        except ValueError as exc:
             raise ConfigError(f"cannot read {cls._what} settings: {exc}", path=path) from None
         if not isinstance(data, dict):
             raise ConfigError(f"{cls._what} settings must be a JSON object", path=path)

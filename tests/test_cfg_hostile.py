@@ -266,3 +266,52 @@ def test_checked_commands_are_verbatim_commands():
     """What is checked is also sent as written (the emulator knows every one of them)."""
     assert set(cc.CHECKED_COMMANDS) <= set(cc.VERBATIM_COMMANDS)
     assert set(cc.UNCHECKED_COMMANDS) <= set(cc.VERBATIM_COMMANDS)
+
+
+# ---------------------------------------------------- settings files (--estimator-config)
+def test_settings_file_with_nan_or_infinity_is_refused(tmp_path):
+    from radarodom.estimator.config import EstimatorConfig
+
+    for text in ('{"odometry": {"keyframe_noise_rad": NaN}}', '{"odometry": {"keyframe_noise_rad": 1e999}}',
+                 '{"odometry": {"keyframe_noise_rad": -Infinity}}'):
+        path = tmp_path / "est.json"
+        path.write_text(text)
+        with pytest.raises(ConfigError) as info:
+            EstimatorConfig.load(path)
+        assert str(info.value).startswith(f"{path}: cannot read estimator settings")
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), 10**400])
+def test_settings_non_finite_value_names_the_field(value):
+    from radarodom.estimator.config import EstimatorConfig
+
+    with pytest.raises(ConfigError) as info:
+        EstimatorConfig.from_dict({"odometry": {"keyframe_noise_rad": value}})
+    assert info.value.field == "odometry.keyframe_noise_rad" and "finite" in str(info.value)
+    assert len(str(info.value)) < 200
+
+
+def test_settings_file_is_read_with_a_bound(tmp_path):
+    from radarodom.estimator.config import EstimatorConfig
+    from radarodom.settings import MAX_SETTINGS_BYTES
+
+    path = tmp_path / "big.json"
+    path.write_text('{"odometry": {}}' + " " * MAX_SETTINGS_BYTES)
+    with pytest.raises(ConfigError) as info:
+        EstimatorConfig.load(path)
+    assert "more than the" in str(info.value) and str(MAX_SETTINGS_BYTES) in str(info.value)
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ConfigError) as info:
+        EstimatorConfig.load(path)
+    assert "nested" in str(info.value)
+
+
+def test_settings_path_with_nul_or_no_path_is_a_config_error(tmp_path):
+    from radarodom.estimator.config import EstimatorConfig
+
+    for path in ("a\0b.json", 3, None):
+        with pytest.raises(ConfigError):
+            EstimatorConfig.load(path)
+    path = tmp_path / "default.json"
+    EstimatorConfig().dump(path)
+    assert EstimatorConfig.load(os.fsencode(path)) == EstimatorConfig()
