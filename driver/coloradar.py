@@ -374,6 +374,17 @@ def check_file_size(path: str, size: int, dtype: np.dtype, shape: tuple[int, ...
         raise CaptureFormatError(f"{path}: {size} bytes is not a whole number of {dtype.itemsize}-byte points")
 
 
+def _finite(path: str, values: np.ndarray) -> np.ndarray:
+    """*values* (little-endian float32 as read) as native float32; a NaN or an infinity is a
+    broken file: every consumer would have to guess what it means.  Found when the file is read
+    (a run's data is too large to read twice), the file named."""
+    out = values.astype(np.float32)
+    bad = ~np.isfinite(out)
+    if bad.any():
+        raise CaptureFormatError(f"{path}: {int(bad.sum())} of {out.size} values are NaN or infinite")
+    return out
+
+
 class ColoRadarRun:
     """One ColoRadar run on disk.
 
@@ -549,13 +560,13 @@ class ColoRadarRun:
     def pointcloud(self, i: int) -> np.ndarray:
         """Single-chip point cloud *i* (0-based, time order): (n, 5) float32 x, y, z (m, sensor
         frame as stored: x forward, y left, z up), intensity (SNR dB), doppler (m/s)."""
-        rec = self._read_records(self._file("single_chip/pointclouds", i), RADAR_POINT)
-        return rec.view("<f4").reshape(-1, 5).astype(np.float32)
+        path = self._file("single_chip/pointclouds", i)
+        return _finite(path, self._read_records(path, RADAR_POINT).view("<f4").reshape(-1, 5))
 
     def lidar_pointcloud(self, i: int) -> np.ndarray:
         """Lidar point cloud *i*: (n, 4) float32 x, y, z (m, lidar frame), intensity."""
-        rec = self._read_records(self._file("lidar", i), LIDAR_POINT)
-        return rec.view("<f4").reshape(-1, 4).astype(np.float32)
+        path = self._file("lidar", i)
+        return _finite(path, self._read_records(path, LIDAR_POINT).view("<f4").reshape(-1, 4))
 
     @staticmethod
     def _radar(sensor: str) -> str:
@@ -601,7 +612,7 @@ class ColoRadarRun:
         path = self._file(f"{sensor}/heatmaps", i)
         cells = self._read_fixed(path, HEATMAP_CELL, cfg.shape[:3],
                                  self.calib_path(sensor, "heatmap_cfg.txt"))
-        return cells.view("<f4").reshape(cfg.shape).astype(np.float32)
+        return _finite(path, cells.view("<f4").reshape(cfg.shape))
 
     def adc(self, sensor: str, i: int) -> np.ndarray:
         """ADC frame *i* of *sensor*: complex64 (tx, rx, chirp, sample) as stored, I real and Q

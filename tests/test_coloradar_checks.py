@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import pathlib
 
+import numpy as np
 import pytest
 from coloradar_synth import T0, write_run
 
@@ -134,3 +135,25 @@ def test_a_missing_data_folder_is_refused_as_an_incomplete_run(tmp_path, capsys)
     run = write_run(tmp_path, frames=3, faults=["missing_data_dir"])
     said = _both_refuse(run, capsys, tmp_path / "out")
     assert "cascade/heatmaps/data: no such folder (the run is incomplete)" in said
+
+
+@pytest.mark.parametrize("stream, name", [("cascade/heatmaps", "heatmap_3.bin"),
+                                          ("single_chip/pointclouds", "radar_pointcloud_3.bin")])
+def test_nan_in_a_data_file_is_one_error_naming_the_file_in_both_programs(tmp_path, capsys, stream, name):
+    """radar-coloradar stopped on "power holds NaN or infinite values" (no file named) while
+    radar-capture went on to exit 0."""
+    run = write_run(tmp_path, frames=6)
+    path = run / stream / "data" / name
+    values = np.frombuffer(path.read_bytes(), "<f4").copy()
+    values[::7] = np.nan
+    values[1] = np.inf
+    path.write_bytes(values.tobytes())
+    bad = int((~np.isfinite(values)).sum())
+    odom = tmp_path / "odom.tum"
+    assert radar_capture.main(["--source", f"coloradar://{run}?rate=max", "--no-publish", "-q",
+                               "--odom-out", str(odom)]) == 2
+    said = _error_line(capsys, "radar-capture")
+    assert said == f"{path}: {bad} of {values.size} values are NaN or infinite"
+    assert len(odom.read_text().splitlines()) >= 2  # the frames before it are kept
+    assert radar_coloradar.main([str(run)]) == 2
+    assert _error_line(capsys, "radar-coloradar") == said
