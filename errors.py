@@ -109,6 +109,12 @@ class EvaluationError(UsageError):
     time, timestamps out of order, a bad evaluation parameter."""
 
 
+class TimeOrderError(RadarodomError):
+    """Measurements reached the estimator out of time order: a velocity earlier than the last
+    one, or a heatmap frame not after the previous.  The source's timestamps are not strictly
+    increasing; the message gives both times."""
+
+
 class MessageError(RadarodomError):
     """A message on the wire does not follow its schema (wrong magic, version,
     size or field), or a value cannot be encoded (NaN, infinity, bad shape)."""

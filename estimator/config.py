@@ -291,8 +291,34 @@ class OdometryConfig(Settings):
     #: degree puts every keyframe's error into one frame's increment.
     keyframe_noise_rad: float | None = math.radians(1.3)
 
+    #: The two models' switch probabilities per frame: from the steady model to the manoeuvre
+    #: model, and back.  A turn's start or end takes a few frames, straight drives and steady
+    #: turns last tens; the filter starts in the steady model.
+    yaw_manoeuvre_start_prob: float = 0.1
+    yaw_manoeuvre_end_prob: float = 0.3
+    #: Good velocity estimates kept for the interpolation to heatmap times: a second or more
+    #: of point clouds at any radar rate, so a heatmap stream that lags behind still finds
+    #: its velocities.
+    velocity_history: int = 32
+    #: A velocity held over a failed step is trusted less: its covariance times this.
+    held_velocity_variance_factor: float = 4.0
+    #: A yaw rate held over a step whose yaw was not measured (or the zero one reported after
+    #: ``hold_s``) has this standard deviation, rad/s: a robot's turn rate may change by
+    #: about this much over a few frames.
+    held_yaw_rate_std_radps: float = math.radians(10.0)
+    #: A registration whose angular residuals give no variance (too few to say) is taken to
+    #: have this standard deviation, rad: wide enough that the filter and the keyframe lean on
+    #: their prediction.
+    unmeasured_yaw_std_rad: float = math.radians(5.0)
+
     def __post_init__(self) -> None:
         _check(self.hold_s >= 0, "must be >= 0", "hold_s")
+        _check(0 <= self.yaw_manoeuvre_start_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_start_prob")
+        _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
+        _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")
+        _check(self.held_velocity_variance_factor >= 1, "must be at least 1", "held_velocity_variance_factor")
+        _check(self.held_yaw_rate_std_radps > 0, "must be positive", "held_yaw_rate_std_radps")
+        _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
         _check(self.min_features >= 2, "must be at least 2", "min_features")
         _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")
         _check(self.keyframe_distance_m >= 0, "must be >= 0 (0: off)", "keyframe_distance_m")

@@ -25,8 +25,21 @@ import numpy as np
 from .angles import wrap
 from .config import IcpConfig
 from .features import Features, LogHeatmap
+from .quality import TextEnum
 
-OK, FEW_MATCHES, NOT_CONVERGED = "ok", "few_matches", "not_converged"
+
+
+class RegistrationStatus(TextEnum):
+    """How a registration ended."""
+
+    OK = "ok"
+    #: Fewer matched pairs than ``min_matches``: no rotation.
+    FEW_MATCHES = "few_matches"
+    #: ``iterations`` ran out before the rotation settled; the best rotation found stands.
+    NOT_CONVERGED = "not_converged"
+
+
+OK, FEW_MATCHES, NOT_CONVERGED = RegistrationStatus.OK, RegistrationStatus.FEW_MATCHES, RegistrationStatus.NOT_CONVERGED
 
 
 @dataclass
@@ -53,7 +66,7 @@ class Registration:
 
     rotation_rad: float
     iterations: int
-    status: str
+    status: RegistrationStatus
     matches: int = 0
     removed: int = 0
     neglected: int = 0

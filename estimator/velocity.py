@@ -20,13 +20,26 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .config import VelocityConfig
+from .quality import TextEnum
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
 
-#: Why a velocity is what it is.
-OK, ZERO, FEW_POINTS, ILL_CONDITIONED, NO_CONSENSUS = (
-    "ok", "zero_velocity", "few_points", "ill_conditioned", "no_consensus")
+class VelocityStatus(TextEnum):
+    """Why a velocity is what it is."""
+
+    OK = "ok"
+    #: Most points stand still: the sensor does.
+    ZERO = "zero_velocity"
+    FEW_POINTS = "few_points"
+    #: The inliers' azimuths are too few or too clustered to tell vx from vy.
+    ILL_CONDITIONED = "ill_conditioned"
+    #: No hypothesis gathered ``min_inlier_ratio`` of the points.
+    NO_CONSENSUS = "no_consensus"
+
+
+OK, ZERO, FEW_POINTS = VelocityStatus.OK, VelocityStatus.ZERO, VelocityStatus.FEW_POINTS
+ILL_CONDITIONED, NO_CONSENSUS = VelocityStatus.ILL_CONDITIONED, VelocityStatus.NO_CONSENSUS
 
 
 @dataclass
@@ -40,7 +53,7 @@ class VelocityEstimate:
     covariance: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
     n_points: int = 0
     inliers: int = 0
-    status: str = FEW_POINTS
+    status: VelocityStatus = FEW_POINTS
     #: Per input point: True for the inliers (the static world), (n,).
     inlier_mask: np.ndarray | None = field(default=None, repr=False)
 

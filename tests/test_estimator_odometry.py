@@ -19,9 +19,13 @@ import pytest
 from estimator_synth import AZIMUTH_RAD, RANGE_M, Trajectory, points_polar
 from radarodom.dsp.cfar import CfarParams
 from radarodom.dsp.heatmap import RangeAzimuth
-from radarodom.errors import ConfigError
+from radarodom.errors import ConfigError, TimeOrderError
 from radarodom.estimator import config as config_mod
 from radarodom.estimator import odometry as odo_mod
+from radarodom.estimator.keyframe import ChainStep
+from radarodom.estimator.velocity_track import VelocityHistory
+from radarodom.estimator.yaw_measurement import CurrentFrame
+from radarodom.estimator.yaw_rate import YawRateFilter
 from radarodom.estimator.config import (
     EstimatorConfig,
     FeatureConfig,
@@ -571,21 +575,31 @@ class TestTimeOrder:
         hm = scene_heatmap()
         odom.add_heatmap(0.0, hm)
         odom.add_heatmap(0.1, hm)
-        with pytest.raises(ValueError):
+        with pytest.raises(TimeOrderError):
             odom.add_heatmap(0.05, hm)
-        with pytest.raises(ValueError):
+        with pytest.raises(TimeOrderError):
             odom.add_heatmap(0.1, hm)
 
     def test_velocity_out_of_order_raises(self):
         odom = RadarOdometry(EstimatorConfig())
         odom.add_points(0.2, static_cloud((1.0, 0.0)))
-        with pytest.raises(ValueError):
+        with pytest.raises(TimeOrderError):
             odom.add_points(0.1, static_cloud((1.0, 0.0)))
+
+    @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+    def test_non_finite_times_raise(self, bad):
+        odom = RadarOdometry(EstimatorConfig())
+        with pytest.raises(TimeOrderError, match="finite"):
+            odom.add_heatmap(bad, scene_heatmap())
+        with pytest.raises(TimeOrderError, match="finite"):
+            odom.add_points(bad, static_cloud((1.0, 0.0)))
+        odom.add_heatmap(0.0, scene_heatmap())  # the refusals left nothing behind
+        assert odom.state.frame == 0
 
     def test_step_out_of_order_raises(self):
         odom = RadarOdometry(EstimatorConfig())
         odom.step(1.0, static_cloud((1.0, 0.0)), scene_heatmap())
-        with pytest.raises(ValueError):
+        with pytest.raises(TimeOrderError):
             odom.step(0.5, static_cloud((1.0, 0.0)), scene_heatmap())
 
     def test_refused_heatmap_leaves_no_trace(self):
@@ -593,7 +607,7 @@ class TestTimeOrder:
         hm = scene_heatmap()
         odom.add_heatmap(0.0, hm)
         odom.add_heatmap(0.1, hm)
-        with pytest.raises(ValueError):
+        with pytest.raises(TimeOrderError):
             odom.add_heatmap(0.05, hm)
         assert odom.add_heatmap(0.2, hm).frame == 2
 
@@ -615,10 +629,14 @@ def test_initial_guess_options_run():
 
 
 # =========================================================================== yaw options
+#: The default two-model switch probabilities (OdometryConfig's), and the one model's.
+SWITCH = {1: ((1.0,),), 2: ((0.9, 0.1), (0.3, 0.7))}
+
+
 class TestYawRateFilter:
     def test_one_model_is_the_scalar_kalman_filter(self):
         accel, dt, r = 0.8, 0.1, 0.03
-        f = odo_mod._YawRateFilter((accel,))
+        f = YawRateFilter((accel,))
         assert f.update(0.5, r, dt) == (0.5, r)
         p = r + (accel * dt) ** 2
         gain = p / (p + r)
@@ -637,7 +655,7 @@ class TestYawRateFilter:
         z = truth + noise * rng.standard_normal(len(truth))
         out = {}
         for name, models in (("one", (math.radians(50.0),)), ("two", (math.radians(50.0), math.radians(300.0)))):
-            f = odo_mod._YawRateFilter(models)
+            f = YawRateFilter(models, SWITCH[len(models)])
             out[name] = np.array([f.update(v, noise ** 2, dt)[0] for v in z])
         lag = {k: np.abs(v[40:45] - truth[40:45]).sum() for k, v in out.items()}
         assert lag["two"] < 0.6 * lag["one"]
@@ -645,14 +663,16 @@ class TestYawRateFilter:
         assert steady["two"] < 1.5 * steady["one"] < np.sqrt(np.mean((z[10:40] - truth[10:40]) ** 2))
 
     def test_huge_innovation_does_not_break_the_filter(self):
-        f = odo_mod._YawRateFilter((0.8, 5.0))
+        f = YawRateFilter((0.8, 5.0), SWITCH[2])
         f.update(0.0, 1e-4, 0.1)
         rate, var = f.update(1e6, 1e-4, 0.1)  # every model's likelihood underflows
         assert math.isfinite(rate) and math.isfinite(var) and np.all(np.isfinite(f.prob))
 
 
-def _fields(odom: RadarOdometry, heatmap):
-    return odom._field(heatmap, odom._guide(heatmap))
+def _kept(odom: RadarOdometry, heatmap, t: float = 0.0):
+    """What *odom* keeps of *heatmap* (as a frame at *t*), and the frame."""
+    frame = CurrentFrame(t, heatmap, odom.config)
+    return odom.yaw.keep(frame, None), frame
 
 
 @pytest.mark.parametrize("window", ["icp", "icp_and_scan"])
@@ -664,7 +684,8 @@ def test_field_window_spans_the_scan_guess(window):
     turn = 6 * DEG
     previous, current = scene_heatmap(), scene_heatmap((0.0, 0.0, turn))
     scan = -5.5 * DEG if window == "icp_and_scan" else None  # what add_heatmap passes
-    rotation = odom._refined(_fields(odom, previous), _fields(odom, current), np.zeros(2), 0.0, scan)
+    rotation = odom.yaw.field.refine(_kept(odom, previous)[0].field, _kept(odom, current)[0].field, np.zeros(2),
+                                     0.0, scan)
     if window == "icp":
         assert rotation == pytest.approx(-3 * DEG, abs=0.1 * DEG)
     else:
@@ -684,11 +705,9 @@ def test_keyframe_start_reaches_a_drifted_chain(start):
     odom = RadarOdometry(cfg)
     keyframe = odom.step(0.0, static_cloud((0.0, 0.0)), scene_heatmap())
     heatmap = scene_heatmap((0.0, 0.0, 5 * DEG))
-    guide = odom._guide(heatmap)
-    features = odo_mod.extract(heatmap, cfg.features)
+    current, frame = _kept(odom, heatmap, 0.1)
     var_yaw = (3 * DEG) ** 2  # the chain's own uncertainty: the keyframe gets 90 % of the weight
-    dyaw, var = odom._against_keyframe(keyframe, np.zeros(2), 0.1, 0.0, var_yaw, features,
-                                       odom._field(heatmap, guide), heatmap)
+    dyaw, var = odom.keyframes.correct(ChainStep(keyframe.pose, np.zeros(2), 0.1, 0.0, var_yaw), current, frame)
     gain = var_yaw / (var_yaw + (1 * DEG) ** 2)
     if start == "scan":
         assert dyaw == 0.0 and var == var_yaw
@@ -726,16 +745,16 @@ def test_velocity_lookup_nearest_and_interpolated(seed):
     # the bracketing ones, with repeated times and queries on, between and beyond them.
     rng = np.random.default_rng(seed)
     times = np.sort(np.round(rng.uniform(0.0, 2.0, 40), 1))  # repeats and exact ties
-    store = odo_mod._Velocities(size=32)
+    store = VelocityHistory(32)
     for i, t in enumerate(times):
         store.add(VelocityEstimate(t=float(t), vx=float(i), vy=-float(i), covariance=np.eye(2), status="ok"))
     kept = times[-32:]
     first = len(times) - 32
     for q in np.concatenate([kept, rng.uniform(-0.5, 2.5, 50), (kept[:-1] + kept[1:]) / 2]):
-        nearest = store.at(float(q), "nearest")
+        nearest = store.nearest(float(q))
         assert nearest.vx == first + int(np.argmin(np.abs(kept - q))), q
         k = int(np.searchsorted(kept, q))
-        got = store.at(float(q), "interpolate")
+        got = store.interpolated(float(q))
         if 0 < k < len(kept):
             a, b = kept[k - 1], kept[k]
             f = (q - a) / (b - a) if b > a else 0.0

@@ -1,0 +1,153 @@
+"""The velocity of each odometry step: recent point-cloud velocities, interpolated to the
+middle of a step (paper eq. 2), and what stands in when the point clouds give none (the
+heatmap's Doppler, or the last good velocity held).  Chosen once from the config."""
+
+from __future__ import annotations
+
+import bisect
+from collections import deque
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..errors import TimeOrderError
+from .config import EstimatorConfig
+from .features import PolarHeatmap, heatmap_doppler_points
+from .quality import Flag, may_hold
+from .velocity import VelocityEstimate, estimate_velocity
+
+
+class VelocityHistory:
+    """The last *size* good velocity estimates, in time order, for interpolation to heatmap
+    times."""
+
+    def __init__(self, size: int) -> None:
+        self.items: deque[VelocityEstimate] = deque(maxlen=size)
+        self._times: deque[float] = deque(maxlen=size)  # the items' times, for bisection
+
+    def add(self, est: VelocityEstimate) -> None:
+        if self.items and est.t < self.items[-1].t:
+            raise TimeOrderError(f"velocity at t={est.t} after one at t={self.items[-1].t}: "
+                                 "feed measurements in time order")
+        self.items.append(est)
+        self._times.append(est.t)
+
+    def nearest(self, t: float) -> VelocityEstimate | None:
+        """The estimate nearest *t* (the first of equal times; the earlier of two as near);
+        None when there is none."""
+        times = self._times
+        if not times:
+            return None
+        k = bisect.bisect_left(times, t)
+        if k > 0 and (k == len(times) or t - times[k - 1] <= times[k] - t):
+            k = bisect.bisect_left(times, times[k - 1])
+        return self.items[k]
+
+    def interpolated(self, t: float) -> VelocityEstimate | None:
+        """The velocity at *t*, linear between the estimates around it (eq. 2); the nearest
+        when *t* is not between two."""
+        times = self._times
+        k = bisect.bisect_left(times, t)
+        if k == 0 or k == len(times):
+            return self.nearest(t)
+        a, b = self.items[k - 1], self.items[k]
+        f = (t - a.t) / (b.t - a.t) if b.t > a.t else 0.0
+        return VelocityEstimate(t=t, vx=a.vx + f * (b.vx - a.vx), vy=a.vy + f * (b.vy - a.vy),
+                                covariance=(1 - f) * a.covariance + f * b.covariance,
+                                n_points=b.n_points, inliers=b.inliers, status=b.status)
+
+
+@dataclass
+class StepVelocity:
+    """The velocity of one step: the point clouds' estimate at its middle (None when there is
+    none), and what the step uses, (2,) m/s body frame with its (2, 2) covariance."""
+
+    estimate: VelocityEstimate | None
+    velocity: np.ndarray
+    covariance: np.ndarray
+
+
+class HeatmapVelocity:
+    """The ``velocity_fallback`` "heatmap": the step's velocity from the heatmap's Doppler at its
+    end, averaged with the velocity at its start (the step's mid-time, as eq. 2 for the point
+    clouds: a robot slowing down is slower at the frame than at mid-step)."""
+
+    def __init__(self, config: EstimatorConfig, history: VelocityHistory) -> None:
+        self._config = config
+        self._history = history
+        # Its own generator, so that the fallback leaves the point clouds' RANSAC draws as they were.
+        self._rng = np.random.default_rng(config.velocity.seed + 1)
+        # The last frame's estimate, kept apart from the point clouds': those may come from
+        # another sensor, later.
+        self._last: VelocityEstimate | None = None
+
+    def reset(self) -> None:
+        """The point clouds gave the last step's velocity: the next fallback starts afresh."""
+        self._last = None
+
+    def __call__(self, t_prev: float, t: float, heatmap: PolarHeatmap) -> tuple[np.ndarray, np.ndarray] | None:
+        """(velocity (2,) m/s, covariance (2, 2)) of the step from *t_prev* to *t*; None when
+        the heatmap gives none."""
+        cfg = self._config
+        points = heatmap_doppler_points(heatmap, cfg.features, cfg.odometry.fallback_cells)
+        if points is None:
+            return None
+        est = estimate_velocity(points, t, cfg.velocity, self._rng)
+        if not est.ok:
+            self._last = None
+            return None
+        before = self._last if self._last is not None and self._last.t == t_prev else None
+        if before is None:
+            good = self._history.nearest(t_prev)
+            # Only an estimate of the previous frame's own time (within half a step) stands for it.
+            if good is not None and abs(good.t - t_prev) <= 0.5 * (t - t_prev):
+                before = good
+        self._last = est
+        if before is None:
+            return est.velocity, est.covariance
+        return 0.5 * (before.velocity + est.velocity), 0.25 * (before.covariance + est.covariance)
+
+
+class VelocityTrack:
+    """Velocity estimates as they come (:meth:`add`) and each step's velocity (:meth:`for_step`)."""
+
+    def __init__(self, config: EstimatorConfig) -> None:
+        odo = config.odometry
+        self._hold_s = odo.hold_s
+        self._held_factor = odo.held_velocity_variance_factor
+        self.history = VelocityHistory(odo.velocity_history)
+        self._at_mid: Callable[[float], VelocityEstimate | None] = (
+            self.history.nearest if odo.velocity_sync == "nearest" else self.history.interpolated)
+        self._fallback = HeatmapVelocity(config, self.history) if odo.velocity_fallback == "heatmap" else None
+        self._last: VelocityEstimate | None = None  # the latest, good or not
+        self._good_t: float | None = None  # the latest good one's time
+
+    def add(self, est: VelocityEstimate) -> None:
+        self._last = est
+        if est.ok:
+            self.history.add(est)
+            self._good_t = est.t
+
+    def near(self, t: float) -> VelocityEstimate | None:
+        """The good estimate nearest *t* (None when there is none)."""
+        return self.history.nearest(t)
+
+    def for_step(self, t_prev: float, t: float, heatmap: PolarHeatmap, flags: list[Flag]) -> StepVelocity:
+        """The velocity of the step from *t_prev* to *t*: the point clouds' when the latest was
+        good; else the fallback's (the heatmap's Doppler, when configured); else the last good
+        one held for ``hold_s`` (covariance inflated); else zero, flagged ``motion_lost``."""
+        estimate = self._at_mid(0.5 * (t + t_prev))
+        if estimate is not None and self._last is not None and self._last.ok:
+            if self._fallback is not None:
+                self._fallback.reset()
+            return StepVelocity(estimate, estimate.velocity, estimate.covariance)
+        flags.append(Flag.VELOCITY_FAILED)
+        if self._fallback is not None:
+            found = self._fallback(t_prev, t, heatmap)
+            if found is not None:
+                flags.append(Flag.VELOCITY_FROM_HEATMAP)
+                return StepVelocity(estimate, *found)
+        if estimate is not None and may_hold(self._good_t, t, self._hold_s, Flag.VELOCITY_HELD, flags):
+            return StepVelocity(estimate, estimate.velocity, estimate.covariance * self._held_factor)
+        return StepVelocity(estimate, np.zeros(2), np.eye(2))

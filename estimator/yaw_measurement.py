@@ -1,0 +1,237 @@
+"""The yaw measurement of one step: what a frame keeps for the next (features, the initial
+guess's view, the likelihood field), the initial guess, rotation-only ICP and the field
+refinement.  The options (``icp.initial_guess``, ``icp.refinement``, ``icp.field_window``,
+``icp.field_fallback``) are chosen once, into parts."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from .config import EstimatorConfig
+from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract
+from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
+                  register_two_way, scan_guess)
+from .quality import Flag
+
+
+class CurrentFrame:
+    """The heatmap being processed and its log heatmap, made once when first needed (the scan
+    guess, the field and the keyframe share it).  Not kept: the heatmap is the caller's."""
+
+    def __init__(self, t: float, heatmap: PolarHeatmap, config: EstimatorConfig) -> None:
+        self.t = t
+        self.heatmap = heatmap
+        self._features_config = config.features
+        features = config.features
+        #: Where the frame can see, as a registration target.
+        self.region = Region(features.min_range_m, features.max_range_m or float(np.max(heatmap.range_m)),
+                             features.max_azimuth_rad)
+
+    @cached_property
+    def log(self) -> LogHeatmap:
+        return LogHeatmap(self.heatmap, self._features_config)
+
+
+@dataclass
+class LikelihoodField:
+    """What the field refinement keeps of a frame: its strongest cells and its smoothed log
+    heatmap."""
+
+    points: Features
+    smoothed: LogHeatmap
+
+
+@dataclass
+class KeptFrame:
+    """What the estimator keeps of a frame, for the next frame and as a keyframe."""
+
+    t: float
+    features: Features
+    #: The initial guess's view of the frame: its azimuth profile (n,), its strongest cells,
+    #: or None (a guess from the yaw rate alone).
+    guide: Any
+    field: LikelihoodField | None
+
+
+@dataclass
+class YawStep:
+    """A step's measured rotation (source -> target, rad; None: not measured), the
+    registration that gave it (None: none was tried) and its variance, rad^2."""
+
+    rotation: float | None
+    registration: Registration | None
+    variance: float
+
+
+# ---------------------------------------------------------------------- initial guesses
+class PredictedGuess:
+    """The registration starts from the prediction: zero (the paper) or the last good yaw
+    rate times the step ("constant_rate")."""
+
+    def __init__(self, uses_rate: bool) -> None:
+        self.uses_rate = uses_rate
+
+    def view(self, frame: CurrentFrame) -> None:
+        return None
+
+    def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
+                 predicted: float) -> float | None:
+        return predicted
+
+
+class ProfileGuess:
+    """The shift that best correlates the two frames' azimuth power profiles, around the
+    prediction."""
+
+    uses_rate = True
+
+    def __init__(self, config: EstimatorConfig, step_rad: float) -> None:
+        self._features = config.features
+        self._step_rad = step_rad
+        self._max_rad = config.icp.max_rotation_rad
+        grid_max = config.features.max_azimuth_rad
+        self._grid = np.arange(-grid_max, grid_max + 1e-9, step_rad)
+
+    def view(self, frame: CurrentFrame) -> np.ndarray:
+        return azimuth_profile(frame.heatmap, self._features, self._grid)
+
+    def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
+                 predicted: float) -> float | None:
+        guess = correlation_guess(previous.guide, current.guide, self._step_rad, self._max_rad, predicted)
+        return predicted if guess is None else guess
+
+
+class ScanGuess:
+    """The rotation that lays the previous frame's strongest cells, rectified, on the brightest
+    cells of the current heatmap, around the prediction; None when the best score says the
+    heatmaps hold no structure."""
+
+    uses_rate = True
+
+    def __init__(self, config: EstimatorConfig, scan_features) -> None:
+        self._scan_features = scan_features
+        self._step_rad = config.icp.scan_step_rad
+        self._max_rad = config.icp.max_rotation_rad
+        self._min_score = config.icp.min_scan_score
+
+    def view(self, frame: CurrentFrame) -> Features:
+        return extract(frame.heatmap, self._scan_features)
+
+    def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
+                 predicted: float) -> float | None:
+        found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted)
+        if found is None or found[1] < self._min_score:
+            return None
+        return found[0]
+
+
+# ---------------------------------------------------------------------- field refinement
+class FieldSearch:
+    """The rotation refined without correspondences, on both frames' likelihood fields."""
+
+    def __init__(self, config: EstimatorConfig, scan_features, views_are_scan_points: bool) -> None:
+        self._scan_features = scan_features
+        self._views_are_scan_points = views_are_scan_points
+        self._smoothing_bins = config.icp.field_smoothing_bins
+        self._search_rad = config.icp.field_search_rad
+        self._step_rad = config.icp.field_step_rad
+
+    def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
+        points = guide if self._views_are_scan_points else extract(frame.heatmap, self._scan_features)
+        return LikelihoodField(points, frame.log.smoothed(self._smoothing_bins))
+
+    def refine(self, source: LikelihoodField | None, target: LikelihoodField | None, translation: np.ndarray,
+               rotation: float, other: float | None = None, reach: float | None = None) -> float:
+        """*rotation* refined within +/- *reach* (by default ``field_search_rad``) or, given
+        *other* (another estimate of the same rotation), from the smaller of the two to the
+        larger widened by *reach* each side; *rotation* when a frame has no field or the
+        search finds no peak."""
+        if source is None or target is None:
+            return rotation
+        centre, reach = rotation, self._search_rad if reach is None else reach
+        if other is not None:
+            centre, reach = 0.5 * (rotation + other), reach + 0.5 * abs(rotation - other)
+        refined = field_rotation(source.points, target.points, source.smoothed, target.smoothed,
+                                 translation, centre, reach, self._step_rad)
+        return rotation if refined is None else refined
+
+
+class NoFieldSearch:
+    """``refinement`` "none": ICP's rotation as it is."""
+
+    def field(self, frame: CurrentFrame, guide: Any) -> None:
+        return None
+
+    def refine(self, source, target, translation, rotation: float, other=None, reach=None) -> float:
+        return rotation
+
+
+# ---------------------------------------------------------------------- the measurement
+class YawMeasurement:
+    """Keeps what each frame needs (:meth:`keep`) and measures the rotation between two
+    (:meth:`measure`)."""
+
+    def __init__(self, config: EstimatorConfig, profile_step_rad: float) -> None:
+        icp = config.icp
+        self._config = config
+        scan_features = replace(config.features, method="topk", k=icp.scan_points, weighting="db",
+                                peaks_only=False, subbin=False)
+        scan = icp.initial_guess == "scan"
+        if scan:
+            self.guess: PredictedGuess | ProfileGuess | ScanGuess = ScanGuess(config, scan_features)
+        elif icp.initial_guess == "profile":
+            self.guess = ProfileGuess(config, profile_step_rad)
+        else:
+            self.guess = PredictedGuess(uses_rate=icp.initial_guess == "constant_rate")
+        #: Whether the guess searches the heatmap itself (and so may find no structure).
+        self.scans = scan
+        self.field: FieldSearch | NoFieldSearch = (FieldSearch(config, scan_features, scan)
+                                                   if icp.refinement == "field" else NoFieldSearch())
+        self._window_spans_scan = scan and icp.field_window == "icp_and_scan"
+        self._field_fallback = scan and icp.field_fallback
+        self._min_features = config.odometry.min_features
+        self._unknown_variance = config.odometry.unmeasured_yaw_std_rad ** 2
+
+    def keep(self, frame: CurrentFrame, velocity: np.ndarray | None) -> KeptFrame:
+        """What the next frame needs of *frame*: its features (moving reflectors rejected by
+        *velocity*, (2,) m/s, when known), the guess's view and the field."""
+        features = extract(frame.heatmap, self._config.features, velocity)
+        guide = self.guess.view(frame)
+        return KeptFrame(frame.t, features, guide, self.field.field(frame, guide))
+
+    def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
+                predicted: float, flags: list[Flag]) -> YawStep:
+        """The rotation from *previous* (moved by *translation*, (2,) m) to *current*, starting
+        from *predicted* (rad), flagged in *flags* when it fails."""
+        initial = self.guess(previous, current, frame, translation, predicted)
+        step = self._register(previous.features, current.features, frame.region, translation, initial, flags)
+        scan = initial if self.scans else None
+        if step.rotation is not None:
+            span = scan if self._window_spans_scan else None
+            step.rotation = self.field.refine(previous.field, current.field, translation, step.rotation, span)
+        elif self._field_fallback and scan is not None and previous.field is not None and current.field is not None:
+            step.rotation = self.field.refine(previous.field, current.field, translation, scan)
+        return step
+
+    def _register(self, previous: Features, current: Features, region: Region, translation: np.ndarray,
+                  initial: float | None, flags: list[Flag]) -> YawStep:
+        if len(current) < self._min_features or len(previous) < self._min_features:
+            flags.append(Flag.FEW_FEATURES)
+            return YawStep(None, None, 0.0)
+        if initial is None:
+            flags.append(Flag.NO_STRUCTURE)
+            return YawStep(None, None, 0.0)
+        registration, _ = register_two_way(previous.shifted(translation), current, self._config.icp,
+                                           initial_rad=initial, region=region)
+        if registration.status == FEW_MATCHES:
+            flags.append(Flag.ICP_FAILED)
+            return YawStep(None, registration, 0.0)
+        if registration.status == NOT_CONVERGED:
+            flags.append(Flag.ICP_NOT_CONVERGED)  # its rotation is still the best there is
+        variance = registration.variance if math.isfinite(registration.variance) else self._unknown_variance
+        return YawStep(registration.rotation_rad, registration, variance)

@@ -1,0 +1,94 @@
+"""The yaw-rate filter (beyond the paper): a robot's yaw rate changes smoothly, frame-to-frame
+registration noise does not.  One Kalman model of the rate, or two mixed as an
+interacting-multiple-model filter; or no filter.  Chosen once from the config."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import OdometryConfig
+
+
+class YawRateFilter:
+    """Kalman filter(s) of the yaw rate, constant rate with white yaw acceleration: one model,
+    or several of different acceleration mixed as an interacting-multiple-model filter (each
+    model's estimate is blended with the others' by the switch probabilities before its step,
+    and the models are weighted by the likelihood of the measurement under each).  With one
+    model this is the plain scalar Kalman filter."""
+
+    def __init__(self, accel_std: tuple[float, ...], switch: tuple[tuple[float, ...], ...] = ((1.0,),)) -> None:
+        """*accel_std*: each model's yaw acceleration standard deviation, rad/s^2; *switch*:
+        per frame, the probability of going from one model (row) to another (column); the
+        filter starts with the first row's probabilities."""
+        self.accel_std = np.asarray(accel_std, dtype=float)
+        self.switch = np.array(switch, dtype=float)
+        self.rate: np.ndarray | None = None  # per model, rad/s
+        self.var = np.zeros(0)  # per model, (rad/s)^2
+        self.prob = self.switch[0].copy()  # of each model
+
+    def update(self, z: float, r: float, dt: float) -> tuple[float, float]:
+        """Filter the rate measurement *z* (rad/s) of variance *r* taken *dt* after the last:
+        the combined (rate, variance)."""
+        if self.rate is None:
+            self.rate, self.var = np.full(len(self.accel_std), z), np.full(len(self.accel_std), r)
+            return z, r
+        # Mix: each model starts from the others' estimates weighted by how likely it is
+        # that the motion switched from them.
+        predicted = self.switch.T @ self.prob
+        w = self.switch * self.prob[:, None] / predicted[None, :]  # [from, to]
+        rate = w.T @ self.rate
+        var = w.T @ self.var + np.einsum("ij,ij->j", w, (self.rate[:, None] - rate[None, :]) ** 2)
+        # Each model's Kalman step.
+        var = var + (self.accel_std * dt) ** 2
+        s = var + r
+        innovation = z - rate
+        gain = var / s
+        self.rate, self.var = rate + gain * innovation, var * (1.0 - gain)
+        # Model probabilities from the measurement's likelihood (in logs: a large innovation
+        # must not underflow every model to zero).
+        log_lik = -0.5 * (innovation * innovation / s + np.log(s))
+        prob = predicted * np.exp(log_lik - log_lik.max())
+        self.prob = prob / prob.sum()
+        mean = float(self.prob @ self.rate)
+        return mean, float(self.prob @ (self.var + (self.rate - mean) ** 2))
+
+
+class FilteredYaw:
+    """Each measured yaw increment through the yaw-rate filter; the filter restarts from the
+    next measurement after a frame whose yaw was not measured."""
+
+    def __init__(self, config: OdometryConfig) -> None:
+        self._noise_rad = config.yaw_noise_rad
+        self._accel = (config.yaw_accel_std_radps2,)
+        self._switch: tuple[tuple[float, ...], ...] = ((1.0,),)
+        if config.yaw_manoeuvre_accel_std_radps2 is not None:
+            self._accel += (config.yaw_manoeuvre_accel_std_radps2,)
+            start, end = config.yaw_manoeuvre_start_prob, config.yaw_manoeuvre_end_prob
+            self._switch = ((1.0 - start, start), (end, 1.0 - end))
+        self._filter: YawRateFilter | None = None
+
+    def __call__(self, dyaw: float, var_yaw: float, dt: float) -> tuple[float, float]:
+        """The filtered increment (rad) and its variance (rad^2) for the measured *dyaw* of
+        variance *var_yaw* (taken as at least the configured per-frame noise) over *dt* s."""
+        r = max(var_yaw, self._noise_rad ** 2) / (dt * dt)  # rate measurement variance
+        if self._filter is None:
+            self._filter = YawRateFilter(self._accel, self._switch)
+        rate, p = self._filter.update(dyaw / dt, r, dt)
+        return rate * dt, p * dt * dt
+
+    def restart(self) -> None:
+        self._filter = None
+
+
+class UnfilteredYaw:
+    """The measured yaw increment as it is (``yaw_rate_filter`` off)."""
+
+    def __call__(self, dyaw: float, var_yaw: float, dt: float) -> tuple[float, float]:
+        return dyaw, var_yaw
+
+    def restart(self) -> None:
+        pass
+
+
+def yaw_rate_part(config: OdometryConfig) -> FilteredYaw | UnfilteredYaw:
+    return FilteredYaw(config) if config.yaw_rate_filter else UnfilteredYaw()
