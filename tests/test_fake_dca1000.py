@@ -629,6 +629,7 @@ def test_paced_frames_start_on_the_period_and_take_the_link_time(client, receive
     start_recording(client, board)
     thread = threading.Thread(target=receive)
     thread.start()
+    started = time.monotonic()
     board.lvds_start()
     thread.join(10)
     assert done.is_set()
@@ -636,11 +637,13 @@ def test_paced_frames_start_on_the_period_and_take_the_link_time(client, receive
     assert len(stamps) == n * 50
     first = [stamps[k * size] for k in range(n)]
     last = [stamps[k * size + 49 * 1456] for k in range(n)]
+    # Paced, not bursted: each frame's packets take at least (most of) the link time, and the
+    # frames keep at least the frame period on average.  A loaded machine can only stretch
+    # either, so no upper bound is asserted.
     for k in range(n):
-        assert 0.7 * link_s < last[k] - first[k] < 1.6 * link_s + 0.01
-    gaps = np.diff(first)
-    assert np.all((gaps > 0.75 * period) & (gaps < 1.5 * period)), gaps
-    assert first[-1] - first[0] == pytest.approx((n - 1) * period, abs=0.03)
+        assert last[k] - first[k] > 0.7 * link_s, (k, last[k] - first[k], link_s)
+        # Frame k leaves on its slot of the period grid, never before (received later still).
+        assert first[k] - started >= k * period - 1e-3, (k, np.array(first) - started)
 
 
 # ------------------------------------------------------------------ URL sources
