@@ -28,6 +28,18 @@ from ..errors import UsageError
 from . import cli
 
 
+#: The per-packet faults of the fake DCA1000 (driver.emulators.fake_dca1000.Faults) and what each does.
+_PACKET_FAULTS = {
+    "loss": "a packet is not sent: a sequence gap, its bytes lost",
+    "duplicate": "a packet is sent twice in a row",
+    "reorder": "a packet is held back and sent after the next 1-3 packets (it still arrives)",
+    "truncate": "a packet's data is cut short (its header unchanged): a truncated packet",
+    "malformed": "a garbage datagram shorter than a header is sent instead of the packet (which is lost)",
+    "foreign": "the packet is also sent from another address (127.0.0.3) with its data inverted: "
+               "a host that does not filter by source address would corrupt its frames",
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="radar-emulate",
@@ -39,9 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
     what.add_argument("--source", metavar="URL", help="any frame source, e.g. sim://lab")
     parser.add_argument("--cfg", metavar="FILE", help="radar configuration for --source "
                                                        "(default: the source's own)")
-    faults = parser.add_argument_group("faults (probabilities per data packet)")
-    for name in ("loss", "duplicate", "reorder", "truncate", "malformed", "foreign"):
-        faults.add_argument(f"--{name}", type=cli.probability, default=0.0, metavar="P")
+    faults = parser.add_argument_group(
+        "faults", "Each P is a probability per data packet, 0 to 1, drawn independently (--seed reproduces a "
+                  "run); what radar-capture should then report is in docs/live.md.")
+    for name, what in _PACKET_FAULTS.items():
+        faults.add_argument(f"--{name}", type=cli.probability, default=0.0, metavar="P", help=what)
     faults.add_argument("--burst-flush", action="store_true",
                         help="end every frame with a short packet instead of straddling frames")
     faults.add_argument("--hang-on-start", action="store_true",
@@ -53,7 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     ports.add_argument("--data-port", type=cli.port, default=0, metavar="PORT",
                        help="the host port the board streams data to (a real board's: 4098)")
     parser.add_argument("--max-rate", action="store_true", help="stream as fast as possible, not paced")
-    parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N")
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N",
+                        help="seed of the fault draws: the same seed, the same faults on the same packets")
     cli.add_verbosity(parser)
     return parser
 
