@@ -48,6 +48,7 @@ import numpy as np
 
 from ...antenna import TX_OFFSETS_HALF_WAVELENGTHS
 from ...cfg import SPEED_OF_LIGHT, RadarConfig
+from ...errors import UsageError
 
 
 @dataclass(frozen=True)
@@ -156,7 +157,7 @@ class FmcwSynthesizer:
     def __init__(self, cfg: RadarConfig, *, loops_per_chunk: int | None = None,
                  fidelity: str = "exact", extra_path_m: float = 0.0) -> None:
         if fidelity not in FIDELITIES:
-            raise ValueError(f"fidelity {fidelity!r}: use {' or '.join(FIDELITIES)}")
+            raise UsageError(f"fidelity {fidelity!r}: use {' or '.join(FIDELITIES)}")
         #: "exact": every chirp's delay drift to 1e-3 rad; "fast": chunked, for real-time streaming.
         self.fidelity = fidelity
         #: Added to every path's round trip, m: the front end's delay (twice a board's range bias).
