@@ -28,319 +28,66 @@ import logging
 import math
 import os
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..dsp.heatmap import RangeAzimuth
-from ..dsp.processor import POINT_DTYPE
 from ..errors import CaptureError, CaptureFormatError, UsageError
-from ..tum import TumTrajectory, parse_numbers, quaternion_yaw
+from ..tum import TumTrajectory, quaternion_yaw
+
+# The reader's public names live in two modules; they are all importable from here.
+from .coloradar_files import (
+    _LAYOUT,
+    ADC_SAMPLE,
+    HEATMAP_CELL,
+    LIDAR_POINT,
+    RADAR_POINT,
+    RADARS,
+    STREAMS,
+    HeatmapConfig,
+    WaveformConfig,
+    _read_lines,
+    _read_table,
+    _StreamLayout,
+    check_file_size,
+    finite_values,
+    read_heatmap_config,
+    read_transform,
+    read_waveform_config,
+)
+from .coloradar_geometry import (
+    adc_to_cube,
+    heatmap_to_polar,
+    pointcloud_to_points,
+    points_in_frame,
+    quaternion_multiply,
+    quaternion_rotate,
+    slerp,
+)
+
+__all__ = [
+    "ADC_SAMPLE",
+    "HEATMAP_CELL",
+    "LIDAR_POINT",
+    "RADARS",
+    "RADAR_POINT",
+    "STREAMS",
+    "ColoRadarRun",
+    "HeatmapConfig",
+    "WaveformConfig",
+    "adc_to_cube",
+    "check_file_size",
+    "heatmap_to_polar",
+    "pointcloud_to_points",
+    "points_in_frame",
+    "quaternion_multiply",
+    "quaternion_rotate",
+    "read_heatmap_config",
+    "read_transform",
+    "read_waveform_config",
+    "slerp",
+]
 
 log = logging.getLogger(__name__)
-
-#: Every stream a run may hold, by its folder inside the run.
-STREAMS = ("single_chip/pointclouds", "single_chip/heatmaps", "single_chip/adc_samples",
-           "cascade/heatmaps", "cascade/adc_samples", "groundtruth", "imu", "lidar")
-#: The two radars.
-RADARS = ("single_chip", "cascade")
-
-#: One ADC sample of an ADC frame: int16 I then Q; a frame is [tx][rx][chirp][sample].
-ADC_SAMPLE = np.dtype([("i", "<i2"), ("q", "<i2")])
-#: One heatmap cell: peak Doppler-bin intensity and that peak's radial velocity (m/s).
-#: A heatmap is [elevation][azimuth][range] of these.
-HEATMAP_CELL = np.dtype([("intensity", "<f4"), ("doppler", "<f4")])
-#: One point of a single-chip radar point cloud (TI on-chip processing): m, SNR dB, m/s.
-RADAR_POINT = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("doppler", "<f4")])
-#: One lidar point: m and the lidar's intensity.
-LIDAR_POINT = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])
-
-
-@dataclass(frozen=True)
-class _StreamLayout:
-    """Where a stream's files lie inside a run."""
-
-    timestamps: str  # relative path of timestamps.txt
-    data_dir: str | None = None  # folder of numbered files, or None for a text stream
-    prefix: str = ""  # file name before the index
-    text_file: str | None = None  # for text streams: the file with one record per line
-
-
-_LAYOUT = {
-    "single_chip/pointclouds": _StreamLayout("single_chip/pointclouds/timestamps.txt",
-                                             "single_chip/pointclouds/data", "radar_pointcloud_"),
-    "single_chip/heatmaps": _StreamLayout("single_chip/heatmaps/timestamps.txt",
-                                          "single_chip/heatmaps/data", "heatmap_"),
-    "single_chip/adc_samples": _StreamLayout("single_chip/adc_samples/timestamps.txt",
-                                             "single_chip/adc_samples/data", "frame_"),
-    "cascade/heatmaps": _StreamLayout("cascade/heatmaps/timestamps.txt", "cascade/heatmaps/data", "heatmap_"),
-    "cascade/adc_samples": _StreamLayout("cascade/adc_samples/timestamps.txt",
-                                         "cascade/adc_samples/data", "frame_"),
-    "groundtruth": _StreamLayout("groundtruth/timestamps.txt", text_file="groundtruth/groundtruth_poses.txt"),
-    "imu": _StreamLayout("imu/timestamps.txt", text_file="imu/imu_data.txt"),
-    "lidar": _StreamLayout("lidar/timestamps.txt", "lidar/pointclouds", "lidar_pointcloud_"),
-}
-
-
-@dataclass(frozen=True, eq=False)
-class HeatmapConfig:
-    """A radar's heatmap axes, from ``calib/<sensor>/heatmap_cfg.txt``.
-
-    Angles follow the dataset: azimuth positive to the LEFT (x forward, y left), elevation
-    positive up; both non-uniform and ascending.
-    """
-
-    num_range_bins: int
-    num_elevation_bins: int
-    num_azimuth_bins: int
-    range_bin_width: float  # m
-    azimuth_bins: np.ndarray  # (num_azimuth_bins,) rad, ascending, positive to the left
-    elevation_bins: np.ndarray  # (num_elevation_bins,) rad, ascending
-
-    @property
-    def range_m(self) -> np.ndarray:
-        """Range of each bin (num_range_bins,) m: index * range_bin_width.  (The official
-        pipeline drops the DC bin, so real data may sit one bin further than this.)"""
-        return np.arange(self.num_range_bins) * self.range_bin_width
-
-    @property
-    def shape(self) -> tuple[int, int, int, int]:
-        """Shape of one heatmap: (elevation, azimuth, range, 2)."""
-        return (self.num_elevation_bins, self.num_azimuth_bins, self.num_range_bins, 2)
-
-
-@dataclass(frozen=True)
-class WaveformConfig:
-    """A radar's chirp waveform, from ``calib/<sensor>/waveform_cfg.txt`` (SI units as stored)."""
-
-    num_rx: int
-    num_tx: int
-    num_adc_samples_per_chirp: int
-    num_chirps_per_frame: int  # chirps per TX in a frame (the ADC frame's chirp axis)
-    adc_sample_frequency: float  # Hz
-    start_frequency: float  # Hz
-    idle_time: float  # s
-    adc_start_time: float  # s
-    ramp_end_time: float  # s
-    frequency_slope: float  # Hz/s
-
-    @property
-    def adc_shape(self) -> tuple[int, int, int, int]:
-        """Shape of one ADC frame: (tx, rx, chirp, sample)."""
-        return (self.num_tx, self.num_rx, self.num_chirps_per_frame, self.num_adc_samples_per_chirp)
-
-
-_HEATMAP_INT_KEYS = ("num_range_bins", "num_elevation_bins", "num_azimuth_bins")
-_HEATMAP_KEYS = _HEATMAP_INT_KEYS + ("range_bin_width", "azimuth_bins", "elevation_bins")
-_WAVEFORM_INT_KEYS = ("num_rx", "num_tx", "num_adc_samples_per_chirp", "num_chirps_per_frame")
-_WAVEFORM_KEYS = _WAVEFORM_INT_KEYS + ("adc_sample_frequency", "start_frequency", "idle_time",
-                                       "adc_start_time", "ramp_end_time", "frequency_slope")
-
-
-# ---------------------------------------------------------------------------------------------
-# Text files
-
-
-def _read_lines(path: str) -> list[tuple[int, str]]:
-    """(1-based line number, stripped text) of the non-blank lines of *path*."""
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            return [(n, s) for n, line in enumerate(fh, start=1) if (s := line.strip())]
-    except FileNotFoundError:
-        raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
-    except OSError as exc:
-        raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-def _read_table(path: str, columns: int, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Rows (n, columns) float64 of a whitespace-separated text file and their line numbers (n,)."""
-    lines = _read_lines(path)
-    rows = [parse_numbers(path, n, text, columns, what) for n, text in lines]
-    return (np.array(rows, dtype=float).reshape(-1, columns),
-            np.array([n for n, _ in lines], dtype=int))
-
-
-def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> dict:
-    """``key value...`` lines (``#`` comments allowed): every key in *keys* must be there.
-
-    Integer keys take one integer; other keys one float, or a list for the angle bins.
-    Unknown keys are logged and skipped: the dataset's cfg files may grow.
-    """
-    out: dict = {}
-    for lineno, text in _read_lines(path):
-        if text.startswith("#"):
-            continue
-        # coloradar-library also accepts "key: value" and "key=value".
-        m = re.fullmatch(r"([^\s:=]+)\s*[:=\s]\s*(.*)", text)
-        key, rest = (m.group(1), m.group(2)) if m else (text, "")
-        if key not in keys:
-            log.debug("%s:%d: ignoring unknown key %r", path, lineno, key)
-            continue
-        if key in out:
-            raise CaptureFormatError(f"{path}:{lineno}: {key} given twice")
-        multi = key in ("azimuth_bins", "elevation_bins")
-        values = parse_numbers(path, lineno, rest, None if multi else 1, f"{key} and its value(s)")
-        if key in int_keys:
-            if values[0] != int(values[0]) or values[0] <= 0:
-                raise CaptureFormatError(f"{path}:{lineno}: {key} must be a positive integer, got {rest!r}")
-            out[key] = int(values[0])
-        else:
-            out[key] = np.array(values) if multi else values[0]
-    missing = [k for k in keys if k not in out]
-    if missing:
-        raise CaptureFormatError(f"{path}: missing {', '.join(missing)}")
-    return out
-
-
-def read_heatmap_config(path: str | os.PathLike) -> HeatmapConfig:
-    """Parse a ``heatmap_cfg.txt``; the angle lists must match their counts and ascend."""
-    path = os.fspath(path)
-    v = _read_keyed(path, _HEATMAP_KEYS, _HEATMAP_INT_KEYS)
-    for key, count in (("azimuth_bins", "num_azimuth_bins"), ("elevation_bins", "num_elevation_bins")):
-        bins = v[key]
-        if len(bins) != v[count]:
-            raise CaptureFormatError(f"{path}: {key} holds {len(bins)} angles but {count} is {v[count]}")
-        if np.any(np.diff(bins) <= 0):
-            raise CaptureFormatError(f"{path}: {key} are not ascending")
-        bins.setflags(write=False)  # the config is frozen: so are its arrays
-    if v["range_bin_width"] <= 0:
-        raise CaptureFormatError(f"{path}: range_bin_width must be positive, got {v['range_bin_width']}")
-    return HeatmapConfig(**v)
-
-
-def read_waveform_config(path: str | os.PathLike) -> WaveformConfig:
-    """Parse a ``waveform_cfg.txt``."""
-    path = os.fspath(path)
-    return WaveformConfig(**_read_keyed(path, _WAVEFORM_KEYS, _WAVEFORM_INT_KEYS))
-
-
-def read_transform(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """A ``base_to_<sensor>.txt``: translation (3,) m on line 1, quaternion (4,) xyzw on line 2
-    (normalised).  It maps sensor-frame points into the base frame."""
-    path = os.fspath(path)
-    lines = _read_lines(path)
-    if len(lines) < 2:
-        raise CaptureFormatError(f"{path}: expected 'tx ty tz' and 'qx qy qz qw' lines, found {len(lines)} line(s)")
-    t = np.array(parse_numbers(path, lines[0][0], lines[0][1], 3, "'tx ty tz'"))
-    q = np.array(parse_numbers(path, lines[1][0], lines[1][1], 4, "'qx qy qz qw'"))
-    norm = np.linalg.norm(q)
-    if norm == 0:
-        raise CaptureFormatError(f"{path}:{lines[1][0]}: the quaternion is zero")
-    return t, q / norm
-
-
-# ---------------------------------------------------------------------------------------------
-# Quaternions (xyzw, Hamilton)
-
-
-def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a * b of quaternions (..., 4) xyzw (broadcasting)."""
-    ax, ay, az, aw = np.moveaxis(np.asarray(a, float), -1, 0)
-    bx, by, bz, bw = np.moveaxis(np.asarray(b, float), -1, 0)
-    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
-
-
-def quaternion_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Vectors (..., 3) rotated by unit quaternions (..., 4) xyzw (broadcasting)."""
-    q = np.asarray(q, float)
-    u, w = q[..., :3], q[..., 3:]
-    # v' = v + 2 w (u x v) + 2 u x (u x v): the rotation without building matrices.
-    uv = np.cross(u, v)
-    return v + 2.0 * (w * uv + np.cross(u, uv))
-
-
-def slerp(q0: np.ndarray, q1: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """Spherical interpolation between unit quaternions (n, 4) at fractions *alpha* (n,) in [0, 1],
-    along the shorter arc."""
-    q0 = np.asarray(q0, float)
-    q1 = np.asarray(q1, float).copy()
-    alpha = np.asarray(alpha, float)[:, None]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1[dot[:, 0] < 0] *= -1.0  # q and -q are the same rotation: take the short way
-    dot = np.abs(dot)
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
-    sin_theta = np.sin(theta)
-    near = sin_theta < 1e-6  # (almost) equal: the linear blend is exact to rounding
-    safe = np.where(near, 1.0, sin_theta)
-    w0 = np.where(near, 1.0 - alpha, np.sin((1.0 - alpha) * theta) / safe)
-    w1 = np.where(near, alpha, np.sin(alpha * theta) / safe)
-    q = w0 * q0 + w1 * q1
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-# ---------------------------------------------------------------------------------------------
-# Pure conversions
-
-
-def adc_to_cube(adc: np.ndarray) -> np.ndarray:
-    """A ColoRadar ADC frame (tx, rx, chirp, sample) as radarodom's cube (loops, tx_slots, rx,
-    samples) complex64 (rawframe.RawLayout): a chirp of ColoRadar's frame is one loop of ours,
-    its TX is the slot.  The values are unchanged (I real, Q imaginary, ADC counts)."""
-    adc = np.asarray(adc)
-    if adc.ndim != 4:
-        raise UsageError(f"an ADC frame is (tx, rx, chirp, sample), got shape {adc.shape}")
-    return np.ascontiguousarray(adc.transpose(2, 0, 1, 3), dtype=np.complex64)
-
-
-def pointcloud_to_points(pc: np.ndarray) -> np.ndarray:
-    """A ColoRadar radar point cloud (n, 5) x, y, z (m; x forward, y left, z up), intensity (SNR
-    dB), doppler (m/s, positive receding) as POINT_DTYPE (n,) in the TI sensor frame:
-    x_TI = -y, y_TI = x, z_TI = z; azimuth atan2(x_TI, y_TI) (positive to the right); elevation
-    asin(z / r).  TI's point clouds carry no noise estimate nor bins: noise_db 0, bins -1."""
-    pc = np.asarray(pc)
-    if pc.ndim != 2 or pc.shape[1] != 5:
-        raise UsageError(f"a ColoRadar point cloud is (n, 5), got shape {pc.shape}")
-    pts = np.zeros(len(pc), POINT_DTYPE)
-    x_ti, y_ti, z_ti = -pc[:, 1], pc[:, 0], pc[:, 2]
-    r = np.sqrt(x_ti.astype(float) ** 2 + y_ti.astype(float) ** 2 + z_ti.astype(float) ** 2)
-    pts["x"], pts["y"], pts["z"], pts["range"] = x_ti, y_ti, z_ti, r
-    pts["azimuth"] = np.arctan2(x_ti, y_ti)
-    pts["elevation"] = np.arcsin(np.clip(z_ti / np.maximum(r, 1e-9), -1.0, 1.0))
-    pts["velocity"] = pc[:, 4]
-    pts["snr_db"] = pc[:, 3]
-    pts["range_bin"] = -1
-    pts["doppler_bin"] = -1
-    return pts
-
-
-def points_in_frame(points: np.ndarray, bearing_offset_rad: float) -> np.ndarray:
-    """*points* (POINT_DTYPE, TI sensor frame of one radar) as seen from a radar at the same
-    place turned *bearing_offset_rad* to the right of it (the lever arm between the two is
-    ignored, as the paper does): azimuth minus the offset, x and y turned with it."""
-    out = points.copy()
-    out["azimuth"] = points["azimuth"] - bearing_offset_rad
-    horizontal = np.hypot(points["x"], points["y"])
-    out["x"] = horizontal * np.sin(out["azimuth"])
-    out["y"] = horizontal * np.cos(out["azimuth"])
-    return out
-
-
-def heatmap_to_polar(hm: np.ndarray, cfg: HeatmapConfig, *, reduce: str = "max") -> RangeAzimuth:
-    """A ColoRadar heatmap (el, az, range, 2) as a range-azimuth map in the TI convention.
-
-    The elevation axis is reduced by ``"max"`` or ``"sum"`` of the intensity; the Doppler of
-    each cell is that of its brightest elevation bin in both cases.  ColoRadar's azimuth is
-    positive to the left, TI's to the right: azimuth_TI = -az, and the azimuth axis is reversed
-    so that it ascends.  Returns arrays (range, az) float32; ``static`` is a copy of the
-    intensity (ColoRadar keeps no zero-Doppler channel).
-    """
-    if reduce not in ("max", "sum"):
-        raise UsageError(f"reduce must be 'max' or 'sum', got {reduce!r}")
-    hm = np.asarray(hm)
-    if hm.shape != cfg.shape:
-        raise UsageError(f"the heatmap is shaped {hm.shape}, its config says {cfg.shape}")
-    intensity, doppler = hm[..., 0], hm[..., 1]  # (el, az, range)
-    best = np.argmax(intensity, axis=0)[None]  # (1, az, range)
-    best_doppler = np.take_along_axis(doppler, best, axis=0)[0]
-    reduced = intensity.max(axis=0) if reduce == "max" else intensity.sum(axis=0)
-    # (az, range) -> (range, az), then reverse the azimuth axis for TI's sign.
-    inten = np.ascontiguousarray(reduced.T[:, ::-1], dtype=np.float32)
-    return RangeAzimuth(intensity=inten, static=inten.copy(),
-                        doppler_mps=np.ascontiguousarray(best_doppler.T[:, ::-1], dtype=np.float32),
-                        range_m=cfg.range_m, azimuth_rad=-np.asarray(cfg.azimuth_bins)[::-1].copy())
 
 
 # ---------------------------------------------------------------------------------------------
@@ -358,31 +105,6 @@ def _directory(path, what: str) -> str:
     if not os.path.isdir(full):
         raise UsageError(f"{full}: no such {what}")
     return full
-
-
-def check_file_size(path: str, size: int, dtype: np.dtype, shape: tuple[int, ...] | None = None,
-                    cfg_path: str | None = None) -> None:
-    """One data file's size against what it must hold: exactly *shape* cells of *dtype* (the
-    calib file *cfg_path* says so), or with no *shape* a whole number of *dtype* points.  The one
-    check of both the up-front :meth:`ColoRadarRun.check` and every read."""
-    if shape is not None:
-        expected = math.prod(shape) * dtype.itemsize
-        if size != expected:
-            raise CaptureFormatError(f"{path}: {size} bytes, expected {expected} for shape {shape} "
-                                     f"of {dtype.itemsize}-byte cells ({cfg_path})")
-    elif size % dtype.itemsize:
-        raise CaptureFormatError(f"{path}: {size} bytes is not a whole number of {dtype.itemsize}-byte points")
-
-
-def _finite(path: str, values: np.ndarray) -> np.ndarray:
-    """*values* (little-endian float32 as read) as native float32; a NaN or an infinity is a
-    broken file: every consumer would have to guess what it means.  Found when the file is read
-    (a run's data is too large to read twice), the file named."""
-    out = values.astype(np.float32)
-    bad = ~np.isfinite(out)
-    if bad.any():
-        raise CaptureFormatError(f"{path}: {int(bad.sum())} of {out.size} values are NaN or infinite")
-    return out
 
 
 class ColoRadarRun:
@@ -490,7 +212,8 @@ class ColoRadarRun:
     def _file(self, stream: str, i: int) -> str:
         n = self.count(stream)
         if not isinstance(i, (int, np.integer)) or not 0 <= i < n:
-            raise UsageError(f"{stream}: frame {i!r} out of range (the run has {n})")
+            shown = int(i) if isinstance(i, (int, np.integer)) else repr(i)  # no numpy repr
+            raise UsageError(f"{stream}: frame {shown} out of range (the run has {n})")
         return self._data_files(stream)[int(i)]
 
     @staticmethod
@@ -561,12 +284,12 @@ class ColoRadarRun:
         """Single-chip point cloud *i* (0-based, time order): (n, 5) float32 x, y, z (m, sensor
         frame as stored: x forward, y left, z up), intensity (SNR dB), doppler (m/s)."""
         path = self._file("single_chip/pointclouds", i)
-        return _finite(path, self._read_records(path, RADAR_POINT).view("<f4").reshape(-1, 5))
+        return finite_values(path, self._read_records(path, RADAR_POINT).view("<f4").reshape(-1, 5))
 
     def lidar_pointcloud(self, i: int) -> np.ndarray:
         """Lidar point cloud *i*: (n, 4) float32 x, y, z (m, lidar frame), intensity."""
         path = self._file("lidar", i)
-        return _finite(path, self._read_records(path, LIDAR_POINT).view("<f4").reshape(-1, 4))
+        return finite_values(path, self._read_records(path, LIDAR_POINT).view("<f4").reshape(-1, 4))
 
     @staticmethod
     def _radar(sensor: str) -> str:
@@ -612,7 +335,7 @@ class ColoRadarRun:
         path = self._file(f"{sensor}/heatmaps", i)
         cells = self._read_fixed(path, HEATMAP_CELL, cfg.shape[:3],
                                  self.calib_path(sensor, "heatmap_cfg.txt"))
-        return _finite(path, cells.view("<f4").reshape(cfg.shape))
+        return finite_values(path, cells.view("<f4").reshape(cfg.shape))
 
     def adc(self, sensor: str, i: int) -> np.ndarray:
         """ADC frame *i* of *sensor*: complex64 (tx, rx, chirp, sample) as stored, I real and Q

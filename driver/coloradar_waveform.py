@@ -24,7 +24,7 @@ from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, TX_OFFSETS_HALF_WAVELENG
 from ..cfg import RadarConfig
 from ..errors import CaptureFormatError, ConfigError
 from ..tum import parse_numbers
-from .coloradar import WaveformConfig, _read_lines
+from .coloradar_files import WaveformConfig, _read_lines
 
 log = logging.getLogger(__name__)
 
