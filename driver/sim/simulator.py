@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...cfg import SPEED_OF_LIGHT, RadarConfig
+from ...errors import UsageError
 from ...rawframe import INT16_MAX, RawLayout
 from ...tum import yaw_quaternion
 from .board import Board
@@ -37,6 +38,8 @@ MIN_PATTERN_GAIN = 1e-3
 #: Paths whose SNR after integrating a whole frame (all samples, chirps and
 #: virtual antennas) stays below this are skipped, dB.
 MIN_INTEGRATED_SNR_DB = -10.0
+#: Most frames a simulation makes: about eleven days at 10 Hz.
+MAX_FRAMES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -143,7 +146,11 @@ class Simulator:
         self.layout = RawLayout.from_config(cfg)
         self.period = cfg.frame_period_s
         span = scene.trajectory.duration_s if duration_s is None else duration_s
-        self.num_frames = max(1, math.ceil(span / self.period - 1e-9))
+        frames = span / self.period
+        if not (0 < span and frames <= MAX_FRAMES):  # also NaN; ceil() of infinity would overflow
+            raise UsageError(f"duration {float(span):g} s: expected more than 0 and at most "
+                             f"{MAX_FRAMES * self.period:g} s ({MAX_FRAMES} frames of {self.period:g} s)")
+        self.num_frames = max(1, math.ceil(frames - 1e-9))
         self.max_range_m = cfg.unambiguous_range_m
         amp_ref = scene.noise_counts * math.sqrt(2.0) * 10 ** (scene.snr_db / 20.0)
         #: ADC counts of a 1 m^2 target at 1 m on boresight.
