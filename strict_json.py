@@ -74,7 +74,7 @@ def loads(data: bytes | bytearray | memoryview | str, *, max_bytes: int, max_dep
     try:
         return json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"not JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+        raise ValueError(f"not JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
 
 
 def finite(obj: Any) -> Any:
