@@ -1,7 +1,8 @@
 """The estimator's settings: one typed configuration that can be dumped and loaded.
 
 ``EstimatorConfig()`` is the best combination measured by the experiment
-(``bench/paper_experiment.py``; the README has the tables); ``EstimatorConfig.paper()``
+(``bench/paper_experiment.py``; docs/estimator.md has the tables, and its section "Why the
+defaults" the measurements behind each default); ``EstimatorConfig.paper()``
 is the method as the paper describes it, Top-k preprocessing and sampling + mwICP,
 with none of the options that go beyond it.  Units: metres, seconds, radians.
 """
@@ -160,10 +161,9 @@ class IcpConfig(Settings):
     #: Search range of the profile and scan guesses around their centre, rad.
     max_rotation_rad: float = math.radians(15.0)
     scan_points: int = 400
-    #: Grid step of the scan guess, rad (the best refined by a parabola).  A second search at
-    #: 0.25 degrees around the best changed nothing measurable (yaw RMSE 0.41 / 0.46 / 0.45
-    #: degrees either way, 18 simulated sequences): the guess only starts ICP and bounds the
-    #: field search.
+    #: Grid step of the scan guess, rad (the best refined by a parabola).  A second, finer
+    #: search around the best changed nothing measurable (docs/estimator.md, "Why the defaults"): the guess
+    #: only starts ICP and bounds the field search.
     scan_step_rad: float = math.radians(1.0)
     #: With the scan guess: a frame whose best scan score (mean log intensity of the matched
     #: cells over the heatmap's median, natural-log units) stays below this holds no structure
@@ -177,17 +177,17 @@ class IcpConfig(Settings):
     #: wrong pairs along walls; the field uses all the bright cells of both frames.  The keyframe
     #: registration is then the field search alone (where: ``odometry.keyframe_start``).
     #: "none": ICP's.
-    #: The default: it lowers the experiment's yaw RMSE and drift at about the same time
-    #: (README), though a straight drive's worst frame grows from 0.14 to about 0.5 degrees.
+    #: The default: it lowers the experiment's yaw RMSE and drift at about the same time,
+    #: though a straight drive's worst frame grows (docs/estimator.md, "Why the defaults").
     refinement: str = "field"
     field_search_rad: float = math.radians(3.0)
     field_smoothing_bins: float = 2.0
     #: Grid step of the field search, rad; the best rotation on the grid is refined by a
     #: parabola through it and its two neighbours.  The field's peak is some degrees wide
     #: (beams of about 15 degrees, smoothed): a parabola through points 1.5 degrees apart fits
-    #: that peak, one through points 0.5 degrees apart fits the speckle on it.  The default:
-    #: yaw RMSE 0.41 / 0.46 / 0.45 degrees instead of 0.45 / 0.51 / 0.52 with 0.5 degrees, drift
-    #: lower in every scene, a third of the samples (18 simulated sequences, README).
+    #: that peak, one through points 0.5 degrees apart fits the speckle on it.  The default has
+    #: a lower yaw RMSE and drift than 0.5 degrees with a third of the samples
+    #: (docs/estimator.md, "Why the defaults").
     field_step_rad: float = math.radians(1.5)
     #: Where the frame-to-frame field search looks: "icp", +/- ``field_search_rad`` around ICP's
     #: rotation; "icp_and_scan", from the smaller of ICP's rotation and the scan guess to the
@@ -236,14 +236,12 @@ class OdometryConfig(Settings):
     #: so taken as 0) and averaged with the velocity at the previous frame (the step's
     #: mid-time), held only when that fails too.  A robot slowing down to stop or to turn in
     #: place leaves the point cloud a handful of detections for several frames; holding the
-    #: speed from before adds 0.7-1.4 % of the path in the simulated room, and the wrong
-    #: rectification costs yaw there.  The default: with the other defaults, yaw RMSE 0.39 /
-    #: 0.47 / 0.45 degrees and drift 1.8 / 1.6 / 1.0 % against 0.39 / 0.52 / 0.46 and 1.8 / 2.8
-    #: / 1.4 % when held (corridor / room / lab, 18 simulated sequences).
+    #: speed from before adds drift, and the wrong rectification costs yaw
+    #: (docs/estimator.md, "Why the defaults").
     velocity_fallback: str = "heatmap"
     #: With the "heatmap" fallback: the number of strongest local-maximum cells it fits.  Most
-    #: weak maxima carry noise's Doppler: with 100 or more the static world's share often
-    #: falls below ``velocity.min_inlier_ratio`` and the fallback fails.
+    #: weak maxima carry noise's Doppler: with too many, the static world's share falls below
+    #: ``velocity.min_inlier_ratio`` and the fallback fails (docs/estimator.md, "Why the defaults").
     fallback_cells: int = 50
     #: Fewer heatmap features than this: no registration ("few_features").
     min_features: int = 10
@@ -261,13 +259,13 @@ class OdometryConfig(Settings):
     #: standard deviation, rad/s^2: the filter then mixes the two by how well each predicts
     #: the measurements (an interacting-multiple-model filter).  A robot turns on and off
     #: within a few frames; one model smooth enough for straight drives and steady turns lags
-    #: those by 2-3 degrees a frame, one loose enough to follow them lets registration noise
-    #: through.  None: the one model.
+    #: those by degrees a frame, one loose enough to follow them lets registration noise
+    #: through (docs/estimator.md, "Why the defaults").  None: the one model.
     yaw_manoeuvre_accel_std_radps2: float | None = math.radians(300.0)
     #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
     #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken
     #: when the sensor is this far (m) or has turned this much (rad) from the last (0: off,
-    #: which saves 2 ms a frame) ...
+    #: which saves time but lets the room's drift grow; docs/estimator.md, "Why the defaults") ...
     keyframe_distance_m: float = 0.5
     keyframe_angle_rad: float = math.radians(10.0)
     #: ... and the keyframe registration may move the predicted yaw by at most this, rad (with
@@ -280,15 +278,14 @@ class OdometryConfig(Settings):
     #: keyframe (no scan guess); "predicted_and_scan", from the smaller of the prediction and
     #: the scan guess to the larger, widened by ``keyframe_search_rad`` each side, the
     #: measurement then allowed to move the prediction by that much plus the two's
-    #: disagreement.  The scan guess against a keyframe is biased on straight drives (-0.8
-    #: degrees on the room sequences, where the field search around it ends -0.3 off) and,
+    #: disagreement.  The scan guess against a keyframe is biased on straight drives and,
     #: started from it, a keyframe cannot repair a chain that drifted more than a few degrees
     #: (a filter lagging a turn's start); the prediction alone misses the turns the chain
-    #: under-measures.  Spanning both halves the room's drift (bench: README).
+    #: under-measures.  Spanning both halves the room's drift (docs/estimator.md, "Why the defaults").
     keyframe_start: str = "predicted_and_scan"
-    #: The keyframe measurement's yaw noise (at least), rad; None: ``yaw_noise_rad``.  Measured
-    #: against ground truth it is 1.1-1.3 degrees RMS (room sequences); weighting it as 1
-    #: degree puts every keyframe's error into one frame's increment.
+    #: The keyframe measurement's yaw noise (at least), rad; None: ``yaw_noise_rad``.  It is the
+    #: noise measured against ground truth (docs/estimator.md, "Why the defaults"); weighted as less,
+    #: every keyframe's error goes into one frame's increment.
     keyframe_noise_rad: float | None = math.radians(1.3)
 
     #: The two models' switch probabilities per frame: from the steady model to the manoeuvre
