@@ -3,7 +3,7 @@
 Positions are in half-wavelength units: ``h`` horizontal, ``v`` vertical.
 The element index grows toward the sensor's *left*, so the physical position
 of a virtual element in the TI sensor frame (x right, y boresight, z up) is
-``x_TI = -h * lambda/2``, ``z_TI = +v * lambda/2`` (conventions.md).
+``x_TI = -h * lambda/2``, ``z_TI = +v * lambda/2`` (docs/conventions.md).
 
 - 4 RX in a row, lambda/2 apart: RX r at h = r.
 - TX1 at h = 0, TX3 two wavelengths away at h = 4, TX2 one wavelength from

@@ -1,4 +1,4 @@
-"""TUM trajectory files: ``t x y z qx qy qz qw`` per line (conventions.md).
+"""TUM trajectory files: ``t x y z qx qy qz qw`` per line (docs/conventions.md).
 
 The one reader and the one line formatter of the project: the capture
 directory's ``groundtruth.tum``, the estimator's ``--odom-out`` and

@@ -1,6 +1,6 @@
 """Capture directories: what ``--record`` writes and ``replay://`` reads.
 
-Layout (conventions.md)::
+Layout (docs/conventions.md)::
 
     DIR/radar.cfg        the TI CLI configuration that produced the data
     DIR/adc_data.bin     frames back to back, the DCA1000 raw stream bytes

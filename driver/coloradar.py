@@ -18,7 +18,7 @@ others, so the lowest index present is taken as the first.
 
 Frames: the dataset's sensor frames are x forward, y left, z up (azimuth positive to the left).
 radarodom's point clouds and heatmaps are in the TI sensor frame (x right, y forward;
-azimuth positive to the right, conventions.md): :func:`pointcloud_to_points` and
+azimuth positive to the right, docs/conventions.md): :func:`pointcloud_to_points` and
 :func:`heatmap_to_polar` convert.  Poses are Hamilton quaternions (qx, qy, qz, qw).
 """
 

@@ -1,6 +1,6 @@
 """Pure conversions of ColoRadar data: quaternions (xyzw, Hamilton), ADC frames to radarodom's
 cube, point clouds and heatmaps from the dataset's frame (x forward, y left, z up) to the TI
-sensor frame (x right, y forward; conventions.md).
+sensor frame (x right, y forward; docs/conventions.md).
 
 Split out of :mod:`.coloradar`, which re-exports all of it.
 """

@@ -123,7 +123,7 @@ class HeatmapMaker:
         h, v = va.h.ravel().astype(float), va.v.ravel().astype(float)
         sx = np.sin(self.azimuth_rad)[None, :] * np.cos(self.elevation_rad)[:, None]  # x / r
         sz = np.sin(self.elevation_rad)[:, None] * np.ones_like(sx)  # z / r
-        # Element phase pi (h Wx - v Wz) (see the simulator's geometry and conventions.md).
+        # Element phase pi (h Wx - v Wz) (see the simulator's geometry and docs/conventions.md).
         phase = np.pi * (h[None, None, :] * sx[..., None] - v[None, None, :] * sz[..., None])
         self._steer = np.exp(1j * phase).reshape(-1, len(h)).astype(np.complex64)  # (el*az, elems)
 

@@ -10,7 +10,7 @@ side, beamformed toward the point's azimuth, place its radial velocity between D
 static world ahead piles up near the largest |radial velocity| where their rounding does not
 average out); and further reflectors in the cell come one at a time (:mod:`.azimuth_peaks`).
 
-Angles follow conventions.md: the azimuth row's FFT peak k (plus its sub-bin offset) gives
+Angles follow docs/conventions.md: the azimuth row's FFT peak k (plus its sub-bin offset) gives
 ``Wx = 2k/N`` and ``x = r Wx``; with the raised row's FFT taken at the elements' true
 horizontal positions, ``Wz = angle(A conj(E)) / pi`` at that peak (the same as TI's
 ``angle(A conj(E))/pi + 2 Wx`` with the raised row indexed from its first element), ``z = r Wz``.

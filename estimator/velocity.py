@@ -1,7 +1,7 @@
 """Planar ego-velocity from the Doppler of one point cloud (paper III-A).
 
 A static reflector seen from a sensor moving with velocity v has radial
-velocity v_r = -v . u (u the unit vector to it; conventions.md).  In the body
+velocity v_r = -v . u (u the unit vector to it; docs/conventions.md).  In the body
 frame (x forward, y left) with bearing b = -azimuth_TI and elevation el,
 
     -v_r / cos(el) = cos(b) vx + sin(b) vy,

@@ -1,7 +1,7 @@
 """Synthetic inputs for the estimator tests: point clouds and range-azimuth heatmaps of
 point reflectors seen from a known sensor pose, with no simulator (fast, exact truth).
 
-Frames and signs follow ``../shared/reference/conventions.md``: positions and velocities
+Frames and signs follow ``docs/conventions.md``: positions and velocities
 given here are in the body frame (REP-103: x forward, y left); the point clouds and the
 heatmaps come out in the TI sensor frame (azimuth = -bearing, positive to the right) with
 radial velocity v_r = -v . u (positive receding).

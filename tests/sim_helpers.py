@@ -1,6 +1,6 @@
 """Helpers for the simulator tests: tiny scenes, the true geometry from a
 trajectory, and a minimal reference radar processing written from
-conventions.md (not from the simulator's code).
+docs/conventions.md (not from the simulator's code).
 
 Reference processing of one frame's cube (loops, tx_slots, rx, samples):
 

@@ -22,7 +22,7 @@ middle (``sim_helpers.truth``).  What is checked, and the tolerances:
   shipped cfg: |delta| / 64, 0.45 deg for half a bin); 20 % more for the
   range migration during the frame; and 0.25 deg;
 - the signs: TI frame, x right, z up, azimuth atan2(x, y) positive right,
-  radial velocity positive receding (conventions.md).
+  radial velocity positive receding (docs/conventions.md).
 
 Moving scenes use the simulator with ``loops_per_chunk=1`` (the beat tone
 exact for every loop): with its default chunking the simulator itself puts

@@ -9,7 +9,7 @@ Two short sequences of the ``corridor`` scene, made once per module:
 - ``turn``: the same walls, the sensor starting 13 m along the corridor, 1.5 m ahead and
   then the corridor's left turn (90 degrees on a 0.8 m radius at 0.8 m/s: 57 deg/s), 3.5 s.
 
-Poses are the body frame (REP-103) in the first frame's (conventions.md).
+Poses are the body frame (REP-103) in the first frame's (docs/conventions.md).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
 A sequence is point reflectors in a world seen along a known trajectory
 (tests/estimator_synth.py): each frame gives a TI-frame point cloud with the static
 world's Doppler and an AWR1843-like range-azimuth heatmap.  Poses are the body frame
-(REP-103) in the world frame = the body frame at the first frame (conventions.md).
+(REP-103) in the world frame = the body frame at the first frame (docs/conventions.md).
 """
 
 from __future__ import annotations

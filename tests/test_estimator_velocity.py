@@ -1,6 +1,6 @@
 """Doppler ego-velocity (paper III-A; estimator/velocity.py) on synthetic point clouds.
 
-Conventions pinned here (conventions.md): points are in the TI sensor frame (azimuth
+Conventions pinned here (docs/conventions.md): points are in the TI sensor frame (azimuth
 positive to the right), radial velocity is positive receding and a static point seen
 from a sensor moving at v has v_r = -v . u; the estimate is in the body frame
 (REP-103: vx forward, vy left).

@@ -1,5 +1,5 @@
 """The simulator's physics against a minimal reference processing written from
-conventions.md (tests/sim_helpers.py): range and Doppler bins, Doppler sign,
+docs/conventions.md (tests/sim_helpers.py): range and Doppler bins, Doppler sign,
 azimuth and elevation with their signs, -v.u for static points seen while
 moving, and the TDM-MIMO phase between TX slots.
 

@@ -1,4 +1,4 @@
-"""FMCW beat-signal synthesis for the AWR1843BOOST (conventions.md signal model).
+"""FMCW beat-signal synthesis for the AWR1843BOOST (docs/conventions.md signal model).
 
 For chirp c (loop l, TX slot m), RX r and ADC sample n the complex ADC output
 is a sum over propagation paths k::
