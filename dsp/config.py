@@ -22,7 +22,7 @@ def _default_range_cfar() -> CfarParams:
     # stronger one at the same Doppler (a sensor at rest puts the whole static world in one
     # Doppler bin) has up to 8 of the stronger one's cells in its window, which the median
     # passes over; greatest-of averaged them in and hid it.  Measured against CAGO, CASO and OS
-    # at ranks 8, 10 and 12 on the velocity fit and the odometry (README, "The DSP's settings,
+    # at ranks 8, 10 and 12 on the velocity fit and the odometry (docs/dsp.md, "The DSP's settings,
     # measured"): the median's velocity fit and drift are smallest-of's, with range_skirt_db
     # keeping strong targets' skirts out.
     return CfarParams(method="os", guard=2, train=8, pfa=1e-5, cyclic=False, os_rank=8)

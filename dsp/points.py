@@ -42,7 +42,7 @@ POINT_DTYPE = np.dtype([
 
 #: A cell whose strongest azimuth peak grows by this factor (0.6 dB) under another TDM
 #: hypothesis holds one aliased target, not several reflectors (_further_peaks; chosen between
-#: what the two cases measure, README "Several reflectors in one cell").
+#: what the two cases measure, docs/dsp.md, "Several reflectors in one cell").
 ALIASED_GAIN = 10 ** 0.06
 
 
@@ -233,7 +233,7 @@ class PointMaker:
             # A target beyond the unambiguous velocity, compensated for the wrong TDM hypothesis,
             # splits its azimuth spectrum in two: another hypothesis that merges it into one
             # stronger peak marks the cell as that, not as two reflectors (ALIASED_GAIN's
-            # measurement: README, "Several reflectors in one cell").
+            # measurement: docs/dsp.md, "Several reflectors in one cell").
             floor = np.where(self._aliased(elements) > ALIASED_GAIN * first, np.inf, floor)
         elements = elements.copy()
         sides = None if neighbours is None else neighbours.copy()

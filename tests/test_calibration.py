@@ -333,7 +333,7 @@ def test_uncalibrated_board_with_its_line_drives_like_a_perfect_one(shipped_cfg)
     """20 s of the furnished room on the uncalibrated board, its cfg carrying the line
     radar-calibrate measured on the calibration scene: yaw-increment and velocity RMSE within
     10 % of the perfect board's on the same scene; with the identity line far worse.  (The drift
-    over whole sequences, 18 of them, is in the README's DSP experiment.)"""
+    over whole sequences, 18 of them, is in docs/dsp.md's DSP experiment.)"""
     from radarodom.dsp.calibrate import measure
 
     board = load_board("uncalibrated")

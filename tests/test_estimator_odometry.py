@@ -194,7 +194,7 @@ class TestConfig:
             EstimatorConfig.paper(method="orb")
 
     def test_defaults_beyond_the_paper(self):
-        # The measured best combination (README): the heatmap's Doppler stands in for a failed
+        # The measured best combination (docs/estimator.md): the heatmap's Doppler stands in for a failed
         # point-cloud velocity.
         odo = EstimatorConfig().odometry
         assert odo.velocity_fallback == "heatmap" and odo.fallback_cells == 50

@@ -500,10 +500,11 @@ def test_keys_are_under_the_prefix():
     assert isinstance(zenoh.KeyExpr(ZenohOptions().key("status")), zenoh.KeyExpr)
 
 
-def test_the_readme_subscriber_example_receives_odometry(run):
-    """The README's ten-line subscriber, pointed at this test's publisher."""
-    readme = (REPO / "README.md").read_text()
-    section = readme[readme.index("A subscriber in ten lines"):]
+@pytest.mark.parametrize("page", ["README.md", "docs/messages.md"])
+def test_the_documented_subscriber_example_receives_odometry(run, page):
+    """The ten-line subscriber of the README and of docs/messages.md, pointed at this test's publisher."""
+    text = (REPO / page).read_text()
+    section = text[text.index("A subscriber in ten lines"):]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     assert DEFAULT_ENDPOINT in code and "time.sleep(60)" in code
     endpoint = free_endpoint()
