@@ -8,7 +8,7 @@ keeps up) and the share of frames made within one frame period.  The anchor, mea
 matrix product of the synthesis's own size (chirps x RX rows, paths, samples):
 the floor no chunked implementation can go below on this BLAS.
 
-    python bench/bench_sim.py [--frames 20] [--json]
+    python bench/bench_sim.py [--frames 40] [--json]
 """
 
 from __future__ import annotations
