@@ -261,6 +261,6 @@ def timestamps_for(directory: str, stamps: np.ndarray | None, whole: int, period
     return stamps
 
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "TIMESTAMP_LIMIT_S", "check_frame_bytes", "check_metadata", "frame_count",
-           "read_metadata", "read_timestamps", "timestamps_for"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "TIMESTAMP_LIMIT_S", "check_frame_bytes", "check_metadata",
+           "frame_count", "read_metadata", "read_timestamps", "timestamps_for"]
 
