@@ -94,6 +94,35 @@ def console_command(name: str) -> list[str]:
 
 
 @pytest.fixture
+def default_endpoint(monkeypatch) -> str:
+    """The Zenoh publisher's default endpoint moved to a free loopback port for the test, so
+    that it meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""
+    from radarodom import publish
+
+    endpoint = f"tcp/127.0.0.1:{_free_tcp_port()}"
+    monkeypatch.setattr(publish, "DEFAULT_ENDPOINT", endpoint)
+    return endpoint
+
+
+def _free_tcp_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def private_zenoh(argv) -> list[str]:
+    """*argv* of a radar-capture run, made to publish on a free loopback port of its own unless
+    it says where (``--listen``/``--connect``/``--zenoh-config``) or does not publish: a test
+    never touches the user's default 7448 (a radar-capture the user runs holds it)."""
+    argv = [str(a) for a in argv]
+    if any(a in argv for a in ("--no-publish", "--listen", "--connect", "--zenoh-config")):
+        return argv
+    return [*argv, "--listen", f"tcp/127.0.0.1:{_free_tcp_port()}"]
+
+
+@pytest.fixture
 def warnings_log(caplog):
     """caplog at WARNING for radarodom, whatever level an earlier CLI run left set."""
     caplog.set_level(logging.WARNING, logger="radarodom")

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from urllib.parse import parse_qsl
 
 import numpy as np
-from conftest import SMALL_CFG, console_command
+from conftest import SMALL_CFG, console_command, private_zenoh
 from radarodom.cfg import RadarConfig
 
 #: SMALL_CFG with 16 loops every 10 ms: 12288-byte frames (8.4 packets each), 100 Hz.
@@ -267,7 +267,7 @@ class Emulator(Process):
         if url_extra:
             i = argv.index("--source") + 1
             argv[i] += "&" + url_extra
-        return [*console_command("radar-capture"), *argv[1:], *map(str, extra)]
+        return [*console_command("radar-capture"), *private_zenoh([*argv[1:], *extra])]
 
     def stop(self, timeout: float = 10.0) -> int | None:
         """SIGINT, then the exit code (None: it did not stop, and was killed)."""

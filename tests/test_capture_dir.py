@@ -721,7 +721,8 @@ def test_writer_survives_sigkill(tmp_path, small_cfg, warnings_log):
 
 def _radar_capture() -> list[str]:
     exe = shutil.which("radar-capture", path=os.path.dirname(sys.executable))
-    return [exe] if exe else [sys.executable, "-m", "radarodom.tools.radar_capture"]
+    # These runs record; they need no Zenoh session (and must never take the user's port).
+    return ([exe] if exe else [sys.executable, "-m", "radarodom.tools.radar_capture"]) + ["--no-publish"]
 
 
 def _check_recording(out, frames, n_src, warnings_log) -> int:

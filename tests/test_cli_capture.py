@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import SMALL_CFG, console_command, make_capture
+from conftest import SMALL_CFG, console_command, make_capture, private_zenoh
 
 from radarodom.cfg import RadarConfig
 from radarodom.driver.capture_dir import CaptureDirectory
@@ -36,14 +36,14 @@ CAPTURE = console_command("radar-capture")
 
 
 def run_capture_cli(*args, timeout=60) -> subprocess.CompletedProcess:
-    return subprocess.run(CAPTURE + [str(a) for a in args], stdin=subprocess.DEVNULL,
+    return subprocess.run(CAPTURE + private_zenoh(args), stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
 
 
 def popen_capture(*args, **kw) -> subprocess.Popen:
     kw.setdefault("stdout", subprocess.PIPE)
     kw.setdefault("stderr", subprocess.PIPE)
-    return subprocess.Popen(CAPTURE + [str(a) for a in args], stdin=subprocess.DEVNULL, **kw)
+    return subprocess.Popen(CAPTURE + private_zenoh(args), stdin=subprocess.DEVNULL, **kw)
 
 
 def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
@@ -116,8 +116,8 @@ def test_in_process_frames_limit_and_signal_handlers_restored(src, tmp_path, cap
     path, frames = src
     out = tmp_path / "out"
     before = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
-    rc = radar_capture.main(["--source", f"replay://{path}?rate=max", "--frames", "3",
-                             "--record", str(out)])
+    rc = radar_capture.main(private_zenoh(["--source", f"replay://{path}?rate=max", "--frames", "3",
+                                           "--record", str(out)]))
     stdout, stderr = capsys.readouterr()
     assert rc == 0, stderr
     assert stderr == ""

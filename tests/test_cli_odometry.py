@@ -20,7 +20,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import console_command
+from conftest import console_command, private_zenoh
 from test_cli_capture import one_error_line, popen_capture, run_capture_cli, summary_re
 
 from radarodom.estimator.config import EstimatorConfig
@@ -249,8 +249,8 @@ def test_odom_out_onto_an_existing_file_is_refused(sim_run, tmp_path):
 def test_no_odom_with_an_estimator_option_is_a_usage_error(sim_run, tmp_path, extra):
     (tmp_path / "e.json").write_text("{}")
     before = sorted(os.listdir(tmp_path))
-    proc = subprocess.run(console_command("radar-capture") + ["--source", replay_url(sim_run), "--no-odom",
-                                                              *extra], cwd=tmp_path, stdin=subprocess.DEVNULL,
+    proc = subprocess.run(console_command("radar-capture") + private_zenoh(["--source", replay_url(sim_run),
+                                                                            "--no-odom", *extra]), cwd=tmp_path, stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stdout == ""

@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO, console_command
+from conftest import REPO, console_command, private_zenoh
 
 from radarodom.cfg import RadarConfig, shipped_config_path
 
@@ -37,7 +37,7 @@ VELOCITY_BIN_MPS = RadarConfig.from_file(shipped_config_path()).velocity_resolut
 
 
 def run_capture(*args, timeout=120) -> subprocess.CompletedProcess:
-    return subprocess.run(CAPTURE + [str(a) for a in args], stdin=subprocess.DEVNULL, check=False,
+    return subprocess.run(CAPTURE + private_zenoh(args), stdin=subprocess.DEVNULL, check=False,
                           capture_output=True, text=True, timeout=timeout)
 
 

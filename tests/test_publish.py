@@ -26,7 +26,7 @@ import zenoh
 from conftest import REPO
 from zenoh_helpers import Inbox, estimator_run, free_endpoint, peer, subscribe, wait_for
 
-from radarodom import messages, publish
+from radarodom import messages
 from radarodom.errors import PublishConfigError, PublishError
 from radarodom.tools.status import LatencyMeter
 from radarodom.publish import (CONNECT_RETRY, DEFAULT_ENDPOINT, ROS2_ROUTER_ENDPOINT, Publisher, ZenohOptions,
@@ -431,14 +431,6 @@ def test_a_chosen_listen_endpoint_in_use_is_an_error(endpoint):
             Publisher(ZenohOptions(listen=[endpoint]))
     assert info.value.exit_code == 1
 
-
-@pytest.fixture
-def default_endpoint(monkeypatch) -> str:
-    """The publisher's default endpoint moved to a free port for the test, so that it
-    meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""
-    endpoint = free_endpoint()
-    monkeypatch.setattr(publish, "DEFAULT_ENDPOINT", endpoint)
-    return endpoint
 
 
 def test_the_default_endpoint_in_use_falls_back_to_a_free_port(warnings_log, default_endpoint):

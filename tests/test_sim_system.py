@@ -14,7 +14,7 @@ from importlib import resources
 
 import numpy as np
 import pytest
-from conftest import console_command
+from conftest import console_command, private_zenoh
 from sim_helpers import decode, detect, point_scene, range_doppler, rd_power, truth
 
 from radarodom.cfg import RadarConfig
@@ -37,7 +37,8 @@ STILL = [{"pause": 2.0}]
 
 
 def _run(name: str, *args, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run(console_command(name) + [str(a) for a in args], stdin=subprocess.DEVNULL,
+    argv = private_zenoh(args) if name == "radar-capture" else [str(a) for a in args]
+    return subprocess.run(console_command(name) + argv, stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
 
 
