@@ -18,6 +18,7 @@ from dataclasses import field
 from typing import Any, Sequence
 
 from .errors import ConfigError
+from .plain_numbers import FLOAT_TEXT, INT_TEXT
 
 #: The only sub-frame index the legacy (non-advanced) frame accepts.
 LEGACY_SUBFRAME = -1
@@ -25,9 +26,6 @@ LEGACY_SUBFRAME = -1
 #: Characters of user input a message quotes; longer input is cut with its length said.
 SHOWN_CHARS = 40
 
-#: Number syntax the radar's CLI reads (atoi/atof on ASCII digits).
-_INT_TOKEN = re.compile(r"[+-]?[0-9]+\Z")
-_FLOAT_TOKEN = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
 #: Hexadecimal as the firmware's ``sscanf("0x%x")`` reads it (calibData's flash offset), 32 bit.
 _HEX_TOKEN = re.compile(r"0x[0-9a-fA-F]{1,8}\Z")
 
@@ -73,13 +71,13 @@ def convert(token: str, kind: type, syntax: str | None = None) -> int | float:
             raise ValueError(f"expected 0 or a hexadecimal number 0x0..0xFFFFFFFF, got {shown(token)}")
         return int(token, 16)
     if kind is int:
-        if not _INT_TOKEN.match(token):
+        if not INT_TEXT.match(token):
             raise ValueError(f"expected an integer, got {shown(token)}")
         try:
             return int(token, 10)
         except ValueError:  # more digits than Python converts
             raise ValueError(f"integer too large: {shown(token, 20)}") from None
-    if not _FLOAT_TOKEN.match(token):
+    if not FLOAT_TEXT.match(token):
         if token.lower().lstrip("+-") in ("nan", "inf", "infinity"):
             raise ValueError(f"expected a finite number, got {shown(token)}")
         raise ValueError(f"expected a number, got {shown(token)}")

@@ -11,13 +11,13 @@ from __future__ import annotations
 import logging
 import math
 import os
-import re
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError
+from .plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
 
@@ -40,21 +40,9 @@ def quaternion_yaw(quaternions) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
 
-#: A number as the files radarodom reads write it: decimal digits, an optional sign, point and
-#: exponent.  Python's float() also takes ``0_5``, ``nan``, ``inf`` and full-width digits,
-#: which no writer of these files produces.
-PLAIN_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-
-
-def plain_float(text: str) -> float | None:
-    """*text* as a float when it is a plain decimal number (:data:`PLAIN_NUMBER`), else None.
-    The value may still be infinite (``1e999``)."""
-    return float(text) if PLAIN_NUMBER.fullmatch(text) else None
-
-
 def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: str) -> list[float]:
     """The finite numbers of one line of a text file: exactly *count* of them when given,
-    else at least one, each a plain decimal number (:data:`PLAIN_NUMBER`);
+    else at least one, each a plain decimal number (:mod:`radarodom.plain_numbers`);
     :class:`CaptureFormatError` naming ``path:lineno`` and *what* was expected otherwise."""
     tokens = text.split()
     values = [plain_float(v) for v in tokens]

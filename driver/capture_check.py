@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import strict_json
 from ..errors import CaptureError, CaptureFormatError
-from ..tum import plain_float
+from ..plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
 

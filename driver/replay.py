@@ -29,7 +29,7 @@ import numpy as np
 from ..calibration import ChannelCalibration
 from ..cfg import RadarConfig
 from ..errors import CaptureFormatError, ConfigError, SourceError
-from ..tum import plain_float
+from ..plain_numbers import plain_float
 from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
 from .sim.board import load_board
 from .sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate

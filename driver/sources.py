@@ -23,7 +23,9 @@ from urllib.parse import parse_qsl
 import numpy as np
 
 from ..cfg import RadarConfig
+from ..cfg_fields import shown
 from ..errors import SourceError
+from ..plain_numbers import plain_float, plain_int
 from ..rawframe import RawLayout
 from ..tum import TumTrajectory
 
@@ -156,6 +158,10 @@ class Source(abc.ABC):
         self.close()
 
 
+#: Largest number a URL option takes (seconds, factors, microseconds): far beyond any meant,
+#: small enough that arithmetic on it stays finite.
+MAX_URL_NUMBER = 1e9
+
 #: Longest single sleep while pacing, s: bounds how late a stop request is seen.
 PACING_SLICE_S = 0.05
 
@@ -164,10 +170,7 @@ def parse_rate(text: str) -> float:
     """A ``rate=`` option: a speed factor above 0, or ``max`` (infinite)."""
     if text == "max":
         return float("inf")
-    value = float(text)
-    if not value > 0 or value == float("inf"):
-        raise ValueError(text)
-    return value
+    return positive_number(text)
 
 
 class Pacer:
@@ -197,25 +200,30 @@ class Pacer:
 def at_least(minimum: int) -> Callable[[str], int]:
     """A ``UrlOptions.take`` converter: a whole number >= *minimum*."""
     def convert(text: str) -> int:
-        value = int(text)
-        if value < minimum:
+        value = plain_int(text)
+        if value is None or value < minimum:
             raise ValueError(text)
         return value
     return convert
 
 
 def positive_number(text: str) -> float:
-    """A ``UrlOptions.take`` converter: a finite number > 0."""
-    value = float(text)
-    if not 0 < value < float("inf"):
+    """A ``UrlOptions.take`` converter: a plain decimal number > 0 and at most
+    :data:`MAX_URL_NUMBER`."""
+    value = plain_float(text)
+    if value is None or not 0 < value <= MAX_URL_NUMBER:
         raise ValueError(text)
     return value
 
 
+positive_number.limit = f"at most {MAX_URL_NUMBER:g}"  # type: ignore[attr-defined]
+parse_rate.limit = positive_number.limit  # type: ignore[attr-defined]
+
+
 def udp_port(text: str) -> int:
     """A ``UrlOptions.take`` converter: 0..65535 (0: any free port)."""
-    value = int(text)
-    if not 0 <= value <= 65535:
+    value = plain_int(text)
+    if value is None or not 0 <= value <= 65535:
         raise ValueError(text)
     return value
 
@@ -250,7 +258,9 @@ class UrlOptions:
         try:
             return convert(text)
         except (ValueError, TypeError):
-            raise SourceError(f"{self.url}: option {name}={text!r}: expected {expect}") from None
+            limit = getattr(convert, "limit", "")
+            raise SourceError(f"{self.url}: option {name}={shown(text)}: expected {expect}"
+                              + (f" ({limit})" if limit else "") + ", written as a plain decimal number") from None
 
     def finish(self) -> None:
         """Raise if the URL had options no backend took."""

@@ -4,13 +4,17 @@ ended in "internal error: OverflowError" (ceil of an infinite frame count)."""
 from __future__ import annotations
 
 import math
+from urllib.parse import quote
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import MAX_FRAMES, Simulator
-from radarodom.errors import UsageError
+from radarodom.driver.sources import MAX_URL_NUMBER, open_source
+from radarodom.errors import SourceError, UsageError
 from radarodom.tools import radar_capture
 
 
@@ -27,3 +31,27 @@ def test_sim_url_with_an_impossible_duration_exits_2_with_one_line(duration, cap
     err = capsys.readouterr().err
     assert "internal error" not in err and "Traceback" not in err, err
     assert len([ln for ln in err.splitlines() if ln.startswith("radar-capture: error:") and "duration" in ln]) == 1
+
+
+# Issue 18, "option values are checked like cfg fields": URL options took Python's float() and
+# int(), which accept 1_0, non-ASCII digits, surrounding spaces, nan and inf.
+@pytest.mark.parametrize("option", ["duration=1_0", "duration=%20%201", "duration=\u0663", "duration=0x10",
+                                    "rate=nan", "rate=inf", "rate=1e308", "seed=1_0", "seed=-1", "seed=1.5",
+                                    "seed=" + "9" * 40])
+def test_url_options_take_plain_decimal_numbers_only(option):
+    with pytest.raises(SourceError, match=option.split("=")[0] + "=.*written as a plain decimal number"):
+        open_source(f"sim://corridor?{option}")
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(max_size=12))
+def test_any_url_option_text_is_taken_in_range_or_refused_naming_the_option(text):
+    # Whatever follows duration=, the source opens with a duration in range or refuses it by name.
+    try:
+        src = open_source(f"sim://corridor?rate=max&duration={quote(text, safe='')}")
+    except UsageError as exc:  # SourceError, or the simulator's refusal of too many frames
+        assert "duration" in str(exc) and "\n" not in str(exc)
+    else:
+        with src:
+            value = float(text)
+            assert 0 < value <= MAX_URL_NUMBER and src.sim.num_frames >= 1

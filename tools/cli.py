@@ -12,12 +12,12 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-import re
 import sys
 import traceback
 from typing import Callable, Sequence
 
 from ..errors import RadarodomError
+from ..plain_numbers import plain_float, plain_int
 from .status import StatusAwareHandler, StatusLine
 
 
@@ -32,10 +32,6 @@ class _Formatter(logging.Formatter):
         return f"{self.prog}: {record.levelname.lower()}{where}: {record.getMessage()}"
 
 
-#: Number syntax options take: ASCII decimal, as in a cfg.  Python's int()/float() also take
-#: "1_0", non-ASCII digits, surrounding spaces, "nan" and "inf".
-_INT_TEXT = re.compile(r"[+-]?[0-9]+\Z")
-_FLOAT_TEXT = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?\Z")
 #: Largest whole number an option takes (a count or seed beyond it is a typo).
 MAX_INT_OPTION = 2**63 - 1
 #: Largest number a float option takes unless it says otherwise: far beyond any duration in
@@ -50,7 +46,7 @@ def _shown(text: str) -> str:
 def int_in(lo: int, hi: int = MAX_INT_OPTION, what: str = "a whole number") -> Callable[[str], int]:
     """argparse type: a whole number (ASCII digits) in lo..hi; the error names the range."""
     def parse(text: str) -> int:
-        value = int(text, 10) if _INT_TEXT.match(text) and len(text) <= 30 else None
+        value = plain_int(text)  # numbers as in a cfg: plain ASCII decimal
         if value is None or not lo <= value <= hi:
             span = f"in {lo}..{hi}" if hi < MAX_INT_OPTION else f">= {lo}"
             raise argparse.ArgumentTypeError(f"expected {what} {span}, got {_shown(text)}")
@@ -65,7 +61,8 @@ def float_in(lo: float, hi: float = MAX_FLOAT_OPTION, *, lo_open: bool = False, 
     """argparse type: a finite decimal number in lo..hi (above lo when *lo_open*); the error
     names the range and unit."""
     def parse(text: str) -> float:
-        value = float(text) if _FLOAT_TEXT.match(text) else math.nan
+        value = plain_float(text)
+        value = math.nan if value is None else value
         if not (lo < value <= hi if lo_open else lo <= value <= hi):
             span = f"> {lo:g} and <= {hi:g}" if lo_open else f"in {lo:g}..{hi:g}"
             units = f" {unit}" if unit else ""

@@ -1,0 +1,40 @@
+"""Numbers as people and radar tools write them: plain ASCII decimal.
+
+One syntax for every number radarodom reads from text: cfg fields, command-line options, source
+URL options, timestamps.txt and the other text files.  Python's ``int()`` and ``float()`` also
+take ``1_0``, non-ASCII digits, surrounding spaces, ``nan`` and ``inf``, which no cfg, option or
+writer of these files means.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+#: A whole number: decimal digits with an optional sign.
+INT_TEXT = re.compile(r"[+-]?[0-9]+\Z")
+#: A number: decimal digits with an optional sign, point and exponent.
+FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
+#: More digits than this is no count, port or seed anyone means (and int() of thousands of
+#: digits is slow).
+MAX_INT_DIGITS = 30
+
+
+def plain_int(text: str) -> int | None:
+    """*text* as an int when it is a plain whole number of at most :data:`MAX_INT_DIGITS`
+    digits, else None."""
+    if not INT_TEXT.match(text) or len(text.lstrip("+-")) > MAX_INT_DIGITS:
+        return None
+    return int(text, 10)
+
+
+def plain_float(text: str) -> float | None:
+    """*text* as a float when it is a plain decimal number, else None.  The value may still be
+    infinite (``1e999``): :func:`finite_float` refuses that too."""
+    return float(text) if FLOAT_TEXT.match(text) else None
+
+
+def finite_float(text: str) -> float | None:
+    """*text* as a finite float when it is a plain decimal number, else None."""
+    value = plain_float(text)
+    return value if value is not None and math.isfinite(value) else None
