@@ -17,6 +17,7 @@ from test_cli_capture import popen_capture, run_capture_cli
 from zenoh_helpers import Inbox, free_endpoint, peer, wait_for
 
 from radarodom import messages
+from radarodom.errors import MessageError
 
 FRAMES = 30
 
@@ -164,3 +165,54 @@ def test_status_of_a_live_capture_carries_the_board_state(recording):
     assert isinstance(last["source"]["async_status"], dict)  # the board's status counts
     assert last["latency_ms"]["p99"] < 1000.0 and last["rate_hz"] > 0
     assert len(status) >= 2  # about once a second while running, and a last one
+
+
+def _decodable_odometry(inbox: Inbox) -> list[dict]:
+    out = []
+    for payload in inbox.payloads():
+        try:
+            out.append(messages.parse_odometry(payload))
+        except MessageError:
+            pass
+    return out
+
+
+def test_radar_capture_keeps_every_frame_while_a_peer_floods_its_keys(recording):
+    """Issue 18: any peer may put anything on radar-capture's keys and query its odometry
+    without end.  radar-capture processes and publishes every frame all the same, on time in
+    stream order, and says nothing about the flood (it subscribes to nothing)."""
+    here = free_endpoint()
+    hostile = [b"[" * 1000, b"\xff\xfe", b'{"schema":"radarodom/odom","version":1,"t":NaN}', b"RPC1" + b"\x00" * 60,
+               b"x" * (2 << 20)]
+    with peer(listen=[here]) as session:
+        inbox = Inbox()
+        sub = session.declare_subscriber("test/radar/odom", inbox)
+        publishers = [session.declare_publisher(f"test/radar/{kind}") for kind in ("odom", "status", "pointcloud",
+                                                                                    "heatmap")]
+        proc = popen_capture("--source", f"replay://{recording}?rate=2", "--key-prefix", "test/radar",
+                             "--connect", here, "--listen", free_endpoint(), text=True)
+        sent = queries = 0
+        try:
+            while proc.poll() is None:
+                for pub in publishers:
+                    for payload in hostile:
+                        pub.put(payload)
+                        sent += 1
+                for _ in session.get("test/radar/odom", timeout=0.5):
+                    pass
+                queries += 1
+            out, err = proc.communicate(timeout=30)
+            assert wait_for(lambda: len(_decodable_odometry(inbox)) >= FRAMES, 5.0)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+            sub.undeclare()
+    assert sent > 100 and queries > 5, (sent, queries)  # the flood ran the whole time
+    assert proc.returncode == 0, err
+    assert err == "", err
+    assert "published 30 odometry" in out, out
+    odom = _decodable_odometry(inbox)
+    # The hostile puts on the same key reach this subscriber too: radar-capture's own messages
+    # are the 30 that decode, every frame once and in order.
+    assert [m["frame"] for m in odom] == list(range(FRAMES))
