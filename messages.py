@@ -115,13 +115,17 @@ from __future__ import annotations
 import json
 import math
 import struct
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
 from . import strict_json
 from .errors import MessageError
+from .products import RangeAzimuth
 from .tum import yaw_quaternion
+
+if TYPE_CHECKING:  # the estimator is not needed to encode what it made
+    from .estimator.odometry import OdometryState
 
 ODOM_SCHEMA = "radarodom/odom"
 STATUS_SCHEMA = "radarodom/status"
@@ -280,7 +284,7 @@ _ODOM_FIELDS = {
 }
 
 
-def odometry_dict(state: Any) -> dict:
+def odometry_dict(state: OdometryState) -> dict:
     """The odometry v1 object of an :class:`radarodom.estimator.odometry.OdometryState`
     (or anything with its attributes)."""
     return {
@@ -305,7 +309,7 @@ def _flat3x3(matrix: Any, name: str) -> list[float]:
     return a.ravel().tolist()
 
 
-def odometry_json(state: Any) -> bytes:
+def odometry_json(state: OdometryState) -> bytes:
     """The odometry v1 message of *state*, UTF-8 JSON; refuses NaN and infinity."""
     return _json_bytes(odometry_dict(state), "odometry")
 
@@ -406,7 +410,7 @@ def decode_pointcloud(payload: bytes) -> tuple[dict, np.ndarray]:
     return info, points
 
 
-def encode_heatmap(frame: int, t: float, heatmap: Any) -> bytes:
+def encode_heatmap(frame: int, t: float, heatmap: RangeAzimuth) -> bytes:
     """The heatmap v1 message of a :class:`radarodom.dsp.heatmap.RangeAzimuth`
     (or anything with its five arrays)."""
     range_m = np.ascontiguousarray(heatmap.range_m, "<f4")
@@ -469,7 +473,7 @@ def _covariance_6x6(cov3: Any) -> np.ndarray:
     return out.ravel()
 
 
-def ros2_odometry(state: Any, typestore: Any) -> Any:
+def ros2_odometry(state: OdometryState, typestore: Any) -> Any:
     """The ``nav_msgs/msg/Odometry`` of *state* as an instance of *typestore*'s
     (rosbags) class: stamp from ``t``, frames ``odom`` -> ``base_radar``, the
     planar pose and twist, and 6x6 covariances from the 3x3 ones."""

@@ -1,75 +1,55 @@
-"""The point cloud and the heatmap of a source frame: the source's own, or the DSP's.
+"""What a frame yields: a point cloud and a range-azimuth heatmap.
 
-Most sources give raw ADC frames, and the DSP makes both products.  A dataset may ship them
-instead (ColoRadar's on-chip point clouds, its cascade radar's heatmaps), or ship one kind for
-some frames and raw frames for others.  :class:`FrameProducts` hides the difference from the
-pipeline: built once per source, called once per frame.
+The types every layer shares: the DSP makes them, datasets ship them (ColoRadar's on-chip
+point clouds, its cascade radar's heatmaps), the estimator, the sinks and the wire formats
+take them.  This module imports nothing of ``dsp/`` or ``driver/``.
 """
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from .calibration import RangeCoupling
-from .cfg import RadarConfig
-from .errors import CaptureError
+#: One detected point (TI sensor frame; SI units, radians).
+POINT_DTYPE = np.dtype([
+    ("x", "f4"), ("y", "f4"), ("z", "f4"),  # m
+    ("range", "f4"),  # m
+    ("azimuth", "f4"), ("elevation", "f4"),  # rad; azimuth positive to the right
+    ("velocity", "f4"),  # m/s radial, positive receding
+    # dB: the cell over the mean noise power of the summed map (the CFAR estimate over its
+    # method's bias, CfarParams.noise_factor), and that mean noise power
+    ("snr_db", "f4"), ("noise_db", "f4"),
+    ("range_bin", "i2"), ("doppler_bin", "i2"),  # Doppler bin signed: 0 is zero velocity
+])
 
-log = logging.getLogger(__name__)
+
+@dataclass
+class RangeAzimuth:
+    """A polar range-azimuth heatmap; arrays (n_range, n_azimuth)."""
+
+    intensity: np.ndarray  # power over all Doppler bins, linear
+    static: np.ndarray  # power in the zero-Doppler bin(s), linear
+    doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin, m/s
+    range_m: np.ndarray  # (n_range,)
+    azimuth_rad: np.ndarray  # (n_azimuth,), ascending, positive to the right
+
+
+@dataclass
+class RangeAzimuthElevation:
+    """A polar 3-D heatmap; arrays (n_range, n_elevation, n_azimuth)."""
+
+    intensity: np.ndarray
+    static: np.ndarray
+    range_m: np.ndarray
+    azimuth_rad: np.ndarray
+    elevation_rad: np.ndarray
 
 
 @dataclass
 class Products:
-    """What one frame gives: a point cloud (POINT_DTYPE (n,)) and a range-azimuth heatmap
-    (dsp.heatmap.RangeAzimuth); either may be None (a velocity-only frame has no heatmap)."""
+    """What one frame gives: a point cloud (:data:`POINT_DTYPE`, (n,)) and a range-azimuth
+    heatmap; either may be None (a velocity-only frame has no heatmap)."""
 
     points: np.ndarray | None
-    heatmap: Any
-
-
-class FrameProducts:
-    """Products of the frames of one source.
-
-    *config*: the radar configuration of the source's raw frames (None when it has none: then
-    no DSP is built).  *doppler_cells*: how many of the heatmap's strongest cells get their
-    dominant Doppler (None: every cell, the full map; see dsp.heatmap.HeatmapMaker).
-    *coupling*: the source's TX-to-RX coupling to remove (``Source.coupling``); *calibrated*:
-    whether the cfg's channel calibration is known to fit the source's board (``Source.calibrated``).
-    """
-
-    def __init__(self, config: RadarConfig | None, *, doppler_cells: int | None = None,
-                 coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> None:
-        from .dsp.heatmap import HeatmapMaker
-        from .dsp.processor import FrameProcessor
-
-        self.processor = (FrameProcessor(config, coupling=coupling, calibrated=calibrated) if config is not None
-                          else None)
-        self.heatmaps = None if self.processor is None else HeatmapMaker(self.processor, doppler_cells=doppler_cells)
-        # Reused: no allocation per frame.
-        self._cube = None if config is None else np.empty(config.cube_shape, np.complex64)
-
-    @classmethod
-    def for_estimator(cls, config: RadarConfig | None, features_k: int, *,
-                      coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> "FrameProducts":
-        """Products for an estimator taking *features_k* heatmap features a frame: the Doppler of
-        the strongest 4 k cells is enough for its dynamic-object rejection, and much cheaper
-        than the full map's."""
-        return cls(config, doppler_cells=4 * features_k, coupling=coupling, calibrated=calibrated)
-
-    def __call__(self, frame, *, heatmap: bool = True) -> Products:
-        """The products of *frame* (a driver.sources.Frame).  The DSP's heatmap is made only
-        when *heatmap* is true (it is the costly half of a velocity-only frame)."""
-        result = None
-        if frame.raw is not None:
-            if self.processor is None:
-                raise CaptureError(f"frame {frame.index} carries raw samples but the source gave no radar "
-                                   "configuration")
-            result = self.processor.process(frame.cube(out=self._cube))
-        points = frame.points if frame.points is not None else (None if result is None else result.points)
-        hm = frame.heatmap
-        if hm is None and result is not None and heatmap:
-            hm = self.heatmaps.range_azimuth(result.spectrum)
-        return Products(points, hm)
+    heatmap: RangeAzimuth | None

@@ -50,12 +50,18 @@ import socket
 import time
 import weakref
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import zenoh
 
 from . import messages, strict_json
 from .errors import PublishConfigError, PublishError
+from .products import RangeAzimuth
+
+if TYPE_CHECKING:  # the estimator is not needed to publish what it made
+    import numpy as np
+
+    from .estimator.odometry import OdometryState
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -357,7 +363,7 @@ class _Ros2Odometry:
         self._tokens = [liveliness.declare_token(k) for k in
                         ros2_liveliness_keys(options.ros2_domain, str(session.zid()), options.ros2_topic, type_hash)]
 
-    def encode(self, state: Any) -> tuple[bytes, bytes]:
+    def encode(self, state: OdometryState) -> tuple[bytes, bytes]:
         """(CDR payload, attachment) of the next sample."""
         msg = messages.ros2_odometry(state, self._store)
         self._sequence += 1
@@ -448,7 +454,7 @@ class Publisher:
             raise PublishError(f"publishing {kind}: {zenoh_reason(exc)}") from None
         self.counts[kind] += 1
 
-    def odometry(self, state: Any) -> None:
+    def odometry(self, state: OdometryState) -> None:
         """Publish an :class:`~radarodom.estimator.odometry.OdometryState` (and
         keep it for queries; and on ROS 2 when enabled)."""
         payload = messages.odometry_json(state)
@@ -457,11 +463,11 @@ class Publisher:
         if self._ros2 is not None:
             self._put("ros2", *self._ros2.encode(state))
 
-    def pointcloud(self, frame: int, t: float, points: Any) -> None:
+    def pointcloud(self, frame: int, t: float, points: np.ndarray) -> None:
         """Publish one frame's point cloud (POINT_DTYPE or any array with the wire fields)."""
         self._put("pointcloud", messages.encode_pointcloud(frame, t, points))
 
-    def heatmap(self, frame: int, t: float, heatmap: Any) -> None:
+    def heatmap(self, frame: int, t: float, heatmap: RangeAzimuth) -> None:
         """Publish one frame's range-azimuth heatmap (a RangeAzimuth)."""
         self._put("heatmap", messages.encode_heatmap(frame, t, heatmap))
 

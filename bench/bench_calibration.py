@@ -4,7 +4,7 @@ identity line, on the same frame.
     python bench/bench_calibration.py [--rounds 5] [--repeats 60] [--json]
 
 The chain is the one radar-capture builds (``FrameProcessor(cfg)`` and
-``HeatmapMaker(processor, doppler_cells=4 * k)``: points and the range-azimuth heatmap) on a
+``HeatmapMaker(processor, doppler_cells=features.doppler_cells)``: points and the range-azimuth heatmap) on a
 frame of the shipped cfg (256 samples x 64 loops x 3 TX x 4 RX) from the simulator's
 corridor, once with the shipped cfg's identity ``compRangeBiasAndRxChanPhase`` (which
 multiplies nothing) and once with a line (every virtual antenna times its coefficient: the
@@ -46,7 +46,7 @@ from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 
 def chain(cfg: RadarConfig, calibrated: bool | None):
     proc = FrameProcessor(cfg, calibrated=calibrated)
-    maker = HeatmapMaker(proc, doppler_cells=4 * EstimatorConfig().features.k)
+    maker = HeatmapMaker(proc, doppler_cells=EstimatorConfig().features.doppler_cells)
 
     def run(cube):
         result = proc.process(cube)

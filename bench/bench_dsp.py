@@ -14,9 +14,9 @@ after a warm-up; every figure is the median of ``--repeats`` runs (default 30).
    where the time goes.  The whole chain is also run with
    ``DspConfig(workers=2)`` and, when FFTW is the default, with
    ``DspConfig(fft="scipy")``.
-1b. The chain exactly as ``radar-capture`` builds it (tools/radar_capture.py,
-   ``_Processing``): ``FrameProcessor(cfg)`` with the default DspConfig, and
-   ``HeatmapMaker(processor, doppler_cells=4 * EstimatorConfig().features.k)``
+1b. The chain exactly as ``radar-capture`` builds it (radarodom.pipeline,
+   ``FrameProducts.for_estimator``): ``FrameProcessor(cfg)`` with the default DspConfig, and
+   ``HeatmapMaker(processor, doppler_cells=EstimatorConfig().features.doppler_cells)``
    (the fast heatmap mode, 800 cells with the default k = 200), or
    ``HeatmapMaker(processor)`` (the full map, what ``--heatmap-out`` gets).
    The goal (5 ms) is about the fast one.  Median, min, p10 and p90 of
@@ -106,8 +106,8 @@ GOAL_MS = 5.0
 
 def capture_doppler_cells() -> int:
     """The heatmap's fast mode as radar-capture sets it: dominant Doppler for the
-    4 * k strongest cells, k the estimator's Top-k features (default 200)."""
-    return 4 * EstimatorConfig().features.k
+    doppler_cells strongest cells (FeatureConfig.doppler_cells: 4 k, k the Top-k features)."""
+    return EstimatorConfig().features.doppler_cells
 
 
 def _times_ms(fn, repeats: int, warmup: int = 3) -> list[float]:

@@ -4,13 +4,14 @@ For each frame rate, a cfg like the shipped one with that frame period, and two 
 
 - emulated DCA1000: ``radar-emulate --capture DIR`` (a fake AWR1843 on a pty and a fake
   DCA1000 streaming real UDP on loopback, in its own process) with a recording of the
-  corridor made at that rate, and ``radar-capture --source dca1000://...`` against it;
-- simulator: ``radar-capture --source sim://corridor`` in real time (the simulator then
-  shares the process, and its own cost, with the pipeline).
+  corridor made at that rate, and the ``dca1000://`` URL it prints;
+- simulator: ``sim://corridor`` in real time (the simulator then shares the process, and its
+  own cost, with the pipeline).
 
-radar-capture runs capture -> DSP -> estimator -> Zenoh publishing (peer on loopback, no
-subscriber needed) and reports the end-to-end latency of each frame (its last packet
-received, or made, -> odometry published) as percentiles, with the frames dropped by slow
+The pipeline radar-capture builds (radarodom.pipeline: capture -> DSP -> estimator -> Zenoh
+publishing, a peer on loopback with no subscriber needed) runs in this process, and its
+statistics give the end-to-end latency of each frame (its last packet received, or its
+making, -> every output written) as percentiles; the source's, the frames dropped by slow
 processing and the packets lost.
 
     python bench/bench_pipeline.py [--seconds 20] [--rates 10 20 30] [--data DIR]
@@ -18,20 +19,25 @@ processing and the packets lost.
 
 from __future__ import annotations
 
-import argparse
 import os
-import platform
-import re
-import signal
-import subprocess
-import sys
-import time
 
-from radarodom.cfg import shipped_config_path
+# As radar-capture: one BLAS thread (set before numpy loads).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-SUMMARY = re.compile(r"radar-capture: (?P<frames>\d+) frames? .*?in (?P<secs>[\d.]+) s, (?P<hz>[\d.]+) Hz")
-LATENCY = re.compile(r"latency p50 (?P<p50>[\d.]+) ms, p99 (?P<p99>[\d.]+) ms")
-DROPPED = re.compile(r"(?P<dropped>\d+) frames dropped by slow processing, (?P<lost>\d+) packets lost")
+import argparse  # noqa: E402
+import platform  # noqa: E402
+import signal  # noqa: E402
+import socket  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+from radarodom.cfg import RadarConfig, shipped_config_path  # noqa: E402
+from radarodom.driver.sources import open_source  # noqa: E402
+from radarodom.estimator.config import EstimatorConfig  # noqa: E402
+from radarodom.pipeline import Pipeline  # noqa: E402
+from radarodom.pipeline.zenoh_sink import PublisherSink  # noqa: E402
+from radarodom.publish import Publisher, ZenohOptions  # noqa: E402
 
 
 def cfg_at(rate_hz: float, directory: str) -> str:
@@ -58,22 +64,23 @@ def recording(rate_hz: float, cfg: str, directory: str, seconds: float) -> str:
     return out
 
 
-def parse(stdout: str) -> dict:
-    out: dict = {}
-    for pattern in (SUMMARY, LATENCY, DROPPED):
-        m = pattern.search(stdout)
-        if m:
-            out.update({k: float(v) for k, v in m.groupdict().items()})
-    return out
+def _free_endpoint() -> str:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
 
 
-def run_capture(args: list[str], seconds: float) -> dict:
-    proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", *args,
-                           "--duration", str(seconds), "-q"], capture_output=True, text=True,
-                          timeout=seconds * 4 + 60)
-    if proc.returncode != 0:
-        raise RuntimeError(f"radar-capture failed: {proc.stderr.strip()}")
-    return parse(proc.stdout)
+def run_pipeline(url: str, cfg: str, seconds: float) -> dict:
+    """radar-capture's pipeline on *url* for *seconds* of stream time: its statistics."""
+    with Publisher(ZenohOptions(listen=[_free_endpoint()])) as publisher, \
+            open_source(url, RadarConfig.from_file(cfg)) as source:
+        pipeline = Pipeline(source, estimator=EstimatorConfig(), sinks=[PublisherSink(publisher, source)],
+                            max_duration_s=seconds)
+        stats = pipeline.run()
+        live = source.describe()
+    p50, p99 = stats.latency.percentiles_ms(50, 99)
+    return {"frames": stats.frames, "secs": stats.elapsed_s, "hz": stats.mean_rate_hz, "p50": p50, "p99": p99,
+            "dropped": live.get("frames_dropped", 0), "lost": live.get("packets_lost", 0)}
 
 
 def emulated(rate_hz: float, capture_dir: str, seconds: float) -> dict:
@@ -86,7 +93,7 @@ def emulated(rate_hz: float, capture_dir: str, seconds: float) -> dict:
             if not command:
                 raise RuntimeError("radar-emulate ended before printing its command")
         url = command.split("--source", 1)[1].split()[0].strip("'")
-        return run_capture(["--source", url, "--cfg", os.path.join(capture_dir, "radar.cfg")], seconds)
+        return run_pipeline(url, os.path.join(capture_dir, "radar.cfg"), seconds)
     finally:
         emu.send_signal(signal.SIGINT)
         emu.wait(timeout=10)
@@ -104,8 +111,7 @@ def main(argv=None) -> int:
         cfg = cfg_at(rate, args.data)
         rec = recording(rate, cfg, args.data, args.seconds + 5)
         for source, result in (("emulated DCA1000", lambda: emulated(rate, rec, args.seconds)),
-                               ("simulator", lambda: run_capture(["--source", "sim://corridor", "--cfg", cfg],
-                                                                 args.seconds))):
+                               ("simulator", lambda: run_pipeline("sim://corridor", cfg, args.seconds))):
             started = time.monotonic()
             r = result()
             r.update(rate=rate, source=source, wall=time.monotonic() - started)

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..dsp.heatmap import RangeAzimuth
-from ..dsp.processor import POINT_DTYPE
 from ..errors import UsageError
+from ..products import POINT_DTYPE, RangeAzimuth
 from .coloradar_files import HeatmapConfig
 
 # ---------------------------------------------------------------------------------------------

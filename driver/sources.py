@@ -22,10 +22,12 @@ from urllib.parse import parse_qsl
 
 import numpy as np
 
+from ..calibration import RangeCoupling
 from ..cfg import RadarConfig
 from ..cfg_fields import shown
 from ..errors import SourceError
 from ..plain_numbers import plain_float, plain_int
+from ..products import RangeAzimuth
 from ..rawframe import RawLayout
 from ..tum import TumTrajectory
 
@@ -76,10 +78,10 @@ class Frame:
     #: time.monotonic() when the frame was there to process: its last packet received (live),
     #: or made or read (simulator, replay).  End-to-end latencies are measured from it.
     ready_monotonic: float = field(default_factory=time.monotonic)
-    #: A point cloud the source already holds (dsp.processor.POINT_DTYPE, (n,), TI sensor frame).
+    #: A point cloud the source already holds (products.POINT_DTYPE, (n,), TI sensor frame).
     points: np.ndarray | None = None
-    #: A range-azimuth heatmap the source already holds (dsp.heatmap.RangeAzimuth).
-    heatmap: Any = None
+    #: A range-azimuth heatmap the source already holds.
+    heatmap: RangeAzimuth | None = None
     #: Which estimator stream the frame feeds: "both", "velocity" or "heatmap" (:data:`ROLES`).
     role: str = "both"
     #: Of ``missing_bytes``, those never sent before the stream stopped (cut at stop); the
@@ -112,7 +114,7 @@ class Source(abc.ABC):
     carries_raw: bool = True
     #: The TX-to-RX coupling a dataset ships for its raw frames, removed by the DSP
     #: (:class:`radarodom.calibration.RangeCoupling`); None for most sources.
-    coupling: Any = None
+    coupling: RangeCoupling | None = None
     #: Whether the config's channel calibration (compRangeBiasAndRxChanPhase) is known to fit
     #: the board that made the frames: a simulation and its recordings know their board.  None:
     #: unknown (a real board), and then a line other than the identity is taken to fit.

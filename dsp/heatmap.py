@@ -19,12 +19,11 @@ the static (zero-Doppler) bins only, which is what scan registration wants.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.fft
 import scipy.ndimage
 
+from ..products import RangeAzimuth, RangeAzimuthElevation
 from .processor import FrameProcessor
 
 #: Doppler bins per block of the azimuth row's transposing copy (8 complex64: 64 bytes, a
@@ -32,28 +31,6 @@ from .processor import FrameProcessor
 _DOPPLER_BLOCK = 8
 #: Range bins per block of the full map's Doppler x azimuth spectrum.
 _RANGE_BLOCK = 16
-
-
-@dataclass
-class RangeAzimuth:
-    """A polar range-azimuth heatmap; arrays (n_range, n_azimuth)."""
-
-    intensity: np.ndarray  # power over all Doppler bins, linear
-    static: np.ndarray  # power in the zero-Doppler bin(s), linear
-    doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin, m/s
-    range_m: np.ndarray  # (n_range,)
-    azimuth_rad: np.ndarray  # (n_azimuth,), ascending, positive to the right
-
-
-@dataclass
-class RangeAzimuthElevation:
-    """A polar 3-D heatmap; arrays (n_range, n_elevation, n_azimuth)."""
-
-    intensity: np.ndarray
-    static: np.ndarray
-    range_m: np.ndarray
-    azimuth_rad: np.ndarray
-    elevation_rad: np.ndarray
 
 
 class HeatmapMaker:

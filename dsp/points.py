@@ -24,20 +24,10 @@ import scipy.fft
 from ..calibration import ChannelCalibration
 from ..cfg import RadarConfig
 from ..errors import ConfigError
+from ..products import POINT_DTYPE
 from .azimuth_peaks import CellCleaner, apart
 from .config import DspConfig
 
-#: One detected point (TI sensor frame; SI units, radians).
-POINT_DTYPE = np.dtype([
-    ("x", "f4"), ("y", "f4"), ("z", "f4"),  # m
-    ("range", "f4"),  # m
-    ("azimuth", "f4"), ("elevation", "f4"),  # rad; azimuth positive to the right
-    ("velocity", "f4"),  # m/s radial, positive receding
-    # dB: the cell over the mean noise power of the summed map (the CFAR estimate over its
-    # method's bias, CfarParams.noise_factor), and that mean noise power
-    ("snr_db", "f4"), ("noise_db", "f4"),
-    ("range_bin", "i2"), ("doppler_bin", "i2"),  # Doppler bin signed: 0 is zero velocity
-])
 
 
 #: A cell whose strongest azimuth peak grows by this factor (0.6 dB) under another TDM

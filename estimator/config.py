@@ -110,9 +110,20 @@ class FeatureConfig(Settings):
     #: static reflector would have at the estimated ego-velocity, by more than this, m/s
     #: (None: off).
     dynamic_rejection_mps: float | None = 0.15
+    #: The DSP gives a dominant Doppler to this many times ``k`` of the heatmap's strongest
+    #: cells (the rest get none): the features are chosen among the strongest cells, so a few
+    #: times k covers them, local maxima and all, for the dynamic rejection, at a fraction of
+    #: the full map's cost.
+    doppler_cells_per_feature: int = 4
+
+    @property
+    def doppler_cells(self) -> int:
+        """How many of the heatmap's strongest cells the DSP gives a dominant Doppler."""
+        return self.doppler_cells_per_feature * self.k
 
     def __post_init__(self) -> None:
         check_choice(self.method, FEATURE_METHODS, "method")
+        _check(self.doppler_cells_per_feature >= 1, "must be at least 1", "doppler_cells_per_feature")
         check_choice(self.weighting, ("linear", "db"), "weighting")
         _check(self.k >= 1, "must be at least 1", "k")
         _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")

@@ -304,12 +304,12 @@ def _odometry(url: str, cfg: RadarConfig) -> dict:
     from radarodom.estimator.config import EstimatorConfig
     from radarodom.estimator.evaluation import evaluate
     from radarodom.estimator.odometry import RadarOdometry
-    from radarodom.products import FrameProducts
+    from radarodom.pipeline import FrameProducts
     from radarodom.tum import TumTrajectory
 
     times, poses, velocity, truth = [], [], [], []
     with open_source(url, cfg) as source:
-        products = FrameProducts.for_estimator(source.config, EstimatorConfig().features.k)
+        products = FrameProducts.for_estimator(source.config, EstimatorConfig().features)
         odometry = RadarOdometry(EstimatorConfig())
         for frame in source:
             p = products(frame)

@@ -23,7 +23,7 @@ from radarodom.driver.sim.simulator import Simulator
 from radarodom.driver.sources import open_source
 from radarodom.dsp.processor import FrameProcessor
 from radarodom.errors import CaptureFormatError, ConfigError
-from radarodom.products import FrameProducts
+from radarodom.pipeline import FrameProducts
 
 #: The synthetic leakage's beat range, m: far enough out to make a point if left in.
 LEAK_RANGE_M = 1.0

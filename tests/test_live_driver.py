@@ -3,7 +3,7 @@ AWR1843 on a pty and a fake DCA1000 on loopback UDP, speaking the real protocols
 
 Clean streaming (bytes, indices, timestamps, counters), the start and stop order
 both boards see, drop policies with a slow consumer, the receive-buffer warning,
-recording with run_capture, and the command-line programs (radar-emulate ->
+recording with Pipeline.run, and the command-line programs (radar-emulate ->
 radar-capture) including Ctrl-C.  Faults are in test_live_faults.py.
 
 Frames are SMALL_CFG's (3072 bytes every 50 ms) unless a test says otherwise.
@@ -33,7 +33,7 @@ from live_helpers import (
 )
 from radarodom.driver.awr1843 import Awr1843Cli
 from radarodom.driver.awr1843_protocol import Outcome
-from radarodom.driver.capture import run_capture
+from radarodom.pipeline import Pipeline
 from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.dca1000 import WANTED_RCVBUF
 from radarodom.driver.dca1000_wire import Command
@@ -229,13 +229,13 @@ def test_frames_larger_than_half_the_receive_buffer_warn_about_rmem_max(small_ca
 
 
 # ---------------------------------------------------------------------- recording
-def test_run_capture_records_incomplete_frames_with_their_missing_bytes(loss_capture, loss_cfg, tmp_path):
+def test_pipeline_records_incomplete_frames_with_their_missing_bytes(loss_capture, loss_cfg, tmp_path):
     directory, frames = loss_capture
     out = tmp_path / "rec"
     with EmulatedRig(f"replay://{directory}", config=loss_cfg, faults=Faults(loss=0.1), seed=3) as rig:
         with open_source(rig.url(**URL_TIMEOUTS), loss_cfg) as src:
             writer = CaptureWriter(out, src.config, source=src.url)
-            stats = run_capture(src, writer=writer, max_frames=40)
+            stats = Pipeline(src, recorder=writer, max_frames=40).run()
         lost = rig.board.lost_bytes_per_frame
 
     truth = {k: n for k, n in lost.items() if k < 40}

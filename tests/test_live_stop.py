@@ -24,7 +24,7 @@ from live_helpers import (
     assert_frames_match,
     collect_until_stopped,
 )
-from radarodom.driver.capture import run_capture
+from radarodom.pipeline import Pipeline
 from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.dca1000_wire import MAX_DATA_BYTES, AsyncStatus, Command
 from radarodom.driver.emulators.fake_dca1000 import RECORD_COMPLETED_DELAY_S, Faults
@@ -164,18 +164,18 @@ def make_frames(cfg, n: int) -> list[bytes]:
 
 
 # ---------------------------------------------------------------------- recording
-def test_run_capture_records_cut_bytes_and_dropped_frames_in_capture_json(small_capture, small_cfg, tmp_path):
+def test_pipeline_records_cut_bytes_and_dropped_frames_in_capture_json(small_capture, small_cfg, tmp_path):
     directory, _ = small_capture
     out = tmp_path / "rec"
     with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
         with open_source(rig.url(stop_timeout=0.3, **URL_TIMEOUTS), small_cfg) as src:
             writer = CaptureWriter(out, src.config, source=src.url)
 
-            def stop_after_5(frame, stats):
+            def stop_after_5(result, stats):
                 if stats.frames == 5:
                     src.stop()
 
-            stats = run_capture(src, writer=writer, on_frame=stop_after_5)
+            stats = Pipeline(src, recorder=writer).run(stop_after_5)
         sent = rig.board.stats.frames_in
 
     tail = tail_bytes(sent, small_cfg.frame_bytes)

@@ -28,7 +28,7 @@ from zenoh_helpers import Inbox, estimator_run, free_endpoint, peer, subscribe, 
 
 from radarodom import messages
 from radarodom.errors import PublishConfigError, PublishError
-from radarodom.tools.status import LatencyMeter
+from radarodom.pipeline import LatencyMeter
 from radarodom.publish import (CONNECT_RETRY, DEFAULT_ENDPOINT, ROS2_ROUTER_ENDPOINT, Publisher, ZenohOptions,
                                open_session, ros2_liveliness_keys, ros2_topic_key)
 

@@ -1,5 +1,5 @@
 """replay:// sources (capture directories and TI recorder files), URL handling,
-and the capture loop run_capture."""
+and the capture loop (Pipeline.run without processing)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import pytest
 from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture import run_capture
 from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.sources import SCHEMES, open_source
 from radarodom.errors import CaptureFormatError, ConfigError, SourceError
+from radarodom.pipeline import Pipeline
 from radarodom.rawframe import RawLayout
 
 T0 = 1000.0
@@ -359,60 +359,60 @@ def test_ti_file_needs_config(tmp_path, small_cfg):
         open_source(f"replay://{d}?rate=max")
 
 
-# --------------------------------------------------------------- run_capture
+# --------------------------------------------------------------- the run loop (Pipeline.run)
 
-def test_run_capture_to_end(capture):
+def test_pipeline_run_to_end(capture):
     d, _ = capture
     with open_source(f"replay://{d}?rate=max") as src:
-        stats = run_capture(src)
+        stats = Pipeline(src).run()
     assert stats.frames == 6 and stats.reason == "end of source"
     assert stats.incomplete_frames == 1 and stats.missing_bytes == 99
     assert stats.first_timestamp == pytest.approx(T0)
     assert stats.stream_duration_s == pytest.approx(5 * PERIOD)
 
 
-def test_run_capture_max_frames(capture):
+def test_pipeline_run_max_frames(capture):
     d, frames = capture
     seen = []
     with open_source(f"replay://{d}?rate=max&loop=0") as src:
-        stats = run_capture(src, max_frames=9, on_frame=lambda f, s: seen.append(bytes(f.raw)))
+        stats = Pipeline(src, max_frames=9).run(lambda r, s: seen.append(bytes(r.frame.raw)))
     assert stats.frames == 9 and stats.reason == "frame limit"
     assert seen == [frames[i % 6] for i in range(9)]
 
 
-def test_run_capture_max_duration_is_stream_time(capture):
+def test_pipeline_run_max_duration_is_stream_time(capture):
     d, _ = capture
     seen = []
     with open_source(f"replay://{d}?rate=max&loop=0") as src:
         # loop=0 at rate=max: a wall-clock limit would let thousands of frames through
-        stats = run_capture(src, max_duration_s=0.175, on_frame=lambda f, s: seen.append(f.timestamp))
+        stats = Pipeline(src, max_duration_s=0.175).run(lambda r, s: seen.append(r.frame.timestamp))
     assert stats.frames == 4 and stats.reason == "duration limit"
     np.testing.assert_allclose(seen, T0 + PERIOD * np.arange(4), atol=1e-9)
     # looping: 0.5 s of stream is 10 frames of a 6-frame capture
     with open_source(f"replay://{d}?rate=max&loop=0") as src:
-        stats = run_capture(src, max_duration_s=0.475)
+        stats = Pipeline(src, max_duration_s=0.475).run()
     assert stats.frames == 10
 
 
-def test_run_capture_stopped(capture):
+def test_pipeline_run_stopped(capture):
     d, _ = capture
 
-    def on_frame(frame, stats):
+    def on_frame(result, stats):
         if stats.frames == 3:
             src.stop()
 
     with open_source(f"replay://{d}?rate=max&loop=0") as src:
-        stats = run_capture(src, on_frame=on_frame)
+        stats = Pipeline(src).run(on_frame)
     assert stats.frames == 3 and stats.reason == "stopped"
 
 
-def test_run_capture_records_identical_capture(capture, tmp_path):
+def test_pipeline_run_records_identical_capture(capture, tmp_path):
     d, frames = capture
     out = tmp_path / "out"
     url = f"replay://{d}?rate=max"
     with open_source(url) as src:
         writer = CaptureWriter(out, src.config, source=url)
-        stats = run_capture(src, writer=writer)
+        stats = Pipeline(src, recorder=writer).run()
     assert stats.frames == 6
     for name in ("adc_data.bin", "timestamps.txt", "groundtruth.tum", "radar.cfg"):
         assert (out / name).read_bytes() == (d / name).read_bytes(), name
@@ -422,21 +422,21 @@ def test_run_capture_records_identical_capture(capture, tmp_path):
     assert rec.missing_bytes(2) == 99
 
 
-def test_run_capture_closes_writer_on_exception(capture, tmp_path):
+def test_pipeline_run_closes_writer_on_exception(capture, tmp_path):
     d, frames = capture
     out = tmp_path / "out"
 
     class Boom(RuntimeError):
         pass
 
-    def on_frame(frame, stats):
+    def on_frame(result, stats):
         if stats.frames == 3:
             raise Boom("consumer failed")
 
     with open_source(f"replay://{d}?rate=max") as src:
         writer = CaptureWriter(out, src.config)
         with pytest.raises(Boom):
-            run_capture(src, writer=writer, on_frame=on_frame)
+            Pipeline(src, recorder=writer).run(on_frame)
     rec = CaptureDirectory(out)
     assert rec.metadata["closed"] is True
     assert rec.metadata["frame_count"] == 3

@@ -18,25 +18,23 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402  (after the BLAS setting)
-import collections
 import contextlib
 import logging
 import math
 import signal
 import sys
-import time
 
 import numpy as np
 from typing import Iterator, Sequence
 
 from ..cfg import RadarConfig
-from ..driver.capture import CaptureStats, run_capture
 from ..driver.capture_dir import CaptureWriter
-from ..driver.sources import SCHEMES, Frame, Source, open_source
-from ..errors import CaptureError, UsageError
+from ..driver.sources import SCHEMES, Source, open_source
+from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
+from ..pipeline import HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
 from . import cli
-from .status import LatencyMeter, RateMeter, StatusLine, format_duration
+from .status import StatusLine, format_duration
 from .zenoh_args import add_zenoh_arguments
 
 
@@ -101,8 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 @contextlib.contextmanager
-def _stop_on_signals(source: Source) -> Iterator[None]:
-    """First SIGINT/SIGTERM: ask the source to stop after the current frame.
+def _stop_on_signals(pipeline: Pipeline) -> Iterator[None]:
+    """First SIGINT/SIGTERM: ask the pipeline to stop after the current frame.
     Second: abort now (KeyboardInterrupt)."""
     received = 0
 
@@ -111,7 +109,7 @@ def _stop_on_signals(source: Source) -> Iterator[None]:
         received += 1
         if received > 1:
             raise KeyboardInterrupt
-        source.stop()
+        pipeline.stop()
 
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -121,8 +119,8 @@ def _stop_on_signals(source: Source) -> Iterator[None]:
             signal.signal(sig, old)
 
 
-def _status_text(stats: CaptureStats, rate: RateMeter, recording: bool, source: Source) -> str:
-    text = (f"frames {stats.frames}  rate {rate.rate_hz:5.1f} Hz  incomplete {stats.incomplete_frames}"
+def _status_text(stats: PipelineStats, recording: bool, source: Source) -> str:
+    text = (f"frames {stats.frames}  rate {stats.rate.rate_hz:5.1f} Hz  incomplete {stats.incomplete_frames}"
             f"  elapsed {format_duration(stats.elapsed_s)}")
     live = source.describe()
     if "frames_dropped" in live:  # a live capture: why frames are incomplete or missing
@@ -133,7 +131,7 @@ def _status_text(stats: CaptureStats, rate: RateMeter, recording: bool, source: 
     return text + ("  [rec]" if recording else "")
 
 
-def _missing_text(stats: CaptureStats) -> str:
+def _missing_text(stats: PipelineStats) -> str:
     """"3 incomplete, 4368 bytes missing: 2912 lost on the way, 1456 cut at stop"."""
     text = f"{stats.incomplete_frames} incomplete, {stats.missing_bytes} bytes missing"
     causes = [f"{n} {cause}" for n, cause in ((stats.lost_bytes, "lost on the way"),
@@ -141,7 +139,7 @@ def _missing_text(stats: CaptureStats) -> str:
     return text + (": " + ", ".join(causes) if causes else "")
 
 
-def _summary(stats: CaptureStats, record: str | None) -> str:
+def _summary(stats: PipelineStats, record: str | None) -> str:
     text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({_missing_text(stats)}) in "
             f"{stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, {stats.stream_duration_s:.2f} s of stream; "
             f"{stats.reason}")
@@ -158,100 +156,27 @@ def _live_summary(live: dict) -> str:
             f"foreign and {live['malformed_packets']} malformed packets ignored")
 
 
-class _Processing:
-    """The per-frame DSP and estimator, and the files they write (--points-out,
-    --heatmap-out, --odom-out)."""
+def _odometry_status(stats: PipelineStats) -> str:
+    st = stats.state
+    if st is None:
+        return ""
+    p50, p99 = stats.latency.percentiles_ms(50, 99)
+    return (f"  x {st.x:6.2f} y {st.y:6.2f} m yaw {math.degrees(st.yaw):6.1f} deg"
+            f"  v {st.vx:5.2f} m/s  latency {p50:.0f}/{p99:.0f} ms"
+            + ("" if st.ok else "  [" + ",".join(st.flags) + "]"))
 
-    def __init__(self, source: Source, args: argparse.Namespace, outputs: contextlib.ExitStack,
-                 publisher=None) -> None:
-        from ..estimator.odometry import RadarOdometry
-        from ..products import FrameProducts
-        from ..tum import TumWriter
-        from .exports import HeatmapWriter, PointsCsvWriter
 
-        # Check every destination before writing to any, so a refusal leaves nothing behind.
-        for path in (args.points_out, args.odom_out if not args.no_odom else None, args.heatmap_out):
-            if path:
-                cli.check_new_path(path, is_dir=path == args.heatmap_out)
-        estimator_cfg = args.estimator
-        # The heatmap export gets the full map; the estimator needs less.
-        self.products = (FrameProducts(source.config, coupling=source.coupling, calibrated=source.calibrated)
-                         if args.heatmap_out
-                         else FrameProducts.for_estimator(source.config, estimator_cfg.features.k,
-                                                          coupling=source.coupling, calibrated=source.calibrated))
-        self.odometry = None if args.no_odom else RadarOdometry(estimator_cfg)
-        self.state = None
-        # Recent figures only: a sensor node runs for days.
-        self.estimator_s: collections.deque[float] = collections.deque(maxlen=1000)
-        self.latency = LatencyMeter()
-        self.heatmap_out = HeatmapWriter(args.heatmap_out) if args.heatmap_out else None
-        self.points_out = PointsCsvWriter(args.points_out) if args.points_out else None
-        self.odom_out = TumWriter(args.odom_out) if args.odom_out and self.odometry else None
-        for writer in (self.heatmap_out, self.points_out, self.odom_out):
-            if writer is not None:
-                outputs.callback(writer.close)
-        self.publisher = publisher
-
-    def __call__(self, frame: Frame) -> None:
-        wanted = self.heatmap_out is not None or self.odometry is not None or self.publisher is not None
-        # A velocity-only frame of a two-stream source needs no heatmap for the odometry.
-        products = self.products(frame, heatmap=wanted and (frame.role != "velocity" or self.heatmap_out is not None))
-        points, heatmap = products.points, products.heatmap
-        if points is not None and self.points_out is not None:
-            self.points_out.write(frame.index, frame.timestamp, points)
-        if heatmap is not None and self.heatmap_out is not None:
-            self.heatmap_out.write(frame.index, frame.timestamp, heatmap)
-        if self.odometry is not None:
-            state = self._estimate(frame, points, heatmap)
-            if state is not None:
-                self.state = state
-                self.estimator_s.append(state.compute_s)
-                if self.publisher is not None:
-                    self.publisher.odometry(state)
-                if self.odom_out is not None:
-                    self.odom_out.write(state.t, state.x, state.y, state.yaw)
-        # End to end: the frame's last packet (or its making) -> its odometry out.
-        self.latency.add(time.monotonic() - frame.ready_monotonic)
-        if self.publisher is not None:  # the bulky messages after the odometry, at low priority
-            if points is not None:
-                self.publisher.pointcloud(frame.index, frame.timestamp, points)
-            if heatmap is not None:
-                self.publisher.heatmap(frame.index, frame.timestamp, heatmap)
-
-    def _estimate(self, frame: Frame, points, heatmap):
-        """Feed the frame to the estimator's stream(s) its role names; the new state, or None
-        for a velocity-only frame (the pose moves on the heatmap frames)."""
-        if frame.role == "velocity":
-            if points is None:
-                raise CaptureError(f"frame {frame.index}: a velocity frame without a point cloud")
-            self.odometry.add_points(frame.timestamp, points)
-            return None
-        if heatmap is None:
-            raise CaptureError(f"frame {frame.index}: a {frame.role} frame without a heatmap")
-        if frame.role == "heatmap":
-            return self.odometry.add_heatmap(frame.timestamp, heatmap)
-        return self.odometry.step(frame.timestamp, points, heatmap)
-
-    def status(self) -> str:
-        st = self.state
-        if st is None:
-            return ""
-        p50, p99 = self.latency.percentiles_ms(50, 99)
-        return (f"  x {st.x:6.2f} y {st.y:6.2f} m yaw {math.degrees(st.yaw):6.1f} deg"
-                f"  v {st.vx:5.2f} m/s  latency {p50:.0f}/{p99:.0f} ms"
-                + ("" if st.ok else "  [" + ",".join(st.flags) + "]"))
-
-    def summary(self) -> str:
-        if self.state is None:
-            return ""
-        st = self.state
-        p50, p99 = self.latency.percentiles_ms(50, 99)
-        text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {math.degrees(st.yaw):.1f} deg, "
-                f"estimator median {1e3 * float(np.median(self.estimator_s)):.1f} ms/frame, "
-                f"latency p50 {p50:.1f} ms, p99 {p99:.1f} ms")
-        if self.odom_out is not None:
-            text += f", trajectory in {self.odom_out.path}"
-        return text
+def _odometry_summary(stats: PipelineStats, odom_out: str | None) -> str:
+    st = stats.state
+    if st is None:
+        return ""
+    p50, p99 = stats.latency.percentiles_ms(50, 99)
+    text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {math.degrees(st.yaw):.1f} deg, "
+            f"estimator median {1e3 * float(np.median(stats.estimator_s)):.1f} ms/frame, "
+            f"latency p50 {p50:.1f} ms, p99 {p99:.1f} ms")
+    if odom_out:
+        text += f", trajectory in {odom_out}"
+    return text
 
 
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
@@ -265,12 +190,10 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
                       else EstimatorConfig())
     if not args.source:
         args.source = _default_source()
-    rate = RateMeter()
-
     with contextlib.ExitStack() as session:
         # The Zenoh session opens before the radar is touched, so a bad option costs nothing.
         publisher = None if args.no_publish else session.enter_context(_open_publisher(args))
-        summary = _run(args, cfg, publisher, status, rate)
+        summary = _run(args, cfg, publisher, status)
     print(f"radar-capture: {summary}")
     return 0
 
@@ -282,37 +205,64 @@ def _open_publisher(args: argparse.Namespace):
     return Publisher(options_from_args(args))
 
 
-def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: StatusLine, rate: RateMeter) -> str:
-    with open_source(args.source, cfg) as source, contextlib.ExitStack() as outputs:
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Every file output is new: checked before anything is created, so a refusal leaves
+    nothing behind."""
+    for path in (args.points_out, None if args.no_odom else args.odom_out, args.heatmap_out):
+        if path:
+            cli.check_new_path(path, is_dir=path == args.heatmap_out)
+
+
+def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
+    """The outputs asked for (checked by :func:`_check_outputs`)."""
+    sinks: list = []
+    try:
+        # The heatmap directory first: it may already hold heatmaps, found only when opened.
+        if args.heatmap_out:
+            sinks.append(HeatmapSink(args.heatmap_out))
+        if args.points_out:
+            sinks.append(PointsCsvSink(args.points_out))
+        if args.odom_out and not args.no_odom:
+            sinks.append(TumSink(args.odom_out))
+    except BaseException:
+        for sink in sinks:
+            sink.close(PipelineStats())
+        raise
+    if publisher is not None:
+        from ..pipeline.zenoh_sink import PublisherSink
+
+        sinks.append(PublisherSink(publisher, source))
+    return sinks
+
+
+def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: StatusLine) -> str:
+    with open_source(args.source, cfg) as source:
         if args.record and not source.carries_raw:
             raise UsageError(f"{args.source} gives point clouds and heatmaps, not raw ADC frames only: "
                              "--record needs a raw source (for ColoRadar: velocity=single_chip_adc"
                              "&heatmap=single_chip_adc)")
-        needed = not args.no_odom or args.points_out or args.heatmap_out or publisher is not None
-        process = _Processing(source, args, outputs, publisher) if needed else None
-        reporter = None if publisher is None else _StatusReporter(publisher, source, process, rate)
+        _check_outputs(args)
+        recorder = (CaptureWriter(args.record, source.config, source=args.source,
+                                  extra=source.recording_metadata()) if args.record else None)
+        try:
+            sinks = _sinks(args, source, publisher)
+        except BaseException:
+            if recorder is not None:
+                recorder.close()  # no frame yet: the capture is removed
+            raise
+        pipeline = Pipeline(source, estimator=None if args.no_odom else args.estimator, sinks=sinks,
+                            recorder=recorder, max_frames=args.frames, max_duration_s=args.duration)
 
-        def on_frame(frame: Frame, stats: CaptureStats) -> None:
-            if process is not None:
-                process(frame)
-            rate.tick()
-            if reporter is not None:
-                reporter.maybe_send(stats)
-            status.update(_status_text(stats, rate, args.record is not None, source)
-                          + (process.status() if process is not None else ""))
+        def on_frame(result, stats: PipelineStats) -> None:
+            status.update(_status_text(stats, args.record is not None, source) + _odometry_status(stats))
 
-        writer = (CaptureWriter(args.record, source.config, source=args.source, extra=source.recording_metadata())
-                  if args.record else None)
-        with _stop_on_signals(source):
+        with _stop_on_signals(pipeline):
             try:
-                stats = run_capture(source, writer=writer, max_frames=args.frames,
-                                    max_duration_s=args.duration, on_frame=on_frame)
+                stats = pipeline.run(on_frame)
             finally:
                 status.clear()
-        if reporter is not None:
-            reporter.send(stats, final=True)
         live = source.describe()
-    summary = _summary(stats, args.record) + (process.summary() if process is not None else "")
+    summary = _summary(stats, args.record) + _odometry_summary(stats, None if args.no_odom else args.odom_out)
     if "frames_dropped" in live:
         summary += _live_summary(live)
     if publisher is not None:
@@ -321,48 +271,6 @@ def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: S
                     f"{counts['heatmap']} heatmap and {counts['status']} status messages under "
                     f"{publisher.options.key_prefix}")
     return summary
-
-
-def _plain(value) -> bool:
-    """JSON-ready: a scalar, or a dict of scalars (the board's status counts)."""
-    if isinstance(value, dict):
-        return all(isinstance(k, str) and _plain(v) and not isinstance(v, dict) for k, v in value.items())
-    return value is None or isinstance(value, (str, int, float, bool))
-
-
-class _StatusReporter:
-    """Status messages about once a second: rates, drops, losses, latency, source state."""
-
-    def __init__(self, publisher, source: Source, process: "_Processing | None", rate: RateMeter,
-                 period_s: float = 1.0) -> None:
-        self.publisher, self.source, self.process, self.rate = publisher, source, process, rate
-        self.period = period_s
-        self._next = time.monotonic() + period_s
-
-    def maybe_send(self, stats: CaptureStats) -> None:
-        now = time.monotonic()
-        if now >= self._next:
-            self._next = now + self.period
-            self.send(stats)
-
-    def send(self, stats: CaptureStats, final: bool = False) -> None:
-        info = {"time": time.time(), "running": not final, "frames": stats.frames,
-                "rate_hz": round(self.rate.rate_hz, 2), "incomplete_frames": stats.incomplete_frames,
-                "missing_bytes": stats.missing_bytes, "lost_bytes": stats.lost_bytes,
-                "cut_bytes": stats.cut_bytes, "stream_s": round(stats.stream_duration_s, 3)}
-        live = self.source.describe()
-        info["frames_dropped"] = live.get("frames_dropped", 0)
-        info["packets_lost"] = live.get("packets_lost", 0)
-        info["source"] = {k: v for k, v in live.items() if _plain(v)}  # radar and board state
-        if self.process is not None:
-            p50, p90, p99, worst = self.process.latency.percentiles_ms(50, 90, 99, 100)
-            info["latency_ms"] = {"p50": p50, "p90": p90, "p99": p99, "max": worst}
-            if self.process.estimator_s:
-                info["estimator_ms"] = 1e3 * float(np.median(self.process.estimator_s))
-            st = self.process.state
-            if st is not None:
-                info["odometry"] = {"ok": st.ok, "flags": list(st.flags), "frame": st.frame}
-        self.publisher.status(info)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -31,7 +31,9 @@ from ..errors import SourceError, UsageError
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
-from ..products import FrameProducts
+from ..driver.sources import Frame
+from ..pipeline import FrameResult, OdometryFeed, Pipeline, Sink
+from ..products import Products
 from ..tum import TumTrajectory, TumWriter
 from . import cli
 
@@ -49,6 +51,20 @@ def variants() -> dict[str, tuple[str, EstimatorConfig]]:
     return {**paper_variants(), "radarodom default": ("both", EstimatorConfig())}
 
 
+class _Collected(Sink):
+    """Every frame's products, kept for the estimator variants (without the raw bytes)."""
+
+    wants_heatmaps = True
+
+    def __init__(self) -> None:
+        self.items: list[tuple[Frame, Products]] = []
+
+    def write(self, result: FrameResult, stats) -> None:
+        f = result.frame
+        self.items.append((Frame(f.index, f.timestamp, None, None, role=f.role),
+                           Products(result.points, result.heatmap)))
+
+
 class RunData:
     """A run's two streams, read once through the ``coloradar://`` source: point clouds
     (velocity, in the heatmap radar's frame) and polar heatmaps (yaw); ADC frames go through
@@ -60,36 +76,27 @@ class RunData:
         except SourceError as exc:
             raise UsageError(str(exc)) from None
         self.run, self.sensor = run, source.sensor
-        # As radar-capture makes them, so both give the same trajectory on the same frames.
-        products = FrameProducts.for_estimator(source.config, EstimatorConfig().features.k,
-                                               coupling=source.coupling, calibrated=source.calibrated)
-        #: (t, role, points or heatmap) of every frame, in time order; a frame giving both
-        #: is a velocity then a heatmap at the same time (what RadarOdometry.step does).
-        self.frames: list[tuple[float, str, object]] = []
-        for f in source:
-            got = products(f, heatmap=f.role != "velocity")
-            if f.role != "heatmap":
-                self.frames.append((f.timestamp, "velocity", got.points))
-            if f.role != "velocity":
-                self.frames.append((f.timestamp, "heatmap", got.heatmap))
-        self.heatmap_times = np.array([t for t, role, _ in self.frames if role == "heatmap"])
-        self.groundtruth = source.groundtruth()
+        # Through radar-capture's pipeline, so both give the same trajectory on the same frames.
+        collected = _Collected()
+        with source:
+            Pipeline(source, sinks=[collected]).run()
+            self.groundtruth = source.groundtruth()
+        #: (frame, products) of every frame, in time order.
+        self.frames = collected.items
+        self.heatmap_times = np.array([f.timestamp for f, _ in self.frames if f.role != "velocity"])
         self.kept = np.isin(self.heatmap_times, self.groundtruth.times)
 
     def estimate(self, config: EstimatorConfig) -> tuple[TumTrajectory, np.ndarray]:
         """The estimated trajectory at the heatmap times kept by the ground truth, and the
         estimator's time per heatmap frame (s)."""
-        odom = RadarOdometry(config)
+        feed = OdometryFeed(RadarOdometry(config))
         poses, times, compute = [], [], []
         kept = iter(self.kept)
-        for t, role, data in self.frames:
-            if role == "velocity":
-                odom.add_points(t, data)
-                continue
-            state = odom.add_heatmap(t, data)
-            if next(kept):
+        for frame, products in self.frames:
+            state = feed(frame, products)
+            if state is not None and next(kept):
                 poses.append((state.x, state.y, state.yaw))
-                times.append(t)
+                times.append(state.t)
                 compute.append(state.compute_s)
         return TumTrajectory.from_se2(np.array(times), np.array(poses).reshape(-1, 3), source=self.run.name), \
             np.array(compute)

@@ -1,0 +1,203 @@
+"""One frame's path, top-down: source -> recording -> products -> odometry -> sinks.
+
+    with Pipeline.from_url("sim://corridor?rate=max&duration=5", sinks=[TumSink("odom.tum")]) as pipe:
+        stats = pipe.run()
+
+:meth:`Pipeline.run` iterates the source until it ends, a limit is reached or
+:meth:`Pipeline.stop` is called (a signal handler does that); for each frame it records the raw
+bytes (when recording), counts it, and hands it to :meth:`Pipeline.process`: the frame's point
+cloud and heatmap (the source's own, or the DSP's, made only when something needs them), the
+estimator fed by the frame's role (:class:`OdometryFeed`), and every sink in order.  The
+recording and the sinks are closed when the run ends, whatever ends it.  Statistics, latency
+and the estimator's times are kept in :class:`PipelineStats` as the run goes.
+
+The parts are chosen once, when the pipeline is built: the products' DSP, the estimator and
+its feed, which roles need a heatmap.  Command-line programs parse their arguments, build a
+pipeline, and render its statistics.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Callable, Sequence
+
+from ..cfg import RadarConfig
+from ..driver.capture_dir import CaptureWriter
+from ..driver.sources import ROLES, Frame, Source, open_source
+from ..dsp.config import DspConfig
+from ..errors import CaptureError
+from ..estimator.config import EstimatorConfig
+from ..estimator.odometry import OdometryState, RadarOdometry
+from ..products import Products
+from .products import FrameProducts
+from .sinks import FrameResult, HeatmapSink, PointsCsvSink, Sink, TumSink
+from .stats import LatencyMeter, PipelineStats, RateMeter
+
+log = logging.getLogger(__name__)
+
+#: Stream times are kept to the nanosecond: 1000.15 - 1000.0 (0.14999...) counts as 0.15 s.
+_DURATION_TOLERANCE_S = 1e-6
+
+
+class OdometryFeed:
+    """Feeds a frame's products to the estimator's stream(s) its role names: a "velocity" frame's
+    point cloud, a "heatmap" frame's heatmap, or both; the new odometry state, or None for a
+    velocity-only frame (the pose moves on heatmap frames)."""
+
+    def __init__(self, odometry: RadarOdometry) -> None:
+        self.odometry = odometry
+        self._by_role = {"velocity": self._velocity, "heatmap": self._heatmap, "both": self._both}
+
+    def __call__(self, frame: Frame, products: Products) -> OdometryState | None:
+        return self._by_role[frame.role](frame, products)
+
+    def _velocity(self, frame: Frame, products: Products) -> None:
+        if products.points is None:
+            raise CaptureError(f"frame {frame.index}: a velocity frame without a point cloud")
+        self.odometry.add_points(frame.timestamp, products.points)
+        return None
+
+    def _heatmap(self, frame: Frame, products: Products) -> OdometryState:
+        return self.odometry.add_heatmap(frame.timestamp, self._checked_heatmap(frame, products))
+
+    def _both(self, frame: Frame, products: Products) -> OdometryState:
+        return self.odometry.step(frame.timestamp, products.points, self._checked_heatmap(frame, products))
+
+    @staticmethod
+    def _checked_heatmap(frame: Frame, products: Products):
+        if products.heatmap is None:
+            raise CaptureError(f"frame {frame.index}: a {frame.role} frame without a heatmap")
+        return products.heatmap
+
+
+class Pipeline:
+    """A source's frames through the DSP and the estimator to sinks; see the module docstring.
+
+    *estimator*: the estimator's settings (None: no odometry); *dsp*: the DSP's; *sinks*: where
+    results go, in order; *recorder*: a capture directory the raw frames are recorded to before
+    any processing; *max_frames* / *max_duration_s*: stop after that many frames / seconds of
+    stream time (frame timestamps from the first frame, so a replay at ``rate=max`` covers the
+    same span as in real time).
+    """
+
+    def __init__(self, source: Source, *, estimator: EstimatorConfig | None = None, dsp: DspConfig | None = None,
+                 sinks: Sequence[Sink] = (), recorder: CaptureWriter | None = None, max_frames: int | None = None,
+                 max_duration_s: float | None = None, owns_source: bool = False) -> None:
+        self.source = source
+        self.sinks = list(sinks)
+        self.recorder = recorder
+        self.max_frames, self.max_duration_s = max_frames, max_duration_s
+        self.stats = PipelineStats()
+        self._owns_source = owns_source
+        self._closed = False
+        self.feed = None if estimator is None else OdometryFeed(RadarOdometry(estimator))
+        # Nothing to compute for (recording alone): no DSP at all.
+        self.products = None
+        if self.feed is not None or self.sinks:
+            features = (estimator or EstimatorConfig()).features
+            full = any(s.full_heatmaps for s in self.sinks)
+            self.products = (FrameProducts(source.config, dsp, coupling=source.coupling, calibrated=source.calibrated)
+                             if full else FrameProducts.for_estimator(source.config, features, dsp,
+                                                                      coupling=source.coupling,
+                                                                      calibrated=source.calibrated))
+        # A heatmap is made when the estimator or a sink takes it; a velocity-only frame's only
+        # for a sink that wants every heatmap.
+        wanted = self.feed is not None or any(s.wants_heatmaps for s in self.sinks)
+        self._heatmap_for = {role: wanted for role in ROLES}
+        self._heatmap_for["velocity"] = any(s.full_heatmaps for s in self.sinks)
+
+    @classmethod
+    def from_url(cls, url: str, config: RadarConfig | None = None, **kwargs) -> Pipeline:
+        """A pipeline on the source *url* opens (closed with the pipeline); *kwargs* as for the
+        constructor."""
+        return cls(open_source(url, config), owns_source=True, **kwargs)
+
+    # ------------------------------------------------------------------ one frame
+    def process(self, frame: Frame) -> FrameResult:
+        """The frame's products and odometry, given to every sink."""
+        if self.products is None:
+            return FrameResult(frame, None, None, None)
+        products = self.products(frame, heatmap=self._heatmap_for[frame.role])
+        state = None if self.feed is None else self.feed(frame, products)
+        if state is not None:
+            self.stats.state = state
+            self.stats.estimator_s.append(state.compute_s)
+        result = FrameResult(frame, products.points, products.heatmap, state)
+        for sink in self.sinks:
+            sink.write(result, self.stats)
+        self.stats.latency.add(time.monotonic() - frame.ready_monotonic)
+        return result
+
+    # ------------------------------------------------------------------ the run
+    def run(self, on_frame: Callable[[FrameResult, PipelineStats], None] | None = None) -> PipelineStats:
+        """Stream the source through the pipeline until it ends, a limit is reached or
+        :meth:`stop`; *on_frame* is called after each frame (a status display).  The recording
+        and the sinks are closed before this returns or raises."""
+        stats = self.stats
+        stats.reason = "end of source"
+        try:
+            for frame in self.source:
+                if self._past_duration(frame):
+                    stats.reason = "duration limit"
+                    break
+                if self.recorder is not None:
+                    self.recorder.write(frame.raw, frame.timestamp, frame.missing_bytes, frame.pose,
+                                        cut_bytes=frame.cut_bytes)
+                stats.count(frame.timestamp, frame.missing_bytes, frame.cut_bytes)
+                result = self.process(frame)
+                stats.rate.tick()
+                if on_frame is not None:
+                    on_frame(result, stats)
+                if self.max_frames is not None and stats.frames >= self.max_frames:
+                    stats.reason = "frame limit"
+                    break
+            if self.source.stop_requested:
+                stats.reason = "stopped"
+        finally:
+            stats.elapsed_s = time.monotonic() - stats.started_monotonic
+            self._finish()
+        log.debug("run ended (%s) after %d frames", stats.reason, stats.frames)
+        return stats
+
+    def _past_duration(self, frame: Frame) -> bool:
+        first = self.stats.first_timestamp
+        return (self.max_duration_s is not None and first is not None
+                and frame.timestamp - first >= self.max_duration_s - _DURATION_TOLERANCE_S)
+
+    def stop(self) -> None:
+        """Stop after the current frame (safe from a signal handler)."""
+        self.source.stop()
+
+    def _finish(self) -> None:
+        """Close the recording and the sinks, once."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self.recorder is not None:
+                dropped = self.source.describe().get("frames_dropped")
+                if dropped is not None:  # a live stream: the recording lacks the frames it dropped
+                    self.recorder.annotate(dropped_frames=dropped)
+                self.recorder.close()
+        finally:
+            for sink in self.sinks:
+                sink.close(self.stats)
+
+    def close(self) -> None:
+        """Close the recording and sinks (if :meth:`run` did not), and the source if owned."""
+        try:
+            self._finish()
+        finally:
+            if self._owns_source:
+                self.source.close()
+
+    def __enter__(self) -> Pipeline:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+__all__ = ["Pipeline", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "TumSink", "PointsCsvSink",
+           "HeatmapSink", "FrameProducts", "RateMeter", "LatencyMeter"]

@@ -1,0 +1,65 @@
+"""The point cloud and the heatmap of a source frame: the source's own, or the DSP's.
+
+Most sources give raw ADC frames, and the DSP makes both products.  A dataset may ship them
+instead (ColoRadar's on-chip point clouds, its cascade radar's heatmaps), or ship one kind for
+some frames and raw frames for others.  :class:`FrameProducts` hides the difference from the
+pipeline: built once per source, called once per frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..calibration import RangeCoupling
+from ..cfg import RadarConfig
+from ..driver.sources import Frame
+from ..dsp.config import DspConfig
+from ..dsp.heatmap import HeatmapMaker
+from ..dsp.processor import FrameProcessor
+from ..errors import CaptureError
+from ..estimator.config import FeatureConfig
+from ..products import Products
+
+
+class FrameProducts:
+    """Products of the frames of one source.
+
+    *config*: the radar configuration of the source's raw frames (None when it has none: then
+    no DSP is built); *dsp*: the DSP's settings (default: ``DspConfig()``).  *doppler_cells*:
+    how many of the heatmap's strongest cells get their dominant Doppler (None: every cell, the
+    full map; see dsp.heatmap.HeatmapMaker).  *coupling*: the source's TX-to-RX coupling to
+    remove (``Source.coupling``); *calibrated*: whether the cfg's channel calibration is known
+    to fit the source's board (``Source.calibrated``).
+    """
+
+    def __init__(self, config: RadarConfig | None, dsp: DspConfig | None = None, *,
+                 doppler_cells: int | None = None, coupling: RangeCoupling | None = None,
+                 calibrated: bool | None = None) -> None:
+        self.processor = (FrameProcessor(config, dsp, coupling=coupling, calibrated=calibrated)
+                          if config is not None else None)
+        self.heatmaps = None if self.processor is None else HeatmapMaker(self.processor, doppler_cells=doppler_cells)
+        # Reused: no allocation per frame.
+        self._cube = None if config is None else np.empty(config.cube_shape, np.complex64)
+
+    @classmethod
+    def for_estimator(cls, config: RadarConfig | None, features: FeatureConfig, dsp: DspConfig | None = None, *,
+                      coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> "FrameProducts":
+        """Products for an estimator whose features are *features*: the Doppler of its
+        ``doppler_cells`` strongest cells (``FeatureConfig.doppler_cells``), enough for its
+        dynamic-object rejection and much cheaper than the full map's."""
+        return cls(config, dsp, doppler_cells=features.doppler_cells, coupling=coupling, calibrated=calibrated)
+
+    def __call__(self, frame: Frame, *, heatmap: bool = True) -> Products:
+        """The products of *frame*.  The DSP's heatmap is made only when *heatmap* is true (it
+        is the costly half of a velocity-only frame)."""
+        result = None
+        if frame.raw is not None:
+            if self.processor is None:
+                raise CaptureError(f"frame {frame.index} carries raw samples but the source gave no radar "
+                                   "configuration")
+            result = self.processor.process(frame.cube(out=self._cube))
+        points = frame.points if frame.points is not None else (None if result is None else result.points)
+        hm = frame.heatmap
+        if hm is None and result is not None and heatmap:
+            hm = self.heatmaps.range_azimuth(result.spectrum)
+        return Products(points, hm)

@@ -1,0 +1,150 @@
+"""Where a pipeline's results go: one small interface (:class:`Sink`), and the file outputs.
+
+A sink is given every frame's :class:`FrameResult` (its point cloud, heatmap and new odometry,
+whichever it has) in stream order, and is closed once at the end of the run with its
+statistics.  A new output is a new sink, not an edit of the loop.
+
+- :class:`TumSink`: the odometry, one TUM line per heatmap frame.
+- :class:`PointsCsvSink`: point clouds as CSV: ``frame, t, x, y, z, range, azimuth, elevation,
+  velocity, snr_db`` (TI sensor frame, m, rad, m/s, dB), one row per point, rows of a frame
+  together, flushed frame by frame.
+- :class:`HeatmapSink`: a directory of ``NNNNNN_intensity.npy``, ``NNNNNN_static.npy``,
+  ``NNNNNN_doppler.npy`` (float32, (n_range, n_azimuth): power over all Doppler bins, in the
+  zero-Doppler bin, and the dominant radial velocity in m/s) per frame, and ``index.json`` with
+  the axes (``range_m``, ``azimuth_rad``) and one entry per frame (``frame``, ``t``).
+
+The Zenoh publisher's sink is :class:`radarodom.pipeline.zenoh_sink.PublisherSink`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..driver.capture_dir import write_json_atomically
+from ..driver.sources import Frame
+from ..errors import CaptureError, CaptureExistsError
+from ..estimator.odometry import OdometryState
+from ..products import RangeAzimuth
+from ..tum import TumWriter
+
+if TYPE_CHECKING:
+    from .stats import PipelineStats
+
+
+@dataclass
+class FrameResult:
+    """One frame through the pipeline: the frame, its point cloud (POINT_DTYPE (n,)) and
+    range-azimuth heatmap (either None when the frame has none or nothing needed it), and the
+    odometry it produced (None for a velocity-only frame, or without an estimator)."""
+
+    frame: Frame
+    points: np.ndarray | None
+    heatmap: RangeAzimuth | None
+    state: OdometryState | None
+
+
+class Sink:
+    """Where results go.  Subclasses override :meth:`write` and, when they hold resources,
+    :meth:`close`."""
+
+    #: Whether this sink takes heatmaps: the DSP makes a frame's heatmap only when something
+    #: needs it ...
+    wants_heatmaps = False
+    #: ... and whether it needs the full map (every cell's dominant Doppler), not the
+    #: estimator's (the strongest cells' only).
+    full_heatmaps = False
+
+    def write(self, result: FrameResult, stats: PipelineStats) -> None:
+        raise NotImplementedError
+
+    def close(self, stats: PipelineStats) -> None:
+        """The run ended (normally or not): flush and release."""
+
+
+class TumSink(Sink):
+    """The odometry as a TUM trajectory file (a new file)."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = os.fspath(path)
+        self._writer = TumWriter(self.path)
+
+    def write(self, result: FrameResult, stats: PipelineStats) -> None:
+        st = result.state
+        if st is not None:
+            self._writer.write(st.t, st.x, st.y, st.yaw)
+
+    def close(self, stats: PipelineStats) -> None:
+        self._writer.close()
+
+
+POINT_COLUMNS = ("x", "y", "z", "range", "azimuth", "elevation", "velocity", "snr_db")
+
+
+class PointsCsvSink(Sink):
+    """Every point cloud as rows of a new CSV file (module docstring)."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        try:
+            self._fh = open(path, "x", encoding="ascii", newline="\n")
+        except FileExistsError:
+            raise CaptureExistsError(f"{os.fspath(path)} already exists; choose a new file") from None
+        except OSError as exc:
+            raise CaptureError(f"cannot create {os.fspath(path)}: {exc.strerror or exc}") from None
+        self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
+        self._fh.flush()
+
+    def write(self, result: FrameResult, stats: PipelineStats) -> None:
+        if result.points is not None:
+            self.write_points(result.frame.index, result.frame.timestamp, result.points)
+
+    def write_points(self, frame: int, t: float, points: np.ndarray) -> None:
+        if len(points):
+            cols = np.column_stack([points[c].astype(float) for c in POINT_COLUMNS])
+            prefix = f"{frame},{t:.6f},"
+            self._fh.write("".join(prefix + ",".join(f"{v:.5g}" for v in row) + "\n" for row in cols))
+        self._fh.flush()
+
+    def close(self, stats: PipelineStats | None = None) -> None:
+        self._fh.close()
+
+
+class HeatmapSink(Sink):
+    """Every heatmap as .npy files in a new directory (module docstring)."""
+
+    wants_heatmaps = full_heatmaps = True
+
+    def __init__(self, directory: str | os.PathLike) -> None:
+        self.directory = os.fspath(directory)
+        try:
+            os.makedirs(self.directory, exist_ok=True)
+        except OSError as exc:
+            raise CaptureError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
+        if os.path.exists(os.path.join(self.directory, "index.json")):
+            raise CaptureExistsError(f"{self.directory} already holds heatmaps; choose a new directory")
+        self._index: dict = {"format": "radarodom-heatmaps", "format_version": 1,
+                             "files": ["intensity", "static", "doppler"], "frames": []}
+
+    def write(self, result: FrameResult, stats: PipelineStats) -> None:
+        if result.heatmap is not None:
+            self.write_heatmap(result.frame.index, result.frame.timestamp, result.heatmap)
+
+    def write_heatmap(self, frame: int, t: float, heatmap: RangeAzimuth) -> None:
+        if "range_m" not in self._index:
+            self._index["range_m"] = heatmap.range_m.tolist()
+            self._index["azimuth_rad"] = heatmap.azimuth_rad.tolist()
+        for name in ("intensity", "static", "doppler"):
+            arr = getattr(heatmap, name if name != "doppler" else "doppler_mps")
+            np.save(os.path.join(self.directory, f"{frame:06d}_{name}.npy"), arr.astype(np.float32))
+        self._index["frames"].append({"frame": frame, "t": t})
+        if len(self._index["frames"]) % 50 == 1:
+            self._write_index()
+
+    def _write_index(self) -> None:
+        write_json_atomically(os.path.join(self.directory, "index.json"), self._index)
+
+    def close(self, stats: PipelineStats | None = None) -> None:
+        self._write_index()
