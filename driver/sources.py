@@ -36,10 +36,10 @@ log = logging.getLogger(__name__)
 #: scheme -> "module:function" of the backend's opener.  Openers take
 #: (path, options: UrlOptions, config: RadarConfig | None) and return a Source.
 SCHEMES: dict[str, str] = {
-    "replay": "radarodom.driver.replay:open_replay",
+    "replay": "radarodom.driver.recordings.replay:open_replay",
     "sim": "radarodom.driver.sim.source:open_sim",
-    "dca1000": "radarodom.driver.live:open_live",
-    "coloradar": "radarodom.driver.coloradar_source:open_coloradar",
+    "dca1000": "radarodom.driver.live.source:open_live",
+    "coloradar": "radarodom.driver.coloradar.source:open_coloradar",
 }
 
 

@@ -23,7 +23,7 @@ import time
 from typing import Callable, Sequence
 
 from ..cfg import RadarConfig
-from ..driver.capture_dir import CaptureWriter
+from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import ROLES, Frame, Source, open_source
 from ..dsp.config import DspConfig
 from ..errors import CaptureError

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..driver.capture_dir import write_json_atomically
+from ..driver.recordings.capture_dir import write_json_atomically
 from ..driver.sources import Frame
 from ..errors import CaptureError, CaptureExistsError
 from ..estimator.odometry import OdometryState

@@ -378,7 +378,7 @@ def write_run_from_capture(root, capture_dir, name: str = "sim_run0") -> pathlib
     antenna_cfg.txt places each slot's TX; mounts are identity, so the single-chip radar's
     poses are the recording's."""
     from radarodom.antenna import TX_OFFSETS_HALF_WAVELENGTHS
-    from radarodom.driver.capture_dir import CaptureDirectory
+    from radarodom.driver.recordings.capture_dir import CaptureDirectory
 
     store = CaptureDirectory(str(capture_dir))
     cfg = store.config

@@ -20,7 +20,7 @@ settings.register_profile("radarodom", derandomize=True, database=None, deadline
 settings.load_profile("radarodom")
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureWriter
+from radarodom.driver.recordings.capture_dir import CaptureWriter
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 SHARED = pathlib.Path(os.environ.get("RADARODOM_SHARED", REPO.parent / "shared")) / "reference"

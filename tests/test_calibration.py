@@ -16,7 +16,7 @@ from sim_helpers import truth
 from radarodom import cfg_commands as cc
 from radarodom.calibration import ChannelCalibration, uncalibrated_note
 from radarodom.cfg import RadarConfig, shipped_config_path
-from radarodom.driver.capture_dir import CaptureWriter
+from radarodom.driver.recordings.capture_dir import CaptureWriter
 from radarodom.driver.sim.board import BUILTIN_BOARDS, Board, board_from_dict, load_board
 from radarodom.driver.sim.scene import load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator

@@ -20,7 +20,7 @@ from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 
 import radarodom
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
+from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.sources import open_source
 from radarodom.errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
 from radarodom.tum import read_tum
@@ -636,7 +636,7 @@ CHILD_WRITER = r"""
 import sys
 import numpy as np
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureWriter
+from radarodom.driver.recordings.capture_dir import CaptureWriter
 
 out, cfg_text = sys.argv[1], sys.argv[2]
 cfg = RadarConfig.from_text(cfg_text, "small.cfg")

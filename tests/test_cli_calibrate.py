@@ -200,7 +200,7 @@ def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path):
 
 
 def test_a_source_of_incomplete_frames_only_says_so(tmp_path, shipped_cfg):
-    from radarodom.driver.capture_dir import CaptureWriter
+    from radarodom.driver.recordings.capture_dir import CaptureWriter
 
     sim = Simulator(shipped_cfg, load_scene("calibration"), duration_s=0.3)
     with CaptureWriter(tmp_path / "rec", shipped_cfg, source="test") as writer:
@@ -218,7 +218,7 @@ def test_a_datasets_coupling_is_taken_out_first(shipped_cfg):
     from test_coloradar_coupling import coupling_values
 
     from radarodom.calibration import RangeCoupling
-    from radarodom.driver.coloradar_coupling import FIRST_BIN, periodic_blackman
+    from radarodom.driver.coloradar.coupling import FIRST_BIN, periodic_blackman
 
     board = load_board("uncalibrated")
     sim = Simulator(shipped_cfg, load_scene("calibration"), board=board, seed=3)

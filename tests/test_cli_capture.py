@@ -22,7 +22,7 @@ import pytest
 from conftest import SMALL_CFG, console_command, make_capture, private_zenoh
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory
+from radarodom.driver.recordings.capture_dir import CaptureDirectory
 from radarodom.tools import radar_capture
 
 FRAME_BYTES = 3072
@@ -216,7 +216,7 @@ def test_frames_limit_records_exactly_n(src, tmp_path):
 
 
 @pytest.mark.parametrize("duration,expected", [
-    # The rule (driver/capture.py): a frame is recorded while its stream time since the
+    # The rule (radarodom.pipeline): a frame is recorded while its stream time since the
     # first frame is below --duration; the first frame at or past it stops the run.
     ("0.2", 4), ("0.25", 5), ("0.1", 2), ("0.12", 3),
     ("0.05", 1),

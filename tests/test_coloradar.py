@@ -12,7 +12,7 @@ import re
 import coloradar_synth as synth
 import numpy as np
 import pytest
-from radarodom.driver.coloradar import (
+from radarodom.driver.coloradar.run import (
     STREAMS,
     ColoRadarRun,
     HeatmapConfig,

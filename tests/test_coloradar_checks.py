@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from coloradar_synth import T0, write_run
 
-from radarodom.driver.coloradar import ColoRadarRun
-from radarodom.driver.coloradar_source import ColoRadarSource
+from radarodom.driver.coloradar.run import ColoRadarRun
+from radarodom.driver.coloradar.source import ColoRadarSource
 from radarodom.errors import CaptureFormatError, UsageError
 from radarodom.tools import radar_capture, radar_coloradar
 

@@ -17,7 +17,7 @@ from coloradar_synth import write_run
 from radarodom.antenna import TX_OFFSETS_HALF_WAVELENGTHS
 from radarodom.calibration import RangeCoupling
 from radarodom.cfg import RadarConfig, shipped_config_path
-from radarodom.driver.coloradar_coupling import FIRST_BIN, coupling_file_text, periodic_blackman, read_coupling
+from radarodom.driver.coloradar.coupling import FIRST_BIN, coupling_file_text, periodic_blackman, read_coupling
 from radarodom.driver.sim.scene import scene_from_dict
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.driver.sources import open_source

@@ -26,8 +26,8 @@ from coloradar_synth import TX_POSITIONS, write_moving_run, write_run, write_run
 from test_cli_capture import one_error_line
 
 from radarodom.cfg import RadarConfig, shipped_config_path
-from radarodom.driver.coloradar import ColoRadarRun, WaveformConfig
-from radarodom.driver.coloradar_waveform import (AntennaConfig, read_antenna_config, tx_order_from_antennas,
+from radarodom.driver.coloradar.run import ColoRadarRun, WaveformConfig
+from radarodom.driver.coloradar.waveform import (AntennaConfig, read_antenna_config, tx_order_from_antennas,
                                                  waveform_to_config)
 from radarodom.driver.sources import open_source
 from radarodom.errors import CaptureFormatError, SourceError

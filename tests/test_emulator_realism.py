@@ -20,9 +20,9 @@ import serial
 from conftest import REPO, SMALL_CFG, make_capture, warning_messages
 from live_helpers import URL_TIMEOUTS, collect, config
 from radarodom.cfg import RadarConfig
-from radarodom.driver.awr1843 import Awr1843Cli
-from radarodom.driver.awr1843_protocol import PROMPT, Outcome
-from radarodom.driver.dca1000_wire import PacketConfig, Command
+from radarodom.driver.live.awr1843 import Awr1843Cli
+from radarodom.driver.live.awr1843_protocol import PROMPT, Outcome
+from radarodom.driver.live.dca1000_wire import PacketConfig, Command
 from radarodom.driver.emulators.fake_awr1843 import BOOT_BANNER, BOOT_TIME_S, FakeAwr1843
 from radarodom.driver.emulators.fake_dca1000 import FakeDca1000
 from radarodom.driver.emulators.rig import EmulatedRig

@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from conftest import warning_messages
 
-from radarodom.driver.capture_dir import CaptureWriter
+from radarodom.driver.recordings.capture_dir import CaptureWriter
 from radarodom.errors import CaptureExistsError, CaptureFormatError, EvaluationError, UsageError
 from radarodom.estimator.angles import wrap
 from radarodom.estimator.evaluation import (

@@ -11,7 +11,7 @@ import serial
 from conftest import REPO, SMALL_CFG
 from radarodom import cfg_commands as cc
 from radarodom.cfg import RadarConfig
-from radarodom.driver.awr1843_protocol import (
+from radarodom.driver.live.awr1843_protocol import (
     ALREADY_STARTED,
     ALREADY_STOPPED,
     FULL_CONFIG_NEEDED,

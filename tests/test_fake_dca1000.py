@@ -13,7 +13,7 @@ import pytest
 
 from conftest import make_capture
 
-from radarodom.driver.dca1000_wire import (
+from radarodom.driver.live.dca1000_wire import (
     AsyncStatus,
     Command,
     DataPacket,
@@ -27,7 +27,7 @@ from radarodom.driver.dca1000_wire import (
     WireError,
 )
 from radarodom.driver.emulators.fake_dca1000 import FakeDca1000, Faults
-from radarodom.driver.pcap import read_udp
+from radarodom.driver.recordings.pcap import read_udp
 from radarodom.driver.sources import open_source
 
 HOST = "127.0.0.1"

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from radarodom.driver.dca1000_wire import MAX_DATA_BYTES
-from radarodom.driver.frame_assembler import FrameAssembler
-from radarodom.driver.frame_ring import FrameRing
+from radarodom.driver.live.dca1000_wire import MAX_DATA_BYTES
+from radarodom.driver.live.frame_assembler import FrameAssembler
+from radarodom.driver.live.frame_ring import FrameRing
 
 
 def stream_bytes(n_frames: int, frame_bytes: int, seed: int = 0) -> bytes:
@@ -191,8 +191,8 @@ def test_receiver_stopping_takes_the_datagrams_already_queued():
     assembles them before it ends (here they are all queued before its thread even runs)."""
     import socket
 
-    from radarodom.driver.dca1000 import Dca1000Receiver, Dca1000Settings
-    from radarodom.driver.dca1000_wire import DATA_HEADER
+    from radarodom.driver.live.dca1000 import Dca1000Receiver, Dca1000Settings
+    from radarodom.driver.live.dca1000_wire import DATA_HEADER
 
     fb, n = 5000, 3
     stream = stream_bytes(n, fb, seed=4)

@@ -21,8 +21,8 @@ from coloradar_synth import write_run
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from radarodom.driver.coloradar import ColoRadarRun
-from radarodom.driver.coloradar_source import ColoRadarSource
+from radarodom.driver.coloradar.run import ColoRadarRun
+from radarodom.driver.coloradar.source import ColoRadarSource
 from radarodom.errors import RadarodomError
 from radarodom.tools import radar_capture, radar_coloradar
 

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory
+from radarodom.driver.recordings.capture_dir import CaptureDirectory
 from radarodom.driver.sources import open_source
 from radarodom.errors import RadarodomError
 from radarodom.tools import radar_capture

@@ -31,12 +31,12 @@ from live_helpers import (
     config,
     frame_problem,
 )
-from radarodom.driver.awr1843 import Awr1843Cli
-from radarodom.driver.awr1843_protocol import Outcome
+from radarodom.driver.live.awr1843 import Awr1843Cli
+from radarodom.driver.live.awr1843_protocol import Outcome
 from radarodom.pipeline import Pipeline
-from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
-from radarodom.driver.dca1000 import WANTED_RCVBUF
-from radarodom.driver.dca1000_wire import Command
+from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
+from radarodom.driver.live.dca1000 import WANTED_RCVBUF
+from radarodom.driver.live.dca1000_wire import Command
 from radarodom.driver.emulators.fake_dca1000 import Faults
 from radarodom.driver.emulators.rig import EmulatedRig
 from radarodom.driver.sources import open_source

@@ -30,9 +30,9 @@ from live_helpers import (
     receiver_threads,
     wait_until,
 )
-from radarodom.driver.awr1843 import COMMAND_TIMEOUT_S, SensorStartHung
-from radarodom.driver.awr1843_protocol import REPEATABLE
-from radarodom.driver.dca1000_wire import AsyncStatus, Command, FpgaVersion
+from radarodom.driver.live.awr1843 import COMMAND_TIMEOUT_S, SensorStartHung
+from radarodom.driver.live.awr1843_protocol import REPEATABLE
+from radarodom.driver.live.dca1000_wire import AsyncStatus, Command, FpgaVersion
 from radarodom.driver.emulators.fake_awr1843 import CliFaults
 from radarodom.driver.emulators.fake_dca1000 import Faults
 from radarodom.driver.emulators.rig import BOARD_IP, HOST_IP, EmulatedRig, free_udp_port

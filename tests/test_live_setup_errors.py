@@ -13,7 +13,7 @@ import pytest
 from conftest import console_command, make_capture
 from live_helpers import URL_TIMEOUTS, port_is_free
 from radarodom.driver.emulators.rig import HOST_IP, EmulatedRig, free_udp_port
-from radarodom.driver.host_network import bind_problem
+from radarodom.driver.live.host_network import bind_problem
 from radarodom.driver.sources import open_source
 from radarodom.errors import DeviceError, DeviceTimeout
 

@@ -25,8 +25,8 @@ from live_helpers import (
     collect_until_stopped,
 )
 from radarodom.pipeline import Pipeline
-from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
-from radarodom.driver.dca1000_wire import MAX_DATA_BYTES, AsyncStatus, Command
+from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
+from radarodom.driver.live.dca1000_wire import MAX_DATA_BYTES, AsyncStatus, Command
 from radarodom.driver.emulators.fake_dca1000 import RECORD_COMPLETED_DELAY_S, Faults
 from radarodom.driver.emulators.rig import EmulatedRig
 from radarodom.driver.sources import open_source

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from radarodom.driver.dca1000_wire import DataPacket
-from radarodom.driver.pcap import read_udp
+from radarodom.driver.live.dca1000_wire import DataPacket
+from radarodom.driver.recordings.pcap import read_udp
 from radarodom.errors import CaptureError, CaptureFormatError
 from radarodom.rawframe import RawLayout
 

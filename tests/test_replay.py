@@ -12,7 +12,7 @@ import pytest
 from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory, CaptureWriter
+from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.sources import SCHEMES, open_source
 from radarodom.errors import CaptureFormatError, ConfigError, SourceError
 from radarodom.pipeline import Pipeline

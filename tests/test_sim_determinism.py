@@ -15,7 +15,7 @@ import numpy as np
 from conftest import console_command
 
 from radarodom.cfg import RadarConfig, shipped_config_path
-from radarodom.driver.capture_dir import ADC_DATA
+from radarodom.driver.recordings.capture_dir import ADC_DATA
 from radarodom.driver.sim.physics import EXACT_PRODUCT_COLUMNS, exact_product
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import Simulator

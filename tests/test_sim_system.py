@@ -18,7 +18,7 @@ from conftest import console_command, private_zenoh
 from sim_helpers import decode, detect, point_scene, range_doppler, rd_power, truth
 
 from radarodom.cfg import RadarConfig
-from radarodom.driver.capture_dir import CaptureDirectory
+from radarodom.driver.recordings.capture_dir import CaptureDirectory
 from radarodom.driver.sim.board import load_board
 from radarodom.driver.sim.scene import BUILTIN_SCENES, load_scene, scene_from_dict
 from radarodom.driver.sim.simulator import Simulator

@@ -22,7 +22,7 @@ import socket
 import pytest
 from conftest import REPO
 from radarodom.cfg import RadarConfig
-from radarodom.driver.dca1000_wire import AsyncStatus, Command
+from radarodom.driver.live.dca1000_wire import AsyncStatus, Command
 from radarodom.driver.emulators.rig import BOARD_IP, HOST_IP, EmulatedRig, free_udp_port
 from radarodom.driver.sources import open_source
 

@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _default_source() -> str:
-    from ..driver.discovery import default_cli_port, no_radar_message
+    from ..driver.live.discovery import default_cli_port, no_radar_message
 
     port = default_cli_port()
     if port is None:

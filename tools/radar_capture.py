@@ -28,7 +28,7 @@ import numpy as np
 from typing import Iterator, Sequence
 
 from ..cfg import RadarConfig
-from ..driver.capture_dir import CaptureWriter
+from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
@@ -46,7 +46,7 @@ DEFAULT_SIM_URL = "sim://corridor"
 
 def _default_source() -> str:
     """The live radar when one is plugged in (standard addresses), else the simulator."""
-    from ..driver.discovery import default_cli_port, no_radar_message
+    from ..driver.live.discovery import default_cli_port, no_radar_message
 
     port = default_cli_port()
     if port is not None:

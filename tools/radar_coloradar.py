@@ -25,8 +25,8 @@ from typing import Sequence
 import numpy as np
 
 from .. import strict_json
-from ..driver.coloradar import ColoRadarRun
-from ..driver.coloradar_source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
+from ..driver.coloradar.run import ColoRadarRun
+from ..driver.coloradar.source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
 from ..errors import SourceError, UsageError
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate

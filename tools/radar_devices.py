@@ -14,8 +14,8 @@ import sys
 from typing import Sequence
 
 from .. import strict_json
-from ..driver import discovery
-from ..driver.discovery import DeviceReport, RadarInfo, SerialPortInfo, UsbDeviceInfo
+from ..driver.live import discovery
+from ..driver.live.discovery import DeviceReport, RadarInfo, SerialPortInfo, UsbDeviceInfo
 from . import cli
 
 #: The commands of the access hint (from a clone of radarodom).

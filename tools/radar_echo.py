@@ -158,7 +158,7 @@ def _main(args: argparse.Namespace) -> int:
     session, options = open_session(options)
     try:
         # Kept referenced while the loop runs.
-        subscribers = [session.declare_subscriber(options.key(kind), inbox.receiver(kind)) for kind in kinds]
+        _subscribers = [session.declare_subscriber(options.key(kind), inbox.receiver(kind)) for kind in kinds]
         if not args.quiet:
             print(f"radar-echo: {', '.join(options.key(k) for k in kinds)} via {options.describe()}; "
                   "Ctrl-C stops", file=sys.stderr, flush=True)

@@ -20,7 +20,7 @@ import threading
 from typing import Sequence
 
 from ..cfg import RadarConfig
-from ..driver.capture_dir import RADAR_CFG
+from ..driver.recordings.capture_dir import RADAR_CFG
 from ..driver.emulators.fake_awr1843 import CliFaults
 from ..driver.emulators.fake_dca1000 import Faults
 from ..driver.emulators.rig import BOARD_IP, EmulatedRig

@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..driver.capture_dir import write_json_atomically
+from ..driver.recordings.capture_dir import write_json_atomically
 from ..errors import CaptureError, UsageError
 from ..estimator.evaluation import EvaluationResult, Stats, evaluate
 from ..driver.sources import open_source

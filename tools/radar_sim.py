@@ -12,7 +12,7 @@ from typing import Sequence
 from urllib.parse import quote
 
 from ..cfg import RadarConfig, shipped_config_path
-from ..driver.capture_dir import CaptureWriter
+from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sim.board import BUILTIN_BOARDS, load_board
 from ..driver.sim.scene import BUILTIN_SCENES, load_scene
 from ..driver.sim.simulator import Simulator

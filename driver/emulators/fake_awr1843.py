@@ -46,7 +46,7 @@ import serial.serialposix
 from ... import cfg_commands as cc
 from ...cfg import RadarConfig
 from ...errors import ConfigError
-from ..awr1843_protocol import (
+from ..live.awr1843_protocol import (
     ALREADY_STARTED,
     ALREADY_STOPPED,
     DONE,

@@ -5,14 +5,14 @@
 without hardware) over the same code path it uses with a real board:
 
 - **Config port.**  A socket bound to ``(board_ip, command_port)`` takes
-  :class:`~radarodom.driver.dca1000_wire.Request` datagrams and answers each
-  well-formed one with an 8-byte :class:`~radarodom.driver.dca1000_wire.Response`
+  :class:`~radarodom.driver.live.dca1000_wire.Request` datagrams and answers each
+  well-formed one with an 8-byte :class:`~radarodom.driver.live.dca1000_wire.Response`
   (same command code) sent *from* a second socket bound to
   ``(board_ip, source_port)`` -- the real board answers from port 1024, not
   from 4096 -- *to* the address the request came from.  Malformed requests
   get no answer and are counted (:attr:`FakeDca1000.malformed_requests`).
 - **Asynchronous status** (``SYSTEM_ERROR`` responses whose status is an
-  :class:`~radarodom.driver.dca1000_wire.AsyncStatus` bitmask) goes to the
+  :class:`~radarodom.driver.live.dca1000_wire.AsyncStatus` bitmask) goes to the
   address the last command came from: ``RECORD_COMPLETED``
   ``record_completed_delay_s`` (2.0 s, the real capture's gap) after ``RECORD_STOP``,
   once the stream has drained, ``NO_LVDS_DATA`` once when a recording runs for
@@ -22,9 +22,9 @@ without hardware) over the same code path it uses with a real board:
   data (:meth:`~FakeDca1000.lvds_start` / :meth:`~FakeDca1000.lvds_stop`), the
   frames of a source are cut into a continuous byte stream and sent to
   ``(host_ip, host_data_port)`` from the source socket as
-  :class:`~radarodom.driver.dca1000_wire.DataPacket` datagrams: ``seq`` from
+  :class:`~radarodom.driver.live.dca1000_wire.DataPacket` datagrams: ``seq`` from
   1 after ``RECORD_START``, ``byte_count`` = stream bytes before the packet,
-  up to :data:`~radarodom.driver.dca1000_wire.MAX_DATA_BYTES` (1456) data
+  up to :data:`~radarodom.driver.live.dca1000_wire.MAX_DATA_BYTES` (1456) data
   bytes each.  Frame *k* of a recording occupies stream bytes
   ``[k * frame_bytes, (k + 1) * frame_bytes)`` and packets straddle frame
   boundaries; the bytes left over at the end of a frame wait for the next
@@ -82,7 +82,7 @@ import numpy as np
 
 from ...cfg import RadarConfig, dca1000_capacity_mbps
 from ...rawframe import RawLayout
-from ..dca1000_wire import (
+from ..live.dca1000_wire import (
     DATA_HEADER,
     MAX_DATA_BYTES,
     AsyncStatus,

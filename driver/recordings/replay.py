@@ -26,13 +26,13 @@ from typing import Iterator
 
 import numpy as np
 
-from ..calibration import ChannelCalibration
-from ..cfg import RadarConfig
-from ..errors import CaptureFormatError, ConfigError, SourceError
-from ..plain_numbers import plain_float
+from ...calibration import ChannelCalibration
+from ...cfg import RadarConfig
+from ...errors import CaptureFormatError, ConfigError, SourceError
+from ...plain_numbers import plain_float
 from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
-from .sim.board import load_board
-from .sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
+from ..sim.board import load_board
+from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
 
 log = logging.getLogger(__name__)

@@ -19,7 +19,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from ..errors import DeviceError, DeviceTimeout
+from ...errors import DeviceError, DeviceTimeout
 from .dca1000_wire import (
     ASYNC_MEANING,
     BOARD_IP,

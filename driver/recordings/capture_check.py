@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import strict_json
-from ..errors import CaptureError, CaptureFormatError
-from ..plain_numbers import plain_float
+from ... import strict_json
+from ...errors import CaptureError, CaptureFormatError
+from ...plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
 

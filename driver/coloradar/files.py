@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import CaptureError, CaptureFormatError
-from ..tum import parse_numbers
+from ...errors import CaptureError, CaptureFormatError
+from ...tum import parse_numbers
 
 log = logging.getLogger(__name__)
 

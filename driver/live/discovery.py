@@ -35,7 +35,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
-from ..errors import DeviceError
+from ...errors import DeviceError
 
 log = logging.getLogger(__name__)
 

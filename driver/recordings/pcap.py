@@ -12,7 +12,7 @@ import struct
 from dataclasses import dataclass
 from typing import Iterator
 
-from ..errors import CaptureFormatError
+from ...errors import CaptureFormatError
 
 #: Global header: magic, version major/minor, thiszone, sigfigs, snaplen, link type.
 _GLOBAL = struct.Struct("IHHiIII")

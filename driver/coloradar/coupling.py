@@ -25,8 +25,8 @@ import os
 
 import numpy as np
 
-from ..calibration import RangeCoupling
-from ..errors import CaptureFormatError
+from ...calibration import RangeCoupling
+from ...errors import CaptureFormatError
 
 _KEYS = ("num_tx", "num_rx", "num_range_bins", "num_doppler_bins", "data")
 #: Range-FFT bin of the first value (the official processing skips the DC bin).

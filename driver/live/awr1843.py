@@ -15,8 +15,8 @@ import time
 
 import serial
 
-from ..cfg import RadarConfig
-from ..errors import DeviceError, DeviceTimeout, RadarCommandError
+from ...cfg import RadarConfig
+from ...errors import DeviceError, DeviceTimeout, RadarCommandError
 from .awr1843_protocol import (CLI_BAUDRATE, REPEATABLE, Outcome, Reply, ReplyFramer, classify,
                                is_boot_banner, split_lines)
 

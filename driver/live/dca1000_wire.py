@@ -17,7 +17,7 @@ import ipaddress
 import struct
 from dataclasses import dataclass
 
-from ..errors import CaptureError
+from ...errors import CaptureError
 
 #: UDP ports (UG Table 11); the board sends from BOARD_SOURCE_PORT (pcaps).
 CONFIG_PORT = 4096

@@ -31,11 +31,11 @@ import re
 
 import numpy as np
 
-from ..errors import CaptureError, CaptureFormatError, UsageError
-from ..tum import TumTrajectory, quaternion_yaw
+from ...errors import CaptureError, CaptureFormatError, UsageError
+from ...tum import TumTrajectory, quaternion_yaw
 
 # The reader's public names live in two modules; they are all importable from here.
-from .coloradar_files import (
+from .files import (
     _LAYOUT,
     ADC_SAMPLE,
     HEATMAP_CELL,
@@ -54,7 +54,7 @@ from .coloradar_files import (
     read_transform,
     read_waveform_config,
 )
-from .coloradar_geometry import (
+from .geometry import (
     adc_to_cube,
     heatmap_to_polar,
     pointcloud_to_points,
@@ -320,7 +320,7 @@ class ColoRadarRun:
     def coupling(self, sensor: str):
         """*sensor*'s TX-to-RX coupling (calib/<sensor>/coupling_calib.txt) as a
         :class:`radarodom.calibration.RangeCoupling`, or None when the file is not there."""
-        from .coloradar_coupling import read_coupling
+        from .coupling import read_coupling
 
         path = self.calib_path(sensor, "coupling_calib.txt")
         if not os.path.exists(path):

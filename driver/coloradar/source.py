@@ -35,13 +35,13 @@ from typing import Iterator
 
 import numpy as np
 
-from ..cfg import RadarConfig
-from ..errors import SourceError
-from ..rawframe import RawLayout
-from ..tum import TumTrajectory
-from .coloradar import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
-from .coloradar_waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
-from .sources import Frame, Pacer, Source, UrlOptions, one_of, parse_rate
+from ...cfg import RadarConfig
+from ...errors import SourceError
+from ...rawframe import RawLayout
+from ...tum import TumTrajectory
+from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
+from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
+from ..sources import Frame, Pacer, Source, UrlOptions, one_of, parse_rate
 
 log = logging.getLogger(__name__)
 

@@ -20,11 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, TX_OFFSETS_HALF_WAVELENGTHS
-from ..cfg import RadarConfig
-from ..errors import CaptureFormatError, ConfigError
-from ..tum import parse_numbers
-from .coloradar_files import WaveformConfig, _read_lines
+from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, TX_OFFSETS_HALF_WAVELENGTHS
+from ...cfg import RadarConfig
+from ...errors import CaptureFormatError, ConfigError
+from ...tum import parse_numbers
+from .files import WaveformConfig, _read_lines
 
 log = logging.getLogger(__name__)
 

@@ -31,15 +31,15 @@ import logging
 import time
 from typing import Iterator
 
-from ..calibration import uncalibrated_note
-from ..cfg import RadarConfig, shipped_config_path
-from ..errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
-from ..rawframe import RawLayout
+from ...calibration import uncalibrated_note
+from ...cfg import RadarConfig, shipped_config_path
+from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
+from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
 from .dca1000_wire import AsyncStatus
 from .frame_ring import POLICIES, FrameRing
-from .sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
+from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
 
 log = logging.getLogger(__name__)
 

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UsageError
-from ..products import POINT_DTYPE, RangeAzimuth
-from .coloradar_files import HeatmapConfig
+from ...errors import UsageError
+from ...products import POINT_DTYPE, RangeAzimuth
+from .files import HeatmapConfig
 
 # ---------------------------------------------------------------------------------------------
 # Quaternions (xyzw, Hamilton)

@@ -61,11 +61,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .. import __version__, strict_json
-from ..cfg import RadarConfig
-from ..errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
-from ..rawframe import RawLayout
-from ..tum import TumWriter, read_tum
+from ... import __version__, strict_json
+from ...cfg import RadarConfig
+from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
+from ...rawframe import RawLayout
+from ...tum import TumWriter, read_tum
 from . import capture_check
 from .capture_check import FORMAT_NAME, FORMAT_VERSION
 

@@ -12,9 +12,9 @@ import re
 
 import numpy as np
 
-from ..cfg import RadarConfig
-from ..errors import CaptureError, CaptureFormatError
-from ..rawframe import RawLayout
+from ...cfg import RadarConfig
+from ...errors import CaptureError, CaptureFormatError
+from ...rawframe import RawLayout
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +57,7 @@ def series_files(path: str) -> list[str]:
 
 class TiRecording:
     """A TI recorder file series read as whole frames (same interface as
-    :class:`~radarodom.driver.capture_dir.CaptureDirectory`)."""
+    :class:`~radarodom.driver.recordings.capture_dir.CaptureDirectory`)."""
 
     def __init__(self, path: str | os.PathLike, config: RadarConfig, *, reordered: bool = True) -> None:
         self.directory = os.fspath(path)
