@@ -138,6 +138,10 @@ def _probability(name: str, value: float) -> float:
     return value
 
 
+#: The two response statuses a command gets.
+_OK, _FAILURE = int(Status.SUCCESS), int(Status.FAILURE)
+
+
 @dataclass(frozen=True)
 class Faults:
     """What the fake board does wrong.  All off by default.
@@ -658,110 +662,128 @@ class FakeDca1000:
 
     def _execute(self, request: Request) -> int:
         """Carry out one command; returns the response status."""
-        code, data = request.command, request.data
-        ok, failure = int(Status.SUCCESS), int(Status.FAILURE)
-        if code == Command.SYSTEM_CONNECT:
-            return ok
-        if code == Command.READ_FPGA_VERSION:
-            return self.fpga_version.to_status()
-        if code == Command.SYSTEM_ERROR:
-            # The real board answers a host's SYSTEM_ERROR query with status 0,
-            # even after an LVDS timeout (test_cmd.pcap; mmwave-capture-std notes).
-            return ok
-        if code == Command.RESET_FPGA:
-            with self._cond:
-                if self._recording:
-                    log.info("fake DCA1000: RESET_FPGA stops the recording")
+        handler = self._handlers.get(request.command)
+        if handler is None:  # PLAYBACK_*, CONFIG_DATA_MODE_AR_DEV, INIT_FPGA_PLAYBACK, unknown codes
+            log.warning("fake DCA1000: %s is not supported: FAILURE", _command_name(request.command))
+            return _FAILURE
+        return handler(request.data)
+
+    @property
+    def _handlers(self) -> dict[int, Callable[[bytes], int]]:
+        return {Command.SYSTEM_CONNECT: self._system_connect, Command.READ_FPGA_VERSION: self._read_fpga_version,
+                Command.SYSTEM_ERROR: self._system_error, Command.RESET_FPGA: self._reset_fpga,
+                Command.RESET_AR_DEV: self._reset_ar_dev, Command.CONFIG_FPGA_GEN: self._config_fpga_gen,
+                Command.CONFIG_PACKET_DATA: self._config_packet_data, Command.CONFIG_EEPROM: self._config_eeprom,
+                Command.RECORD_START: self._record_start, Command.RECORD_STOP: self._record_stop}
+
+    def _system_connect(self, data: bytes) -> int:
+        return _OK
+
+    def _read_fpga_version(self, data: bytes) -> int:
+        return self.fpga_version.to_status()
+
+    def _system_error(self, data: bytes) -> int:
+        # The real board answers a host's SYSTEM_ERROR query with status 0,
+        # even after an LVDS timeout (test_cmd.pcap; mmwave-capture-std notes).
+        return _OK
+
+    def _reset_fpga(self, data: bytes) -> int:
+        with self._cond:
+            if self._recording:
+                log.info("fake DCA1000: RESET_FPGA stops the recording")
+            self._recording = False
+            self._abort_id += 1
+            self._fpga_config = None
+            self._packet_config = PacketConfig()
+            self._events = [e for e in self._events if e[1] != "no_lvds"]
+            self._cond.notify_all()
+        return _OK
+
+    def _reset_ar_dev(self, data: bytes) -> int:
+        self.lvds_stop()  # a radar in reset streams nothing
+        callback = self.on_reset_ar_dev
+        if callback is not None:
+            try:
+                callback()
+            except Exception:
+                log.exception("fake DCA1000: on_reset_ar_dev failed")
+                return _FAILURE
+        return _OK
+
+    def _config_fpga_gen(self, data: bytes) -> int:
+        try:
+            cfg = FpgaConfig.parse(data)
+        except WireError as exc:
+            log.warning("fake DCA1000: CONFIG_FPGA_GEN refused: %s", exc)
+            return _FAILURE
+        problem = _fpga_config_problem(cfg)
+        if problem:
+            log.warning("fake DCA1000: CONFIG_FPGA_GEN refused: %s", problem)
+            return _FAILURE
+        with self._cond:
+            self._fpga_config = cfg
+        return _OK
+
+    def _config_packet_data(self, data: bytes) -> int:
+        try:
+            pkt = PacketConfig.parse(data)
+        except WireError as exc:
+            log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: %s", exc)
+            return _FAILURE
+        if not MIN_PACKET_SIZE <= pkt.packet_size <= MAX_PACKET_SIZE:
+            log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: packet size %d outside "
+                        "%d..%d", pkt.packet_size, MIN_PACKET_SIZE, MAX_PACKET_SIZE)
+            return _FAILURE
+        lo, hi = PACKET_DELAY_RANGE_US
+        if not lo <= pkt.delay_us <= hi:
+            log.warning("fake DCA1000: packet delay %.3f us is outside the documented "
+                        "%g..%g us", pkt.delay_us, lo, hi)
+        with self._cond:
+            self._packet_config = pkt
+        return _OK
+
+    def _config_eeprom(self, data: bytes) -> int:
+        try:
+            eeprom = EepromConfig.parse(data)
+        except WireError as exc:
+            log.warning("fake DCA1000: CONFIG_EEPROM refused: %s", exc)
+            return _FAILURE
+        with self._cond:
+            self._eeprom_config = eeprom
+        return _OK
+
+    def _record_start(self, data: bytes) -> int:
+        with self._cond:
+            if self._fpga_config is None:
+                log.warning("fake DCA1000: RECORD_START refused: no CONFIG_FPGA_GEN since "
+                            "power-up or RESET_FPGA")
+                return _FAILURE
+            if self._recording:
+                log.info("fake DCA1000: RECORD_START while recording restarts the stream")
+            self._recording = True
+            self._recording_id += 1
+            self._abort_id += 1
+            self._stats = StreamStats(recording=self._recording_id)
+            self._lost = {}
+            self._lvds_seen = self._lvds
+            self._events = [e for e in self._events if e[1] != "no_lvds"]
+            if not self._lvds:
+                self._events.append((time.monotonic() + self.no_lvds_timeout_s, "no_lvds",
+                                     self._recording_id))
+            self._cond.notify_all()
+        log.info("fake DCA1000: recording %d started", self._recording_id)
+        return _OK
+
+    def _record_stop(self, data: bytes) -> int:
+        with self._cond:
+            if self._recording:
                 self._recording = False
-                self._abort_id += 1
-                self._fpga_config = None
-                self._packet_config = PacketConfig()
-                self._events = [e for e in self._events if e[1] != "no_lvds"]
+                due = time.monotonic() + self.record_completed_delay_s
+                self._tail_due[self._recording_id] = due
+                self._events.append((due, "record_completed", self._recording_id))
                 self._cond.notify_all()
-            return ok
-        if code == Command.RESET_AR_DEV:
-            self.lvds_stop()  # a radar in reset streams nothing
-            callback = self.on_reset_ar_dev
-            if callback is not None:
-                try:
-                    callback()
-                except Exception:
-                    log.exception("fake DCA1000: on_reset_ar_dev failed")
-                    return failure
-            return ok
-        if code == Command.CONFIG_FPGA_GEN:
-            try:
-                cfg = FpgaConfig.parse(data)
-            except WireError as exc:
-                log.warning("fake DCA1000: CONFIG_FPGA_GEN refused: %s", exc)
-                return failure
-            problem = _fpga_config_problem(cfg)
-            if problem:
-                log.warning("fake DCA1000: CONFIG_FPGA_GEN refused: %s", problem)
-                return failure
-            with self._cond:
-                self._fpga_config = cfg
-            return ok
-        if code == Command.CONFIG_PACKET_DATA:
-            try:
-                pkt = PacketConfig.parse(data)
-            except WireError as exc:
-                log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: %s", exc)
-                return failure
-            if not MIN_PACKET_SIZE <= pkt.packet_size <= MAX_PACKET_SIZE:
-                log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: packet size %d outside "
-                            "%d..%d", pkt.packet_size, MIN_PACKET_SIZE, MAX_PACKET_SIZE)
-                return failure
-            lo, hi = PACKET_DELAY_RANGE_US
-            if not lo <= pkt.delay_us <= hi:
-                log.warning("fake DCA1000: packet delay %.3f us is outside the documented "
-                            "%g..%g us", pkt.delay_us, lo, hi)
-            with self._cond:
-                self._packet_config = pkt
-            return ok
-        if code == Command.CONFIG_EEPROM:
-            try:
-                eeprom = EepromConfig.parse(data)
-            except WireError as exc:
-                log.warning("fake DCA1000: CONFIG_EEPROM refused: %s", exc)
-                return failure
-            with self._cond:
-                self._eeprom_config = eeprom
-            return ok
-        if code == Command.RECORD_START:
-            with self._cond:
-                if self._fpga_config is None:
-                    log.warning("fake DCA1000: RECORD_START refused: no CONFIG_FPGA_GEN since "
-                                "power-up or RESET_FPGA")
-                    return failure
-                if self._recording:
-                    log.info("fake DCA1000: RECORD_START while recording restarts the stream")
-                self._recording = True
-                self._recording_id += 1
-                self._abort_id += 1
-                self._stats = StreamStats(recording=self._recording_id)
-                self._lost = {}
-                self._lvds_seen = self._lvds
-                self._events = [e for e in self._events if e[1] != "no_lvds"]
-                if not self._lvds:
-                    self._events.append((time.monotonic() + self.no_lvds_timeout_s, "no_lvds",
-                                         self._recording_id))
-                self._cond.notify_all()
-            log.info("fake DCA1000: recording %d started", self._recording_id)
-            return ok
-        if code == Command.RECORD_STOP:
-            with self._cond:
-                if self._recording:
-                    self._recording = False
-                    due = time.monotonic() + self.record_completed_delay_s
-                    self._tail_due[self._recording_id] = due
-                    self._events.append((due, "record_completed", self._recording_id))
-                    self._cond.notify_all()
-                    log.info("fake DCA1000: recording %d stopped", self._recording_id)
-            return ok
-        # PLAYBACK_*, CONFIG_DATA_MODE_AR_DEV, INIT_FPGA_PLAYBACK, unknown codes.
-        log.warning("fake DCA1000: %s is not supported: FAILURE", _command_name(code))
-        return failure
+                log.info("fake DCA1000: recording %d stopped", self._recording_id)
+        return _OK
 
     def _run_due_events(self) -> None:
         now = time.monotonic()
