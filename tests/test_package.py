@@ -60,19 +60,87 @@ def test_version_matches_pyproject():
     assert ast.literal_eval(line.split("=", 1)[1].strip()) == radarodom.__version__
 
 
-def test_dsp_and_estimator_import_neither_driver_nor_zenoh():
-    for pkg in ("dsp", "estimator"):
-        for path in (REPO / pkg).rglob("*.py"):
-            tree = ast.parse(path.read_text())
-            for node in ast.walk(tree):
-                if isinstance(node, ast.Import):
-                    mods = [a.name for a in node.names]
-                elif isinstance(node, ast.ImportFrom):
-                    mods = [("." * node.level) + (node.module or "")]
-                else:
-                    continue
-                for mod in mods:
-                    assert "driver" not in mod and "zenoh" not in mod, f"{path}: imports {mod}"
+#: The modules every layer may use: the cfg model, wire-free data types, errors, JSON, numbers.
+CORE = {"radarodom", "antenna", "calibration", "cfg", "cfg_commands", "cfg_fields", "cfg_physics", "cfg_text",
+        "errors", "plain_numbers", "products", "rawframe", "settings", "strict_json", "tum"}
+DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.coloradar", "driver.emulators"}
+#: Which part of the package may import which (besides itself and CORE); "ext:" names third-party
+#: packages that only some parts may use.  tools/ may import anything.
+ALLOWED = {
+    **{name: set() for name in CORE},
+    "messages": set(),
+    "publish": {"messages", "ext:zenoh", "ext:rosbags"},
+    "dsp": set(),
+    "estimator": {"dsp"},
+    "driver.sources": set(),
+    "driver.live": {"driver.sources", "ext:serial", "ext:usb"},
+    "driver.recordings": {"driver.sources", "driver.sim"},
+    "driver.sim": {"driver.sources"},
+    "driver.coloradar": {"driver.sources"},
+    "driver.emulators": {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "ext:serial"},
+    "pipeline": DRIVER | {"dsp", "estimator", "messages", "publish"},
+}
+#: Third-party packages whose use is restricted to the parts ALLOWED names them for.
+RESTRICTED = {"zenoh", "rosbags", "serial", "usb", "rerun", "mcap", "mcap_ros2", "matplotlib"}
+
+
+def _part(module: str) -> str:
+    """The part of the package a dotted radarodom module belongs to."""
+    parts = module.split(".")[1:]
+    if not parts or parts[0] == "__version__":
+        return "radarodom"
+    if parts[0] == "driver":
+        return "driver." + (parts[1] if len(parts) > 1 and parts[1] in {d.split(".")[1] for d in DRIVER} else "sources")
+    return parts[0]
+
+
+def _imports(path: pathlib.Path, module: str) -> list[tuple[int, str]]:
+    """(line, imported module) of every import in *path* that runs (not under TYPE_CHECKING)."""
+    tree = ast.parse(path.read_text())
+    typing_only = {id(n) for node in ast.walk(tree)
+                   if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test) for n in ast.walk(node)}
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    found = []
+    for node in ast.walk(tree):
+        if id(node) in typing_only:
+            continue
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[:len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+                found += ([(node.lineno, f"{target}.{a.name}") for a in node.names] if node.module is None
+                          else [(node.lineno, target)])
+            elif node.module:
+                found.append((node.lineno, node.module))
+    return found
+
+
+def test_imports_follow_the_layering():
+    """Each part imports only what ALLOWED lets it: the DSP and the estimator neither the driver
+    nor Zenoh, the driver neither the DSP nor the estimator, nothing but tools/ the tools."""
+    offenders = []
+    for path in sorted(REPO.rglob("*.py")):
+        rel = path.relative_to(REPO)
+        if rel.parts[0] in ("tests", "bench", "build", ".venv") or "site-packages" in rel.parts:
+            continue
+        module = ".".join(["radarodom", *rel.with_suffix("").parts]).removesuffix(".__init__")
+        part = _part(module)
+        if part == "tools":
+            continue
+        assert part in ALLOWED, f"{rel}: a part of the package the layering does not know ({part})"
+        allowed = ALLOWED[part] | CORE | {part}
+        for line, target in _imports(path, module):
+            if target.startswith("radarodom"):
+                used = _part(target)
+            elif target.split(".")[0] in RESTRICTED:
+                used = "ext:" + target.split(".")[0]
+            else:
+                continue
+            if used not in allowed:
+                offenders.append(f"{rel}:{line}: {part} imports {target}")
+    assert offenders == []
 
 
 def test_library_never_prints_or_exits():
