@@ -103,18 +103,13 @@ Heatmap: ``<prefix>/heatmap``, encoding ``application/octet-stream;radarodom/hea
         doppler_mps  float32 (n_range, n_azimuth): radial velocity of each cell's strongest
                      Doppler bin, m/s; NaN where it was not computed
 
-ROS 2: ``nav_msgs/msg/Odometry``
-    :func:`ros2_odometry` builds the message (with any rosbags typestore) that
-    :mod:`radarodom.publish` serializes as CDR for rmw_zenoh, and
-    :data:`ROS2_ATTACHMENT` is the attachment rmw_zenoh_cpp (>= 0.2.4, Jazzy)
-    wants on every sample.
+ROS 2: ``nav_msgs/msg/Odometry``, as rmw_zenoh publishes it: :mod:`radarodom.ros2`.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import struct
 from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
@@ -122,7 +117,6 @@ import numpy as np
 from . import strict_json
 from .errors import MessageError
 from .products import RangeAzimuth
-from .tum import yaw_quaternion
 
 if TYPE_CHECKING:  # the estimator is not needed to encode what it made
     from .estimator.odometry import OdometryState
@@ -177,17 +171,6 @@ HEATMAP_HEADER = np.dtype([
 #: radarodom.dsp.heatmap.RangeAzimuth's attributes.
 HEATMAP_CHANNELS = ("intensity", "static", "doppler_mps")
 
-#: rmw_zenoh_cpp's per-sample attachment: sequence number (int64), source
-#: timestamp (int64 ns), and the 16-byte publisher gid as a Zenoh-serialized
-#: byte sequence (its length 16 as one LEB128 byte, then the bytes).  33 bytes.
-ROS2_ATTACHMENT = struct.Struct("<qqB16s")
-ROS2_GID_BYTES = 16
-ROS2_ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
-#: Covariance given to what a planar odometry does not observe (z, roll, pitch).
-ROS2_UNOBSERVED_VARIANCE = 1e6
-#: Where (x, y, yaw) and (vx, vy, yaw_rate) sit in ROS's 6x6 covariances
-#: (x, y, z, rotation about x, y, z).
-_PLANAR_IN_6D = (0, 1, 5)
 
 
 # ---------------------------------------------------------------------- JSON
@@ -452,57 +435,3 @@ def decode_heatmap(payload: bytes) -> tuple[dict, dict[str, np.ndarray]]:
     info = {"schema": HEATMAP_SCHEMA, "version": int(header["version"]), "frame": int(header["frame"]),
             "t": float(header["t"]), "n_range": nr, "n_azimuth": na, "channels": list(HEATMAP_CHANNELS)}
     return info, arrays
-
-
-# ---------------------------------------------------------------------- ROS 2
-def ros2_stamp(t: float) -> tuple[int, int]:
-    """(sec, nanosec) of *t* seconds, nanosec in [0, 1e9)."""
-    # Split first: t * 1e9 of a present-day time in float would lose ~100 ns.
-    sec = math.floor(t)
-    nanosec = round((t - sec) * 1e9)
-    if nanosec == 1_000_000_000:
-        return sec + 1, 0
-    return sec, nanosec
-
-
-def _covariance_6x6(cov3: Any) -> np.ndarray:
-    """ROS's 6x6 covariance (row-major, 36) holding a planar 3x3 one; what a
-    planar odometry cannot see gets :data:`ROS2_UNOBSERVED_VARIANCE`."""
-    out = np.diag(np.full(6, ROS2_UNOBSERVED_VARIANCE))
-    out[np.ix_(_PLANAR_IN_6D, _PLANAR_IN_6D)] = np.asarray(cov3, float)
-    return out.ravel()
-
-
-def ros2_odometry(state: OdometryState, typestore: Any) -> Any:
-    """The ``nav_msgs/msg/Odometry`` of *state* as an instance of *typestore*'s
-    (rosbags) class: stamp from ``t``, frames ``odom`` -> ``base_radar``, the
-    planar pose and twist, and 6x6 covariances from the 3x3 ones."""
-    if not all(math.isfinite(float(v)) for v in (state.t, state.x, state.y, state.yaw,
-                                                 state.vx, state.vy, state.yaw_rate)):
-        raise MessageError("ROS 2 odometry: cannot encode a non-finite value")
-    types = typestore.types
-    vector, point = types["geometry_msgs/msg/Vector3"], types["geometry_msgs/msg/Point"]
-    sec, nanosec = ros2_stamp(float(state.t))
-    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
-                                          frame_id=ODOM_FRAME_ID)
-    qx, qy, qz, qw = (float(v) for v in yaw_quaternion(float(state.yaw)))
-    orientation = types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)
-    pose = types["geometry_msgs/msg/PoseWithCovariance"](
-        pose=types["geometry_msgs/msg/Pose"](position=point(x=float(state.x), y=float(state.y), z=0.0),
-                                             orientation=orientation),
-        covariance=_covariance_6x6(state.pose_covariance))
-    twist = types["geometry_msgs/msg/TwistWithCovariance"](
-        twist=types["geometry_msgs/msg/Twist"](linear=vector(x=float(state.vx), y=float(state.vy), z=0.0),
-                                               angular=vector(x=0.0, y=0.0, z=float(state.yaw_rate))),
-        covariance=_covariance_6x6(state.twist_covariance))
-    return types[ROS2_ODOMETRY_TYPE](header=header, child_frame_id=CHILD_FRAME_ID, pose=pose, twist=twist)
-
-
-def ros2_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
-    """rmw_zenoh_cpp's attachment of one sample (see :data:`ROS2_ATTACHMENT`)."""
-    if not isinstance(gid, bytes) or len(gid) != ROS2_GID_BYTES:
-        raise MessageError(f"ROS 2 gid must be {ROS2_GID_BYTES} bytes, got {_quote(gid)}")
-    try:
-        return ROS2_ATTACHMENT.pack(sequence, timestamp_ns, ROS2_GID_BYTES, gid)
-    except struct.error as exc:  # a sequence or time beyond int64
-        raise MessageError(f"ROS 2 attachment: {exc}") from None

@@ -47,7 +47,6 @@ import logging
 import os
 import re
 import socket
-import time
 import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
@@ -57,6 +56,7 @@ import zenoh
 from . import messages, strict_json
 from .errors import PublishConfigError, PublishError
 from .products import RangeAzimuth
+from .ros2 import Ros2Odometry, ros2_typestore
 
 if TYPE_CHECKING:  # the estimator is not needed to publish what it made
     import numpy as np
@@ -74,7 +74,6 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7448"
 #: The router every ROS 2 node using rmw_zenoh connects to.
 ROS2_ROUTER_ENDPOINT = "tcp/localhost:7447"
 DEFAULT_ROS2_TOPIC = "/radar/odom"
-ROS2_NODE_NAME = "radarodom"
 MODES = ("peer", "client")
 #: The published keys under the prefix.
 KINDS = ("odom", "pointcloud", "heatmap", "status")
@@ -91,9 +90,6 @@ _INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 _ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
 #: The source location zenoh appends to its error messages.
 _RUST_LOCATION = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
-#: rmw_zenoh's QoS of the publisher token: reliable, volatile, keep last 10
-#: (only the depth differs from rmw_zenoh's defaults, so only it is written).
-_ROS2_QOS = "::,10:,:,:,,"
 
 
 def zenoh_reason(exc: BaseException) -> str:
@@ -295,37 +291,6 @@ def _open_failure(options: ZenohOptions, reason: str) -> str:
     return text
 
 
-def ros2_topic_key(domain: int, topic: str, type_hash: str, msg_type: str = messages.ROS2_ODOMETRY_TYPE) -> str:
-    """rmw_zenoh's key expression of a topic: ``<domain>/<topic>/<DDS type>/<RIHS01 hash>``."""
-    return f"{domain}/{topic.strip('/')}/{_dds_type_name(msg_type)}/{type_hash}"
-
-
-def _dds_type_name(msg_type: str) -> str:
-    package, kind, name = msg_type.split("/")
-    return f"{package}::{kind}::dds_::{name}_"
-
-
-def ros2_liveliness_keys(domain: int, zid: str, topic: str, type_hash: str, node: str = ROS2_NODE_NAME,
-                         msg_type: str = messages.ROS2_ODOMETRY_TYPE) -> tuple[str, str]:
-    """rmw_zenoh's liveliness tokens of a node (in the root namespace, default
-    enclave) and of its publisher of *topic*: what makes them part of the ROS
-    graph (``ros2 node list``, ``ros2 topic list``)."""
-    # /<admin>/<domain>/<zid>/<node id>/<entity id>/<kind>/<enclave>/<namespace>/<node>: "/" is "%".
-    node_key = f"@ros2_lv/{domain}/{zid}/0/0/NN/%/%/{node}"
-    publisher_key = (f"@ros2_lv/{domain}/{zid}/0/10/MP/%/%/{node}/{topic.replace('/', '%')}/"
-                     f"{_dds_type_name(msg_type)}/{type_hash}/{_ROS2_QOS}")
-    return node_key, publisher_key
-
-
-def ros2_typestore() -> Any:
-    """rosbags' ROS 2 Jazzy typestore; a clear error when rosbags is missing."""
-    try:
-        from rosbags.typesys import Stores, get_typestore
-    except ImportError:
-        raise PublishConfigError('the ROS 2 output needs rosbags: pip install "radarodom[ros2]"') from None
-    return get_typestore(Stores.ROS2_JAZZY)
-
-
 class _LatestReply:
     """A queryable's handler: answers every query with the latest payload (none
     before the first).  Holds no reference to the Publisher, so that a
@@ -345,30 +310,6 @@ class _LatestReply:
             query.reply(self.key, payload, encoding=self.encoding)
         except zenoh.ZError as exc:
             log.debug("could not answer a query on %s: %s", self.key, zenoh_reason(exc))
-
-
-class _Ros2Odometry:
-    """nav_msgs/msg/Odometry as a ROS 2 node using rmw_zenoh_cpp publishes it."""
-
-    def __init__(self, session: zenoh.Session, options: ZenohOptions, typestore: Any) -> None:
-        self._store = typestore
-        type_hash = typestore.hash_rihs01(messages.ROS2_ODOMETRY_TYPE)
-        self.key = ros2_topic_key(options.ros2_domain, options.ros2_topic, type_hash)
-        self.publisher = session.declare_publisher(self.key, priority=zenoh.Priority.REAL_TIME,
-                                                   congestion_control=zenoh.CongestionControl.DROP, express=True)
-        # rmw_zenoh derives its gid from the token; any fixed 16 bytes per publisher serve.
-        self._gid = os.urandom(messages.ROS2_GID_BYTES)
-        self._sequence = 0
-        liveliness = session.liveliness()
-        self._tokens = [liveliness.declare_token(k) for k in
-                        ros2_liveliness_keys(options.ros2_domain, str(session.zid()), options.ros2_topic, type_hash)]
-
-    def encode(self, state: OdometryState) -> tuple[bytes, bytes]:
-        """(CDR payload, attachment) of the next sample."""
-        msg = messages.ros2_odometry(state, self._store)
-        self._sequence += 1
-        return (bytes(self._store.serialize_cdr(msg, messages.ROS2_ODOMETRY_TYPE)),
-                messages.ros2_attachment(self._sequence, time.time_ns(), self._gid))
 
 
 def _close_session(session: zenoh.Session) -> None:
@@ -424,7 +365,7 @@ class Publisher:
             }
             self._queryable = session.declare_queryable(keys["odom"], self._latest)
             self._alive = session.liveliness().declare_token(self.options.key(ALIVE))
-            self._ros2 = None if typestore is None else _Ros2Odometry(session, self.options, typestore)
+            self._ros2 = None if typestore is None else Ros2Odometry(session, self.options, typestore)
             if self._ros2 is not None:
                 self._publishers["ros2"] = self._ros2.publisher
         except zenoh.ZError as exc:

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from radarodom import messages
+from radarodom import messages, ros2
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.dsp.processor import POINT_DTYPE
 from radarodom.errors import MessageError, RadarodomError
@@ -275,14 +275,14 @@ def test_encode_heatmap_refuses_inconsistent_shapes():
 @pytest.mark.parametrize("t, expected", [(0.0, (0, 0)), (1.5, (1, 500_000_000)), (1.9999999999, (2, 0)),
                                          (1700000000.123456789, (1700000000, 123456717)), (-0.25, (-1, 750_000_000))])
 def test_ros2_stamp(t, expected):
-    assert messages.ros2_stamp(t) == expected
+    assert ros2.ros2_stamp(t) == expected
 
 
 def test_ros2_odometry_through_rosbags_cdr():
     rosbags = pytest.importorskip("rosbags.typesys")
     store = rosbags.get_typestore(rosbags.Stores.ROS2_JAZZY)
     s = state(yaw=2.5, pose_covariance=np.arange(9.0).reshape(3, 3), twist_covariance=10 + np.arange(9.0).reshape(3, 3))
-    cdr = bytes(store.serialize_cdr(messages.ros2_odometry(s, store), "nav_msgs/msg/Odometry"))
+    cdr = bytes(store.serialize_cdr(ros2.ros2_odometry(s, store), "nav_msgs/msg/Odometry"))
     assert cdr[:4] == b"\x00\x01\x00\x00"  # CDR, little-endian
     msg = store.deserialize_cdr(cdr, "nav_msgs/msg/Odometry")
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1000, 250_000_000)
@@ -297,18 +297,18 @@ def test_ros2_odometry_through_rosbags_cdr():
     twist_cov = msg.twist.covariance.reshape(6, 6)
     np.testing.assert_array_equal(twist_cov[np.ix_([0, 1, 5], [0, 1, 5])], 10 + np.arange(9.0).reshape(3, 3))
     with pytest.raises(MessageError):
-        messages.ros2_odometry(state(x=math.nan), store)
+        ros2.ros2_odometry(state(x=math.nan), store)
 
 
 def test_ros2_attachment_is_zenoh_serialization_of_rmw_zenohs_fields():
     ext = pytest.importorskip("zenoh.ext")
     gid = bytes(range(16))
-    attachment = messages.ros2_attachment(7, 1_700_000_000_123_456_789, gid)
+    attachment = ros2.ros2_attachment(7, 1_700_000_000_123_456_789, gid)
     assert len(attachment) == 33
     # rmw_zenoh_cpp: serializer.serialize(int64 seq); (int64 timestamp); (std::array<uint8_t, 16> gid)
     assert attachment == ext.z_serialize((ext.Int64(7), ext.Int64(1_700_000_000_123_456_789), gid)).to_bytes()
     with pytest.raises(MessageError):
-        messages.ros2_attachment(1, 0, b"short")
+        ros2.ros2_attachment(1, 0, b"short")
 
 
 # =========================================================================== issue 18: hostile payloads

@@ -69,7 +69,8 @@ DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "d
 ALLOWED = {
     **{name: set() for name in CORE},
     "messages": set(),
-    "publish": {"messages", "ext:zenoh", "ext:rosbags"},
+    "publish": {"messages", "ros2", "ext:zenoh", "ext:rosbags"},
+    "ros2": {"messages", "ext:zenoh", "ext:rosbags"},
     "dsp": set(),
     "estimator": {"dsp"},
     "driver.sources": set(),

@@ -26,11 +26,12 @@ import zenoh
 from conftest import REPO
 from zenoh_helpers import Inbox, estimator_run, free_endpoint, peer, subscribe, wait_for
 
-from radarodom import messages
+from radarodom import messages, ros2
+from radarodom.ros2 import ros2_liveliness_keys, ros2_topic_key
 from radarodom.errors import PublishConfigError, PublishError
 from radarodom.pipeline import LatencyMeter
 from radarodom.publish import (CONNECT_RETRY, DEFAULT_ENDPOINT, ROS2_ROUTER_ENDPOINT, Publisher, ZenohOptions,
-                               open_session, ros2_liveliness_keys, ros2_topic_key)
+                               open_session)
 
 
 @pytest.fixture(scope="module")
@@ -297,7 +298,7 @@ def test_ros2_odometry_reaches_an_rmw_zenoh_subscriber(endpoint, run):
             pytest.approx(math.remainder(state.yaw, 2 * math.pi))
         assert msg.twist.twist.linear.x == state.vx and msg.twist.twist.angular.z == state.yaw_rate
         assert len(attachment) == 33
-        seq, stamp_ns, n, gid = messages.ROS2_ATTACHMENT.unpack(attachment)
+        seq, stamp_ns, n, gid = ros2.ROS2_ATTACHMENT.unpack(attachment)
         assert n == 16 and abs(stamp_ns - time.time_ns()) < 60e9
         sequences.append(seq)
         gids.add(gid)
