@@ -644,3 +644,42 @@ def test_summary_rate_is_the_stream_rate(src):
     assert proc.returncode == 0, proc.stderr
     rate = float(re.search(r", (\d+\.\d) Hz,", proc.stdout).group(1))
     assert rate == pytest.approx(20.0, abs=2.0), proc.stdout
+
+
+@pytest.fixture
+def held_port():
+    """A loopback TCP port a plain socket listens on: a Zenoh session told to listen there
+    cannot open (never 7448)."""
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen()
+        yield sock.getsockname()[1]
+
+
+def test_a_bad_source_is_the_one_error_before_any_zenoh_session_opens(held_port, capsys):
+    listen = ["--listen", f"tcp/127.0.0.1:{held_port}"]
+    # The publisher would fail on the held port: proof that a session really cannot open there.
+    rc = radar_capture.main(["--source", "sim://corridor?rate=max&duration=0.2", *listen])
+    assert rc == 1 and "cannot open the Zenoh session" in capsys.readouterr().err
+    # A bad scene, URL option or cfg is found first, and is all that is printed.
+    for argv, what in ((["--source", "sim://nosuchscene"], "nosuchscene"),
+                       (["--source", "sim://corridor?nosuch=1"], "unknown option(s) nosuch"),
+                       (["--source", "replay:///no/such/dir"], "no such file or directory"),
+                       (["--source", "sim://corridor", "--cfg", "/no/such.cfg"], "/no/such.cfg")):
+        rc = radar_capture.main([*argv, *listen])
+        out, err = capsys.readouterr()
+        lines = err.strip().splitlines()
+        assert rc == 2 and out == "", argv
+        assert len(lines) == 1 and lines[0].startswith("radar-capture: error: ") and what in lines[0], lines
+        assert "zenoh" not in err.lower()
+
+
+def test_an_existing_output_is_refused_before_any_zenoh_session_opens(held_port, tmp_path, capsys):
+    existing = tmp_path / "odom.tum"
+    existing.write_text("")
+    rc = radar_capture.main(["--source", "sim://corridor?rate=max&duration=0.2", "--odom-out", str(existing),
+                             "--listen", f"tcp/127.0.0.1:{held_port}"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "already exists" in err and "zenoh" not in err.lower()

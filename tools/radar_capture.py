@@ -190,19 +190,36 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
                       else EstimatorConfig())
     if not args.source:
         args.source = _default_source()
+    # The Zenoh options are checked here, but the session opens only once the source is open
+    # and the outputs are checked: a bad URL, scene, cfg or output is the one error printed.
+    zenoh_options = None if args.no_publish else _zenoh_options(args)
     with contextlib.ExitStack() as session:
-        # The Zenoh session opens before the radar is touched, so a bad option costs nothing.
-        publisher = None if args.no_publish else session.enter_context(_open_publisher(args))
-        summary = _run(args, cfg, publisher, status)
+        source = session.enter_context(open_source(args.source, cfg))
+        _check_source_and_outputs(args, source)
+        publisher = None if zenoh_options is None else session.enter_context(_open_publisher(zenoh_options))
+        summary = _run(args, source, publisher, status)
     print(f"radar-capture: {summary}")
     return 0
 
 
-def _open_publisher(args: argparse.Namespace):
-    from ..publish import Publisher
+def _zenoh_options(args: argparse.Namespace):
     from .zenoh_args import options_from_args
 
-    return Publisher(options_from_args(args))
+    return options_from_args(args)
+
+
+def _open_publisher(options):
+    from ..publish import Publisher
+
+    return Publisher(options)
+
+
+def _check_source_and_outputs(args: argparse.Namespace, source: Source) -> None:
+    if args.record and not source.carries_raw:
+        raise UsageError(f"{args.source} gives point clouds and heatmaps, not raw ADC frames only: "
+                         "--record needs a raw source (for ColoRadar: velocity=single_chip_adc"
+                         "&heatmap=single_chip_adc)")
+    _check_outputs(args)
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
@@ -235,33 +252,28 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
     return sinks
 
 
-def _run(args: argparse.Namespace, cfg: RadarConfig | None, publisher, status: StatusLine) -> str:
-    with open_source(args.source, cfg) as source:
-        if args.record and not source.carries_raw:
-            raise UsageError(f"{args.source} gives point clouds and heatmaps, not raw ADC frames only: "
-                             "--record needs a raw source (for ColoRadar: velocity=single_chip_adc"
-                             "&heatmap=single_chip_adc)")
-        _check_outputs(args)
-        recorder = (CaptureWriter(args.record, source.config, source=args.source,
-                                  extra=source.recording_metadata()) if args.record else None)
+def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine) -> str:
+    """Stream the open *source* (its outputs checked) through the pipeline; the summary."""
+    recorder = (CaptureWriter(args.record, source.config, source=args.source,
+                              extra=source.recording_metadata()) if args.record else None)
+    try:
+        sinks = _sinks(args, source, publisher)
+    except BaseException:
+        if recorder is not None:
+            recorder.close()  # no frame yet: the capture is removed
+        raise
+    pipeline = Pipeline(source, estimator=None if args.no_odom else args.estimator, sinks=sinks,
+                        recorder=recorder, max_frames=args.frames, max_duration_s=args.duration)
+
+    def on_frame(result, stats: PipelineStats) -> None:
+        status.update(_status_text(stats, args.record is not None, source) + _odometry_status(stats))
+
+    with _stop_on_signals(pipeline):
         try:
-            sinks = _sinks(args, source, publisher)
-        except BaseException:
-            if recorder is not None:
-                recorder.close()  # no frame yet: the capture is removed
-            raise
-        pipeline = Pipeline(source, estimator=None if args.no_odom else args.estimator, sinks=sinks,
-                            recorder=recorder, max_frames=args.frames, max_duration_s=args.duration)
-
-        def on_frame(result, stats: PipelineStats) -> None:
-            status.update(_status_text(stats, args.record is not None, source) + _odometry_status(stats))
-
-        with _stop_on_signals(pipeline):
-            try:
-                stats = pipeline.run(on_frame)
-            finally:
-                status.clear()
-        live = source.describe()
+            stats = pipeline.run(on_frame)
+        finally:
+            status.clear()
+    live = source.describe()
     summary = _summary(stats, args.record) + _odometry_summary(stats, None if args.no_odom else args.odom_out)
     if "frames_dropped" in live:
         summary += _live_summary(live)
