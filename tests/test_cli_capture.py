@@ -54,7 +54,8 @@ def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
     if record is not None:
         text += rf"; recorded to {re.escape(str(record))}"
     # The estimator runs by default and adds where it ended.
-    return text + r"(; odometry: x -?\d+\.\d\d m, y -?\d+\.\d\d m, yaw -?\d+\.\d deg, estimator median "\
+    return text + r"(; odometry: x -?\d+\.\d\d m, y -?\d+\.\d\d m, yaw -?\d+\.\d deg( \(turned -?\d+\))?, "\
+                  r"estimator median "\
                   r"\d+\.\d ms/frame, latency p50 \d+\.\d ms, p99 \d+\.\d ms(, trajectory in .*)?)?"\
                   r"(; published \d+ odometry, \d+ point cloud, \d+ heatmap and \d+ status messages under \S+)?"
 
@@ -563,11 +564,18 @@ def test_second_signal_aborts_and_leaves_a_readable_capture(tmp_path, small_cfg)
 
 
 # --------------------------------------------------------------- status line
-def _run_on_pty(*args, timeout=15.0):
-    """Run radar-capture with stderr on a pseudo-terminal; (returncode, pty bytes, stdout)."""
+def _run_on_pty(*args, timeout=15.0, columns=200):
+    """Run radar-capture with stderr on a pseudo-terminal *columns* wide; (returncode, pty
+    bytes, stdout)."""
+    import fcntl
+    import struct
+    import termios
+
     master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, columns, 0, 0))
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
     try:
-        proc = popen_capture(*args, stderr=slave)
+        proc = popen_capture(*args, stderr=slave, env=env)
     finally:
         os.close(slave)
     data = b""
@@ -606,7 +614,8 @@ def test_live_status_line_on_a_terminal(src, tmp_path):
     text = data.decode()
     assert "\r" in text and "frames" in text and "Hz" in text
     redraws = re.findall(r"\rframes (\d+)  rate +(\d+\.\d) Hz  incomplete (\d+)  elapsed [\d:.]+  \[rec\]"
-                         r"(?:  x +-?\d+\.\d\d y +-?\d+\.\d\d m yaw +-?\d+\.\d deg  v +-?\d+\.\d\d m/s"
+                         r"(?:  x +-?\d+\.\d\d y +-?\d+\.\d\d m  yaw -?\d+\.\d deg(?: \(turned -?\d+\))?"
+                         r"  v +-?\d+\.\d\d m/s"
                          r"  latency \d+/\d+ ms(?:  \[[a-z_,]+\])?)?"
                          r"\x1b\[K", text)
     assert len(redraws) >= 3, text  # 1 s at a redraw every 0.25 s
@@ -616,6 +625,19 @@ def test_live_status_line_on_a_terminal(src, tmp_path):
     assert text.endswith("\r\x1b[K")  # the line is erased at the end
     assert "radar-capture:" not in text  # the summary goes to stdout
     assert re.fullmatch(summary_re(20, 2, 200, "0.95", "frame limit", out), stdout.rstrip("\n")), stdout
+
+
+def test_the_status_line_fits_an_80_column_terminal(src):
+    """Every redraw fits 79 columns (an 80-column terminal cut the line at "ya" before)."""
+    path, _ = src
+    rc, data, stdout = _run_on_pty("--source", f"replay://{path}?rate=2&loop=0", "--frames", "30", columns=80)
+    assert rc == 0, data
+    lines = [line.removesuffix("\x1b[K") for line in data.decode().split("\r")]
+    lines = [line for line in lines if line and line != "\x1b[K"]
+    assert len(lines) >= 3, data
+    for line in lines:
+        assert len(line) <= 79 and line.startswith("frames "), line
+        assert " yaw " not in line or re.search(r" m  yaw -?\d+\.\d deg", line), line
 
 
 def test_quiet_shows_no_status_on_a_terminal(src):

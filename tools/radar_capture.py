@@ -34,7 +34,7 @@ from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline import HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
 from . import cli
-from .status import StatusLine, format_duration
+from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
 from .zenoh_args import add_zenoh_arguments
 
 
@@ -119,16 +119,30 @@ def _stop_on_signals(pipeline: Pipeline) -> Iterator[None]:
             signal.signal(sig, old)
 
 
-def _status_text(stats: PipelineStats, recording: bool, source: Source) -> str:
-    text = (f"frames {stats.frames}  rate {stats.rate.rate_hz:5.1f} Hz  incomplete {stats.incomplete_frames}"
-            f"  elapsed {format_duration(stats.elapsed_s)}")
+def _status_fields(stats: PipelineStats, recording: bool, source: Source) -> list[Field]:
+    """The live status line's fields, the most important with priority 1 (:func:`fit_fields`
+    drops the others first on a narrow terminal)."""
+    fields = [Field(f"frames {stats.frames}", priority=2),
+              Field(f"rate {stats.rate.rate_hz:5.1f} Hz", f"{stats.rate.rate_hz:.1f} Hz", 3),
+              Field(f"incomplete {stats.incomplete_frames}", f"inc {stats.incomplete_frames}",
+                    2 if stats.incomplete_frames else 4),
+              Field(f"elapsed {format_duration(stats.elapsed_s)}", format_duration(stats.elapsed_s), 6)]
     live = source.describe()
     if "frames_dropped" in live:  # a live capture: why frames are incomplete or missing
-        text += f"  dropped {live['frames_dropped']}  lost packets {live['packets_lost']}"
+        fields += [Field(f"dropped {live['frames_dropped']}", priority=2 if live["frames_dropped"] else 4),
+                   Field(f"lost packets {live['packets_lost']}", f"lost {live['packets_lost']}",
+                         2 if live["packets_lost"] else 4)]
         for key, name in (("truncated_packets", "truncated"), ("late_packets", "late")):
             if live.get(key):
-                text += f"  {name} {live[key]}"
-    return text + ("  [rec]" if recording else "")
+                fields.append(Field(f"{name} {live[key]}", priority=4))
+    if recording:
+        fields.append(Field("[rec]", priority=2))
+    return fields
+
+
+def _status_text(stats: PipelineStats, recording: bool, source: Source, width: int | None = None) -> str:
+    """The live status line fitted into *width* columns (None: whole, for a log)."""
+    return fit_fields(_status_fields(stats, recording, source) + _odometry_fields(stats), width)
 
 
 def _missing_text(stats: PipelineStats) -> str:
@@ -156,14 +170,20 @@ def _live_summary(live: dict) -> str:
             f"foreign and {live['malformed_packets']} malformed packets ignored")
 
 
-def _odometry_status(stats: PipelineStats) -> str:
+def _odometry_fields(stats: PipelineStats) -> list[Field]:
     st = stats.state
     if st is None:
-        return ""
+        return []
     p50, p99 = stats.latency.percentiles_ms(50, 99)
-    return (f"  x {st.x:6.2f} y {st.y:6.2f} m yaw {math.degrees(st.yaw):6.1f} deg"
-            f"  v {st.vx:5.2f} m/s  latency {p50:.0f}/{p99:.0f} ms"
-            + ("" if st.ok else "  [" + ",".join(st.flags) + "]"))
+    fields = [Field(f"x {st.x:6.2f} y {st.y:6.2f} m", f"x {st.x:.2f} y {st.y:.2f} m", 1),
+              Field(f"yaw {format_yaw(st.yaw)}", f"yaw {wrap_degrees(math.degrees(st.yaw)):.1f} deg", 1),
+              Field(f"v {st.vx:5.2f} m/s", f"v {st.vx:.2f} m/s", 3),
+              Field(f"latency {p50:.0f}/{p99:.0f} ms", f"{p50:.0f}/{p99:.0f} ms", 5)]
+    if not st.ok:
+        flags = [str(flag) for flag in st.flags]
+        short = f"[{flags[0]},+{len(flags) - 1}]" if len(flags) > 1 else None
+        fields.append(Field("[" + ",".join(flags) + "]", short, 1))  # the estimate is off: say so
+    return fields
 
 
 def _odometry_summary(stats: PipelineStats, odom_out: str | None) -> str:
@@ -171,7 +191,7 @@ def _odometry_summary(stats: PipelineStats, odom_out: str | None) -> str:
     if st is None:
         return ""
     p50, p99 = stats.latency.percentiles_ms(50, 99)
-    text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {math.degrees(st.yaw):.1f} deg, "
+    text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {format_yaw(st.yaw)}, "
             f"estimator median {1e3 * float(np.median(stats.estimator_s)):.1f} ms/frame, "
             f"latency p50 {p50:.1f} ms, p99 {p99:.1f} ms")
     if odom_out:
@@ -266,7 +286,7 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
                         recorder=recorder, max_frames=args.frames, max_duration_s=args.duration)
 
     def on_frame(result, stats: PipelineStats) -> None:
-        status.update(_status_text(stats, args.record is not None, source) + _odometry_status(stats))
+        status.update(_status_fields(stats, args.record is not None, source) + _odometry_fields(stats))
 
     with _stop_on_signals(pipeline):
         try:
