@@ -304,3 +304,59 @@ def test_a_cfg_with_a_huge_token_is_not_echoed(tmp_path):
     proc = run_cfg(path)
     assert proc.returncode == 2
     assert len(proc.stderr) < 400 and "900000 characters" in proc.stderr
+
+
+# ------------------------------------------------- several files, --list, --copy (issue 19)
+def test_several_files_are_each_reported_and_the_exit_status_is_the_worst(tmp_path, capsys, shipped_cfg):
+    good, _ = write_cfg(tmp_path, name="good.cfg")
+    bad, lineno = write_cfg(tmp_path, "frameCfg 0 2 4 0 50 1 0", "frameCfg 0 2 4 0 0.001 1 0", name="bad.cfg")
+    missing = tmp_path / "missing.cfg"
+    assert radar_cfg.main([str(good), str(bad), str(missing), str(SHIPPED)]) == 2
+    out, err = capsys.readouterr()
+    assert out.count(": valid xWR18xx configuration") == 2
+    assert f"{good}: valid" in out and f"{SHIPPED}: valid" in out
+    errors = [line for line in err.splitlines() if ": error: " in line]
+    assert len(errors) == 2 and errors[0].startswith(f"radar-cfg: error: {bad}:{lineno}: frameCfg")
+    assert errors[1].startswith(f"radar-cfg: error: {missing}: ")
+    assert radar_cfg.main([str(good), str(SHIPPED)]) == 0
+    capsys.readouterr()
+    assert radar_cfg.main([str(good), str(bad), "--json"]) == 2
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert list(data) == [str(good), str(bad)]
+    assert data[str(good)]["frame_bytes"] == RadarConfig.from_file(good).frame_bytes
+    assert set(data[str(bad)]) == {"error"} and data[str(bad)]["error"].startswith(f"{bad}:{lineno}: ")
+
+
+def test_list_names_the_shipped_cfgs_with_a_description():
+    proc = run_cfg("--list")
+    assert proc.returncode == 0 and proc.stderr == ""
+    shipped = sorted(p.name for p in (REPO / "configs").glob("*.cfg"))
+    lines = proc.stdout.splitlines()
+    assert [line.split()[0] for line in lines] == shipped
+    assert lines[0].split(None, 1)[1] == ("raw ADC capture on the AWR1843BOOST with a DCA1000EVM "
+                                          "(mmWave SDK 3.x demo firmware)")
+
+
+def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path):
+    proc = run_cfg("--copy", "awr1843_raw", cwd=tmp_path)  # default: NAME here
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "awr1843_raw.cfg").read_bytes() == SHIPPED.read_bytes()
+    assert proc.stdout == "radar-cfg: copied awr1843_raw.cfg to awr1843_raw.cfg\n"
+    mine = tmp_path / "mine.cfg"
+    mine.write_text("% my edits\n")
+    proc = run_cfg("--copy", "awr1843_raw.cfg", mine)
+    assert proc.returncode == 2 and "already exists" in proc.stderr and "--overwrite" in proc.stderr
+    assert mine.read_text() == "% my edits\n"
+    proc = run_cfg("--copy", "awr1843_raw.cfg", mine, "--overwrite")
+    assert proc.returncode == 0 and mine.read_bytes() == SHIPPED.read_bytes()
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    assert run_cfg("--copy", "awr1843_raw", sub).returncode == 0  # a directory: NAME in it
+    assert (sub / "awr1843_raw.cfg").read_bytes() == SHIPPED.read_bytes()
+    proc = run_cfg("--copy", "nosuch")
+    assert proc.returncode == 2 and "no shipped cfg 'nosuch'" in proc.stderr and "awr1843_raw.cfg" in proc.stderr
+    proc = run_cfg("--copy", "a", "b", "c")
+    assert proc.returncode == 2 and "usage: radar-cfg" in proc.stderr
+    proc = run_cfg("--list", SHIPPED)
+    assert proc.returncode == 2 and "usage: radar-cfg" in proc.stderr

@@ -89,21 +89,71 @@ boresight_angle = float_in(0.0, 90.0, lo_open=True, unit="degrees")
 ros2_domain = int_in(0, 232, what="a ROS 2 domain id")
 
 
-def check_new_path(path: str, *, is_dir: bool = False) -> None:
+def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) -> None:
     """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
-    created (no parent directory): radarodom never overwrites what a user has."""
+    created (no parent directory): radarodom never overwrites what a user has.
+
+    With *overwrite* (the programs' ``--overwrite``) an existing file is accepted, and
+    :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
+    directory it wrote).  A directory in place of a file is still refused, and so is, by its
+    writer, a directory that holds data radarodom did not write."""
     import os
 
     from ..errors import CaptureError, CaptureExistsError
 
-    if not is_dir and os.path.exists(path):
-        raise CaptureExistsError(f"{path} already exists; choose a new file")
+    if is_dir and overwrite and os.path.exists(path) and not os.path.isdir(path):
+        raise CaptureExistsError(f"{path} is a file, not a directory; --overwrite replaces only a directory "
+                                 "radarodom wrote")
+    if not is_dir and os.path.lexists(path):
+        if not overwrite:
+            raise CaptureExistsError(f"{path} already exists; choose a new file (or --overwrite)")
+        if os.path.isdir(path):
+            raise CaptureExistsError(f"{path} is a directory; --overwrite replaces only a file")
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):
         raise CaptureError(f"cannot create {path}: no directory {parent}")
 
 
+def replace_output(path: str, kind: str = "file") -> None:
+    """Remove an output ``--overwrite`` replaces (checked by :func:`check_new_path`): a file
+    (*kind* "file"); of a capture directory radarodom wrote (its capture.json there; *kind*
+    "capture") or a heatmap directory (its index.json; "heatmaps"), only the files radarodom
+    writes there, so that anything else in it stays.  Nothing else is touched."""
+    import os
+    import re
+
+    from ..driver.recordings.capture_dir import remove_capture_files
+    from ..errors import CaptureError
+
+    try:
+        if kind == "file":
+            if os.path.lexists(path) and not os.path.isdir(path):
+                os.remove(path)
+        elif os.path.isdir(path):
+            names = os.listdir(path)
+            if kind == "capture" and "capture.json" in names:
+                remove_capture_files(path)
+            elif kind == "heatmaps" and "index.json" in names:
+                for name in names:
+                    if name in ("index.json", "index.json.tmp") or re.fullmatch(
+                            r"\d{6,}_(intensity|static|doppler)\.npy", name):
+                        os.remove(os.path.join(path, name))
+    except OSError as exc:
+        raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
+
+
+def add_overwrite(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing output file, or an output directory radarodom wrote "
+                             "(only its own files in it are removed)")
+
+
 def add_verbosity(parser: argparse.ArgumentParser) -> None:
+    """-v/--verbose, -q/--quiet, and --version (every program has them)."""
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"radarodom {__version__}",
+                        help="print radarodom's version and exit")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("-v", "--verbose", action="store_true",
                        help="debug messages, and a traceback on errors")

@@ -63,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--json", action="store_true",
                         help="print JSON: range_bias_m, coefficients (12 [re, im] in TI's order), cfg_line, "
                              "snr_db, residual_phase_deg, gain_db, phase_deg, ...")
+    cli.add_overwrite(parser)
     cli.add_verbosity(parser)
     return parser
 
@@ -107,7 +108,7 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
 
 def _main(args: argparse.Namespace) -> int:
     if args.write_cfg:
-        cli.check_new_path(args.write_cfg)
+        cli.check_new_path(args.write_cfg, overwrite=args.overwrite)
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     source = args.source or _default_source()
     args.source = source

@@ -88,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="do not run the estimator (capture, record and DSP exports only)")
     parser.add_argument("--estimator-config", metavar="FILE.json",
                         help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones)")
+    cli.add_overwrite(parser)
     parser.add_argument("--no-publish", action="store_true",
                         help="do not publish over Zenoh (offline runs and evaluation)")
     add_zenoh_arguments(parser, ros2=True)
@@ -242,12 +243,20 @@ def _check_source_and_outputs(args: argparse.Namespace, source: Source) -> None:
     _check_outputs(args)
 
 
+def _outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """(path, kind) of every output asked for; kind as :func:`cli.replace_output` takes it."""
+    outputs = [(args.record, "capture"), (args.heatmap_out, "heatmaps"), (args.points_out, "file"),
+               (None if args.no_odom else args.odom_out, "file")]
+    return [(path, kind) for path, kind in outputs if path]
+
+
 def _check_outputs(args: argparse.Namespace) -> None:
-    """Every file output is new: checked before anything is created, so a refusal leaves
-    nothing behind."""
-    for path in (args.points_out, None if args.no_odom else args.odom_out, args.heatmap_out):
-        if path:
-            cli.check_new_path(path, is_dir=path == args.heatmap_out)
+    """Every file output is new (or, with --overwrite, replaceable): checked before anything
+    is created, so a refusal leaves nothing behind."""
+    for path, kind in _outputs(args):
+        if kind == "capture" and not (args.overwrite and os.path.exists(path)):
+            continue  # a capture directory is checked by its writer (which makes its parents)
+        cli.check_new_path(path, is_dir=kind != "file", overwrite=args.overwrite)
 
 
 def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
@@ -274,6 +283,9 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
 
 def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine) -> str:
     """Stream the open *source* (its outputs checked) through the pipeline; the summary."""
+    if args.overwrite:
+        for path, kind in _outputs(args):
+            cli.replace_output(path, kind)
     recorder = (CaptureWriter(args.record, source.config, source=args.source,
                               extra=source.recording_metadata()) if args.record else None)
     try:

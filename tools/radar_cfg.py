@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
+import shutil
 import sys
+import traceback
+from importlib import resources
 from typing import Sequence
 
 from ..calibration import uncalibrated_note
+from ..errors import RadarodomError, UsageError
 from .. import strict_json
 from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, DCA1000_PACKET_DELAY_RANGE_US, RAW_LVDS_LINE, RadarConfig
 from . import cli
@@ -33,31 +38,121 @@ _ROWS = (
 )
 
 
+class _Parser(argparse.ArgumentParser):
+    def parse_args(self, args=None, namespace=None):  # type: ignore[override]
+        ns = super().parse_args(args, namespace)
+        if ns.copy is not None and len(ns.copy) > 2:
+            self.error("--copy takes NAME and at most one DEST")
+        if sum((bool(ns.cfg), ns.list, ns.copy is not None)) != 1:
+            self.error("give one or more FILEs, or --list, or --copy NAME [DEST]")
+        return ns
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="radar-cfg",
-        description="Validate a TI mmWave SDK 3.x cfg for the xWR18xx and print its derived "
-                    "quantities. Exit 2, with file:line, on an invalid cfg.")
-    parser.add_argument("cfg", metavar="FILE", help="the .cfg file")
-    parser.add_argument("--json", action="store_true", help="print JSON with stable keys")
+        description="Validate TI mmWave SDK 3.x cfgs for the xWR18xx and print their derived "
+                    "quantities. Exit 2, with file:line, on an invalid cfg (with several files: the worst "
+                    "exit status of them). --list and --copy give the cfgs radarodom ships.")
+    parser.add_argument("cfg", metavar="FILE", nargs="*", help="the .cfg files")
+    parser.add_argument("--json", action="store_true",
+                        help="print JSON with stable keys (several files: an object of them by file name)")
     parser.add_argument("--packet-delay-us", type=cli.float_in(*DCA1000_PACKET_DELAY_RANGE_US, unit="us"),
                         default=DCA1000_DEFAULT_PACKET_DELAY_US, metavar="US",
                         help="DCA1000 packet delay for the capacity figure, %g..%g us (default %%(default)g)"
                              % DCA1000_PACKET_DELAY_RANGE_US)
+    parser.add_argument("--list", action="store_true", help="list the cfgs radarodom ships, one line each")
+    parser.add_argument("--copy", nargs="+", metavar=("NAME", "DEST"),
+                        help="copy a shipped cfg to DEST (a file or a directory; default: NAME in the "
+                             "current directory), a new file unless --overwrite")
+    cli.add_overwrite(parser)
     cli.add_verbosity(parser)
     return parser
 
 
+def shipped_configs() -> dict[str, str]:
+    """The cfgs radarodom ships (configs/*.cfg in the package): name -> its first comment line."""
+    folder = resources.files(__package__.rpartition(".")[0]).joinpath("configs")
+    found = {}
+    for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".cfg"):
+            first = entry.read_text(encoding="ascii", errors="replace").splitlines()[:1]
+            text = first[0].lstrip("%").strip() if first and first[0].startswith("%") else ""
+            found[entry.name] = text.removeprefix("radarodom:").strip() or "(no description)"
+    return found
+
+
+def _list() -> int:
+    configs = shipped_configs()
+    width = max(map(len, configs), default=0)
+    for name, description in configs.items():
+        print(f"{name:<{width}}  {description}")
+    return 0
+
+
+def _copy(names: list[str], overwrite: bool) -> int:
+    from ..cfg import shipped_config_path
+
+    configs = shipped_configs()
+    name = names[0] if names[0].endswith(".cfg") else names[0] + ".cfg"
+    if name not in configs:
+        raise UsageError(f"no shipped cfg {names[0]!r}; radarodom ships: {', '.join(configs)} (radar-cfg --list)")
+    dest = names[1] if len(names) > 1 else name
+    if os.path.isdir(dest):
+        dest = os.path.join(dest, name)
+    cli.check_new_path(dest, overwrite=overwrite)
+    try:
+        shutil.copyfile(shipped_config_path(name), dest)
+    except OSError as exc:
+        from ..errors import CaptureError
+
+        raise CaptureError(f"cannot write {dest}: {exc.strerror or exc}") from None
+    print(f"radar-cfg: copied {name} to {dest}")
+    return 0
+
+
 def _main(args: argparse.Namespace) -> int:
-    cfg = RadarConfig.from_file(args.cfg)
+    if args.list:
+        return _list()
+    if args.copy is not None:
+        return _copy(args.copy, args.overwrite)
+    if len(args.cfg) == 1:
+        return _report(args.cfg[0], args, None)
+    status = 0
+    documents: dict | None = {} if args.json else None
+    for index, path in enumerate(args.cfg):
+        if index and not args.json:
+            print()
+        try:
+            _report(path, args, documents)
+        except RadarodomError as exc:
+            sys.stdout.flush()
+            print(f"radar-cfg: error: {exc}", file=sys.stderr)
+            if args.verbose:
+                traceback.print_exc()
+            status = max(status, exc.exit_code)
+            if documents is not None:
+                documents[path] = {"error": str(exc)}
+    if documents is not None:
+        sys.stdout.write(strict_json.dumps(documents, indent=2) + "\n")
+    return status
+
+
+def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
+    """Validate the cfg at *path* and print what it makes the radar do (or, with --json and
+    several files, put its summary into *documents*)."""
+    cfg = RadarConfig.from_file(path)
     summary = cfg.summary(args.packet_delay_us)
     note = uncalibrated_note(cfg) if cfg.streams_raw_adc else None  # a cfg meant for a real board
     if note is not None:
         log.warning("%s", note)
+    if documents is not None:
+        documents[path] = summary
+        return 0
     if args.json:
         sys.stdout.write(strict_json.dumps(summary, indent=2) + "\n")
         return 0
-    out = [f"{args.cfg}: valid xWR18xx configuration",
+    out = [f"{path}: valid xWR18xx configuration",
            f"  {'TX order':<24} {' '.join(f'TX{t}' for t in cfg.tx_order)}"
            f"  ({cfg.num_tx} TX, {cfg.num_rx} RX, {cfg.num_tx_slots * cfg.num_rx} virtual antennas)",
            f"  {'frame':<24} {cfg.num_loops} loops x {cfg.num_tx_slots} chirps x "

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from typing import Sequence
@@ -36,7 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--board", default="ideal", metavar="NAME|FILE",
                         help=f"the board's imperfections: {', '.join(BUILTIN_BOARDS)} or a board .toml file "
                              "(default: ideal)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="new capture directory to write")
+    parser.add_argument("--out", required=True, metavar="DIR", help="new capture directory to write (--overwrite: or one radarodom wrote, replaced)")
+    cli.add_overwrite(parser)
     cli.add_verbosity(parser)
     return parser
 
@@ -52,6 +54,9 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     scene = load_scene(args.scene, seed=args.seed)
     board = load_board(args.board)
     sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board)
+    if args.overwrite and os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
+        cli.check_new_path(args.out, is_dir=True, overwrite=True)
+        cli.replace_output(args.out, "capture")
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")

@@ -115,7 +115,8 @@ def _holds_no_frame(directory: str) -> bool:
     return True
 
 
-def _remove_capture_files(directory: str) -> None:
+def remove_capture_files(directory: str) -> None:
+    """Remove the files a capture consists of from *directory* (nothing else in it)."""
     for name in _CAPTURE_FILES:
         try:
             os.remove(os.path.join(directory, name))
@@ -170,7 +171,7 @@ class CaptureWriter:
                                              f"choose a new directory")
                 # A run that recorded nothing and was killed before it could clean up.
                 log.info("%s holds a capture of no frame; recording over it", self.directory)
-                _remove_capture_files(self.directory)
+                remove_capture_files(self.directory)
             config.write(os.path.join(self.directory, RADAR_CFG))
             self._data_fd = os.open(os.path.join(self.directory, ADC_DATA),
                                     os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
@@ -301,7 +302,7 @@ class CaptureWriter:
             if self._frames:
                 self._write_metadata()
                 return
-            _remove_capture_files(self.directory)
+            remove_capture_files(self.directory)
             if self._made_directory:
                 with contextlib.suppress(OSError):  # something else was put there: leave it
                     os.rmdir(self.directory)

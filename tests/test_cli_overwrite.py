@@ -1,0 +1,121 @@
+"""--overwrite (issue 19): an output file is replaced; an output directory only when radarodom
+wrote it, and then only radarodom's files in it go; anything else is refused and left alone.
+And --version on every program."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import re
+import tomllib
+
+import pytest
+from conftest import REPO
+
+from radarodom import __version__
+from radarodom.tools import radar_capture, radar_sim
+
+URL = "sim://calibration?rate=max&duration=0.3"
+
+
+def capture(capsys, *args) -> tuple[int, str]:
+    rc = radar_capture.main(["--source", URL, "--no-publish", "-q", *map(str, args)])
+    return rc, capsys.readouterr().err
+
+
+def test_every_program_prints_its_version(capsys):
+    scripts = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
+    assert len(scripts) >= 9
+    for name, target in scripts.items():
+        module, _, func = target.partition(":")
+        assert getattr(importlib.import_module(module), func)(["--version"]) == 0, name
+        out, err = capsys.readouterr()
+        assert out == f"radarodom {__version__}\n" and err == "", name
+    assert re.fullmatch(r"\d+\.\d+\.\d+", __version__)
+
+
+@pytest.mark.parametrize("option, name", [("--odom-out", "odom.tum"), ("--points-out", "points.csv")])
+def test_a_file_output_is_replaced_only_with_overwrite(tmp_path, capsys, option, name):
+    out = tmp_path / name
+    out.write_text("the user's own\n")
+    rc, err = capture(capsys, option, out)
+    assert rc == 2 and "already exists" in err and "--overwrite" in err
+    assert out.read_text() == "the user's own\n"
+    rc, err = capture(capsys, option, out, "--overwrite")
+    assert rc == 0, err
+    text = out.read_text()
+    assert "the user's own" not in text and len(text.splitlines()) >= 2
+
+
+def test_overwrite_refuses_a_directory_in_place_of_a_file(tmp_path, capsys):
+    folder = tmp_path / "odom.tum"
+    folder.mkdir()
+    (folder / "keep").write_text("x")
+    rc, err = capture(capsys, "--odom-out", folder, "--overwrite")
+    assert rc == 2 and "is a directory" in err
+    assert (folder / "keep").read_text() == "x"
+
+
+def test_a_heatmap_directory_is_replaced_keeping_other_files(tmp_path, capsys):
+    out = tmp_path / "maps"
+    rc, err = capture(capsys, "--heatmap-out", out, "--no-odom")
+    assert rc == 0, err
+    first = json.loads((out / "index.json").read_text())
+    (out / "999999_intensity.npy").write_bytes(b"old")  # a heatmap of the earlier run
+    (out / "notes.txt").write_text("mine")
+    rc, err = capture(capsys, "--heatmap-out", out, "--no-odom")
+    assert rc == 2 and "already holds heatmaps" in err
+    rc, err = capture(capsys, "--heatmap-out", out, "--no-odom", "--overwrite")
+    assert rc == 0, err
+    again = json.loads((out / "index.json").read_text())
+    assert again["frames"] == first["frames"]
+    assert not (out / "999999_intensity.npy").exists() and (out / "notes.txt").read_text() == "mine"
+    npy = sorted(p.name for p in out.glob("*.npy"))
+    assert len(npy) == 3 * len(again["frames"])
+
+
+def test_a_recording_is_replaced_only_when_radarodom_wrote_it(tmp_path, capsys):
+    out = tmp_path / "rec"
+    rc, err = capture(capsys, "--record", out, "--no-odom")
+    assert rc == 0, err
+    (out / "notes.txt").write_text("mine")
+    size = (out / "adc_data.bin").stat().st_size
+    rc, err = capture(capsys, "--record", out, "--no-odom")
+    assert rc == 2 and "already holds a capture" in err
+    rc, err = capture(capsys, "--record", out, "--no-odom", "--frames", "1", "--overwrite")
+    assert rc == 0, err
+    assert 0 < (out / "adc_data.bin").stat().st_size < size  # the new one-frame recording
+    assert json.loads((out / "capture.json").read_text())["frame_count"] == 1
+    assert (out / "notes.txt").read_text() == "mine"
+    # A directory with someone else's adc_data.bin (no capture.json) is never replaced.
+    foreign = tmp_path / "ti"
+    foreign.mkdir()
+    (foreign / "adc_data.bin").write_bytes(b"\x01" * 64)
+    rc, err = capture(capsys, "--record", foreign, "--no-odom", "--overwrite")
+    assert rc == 2 and "already holds a capture" in err
+    assert (foreign / "adc_data.bin").read_bytes() == b"\x01" * 64 and len(list(foreign.iterdir())) == 1
+
+
+def test_overwrite_does_not_apply_to_a_heatmap_run_over_a_capture(tmp_path, capsys):
+    out = tmp_path / "rec"
+    assert capture(capsys, "--record", out, "--no-odom")[0] == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    rc, err = capture(capsys, "--heatmap-out", out, "--no-odom", "--overwrite", "--frames", "1")
+    assert rc == 0, err  # heatmaps written beside the capture, which stays whole
+    assert all((out / name).read_bytes() == data for name, data in before.items() if name != "capture.json")
+
+
+def test_radar_sim_out_is_replaced_with_overwrite(tmp_path, capsys):
+    out = tmp_path / "sim"
+    argv = ["calibration", "--duration", "0.2", "--out", str(out), "-q"]
+    assert radar_sim.main(argv) == 0
+    (out / "notes.txt").write_text("mine")
+    assert radar_sim.main(argv) == 2
+    assert "already holds a capture" in capsys.readouterr().err
+    assert radar_sim.main([*argv, "--seed", "1", "--overwrite"]) == 0
+    assert json.loads((out / "capture.json").read_text())["source"].endswith("seed=1")
+    assert (out / "notes.txt").read_text() == "mine"
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert radar_sim.main(["calibration", "--duration", "0.2", "--out", str(blocker), "--overwrite"]) == 2
+    assert "is a file" in capsys.readouterr().err and blocker.read_text() == "x"
