@@ -64,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "frame, publish them over Zenoh, show a live status, and optionally record the frames "
                     "to a capture directory.",
         epilog="Sources: replay://DIR[?rate=1.0|max&loop=N&start=K|Ss&frames=N] plays a capture "
-               "directory or TI recorder files (with --cfg); sim://SCENE[?seed=N&rate=1.0|max&duration=S] "
+               "directory or TI recorder files (with --cfg); sim://SCENE[?seed=N&rate=1.0|max&duration=S&loop=N] "
                "simulates a scene (corridor, room, lab, calibration, or a .toml/.json file). "
                "dca1000://[BOARD_IP][?cli=PORT&host=IP&delay=US&policy=latest|queue] streams the live "
                "radar. coloradar://RUN_DIR[?velocity=single_chip|single_chip_adc&heatmap=cascade|single_chip|"
@@ -209,18 +209,29 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     # Read the estimator's settings before any hardware is touched.
     args.estimator = (EstimatorConfig.load(args.estimator_config) if args.estimator_config
                       else EstimatorConfig())
-    if not args.source:
+    defaulted = not args.source
+    if defaulted:
         args.source = _default_source()
     # The Zenoh options are checked here, but the session opens only once the source is open
     # and the outputs are checked: a bad URL, scene, cfg or output is the one error printed.
     zenoh_options = None if args.no_publish else _zenoh_options(args)
     with contextlib.ExitStack() as session:
         source = session.enter_context(open_source(args.source, cfg))
+        if defaulted and args.source == DEFAULT_SIM_URL:
+            log.warning("%s", _default_sim_note(source))
         _check_source_and_outputs(args, source)
         publisher = None if zenoh_options is None else session.enter_context(_open_publisher(zenoh_options))
         summary = _run(args, source, publisher, status)
     print(f"radar-capture: {summary}")
     return 0
+
+
+def _default_sim_note(source: Source) -> str:
+    """When the default simulator stream ends, and how to keep it going."""
+    about = source.describe()
+    forever = DEFAULT_SIM_URL + "?loop=0"
+    return (f"the simulated {about['scene']} runs {about['duration_s']:.1f} s ({about['frames']} frames); "
+            f"Ctrl-C stops; --source '{forever}' runs forever")
 
 
 def _zenoh_options(args: argparse.Namespace):

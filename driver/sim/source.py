@@ -1,6 +1,6 @@
 """``sim://`` : the simulator as a frame source.
 
-``sim://SCENE?seed=0&rate=1.0&duration=S``
+``sim://SCENE?seed=0&rate=1.0&duration=S&loop=1``
 
 - SCENE: a built-in scene (``corridor``, ``room``, ``lab``, ``calibration``;
   default ``corridor``) or a scene file (``sim:///path/to/scene.toml``).
@@ -10,6 +10,10 @@
 - ``rate``: 1.0 streams in real time (default), 2 twice as fast, ``max`` as
   fast as frames can be made.
 - ``duration``: seconds of stream; default the scene's trajectory.
+- ``loop``: how many times to play the trajectory (0: until stopped; default 1), as
+  ``replay://`` does: later passes continue the clock and the frame numbers (both keep
+  increasing), the frames are the first pass's again, and the ground-truth pose restarts
+  with the scene (the sensor is back at the trajectory's start, relative to the first frame).
 - ``board``: the board's imperfections, ``ideal`` (default), ``uncalibrated`` (TX
   and RX paths tens of degrees and about a dB apart, a range bias, TX-to-RX
   leakage) or a board file (``board=/path/board.toml``; see :mod:`.board`).
@@ -42,25 +46,31 @@ DEFAULT_SCENE = "corridor"
 class SimSource(Source):
     """Streams a :class:`Simulator`'s frames."""
 
-    def __init__(self, sim: Simulator, *, rate: float = 1.0) -> None:
+    def __init__(self, sim: Simulator, *, rate: float = 1.0, loop: int = 1) -> None:
         super().__init__()
         self.sim = sim
         self.config: RadarConfig = sim.cfg
         self.rate = rate
+        self.loop = loop
         self.calibrated = sim.board.fits(sim.cfg)
 
     def __iter__(self) -> Iterator[Frame]:
         pacer = Pacer(self.rate, self)
-        for i in range(self.sim.num_frames):
-            if self.stop_requested:
-                return
-            t = self.sim.frame_time(i)
-            pacer.wait(t)
-            if self.stop_requested:
-                return
-            f = self.sim.frame(i)
-            yield Frame(index=i, timestamp=f.timestamp, raw=np.frombuffer(f.raw, np.uint8),
-                        layout=self.sim.layout, pose=f.pose)
+        n = self.sim.num_frames
+        span = n * self.sim.period  # a pass, so that the next one's first frame is a period on
+        passes = 0
+        while not self.stop_requested and (self.loop == 0 or passes < self.loop):
+            for i in range(n):
+                if self.stop_requested:
+                    return
+                offset = passes * span  # later passes continue the clock, like replay's
+                pacer.wait(self.sim.frame_time(i) + offset)
+                if self.stop_requested:
+                    return
+                f = self.sim.frame(i)
+                yield Frame(index=passes * n + i, timestamp=f.timestamp + offset,
+                            raw=np.frombuffer(f.raw, np.uint8), layout=self.sim.layout, pose=f.pose)
+            passes += 1
 
     def recording_metadata(self) -> dict:
         board = self.sim.board
@@ -70,7 +80,13 @@ class SimSource(Source):
     def describe(self) -> dict:
         return {"url": self.url, "scene": self.sim.scene.name, "frames": self.sim.num_frames,
                 "seed": self.sim.seed, "board": self.sim.board.name,
-                "rate": "max" if self.rate == float("inf") else self.rate}
+                "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop,
+                "duration_s": pass_duration_s(self.sim)}
+
+
+def pass_duration_s(sim: Simulator) -> float:
+    """Seconds of stream of one pass of *sim*'s frames."""
+    return sim.num_frames * sim.period
 
 
 def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimSource:
@@ -79,10 +95,11 @@ def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimS
     duration = options.take("duration", positive_number, None, "seconds > 0")
     fidelity = options.take("fidelity", one_of(*FIDELITIES), None, " or ".join(FIDELITIES))
     board = options.take("board", str, "ideal", "ideal, uncalibrated or a board .toml file")
+    loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     options.finish()
     if fidelity is None:
         fidelity = "exact" if rate == float("inf") else "fast"
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     scene = load_scene(path or DEFAULT_SCENE, seed=seed)
     sim = Simulator(cfg, scene, seed=seed, duration_s=duration, fidelity=fidelity, board=load_board(board))
-    return SimSource(sim, rate=rate)
+    return SimSource(sim, rate=rate, loop=loop)
