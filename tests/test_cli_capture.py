@@ -338,9 +338,10 @@ def test_no_source_streams_the_simulator_and_says_so():
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     warnings = proc.stderr.splitlines()
-    assert len(warnings) == 1, proc.stderr
-    assert warnings[0].startswith("radar-capture: warning: ")
+    assert len(warnings) == 2, proc.stderr  # what it streams, and when that ends (issue 19)
+    assert all(line.startswith("radar-capture: warning: ") for line in warnings)
     assert radar_capture.DEFAULT_SIM_URL in warnings[0] and "--source" in warnings[0]
+    assert "runs forever" in warnings[1]
     assert re.fullmatch(summary_re(2, 0, 0, r"\d+\.\d\d", "frame limit"),
                         proc.stdout.rstrip("\n")), \
         proc.stdout
