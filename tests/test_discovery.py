@@ -19,9 +19,9 @@ from conftest import REPO, console_command, warning_messages
 from serial.tools.list_ports_common import ListPortInfo
 
 from radarodom.driver.live import discovery
-from radarodom.driver.live.discovery import (DeviceReport, RadarInfo, SerialPortInfo, UsbDeviceInfo,
-                                        default_cli_port, find_cli_ports, find_data_ports,
-                                        find_ports, find_usb_devices, require_cli_port, scan)
+from radarodom.driver.live.device_report import DeviceReport, RadarInfo, scan
+from radarodom.driver.live.discovery import (SerialPortInfo, UsbDeviceInfo, default_cli_port, find_cli_ports,
+                                             find_data_ports, find_ports, find_usb_devices, require_cli_port)
 from radarodom.errors import DeviceError
 from radarodom.tools import radar_devices
 

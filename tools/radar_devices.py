@@ -15,7 +15,8 @@ from typing import Sequence
 
 from .. import strict_json
 from ..driver.live import discovery
-from ..driver.live.discovery import DeviceReport, RadarInfo, SerialPortInfo, UsbDeviceInfo
+from ..driver.live.device_report import DeviceReport, RadarInfo, scan
+from ..driver.live.discovery import SerialPortInfo, UsbDeviceInfo
 from . import cli
 
 #: The commands of the access hint (from a clone of radarodom).
@@ -36,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _main(args: argparse.Namespace) -> int:
-    report = discovery.scan()
+    report = scan()
     hints = access_hints(report)
     if args.json:
         data = report.to_dict()
