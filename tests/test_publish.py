@@ -157,16 +157,13 @@ def test_the_liveliness_token_lives_as_long_as_the_publisher(endpoint):
 
 def test_the_publisher_keeps_running_without_subscribers(publisher, endpoint, run):
     state = run[-1][0]
-    started = time.perf_counter()
-    slowest = 0.0
+    started = time.monotonic()
     for i in range(300):
-        t0 = time.perf_counter()
         publisher.odometry(state)
         publisher.pointcloud(i, state.t, run[-1][1])
         publisher.heatmap(i, state.t, run[-1][2])
-        slowest = max(slowest, time.perf_counter() - t0)
-    assert time.perf_counter() - started < 5.0
-    assert slowest < 0.1, f"a publish took {slowest * 1e3:.1f} ms"
+    # Puts drop on congestion rather than wait: nothing blocks (a hang guard, not a speed figure).
+    assert time.monotonic() - started < 60.0
     assert publisher.counts == {"odom": 300, "pointcloud": 300, "heatmap": 300, "status": 0}
     with peer(connect=[endpoint]) as session:  # ... and a subscriber that joins then gets what follows
         inbox = subscribe(session, "radar/awr1843/odom")
@@ -454,8 +451,9 @@ def test_the_default_endpoint_in_use_falls_back_to_a_free_port(warnings_log, def
             pub.close()
     finally:
         holder.close()
-    # The holder accepts TCP but never answers Zenoh's handshake: closing waits for that at most 2 s.
-    assert time.monotonic() - started < 3.0
+    # The holder accepts TCP but never answers Zenoh's handshake: closing waits for that at most
+    # 2 s (HANDSHAKE_TIMEOUT_MS), not zenoh's default 10 s; the rest is slack for a loaded machine.
+    assert time.monotonic() - started < 8.0
     assert any(f"{default_endpoint} is in use" in r.getMessage() and fallback in r.getMessage()
                for r in warnings_log.records)
 

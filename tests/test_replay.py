@@ -156,7 +156,8 @@ def test_stop_during_pacing_ends_promptly(tmp_path, small_cfg):
             timer.cancel()
         elapsed = time.monotonic() - t0
     assert len(got) == 1
-    assert 0.15 <= elapsed < 2.0, elapsed
+    # Stopped at 0.2 s, not after the next frame's 10 s (the rest is slack for a loaded machine).
+    assert 0.15 <= elapsed < 8.0, elapsed
 
 
 # --------------------------------------------------------------- URL errors
