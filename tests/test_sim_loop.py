@@ -5,7 +5,6 @@ restarts with the scene.  And the default simulator stream says when it ends."""
 from __future__ import annotations
 
 import itertools
-import logging
 
 import numpy as np
 import pytest
