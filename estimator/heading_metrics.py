@@ -1,0 +1,135 @@
+"""Heading metrics against a ground truth (issue 20's robustness matrix).
+
+Per-frame RMSE hides systematic heading errors that a robot feels at once: a
+small yaw bias on every straight frame, a turn measured a few percent too large
+or too small.  These metrics measure them separately, by segmenting the truth:
+
+- **yaw-increment RMSE** (deg): the frame-to-frame yaw change, estimate minus truth;
+- **straight-drive heading bias**: the yaw-increment error (estimate minus truth) summed
+  over the frames where the truth drives straight (|yaw rate| below ``straight_rate_dps``, speed above
+  ``moving_speed_mps``), per metre driven and per minute of such driving (and per frame);
+- **turn ratio**: estimated / true turned angle over the turns, a turn being a run of
+  frames with |true yaw rate| above ``straight_rate_dps`` that turns at least
+  ``min_turn_deg``; a turn whose median speed is below ``moving_speed_mps`` is a turn in
+  place, else a moving turn; the two kinds are reported apart.  The ratio is the estimate's
+  yaw change over the turn's frames (signed along the true turn) over the true angle;
+- **drift** (% of the path): final position error, the estimate aligned at the first pose;
+- **final heading error** (deg, signed, wrapped).
+
+Both trajectories are SE(2) arrays (n, 3) of x (m), y (m), yaw (rad) at the same times
+(as :func:`radarodom.estimator.evaluation.associate` pairs them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .evaluation import se2_compose, se2_inverse
+
+__all__ = ["HeadingMetrics", "heading_metrics", "segment_turns"]
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class HeadingMetrics:
+    yaw_rmse_deg: float
+    #: Straight driving: frames, metres and seconds it covers, and the estimate's heading change.
+    straight_frames: int
+    straight_m: float
+    straight_s: float
+    straight_bias_deg_per_m: float
+    straight_bias_deg_per_min: float
+    straight_bias_deg_per_frame: float
+    #: Turns while moving and in place: how many, true angle (deg, sum of magnitudes), ratio.
+    moving_turns: int
+    moving_turn_deg: float
+    moving_turn_ratio: float
+    inplace_turns: int
+    inplace_turn_deg: float
+    inplace_turn_ratio: float
+    path_m: float
+    drift_pct: float
+    final_heading_error_deg: float
+
+    def to_dict(self) -> dict:
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in asdict(self).items()}
+
+
+def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: float = 2.0,
+                  moving_speed_mps: float = 0.05, min_turn_deg: float = 10.0) -> list[tuple[int, int, bool]]:
+    """The truth's turns as (first interval, end interval (exclusive), in place) over the
+    n-1 frame intervals: runs of |yaw rate| > *straight_rate_dps* turning >= *min_turn_deg*."""
+    dt = np.diff(times)
+    dyaw = _wrap(np.diff(ref[:, 2]))
+    rate = np.degrees(np.abs(dyaw)) / dt
+    speed = np.hypot(*np.diff(ref[:, :2], axis=0).T) / dt
+    turning = rate > straight_rate_dps
+    out = []
+    i, n = 0, len(turning)
+    while i < n:
+        if not turning[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and turning[j] and np.sign(dyaw[j]) == np.sign(dyaw[i]):
+            j += 1
+        if abs(math.degrees(dyaw[i:j].sum())) >= min_turn_deg:
+            out.append((i, j, bool(np.median(speed[i:j]) < moving_speed_mps)))
+        i = j
+    return out
+
+
+def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
+                    min_turn_deg: float = 10.0) -> HeadingMetrics:
+    """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*)."""
+    times = np.asarray(times, float)
+    ref = np.asarray(ref, float)
+    est = np.asarray(est, float)
+    if ref.shape != est.shape or ref.ndim != 2 or ref.shape[1] != 3 or len(ref) != len(times) or len(ref) < 2:
+        raise ValueError("ref and est must be (n, 3) SE(2) arrays at the n >= 2 times")
+    dt = np.diff(times)
+    d_ref = _wrap(np.diff(ref[:, 2]))
+    d_est = _wrap(np.diff(est[:, 2]))
+    err = _wrap(d_est - d_ref)
+    step_m = np.hypot(*np.diff(ref[:, :2], axis=0).T)
+    speed = step_m / dt
+    rate_dps = np.degrees(np.abs(d_ref)) / dt
+
+    straight = (rate_dps <= straight_rate_dps) & (speed > moving_speed_mps)
+    s_m, s_s = float(step_m[straight].sum()), float(dt[straight].sum())
+    s_yaw = math.degrees(float(err[straight].sum()))  # the truth turns ~0 there; its ramps' rest removed
+    nan = float("nan")
+
+    turns = segment_turns(times, ref, straight_rate_dps=straight_rate_dps, moving_speed_mps=moving_speed_mps,
+                          min_turn_deg=min_turn_deg)
+    kinds = {}
+    for in_place in (False, True):
+        true_sum, est_sum, count = 0.0, 0.0, 0
+        for i, j, ip in turns:
+            if ip != in_place:
+                continue
+            true_angle = float(d_ref[i:j].sum())
+            true_sum += abs(true_angle)
+            est_sum += math.copysign(1.0, true_angle) * float(d_est[i:j].sum())
+            count += 1
+        kinds[in_place] = (count, math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan)
+
+    path = float(step_m.sum())
+    aligned = se2_compose(se2_compose(ref[0], se2_inverse(est[0]))[None, :], est)
+    drift = float(np.hypot(*(aligned[-1, :2] - ref[-1, :2])))
+    final = math.degrees(float(_wrap(aligned[-1, 2] - ref[-1, 2])))
+    return HeadingMetrics(
+        yaw_rmse_deg=math.degrees(float(np.sqrt(np.mean(err ** 2)))),
+        straight_frames=int(straight.sum()), straight_m=s_m, straight_s=s_s,
+        straight_bias_deg_per_m=s_yaw / s_m if s_m > 0 else nan,
+        straight_bias_deg_per_min=60.0 * s_yaw / s_s if s_s > 0 else nan,
+        straight_bias_deg_per_frame=s_yaw / int(straight.sum()) if straight.any() else nan,
+        moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
+        inplace_turns=kinds[True][0], inplace_turn_deg=kinds[True][1], inplace_turn_ratio=kinds[True][2],
+        path_m=path, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)

@@ -1,0 +1,99 @@
+"""The heading metrics of the robustness matrix (issue 20) on synthetic trajectories whose
+answer is known: a truth from the simulator's trajectory model, an estimate built from it with a
+chosen yaw bias on straights and chosen turn scale factors."""
+
+import math
+
+import numpy as np
+import pytest
+
+from radarodom.driver.sim.trajectory import from_segments
+from radarodom.estimator.heading_metrics import heading_metrics, segment_turns
+
+SEGMENTS = [{"pause": 1.0}, {"straight": 4.0, "speed": 1.0}, {"turn": 90, "radius": 1.0, "speed": 0.8},
+            {"straight": 3.0, "speed": 0.5}, {"rotate": 180, "rate": 60}, {"straight": 3.0, "speed": 0.5},
+            {"turn": -90, "radius": 1.0, "speed": 0.8}, {"straight": 4.0, "speed": 1.0}, {"pause": 1.0}]
+
+
+def truth(rate_hz=10.0):
+    traj = from_segments(SEGMENTS)
+    t = np.arange(0.0, traj.duration_s, 1.0 / rate_hz)
+    x, y, yaw = traj.pose(t)
+    return t, np.column_stack([x, y, yaw])
+
+
+def estimate(t, ref, *, bias_deg=0.0, moving_k=1.0, inplace_k=1.0):
+    """The truth's body-frame steps re-integrated with a changed yaw: each straight frame turned
+    by *bias_deg*, each turn scaled by its kind's factor."""
+    d_ref = np.diff(ref[:, 2])
+    d_est = d_ref.copy()
+    in_turn = np.zeros(len(d_ref), bool)
+    for i, j, in_place in segment_turns(t, ref):
+        d_est[i:j] *= inplace_k if in_place else moving_k
+        in_turn[i:j] = True
+    speed = np.hypot(*np.diff(ref[:, :2], axis=0).T) * 10.0
+    d_est[~in_turn & (speed > 0.05)] += math.radians(bias_deg)
+    c, s = np.cos(ref[:-1, 2]), np.sin(ref[:-1, 2])
+    dx, dy = np.diff(ref[:, 0]), np.diff(ref[:, 1])
+    fwd, side = c * dx + s * dy, -s * dx + c * dy  # the step in the body frame
+    yaw = ref[0, 2] + np.concatenate([[0.0], np.cumsum(d_est)])
+    c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
+    x = ref[0, 0] + np.concatenate([[0.0], np.cumsum(c * fwd - s * side)])
+    y = ref[0, 1] + np.concatenate([[0.0], np.cumsum(s * fwd + c * side)])
+    return np.column_stack([x, y, yaw])
+
+
+def test_the_truth_is_segmented_into_its_two_moving_turns_and_its_turn_in_place():
+    t, ref = truth()
+    turns = segment_turns(t, ref)
+    assert [ip for _, _, ip in turns] == [False, True, False]
+    angles = [math.degrees(ref[j, 2] - ref[i, 2]) for i, j, _ in turns]
+    assert angles == pytest.approx([90, 180, -90], abs=0.5)
+
+
+def test_a_perfect_estimate_scores_zero_errors_and_unit_ratios():
+    t, ref = truth()
+    m = heading_metrics(t, ref, ref.copy())
+    assert m.yaw_rmse_deg == pytest.approx(0.0, abs=1e-9)
+    assert m.straight_bias_deg_per_m == pytest.approx(0.0, abs=1e-9)
+    assert m.moving_turns == 2 and m.inplace_turns == 1
+    assert m.moving_turn_deg == pytest.approx(180, abs=1) and m.inplace_turn_deg == pytest.approx(180, abs=1)
+    assert m.moving_turn_ratio == pytest.approx(1.0) and m.inplace_turn_ratio == pytest.approx(1.0)
+    assert m.drift_pct == pytest.approx(0.0, abs=1e-9) and m.final_heading_error_deg == pytest.approx(0.0, abs=1e-9)
+    assert m.path_m == pytest.approx(14 + math.pi * 0.5 * 2, rel=1e-3)
+
+
+def test_straight_bias_and_turn_ratios_are_measured_apart():
+    t, ref = truth()
+    est = estimate(t, ref, bias_deg=0.02, moving_k=1.05, inplace_k=0.91)
+    m = heading_metrics(t, ref, est)
+    assert m.moving_turn_ratio == pytest.approx(1.05, abs=1e-9)
+    assert m.inplace_turn_ratio == pytest.approx(0.91, abs=1e-9)
+    assert m.straight_bias_deg_per_frame == pytest.approx(0.02, abs=2e-4)
+    # 0.02 degrees a frame at 10 Hz: 12 degrees a minute; per metre at the straights' speeds
+    assert m.straight_bias_deg_per_min == pytest.approx(12.0, abs=0.15)
+    assert m.straight_bias_deg_per_m == pytest.approx(0.02 * m.straight_frames / m.straight_m, rel=1e-2)
+    # final heading: the turns' excess (+4.5 - 4.5 - 16.2 degrees: the two moving turns cancel)
+    # plus the straights' bias
+    expected = 0.05 * 90 - 0.05 * 90 - 0.09 * 180 + 0.02 * m.straight_frames
+    assert m.final_heading_error_deg == pytest.approx(expected, abs=0.1)
+    assert m.drift_pct > 1.0
+
+
+def test_a_pure_yaw_increment_noise_gives_its_rmse():
+    t, ref = truth()
+    rng = np.random.default_rng(1)
+    est = ref.copy()
+    est[1:, 2] += np.cumsum(rng.normal(0.0, math.radians(0.5), len(ref) - 1))
+    m = heading_metrics(t, ref, est)
+    assert m.yaw_rmse_deg == pytest.approx(0.5, rel=0.1)
+
+
+def test_a_still_truth_has_no_straight_or_turn_numbers():
+    t = np.arange(20) * 0.1
+    ref = np.zeros((20, 3))
+    m = heading_metrics(t, ref, ref)
+    assert m.straight_frames == 0 and math.isnan(m.straight_bias_deg_per_m)
+    assert math.isnan(m.moving_turn_ratio) and m.to_dict()["moving_turn_ratio"] is None
+    with pytest.raises(ValueError):
+        heading_metrics(t, ref, ref[:5])
