@@ -1,0 +1,398 @@
+"""Heading robustness matrix (issue 20): the default estimator on many simulated sequences.
+
+    python bench/robustness_matrix.py [--smoke] [--design star|product] [--scenes corridor room lab]
+        [--seeds 0 1 2 3 4 5] [--cfgs shipped 2tx 128loops slope60] [--snr 0 -5 -10 -15]
+        [--speeds 0.3 0.8 1.5] [--turn-rates 30 60 90] [--movers none people] [--straight 3]
+        [--coloradar RUN_DIR ...] [--workers N | --cluster ADDRESS] [--data DIR] [--out DIR]
+
+A cell is one sequence: a scene, a seed, a cfg, an SNR, a speed, a turn rate, with or without
+walking people (:class:`SimCell`), or a ColoRadar run read through ``coloradar://``
+(:class:`ColoradarCell`). Simulated cells drive a closed loop made for the matrix inside the
+scene: pause, straight, a moving left turn of 90 degrees (radius speed / turn rate), straight, a
+turn in place of 180 degrees at the turn rate, straight back, a moving right turn, straight back,
+pause (:func:`loop_segments`). The SNR is the scene's ``[radar] snr_db`` (per-sample SNR of a
+1 m^2 target 5 m away on boresight; the built-in scenes have 0 dB).
+
+``--design star`` (default) varies one axis at a time around the base cell (shipped cfg, 0 dB,
+0.8 m/s, 45 deg/s, the scene's own movers), for every scene and seed; ``--design product``
+takes every combination of the values given. ``--smoke`` is a small preset (three scenes, one
+seed, short loops).
+
+Each cell runs in a worker: the sequence is recorded with ``radar-sim`` (once), put through the
+DSP (once, cached beside it by bench/sequences.py), the default estimator runs on it and the
+heading metrics (:mod:`radarodom.estimator.heading_metrics`) compare it with the ground truth.
+A cell's result is cached in ``DATA/results/`` under a key of its parameters and a fingerprint
+of the simulator's, the DSP's and the estimator's sources: a rerun computes only what changed.
+Workers: a local process pool (``--workers``, default the CPU count), or with ``--cluster
+ADDRESS`` a running Dask distributed scheduler (``pip install "dask[distributed]"``; its workers
+need radarodom installed and this clone's bench/ on their path or the same paths).
+
+Writes OUT/robustness.md (a table per cell) and OUT/robustness.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from typing import Union
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PACKAGE = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+
+#: The matrix's cfgs: name -> file (the shipped cfg and the variants in bench/cfgs/).
+CFGS = {
+    "shipped": os.path.join(PACKAGE, "configs", "awr1843_raw.cfg"),
+    "2tx": os.path.join(HERE, "cfgs", "awr1843_2tx.cfg"),
+    "128loops": os.path.join(HERE, "cfgs", "awr1843_128loops.cfg"),
+    "slope60": os.path.join(HERE, "cfgs", "awr1843_slope60.cfg"),
+}
+
+#: Where the loop fits in each built-in scene: start (x, y) heading +x, the largest x the first
+#: straight and moving turn may reach, the largest y the second straight may reach, and the path of
+#: the person added with movers="people" (the lab has its own). The corridor's loop ends its
+#: moving turn at x = 16 (the middle of its north branch): its start is placed backwards from there.
+LAYOUT = {
+    "corridor": dict(start=None, turn_x=16.0, y_max=11.0, person=[[2.0, -0.5], [14.0, -0.5]]),
+    "room": dict(start=(1.0, 0.8), x_max=7.2, y_max=5.2, person=[[2.0, 4.6], [6.0, 4.6]]),
+    "lab": dict(start=(1.0, 3.0), x_max=9.0, y_max=7.2, person=[[1.0, 4.0], [9.0, 4.0]]),
+}
+
+
+@dataclass(frozen=True)
+class SimCell:
+    """One simulated sequence of the matrix."""
+
+    scene: str
+    seed: int = 0
+    cfg: str = "shipped"
+    snr_db: float = 0.0
+    speed_mps: float = 0.8
+    turn_rate_dps: float = 45.0
+    #: "scene" (as the built-in scene has them), "none" or "people" (the scene's and one more).
+    movers: str = "scene"
+    straight_m: float = 3.0
+    kind: str = "sim"
+
+    @property
+    def name(self) -> str:
+        return (f"{self.scene}_s{self.seed}_{self.cfg}_snr{self.snr_db:g}_v{self.speed_mps:g}"
+                f"_w{self.turn_rate_dps:g}_{self.movers}_L{self.straight_m:g}")
+
+
+@dataclass(frozen=True)
+class ColoradarCell:
+    """A ColoRadar run (``coloradar://``) through radar-capture's pipeline and the default estimator."""
+
+    run: str
+    options: str = "rate=max"
+    kind: str = "coloradar"
+
+    @property
+    def name(self) -> str:
+        return "coloradar_" + os.path.basename(os.path.normpath(self.run))
+
+    @property
+    def url(self) -> str:
+        return f"coloradar://{os.path.abspath(self.run)}?{self.options}"
+
+
+Cell = Union[SimCell, ColoradarCell]
+
+
+# ------------------------------------------------------------------ scenes and trajectories
+def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: float) -> tuple[list, list]:
+    """(segments, start [x, y, yaw deg]) of the matrix's closed loop in *scene* (module text)."""
+    lay = LAYOUT[scene]
+    r = speed / math.radians(turn_rate_dps)
+    if lay["start"] is None:
+        l1 = min(straight_m, lay["turn_x"] - r + 0.5)
+        x0, y0 = lay["turn_x"] - r - l1, 0.0
+    else:
+        (x0, y0) = lay["start"]
+        l1 = min(straight_m, lay["x_max"] - x0 - r)
+    l2 = min(straight_m, lay["y_max"] - y0 - r)
+    if min(l1, l2) < 0.5:
+        raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s (radius {r:.2f} m) does not fit")
+    segs = [{"pause": 1.0}, {"straight": l1, "speed": speed}, {"turn": 90, "radius": r, "speed": speed},
+            {"straight": l2, "speed": speed}, {"rotate": 180, "rate": turn_rate_dps},
+            {"straight": l2, "speed": speed}, {"turn": -90, "radius": r, "speed": speed},
+            {"straight": l1, "speed": speed}, {"pause": 1.0}]
+    return segs, [x0, y0, 0.0]
+
+
+def scene_spec(cell: SimCell) -> dict:
+    """The built-in scene's table with the cell's trajectory, SNR and movers."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    from importlib import resources
+    text = resources.files("radarodom.driver.sim").joinpath("scenes", f"{cell.scene}.toml").read_text("utf-8")
+    spec = tomllib.loads(text)
+    segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m)
+    spec["trajectory"] = {"start": start, "height": spec.get("trajectory", {}).get("height", 0.4), "segments": segs}
+    spec.setdefault("radar", {})["snr_db"] = float(cell.snr_db)
+    if cell.movers == "none":
+        spec["movers"] = []
+    elif cell.movers == "people":
+        extra = {"type": "person", "path": LAYOUT[cell.scene]["person"], "speed": 1.2, "rcs": 0.5}
+        if extra["path"] not in [m.get("path") for m in spec.get("movers", [])]:
+            spec["movers"] = spec.get("movers", []) + [extra]
+    elif cell.movers != "scene":
+        raise ValueError(f"movers must be scene, none or people, got {cell.movers!r}")
+    spec["name"] = cell.name
+    return spec
+
+
+# ------------------------------------------------------------------ fingerprints and caching
+def _digest_tree(digest, folder: str) -> None:
+    for root, dirs, files in os.walk(folder):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(files):
+            if name.endswith((".py", ".toml")):
+                path = os.path.join(root, name)
+                with open(path, "rb") as fh:
+                    digest.update(os.path.relpath(path, folder).encode() + b"\0" + fh.read())
+
+
+def sim_fingerprint() -> str:
+    """The simulator's sources (with its scenes and boards) and radar-sim's."""
+    import radarodom
+    digest = hashlib.sha256()
+    root = os.path.dirname(radarodom.__file__)
+    _digest_tree(digest, os.path.join(root, "driver", "sim"))
+    with open(os.path.join(root, "tools", "radar_sim.py"), "rb") as fh:
+        digest.update(fh.read())
+    return digest.hexdigest()[:16]
+
+
+def fingerprint() -> str:
+    """What makes a cell's result: simulator, DSP (bench/sequences.py's fingerprint), estimator, this file."""
+    import radarodom
+    import sequences
+    digest = hashlib.sha256((sim_fingerprint() + sequences.dsp_fingerprint()).encode())
+    _digest_tree(digest, os.path.join(os.path.dirname(radarodom.__file__), "estimator"))
+    with open(os.path.abspath(__file__), "rb") as fh:
+        digest.update(fh.read())
+    return digest.hexdigest()[:16]
+
+
+def cell_key(cell: Cell, fp: str) -> str:
+    body = json.dumps(dataclasses.asdict(cell), sort_keys=True)
+    if isinstance(cell, SimCell):
+        with open(CFGS[cell.cfg], "rb") as fh:
+            body += hashlib.sha256(fh.read()).hexdigest()
+    return hashlib.sha256((body + fp).encode()).hexdigest()[:16]
+
+
+# ------------------------------------------------------------------ one cell
+def _sequence_dir(cell: SimCell, data: str) -> str:
+    """The recording's folder: keyed by what makes the bytes (cell, cfg, simulator), not the estimator."""
+    return os.path.join(data, "seq", f"{cell.name}-{cell_key(cell, sim_fingerprint())}")
+
+
+def record(cell: SimCell, data: str) -> str:
+    directory = _sequence_dir(cell, data)
+    if os.path.exists(os.path.join(directory, "capture.json")):
+        return directory
+    os.makedirs(os.path.join(data, "seq"), exist_ok=True)
+    scene_file = directory + ".scene.json"
+    with open(scene_file, "w", encoding="utf-8") as fh:
+        json.dump(scene_spec(cell), fh, indent=1)
+    tmp = directory + ".tmp"
+    subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene_file, "--seed", str(cell.seed),
+                    "--cfg", CFGS[cell.cfg], "--out", tmp, "--overwrite", "-q"], check=True,
+                   env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+    os.replace(tmp, directory)
+    return directory
+
+
+def _estimate_sim(cell: SimCell, data: str):
+    import sequences
+    from radarodom.estimator.config import EstimatorConfig
+    from radarodom.estimator.odometry import RadarOdometry
+    from radarodom.tum import TumTrajectory
+    seq = sequences.load(record(cell, data), cell.name)
+    odom = RadarOdometry(EstimatorConfig())
+    poses = np.zeros((len(seq), 3))
+    flagged = 0
+    for i in range(len(seq)):
+        st = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        poses[i] = st.x, st.y, st.yaw
+        flagged += not st.ok
+    return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged
+
+
+def _estimate_coloradar(cell: ColoradarCell, data: str):
+    from radarodom.driver.sources import open_source
+    from radarodom.tum import read_tum
+    out = os.path.join(data, "coloradar", f"{cell.name}-{hashlib.sha256(cell.url.encode()).hexdigest()[:8]}.tum")
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source", cell.url, "--no-publish",
+                    "--odom-out", out, "--overwrite", "-q"], check=True,
+                   env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+    with open_source(cell.url) as source:
+        truth = source.groundtruth()
+    return read_tum(out), truth, None
+
+
+def run_cell(cell: Cell, data: str, fp: str) -> dict:
+    """The cell's metrics, from its cache or computed (and cached)."""
+    path = os.path.join(data, "results", f"{cell.name}-{cell_key(cell, fp)}.json")
+    if os.path.exists(path):
+        with open(path, encoding="utf-8") as fh:
+            return {**json.load(fh), "cached": True}
+    from radarodom.estimator.evaluation import associate
+    from radarodom.estimator.heading_metrics import heading_metrics
+    started = time.monotonic()
+    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data)
+    est_m, ref_m = associate(est, truth, 0.01)
+    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2())
+    result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
+              "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
+              "compute_s": time.monotonic() - started, "fingerprint": fp}
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path + ".tmp", "w", encoding="utf-8") as fh:
+        json.dump(result, fh, indent=1)
+    os.replace(path + ".tmp", path)
+    return {**result, "cached": False}
+
+
+# ------------------------------------------------------------------ the matrix
+BASE = SimCell(scene="corridor")
+
+
+def cells(args) -> list[Cell]:
+    out: list[Cell] = []
+    axes = {"cfg": args.cfgs, "snr_db": args.snr, "speed_mps": args.speeds, "turn_rate_dps": args.turn_rates,
+            "movers": args.movers}
+    for scene, seed in itertools.product(args.scenes, args.seeds):
+        base = dataclasses.replace(BASE, scene=scene, seed=seed, straight_m=args.straight)
+        if args.design == "product":
+            variants = [dataclasses.replace(base, **dict(zip(axes, combo))) for combo in itertools.product(*axes.values())]
+        else:
+            first = {k: v[0] for k, v in axes.items()}
+            variants = [dataclasses.replace(base, **first)]
+            for axis, values in axes.items():
+                variants += [dataclasses.replace(variants[0], **{axis: v}) for v in values[1:]]
+        for v in variants:
+            try:
+                loop_segments(v.scene, v.speed_mps, v.turn_rate_dps, v.straight_m)
+            except ValueError as exc:
+                print(f"skipped {v.name}: {exc}", file=sys.stderr)
+                continue
+            if v not in out:
+                out.append(v)
+    out += [ColoradarCell(run) for run in args.coloradar or []]
+    return out
+
+
+def run_all(todo: list[Cell], data: str, *, workers: int | None = None, cluster: str | None = None,
+            log=lambda msg: print(msg, file=sys.stderr)) -> list[dict]:
+    """Every cell's result, in *todo*'s order: on a local process pool, or on a Dask cluster."""
+    fp = fingerprint()
+    results: dict[int, dict] = {}
+
+    def done(i: int, r: dict) -> None:
+        results[i] = r
+        log(f"[{len(results)}/{len(todo)}] {todo[i].name}: yaw {r['yaw_rmse_deg']:.2f} deg, "
+            f"drift {_f(r['drift_pct'], '.1f')} %{' (cached)' if r['cached'] else ''}")
+
+    if cluster:
+        try:
+            from dask.distributed import Client, as_completed
+        except ImportError:
+            raise SystemExit("--cluster needs Dask distributed: pip install \"dask[distributed]\"") from None
+        with Client(cluster) as client:
+            futures = {client.submit(run_cell, c, data, fp, pure=False): i for i, c in enumerate(todo)}
+            for fut in as_completed(futures):
+                done(futures[fut], fut.result())
+    else:
+        with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(run_cell, c, data, fp): i for i, c in enumerate(todo)}
+            for fut in concurrent.futures.as_completed(futures):
+                done(futures[fut], fut.result())
+    return [results[i] for i in range(len(todo))]
+
+
+def _f(v, fmt: str) -> str:
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, fmt)
+
+
+COLUMNS = [("yaw RMSE deg", "yaw_rmse_deg", ".2f"), ("straight bias deg/m", "straight_bias_deg_per_m", "+.3f"),
+           ("deg/min", "straight_bias_deg_per_min", "+.1f"), ("deg/frame", "straight_bias_deg_per_frame", "+.4f"),
+           ("moving-turn ratio", "moving_turn_ratio", ".3f"), ("in-place ratio", "inplace_turn_ratio", ".3f"),
+           ("drift %", "drift_pct", ".2f"), ("final heading deg", "final_heading_error_deg", "+.1f"),
+           ("path m", "path_m", ".1f"), ("frames", "frames", "d")]
+
+
+def table(results: list[dict]) -> str:
+    head = "| cell | " + " | ".join(c[0] for c in COLUMNS) + " |\n| --- |" + " ---: |" * len(COLUMNS) + "\n"
+    return head + "".join(f"| {r['name']} | " + " | ".join(_f(r[k], fmt) for _, k, fmt in COLUMNS) + " |\n"
+                          for r in results)
+
+
+SMOKE = dict(scenes=["corridor", "room", "lab"], seeds=[0], cfgs=["shipped"], snr=[0.0], speeds=[0.8],
+             turn_rates=[45.0], movers=["scene"], straight=2.0)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--smoke", action="store_true", help="the small preset: " + ", ".join(f"{k}={v}" for k, v in SMOKE.items()))
+    parser.add_argument("--design", choices=["star", "product"], default="star")
+    parser.add_argument("--scenes", nargs="+", choices=sorted(LAYOUT), default=["corridor", "room", "lab"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=list(range(6)))
+    parser.add_argument("--cfgs", nargs="+", choices=list(CFGS), default=list(CFGS))
+    parser.add_argument("--snr", nargs="+", type=float, default=[0.0, -5.0, -10.0, -15.0], metavar="DB")
+    parser.add_argument("--speeds", nargs="+", type=float, default=[0.8, 0.3, 1.5], metavar="M/S")
+    parser.add_argument("--turn-rates", nargs="+", type=float, default=[45.0, 30.0, 90.0], metavar="DEG/S")
+    parser.add_argument("--movers", nargs="+", choices=["scene", "none", "people"], default=["scene", "none", "people"])
+    parser.add_argument("--straight", type=float, default=3.0, metavar="M", help="the loop's straights (at most)")
+    parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
+    parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")
+    parser.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
+    parser.add_argument("--cluster", metavar="ADDRESS", help="a Dask distributed scheduler, e.g. tcp://host:8786")
+    parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
+    parser.add_argument("--out", default="robustness-out")
+    parser.add_argument("--list", action="store_true", help="print the cells and stop")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        for k, v in SMOKE.items():
+            setattr(args, k, v)
+    todo = cells(args)
+    if args.no_sim:
+        todo = [c for c in todo if isinstance(c, ColoradarCell)]
+    if args.list:
+        print("\n".join(c.name for c in todo))
+        return 0
+    started = time.monotonic()
+    results = run_all(todo, args.data, workers=args.workers, cluster=args.cluster)
+    header = (f"{len(results)} cells ({sum(r['cached'] for r in results)} from the cache); "
+              f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
+              f"{time.strftime('%Y-%m-%d')}; {time.monotonic() - started:.0f} s.\n\n")
+    text = header + table(results)
+    print(text)
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "robustness.md"), "w", encoding="utf-8") as fh:
+        fh.write(text)
+    with open(os.path.join(args.out, "robustness.json"), "w", encoding="utf-8") as fh:
+        json.dump(results, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

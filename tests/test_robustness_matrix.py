@@ -1,0 +1,74 @@
+"""bench/robustness_matrix.py (issue 20): its cells as data, the loops it drives in each scene,
+its per-cell cache, and a ColoRadar run as a cell (tests/coloradar_synth.py's synthetic run)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from coloradar_synth import write_moving_run
+
+from radarodom.cfg import RadarConfig
+from radarodom.driver.sim.scene import scene_from_dict
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
+import robustness_matrix as rm  # noqa: E402
+
+
+def test_the_matrix_cfgs_are_valid_and_differ_as_named():
+    shapes = {name: RadarConfig.from_file(path) for name, path in rm.CFGS.items()}
+    assert shapes["shipped"].cube_shape == (64, 3, 4, 256)
+    assert shapes["2tx"].cube_shape == (64, 2, 4, 256)
+    assert shapes["128loops"].cube_shape == (128, 3, 4, 256)
+    assert shapes["slope60"].slope_hz_per_s == pytest.approx(60e12)
+
+
+@pytest.mark.parametrize("scene", sorted(rm.LAYOUT))
+@pytest.mark.parametrize("speed, rate", [(0.8, 45), (0.3, 90), (1.5, 30), (1.5, 90)])
+def test_each_scene_drives_a_closed_loop_with_the_cells_speed_turn_rate_snr_and_movers(scene, speed, rate):
+    cell = rm.SimCell(scene=scene, speed_mps=speed, turn_rate_dps=rate, snr_db=-10, movers="people")
+    built = scene_from_dict(rm.scene_spec(cell))
+    traj = built.trajectory
+    assert built.snr_db == -10 and len(built.movers) >= 1
+    assert math.hypot(traj.x[-1] - traj.x[0], traj.y[-1] - traj.y[0]) < 0.05  # the loop closes
+    assert math.degrees(traj.yaw[-1] - traj.yaw[0]) == pytest.approx(180, abs=0.01)  # +90, +180, -90
+    vx, vy, w = traj.velocity(traj.times)
+    assert np.hypot(vx, vy).max() == pytest.approx(speed, rel=0.01)
+    assert math.degrees(np.abs(w).max()) == pytest.approx(rate, rel=0.01)
+    assert not scene_from_dict(rm.scene_spec(dataclasses.replace(cell, movers="none"))).movers
+
+
+def test_cells_are_selected_by_axis_in_star_and_product_designs():
+    args = SimpleNamespace(scenes=["room"], seeds=[0, 1], cfgs=["shipped", "2tx"], snr=[0.0, -10.0],
+                           speeds=[0.8], turn_rates=[45.0], movers=["scene"], straight=2.0, design="star",
+                           coloradar=None)
+    star = rm.cells(args)
+    assert len(star) == 2 * 3  # per seed: the base, the 2-TX cfg, -10 dB
+    assert {(c.cfg, c.snr_db) for c in star} == {("shipped", 0.0), ("2tx", 0.0), ("shipped", -10.0)}
+    args.design = "product"
+    assert len(rm.cells(args)) == 2 * 4
+
+
+def test_a_cells_cache_key_follows_its_parameters_and_the_sources():
+    a = rm.SimCell(scene="lab")
+    assert rm.cell_key(a, "fp1") == rm.cell_key(rm.SimCell(scene="lab"), "fp1")
+    assert rm.cell_key(a, "fp1") != rm.cell_key(dataclasses.replace(a, seed=1), "fp1")
+    assert rm.cell_key(a, "fp1") != rm.cell_key(a, "fp2")
+    assert len(rm.fingerprint()) == 16
+
+
+def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
+    run = write_moving_run(tmp_path / "runs")
+    cell = rm.ColoradarCell(str(run))
+    first = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
+    assert not first["cached"] and first["frames"] > 10
+    assert first["path_m"] > 1.0 and first["moving_turns"] >= 1  # the synthetic run drives a left arc
+    assert first["yaw_rmse_deg"] < 2.0 and first["moving_turn_ratio"] == pytest.approx(1.0, abs=0.2)
+    again = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
+    assert again["cached"] and again["yaw_rmse_deg"] == first["yaw_rmse_deg"]
+    assert "coloradar_" in rm.table([again])
