@@ -72,3 +72,10 @@ def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
     again = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
     assert again["cached"] and again["yaw_rmse_deg"] == first["yaw_rmse_deg"]
     assert "coloradar_" in rm.table([again])
+
+
+def test_cluster_without_dask_says_what_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "dask", None)  # as if not installed, whether it is or not
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(SystemExit, match="dask\\[distributed\\]"):
+        rm.run_all([rm.SimCell(scene="room")], str(tmp_path), cluster="tcp://127.0.0.1:1")
