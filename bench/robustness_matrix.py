@@ -45,7 +45,6 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 
@@ -66,9 +65,9 @@ CFGS = {
 #: the person added with movers="people" (the lab has its own). The corridor's loop ends its
 #: moving turn at x = 16 (the middle of its north branch): its start is placed backwards from there.
 LAYOUT = {
-    "corridor": dict(start=None, turn_x=16.0, y_max=11.0, person=[[2.0, -0.5], [14.0, -0.5]]),
-    "room": dict(start=(1.0, 0.8), x_max=7.2, y_max=5.2, person=[[2.0, 4.6], [6.0, 4.6]]),
-    "lab": dict(start=(1.0, 3.0), x_max=9.0, y_max=7.2, person=[[1.0, 4.0], [9.0, 4.0]]),
+    "corridor": {"start": None, "turn_x": 16.0, "y_max": 11.0, "person": [[2.0, -0.5], [14.0, -0.5]]},
+    "room": {"start": (1.0, 0.8), "x_max": 7.2, "y_max": 5.2, "person": [[2.0, 4.6], [6.0, 4.6]]},
+    "lab": {"start": (1.0, 3.0), "x_max": 9.0, "y_max": 7.2, "person": [[1.0, 4.0], [9.0, 4.0]]},
 }
 
 
@@ -110,7 +109,7 @@ class ColoradarCell:
         return f"coloradar://{os.path.abspath(self.run)}?{self.options}"
 
 
-Cell = Union[SimCell, ColoradarCell]
+Cell = SimCell | ColoradarCell
 
 
 # ------------------------------------------------------------------ scenes and trajectories
@@ -346,8 +345,8 @@ def table(results: list[dict]) -> str:
                           for r in results)
 
 
-SMOKE = dict(scenes=["corridor", "room", "lab"], seeds=[0], cfgs=["shipped"], snr=[0.0], speeds=[0.8],
-             turn_rates=[45.0], movers=["scene"], straight=2.0)
+SMOKE = {"scenes": ["corridor", "room", "lab"], "seeds": [0], "cfgs": ["shipped"], "snr": [0.0], "speeds": [0.8],
+             "turn_rates": [45.0], "movers": ["scene"], "straight": 2.0}
 
 
 def main(argv=None) -> int:

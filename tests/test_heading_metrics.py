@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from radarodom.driver.sim.trajectory import from_segments
 from radarodom.estimator.heading_metrics import heading_metrics, segment_turns
 

@@ -12,12 +12,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from coloradar_synth import write_moving_run
-
 from radarodom.cfg import RadarConfig
 from radarodom.driver.sim.scene import scene_from_dict
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
-import robustness_matrix as rm  # noqa: E402
+import robustness_matrix as rm
 
 
 def test_the_matrix_cfgs_are_valid_and_differ_as_named():
