@@ -181,8 +181,15 @@ class Pipeline:
                     self.recorder.annotate(dropped_frames=dropped)
                 self.recorder.close()
         finally:
+            # Every sink gets closed (its file flushed) even when another's close fails.
+            failure: BaseException | None = None
             for sink in self.sinks:
-                sink.close(self.stats)
+                try:
+                    sink.close(self.stats)
+                except BaseException as exc:  # noqa: BLE001 (re-raised below, after the others)
+                    failure = failure or exc
+            if failure is not None:
+                raise failure
 
     def close(self) -> None:
         """Close the recording and sinks (if :meth:`run` did not), and the source if owned."""

@@ -442,3 +442,22 @@ def test_pipeline_run_closes_writer_on_exception(capture, tmp_path):
     assert rec.metadata["closed"] is True
     assert rec.metadata["frame_count"] == 3
     assert [bytes(rec.raw(i)) for i in range(3)] == frames[:3]
+
+
+def test_pipeline_closes_every_sink_when_one_fails_to_close(capture, tmp_path):
+    from radarodom.pipeline import PointsCsvSink, Sink
+
+    class BadClose(Sink):
+        def write(self, result, stats):
+            pass
+
+        def close(self, stats):
+            raise OSError("disk full")
+
+    d, _ = capture
+    csv = PointsCsvSink(tmp_path / "points.csv")
+    with open_source(f"replay://{d}?rate=max") as src:
+        with pytest.raises(OSError, match="disk full"):
+            Pipeline(src, sinks=[BadClose(), csv]).run()
+    assert csv._fh.closed
+    assert (tmp_path / "points.csv").read_text().startswith("frame,t,")
