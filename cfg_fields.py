@@ -17,7 +17,7 @@ import re
 from dataclasses import field
 from typing import Any, Sequence
 
-from .errors import ConfigError
+from .errors import ConfigError, quoted
 from .plain_numbers import FLOAT_TEXT, INT_TEXT
 
 #: The only sub-frame index the legacy (non-advanced) frame accepts.
@@ -31,11 +31,8 @@ _HEX_TOKEN = re.compile(r"0x[0-9a-fA-F]{1,8}\Z")
 
 
 def shown(text: str, limit: int = SHOWN_CHARS) -> str:
-    """*text* quoted for a message: its repr, cut after *limit* characters with the length said,
-    so a megabyte token is never echoed whole."""
-    if len(text) <= limit:
-        return repr(text)
-    return f"{text[:limit]!r}... ({len(text)} characters)"
+    """*text* quoted for a message (:func:`radarodom.errors.quoted`)."""
+    return quoted(text, limit)
 
 
 def arg(

@@ -9,6 +9,21 @@ errors, 1 for failures at run time.
 from __future__ import annotations
 
 import os
+from typing import Any
+
+
+#: Characters of a bad value an error message quotes; longer input is cut with its length said.
+QUOTED_CHARS = 40
+
+
+def quoted(value: Any, limit: int = QUOTED_CHARS) -> str:
+    """*value* as an error message quotes it: its repr, cut after *limit* characters (of the text
+    itself for a string, of the repr otherwise) with the length said, so that a megabyte of
+    hostile input is never echoed whole."""
+    if isinstance(value, str):
+        return repr(value) if len(value) <= limit else f"{value[:limit]!r}... ({len(value)} characters)"
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 class RadarodomError(Exception):

@@ -115,7 +115,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 import numpy as np
 
 from . import strict_json
-from .errors import MessageError
+from .errors import MessageError, quoted
 from .products import RangeAzimuth
 
 if TYPE_CHECKING:  # the estimator is not needed to encode what it made
@@ -192,9 +192,7 @@ def _check_bound(size: int, limit: int, what: str) -> None:
 
 
 def _quote(value: Any) -> str:
-    """*value*'s repr, cut: a message error never echoes a whole hostile payload."""
-    text = repr(value)
-    return text if len(text) <= _QUOTE_CHARS else text[:_QUOTE_CHARS] + f"... ({len(text)} characters)"
+    return quoted(value, _QUOTE_CHARS)
 
 
 def _payload_bytes(payload: Any, schema: str, limit: int) -> bytes:

@@ -8,7 +8,6 @@ writer of these files means.
 
 from __future__ import annotations
 
-import math
 import re
 
 #: A whole number: decimal digits with an optional sign.
@@ -30,11 +29,6 @@ def plain_int(text: str) -> int | None:
 
 def plain_float(text: str) -> float | None:
     """*text* as a float when it is a plain decimal number, else None.  The value may still be
-    infinite (``1e999``): :func:`finite_float` refuses that too."""
+    infinite (``1e999``)."""
     return float(text) if FLOAT_TEXT.match(text) else None
 
-
-def finite_float(text: str) -> float | None:
-    """*text* as a finite float when it is a plain decimal number, else None."""
-    value = plain_float(text)
-    return value if value is not None and math.isfinite(value) else None

@@ -21,8 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import zenoh
 
-from .cfg_fields import shown
-from .errors import MessageError, PublishConfigError
+from .errors import MessageError, PublishConfigError, quoted
 from .messages import CHILD_FRAME_ID, ODOM_FRAME_ID
 from .tum import yaw_quaternion
 
@@ -93,7 +92,7 @@ def ros2_odometry(state: OdometryState, typestore: Any) -> Any:
 def ros2_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
     """rmw_zenoh_cpp's attachment of one sample (see :data:`ROS2_ATTACHMENT`)."""
     if not isinstance(gid, bytes) or len(gid) != ROS2_GID_BYTES:
-        raise MessageError(f"ROS 2 gid must be {ROS2_GID_BYTES} bytes, got {shown(repr(gid))}")
+        raise MessageError(f"ROS 2 gid must be {ROS2_GID_BYTES} bytes, got {quoted(gid, 60)}")
     try:
         return ROS2_ATTACHMENT.pack(sequence, timestamp_ns, ROS2_GID_BYTES, gid)
     except struct.error as exc:  # a sequence or time beyond int64

@@ -24,8 +24,7 @@ import numpy as np
 
 from ..calibration import RangeCoupling
 from ..cfg import RadarConfig
-from ..cfg_fields import shown
-from ..errors import SourceError
+from ..errors import SourceError, quoted
 from ..plain_numbers import plain_float, plain_int
 from ..products import RangeAzimuth
 from ..rawframe import RawLayout
@@ -261,7 +260,7 @@ class UrlOptions:
             return convert(text)
         except (ValueError, TypeError):
             limit = getattr(convert, "limit", "")
-            raise SourceError(f"{self.url}: option {name}={shown(text)}: expected {expect}"
+            raise SourceError(f"{self.url}: option {name}={quoted(text)}: expected {expect}"
                               + (f" ({limit})" if limit else "") + ", written as a plain decimal number") from None
 
     def finish(self) -> None:

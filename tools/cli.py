@@ -16,7 +16,7 @@ import sys
 import traceback
 from typing import Callable, Sequence
 
-from ..errors import RadarodomError
+from ..errors import RadarodomError, quoted
 from ..plain_numbers import plain_float, plain_int
 from .status import StatusAwareHandler, StatusLine
 
@@ -39,17 +39,13 @@ MAX_INT_OPTION = 2**63 - 1
 MAX_FLOAT_OPTION = 1e9
 
 
-def _shown(text: str) -> str:
-    return repr(text) if len(text) <= 40 else f"{text[:40]!r}... ({len(text)} characters)"
-
-
 def int_in(lo: int, hi: int = MAX_INT_OPTION, what: str = "a whole number") -> Callable[[str], int]:
     """argparse type: a whole number (ASCII digits) in lo..hi; the error names the range."""
     def parse(text: str) -> int:
         value = plain_int(text)  # numbers as in a cfg: plain ASCII decimal
         if value is None or not lo <= value <= hi:
             span = f"in {lo}..{hi}" if hi < MAX_INT_OPTION else f">= {lo}"
-            raise argparse.ArgumentTypeError(f"expected {what} {span}, got {_shown(text)}")
+            raise argparse.ArgumentTypeError(f"expected {what} {span}, got {quoted(text)}")
         return value
     parse.__name__ = f"int_in_{lo}_{hi}"
     parse.bounds = (lo, hi, False)  # type: ignore[attr-defined]  # for tests and help texts
@@ -66,7 +62,7 @@ def float_in(lo: float, hi: float = MAX_FLOAT_OPTION, *, lo_open: bool = False, 
         if not (lo < value <= hi if lo_open else lo <= value <= hi):
             span = f"> {lo:g} and <= {hi:g}" if lo_open else f"in {lo:g}..{hi:g}"
             units = f" {unit}" if unit else ""
-            raise argparse.ArgumentTypeError(f"expected {what} {span}{units}, got {_shown(text)}")
+            raise argparse.ArgumentTypeError(f"expected {what} {span}{units}, got {quoted(text)}")
         return value
     parse.__name__ = f"float_in_{lo:g}_{hi:g}"
     parse.bounds = (lo, hi, lo_open)  # type: ignore[attr-defined]

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ... import strict_json
-from ...errors import CaptureError, CaptureFormatError
+from ...errors import CaptureError, CaptureFormatError, quoted
 from ...plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
@@ -36,11 +36,6 @@ _METADATA_BYTES_PER_FRAME = 128
 _MAX_TIMESTAMP_LINE = 256
 
 
-def _shown(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -54,7 +49,7 @@ class _Checker:
         self.path = path
 
     def fail(self, field: str, expected: str, value: Any) -> CaptureFormatError:
-        return CaptureFormatError(f"{self.path}: {field}: expected {expected}, got {_shown(value)}")
+        return CaptureFormatError(f"{self.path}: {field}: expected {expected}, got {quoted(value)}")
 
     def int_field(self, meta: dict, key: str, low: int, high: int | None = None, *, name: str | None = None,
                   required: bool = True, default: int = 0) -> int:
