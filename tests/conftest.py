@@ -99,17 +99,18 @@ def default_endpoint(monkeypatch) -> str:
     that it meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""
     from radarodom import publish
 
-    endpoint = f"tcp/127.0.0.1:{_free_tcp_port()}"
+    endpoint = free_endpoint()
     monkeypatch.setattr(publish, "DEFAULT_ENDPOINT", endpoint)
     return endpoint
 
 
-def _free_tcp_port() -> int:
+def free_endpoint() -> str:
+    """A tcp/127.0.0.1 Zenoh endpoint on a port free right now."""
     import socket
 
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
+        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
 
 
 def private_zenoh(argv) -> list[str]:
@@ -119,7 +120,7 @@ def private_zenoh(argv) -> list[str]:
     argv = [str(a) for a in argv]
     if any(a in argv for a in ("--no-publish", "--listen", "--connect", "--zenoh-config")):
         return argv
-    return [*argv, "--listen", f"tcp/127.0.0.1:{_free_tcp_port()}"]
+    return [*argv, "--listen", free_endpoint()]
 
 
 @pytest.fixture

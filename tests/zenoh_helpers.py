@@ -13,18 +13,12 @@ import time
 from typing import Callable, Iterator, Sequence
 
 import estimator_synth as synth
+from conftest import free_endpoint  # noqa: F401  (the tests import it from here too)
 import numpy as np
 import zenoh
 
 from radarodom.estimator.odometry import RadarOdometry
 from radarodom.publish import DEFAULT_ENDPOINT
-
-
-def free_endpoint() -> str:
-    """A tcp/127.0.0.1 endpoint on a port free right now."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
 
 
 def default_endpoint_free() -> bool:
