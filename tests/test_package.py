@@ -68,7 +68,8 @@ DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "d
 #: packages that only some parts may use.  tools/ may import anything.
 ALLOWED = {
     **{name: set() for name in CORE},
-    "messages": set(),
+    "message_format": set(),
+    "messages": {"message_format"},
     "publish": {"messages", "ros2", "ext:zenoh", "ext:rosbags"},
     "ros2": {"messages", "ext:zenoh", "ext:rosbags"},
     "dsp": set(),
