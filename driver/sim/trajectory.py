@@ -1,7 +1,7 @@
 """Smooth planar sensor trajectories for the simulator.
 
 A trajectory is a start pose and a list of segments, each a commanded forward
-speed and yaw rate held for a time:
+speed and yaw rate of the robot's base (its rotation axis) held for a time:
 
 - ``{"straight": 5.0, "speed": 1.0}``: 5 m ahead at 1 m/s;
 - ``{"turn": 90, "radius": 1.5, "speed": 0.8}``: an arc, left for positive degrees;
@@ -17,6 +17,11 @@ bounded acceleration, and the distance and angle of each segment are kept
 exactly (a moving average preserves integrals).  Poses are the integral,
 interpolated to any time.  Units: metres, seconds, radians (degrees only in
 the segment text).
+
+The radar sits on the base at its *mount* (x ahead, y left, yaw; default the
+rotation axis, looking ahead).  A wheeled base cannot slide sideways, so a
+radar mounted ahead of or behind its axis moves sideways at yaw rate x lever
+arm: the trajectory's poses are the radar's, its ``base_*`` the base's.
 """
 
 from __future__ import annotations
@@ -45,6 +50,16 @@ class Trajectory:
     yaw: np.ndarray
     #: Sensor height above the floor, m.
     height: float = 0.4
+    #: The radar on the base: x ahead, y left (m), yaw (rad); the poses above are the radar's.
+    mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def base_pose(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, yaw) of the base (its rotation axis) at times *t*: the radar's pose less the mount."""
+        x, y, yaw = self.pose(t)
+        mx, my, myaw = self.mount
+        yaw_b = yaw - myaw
+        c, s = np.cos(yaw_b), np.sin(yaw_b)
+        return x - (c * mx - s * my), y - (s * mx + c * my), yaw_b
 
     @property
     def duration_s(self) -> float:
@@ -122,8 +137,10 @@ def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, 
 
 
 def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.0, 0.0),
-                  smoothing_s: float = 0.3, height: float = 0.4, where: str = "<scene>") -> Trajectory:
-    """Build a trajectory; *start* is (x m, y m, yaw deg)."""
+                  smoothing_s: float = 0.3, height: float = 0.4, mount: Sequence[float] = (0.0, 0.0, 0.0),
+                  where: str = "<scene>") -> Trajectory:
+    """Build a trajectory; *start* is the base's (x m, y m, yaw deg), *mount* the radar's
+    (x m ahead, y m left, yaw deg) on the base."""
     cmds = _commands(segments, where)
     if not cmds:
         raise _fail("no segments", where)
@@ -151,7 +168,11 @@ def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.
     x = x0 + np.concatenate([[0.0], np.cumsum(speed * np.cos(mid_yaw)) * STEP_S])
     y = y0 + np.concatenate([[0.0], np.cumsum(speed * np.sin(mid_yaw)) * STEP_S])
     times = np.arange(len(yaw)) * STEP_S
-    return Trajectory(times, x, y, yaw, height)
+    mx, my, myaw = float(mount[0]), float(mount[1]), math.radians(float(mount[2]))
+    if (mx, my, myaw) != (0.0, 0.0, 0.0):
+        c, s = np.cos(yaw), np.sin(yaw)
+        x, y, yaw = x + c * mx - s * my, y + s * mx + c * my, yaw + myaw
+    return Trajectory(times, x, y, yaw, height, (mx, my, myaw))
 
 
 def waypoint_segments(points: Sequence[Sequence[float]], *, start_yaw_deg: float = 0.0,
@@ -178,11 +199,8 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
     """A trajectory from a scene file's ``[trajectory]`` table."""
     if not isinstance(spec, dict):
         raise _fail("must be a table", where)
-    start = spec.get("start", [0.0, 0.0, 0.0])
-    if not (isinstance(start, (list, tuple)) and len(start) == 3
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                    for v in start)):
-        raise _fail("start must be [x, y, yaw_deg]", where)
+    start = _triple(spec, "start", where)
+    mount = _triple(spec, "mount", where)
     height = _number(spec, "height", where, 0.4, positive=True)
     smoothing = _number(spec, "smoothing_s", where, 0.3, positive=True)
     if "waypoints" in spec:
@@ -196,5 +214,15 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
         segments = spec.get("segments")
         if not isinstance(segments, list):
             raise _fail("needs a list of segments or waypoints", where)
-    return from_segments(segments, start=start, smoothing_s=smoothing, height=height,
+    return from_segments(segments, start=start, smoothing_s=smoothing, height=height, mount=mount,
                          where=where)
+
+
+def _triple(spec: dict[str, Any], key: str, where: str) -> list[float]:
+    """An optional [x m, y m, yaw deg] (default zeros), or ConfigError."""
+    value = spec.get(key, [0.0, 0.0, 0.0])
+    if not (isinstance(value, (list, tuple)) and len(value) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in value)):
+        raise _fail(f"{key} must be [x, y, yaw_deg], got {value!r}"[:200], where)
+    return [float(v) for v in value]
