@@ -2,11 +2,11 @@
 
     python bench/robustness_matrix.py [--smoke] [--design star|product] [--scenes corridor room lab]
         [--seeds 0 1 2 3 4 5] [--cfgs shipped 2tx 128loops slope60] [--snr 0 -5 -10 -15]
-        [--speeds 0.3 0.8 1.5] [--turn-rates 30 60 90] [--movers none people] [--straight 3]
+        [--speeds 0.3 0.8 1.5] [--turn-rates 30 60 90] [--movers none people] [--mounts 0 0.3] [--straight 3]
         [--coloradar RUN_DIR ...] [--workers N | --cluster ADDRESS] [--data DIR] [--out DIR]
 
 A cell is one sequence: a scene, a seed, a cfg, an SNR, a speed, a turn rate, with or without
-walking people (:class:`SimCell`), or a ColoRadar run read through ``coloradar://``
+walking people, the radar on the base's rotation axis or ahead of it (:class:`SimCell`), or a ColoRadar run read through ``coloradar://``
 (:class:`ColoradarCell`). Simulated cells drive a closed loop made for the matrix inside the
 scene: pause, straight, a moving left turn of 90 degrees (radius speed / turn rate), straight, a
 turn in place of 180 degrees at the turn rate, straight back, a moving right turn, straight back,
@@ -84,12 +84,15 @@ class SimCell:
     #: "scene" (as the built-in scene has them), "none" or "people" (the scene's and one more).
     movers: str = "scene"
     straight_m: float = 3.0
+    #: The radar's lever arm ahead of the base's rotation axis, m (the scene's trajectory mount).
+    mount_m: float = 0.0
     kind: str = "sim"
 
     @property
     def name(self) -> str:
         return (f"{self.scene}_s{self.seed}_{self.cfg}_snr{self.snr_db:g}_v{self.speed_mps:g}"
-                f"_w{self.turn_rate_dps:g}_{self.movers}_L{self.straight_m:g}")
+                f"_w{self.turn_rate_dps:g}_{self.movers}_L{self.straight_m:g}"
+                + (f"_m{self.mount_m:g}" if self.mount_m else ""))
 
 
 @dataclass(frozen=True)
@@ -143,7 +146,8 @@ def scene_spec(cell: SimCell) -> dict:
     text = resources.files("radarodom.driver.sim").joinpath("scenes", f"{cell.scene}.toml").read_text("utf-8")
     spec = tomllib.loads(text)
     segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m)
-    spec["trajectory"] = {"start": start, "height": spec.get("trajectory", {}).get("height", 0.4), "segments": segs}
+    spec["trajectory"] = {"start": start, "height": spec.get("trajectory", {}).get("height", 0.4), "segments": segs,
+                          "mount": [float(cell.mount_m), 0.0, 0.0]}
     spec.setdefault("radar", {})["snr_db"] = float(cell.snr_db)
     if cell.movers == "none":
         spec["movers"] = []
@@ -278,7 +282,7 @@ BASE = SimCell(scene="corridor")
 def cells(args) -> list[Cell]:
     out: list[Cell] = []
     axes = {"cfg": args.cfgs, "snr_db": args.snr, "speed_mps": args.speeds, "turn_rate_dps": args.turn_rates,
-            "movers": args.movers}
+            "movers": args.movers, "mount_m": args.mounts}
     for scene, seed in itertools.product(args.scenes, args.seeds):
         base = dataclasses.replace(BASE, scene=scene, seed=seed, straight_m=args.straight)
         if args.design == "product":
@@ -296,6 +300,8 @@ def cells(args) -> list[Cell]:
                 continue
             if v not in out:
                 out.append(v)
+    # Base cells first: a partial run already covers every scene and seed.
+    out.sort(key=lambda c: sum(getattr(c, axis) != values[0] for axis, values in axes.items()))
     out += [ColoradarCell(run) for run in args.coloradar or []]
     return out
 
@@ -346,7 +352,7 @@ def table(results: list[dict]) -> str:
 
 
 SMOKE = {"scenes": ["corridor", "room", "lab"], "seeds": [0], "cfgs": ["shipped"], "snr": [0.0], "speeds": [0.8],
-             "turn_rates": [45.0], "movers": ["scene"], "straight": 2.0}
+             "turn_rates": [45.0], "movers": ["scene"], "mounts": [0.0], "straight": 2.0}
 
 
 def main(argv=None) -> int:
@@ -360,6 +366,8 @@ def main(argv=None) -> int:
     parser.add_argument("--speeds", nargs="+", type=float, default=[0.8, 0.3, 1.5], metavar="M/S")
     parser.add_argument("--turn-rates", nargs="+", type=float, default=[45.0, 30.0, 90.0], metavar="DEG/S")
     parser.add_argument("--movers", nargs="+", choices=["scene", "none", "people"], default=["scene", "none", "people"])
+    parser.add_argument("--mounts", nargs="+", type=float, default=[0.0, 0.3], metavar="M",
+                        help="the radar's lever arm ahead of the rotation axis")
     parser.add_argument("--straight", type=float, default=3.0, metavar="M", help="the loop's straights (at most)")
     parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
     parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")

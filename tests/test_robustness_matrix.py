@@ -44,13 +44,17 @@ def test_each_scene_drives_a_closed_loop_with_the_cells_speed_turn_rate_snr_and_
 
 def test_cells_are_selected_by_axis_in_star_and_product_designs():
     args = SimpleNamespace(scenes=["room"], seeds=[0, 1], cfgs=["shipped", "2tx"], snr=[0.0, -10.0],
-                           speeds=[0.8], turn_rates=[45.0], movers=["scene"], straight=2.0, design="star",
-                           coloradar=None)
+                           speeds=[0.8], turn_rates=[45.0], movers=["scene"], mounts=[0.0], straight=2.0,
+                           design="star", coloradar=None)
     star = rm.cells(args)
     assert len(star) == 2 * 3  # per seed: the base, the 2-TX cfg, -10 dB
     assert {(c.cfg, c.snr_db) for c in star} == {("shipped", 0.0), ("2tx", 0.0), ("shipped", -10.0)}
+    assert [c.cfg == "shipped" and c.snr_db == 0.0 for c in star[:2]] == [True, True]  # base cells first
     args.design = "product"
     assert len(rm.cells(args)) == 2 * 4
+    args.mounts = [0.0, 0.3]
+    assert len(rm.cells(args)) == 2 * 8
+    assert {c.mount_m for c in rm.cells(args)} == {0.0, 0.3}
 
 
 def test_a_cells_cache_key_follows_its_parameters_and_the_sources():
