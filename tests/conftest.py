@@ -97,10 +97,10 @@ def console_command(name: str) -> list[str]:
 def default_endpoint(monkeypatch) -> str:
     """The Zenoh publisher's default endpoint moved to a free loopback port for the test, so
     that it meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""
-    from radarodom import publish
+    from radarodom import zenoh_session
 
     endpoint = free_endpoint()
-    monkeypatch.setattr(publish, "DEFAULT_ENDPOINT", endpoint)
+    monkeypatch.setattr(zenoh_session, "DEFAULT_ENDPOINT", endpoint)
     return endpoint
 
 
