@@ -42,6 +42,7 @@ from .dca1000_wire import (
 from .frame_assembler import DEFAULT_REORDER_PACKETS, FrameAssembler
 from .frame_ring import FrameRing
 from .host_network import bind_problem
+from .stream_gaps import SeqGaps
 
 log = logging.getLogger(__name__)
 
@@ -245,34 +246,6 @@ class ReceiverStats:
     #: count starts past their end, with no sequence number between).
     truncated_packets: int = 0
     rcvbuf_bytes: int = 0
-
-
-class SeqGaps:
-    """Sequence numbers not (yet) received: a late packet closes its gap, so
-    reordering is not counted as loss.  Gaps more than ``horizon`` packets old
-    are final."""
-
-    def __init__(self, horizon: int = 4096) -> None:
-        self.horizon = horizon
-        self.last = 0
-        self._open: set[int] = set()
-        self._final = 0
-
-    def add(self, seq: int) -> None:
-        if seq > self.last + 1:
-            self._open.update(range(self.last + 1, seq))
-            if len(self._open) > 2 * self.horizon:
-                old = {s for s in self._open if s < seq - self.horizon}
-                self._open -= old
-                self._final += len(old)
-        elif seq <= self.last:
-            self._open.discard(seq)
-        self.last = max(self.last, seq)
-
-    @property
-    def lost(self) -> int:
-        """Packets missing so far (the open gaps and the final ones)."""
-        return self._final + len(self._open)
 
 
 class Dca1000Receiver:
