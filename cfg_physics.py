@@ -170,6 +170,21 @@ class ConfigPhysics:
         """Usable maximum range: beat frequency at 80 % of the sample rate, as TI's tools, m."""
         return 0.8 * self.unambiguous_range_m
 
+    def range_fov_note(self, range_bias_m: float = 0.0) -> str | None:
+        """A warning when the cfarFovCfg range maximum reaches more than two range bins beyond
+        the usable range (:attr:`max_range_m` less *range_bias_m*, the board's range bias: the IF
+        band limits the beat frequency), where radarodom's detection stops; None otherwise."""
+        ln = self._keyed["cfarFovCfg"].get(0)
+        usable = self.max_range_m - range_bias_m
+        # Cfgs round the limit up (TI's own: 8.64 m for 8.634) and a board's range bias moves it
+        # by centimetres: the cap is silent there.
+        if ln is None or ln.value.max_value <= usable + 2 * self.range_resolution_m:
+            return None
+        return (f"{self.path}:{ln.line}: cfarFovCfg range maximum {ln.value.max_value:g} m reaches beyond the "
+                f"usable range, {usable:.2f} m (beat frequencies up to 80 % of the IF band): detection is "
+                f"capped there, since the IF filter's roll-off and the TX-to-RX leakage lie beyond; "
+                f"set the maximum to {usable:.2f} m or less")
+
     @property
     def chirp_time_s(self) -> float:
         """One chirp: idle time plus ramp end time, s."""

@@ -89,9 +89,9 @@ class DspConfig(Settings):
     azimuth_peak_ratio_db: float = -15.0
     #: Detections closer than this are dropped (the ADC's DC and TX-RX leakage live there), m.
     min_range_m: float = 0.3
-    #: Detections farther than this are dropped, and the heatmaps end there, m.  None: the cfg's
-    #: cfarFovCfg range maximum when it has one, else the usable range, beat frequencies up to
-    #: 80 % of the IF band (radar-cfg's "max range"): the IF filter rolls off beyond, and the
+    #: Detections farther than this are dropped, and the heatmaps end there, m.  None: the usable
+    #: range, beat frequencies up to 80 % of the IF band (radar-cfg's "max range"), or the cfg's
+    #: cfarFovCfg range maximum when it is shorter: the IF filter rolls off beyond, and the
     #: TX-RX leakage's negative-frequency side lies at the end of the range FFT.  (A cfarFovCfg
     #: range minimum above min_range_m applies too.)
     max_range_m: float | None = None

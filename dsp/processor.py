@@ -195,8 +195,8 @@ class FrameProcessor:
         self.n_az, self.angle_weights = pm.n_az, pm.angle_weights
         #: Shortest and longest range of a detection, m: from DspConfig.min_range_m (or the cfg's
         #: cfarFovCfg minimum, if higher) to DspConfig.max_range_m, else the cfg's cfarFovCfg
-        #: maximum, else the usable range (beat frequencies up to 80 % of the IF band,
-        #: RadarConfig.max_range_m).
+        #: maximum capped at the usable range, else the usable range (beat frequencies up to 80 %
+        #: of the IF band, RadarConfig.max_range_m, less the range bias).
         self.detection_range_m = _detection_range(cfg, params, self.calibration.range_bias_m)
         lo, hi = self.detection_range_m
         self._range_ok = (self.range_m >= lo) & (self.range_m <= hi)
@@ -299,12 +299,17 @@ def _detection_range(cfg: RadarConfig, params: DspConfig, range_bias_m: float) -
     """(shortest, longest) range of a detection, m (see FrameProcessor.detection_range_m)."""
     fov = cfg.cfar_fov.get(0)
     lo = params.min_range_m if fov is None else max(params.min_range_m, fov.min_value)
+    # The IF band's limit is on the beat frequency, before the range bias comes off.
+    usable = cfg.max_range_m - range_bias_m
     if params.max_range_m is not None:
         hi = params.max_range_m
-    elif fov is not None:
-        hi = fov.max_value
-    else:  # the IF band's limit is on the beat frequency, before the range bias comes off
-        hi = cfg.max_range_m - range_bias_m
+    elif fov is not None:  # never beyond the usable range
+        hi = min(fov.max_value, usable)
+        note = cfg.range_fov_note(range_bias_m)
+        if note is not None:
+            log.info("%s", note)
+    else:
+        hi = usable
     if hi <= lo:
         raise ConfigError(f"no range is left to detect in: {lo:g} m to {hi:g} m (DspConfig min_range_m, "
                           "max_range_m and the cfg's cfarFovCfg range limits)", field="max_range_m")

@@ -1,0 +1,88 @@
+"""The detection range: a cfg's cfarFovCfg range maximum is capped at the usable range (beat
+frequencies up to 80 % of the IF band, less the board's range bias), where the simulated
+uncalibrated board's TX-to-RX leakage would otherwise make a fake zero-Doppler point, and
+radar-cfg warns about such a cfg."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import console_command
+
+import subprocess
+
+from radarodom.cfg import RadarConfig
+from radarodom.driver.sim.board import load_board
+from radarodom.driver.sources import open_source
+from radarodom.dsp.config import DspConfig
+from radarodom.dsp.processor import FrameProcessor
+
+SHIPPED_FOV = "cfarFovCfg -1 0 0 10.0"
+
+
+def with_range_fov(cfg: RadarConfig, maximum: float, line: bool = True) -> RadarConfig:
+    """*cfg* (the shipped one) with its cfarFovCfg range maximum set to *maximum*, and the
+    uncalibrated board's calibration line when *line*."""
+    if line:
+        cfg = cfg.replace(load_board("uncalibrated").calibration().to_command())
+    text = cfg.to_text()
+    assert SHIPPED_FOV in text
+    return RadarConfig.from_text(text.replace(SHIPPED_FOV, f"cfarFovCfg -1 0 0 {maximum}"), "fov.cfg")
+
+
+def _points(url: str, cfg: RadarConfig, params: DspConfig | None = None) -> np.ndarray:
+    with open_source(url, cfg) as source:
+        proc = FrameProcessor(source.config, params or DspConfig(), calibrated=source.calibrated)
+        return np.concatenate([proc.process(frame.cube()).points for frame in source])
+
+
+@pytest.mark.parametrize("line", [True, False], ids=["its-line", "identity"])
+def test_range_fov_beyond_the_usable_range_makes_no_leakage_point(shipped_cfg, line):
+    """cfarFovCfg -1 0 0 15.0 on the uncalibrated board (sim://, a reflector at 4.1 m): the
+    leakage's negative-frequency side at ~12.4 m is there, but detection stops at the usable range."""
+    cfg = with_range_fov(shipped_cfg, 15.0, line)
+    usable = cfg.max_range_m - cfg.channel_calibration.range_bias_m
+    assert FrameProcessor(cfg).detection_range_m[1] == pytest.approx(usable)
+    url = "sim://calibration?board=uncalibrated&rate=max&duration=0.2"
+    # The leakage is in the frames: with the range limit lifted, zero-Doppler points beyond it.
+    everything = _points(url, cfg, DspConfig(max_range_m=20.0))
+    far = everything[everything["range"] > usable]
+    assert len(far) and np.all(far["doppler_bin"] == 0), everything[["range", "doppler_bin"]]
+    points = _points(url, cfg)
+    assert len(points) and points["range"].max() <= usable, points[["range", "doppler_bin"]]
+    # A shorter cfarFovCfg maximum still applies as written.
+    assert FrameProcessor(with_range_fov(shipped_cfg, 6.0, line)).detection_range_m[1] == 6.0
+
+
+def _radar_cfg(path) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-cfg") + [str(path)], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=60)
+
+
+def test_radar_cfg_warns_of_a_range_fov_beyond_the_usable_range(tmp_path, shipped_cfg):
+    """One warning naming the line, the usable range it is capped to, and the fix; the board's
+    range bias counts.  Within two range bins (cfgs round the limit: the shipped 10 m for
+    9.993 m, 9.928 m with the board's line) the cap is silent."""
+    with_line = shipped_cfg.max_range_m - load_board("uncalibrated").range_bias_m
+    for maximum, line, usable in ((15.0, False, shipped_cfg.max_range_m), (10.05, True, with_line)):
+        cfg = with_range_fov(shipped_cfg, maximum, line)
+        path = tmp_path / "fov.cfg"
+        cfg.write(path)
+        proc = _radar_cfg(path)
+        assert proc.returncode == 0, proc.stderr
+        at = next(n for n, text in enumerate(path.read_text().splitlines(), start=1)
+                  if text.startswith("cfarFovCfg -1 0 "))
+        warning = [ln for ln in proc.stderr.splitlines() if "cfarFovCfg" in ln]
+        assert warning == [f"radar-cfg: warning: {path}:{at}: cfarFovCfg range maximum {maximum:g} m reaches beyond "
+                           f"the usable range, {usable:.2f} m (beat frequencies up to 80 % of the IF band): detection "
+                           f"is capped there, since the IF filter's roll-off and the TX-to-RX leakage lie beyond; "
+                           f"set the maximum to {usable:.2f} m or less"], proc.stderr
+        assert math.isclose(FrameProcessor(cfg).detection_range_m[1], usable)
+    for maximum in (9.9, 10.0):  # within the usable range, or beyond it by less than two bins: no word
+        path = tmp_path / "ok.cfg"
+        with_range_fov(shipped_cfg, maximum).write(path)
+        proc = _radar_cfg(path)
+        assert proc.returncode == 0 and "cfarFovCfg" not in proc.stderr, proc.stderr
+    assert FrameProcessor(with_range_fov(shipped_cfg, 10.0)).detection_range_m[1] == pytest.approx(with_line)
