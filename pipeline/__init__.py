@@ -1,14 +1,15 @@
-"""One frame's path, top-down: source -> recording -> products -> odometry -> sinks.
+"""One frame's path, top-down: source -> raw sinks (recording) -> products -> odometry -> sinks.
 
     with Pipeline.from_url("sim://corridor?rate=max&duration=5", sinks=[TumSink("odom.tum")]) as pipe:
         stats = pipe.run()
 
 :meth:`Pipeline.run` iterates the source until it ends, a limit is reached or
-:meth:`Pipeline.stop` is called (a signal handler does that); for each frame it records the raw
-bytes (when recording), counts it, and hands it to :meth:`Pipeline.process`: the frame's point
+:meth:`Pipeline.stop` is called (a signal handler does that); for each frame it counts it and
+hands it to :meth:`Pipeline.process`: the sinks that take raw frames first (a
+:class:`CaptureSink` records the bytes before anything can fail on them), then the frame's point
 cloud and heatmap (the source's own, or the DSP's, made only when something needs them), the
-estimator fed by the frame's role (:class:`OdometryFeed`), and every sink in order.  The
-recording and the sinks are closed when the run ends, whatever ends it.  Statistics, latency
+estimator fed by the frame's role (:class:`OdometryFeed`), and every other sink in order.  The
+sinks are closed when the run ends, whatever ends it, the raw ones first.  Statistics, latency
 and the estimator's times are kept in :class:`PipelineStats` as the run goes.
 
 The parts are chosen once, when the pipeline is built: the products' DSP, the estimator and
@@ -23,7 +24,6 @@ import time
 from typing import Callable, Sequence
 
 from ..cfg import RadarConfig
-from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import ROLES, Frame, Source, open_source
 from ..dsp.config import DspConfig
 from ..errors import CaptureError
@@ -31,7 +31,7 @@ from ..estimator.config import EstimatorConfig
 from ..estimator.odometry import OdometryState, RadarOdometry
 from ..products import Products
 from .products import FrameProducts
-from .sinks import FrameResult, HeatmapSink, PointsCsvSink, Sink, TumSink
+from .sinks import CaptureSink, FrameResult, HeatmapSink, PointsCsvSink, Sink, TumSink
 from .stats import LatencyMeter, PipelineStats, RateMeter
 
 log = logging.getLogger(__name__)
@@ -75,18 +75,19 @@ class Pipeline:
     """A source's frames through the DSP and the estimator to sinks; see the module docstring.
 
     *estimator*: the estimator's settings (None: no odometry); *dsp*: the DSP's; *sinks*: where
-    results go, in order; *recorder*: a capture directory the raw frames are recorded to before
-    any processing; *max_frames* / *max_duration_s*: stop after that many frames / seconds of
-    stream time (frame timestamps from the first frame, so a replay at ``rate=max`` covers the
-    same span as in real time).
+    frames and results go, in order (those that take raw frames before any processing);
+    *max_frames* / *max_duration_s*: stop after that many frames / seconds of stream time (frame
+    timestamps from the first frame, so a replay at ``rate=max`` covers the same span as in real
+    time).
     """
 
     def __init__(self, source: Source, *, estimator: EstimatorConfig | None = None, dsp: DspConfig | None = None,
-                 sinks: Sequence[Sink] = (), recorder: CaptureWriter | None = None, max_frames: int | None = None,
-                 max_duration_s: float | None = None, owns_source: bool = False) -> None:
+                 sinks: Sequence[Sink] = (), max_frames: int | None = None, max_duration_s: float | None = None,
+                 owns_source: bool = False) -> None:
         self.source = source
         self.sinks = list(sinks)
-        self.recorder = recorder
+        self._raw_sinks = [s for s in self.sinks if s.takes_raw]
+        self._result_sinks = [s for s in self.sinks if not s.takes_raw]
         self.max_frames, self.max_duration_s = max_frames, max_duration_s
         self.stats = PipelineStats()
         self._owns_source = owns_source
@@ -94,18 +95,18 @@ class Pipeline:
         self.feed = None if estimator is None else OdometryFeed(RadarOdometry(estimator))
         # Nothing to compute for (recording alone): no DSP at all.
         self.products = None
-        if self.feed is not None or self.sinks:
+        if self.feed is not None or self._result_sinks:
             features = (estimator or EstimatorConfig()).features
-            full = any(s.full_heatmaps for s in self.sinks)
+            full = any(s.full_heatmaps for s in self._result_sinks)
             self.products = (FrameProducts(source.config, dsp, coupling=source.coupling, calibrated=source.calibrated)
                              if full else FrameProducts.for_estimator(source.config, features, dsp,
                                                                       coupling=source.coupling,
                                                                       calibrated=source.calibrated))
         # A heatmap is made when the estimator or a sink takes it; a velocity-only frame's only
         # for a sink that wants every heatmap.
-        wanted = self.feed is not None or any(s.wants_heatmaps for s in self.sinks)
+        wanted = self.feed is not None or any(s.wants_heatmaps for s in self._result_sinks)
         self._heatmap_for = {role: wanted for role in ROLES}
-        self._heatmap_for["velocity"] = any(s.full_heatmaps for s in self.sinks)
+        self._heatmap_for["velocity"] = any(s.full_heatmaps for s in self._result_sinks)
 
     @classmethod
     def from_url(cls, url: str, config: RadarConfig | None = None, **kwargs) -> Pipeline:
@@ -115,7 +116,10 @@ class Pipeline:
 
     # ------------------------------------------------------------------ one frame
     def process(self, frame: Frame) -> FrameResult:
-        """The frame's products and odometry, given to every sink."""
+        """The frame, given to the sinks that take raw frames; its products and odometry, given
+        to every other sink."""
+        for sink in self._raw_sinks:
+            sink.write_raw(frame, self.stats)
         if self.products is None:
             return FrameResult(frame, None, None, None)
         products = self.products(frame, heatmap=self._heatmap_for[frame.role])
@@ -124,7 +128,7 @@ class Pipeline:
             self.stats.state = state
             self.stats.estimator_s.append(state.compute_s)
         result = FrameResult(frame, products.points, products.heatmap, state)
-        for sink in self.sinks:
+        for sink in self._result_sinks:
             sink.write(result, self.stats)
         self.stats.latency.add(time.monotonic() - frame.ready_monotonic)
         return result
@@ -132,8 +136,8 @@ class Pipeline:
     # ------------------------------------------------------------------ the run
     def run(self, on_frame: Callable[[FrameResult, PipelineStats], None] | None = None) -> PipelineStats:
         """Stream the source through the pipeline until it ends, a limit is reached or
-        :meth:`stop`; *on_frame* is called after each frame (a status display).  The recording
-        and the sinks are closed before this returns or raises."""
+        :meth:`stop`; *on_frame* is called after each frame (a status display).  The sinks are
+        closed before this returns or raises."""
         stats = self.stats
         stats.reason = "end of source"
         try:
@@ -141,9 +145,6 @@ class Pipeline:
                 if self._past_duration(frame):
                     stats.reason = "duration limit"
                     break
-                if self.recorder is not None:
-                    self.recorder.write(frame.raw, frame.timestamp, frame.missing_bytes, frame.pose,
-                                        cut_bytes=frame.cut_bytes)
                 stats.count(frame.timestamp, frame.missing_bytes, frame.cut_bytes)
                 result = self.process(frame)
                 stats.rate.tick()
@@ -170,29 +171,23 @@ class Pipeline:
         self.source.stop()
 
     def _finish(self) -> None:
-        """Close the recording and the sinks, once."""
+        """Close the sinks, once: the raw ones (a recording) first, so that they are complete
+        before slower outputs finish."""
         if self._closed:
             return
         self._closed = True
-        try:
-            if self.recorder is not None:
-                dropped = self.source.describe().get("frames_dropped")
-                if dropped is not None:  # a live stream: the recording lacks the frames it dropped
-                    self.recorder.annotate(dropped_frames=dropped)
-                self.recorder.close()
-        finally:
-            # Every sink gets closed (its file flushed) even when another's close fails.
-            failure: BaseException | None = None
-            for sink in self.sinks:
-                try:
-                    sink.close(self.stats)
-                except BaseException as exc:  # noqa: BLE001 (re-raised below, after the others)
-                    failure = failure or exc
-            if failure is not None:
-                raise failure
+        # Every sink gets closed (its file flushed) even when another's close fails.
+        failure: BaseException | None = None
+        for sink in self._raw_sinks + self._result_sinks:
+            try:
+                sink.close(self.stats)
+            except BaseException as exc:  # noqa: BLE001 (re-raised below, after the others)
+                failure = failure or exc
+        if failure is not None:
+            raise failure
 
     def close(self) -> None:
-        """Close the recording and sinks (if :meth:`run` did not), and the source if owned."""
+        """Close the sinks (if :meth:`run` did not), and the source if owned."""
         try:
             self._finish()
         finally:
@@ -206,5 +201,5 @@ class Pipeline:
         self.close()
 
 
-__all__ = ["Pipeline", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "TumSink", "PointsCsvSink",
-           "HeatmapSink", "FrameProducts", "RateMeter", "LatencyMeter"]
+__all__ = ["Pipeline", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "CaptureSink", "TumSink",
+           "PointsCsvSink", "HeatmapSink", "FrameProducts", "RateMeter", "LatencyMeter"]

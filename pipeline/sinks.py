@@ -2,8 +2,11 @@
 
 A sink is given every frame's :class:`FrameResult` (its point cloud, heatmap and new odometry,
 whichever it has) in stream order, and is closed once at the end of the run with its
-statistics.  A new output is a new sink, not an edit of the loop.
+statistics.  A sink that sets :attr:`Sink.takes_raw` is given each frame as the source gave it
+instead, before any processing (:meth:`Sink.write_raw`): what it keeps survives a frame whose
+processing fails.  A new output is a new sink, not an edit of the loop.
 
+- :class:`CaptureSink`: the raw frames, recorded to a new capture directory (before processing).
 - :class:`TumSink`: the odometry, one TUM line per heatmap frame.
 - :class:`PointsCsvSink`: point clouds as CSV: ``frame, t, x, y, z, range, azimuth, elevation,
   velocity, snr_db`` (TI sensor frame, m, rad, m/s, dB), one row per point, rows of a frame
@@ -24,8 +27,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..driver.recordings.capture_dir import write_json_atomically
-from ..driver.sources import Frame
+from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
+from ..driver.sources import Frame, Source
 from ..errors import CaptureError, CaptureExistsError
 from ..estimator.odometry import OdometryState
 from ..products import RangeAzimuth
@@ -48,9 +51,13 @@ class FrameResult:
 
 
 class Sink:
-    """Where results go.  Subclasses override :meth:`write` and, when they hold resources,
-    :meth:`close`."""
+    """Where results go.  Subclasses override :meth:`write` (or, with :attr:`takes_raw`,
+    :meth:`write_raw`) and, when they hold resources, :meth:`close`."""
 
+    #: Whether this sink takes each frame as the source gave it, before any processing
+    #: (:meth:`write_raw`), instead of its results (:meth:`write`): a recorder, so that a frame
+    #: is kept even when its processing raises.  Such sinks are closed first.
+    takes_raw = False
     #: Whether this sink takes heatmaps: the DSP makes a frame's heatmap only when something
     #: needs it ...
     wants_heatmaps = False
@@ -61,8 +68,37 @@ class Sink:
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
         raise NotImplementedError
 
+    def write_raw(self, frame: Frame, stats: PipelineStats) -> None:
+        """(:attr:`takes_raw` sinks) One frame as it came, before the DSP or the estimator."""
+        raise NotImplementedError
+
     def close(self, stats: PipelineStats) -> None:
         """The run ended (normally or not): flush and release."""
+
+
+class CaptureSink(Sink):
+    """The raw frames, recorded by *writer* (a new capture directory's :class:`CaptureWriter`,
+    closed with the sink) as they come, before any processing: a frame whose processing raises
+    is recorded, and nothing recorded is lost.  At the end, a live *source*'s count of the
+    frames it dropped (``frames_dropped``) goes into capture.json as ``dropped_frames``: the
+    recording lacks them."""
+
+    takes_raw = True
+
+    def __init__(self, writer: CaptureWriter, source: Source) -> None:
+        self.writer = writer
+        self.source = source
+
+    def write_raw(self, frame: Frame, stats: PipelineStats) -> None:
+        self.writer.write(frame.raw, frame.timestamp, frame.missing_bytes, frame.pose, cut_bytes=frame.cut_bytes)
+
+    def close(self, stats: PipelineStats | None = None) -> None:
+        try:
+            dropped = self.source.describe().get("frames_dropped")
+            if dropped is not None:  # a live stream
+                self.writer.annotate(dropped_frames=dropped)
+        finally:
+            self.writer.close()
 
 
 class TumSink(Sink):

@@ -33,7 +33,7 @@ from live_helpers import (
 )
 from radarodom.driver.live.awr1843 import Awr1843Cli
 from radarodom.driver.live.awr1843_protocol import Outcome
-from radarodom.pipeline import Pipeline
+from radarodom.pipeline import CaptureSink, Pipeline
 from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.live.dca1000 import WANTED_RCVBUF
 from radarodom.driver.live.dca1000_wire import Command
@@ -235,7 +235,7 @@ def test_pipeline_records_incomplete_frames_with_their_missing_bytes(loss_captur
     with EmulatedRig(f"replay://{directory}", config=loss_cfg, faults=Faults(loss=0.1), seed=3) as rig:
         with open_source(rig.url(**URL_TIMEOUTS), loss_cfg) as src:
             writer = CaptureWriter(out, src.config, source=src.url)
-            stats = Pipeline(src, recorder=writer, max_frames=40).run()
+            stats = Pipeline(src, sinks=[CaptureSink(writer, src)], max_frames=40).run()
         lost = rig.board.lost_bytes_per_frame
 
     truth = {k: n for k, n in lost.items() if k < 40}

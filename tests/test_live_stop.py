@@ -24,7 +24,7 @@ from live_helpers import (
     assert_frames_match,
     collect_until_stopped,
 )
-from radarodom.pipeline import Pipeline
+from radarodom.pipeline import CaptureSink, Pipeline
 from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.live.dca1000_wire import MAX_DATA_BYTES, AsyncStatus, Command
 from radarodom.driver.emulators.fake_dca1000 import RECORD_COMPLETED_DELAY_S, Faults
@@ -175,7 +175,7 @@ def test_pipeline_records_cut_bytes_and_dropped_frames_in_capture_json(small_cap
                 if stats.frames == 5:
                     src.stop()
 
-            stats = Pipeline(src, recorder=writer).run(stop_after_5)
+            stats = Pipeline(src, sinks=[CaptureSink(writer, src)]).run(stop_after_5)
         sent = rig.board.stats.frames_in
 
     tail = tail_bytes(sent, small_cfg.frame_bytes)

@@ -15,7 +15,7 @@ from radarodom.cfg import RadarConfig
 from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.sources import SCHEMES, open_source
 from radarodom.errors import CaptureFormatError, ConfigError, SourceError
-from radarodom.pipeline import Pipeline
+from radarodom.pipeline import CaptureSink, Pipeline
 from radarodom.rawframe import RawLayout
 
 T0 = 1000.0
@@ -413,7 +413,9 @@ def test_pipeline_run_records_identical_capture(capture, tmp_path):
     url = f"replay://{d}?rate=max"
     with open_source(url) as src:
         writer = CaptureWriter(out, src.config, source=url)
-        stats = Pipeline(src, recorder=writer).run()
+        pipe = Pipeline(src, sinks=[CaptureSink(writer, src)])
+        assert pipe.products is None  # recording alone: no DSP
+        stats = pipe.run()
     assert stats.frames == 6
     for name in ("adc_data.bin", "timestamps.txt", "groundtruth.tum", "radar.cfg"):
         assert (out / name).read_bytes() == (d / name).read_bytes(), name
@@ -421,6 +423,7 @@ def test_pipeline_run_records_identical_capture(capture, tmp_path):
     assert rec.metadata["closed"] is True and rec.metadata["source"] == url
     assert rec.metadata["incomplete_frames"] == [{"frame": 2, "missing_bytes": 99}]
     assert rec.missing_bytes(2) == 99
+    assert "dropped_frames" not in rec.metadata  # a replay drops none: only a live source says
 
 
 def test_pipeline_run_closes_writer_on_exception(capture, tmp_path):
@@ -437,7 +440,7 @@ def test_pipeline_run_closes_writer_on_exception(capture, tmp_path):
     with open_source(f"replay://{d}?rate=max") as src:
         writer = CaptureWriter(out, src.config)
         with pytest.raises(Boom):
-            Pipeline(src, recorder=writer).run(on_frame)
+            Pipeline(src, sinks=[CaptureSink(writer, src)]).run(on_frame)
     rec = CaptureDirectory(out)
     assert rec.metadata["closed"] is True
     assert rec.metadata["frame_count"] == 3
@@ -461,3 +464,45 @@ def test_pipeline_closes_every_sink_when_one_fails_to_close(capture, tmp_path):
             Pipeline(src, sinks=[BadClose(), csv]).run()
     assert csv._fh.closed
     assert (tmp_path / "points.csv").read_text().startswith("frame,t,")
+
+
+def test_pipeline_records_a_frame_before_its_processing_fails(capture, tmp_path):
+    """The recording takes each frame before the DSP, the estimator and the other sinks (whatever
+    the sinks' order): a frame whose processing raises is in the capture, closed."""
+    from radarodom.pipeline import Sink
+
+    class FailsAtFrame3(Sink):
+        def write(self, result, stats):
+            if result.frame.index == 3:
+                raise RuntimeError("processing failed")
+
+    d, frames = capture
+    out = tmp_path / "out"
+    with open_source(f"replay://{d}?rate=max") as src:
+        writer = CaptureWriter(out, src.config)
+        with pytest.raises(RuntimeError, match="processing failed"):
+            Pipeline(src, sinks=[FailsAtFrame3(), CaptureSink(writer, src)]).run()
+    rec = CaptureDirectory(out)
+    assert rec.metadata["closed"] is True and rec.metadata["frame_count"] == 4
+    assert [bytes(rec.raw(i)) for i in range(4)] == frames[:4]
+
+
+def test_pipeline_closes_the_recording_when_another_sink_fails_to_close(capture, tmp_path):
+    from radarodom.pipeline import Sink
+
+    class BadClose(Sink):
+        def write(self, result, stats):
+            pass
+
+        def close(self, stats):
+            raise OSError("disk full")
+
+    d, frames = capture
+    out = tmp_path / "out"
+    with open_source(f"replay://{d}?rate=max") as src:
+        writer = CaptureWriter(out, src.config)
+        with pytest.raises(OSError, match="disk full"):
+            Pipeline(src, sinks=[BadClose(), CaptureSink(writer, src)]).run()
+    rec = CaptureDirectory(out)
+    assert rec.metadata["closed"] is True and rec.metadata["frame_count"] == 6
+    assert [bytes(rec.raw(i)) for i in range(6)] == frames

@@ -32,7 +32,7 @@ from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
-from ..pipeline import HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
+from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
 from . import cli
 from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
 from .zenoh_args import add_zenoh_arguments
@@ -274,7 +274,10 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
     """The outputs asked for (checked by :func:`_check_outputs`)."""
     sinks: list = []
     try:
-        # The heatmap directory first: it may already hold heatmaps, found only when opened.
+        if args.record:  # a recording takes the raw frames before anything can fail on them
+            sinks.append(CaptureSink(CaptureWriter(args.record, source.config, source=args.source,
+                                                   extra=source.recording_metadata()), source))
+        # The heatmap directory next: it may already hold heatmaps, found only when opened.
         if args.heatmap_out:
             sinks.append(HeatmapSink(args.heatmap_out))
         if args.points_out:
@@ -283,7 +286,7 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
             sinks.append(TumSink(args.odom_out))
     except BaseException:
         for sink in sinks:
-            sink.close(PipelineStats())
+            sink.close(PipelineStats())  # no frame yet: a capture directory is removed
         raise
     if publisher is not None:
         from ..pipeline.zenoh_sink import PublisherSink
@@ -297,16 +300,8 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     if args.overwrite:
         for path, kind in _outputs(args):
             cli.replace_output(path, kind)
-    recorder = (CaptureWriter(args.record, source.config, source=args.source,
-                              extra=source.recording_metadata()) if args.record else None)
-    try:
-        sinks = _sinks(args, source, publisher)
-    except BaseException:
-        if recorder is not None:
-            recorder.close()  # no frame yet: the capture is removed
-        raise
-    pipeline = Pipeline(source, estimator=None if args.no_odom else args.estimator, sinks=sinks,
-                        recorder=recorder, max_frames=args.frames, max_duration_s=args.duration)
+    pipeline = Pipeline(source, estimator=None if args.no_odom else args.estimator,
+                        sinks=_sinks(args, source, publisher), max_frames=args.frames, max_duration_s=args.duration)
 
     def on_frame(result, stats: PipelineStats) -> None:
         status.update(_status_fields(stats, args.record is not None, source) + _odometry_fields(stats))
