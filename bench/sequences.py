@@ -3,7 +3,7 @@
 A sequence is a capture directory written by ``radar-sim`` (exact fidelity, with
 groundtruth.tum; a simulated board of its own with ``board``) and, beside it,
 ``dsp-<key>.npz``: every frame's point cloud and range-azimuth heatmap (intensity
-and dominant Doppler), so that estimator variants can be compared without
+and dominant Doppler), made by the pipeline radar-capture runs, so that estimator variants can be compared without
 repeating the DSP.  The key names what made it: the DSP's source files, its FFT
 backend, the DspConfig and the radar cfg the recording is read with (its own, or
 another one: the same recording with and without a calibration line); a cache
@@ -26,10 +26,9 @@ from radarodom.cfg import RadarConfig
 from radarodom.driver.sources import open_source
 from radarodom.dsp.config import DspConfig
 from radarodom.dsp.fft import resolve_backend
-from radarodom.dsp.heatmap import HeatmapMaker, RangeAzimuth
-from radarodom.dsp.processor import POINT_DTYPE, FrameProcessor
+from radarodom.pipeline import FrameResult, Pipeline, Sink
+from radarodom.products import POINT_DTYPE, RangeAzimuth
 from radarodom.tum import TumTrajectory, read_tum
-
 
 
 @dataclass
@@ -82,24 +81,32 @@ def _key(dsp_config: DspConfig | None, cfg: RadarConfig | None) -> str:
     return digest.hexdigest()[:16]
 
 
+class _Arrays(Sink):
+    """Every frame's time, point cloud and full heatmap (intensity and dominant Doppler, float32)."""
+
+    wants_heatmaps = full_heatmaps = True
+
+    def __init__(self) -> None:
+        self.times, self.points, self.intensity, self.doppler = [], [], [], []
+        self.heatmap: RangeAzimuth | None = None
+
+    def write(self, result: FrameResult, stats) -> None:
+        self.times.append(result.frame.timestamp)
+        self.points.append(result.points.copy())
+        self.heatmap = result.heatmap
+        self.intensity.append(result.heatmap.intensity.astype(np.float32))
+        self.doppler.append(result.heatmap.doppler_mps.astype(np.float32))
+
+
 def _process(directory: str, dsp_config: DspConfig | None, cfg: RadarConfig | None) -> dict:
-    points, intensity, doppler, times = [], [], [], []
+    arrays = _Arrays()
     with open_source(f"replay://{directory}?rate=max", cfg) as source:
-        processor = FrameProcessor(source.config, dsp_config, calibrated=source.calibrated)
-        maker = HeatmapMaker(processor)
-        cube = np.empty(source.config.cube_shape, np.complex64)
-        for frame in source:
-            result = processor.process(frame.cube(out=cube))
-            hm = maker.range_azimuth(result.spectrum)
-            points.append(result.points.copy())
-            intensity.append(hm.intensity.astype(np.float32))
-            doppler.append(hm.doppler_mps.astype(np.float32))
-            times.append(frame.timestamp)
-    counts = np.array([len(p) for p in points])
-    return dict(times=np.array(times), counts=counts,
+        Pipeline(source, dsp=dsp_config, sinks=[arrays]).run()
+    points = arrays.points
+    return dict(times=np.array(arrays.times), counts=np.array([len(p) for p in points]),
                 points=np.concatenate(points) if points else np.zeros(0, POINT_DTYPE),
-                intensity=np.stack(intensity), doppler=np.stack(doppler),
-                range_m=hm.range_m, azimuth_rad=hm.azimuth_rad)
+                intensity=np.stack(arrays.intensity), doppler=np.stack(arrays.doppler),
+                range_m=arrays.heatmap.range_m, azimuth_rad=arrays.heatmap.azimuth_rad)
 
 
 def load(directory: str, name: str | None = None, *, dsp_config: DspConfig | None = None,
