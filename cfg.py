@@ -20,6 +20,7 @@ import os
 from typing import Any, Iterator, Sequence
 
 from . import cfg_commands as cc
+from .cfg_checks import REQUIRED_COMMANDS, ConfigChecks  # noqa: F401  (REQUIRED_COMMANDS re-exported)
 from .cfg_fields import shown
 from .cfg_physics import (  # noqa: F401  (re-exported: radarodom.cfg is where users find them)
     BYTES_PER_COMPLEX_SAMPLE, DCA1000_DEFAULT_PACKET_DELAY_US, DCA1000_PACKET_DATA_BYTES,
@@ -32,8 +33,6 @@ __all__ = ["RadarConfig", "CfgLine", "MAX_CFG_BYTES", "shipped_config_path", "dc
 
 log = logging.getLogger(__name__)
 
-#: Commands that must appear once, and describe the raw data layout.
-REQUIRED_COMMANDS = ("channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")
 #: Typed commands that may appear more than once: name -> field that keys them.
 KEYED_COMMANDS = {"cfarCfg": "proc_direction", "cfarFovCfg": "proc_direction"}
 #: Commands the driver sends itself around the cfg's own lines.
@@ -65,13 +64,14 @@ def shipped_config_path(name: str = DEFAULT_CONFIG_NAME) -> str:
     return str(resources.files(__package__).joinpath("configs", name))
 
 
-class RadarConfig(ConfigPhysics):
+class RadarConfig(ConfigChecks, ConfigPhysics):
     """A validated xWR18xx radar configuration.
 
     Build one with :meth:`from_file` or :meth:`from_text`; write it back with
     :meth:`to_text`.  Typed commands are attributes (``cfg.profile``,
     ``cfg.frame``, ...); the frame layout and derived physics are properties
-    (:class:`radarodom.cfg_physics.ConfigPhysics`).
+    (:class:`radarodom.cfg_physics.ConfigPhysics`); the checks made when it is built are
+    :class:`radarodom.cfg_checks.ConfigChecks`.
     """
 
     def __init__(self, lines: Sequence[CfgLine], path: str | os.PathLike | None = None) -> None:
@@ -169,109 +169,6 @@ class RadarConfig(ConfigPhysics):
             elif name == "bpmCfg" and ln.value.enabled:
                 raise self._fail("BPM-MIMO is not supported: use TDM (bpmCfg -1 0 0 0)", ln, "enabled")
         self._chirp_lines = tuple(chirps)
-
-    # --------------------------------------------------------------- validation
-    def _validate(self) -> None:
-        for name in REQUIRED_COMMANDS:
-            if name not in self._first and not (name == "chirpCfg" and self._chirp_lines):
-                raise ConfigError("missing: the raw data layout depends on it", path=self.path,
-                                  command=name)
-        self._validate_modes()
-        self._validate_profile()
-        self._validate_chirps_and_frame()
-        self._validate_fov()
-
-    def _validate_modes(self) -> None:
-        ln = self._first.get("dfeDataOutputMode")
-        if ln is not None and ln.value.mode != 1:
-            raise self._fail("only frame-based chirps (1) are supported; continuous (2) and "
-                             "advanced frame (3) modes are not", ln, "modeType")
-        ln = self._first["adcCfg"]
-        if ln.value.num_adc_bits != 2:
-            raise self._fail("12- and 14-bit ADC output is not supported: use 2 (16-bit)", ln, "numADCBits")
-        if ln.value.adc_output_fmt == 0:
-            raise self._fail("real-only ADC output is not supported: use 1 (complex 1x)", ln, "adcOutputFmt")
-        if ln.value.adc_output_fmt == 2:
-            raise self._fail("complex 2x ADC output is not supported: use 1 (complex 1x)", ln, "adcOutputFmt")
-        ln = self._first["adcbufCfg"]
-        if ln.value.output_fmt != 0:
-            raise self._fail("real ADC buffer format is not supported: use 0 (complex)", ln, "adcOutputFmt")
-        if ln.value.chan_interleave != 1:
-            raise self._fail("interleaved channels are not supported by the xWR18xx demo: use 1", ln,
-                             "ChanInterleave")
-
-    def _validate_profile(self) -> None:
-        ln = self._first["profileCfg"]
-        p = ln.value
-        if p.num_adc_samples % 2:
-            raise self._fail("must be even: the LVDS stream carries samples in pairs", ln, "numAdcSamples")
-        window_us = p.adc_start_time_us + p.num_adc_samples * 1000.0 / p.sample_rate_ksps
-        if window_us > p.ramp_end_time_us + 1e-9:
-            raise self._fail(
-                f"ADC sampling ends at {window_us:.2f} us (adcStartTime {p.adc_start_time_us:g} + "
-                f"numAdcSamples {p.num_adc_samples} / digOutSampleRate {p.sample_rate_ksps} ksps), "
-                f"after the ramp ends at {p.ramp_end_time_us:g} us", ln, "rampEndTime")
-        top_ghz = p.start_freq_ghz + p.freq_slope_mhz_us * p.ramp_end_time_us / 1000.0
-        if top_ghz * 1e9 > MAX_RF_FREQUENCY_HZ + 1e6:
-            raise self._fail(f"the ramp reaches {top_ghz:.3f} GHz, above the xWR18xx's 81 GHz",
-                             ln, "freqSlopeConst")
-
-    def _validate_chirps_and_frame(self) -> None:
-        channel = self._first["channelCfg"]
-        profile = self._first["profileCfg"].value
-        owner: dict[int, CfgLine] = {}
-        for ln in self._chirp_lines:
-            c = ln.value
-            if c.end_idx < c.start_idx:
-                raise self._fail(f"chirpEndIndex {c.end_idx} is below chirpStartIndex {c.start_idx}",
-                                 ln, "chirpEndIndex")
-            if c.profile_id != profile.profile_id:
-                raise self._fail(f"profile {c.profile_id} is not defined (profileCfg defines "
-                                 f"{profile.profile_id})", ln, "profileId")
-            if c.tx_mask == 0:
-                raise self._fail("the chirp transmits on no TX", ln, "txEnable")
-            if c.tx_mask & ~channel.value.tx_mask:
-                raise self._fail(f"TX mask {c.tx_mask} is not a subset of channelCfg txChannelEn "
-                                 f"{channel.value.tx_mask} (line {channel.line})", ln, "txEnable")
-            if c.tx_mask not in (1, 2, 4):
-                raise self._fail(f"TX mask {c.tx_mask} enables several TX at once; only TDM-MIMO "
-                                 f"(one TX per chirp) is supported", ln, "txEnable")
-            if any((c.start_freq_var_hz, c.freq_slope_var_khz_us, c.idle_time_var_us,
-                    c.adc_start_time_var_us)):
-                self._warnings.add("chirp variations", ln.line,
-                                   "chirpCfg variations are ignored by radarodom's signal model")
-            for i in range(c.start_idx, c.end_idx + 1):
-                if i in owner:
-                    raise self._fail(f"chirp {i} is already defined at line {owner[i].line}", ln,
-                                     "chirpStartIndex")
-                owner[i] = ln
-        frame_ln = self._first["frameCfg"]
-        f = frame_ln.value
-        if f.chirp_end_idx < f.chirp_start_idx:
-            raise self._fail(f"chirpEndIndex {f.chirp_end_idx} is below chirpStartIndex "
-                             f"{f.chirp_start_idx}", frame_ln, "chirpEndIndex")
-        for i in range(f.chirp_start_idx, f.chirp_end_idx + 1):
-            if i not in owner:
-                raise self._fail(f"chirp {i} is not defined by any chirpCfg", frame_ln,
-                                 "chirpStartIndex" if i == f.chirp_start_idx else "chirpEndIndex")
-        if self.active_frame_time_s > self.frame_period_s + 1e-12:
-            raise self._fail(
-                f"{f.frame_period_ms:g} ms is shorter than the active frame time "
-                f"{self.active_frame_time_s * 1e3:.3f} ms ({f.num_loops} loops x "
-                f"{self.num_tx_slots} chirps x {self.chirp_time_s * 1e6:g} us)",
-                frame_ln, "framePeriodicity")
-
-    def _validate_fov(self) -> None:
-        for key, ln in self._keyed["cfarFovCfg"].items():
-            if ln.value.min_value > ln.value.max_value:
-                raise self._fail("min is above max", ln, "min (meters or m/s)")
-        ln = self._first.get("aoaFovCfg")
-        if ln is not None:
-            a = ln.value
-            if a.min_azimuth_deg > a.max_azimuth_deg:
-                raise self._fail("minAzimuthDeg is above maxAzimuthDeg", ln, "minAzimuthDeg")
-            if a.min_elevation_deg > a.max_elevation_deg:
-                raise self._fail("minElevationDeg is above maxElevationDeg", ln, "minElevationDeg")
 
     def check_raw_capture(self) -> None:
         """Raise :class:`ConfigError` unless the cfg streams raw ADC data over LVDS
