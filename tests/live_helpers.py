@@ -14,6 +14,7 @@ import shlex
 import signal
 import socket
 import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -177,6 +178,35 @@ def wait_until(predicate, timeout: float, interval: float = 0.02) -> bool:
 
 
 # ------------------------------------------------------------------ subprocesses
+class CpuHogs:
+    """*n* processes spinning on the CPU while the ``with`` block runs: real contention for
+    the cores (the scheduler's, not a sleep).  After the block, :attr:`cpu_s` holds the CPU
+    seconds each got, as the kernel counted them (Linux ``/proc``)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.procs: list[subprocess.Popen] = []
+        self.cpu_s: list[float] = []
+
+    def __enter__(self) -> CpuHogs:
+        for _ in range(self.n):
+            self.procs.append(subprocess.Popen([sys.executable, "-c", "while True: pass"],
+                                               stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        tick = os.sysconf("SC_CLK_TCK")
+        for proc in self.procs:
+            try:
+                with open(f"/proc/{proc.pid}/stat") as f:  # utime, stime: fields 14, 15
+                    fields = f.read().rpartition(")")[2].split()
+                self.cpu_s.append((int(fields[11]) + int(fields[12])) / tick)
+            except OSError:
+                self.cpu_s.append(0.0)
+            proc.kill()
+            proc.wait(5)
+
+
 class _LineReader:
     """Reads a text pipe on a thread, so waiting for a line has a timeout."""
 

@@ -7,12 +7,14 @@ each packet's bytes there, splitting packets that straddle a frame boundary.
 Frame alignment therefore cannot be lost, whatever is lost, duplicated,
 reordered or truncated on the way:
 
-- a gap stays zero and is counted in the frame's ``missing_bytes``, and attributed: bytes
-  before the newest byte received were sent (a later byte came) and lost on the way
-  (:attr:`AssemblyStats.lost_bytes`: lost, malformed, truncated or late packets), and so were
-  all of them when the sender confirmed the stream's end (:meth:`expire` with ``sent_all``);
-  otherwise bytes from the newest one on never came before the stream stopped
-  (:attr:`AssemblyStats.cut_bytes`, also on each :class:`RingFrame`);
+- a gap stays zero and is counted in the frame's ``missing_bytes`` (the bytes the frame did not
+  receive), and attributed, on each :class:`RingFrame` and in :class:`AssemblyStats`: bytes the
+  packet headers show were sent and never came (``lost_bytes``: lost, malformed, truncated or
+  late packets, counted from sequence and byte-count gaps by :class:`.stream_gaps.ByteGaps`,
+  independently of the frame's own count; the bytes after the newest packet too when the
+  sender confirmed the stream's end, :meth:`expire` with ``sent_all``), and bytes after the
+  newest packet, never sent before the stream stopped (``cut_bytes``).  The two add up to
+  ``missing_bytes``; a frame where they do not is a bug, and warned about;
 - bytes already received (a duplicate) are not counted twice;
 - a packet for a frame already handed on is too late: dropped and counted;
 - frames are handed on in order: a frame is complete when all its bytes are
@@ -36,6 +38,7 @@ import numpy as np
 
 from .dca1000_wire import MAX_DATA_BYTES
 from .frame_ring import FrameRing, RingFrame
+from .stream_gaps import ByteGaps
 
 log = logging.getLogger(__name__)
 
@@ -58,12 +61,15 @@ class AssemblyStats:
     implausible_packets: int = 0
     frames_complete: int = 0
     frames_incomplete: int = 0
-    #: Bytes missing from frames handed on incomplete: lost_bytes + cut_bytes.
+    #: Bytes missing from frames handed on incomplete (not received): lost_bytes + cut_bytes.
     missing_bytes: int = 0
-    #: Missing bytes that the stream had already passed (a later byte arrived): lost in transit.
+    #: Bytes of those frames the packet headers show were sent and never came.
     lost_bytes: int = 0
     #: Missing bytes the stream had not reached when their frame was handed on: cut at stop.
     cut_bytes: int = 0
+    #: Packets after the newest one received that the sender's confirmed end shows were sent
+    #: (counted as the board cuts its stream: full packets but for the recording's last).
+    tail_packets_lost: int = 0
     #: Frames the ring had no buffer for (consumer too slow, policy ``queue``).
     frames_dropped: int = 0
     #: Frames still open when the stream was closed with nobody to take them.
@@ -120,6 +126,8 @@ class FrameAssembler:
         self.next_index = 0
         self._open: dict[int, _OpenFrame] = {}
         self._newest_end = 0
+        self.byte_gaps = ByteGaps()
+        self._warned_unattributed = False
 
     def add(self, seq: int, byte_count: int, data, now: float) -> None:
         """One packet: sequence number, stream offset of its first byte, its
@@ -135,6 +143,7 @@ class FrameAssembler:
         st.bytes += size
         fb = self.frame_bytes
         end = byte_count + size
+        self.byte_gaps.add(seq, byte_count, end)
         first, last = byte_count // fb, (end - 1) // fb
         if last < self.next_index:
             st.late_packets += 1
@@ -195,22 +204,31 @@ class FrameAssembler:
         del self._open[frame.index]
         self.next_index = frame.index + 1
         missing = self.frame_bytes - frame.received
+        start, end = frame.index * self.frame_bytes, (frame.index + 1) * self.frame_bytes
+        lost = self.byte_gaps.take(start, end)  # settled even for a frame with no buffer
         st = self.stats
         if frame.slot is None:
             return
-        cut = 0
+        # Bytes past the newest one received were not sent yet (unless the sender said so).
+        cut = max(0, end - max(self._newest_end, start))
+        if missing != lost + cut:
+            self._warn_unattributed(frame.index, missing, lost, cut)
         if missing:
             st.frames_incomplete += 1
             st.missing_bytes += missing
-            # Every byte below the newest one received is, or was, before it in the stream.
-            end = (frame.index + 1) * self.frame_bytes
-            cut = max(0, end - max(self._newest_end, frame.index * self.frame_bytes))
             st.cut_bytes += cut
-            st.lost_bytes += missing - cut
+            st.lost_bytes += lost
         else:
             st.frames_complete += 1
         self.on_frame(RingFrame(frame.slot, frame.index, self.ring.buffer(frame.slot), missing,
-                                frame.first_time, time.monotonic(), cut))
+                                frame.first_time, time.monotonic(), cut, lost))
+
+    def _warn_unattributed(self, index: int, missing: int, lost: int, cut: int) -> None:
+        if not self._warned_unattributed:
+            self._warned_unattributed = True
+            log.warning("frame %d misses %d bytes, but the packet headers show %d lost and %d were cut "
+                        "at stop: the accounting does not add up (a radarodom bug: please report it "
+                        "with the capture's packets)", index, missing, lost, cut)
 
     def expire(self, *, sent_all: bool = False) -> None:
         """Hand on every frame still open (the stream stopped).  With *sent_all* the sender has
@@ -220,7 +238,9 @@ class FrameAssembler:
         if self._open:
             last = max(self._open)
             if sent_all:
-                self._newest_end = max(self._newest_end, (last + 1) * self.frame_bytes)
+                end = (last + 1) * self.frame_bytes
+                self.stats.tail_packets_lost += self.byte_gaps.end_at(end)
+                self._newest_end = max(self._newest_end, end)
             self._give_up_before(last + 1)
 
     def discard(self) -> None:

@@ -43,8 +43,11 @@ class RingFrame:
     #: the packet that proved it would not complete): the start of its end-to-end latency.
     done_monotonic: float = 0.0
     #: Of missing_bytes, those the stream had not reached when the frame was handed on (cut at
-    #: stop); the rest were lost on the way.
+    #: stop).
     cut_bytes: int = 0
+    #: Of missing_bytes, those the packet headers show were sent and never came (lost on the
+    #: way), counted from sequence and byte-count gaps: missing_bytes = lost_bytes + cut_bytes.
+    lost_bytes: int = 0
 
 
 class FrameRing:

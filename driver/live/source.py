@@ -87,8 +87,8 @@ class LiveSource(Source):
         self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
         self.fpga_version = None
         #: Frames handed to the consumer: whole, with zero-filled bytes, and those bytes
-        #: (all of them; of them, cut at stop).
-        self._delivered = {"complete": 0, "incomplete": 0, "missing": 0, "cut": 0}
+        #: (all of them; of them, lost on the way and cut at stop, each counted on its own).
+        self._delivered = {"complete": 0, "incomplete": 0, "missing": 0, "lost": 0, "cut": 0}
         self._recording = False
         self._record_stopped = False
         self._radar_stopped = False
@@ -174,6 +174,7 @@ class LiveSource(Source):
         if frame.missing_bytes:
             d["incomplete"] += 1
             d["missing"] += frame.missing_bytes
+            d["lost"] += frame.lost_bytes
             d["cut"] += frame.cut_bytes
         else:
             d["complete"] += 1
@@ -218,22 +219,26 @@ class LiveSource(Source):
         Frames handed to the consumer: ``frames_complete``, ``frames_incomplete`` (with
         zero-filled bytes); ``frames_dropped``: whole frames the consumer was too slow for
         (policy).  Once a stop (:meth:`stop`) has delivered the rest, their sum is every frame
-        the radar sent.  Zero-filled bytes of the frames handed on: ``missing_bytes`` =
-        ``lost_bytes`` (the stream went past them: lost, truncated or late packets) +
-        ``cut_bytes`` (never sent before the stream stopped).  Packets: ``packets`` received,
-        ``packets_lost`` (sequence numbers never received; also ``seq_gaps``),
-        ``truncated_packets``, ``late_packets`` (after their frame was handed on, its missing
-        bytes counted in ``lost_bytes``), and ignored ones: ``duplicate_packets``,
+        the radar sent.  Zero-filled bytes of the frames handed on: ``missing_bytes`` (what the
+        frames did not receive) = ``lost_bytes`` (what the packet headers show was sent and
+        never came: sequence and byte-count gaps, from lost, truncated or late packets, and
+        after a confirmed end the packets that never came) + ``cut_bytes`` (never sent before
+        the stream stopped); the first two are counted independently.  Packets: ``packets``
+        received, ``packets_lost`` = ``seq_gaps`` (sequence numbers never received) +
+        ``tail_packets_lost`` (after the last one received, sent by the board's confirmed
+        end), ``truncated_packets``, ``late_packets`` (after their frame was handed on, its
+        missing bytes counted in ``lost_bytes``), and ignored ones: ``duplicate_packets``,
         ``foreign_packets`` (another address), ``malformed_packets``.  Also the board's status
         messages (``async_status``) and the receive buffer granted (``rcvbuf_bytes``)."""
         r, a, d = self.receiver.stats, self.receiver.assembler.stats, self._delivered
-        lost_packets = self.receiver.gaps.lost
+        seq_gaps = self.receiver.gaps.lost
         return {
             "url": self.url, "fpga": str(self.fpga_version),
             "frames_complete": d["complete"], "frames_incomplete": d["incomplete"],
             "frames_dropped": self.ring.dropped_frames,
-            "missing_bytes": d["missing"], "lost_bytes": d["missing"] - d["cut"], "cut_bytes": d["cut"],
-            "packets": r.packets, "packets_lost": lost_packets, "seq_gaps": lost_packets,
+            "missing_bytes": d["missing"], "lost_bytes": d["lost"], "cut_bytes": d["cut"],
+            "packets": r.packets, "packets_lost": seq_gaps + a.tail_packets_lost, "seq_gaps": seq_gaps,
+            "tail_packets_lost": a.tail_packets_lost,
             "truncated_packets": r.truncated_packets, "late_packets": a.late_packets,
             "duplicate_packets": a.duplicate_packets, "foreign_packets": r.foreign_packets,
             "malformed_packets": r.malformed_packets,
