@@ -86,6 +86,14 @@ class Frame:
     #: Of ``missing_bytes``, those never sent before the stream stopped (cut at stop); the
     #: rest were lost on the way (lost, truncated or late packets).
     cut_bytes: int = 0
+    #: The zero-Doppler values of the azimuth antennas a radar computed itself (TI's demo's
+    #: azimuth static heatmap, ``tidemo://``): complex64 (range bins, antennas), the first
+    #: antennas of the virtual array in chirp order, calibrated as the cfg's
+    #: compRangeBiasAndRxChanPhase says.  The DSP turns them into :attr:`heatmap`'s kind.
+    static_antennas: np.ndarray | None = None
+    #: The bytes the frame came in, where they are not :attr:`raw` (a demo UART packet), for
+    #: recording them as received.
+    wire: bytes | None = None
 
     @property
     def complete(self) -> bool:

@@ -2,8 +2,10 @@
 
 Most sources give raw ADC frames, and the DSP makes both products.  A dataset may ship them
 instead (ColoRadar's on-chip point clouds, its cascade radar's heatmaps), or ship one kind for
-some frames and raw frames for others.  :class:`FrameProducts` hides the difference from the
-pipeline: built once per source, called once per frame.
+some frames and raw frames for others; TI's demo firmware ships points and zero-Doppler antenna
+values, which the DSP's angle processing makes a heatmap of (``dsp.static_heatmap``).
+:class:`FrameProducts` hides the difference from the pipeline: built once per source, called
+once per frame.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from ..driver.sources import Frame
 from ..dsp.config import DspConfig
 from ..dsp.heatmap import HeatmapMaker
 from ..dsp.processor import FrameProcessor
+from ..dsp.static_heatmap import StaticHeatmapMaker
 from ..errors import CaptureError
 from ..estimator.config import FeatureConfig
 from ..products import Products
@@ -38,6 +41,8 @@ class FrameProducts:
         self.processor = (FrameProcessor(config, dsp, coupling=coupling, calibrated=calibrated)
                           if config is not None else None)
         self.heatmaps = None if self.processor is None else HeatmapMaker(self.processor, doppler_cells=doppler_cells)
+        # A radar's own zero-Doppler antenna values (TI's demo): the same axes and calibration.
+        self.static_maps = None if self.processor is None else StaticHeatmapMaker(self.processor)
         # Reused: no allocation per frame.
         self._cube = None if config is None else np.empty(config.cube_shape, np.complex64)
 
@@ -62,4 +67,9 @@ class FrameProducts:
         hm = frame.heatmap
         if hm is None and result is not None and heatmap:
             hm = self.heatmaps.range_azimuth(result.spectrum)
+        if hm is None and frame.static_antennas is not None and heatmap:
+            if self.static_maps is None:
+                raise CaptureError(f"frame {frame.index} carries antenna values but the source gave no radar "
+                                   "configuration")
+            hm = self.static_maps.range_azimuth(frame.static_antennas)
         return Products(points, hm)

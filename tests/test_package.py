@@ -61,9 +61,10 @@ def test_version_matches_pyproject():
 
 
 #: The modules every layer may use: the cfg model, wire-free data types, errors, JSON, numbers.
-CORE = {"radarodom", "antenna", "calibration", "cfg", "cfg_checks", "cfg_commands", "cfg_fields", "cfg_physics",
-        "cfg_text", "errors", "plain_numbers", "products", "rawframe", "settings", "strict_json", "tum"}
-DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.coloradar", "driver.emulators"}
+CORE = {"radarodom", "antenna", "calibration", "cfg", "cfg_commands", "cfg_fields", "cfg_physics", "cfg_text",
+        "errors", "plain_numbers", "products", "rawframe", "settings", "strict_json", "tum"}
+DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.coloradar", "driver.emulators",
+          "driver.tidemo"}
 #: Which part of the package may import which (besides itself and CORE); "ext:" names third-party
 #: packages that only some parts may use.  tools/ may import anything.
 ALLOWED = {
@@ -80,7 +81,13 @@ ALLOWED = {
     "driver.recordings": {"driver.sources", "driver.sim"},
     "driver.sim": {"driver.sources"},
     "driver.coloradar": {"driver.sources"},
-    "driver.emulators": {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "ext:serial"},
+    # TI's demo firmware's UART output: the CLI client and the port discovery of the live room, the
+    # recordings' JSON and timestamp helpers; no DSP (the static map's angles are dsp/static_heatmap.py's).
+    "driver.tidemo": {"driver.sources", "driver.live", "driver.recordings", "ext:serial"},
+    # The fake radar's data port makes the demo's packets as the chip would (its CFAR, its static
+    # heatmap): with radarodom's DSP in TI's mode, and the tidemo wire format.
+    "driver.emulators": {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.tidemo", "dsp",
+                         "ext:serial"},
     "pipeline": DRIVER | {"dsp", "estimator", "messages", "publish"},
 }
 #: Third-party packages whose use is restricted to the parts ALLOWED names them for.
