@@ -39,6 +39,7 @@ SCHEMES: dict[str, str] = {
     "sim": "radarodom.driver.sim.source:open_sim",
     "dca1000": "radarodom.driver.live.source:open_live",
     "coloradar": "radarodom.driver.coloradar.source:open_coloradar",
+    "tidemo": "radarodom.driver.tidemo.source:open_tidemo",
 }
 
 

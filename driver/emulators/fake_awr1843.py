@@ -20,6 +20,9 @@ failures users of real boards report: error replies, commands that hang until
 a reset, a ``sensorStart`` that never answers, line noise, a slow UART and a
 port that disappears.
 
+The demo's data port, its UART output of points and heatmaps on a second pty, is
+:mod:`.fake_demo_uart` (it takes :attr:`FakeAwr1843.on_sensor_start` as a DCA1000 does).
+
 Importing this module also registers the pyserial URL scheme
 ``fakeawr1843://`` (see :class:`FakeAwr1843Serial`).
 """
@@ -186,8 +189,11 @@ class FakeAwr1843:
         on_sensor_stop: Callable[[], None] | None = None,
         name: str | None = None,
         boot_time_s: float = BOOT_TIME_S,
+        expects_lvds: bool = True,
     ) -> None:
         self.faults = faults if faults is not None else CliFaults()
+        #: Whether a DCA1000 takes the raw ADC data (False: the demo's UART output is used).
+        self.expects_lvds = expects_lvds
         #: Seconds a reset takes before the banner (:data:`BOOT_TIME_S`).
         self.boot_time_s = float(boot_time_s)
         self._booted_at = 0.0  # time.monotonic() a reset's boot ends
@@ -484,7 +490,7 @@ class FakeAwr1843:
         self.started = True
         self._ever_started = True
         self.config = config
-        if not config.streams_raw_adc:
+        if self.expects_lvds and not config.streams_raw_adc:
             log.warning("fake AWR1843 started without raw ADC on LVDS (lvdsStreamCfg); "
                         "a DCA1000 would receive no data")
         log.info("fake AWR1843 sensor started: %d bytes/frame every %g ms",
@@ -506,6 +512,10 @@ class FakeAwr1843:
             log.exception("fake AWR1843 callback %r failed", callback)
 
     # -------------------------------------------------------------- output
+    def announce(self, line: str) -> None:
+        """Print *line* unasked, as the firmware's CLI_write does (an exception report)."""
+        self._send((line + FIRMWARE_EOL).encode(), slow=False)
+
     def _send(self, data: bytes, *, slow: bool = True) -> None:
         """Write *data* to the client (byte by byte with faults.char_delay_s)."""
         delay = self.faults.char_delay_s if slow else 0.0

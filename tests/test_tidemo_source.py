@@ -1,0 +1,159 @@
+"""tidemo:// (driver/tidemo/source.py): the UART budget refused up front, the two ports found, the
+radar configured over its CLI (the fake AWR1843 on a pty) and its data port's packets framed into
+frames, with what the line did counted."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import tty
+
+import numpy as np
+import pytest
+from conftest import REPO
+from radarodom.cfg import RadarConfig
+from radarodom.driver import open_source
+from radarodom.driver.emulators.fake_awr1843 import FakeAwr1843
+from radarodom.driver.live.discovery import SerialPortInfo
+from radarodom.driver.tidemo import wire
+from radarodom.driver.tidemo.layout import DemoGeometry, demo_config, gui_selection
+from radarodom.driver.tidemo.ports import demo_ports
+from radarodom.errors import ConfigError, SourceError
+
+from tidemo_helpers import TIDEMO_CFG
+
+SHIPPED = REPO / "configs" / "awr1843_raw.cfg"
+
+
+def test_a_frame_rate_the_uart_cannot_carry_is_refused_before_any_port_is_opened():
+    """The shipped cfg's 256 range bins x 8 antennas (8 KB a frame) do not leave a 921600-baud UART
+    in the 73 ms between its chirps' end and the next frame: the error says so, with the fixes,
+    and no port is looked for (these do not exist)."""
+    with pytest.raises(ConfigError) as err:
+        open_source("tidemo:///nonexistent-data?cli=/nonexistent-cli", RadarConfig.from_file(SHIPPED))
+    msg = str(err.value)
+    assert "the UART cannot carry this cfg's frames" in msg and "8200 static heatmap" in msg
+    assert "ms at 921600 baud" in msg and "73.1 ms" in msg
+    assert "frameCfg period of at least 130 ms" in msg and "numAdcSamples 128 or less" in msg
+    assert err.value.command == "frameCfg"
+
+
+def test_a_slower_uart_is_refused_and_a_faster_one_takes_configdataport():
+    cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
+    with pytest.raises(ConfigError, match="at 115200 baud"):
+        open_source("tidemo:///nonexistent?cli=/nonexistent&baud=115200", cfg)
+    gui = gui_selection(cfg)
+    sent = demo_config(cfg, gui, 1843200)
+    assert str(sent.line_of("configDataPort")) == "configDataPort 1843200 0"
+    assert str(sent.line_of("guiMonitor")) == "guiMonitor -1 1 0 0 1 0 0"
+    with pytest.raises(ConfigError, match="baud=1843200 in the tidemo"):
+        demo_config(sent, gui, 921600)
+
+
+def test_guimonitor_is_set_to_what_the_estimator_needs():
+    """Points with side info and the static heatmap are switched on; what else the cfg asks for
+    (here the stats) is kept; a cfg without the line gets one."""
+    cfg = RadarConfig.from_text(TIDEMO_CFG.replace("guiMonitor -1 1 0 0 1 0 0", "guiMonitor -1 2 0 0 0 0 1"), "t.cfg")
+    assert str(demo_config(cfg, gui_selection(cfg)).line_of("guiMonitor")) == "guiMonitor -1 1 0 0 1 0 1"
+    bare = RadarConfig.from_text(TIDEMO_CFG.replace("guiMonitor -1 1 0 0 1 0 0\n", ""), "t.cfg")
+    sent = demo_config(bare, gui_selection(bare))
+    assert [ln.text for ln in sent.commands()][-2:] == ["guiMonitor", "sensorStart"]
+
+
+@pytest.mark.parametrize("option", ["max_points=-1", "policy=newest", "baud=fast", "buffers=1", "nonsense=1"])
+def test_bad_url_options_are_one_error(option):
+    with pytest.raises(SourceError, match=option.split("=")[0]):
+        open_source(f"tidemo:///nonexistent?cli=/nonexistent&{option}", RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
+
+
+def port(device, role, serial_number=None, links=()):
+    return SerialPortInfo(device=device, role=role, interface=0 if role == "cli" else 3, serial_number=serial_number,
+                          links=tuple(links))
+
+
+def test_the_two_ports_of_one_board_are_found():
+    boards = [port("/dev/ttyACM0", "cli", "A"), port("/dev/ttyACM1", "data", "A"),
+              port("/dev/ttyACM2", "cli", "B"), port("/dev/ttyACM3", "data", "B")]
+    assert demo_ports("/dev/ttyACM2", None, lambda: boards) == ("/dev/ttyACM2", "/dev/ttyACM3")
+    assert demo_ports(None, "/dev/ttyACM1", lambda: boards) == ("/dev/ttyACM0", "/dev/ttyACM1")
+    assert demo_ports(None, None, lambda: boards[:2]) == ("/dev/ttyACM0", "/dev/ttyACM1")
+    with pytest.raises(SourceError, match="several radars"):
+        demo_ports(None, None, lambda: boards)
+    with pytest.raises(SourceError, match="no radar found"):
+        demo_ports(None, None, lambda: [])
+    assert demo_ports("/a", "/b", lambda: pytest.fail("no discovery when both are given")) == ("/a", "/b")
+
+
+class CannedDataPort:
+    """A data-port pty that writes the given byte chunks, one every *period* s, from sensorStart."""
+
+    def __init__(self, chunks: list[bytes], period: float = 0.05) -> None:
+        self.chunks, self.period = chunks, period
+        master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.master = master
+        self.path = os.ttyname(self.slave)
+        self.started = threading.Event()
+        self.sent = threading.Event()
+        threading.Thread(target=self._write, daemon=True).start()
+
+    def start(self, config) -> None:
+        self.started.set()
+
+    def _write(self) -> None:
+        self.started.wait(30)
+        for chunk in self.chunks:
+            time.sleep(self.period)
+            os.write(self.master, chunk)
+        self.sent.set()
+
+    def close(self) -> None:
+        os.close(self.master)
+        os.close(self.slave)
+
+
+def encoded(cfg: RadarConfig, number: int, n_points: int) -> bytes:
+    g = DemoGeometry.from_config(cfg)
+    pts = np.zeros(n_points, wire.POINT_DTYPE)
+    pts["y"] = np.arange(1, n_points + 1)
+    heat = np.zeros((g.range_bins, len(g.heatmap_elements)), wire.HEATMAP_DTYPE)
+    heat["real"][number % g.range_bins] = 1000
+    return wire.encode_packet(g.layout(gui_selection(cfg)), number, pts, np.zeros(n_points, wire.SIDE_INFO_DTYPE), heat)
+
+
+def test_the_source_configures_the_radar_and_frames_what_its_data_port_sends():
+    """Over two ptys: the cfg is sent with guiMonitor set, the packets (after boot noise, one cut
+    short, one lost) become frames indexed by frame number with their points and static values,
+    and describe() says where every packet and byte went."""
+    cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
+    p = [encoded(cfg, n, n % 3) for n in range(1, 7)]
+    chunks = [b"\r\nstale boot text\r\n" + p[0], p[1], p[2][:-200], p[3], b"", p[5]]  # 3 cut short, 5 lost
+    data = CannedDataPort(chunks, cfg.frame_period_s)
+    radar = FakeAwr1843(on_sensor_start=data.start, boot_time_s=0.05, expects_lvds=False)
+    try:
+        cli = radar.open_pty()
+        frames = []
+        with open_source(f"tidemo://{data.path}?cli={cli}", cfg) as source:
+            for frame in source:
+                frames.append(frame)
+                if frame.index == 5:
+                    break
+            about = source.describe()
+        assert "guiMonitor -1 1 0 0 1 0 0" in radar.received and radar.received[-1] == "sensorStop"
+        assert "lvdsStreamCfg" not in " ".join(radar.received)
+        assert [f.index for f in frames] == [0, 1, 3, 5]
+        assert [len(f.points) for f in frames] == [1, 2, 1, 0]
+        assert frames[1].points["y"].tolist() == [1.0, 2.0] and frames[1].raw is None
+        assert frames[3].static_antennas.shape == (64, 8) and frames[3].static_antennas[6, 0] == 1000
+        assert frames[2].wire == p[3]
+        # Times on the frame grid by frame number: the lost numbers keep their places (the grid
+        # never stretches; the lower bound allows 150 ms of scheduling delay on the first frame).
+        period = cfg.frame_period_s
+        times = [f.timestamp for f in frames]
+        assert times == sorted(times) and 3.5 * period <= times[3] - times[0] <= 5 * period + 1e-6
+        assert about["frames"] == 4 and about["frames_skipped"] == 2 and about["rejected_cut_short"] == 1
+        assert about["discarded_bytes"] == len(b"\r\nstale boot text\r\n") + len(p[2]) - 200
+    finally:
+        radar.close()
+        data.close()
