@@ -90,7 +90,7 @@ def _check_version(version: Any, schema: str) -> None:
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
         raise MessageError(f"{schema}: bad version {_quote(version)}")
     if version > VERSION:
-        raise MessageError(f"{schema} version {version} is newer than this reader understands "
+        raise MessageError(f"{schema} version {_quote(version)} is newer than this reader understands "
                            f"({VERSION}); upgrade radarodom")
 
 

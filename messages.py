@@ -260,7 +260,8 @@ def _read_header(payload: bytes, dtype: np.dtype, magic: bytes, schema: str) -> 
         raise MessageError(f"{schema}: {len(payload)} bytes, shorter than its {dtype.itemsize}-byte header")
     header = np.frombuffer(payload, dtype, 1)[0]
     if header["magic"] != magic:
-        raise MessageError(f"not a {schema} message: magic {bytes(header['magic'])!r}, expected {magic!r}")
+        # The payload's own bytes: numpy's S4 drops trailing NULs (a zeroed magic would read b'').
+        raise MessageError(f"not a {schema} message: magic {payload[:len(magic)]!r}, expected {magic!r}")
     _check_version(int(header["version"]), schema)
     if header["header_bytes"] != dtype.itemsize:
         raise MessageError(f"{schema}: header of {header['header_bytes']} bytes, expected {dtype.itemsize}")

@@ -20,6 +20,7 @@ from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.dsp.processor import POINT_DTYPE
 from radarodom.errors import MessageError, RadarodomError
 from radarodom.estimator.odometry import OdometryState
+from radarodom.tools import radar_echo
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 FLAGS = st.lists(st.sampled_from(["first_frame", "velocity_failed", "velocity_held", "icp_failed", "yaw_held"]),
@@ -363,6 +364,68 @@ def test_a_binary_payload_over_its_bound_is_refused_before_it_is_copied(decode):
         decode(memoryview(bytearray(messages.MAX_BINARY_BYTES + 1)))
     with pytest.raises(MessageError, match="a payload is bytes, not str"):
         decode("RPC1")
+
+
+STATUS_HEAD = b'{"schema":"radarodom/status","version":1,'
+
+
+@pytest.mark.parametrize("parse, payload", [
+    (messages.parse_status, STATUS_HEAD + b'"frames":' + b"7" * 5000 + b"}"),
+    (messages.parse_status, STATUS_HEAD + b'"frames":-' + b"7" * 5000 + b"}"),
+    (messages.parse_odometry, b'{"schema":"radarodom/odom","version":' + b"1" * 5000 + b"}")])
+def test_a_5000_digit_integer_gets_our_own_message(parse, payload):
+    """Python's json refuses it with "use sys.set_int_max_str_digits()", advice for a programmer."""
+    with pytest.raises(MessageError) as info:
+        parse(payload)
+    assert str(info.value).endswith("message: an integer of 5000 digits, more than the 4300 allowed")
+    assert messages.parse_status(STATUS_HEAD + b'"n":' + b"9" * 4300 + b"}")["n"] == int("9" * 4300)
+
+
+def test_a_huge_version_is_quoted_cut():
+    with pytest.raises(MessageError) as info:
+        messages.parse_status(b'{"schema":"radarodom/status","version":' + b"2" * 300 + b"}")
+    message = str(info.value)
+    assert len(message) < 200 and message.endswith("... (300 characters) is newer than this reader understands "
+                                                   "(1); upgrade radarodom"), message
+
+
+@pytest.mark.parametrize("decode, encoded", [
+    (messages.decode_pointcloud, lambda: messages.encode_pointcloud(1, 1.0, points(2))),
+    (messages.decode_heatmap, lambda: messages.encode_heatmap(1, 1.0, heatmap(5, 4)))])
+def test_a_zeroed_magic_is_shown_as_its_bytes(decode, encoded):
+    """numpy's S4 field drops trailing NULs: the message once said magic b''."""
+    payload = encoded()
+    expected = payload[:4]
+    for magic, shown in ((b"\0" * 4, r"b'\x00\x00\x00\x00'"), (b"R\0\0\0", r"b'R\x00\x00\x00'")):
+        with pytest.raises(MessageError) as info:
+            decode(magic + payload[4:])
+        assert str(info.value).endswith(f"message: magic {shown}, expected {expected!r}"), str(info.value)
+
+
+@pytest.mark.parametrize("payload", [
+    STATUS_HEAD + rb'"source":"\ud800"}',
+    STATUS_HEAD + rb'"source":{"url":["ok","x\udfff"]}}',
+    STATUS_HEAD + rb'"\udc00":1}',
+    STATUS_HEAD + rb'"source":"\ude00\ud83d"}'])  # a pair in the wrong order is two lone halves
+def test_a_lone_surrogate_in_a_status_string_is_refused(payload):
+    """Strict JSON parsers refuse it (it is no Unicode text); radar-echo --json printed it."""
+    with pytest.raises(MessageError, match=r"holds a lone surrogate, U\+D[89A-F][0-9A-F]{2} at character \d+: "
+                                           r"not Unicode text"):
+        messages.parse_status(payload)
+    with pytest.raises(MessageError):
+        radar_echo.format_message("status", "radar/awr1843/status", payload, as_json=True)
+
+
+def test_a_lone_surrogate_in_odometry_flags_is_refused():
+    obj = json.loads(messages.odometry_json(state()))
+    obj["flags"] = ["\ud800"]
+    with pytest.raises(MessageError, match="lone surrogate"):
+        messages.parse_odometry(json.dumps(obj).encode())
+
+
+def test_surrogate_pairs_and_escaped_backslashes_are_text():
+    decoded = messages.parse_status(STATUS_HEAD + rb'"a":"\ud83d\ude00","b":"\\ud800"}')
+    assert decoded["a"] == "\U0001F600" and decoded["b"] == "\\ud800"
 
 
 def test_messages_import_neither_zenoh_nor_the_dsp():
