@@ -57,7 +57,11 @@ def test_json_and_plots(run_files, tmp_path):
     expected = evaluate(read_tum(est), read_tum(gt), delta_m=2.0).to_dict()
     assert data == json.loads(json.dumps(expected))
     assert data["rpe_per_distance"]["delta_m"] == 2.0 and "RPE per 2 m, rotation deg" in proc.stdout
-    for name in ("trajectories.png", "yaw_error.png", "yaw_cumulative_error.png"):
+    names = ["report.png", "trajectories.png", "yaw.png", "speed.png", "position_error.png", "yaw_error.png",
+             "yaw_cumulative_error.png"]  # no flags.png without --flags
+    assert proc.stdout.splitlines()[-1] == "plots: " + ", ".join(str(tmp_path / "plots" / n) for n in names)
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == sorted(names)
+    for name in names:
         png = (tmp_path / "plots" / name).read_bytes()
         assert png.startswith(b"\x89PNG\r\n\x1a\n") and len(png) > 10_000, name
 

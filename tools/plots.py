@@ -1,25 +1,50 @@
 """PNG plots of a trajectory evaluation (matplotlib's Agg renderer, no display).
 
-matplotlib is an optional extra (``pip install "radarodom[plot]"``), imported
-only when a plot is asked for.
+:func:`evaluation_figures` builds the figures (a test or a notebook may look into them);
+:func:`plot_evaluation` writes them.  Each figure carries the run's name and the numbers
+radar-eval prints; ``report.png`` puts every panel on one page.
+
+matplotlib is an optional extra (``pip install "radarodom[plot]"``), imported only when a
+plot is asked for.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-from typing import Any
-
-import numpy as np
+from typing import Any, Callable
 
 from ..errors import CaptureError, UsageError
 from ..estimator.evaluation import EvaluationResult
+from . import plot_panels as panels
+from .eval_flags import FlagTimeline, read_odometry_flags
+from .eval_summary import format_table, summary_lines
 
 log = logging.getLogger(__name__)
 
 TRAJECTORIES_PNG = "trajectories.png"
+YAW_PNG = "yaw.png"
+SPEED_PNG = "speed.png"
+POSITION_ERROR_PNG = "position_error.png"
 YAW_ERROR_PNG = "yaw_error.png"
 YAW_CUMULATIVE_PNG = "yaw_cumulative_error.png"
+FLAGS_PNG = "flags.png"
+REPORT_PNG = "report.png"
+
+Panel = Callable[[Any, panels.PlotData], None]
+
+#: The figures of one panel each, by file name, with the legend entries they draw.
+_SINGLE: dict[str, tuple[Panel, tuple[str, ...]]] = {
+    TRAJECTORIES_PNG: (panels.trajectory, panels.TRAJECTORY_KEYS), YAW_PNG: (panels.yaw, panels.TIME_KEYS),
+    SPEED_PNG: (panels.speed, panels.TIME_KEYS), POSITION_ERROR_PNG: (panels.position_error, panels.TURN_KEYS),
+    YAW_ERROR_PNG: (panels.yaw_error, panels.TURN_KEYS), YAW_CUMULATIVE_PNG: (panels.yaw_cumulative, panels.TURN_KEYS),
+    FLAGS_PNG: (panels.flags, panels.TURN_KEYS),
+}
+#: The report's time panels, top to bottom, sharing the time axis.
+_REPORT_TIME: tuple[Panel, ...] = (panels.yaw, panels.speed, panels.position_error, panels.yaw_error,
+                                   panels.flags)
+
+__all__ = ["evaluation_figures", "plot_evaluation", "require_matplotlib", "FlagTimeline", "read_odometry_flags"]
 
 
 def require_matplotlib() -> None:
@@ -43,57 +68,77 @@ def _figure_class() -> Any:
     return new_figure
 
 
-def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike) -> list[str]:
-    """Write the evaluation's plots into *directory* (created if needed; PNGs of
-    the same names are replaced); returns their paths."""
+def _header(fig: Any, name: str, lines: list[str], *, size: str) -> None:
+    """The run's name and the summary numbers across the top of *fig* (a subfigure)."""
+    fig.text(0.005, 0.95, name, ha="left", va="top", fontsize="x-large", weight="bold")
+    fig.text(0.005, 0.95, "\n" + "\n".join(lines), ha="left", va="top", fontsize=size, linespacing=1.5,
+             family="monospace")
+
+
+def evaluation_figures(result: EvaluationResult, *, name: str,
+                       flags: FlagTimeline | None = None) -> dict[str, Any]:
+    """The evaluation's figures by file name: one per panel and ``report.png`` with them all.
+
+    *name* titles every figure; *flags* are the estimator's flags on the evaluation's clock
+    (``timeline.since(t0)``, t0 the first matched pose's time), None when not known (then
+    there is no ``flags.png``).
+    """
     new_figure = _figure_class()
+    data = panels.PlotData(result, panels.turns(result), flags)
+    lines = summary_lines(result, flags)
+    figures = {}
+    for filename, (draw, keys) in _SINGLE.items():
+        if draw is panels.flags and flags is None:
+            continue
+        fig = new_figure(figsize=(10.0, 7.2), dpi=100, layout="constrained")
+        top, body, foot = fig.subfigures(3, 1, height_ratios=(1.2, 5.3, 0.7))
+        _header(top, name, lines, size="small")
+        draw(body.add_subplot(), data)
+        panels.legend(foot, data, keys, loc="center", ncols=3, fontsize="small")
+        figures[filename] = fig
+    figures[REPORT_PNG] = _report(new_figure, data, name, lines)
+    return figures
+
+
+def _report(new_figure: Callable[..., Any], data: panels.PlotData, name: str, lines: list[str]) -> Any:
+    fig = new_figure(figsize=(17.0, 11.0), dpi=100, layout="constrained")
+    top, body = fig.subfigures(2, 1, height_ratios=(0.9, 10.1))
+    _header(top, name, lines, size="medium")
+    panels.legend(top, data, loc="center right", ncols=2)
+    left, right = body.subfigures(1, 2, width_ratios=(1.0, 1.0))
+    trajectory, table, cumulative = left.subplots(3, 1, height_ratios=(5.6, 1.9, 2.2))
+    panels.trajectory(trajectory, data)
+    # The whole table radar-eval printed, below its headline numbers' trajectory.
+    table.axis("off")
+    table.text(0.0, 1.0, "\n".join(format_table(data.result).splitlines()[3:]), transform=table.transAxes,
+               ha="left", va="top", family="monospace", fontsize="small")
+    panels.yaw_cumulative(cumulative, data)
+    axes = right.subplots(len(_REPORT_TIME), 1, sharex=True,
+                          height_ratios=[1.0] * (len(_REPORT_TIME) - 1) + [0.8])
+    for ax, draw in zip(axes, _REPORT_TIME):
+        draw(ax, data)
+    for ax in axes[:-1]:
+        ax.set_xlabel("")
+    return fig
+
+
+def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, name: str,
+                    flags: FlagTimeline | None = None) -> list[str]:
+    """Write the evaluation's figures into *directory* (created if needed; PNGs of the same
+    names are replaced); returns their paths, ``report.png`` first."""
+    figures = evaluation_figures(result, name=name, flags=flags)
     directory = os.fspath(directory)
     try:
         os.makedirs(directory, exist_ok=True)
     except OSError as exc:
         raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
     written = []
-    for name, draw in ((TRAJECTORIES_PNG, _trajectories), (YAW_ERROR_PNG, _yaw_error),
-                       (YAW_CUMULATIVE_PNG, _yaw_cumulative)):
-        fig = new_figure(figsize=(7.0, 5.0), dpi=110, layout="constrained")
-        draw(fig.add_subplot(), result)
-        path = os.path.join(directory, name)
+    for filename in [REPORT_PNG] + [f for f in figures if f != REPORT_PNG]:
+        path = os.path.join(directory, filename)
         try:
-            fig.savefig(path)
+            figures[filename].savefig(path)
         except OSError as exc:
             raise CaptureError(f"cannot write {path}: {exc.strerror or exc}") from None
         log.debug("wrote %s", path)
         written.append(path)
     return written
-
-
-def _trajectories(ax, r: EvaluationResult) -> None:
-    ax.plot(r.ref[:, 0], r.ref[:, 1], color="black", lw=1.6, label="ground truth")
-    ax.plot(r.est_umeyama[:, 0], r.est_umeyama[:, 1], color="tab:blue", lw=1.2,
-            label=f"estimate, Umeyama-aligned (ATE RMSE {np.sqrt(np.mean(r.ate_m ** 2)):.3f} m)")
-    ax.plot(r.est_first_pose[:, 0], r.est_first_pose[:, 1], color="tab:orange", lw=1.2, ls="--",
-            label=f"estimate, aligned at the first pose (drift {r.drift_m:.2f} m)")
-    ax.plot(r.ref[0, 0], r.ref[0, 1], "o", color="black", ms=5, label="start")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title("Trajectories")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
-
-
-def _yaw_error(ax, r: EvaluationResult) -> None:
-    ax.plot(r.times[1:], r.yaw_error_deg, color="tab:blue", lw=0.8)
-    ax.axhline(0.0, color="black", lw=0.6)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("yaw-increment error (deg)")
-    ax.set_title(f"Yaw-increment error per frame (RMSE {r.yaw_rmse_deg:.3f} deg)")
-    ax.grid(True, alpha=0.3)
-
-
-def _yaw_cumulative(ax, r: EvaluationResult) -> None:
-    ax.plot(r.times[1:], r.yaw_cumulative_sq_deg2, color="tab:blue", lw=1.2)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("cumulative squared yaw error (deg$^2$)")
-    ax.set_title("Cumulative squared yaw-increment error")
-    ax.grid(True, alpha=0.3)

@@ -1,6 +1,7 @@
 """radar-eval: compare an estimated trajectory with ground truth.
 
-    radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR] [--json FILE] [--delta-m M] [--max-diff S] [-v|-q]
+    radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR [--name NAME] [--flags ODOM.jsonl]] [--json FILE]
+               [--delta-m M] [--max-diff S] [-v|-q]
 
 The ground truth is a TUM file, or the source URL the estimate was made from when that source
 knows the truth: ``coloradar://RUN_DIR?heatmap=...`` (the heatmap radar's poses from the run's
@@ -8,7 +9,9 @@ lidar ground truth and calib transforms) or ``replay://DIR`` (a recording's grou
 
 Prints a table of relative pose errors (per frame and per distance), the
 yaw-increment error, the absolute trajectory error after Umeyama alignment and
-the final drift; ``--json`` writes the same numbers, ``--plot`` PNGs.
+the final drift; ``--json`` writes the same numbers, ``--plot`` PNGs (``report.png`` has them
+all), titled ``--name`` (default: the estimate's file name) and with the estimator's quality
+flags from ``--flags`` (its odometry messages, one JSON object per line).
 """
 
 from __future__ import annotations
@@ -24,10 +27,11 @@ import numpy as np
 
 from ..driver.recordings.capture_dir import write_json_atomically
 from ..errors import CaptureError, UsageError
-from ..estimator.evaluation import EvaluationResult, Stats, evaluate
+from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..driver.sources import open_source
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
+from .eval_summary import format_table
 
 log = logging.getLogger("radarodom.tools.radar_eval")
 
@@ -43,7 +47,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("reference", metavar="GT.tum|URL",
                         help="the ground truth: a TUM file, or the source URL the estimate came from "
                              "(coloradar://RUN_DIR?heatmap=..., replay://DIR with a groundtruth.tum)")
-    parser.add_argument("--plot", metavar="DIR", help="write PNG plots into DIR (needs matplotlib)")
+    parser.add_argument("--plot", metavar="DIR",
+                        help="write PNG plots into DIR: report.png (all on one page) and one file per plot "
+                             "(needs matplotlib)")
+    parser.add_argument("--name", metavar="NAME",
+                        help="the run's name on the plots (default: the estimate's file name without .tum)")
+    parser.add_argument("--flags", metavar="ODOM.jsonl",
+                        help="the estimator's quality flags for the plots: its odometry messages, one JSON "
+                             "object per line, as radar-echo --json odom prints them")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE")
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
                         help="path length of the per-distance RPE, m (default 1)")
@@ -56,11 +67,14 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(args: argparse.Namespace) -> int:
     if args.plot:
         plots.require_matplotlib()  # before the work, not after it
+    elif args.flags or args.name:
+        raise UsageError(f"{'--flags' if args.flags else '--name'} is for the plots: add --plot DIR")
     for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
         if not os.path.isfile(path):
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
     estimate = read_tum(args.estimate)
     reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
+    flags = plots.read_odometry_flags(args.flags) if args.flags else None
     # Coordinates near the float limit make lengths overflow: one warning below, not numpy's
     # one per operation.
     with np.errstate(over="ignore", invalid="ignore"):
@@ -79,7 +93,10 @@ def _main(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CaptureError(f"cannot write {args.json}: {exc.strerror or exc}") from None
     if args.plot:
-        written = plots.plot_evaluation(result, args.plot)
+        if flags is not None:
+            flags = _on_the_evaluation_clock(flags, estimate, reference, result)
+        name = args.name or os.path.splitext(os.path.basename(args.estimate))[0]
+        written = plots.plot_evaluation(result, args.plot, name=name, flags=flags)
         if not args.quiet:
             print(f"plots: {', '.join(written)}")
     return 0
@@ -96,38 +113,20 @@ def _source_groundtruth(url: str) -> TumTrajectory:
     return truth
 
 
-_COLUMNS = ("rmse", "mean", "median", "std", "min", "max")
-
-
-def _row(label: str, stats: Stats) -> str:
-    cells = "".join(f"{'-' if math.isnan(v) else format(v, '.4f'):>10}"
-                    for v in (getattr(stats, c) for c in _COLUMNS))
-    return f"{label:<32}{cells}{stats.n:>7}"
-
-
-def format_table(r: EvaluationResult) -> str:
-    """The human summary of an evaluation."""
-    d = f"{r.delta_m:g} m"
-    lines = [
-        f"{r.est_source} against {r.ref_source}",
-        (f"  {r.matched} poses matched (estimate {r.est_poses}, ground truth {r.ref_poses}, within "
-         f"{r.max_diff_s:g} s) over {r.duration_s:.1f} s; path {r.ref_path_m:.2f} m "
-         f"(estimate {r.est_path_m:.2f} m)"),
-        "",
-        f"{'':<32}" + "".join(f"{c:>10}" for c in _COLUMNS) + f"{'n':>7}",
-        _row("RPE per frame, translation m", Stats.of(r.rpe_frame.translation_m)),
-        _row("RPE per frame, rotation deg", Stats.of(r.rpe_frame.rotation_deg)),
-        _row(f"RPE per {d}, translation m", Stats.of(r.rpe_distance.translation_m)),
-        _row(f"RPE per {d}, translation %", Stats.of(r.rpe_distance.translation_pct)),
-        _row(f"RPE per {d}, rotation deg", Stats.of(r.rpe_distance.rotation_deg)),
-        _row("yaw-increment error deg", Stats.of(r.yaw_error_deg)),
-        _row("ATE (Umeyama-aligned) m", Stats.of(r.ate_m)),
-        "",
-    ]
-    pct = "-" if math.isnan(r.drift_pct) else f"{r.drift_pct:.2f}"
-    lines.append(f"final drift (aligned at the first pose): {r.drift_m:.3f} m = {pct} % of the path, "
-                 f"yaw {r.drift_yaw_deg:+.2f} deg")
-    return "\n".join(lines)
+def _on_the_evaluation_clock(flags: plots.FlagTimeline, estimate: TumTrajectory, reference: TumTrajectory,
+                             result: EvaluationResult) -> plots.FlagTimeline:
+    """*flags* with times from the first matched pose (the plots' clock), those of the evaluated
+    span only; a file none of whose steps fall in it is refused (another run's?)."""
+    t0 = float(associate(estimate, reference, result.max_diff_s)[1].times[0])
+    inside = flags.since(t0).within(-result.max_diff_s, result.duration_s + result.max_diff_s)
+    if not len(inside):
+        raise UsageError(f"{flags.source}: its {len(flags)} odometry messages (t {flags.times[0]:.3f} .. "
+                         f"{flags.times[-1]:.3f} s) fall outside the evaluated poses (t {t0:.3f} .. "
+                         f"{t0 + result.duration_s:.3f} s); are they of this run?")
+    if len(inside) < len(flags):
+        log.info("%s: %d of %d odometry messages fall outside the evaluated poses", flags.source,
+                 len(flags) - len(inside), len(flags))
+    return inside
 
 
 def main(argv: Sequence[str] | None = None) -> int:

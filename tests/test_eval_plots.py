@@ -1,0 +1,306 @@
+"""radar-eval's plots (radarodom.tools.plots, plot_panels): what the figures hold, looked into
+through matplotlib's objects (titles, texts, axes limits, markers, flag rows), not pixels; the
+quality flags read from odometry messages; radar-eval --plot on a short simulated run."""
+
+from __future__ import annotations
+
+import re
+import struct
+import subprocess
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import console_command
+from test_evaluation import drive, traj
+
+from radarodom import messages
+from radarodom.errors import CaptureFormatError, UsageError
+from radarodom.estimator.evaluation import Stats, evaluate
+from radarodom.estimator.heading_metrics import segment_turns
+from radarodom.estimator.odometry import OdometryState
+from radarodom.estimator.quality import Flag
+from radarodom.tools import plots
+from radarodom.tools import plot_panels
+from radarodom.tools.eval_flags import FlagTimeline, read_odometry_flags
+from radarodom.tools.radar_echo import format_message
+from radarodom.tum import read_tum
+
+pytest.importorskip("matplotlib", reason="the plots need matplotlib (the plot or test extra)")
+
+SINGLE = ("trajectories.png", "yaw.png", "speed.png", "position_error.png", "yaw_error.png",
+          "yaw_cumulative_error.png")
+
+
+def odom_line(t: float, frame: int, flags=(), *, key: str | None = None) -> str:
+    """One odometry message as radar-capture publishes it (with *key*: as radar-echo --json prints it)."""
+    payload = messages.odometry_json(OdometryState(t=t, frame=frame, flags=tuple(flags)))
+    return (format_message("odom", key, payload, as_json=True) if key else payload.decode()) + "\n"
+
+
+def _figure_texts(fig) -> list[str]:
+    """The texts and legend entries of *fig* and its subfigures."""
+    texts = [t.get_text() for t in fig.texts]
+    texts += [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+    for sub in fig.subfigs:
+        texts += _figure_texts(sub)
+    return texts
+
+
+def all_text(fig) -> str:
+    """Every text of *fig*: its header's, its legends', its axes' titles, labels, tick labels and
+    annotations (``fig.axes`` has the subfigures' axes too)."""
+    texts = _figure_texts(fig)
+    for ax in fig.axes:
+        texts += [ax.get_title(), ax.get_xlabel(), ax.get_ylabel()]
+        texts += [t.get_text() for t in ax.texts + ax.get_yticklabels()]
+    return "\n".join(texts)
+
+
+def axes_titled(fig, start: str):
+    (ax,) = [a for a in fig.axes if a.get_title().startswith(start)]
+    return ax
+
+
+@pytest.fixture(scope="module")
+def s_bends():
+    """An S-bend run (turns both ways) with a biased, noisy estimate, evaluated."""
+    t, ref, est = drive(300, seed=3, scale=1.03, yaw_bias_deg=0.1, trans_noise_m=0.003, yaw_noise_deg=0.3)
+    return evaluate(traj(t, est, "runs/est.tum"), traj(t, ref, "runs/gt.tum"))
+
+
+@pytest.fixture(scope="module")
+def s_bend_flags(s_bends):
+    """Flags on the evaluation's clock: first_frame, icp_failed over frames 40-44 and 100,
+    velocity_held with it at 42."""
+    flags = [()] * 300
+    flags[0] = (Flag.FIRST_FRAME,)
+    for k in (40, 41, 43, 44, 100):
+        flags[k] = (Flag.ICP_FAILED,)
+    flags[42] = (Flag.ICP_FAILED, Flag.VELOCITY_HELD)
+    return FlagTimeline(s_bends.times.copy(), tuple(tuple(str(f) for f in step) for step in flags), "f.jsonl")
+
+
+# ------------------------------------------------------------------ the figures
+def test_every_figure_carries_the_name_and_the_numbers(s_bends, s_bend_flags):
+    figures = plots.evaluation_figures(s_bends, name="hall-run-7", flags=s_bend_flags)
+    assert list(figures) == [*SINGLE, "flags.png", "report.png"]
+    r = s_bends
+    numbers = [f"yaw-increment RMSE {r.yaw_rmse_deg:.3f} deg", f"drift {r.drift_m:.3f} m = {r.drift_pct:.2f} %",
+               f"yaw {r.drift_yaw_deg:+.2f} deg", f"ATE RMSE {Stats.of(r.ate_m).rmse:.3f} m",
+               f"RPE per 1 m: {Stats.of(r.rpe_distance.translation_pct).rmse:.2f} %",
+               "runs/est.tum against runs/gt.tum: 300 poses over 29.9 s",
+               "quality flags: 6 of 300 steps not ok (first_frame 1, velocity_held 1, icp_failed 6)"]
+    for filename, fig in figures.items():
+        text = all_text(fig)
+        assert "hall-run-7" in text, filename
+        for number in numbers:
+            assert number in text, (filename, number)
+    # The report also has the whole table radar-eval prints.
+    assert f"yaw-increment error deg{'':<9}{r.yaw_rmse_deg:>10.4f}" in all_text(figures["report.png"])
+
+
+def test_without_flags_the_figures_say_how_to_get_them(s_bends):
+    figures = plots.evaluation_figures(s_bends, name="x")
+    assert "flags.png" not in figures
+    text = all_text(figures["report.png"])
+    assert "quality flags: not given (radar-eval --flags ODOM.jsonl)" in text
+    assert "not given: radar-eval --flags ODOM.jsonl" in text
+
+
+def test_trajectory_axes_are_equal_and_tight_with_start_and_end_marked(s_bends):
+    for filename in ("trajectories.png", "report.png"):
+        fig = plots.evaluation_figures(s_bends, name="x")[filename]
+        ax = axes_titled(fig, "Trajectory")
+        assert ax.get_aspect() == 1.0 and ax.get_adjustable() == "box"
+        r = s_bends
+        xy = np.concatenate([r.ref[:, :2], r.est_umeyama[:, :2], r.est_first_pose[:, :2]])
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        pad = max(plot_panels.PAD_SHARE * (hi - lo).max(), plot_panels.PAD_MIN_M)
+        assert ax.get_xlim() == pytest.approx((lo[0] - pad, hi[0] + pad))
+        assert ax.get_ylim() == pytest.approx((lo[1] - pad, hi[1] + pad))
+        assert pad < 0.05 * (hi - lo).max()  # tight: a few % of the run's extent
+        markers = {line.get_label(): np.column_stack(line.get_data()) for line in ax.lines}
+        np.testing.assert_allclose(markers[plot_panels.START], [r.ref[0, :2]])
+        np.testing.assert_allclose(markers[plot_panels.END_TRUTH], [r.ref[-1, :2]])
+        np.testing.assert_allclose(markers[plot_panels.END_ESTIMATE], [r.est_first_pose[-1, :2]])
+        assert {plot_panels.START, plot_panels.END_TRUTH, plot_panels.END_ESTIMATE} <= set(_figure_texts(fig))
+
+
+def test_a_straight_run_keeps_its_frame_near_the_line():
+    """A 15 m straight corridor once spanned -5..6 m across: now 4 % of its length on each side."""
+    t = 1000.0 + np.arange(151) / 10.0
+    ref = np.column_stack([np.linspace(0, 15, 151), np.zeros(151), np.zeros(151)])
+    r = evaluate(traj(t, ref), traj(t, ref))
+    ax = axes_titled(plots.evaluation_figures(r, name="c")["trajectories.png"], "Trajectory")
+    assert ax.get_xlim() == pytest.approx((-0.6, 15.6))
+    assert ax.get_ylim() == pytest.approx((-0.6, 0.6))
+
+
+def test_time_panels_show_truth_and_estimate_and_the_turns(s_bends):
+    r = s_bends
+    fig = plots.evaluation_figures(r, name="x")["report.png"]
+    yaw = axes_titled(fig, "Yaw, aligned")
+    truth, estimate = yaw.lines
+    np.testing.assert_allclose(truth.get_ydata(), np.degrees(np.unwrap(r.ref[:, 2])))
+    assert estimate.get_ydata()[-1] - truth.get_ydata()[-1] == pytest.approx(r.drift_yaw_deg, abs=1e-6)
+    speed = axes_titled(fig, "Speed")
+    v_truth, v_est = (line.get_ydata() for line in speed.lines)
+    np.testing.assert_allclose(v_truth, 1.0, rtol=1e-9)  # drive() runs at 1 m/s
+    assert np.mean(v_est) == pytest.approx(1.03, abs=0.01)  # its estimate 3 % too long
+    err = axes_titled(fig, "Position error")
+    x, y, dist = (line.get_ydata() for line in err.lines[:3])
+    np.testing.assert_allclose(np.hypot(x, y), dist)
+    assert dist[-1] == pytest.approx(r.drift_m)
+    # The truth's turns: one band each in every time panel, their angles on the yaw error.
+    expected = segment_turns(r.times, r.ref, straight_rate_dps=plot_panels.TURN_RATE_DPS,
+                             min_turn_deg=plot_panels.TURN_MIN_DEG)
+    assert len(expected) == 4
+    for ax in (yaw, speed, err, axes_titled(fig, "Yaw-increment error")):
+        assert len(ax.patches) == len(expected), ax.get_title()
+    single = plots.evaluation_figures(r, name="x")["yaw.png"]
+    assert [t.get_text() for sub in single.subfigs for lg in sub.legends for t in lg.get_texts()] == [
+        "ground truth", f"estimate, aligned at the first pose (drift {r.drift_m:.2f} m)",
+        f"turn of the truth (> {plot_panels.TURN_RATE_DPS:g} deg/s)"]
+    angles = [t.get_text() for t in axes_titled(fig, "Yaw-increment error").texts]
+    assert angles[0].startswith("+137\N{DEGREE SIGN}\nest +14") and angles[1].startswith("-137\N{DEGREE SIGN}")
+
+
+def test_flags_timeline_has_a_row_per_flag_and_a_bar_per_run(s_bends, s_bend_flags):
+    fig = plots.evaluation_figures(s_bends, name="x", flags=s_bend_flags)["flags.png"]
+    ax = axes_titled(fig, "Estimator quality flags")
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["first_frame (1)", "velocity_held (1)",
+                                                            "icp_failed (6)"]
+    t = s_bends.times
+    spans = [_bar_spans(c) for c in ax.collections]
+    assert len(spans) == 3
+    np.testing.assert_allclose(spans[0], [(0.0, 0.1)], atol=1e-9)
+    np.testing.assert_allclose(spans[1], [(t[42], 0.1)])
+    np.testing.assert_allclose(spans[2], [(t[40], 0.5), (t[100], 0.1)])
+
+
+def _bar_spans(collection) -> list[tuple[float, float]]:
+    """(start, width) of each bar of a broken_barh collection."""
+    out = []
+    for path in collection.get_paths():
+        xs = path.vertices[:, 0]
+        out.append((float(xs.min()), float(xs.max() - xs.min())))
+    return out
+
+
+def test_flag_runs_merge_consecutive_steps_only():
+    tl = FlagTimeline(np.array([0.0, 0.1, 0.2, 0.3, 0.5]), ((), ("a",), ("a",), (), ("a",)))
+    np.testing.assert_allclose(plot_panels.flag_runs(tl, "a"), [(0.1, 0.2), (0.5, 0.1)])
+    assert plot_panels.flag_runs(tl, "b") == []
+
+
+# ------------------------------------------------------------------ the flags file
+def test_flags_are_read_from_radar_echo_json_and_published_messages(tmp_path):
+    path = tmp_path / "odom.jsonl"
+    path.write_text(odom_line(10.0, 0, [Flag.FIRST_FRAME], key="radar/awr1843/odom")
+                    + '{"key":"radar/awr1843/status","schema":"radarodom/status","version":1,"frames":1}\n'
+                    + "\n"
+                    + odom_line(10.1, 1, [Flag.ICP_FAILED, "a_newer_flag"])
+                    + odom_line(10.2, 2))
+    timeline = read_odometry_flags(path)
+    np.testing.assert_allclose(timeline.times, [10.0, 10.1, 10.2])
+    assert timeline.flags == (("first_frame",), ("icp_failed", "a_newer_flag"), ())
+    assert timeline.names() == ["first_frame", "icp_failed", "a_newer_flag"]
+    shifted = timeline.since(10.0).within(0.05, 1.0)
+    assert len(shifted) == 2 and shifted.times[0] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("{not json\n", "odom.jsonl:2: not a JSON object"),
+    ("[1, 2]\n", "odom.jsonl:2: not a JSON object"),
+    ('{"schema": "radarodom/odom", "version": 1, "t": 1.0}\n',
+     "odom.jsonl:2: radarodom/odom: field 'frame' is missing"),
+    (odom_line(9.0, 1), "odom.jsonl:2: time 9.000000000 s is not after the previous message's 10.000000000 s"),
+])
+def test_a_bad_flags_file_names_file_and_line(tmp_path, text, message):
+    path = tmp_path / "odom.jsonl"
+    path.write_text(odom_line(10.0, 0) + text)
+    with pytest.raises(CaptureFormatError, match=re.escape(message)):
+        read_odometry_flags(path)
+
+
+def test_a_flags_file_without_odometry_is_refused(tmp_path):
+    path = tmp_path / "status.jsonl"
+    path.write_text('{"schema":"radarodom/status","version":1}\n')
+    with pytest.raises(UsageError, match="no odometry message .* radar-echo --json odom"):
+        read_odometry_flags(path)
+    with pytest.raises(UsageError, match="no such file"):
+        read_odometry_flags(tmp_path / "nope.jsonl")
+
+
+# ------------------------------------------------------------------ radar-eval --plot on a simulated run
+def run_cli(name: str, *args, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command(name) + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def png_size(path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data.startswith(b"\x89PNG\r\n\x1a\n") and data[12:16] == b"IHDR", path
+    return struct.unpack(">II", data[16:24])
+
+
+@pytest.fixture(scope="module")
+def sim_run(tmp_path_factory):
+    """3 s of the simulated corridor, recorded (its ground truth) with the odometry as TUM, and
+    a flags file written by hand at the odometry's times."""
+    base = tmp_path_factory.mktemp("eval_plots")
+    rec, tum = base / "rec", base / "corridor.tum"
+    proc = run_cli("radar-capture", "--source", "sim://corridor?rate=max&duration=3", "--no-publish",
+                   "--record", rec, "--odom-out", tum)
+    assert proc.returncode == 0, proc.stderr
+    times = read_tum(tum).times
+    flags = base / "corridor.odom.jsonl"
+    flags.write_text("".join(odom_line(t, k, [Flag.FIRST_FRAME] if k == 0 else
+                                       [Flag.FEW_FEATURES, Flag.YAW_HELD] if k in (20, 21) else [])
+                             for k, t in enumerate(times)))
+    return SimpleNamespace(base=base, rec=rec, tum=tum, flags=flags, frames=len(times))
+
+
+def test_radar_eval_plot_writes_the_report_and_each_plot(sim_run):
+    out = sim_run.base / "plots"
+    proc = run_cli("radar-eval", sim_run.tum, f"replay://{sim_run.rec}", "--plot", out, "--flags", sim_run.flags,
+                   "--name", "corridor 3 s", timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    written = ["report.png", *SINGLE, "flags.png"]
+    assert proc.stdout.splitlines()[-1] == "plots: " + ", ".join(str(out / f) for f in written)
+    assert png_size(out / "report.png") == (1700, 1100)
+    for name in written:
+        width, height = png_size(out / name)
+        assert width >= 900 and height >= 600 and (out / name).stat().st_size > 20_000, name
+    assert sim_run.frames == 30
+
+
+def test_radar_eval_plot_figures_match_what_it_printed(sim_run):
+    """The same evaluation in the library: the figure's numbers are the table's, its flag rows the
+    file's, and its name the estimate's file name when --name is not given."""
+    r = evaluate(read_tum(sim_run.tum), read_tum(sim_run.rec / "groundtruth.tum"))
+    flags = read_odometry_flags(sim_run.flags)
+    fig = plots.evaluation_figures(r, name="corridor", flags=flags.since(flags.times[0]))["report.png"]
+    proc = run_cli("radar-eval", sim_run.tum, f"replay://{sim_run.rec}", timeout=120)
+    assert f"{r.yaw_rmse_deg:.4f}" in proc.stdout and f"yaw-increment RMSE {r.yaw_rmse_deg:.3f} deg" in all_text(fig)
+    ax = axes_titled(fig, "Estimator quality flags")
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["first_frame (1)", "few_features (2)", "yaw_held (2)"]
+    assert "quality flags: 2 of 30 steps not ok" in all_text(fig)
+
+
+def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
+    gt = sim_run.rec / "groundtruth.tum"
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--flags", sim_run.flags, timeout=120)
+    assert (proc.returncode, proc.stderr) == (2, "radar-eval: error: --flags is for the plots: add --plot DIR\n")
+    late = tmp_path / "late.jsonl"
+    late.write_text(odom_line(5000.0, 0) + odom_line(5000.1, 1))
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", late, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"radar-eval: error: {late}: its 2 odometry messages (t 5000.000 .. 5000.100 s) fall outside" in proc.stderr
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(odom_line(1.0, 0) + "oops\n")
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.startswith(f"radar-eval: error: {bad}:2: not a JSON object")
+    assert proc.stdout == "" and not (tmp_path / "p").exists()

@@ -1,0 +1,106 @@
+"""The estimator's quality flags over a run, read from its odometry messages.
+
+A TUM file holds poses only.  The flags come from the odometry v1 messages
+(:mod:`radarodom.messages`, schema ``radarodom/odom``) written one JSON object per line:
+what ``radar-echo --json odom`` prints while ``radar-capture`` publishes (its ``key`` field
+is ignored).  Objects of another schema (``radar-echo --json odom status`` interleaves status
+messages) are skipped; every odometry object is checked as a subscriber checks it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import messages
+from ..errors import CaptureFormatError, MessageError, UsageError
+from ..estimator.quality import Flag
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FlagTimeline:
+    """The flags of each odometry step: ``times`` (k,) s, increasing, and ``flags`` (k,)
+    tuples of flag names (empty: a good step); ``source`` names the file."""
+
+    times: np.ndarray
+    flags: tuple[tuple[str, ...], ...]
+    source: str = ""
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def names(self) -> list[str]:
+        """The flags that occur, in :class:`Flag`'s order, then any other (a newer estimator's)
+        sorted."""
+        seen = {f for step in self.flags for f in step}
+        known = [str(f) for f in Flag if str(f) in seen]
+        return known + sorted(seen - set(known))
+
+    def count(self, name: str) -> int:
+        """How many steps carry the flag *name*."""
+        return sum(name in step for step in self.flags)
+
+    def since(self, t0: float) -> "FlagTimeline":
+        """The same steps with times counted from *t0* (s)."""
+        return FlagTimeline(self.times - t0, self.flags, self.source)
+
+    def within(self, start: float, end: float) -> "FlagTimeline":
+        """The steps with start <= t <= end."""
+        keep = np.flatnonzero((self.times >= start) & (self.times <= end))
+        return FlagTimeline(self.times[keep], tuple(self.flags[i] for i in keep), self.source)
+
+
+def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
+    """The flags of the odometry messages in the JSON-lines file *path* (module text).
+
+    Raises :class:`CaptureFormatError` naming ``path:line`` for a line that is not a JSON
+    object or an odometry message that breaks its schema, or when the times do not increase;
+    :class:`UsageError` when the file is missing or holds no odometry message.
+    """
+    path = os.fspath(path)
+    times: list[float] = []
+    flags: list[tuple[str, ...]] = []
+    skipped = 0
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for lineno, line in enumerate(fh, start=1):
+                if not line.strip():
+                    continue
+                try:
+                    obj = json.loads(line)
+                except ValueError as exc:
+                    raise CaptureFormatError(f"{path}:{lineno}: not a JSON object ({exc})") from None
+                if not isinstance(obj, dict):
+                    raise CaptureFormatError(f"{path}:{lineno}: not a JSON object")
+                if obj.get("schema") != messages.ODOM_SCHEMA:
+                    skipped += 1
+                    continue
+                try:
+                    m = messages.parse_odometry(line.encode("utf-8"))
+                except MessageError as exc:
+                    raise CaptureFormatError(f"{path}:{lineno}: {exc}") from None
+                if times and m["t"] <= times[-1]:
+                    raise CaptureFormatError(f"{path}:{lineno}: time {m['t']:.9f} s is not after the previous "
+                                             f"message's {times[-1]:.9f} s; one run's messages, in order, are needed")
+                times.append(float(m["t"]))
+                flags.append(tuple(m["flags"]))
+    except FileNotFoundError:
+        raise UsageError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise UsageError(f"{path}: not a file") from None
+    except UnicodeDecodeError as exc:
+        raise CaptureFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if not times:
+        raise UsageError(f"{path}: no odometry message ({messages.ODOM_SCHEMA}) in it; write one with "
+                         f"radar-echo --json odom > FILE while radar-capture publishes")
+    if skipped:
+        log.info("%s: %d lines of other messages skipped", path, skipped)
+    return FlagTimeline(np.asarray(times), tuple(flags), path)

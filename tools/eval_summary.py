@@ -1,0 +1,76 @@
+"""The numbers of an evaluation as text: the table radar-eval prints, and the lines every
+plot carries.  No matplotlib."""
+
+from __future__ import annotations
+
+import math
+
+from ..estimator.evaluation import EvaluationResult, Stats
+from ..estimator.quality import Flag
+from .eval_flags import FlagTimeline
+
+_COLUMNS = ("rmse", "mean", "median", "std", "min", "max")
+
+
+def _row(label: str, stats: Stats) -> str:
+    cells = "".join(f"{'-' if math.isnan(v) else format(v, '.4f'):>10}"
+                    for v in (getattr(stats, c) for c in _COLUMNS))
+    return f"{label:<32}{cells}{stats.n:>7}"
+
+
+def format_table(r: EvaluationResult) -> str:
+    """The human summary of an evaluation."""
+    d = f"{r.delta_m:g} m"
+    lines = [
+        f"{r.est_source} against {r.ref_source}",
+        (f"  {r.matched} poses matched (estimate {r.est_poses}, ground truth {r.ref_poses}, within "
+         f"{r.max_diff_s:g} s) over {r.duration_s:.1f} s; path {r.ref_path_m:.2f} m "
+         f"(estimate {r.est_path_m:.2f} m)"),
+        "",
+        f"{'':<32}" + "".join(f"{c:>10}" for c in _COLUMNS) + f"{'n':>7}",
+        _row("RPE per frame, translation m", Stats.of(r.rpe_frame.translation_m)),
+        _row("RPE per frame, rotation deg", Stats.of(r.rpe_frame.rotation_deg)),
+        _row(f"RPE per {d}, translation m", Stats.of(r.rpe_distance.translation_m)),
+        _row(f"RPE per {d}, translation %", Stats.of(r.rpe_distance.translation_pct)),
+        _row(f"RPE per {d}, rotation deg", Stats.of(r.rpe_distance.rotation_deg)),
+        _row("yaw-increment error deg", Stats.of(r.yaw_error_deg)),
+        _row("ATE (Umeyama-aligned) m", Stats.of(r.ate_m)),
+        "",
+    ]
+    pct = "-" if math.isnan(r.drift_pct) else f"{r.drift_pct:.2f}"
+    lines.append(f"final drift (aligned at the first pose): {r.drift_m:.3f} m = {pct} % of the path, "
+                 f"yaw {r.drift_yaw_deg:+.2f} deg")
+    return "\n".join(lines)
+
+
+def _num(value: float, spec: str) -> str:
+    return "-" if not math.isfinite(value) else format(value, spec)
+
+
+def _short(text: str, limit: int = 48) -> str:
+    return text if len(text) <= limit else "..." + text[-(limit - 3):]
+
+
+def summary_lines(r: EvaluationResult, flags: FlagTimeline | None = None) -> list[str]:
+    """The numbers radar-eval prints, in four lines: what was compared, the main errors, the
+    relative errors, the flags."""
+    rpe_d, rpe_f = r.rpe_distance, r.rpe_frame
+    lines = [
+        f"{_short(r.est_source)} against {_short(r.ref_source)}: {r.matched} poses over {r.duration_s:.1f} s, "
+        f"path {_num(r.ref_path_m, '.2f')} m (estimate {_num(r.est_path_m, '.2f')} m)",
+        f"yaw-increment RMSE {_num(r.yaw_rmse_deg, '.3f')} deg    drift {_num(r.drift_m, '.3f')} m = "
+        f"{_num(r.drift_pct, '.2f')} % of the path, yaw {r.drift_yaw_deg:+.2f} deg    "
+        f"ATE RMSE {_num(Stats.of(r.ate_m).rmse, '.3f')} m",
+        f"RPE per {r.delta_m:g} m: {_num(Stats.of(rpe_d.translation_pct).rmse, '.2f')} %, "
+        f"{_num(Stats.of(rpe_d.rotation_deg).rmse, '.3f')} deg    "
+        f"RPE per frame: {_num(Stats.of(rpe_f.translation_m).rmse, '.4f')} m, "
+        f"{_num(Stats.of(rpe_f.rotation_deg).rmse, '.3f')} deg (RMSE)",
+    ]
+    if flags is None:
+        lines.append("quality flags: not given (radar-eval --flags ODOM.jsonl)")
+    else:
+        # "ok" as the odometry message has it: no flag but first_frame.
+        not_ok = sum(bool(set(f) - {Flag.FIRST_FRAME}) for f in flags.flags)
+        counts = ", ".join(f"{name} {flags.count(name)}" for name in flags.names())
+        lines.append(f"quality flags: {not_ok} of {len(flags)} steps not ok" + (f" ({counts})" if counts else ""))
+    return lines
