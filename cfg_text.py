@@ -11,14 +11,12 @@ from __future__ import annotations
 
 import codecs
 import logging
-import os
 import re
-import unicodedata
 from collections import defaultdict
 from dataclasses import dataclass, field
 from typing import Any
 
-from .errors import ConfigError
+from .errors import ConfigError, given_path, named_character
 
 #: Largest cfg file read.  A cfg is a few KB; anything this large is another file.
 MAX_CFG_BYTES = 1 << 20
@@ -55,15 +53,7 @@ class CfgLine:
 def read_cfg_file(path: Any) -> tuple[str, str]:
     """(the path as text, the file's text): at most :data:`MAX_CFG_BYTES`, UTF-8 (a leading BOM
     dropped).  Every failure, a bad path included, is a :class:`ConfigError` naming the file."""
-    if isinstance(path, bytes):
-        path = os.fsdecode(path)
-    if not isinstance(path, (str, os.PathLike)):
-        raise ConfigError(f"expected a file path, got {type(path).__name__}")
-    where = os.fspath(path)
-    if isinstance(where, bytes):
-        where = os.fsdecode(where)
-    if "\0" in where:
-        raise ConfigError("a path cannot contain a NUL character", path=where.replace("\0", "\\0"))
+    where = given_path(path, ConfigError)
     try:
         with open(where, "rb") as fh:
             data = fh.read(MAX_CFG_BYTES + 1)
@@ -89,8 +79,7 @@ def _bad_character(stripped: str) -> tuple[int, str] | None:
     for col, ch in enumerate(stripped[first.start():], start=first.start() + 1):
         if ch in " \t" or (ch.isprintable() and not ch.isspace()):
             continue
-        name = unicodedata.name(ch, "") or "control character"
-        return col, f"U+{ord(ch):04X} ({name.lower()})"
+        return col, named_character(ch)
     return None
 
 

@@ -9,6 +9,7 @@ errors, 1 for failures at run time.
 from __future__ import annotations
 
 import os
+import unicodedata
 from typing import Any
 
 
@@ -24,6 +25,29 @@ def quoted(value: Any, limit: int = QUOTED_CHARS) -> str:
         return repr(value) if len(value) <= limit else f"{value[:limit]!r}... ({len(value)} characters)"
     text = repr(value)
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
+def named_character(ch: str) -> str:
+    """A character as an error message names it, whatever a terminal would make of it:
+    ``U+00A0 (no-break space)``."""
+    return f"U+{ord(ch):04X} ({(unicodedata.name(ch, '') or 'control character').lower()})"
+
+
+def given_path(path: Any, error: type[RadarodomError], what: str = "file path") -> str:
+    """A file or directory path given to the public API, as text: a str, an os.PathLike or bytes
+    (decoded as the file system does).  Anything else, or a path with a NUL character (which no
+    file system allows), raises *error*, the caller's own kind of error, saying so (*what*: the
+    kind of path expected)."""
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise error(f"expected a {what}, got {type(path).__name__}")
+    text = os.fspath(path)
+    if isinstance(text, bytes):  # an os.PathLike may give bytes
+        text = os.fsdecode(text)
+    if "\0" in text:
+        raise error(f"a path cannot contain a NUL character: {quoted(text)}")
+    return text
 
 
 class RadarodomError(Exception):

@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError
+from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError, given_path
 from .plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
@@ -143,13 +143,13 @@ def read_tum(path: str | os.PathLike) -> TumTrajectory:
     A last line without its end of line (a writer cut off mid-line) is ignored
     with a warning.  Raises :class:`CaptureFormatError` naming ``file:line`` for
     a line that is not eight finite numbers or has a zero quaternion, and
-    :class:`CaptureError` when the file cannot be read.
+    :class:`CaptureError` when the file cannot be read or *path* is no path (bytes are one).
     """
-    name = os.fspath(path)
+    name = given_path(path, CaptureError)
     rows: list[list[float]] = []
     lines: list[int] = []
     try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with open(name, encoding="utf-8", errors="replace") as fh:
             for lineno, line in enumerate(fh, start=1):
                 text = line.strip()
                 if not text or text.startswith("#"):
@@ -176,7 +176,7 @@ class TumWriter:
     """
 
     def __init__(self, path: str | os.PathLike) -> None:
-        self.path = os.fspath(path)
+        self.path = given_path(path, CaptureError)
         try:
             # Line-buffered: a process killed mid-run leaves whole lines behind.
             self._fh = open(self.path, "x", buffering=1, encoding="ascii")

@@ -504,7 +504,7 @@ BAD_TIMESTAMPS = {
     "overflow-to-infinity": ("1e999", "timestamp 1e999 is out of range"),
     "duplicate": ("1000.050000000", "timestamp 1000.050000000 is not after the previous line's 1000.050000000"),
     "out-of-order": ("999.0", "timestamp 999.0 is not after the previous line's 1000.050000000"),
-    "empty-line": ("", "got ''"),
+    "empty-line": ("", "a blank line among the timestamps"),
     "two-numbers": ("1000.1 1000.2", "got '1000.1 1000.2'"),
     "full-width-digits": ("\uff11\uff10\uff10\uff10", "expected a timestamp"),
 }

@@ -53,13 +53,14 @@ def copy_of(base):
 
 
 def check_read(d) -> CaptureDirectory | None:
-    """Open *d*: a package error with a one-line message (None), or a recording whose frames,
-    times and loss figures are consistent with its files."""
+    """Open *d*: a package error with a one-line message that shows bad input readably (no
+    replacement characters, nothing a terminal would act on) (None), or a recording whose
+    frames, times and loss figures are consistent with its files."""
     try:
         cap = CaptureDirectory(d)
     except RadarodomError as exc:
         message = str(exc)
-        assert message and "\n" not in message, message
+        assert message and message.isprintable() and "\ufffd" not in message, message
         return None
     size = os.path.getsize(os.path.join(d, "adc_data.bin"))
     fb = cap.config.frame_bytes
@@ -156,14 +157,17 @@ def test_any_timestamps_text_is_read_or_refused(base, lines, ending, with_metada
 
 @FUZZ
 @given(frames=st.lists(st.floats(0.0, 2e9, allow_nan=False).map(lambda t: round(t, 6)),
-                       min_size=1, max_size=8))
-def test_plain_timestamps_play_exactly_when_they_increase(base, frames):
+                       min_size=1, max_size=8),
+       trailing=st.lists(st.sampled_from(["", " ", "\t", "\r", " \t "]), max_size=4).map(
+           lambda blanks: "".join(b + "\n" for b in blanks)))
+def test_plain_timestamps_play_exactly_when_they_increase(base, frames, trailing):
+    """Blank lines at the end (an editor's) change nothing."""
     with copy_of(base) as d:
         os.remove(os.path.join(d, "capture.json"))
         with open(os.path.join(d, "adc_data.bin"), "wb") as fh:
             fh.write(bytes(FRAME_BYTES * len(frames)))
-        with open(os.path.join(d, "timestamps.txt"), "w") as fh:
-            fh.write("".join(f"{t:.6f}\n" for t in frames))
+        with open(os.path.join(d, "timestamps.txt"), "w", newline="") as fh:
+            fh.write("".join(f"{t:.6f}\n" for t in frames) + trailing)
         cap = check_read(d)
         increasing = all(b > a for a, b in zip(frames, frames[1:]))
         assert (cap is not None) == increasing

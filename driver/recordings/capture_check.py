@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ... import strict_json
-from ...errors import CaptureError, CaptureFormatError, quoted
+from ...errors import CaptureError, CaptureFormatError, named_character, quoted
 from ...plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
@@ -34,6 +34,10 @@ _METADATA_BASE_BYTES = 1 << 20
 _METADATA_BYTES_PER_FRAME = 128
 #: The writer's lines are about 20 characters.
 _MAX_TIMESTAMP_LINE = 256
+#: Blank lines taken at the end of timestamps.txt (an editor or a copy adds one or a few).
+_MAX_TRAILING_BLANK_LINES = 100
+#: What a timestamp line's characters may be besides printable ASCII.
+_LINE_SPACE = b" \t\r\n"
 
 
 def _is_int(value: Any) -> bool:
@@ -149,8 +153,10 @@ def read_metadata(path: str, frames_in_data: int) -> dict[str, Any] | None:
 def read_timestamps(path: str, max_lines: int) -> np.ndarray:
     """The frame times in timestamps.txt: one plain decimal number per line, finite, within
     +-:data:`TIMESTAMP_LIMIT_S`, strictly increasing.  A last line without its end of line
-    (the writer cut off) is ignored with a warning.  More than *max_lines* lines (the whole
-    frames of the data file) are refused as soon as they are met."""
+    (the writer cut off) is ignored with a warning; blank lines at the end (up to
+    :data:`_MAX_TRAILING_BLANK_LINES`) are ignored, a blank line before a timestamp is refused.
+    More than *max_lines* timestamps (the whole frames of the data file) are refused as soon as
+    they are met."""
     values: list[float] = []
     try:
         fh = open(path, "rb")
@@ -158,30 +164,58 @@ def read_timestamps(path: str, max_lines: int) -> np.ndarray:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
     with fh:
         lineno = 0
+        blank: list[int] = []  # the blank lines since the last timestamp
         while True:
             line = fh.readline(_MAX_TIMESTAMP_LINE)
             if not line:
                 break
             lineno += 1
+            if not line.strip(_LINE_SPACE):
+                blank.append(lineno)
+                if len(blank) > _MAX_TRAILING_BLANK_LINES:
+                    raise CaptureFormatError(f"{path}:{blank[0]}: {len(blank)} blank lines from here on: "
+                                             f"not a timestamps file (one line per frame)")
+                continue
             if not line.endswith(b"\n"):
                 if len(line) >= _MAX_TIMESTAMP_LINE:
                     raise CaptureFormatError(f"{path}:{lineno}: a line longer than {_MAX_TIMESTAMP_LINE} "
                                              f"bytes: not a timestamp")
                 log.warning("%s:%d: ignoring a partly written last line", path, lineno)
                 break
-            if lineno > max_lines:
+            if blank:
+                raise CaptureFormatError(f"{path}:{blank[0]}: a blank line among the timestamps: every "
+                                         f"line is one frame's time (only the end may have blank lines)")
+            if len(values) >= max_lines:
                 raise CaptureFormatError(f"{path}:{lineno}: more lines than the {max_lines} whole frames "
                                          f"of adc_data.bin (one line per frame)")
             values.append(_timestamp(path, lineno, line, values[-1] if values else None))
     return np.array(values, dtype=float)
 
 
+def _odd_character(line: bytes) -> str | None:
+    """Where *line* holds what no timestamp does, named readably ("column 3: character U+00A0
+    (no-break space)"): a byte that is no UTF-8, or a character other than printable ASCII and
+    spaces; None when there is none."""
+    try:
+        text = line.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        return f"column {exc.start + 1}: byte 0x{line[exc.start]:02X}, which is not UTF-8 text"
+    for column, ch in enumerate(text, start=1):
+        if not (" " <= ch <= "~" or ch in "\t\r\n"):
+            return f"column {column}: character {named_character(ch)}"
+    return None
+
+
 def _timestamp(path: str, lineno: int, line: bytes, previous: float | None) -> float:
-    text = line.decode("ascii", errors="replace").strip(" \t\r\n")
+    odd = _odd_character(line)
+    if odd is not None:
+        raise CaptureFormatError(f"{path}:{lineno}: {odd}: expected a timestamp (a plain decimal number "
+                                 f"of seconds in ASCII)")
+    text = line.decode("ascii").strip(" \t\r\n")
     value = plain_float(text)
     if value is None:
         raise CaptureFormatError(f"{path}:{lineno}: expected a timestamp (a plain decimal number of "
-                                 f"seconds), got {text[:40]!r}")
+                                 f"seconds), got {quoted(text)}")
     if not abs(value) <= TIMESTAMP_LIMIT_S:
         raise CaptureFormatError(f"{path}:{lineno}: timestamp {text[:40]} is out of range (at most "
                                  f"{TIMESTAMP_LIMIT_S:g} s in magnitude)")

@@ -63,7 +63,7 @@ import numpy as np
 
 from ... import __version__, strict_json
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError
+from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError, given_path
 from ...rawframe import RawLayout
 from ...tum import TumWriter, read_tum
 from . import capture_check
@@ -146,7 +146,7 @@ class CaptureWriter:
         metadata_interval_s: float = 1.0,
         extra: dict[str, Any] | None = None,
     ) -> None:
-        self.directory = os.fspath(directory)
+        self.directory = given_path(directory, CaptureError)
         self.config = config
         self.frame_bytes = config.frame_bytes
         self._source = source
@@ -325,13 +325,17 @@ class CaptureDirectory:
     """
 
     def __init__(self, directory: str | os.PathLike, config: RadarConfig | None = None) -> None:
-        self.directory = os.fspath(directory)
+        self.directory = given_path(directory, CaptureError, "directory path")
         if not os.path.isdir(self.directory):
             raise CaptureError(f"{self.directory}: no such capture directory")
         cfg_path = os.path.join(self.directory, RADAR_CFG)
         data_path = os.path.join(self.directory, ADC_DATA)
         if not os.path.exists(data_path):
             raise CaptureFormatError(missing_data_message(self.directory))
+        if not os.path.isfile(data_path):
+            what = "a directory" if os.path.isdir(data_path) else "not a regular file"
+            raise CaptureFormatError(f"{data_path}: is {what}: a capture's {ADC_DATA} is the file of its "
+                                     f"recorded frames")
         if config is None:
             if not os.path.exists(cfg_path):
                 raise ConfigError(f"missing {RADAR_CFG}: give the radar configuration with --cfg",
