@@ -1,11 +1,15 @@
 """radar-emulate: a fake AWR1843 (on a pty) and a fake DCA1000 (on loopback UDP)
-streaming a recording or the simulator, to try the live path without hardware.
+streaming a recording or the simulator, to try the live path without hardware; or, with
+``--uart``, the fake AWR1843's demo firmware output on its data port (a second pty), to try
+``tidemo://``.
 
     radar-emulate --capture DIR [--loss P] [--reorder P] ...
     radar-emulate --source sim://lab [--command-port 4096 --data-port 4098]
+    radar-emulate --uart --source sim://corridor --cfg my_tidemo.cfg [--uart-drop P] ...
 
 It prints the --source URL (and --cfg) to give to radar-capture (and, with --command-port,
-the settings for xwr), then runs until Ctrl-C.  docs/live.md describes the emulators' timings.
+the settings for xwr), then runs until Ctrl-C.  docs/live.md describes the emulators' timings,
+docs/tidemo.md the data port's.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from ..cfg import RadarConfig
 from ..driver.recordings.capture_dir import RADAR_CFG
 from ..driver.emulators.fake_awr1843 import CliFaults
 from ..driver.emulators.fake_dca1000 import Faults
+from ..driver.emulators.fake_demo_uart import DemoUartRig, UartFaults
 from ..driver.emulators.rig import BOARD_IP, EmulatedRig
 from ..errors import UsageError
 from . import cli
@@ -51,11 +56,23 @@ def build_parser() -> argparse.ArgumentParser:
     what.add_argument("--source", metavar="URL", help="any frame source, e.g. sim://lab")
     parser.add_argument("--cfg", metavar="FILE", help="radar configuration for --source "
                                                        "(default: the source's own)")
+    parser.add_argument("--uart", action="store_true",
+                        help="no DCA1000: the fake radar runs TI's demo firmware and streams its points and static "
+                             "heatmap on its data port (a second pty) for tidemo:// (docs/tidemo.md); give --cfg a "
+                             "cfg whose frames the UART carries")
     faults = parser.add_argument_group(
         "faults", "Each P is a probability per data packet, 0 to 1, drawn independently (--seed reproduces a "
                   "run); what radar-capture should then report is in docs/live.md.")
     for name, what in _PACKET_FAULTS.items():
         faults.add_argument(f"--{name}", type=cli.probability, default=0.0, metavar="P", help=what)
+    uart = parser.add_argument_group(
+        "data-port faults (--uart)", "Each P is a probability per packet of the demo's UART output, drawn from --seed.")
+    uart.add_argument("--uart-garbage", type=cli.probability, default=0.0, metavar="P",
+                      help="line noise (24 stray bytes) before a packet")
+    uart.add_argument("--uart-truncate", type=cli.probability, default=0.0, metavar="P",
+                      help="a packet is cut short: its tail is never sent")
+    uart.add_argument("--uart-drop", type=cli.probability, default=0.0, metavar="P",
+                      help="a run of up to 64 bytes inside a packet is lost")
     faults.add_argument("--burst-flush", action="store_true",
                         help="end every frame with a short packet instead of straddling frames")
     faults.add_argument("--hang-on-start", action="store_true",
@@ -81,6 +98,8 @@ def _main(args: argparse.Namespace) -> int:
     else:
         url, cfg_path = args.source, args.cfg
     config = RadarConfig.from_file(cfg_path) if cfg_path else None
+    if args.uart:
+        return _serve_uart(url, cfg_path, config, args)
     faults = Faults(loss=args.loss, duplicate=args.duplicate, reorder=args.reorder, truncate=args.truncate,
                     malformed=args.malformed, foreign=args.foreign, burst_flush=args.burst_flush)
     stop = threading.Event()
@@ -107,6 +126,40 @@ def _main(args: argparse.Namespace) -> int:
                   f"({stats.dropped} dropped, {stats.duplicates} duplicated, {stats.reordered} reordered, "
                   f"{stats.truncated} truncated by the fault injector)"
                   + (f"; the tail of {held} more was held back (its recording had not ended)" if held else ""))
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+    return 0
+
+
+def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args: argparse.Namespace) -> int:
+    """The fake radar with the demo's data port, until Ctrl-C."""
+    from ..driver.tidemo.layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, gui_selection
+
+    packet_faults = [name for name in _PACKET_FAULTS if getattr(args, name)]
+    if packet_faults or args.burst_flush or args.command_port or args.data_port:
+        raise UsageError("--uart has no DCA1000: its packet faults and ports do not apply (the data port's faults "
+                         "are --uart-garbage, --uart-truncate, --uart-drop)")
+    if config is not None:  # radar-capture would refuse it: say so now
+        check_uart_budget(config, DemoGeometry.from_config(config).layout(gui_selection(config)), DEFAULT_BAUD, 64)
+    faults = UartFaults(garbage=args.uart_garbage, truncate=args.uart_truncate, drop=args.uart_drop, seed=args.seed)
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with DemoUartRig(url, faults=faults, rate="max" if args.max_rate else "paced") as rig:
+            command = ["radar-capture", "--source", rig.url()] + (["--cfg", cfg_path] if cfg_path else [])
+            print(f"radar-emulate: radar CLI on {rig.cli_path}, demo data port on {rig.data_path}; streaming "
+                  f"{url} as the demo's UART output")
+            if not cfg_path:
+                print("radar-emulate: note: radar-capture needs a cfg whose frames the UART carries (the shipped one's "
+                      "do not at 10 frames/s): add --cfg FILE (docs/tidemo.md)")
+            print(shlex.join(command), flush=True)
+            while not stop.wait(0.5):
+                pass
+            s = rig.data.stats
+            print(f"radar-emulate: sent {s.packets} packets ({len(s.truncated)} cut short, {len(s.dropped)} with "
+                  f"bytes lost, {len(s.garbage_before)} after line noise by the fault injector)"
+                  + ("; the demo asserted: a packet outlasted the UART's time between frames" if s.asserted else ""))
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)

@@ -1,0 +1,89 @@
+"""The packets TI's demo firmware would send for a raw frame: what the fake AWR1843's data port
+streams (:mod:`.fake_demo_uart`).
+
+The chip's processing is modelled with radarodom's DSP in TI's mode (``DspConfig(ti_like=True)``:
+the cfg's cfarCfg thresholds and peak grouping, its clutterRemoval, multiObjBeamForming,
+aoaFovCfg and cfarFovCfg), on the demo's FFT sizes (samples and loops rounded up to powers of two):
+
+- points: the detections' x, y, z and radial velocity; side info: their SNR and noise in 0.1 dB;
+- the azimuth static heatmap: the zero-Doppler bin of the windowed Doppler spectrum of the first
+  ``numVirtualAntAzim`` antennas in chirp order, multiplied by the cfg's compRangeBiasAndRxChanPhase
+  coefficients (``aoaprochwa.c`` ``AoAProcHWA_PrepareRangeAzimuthHeatmap``), as int16 (imaginary,
+  real).  The HWA's fixed-point scaling is not documented to the bit: the values are scaled so that
+  a tone of amplitude *a* ADC LSB reads 256 *a* (:data:`HEATMAP_GAIN`), which keeps the simulator's
+  scenes inside int16 (the strongest cell of the room about 14000, of the corridor about 6000; the
+  corridor's median cell about 40) and saturates beyond, counted in :attr:`DemoFrameMaker.saturated`;
+- range profile, noise profile and range-Doppler map (when guiMonitor asks): the log2 magnitude of
+  the power summed over the antennas, in Q9 (uint16), Doppler bin 0 first as the chip's matrix.
+
+The chip's own quirks beyond these (its fixed-point CFAR, its exact windows) are not modelled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...calibration import ChannelCalibration
+from ...cfg import RadarConfig
+from ...dsp.config import DspConfig
+from ...dsp.processor import FrameProcessor
+from ...rawframe import RawLayout
+from ..tidemo import wire
+from ..tidemo.layout import DemoGeometry, gui_selection
+
+#: Heatmap value of a tone of amplitude 1 ADC LSB.
+HEATMAP_GAIN = 256.0
+#: The DSP's clock, whose cycles the header's timeCpuCycles counts (xWR18xx: 600 MHz C674x).
+DSP_CLOCK_HZ = 600e6
+
+
+class DemoFrameMaker:
+    """Demo packets of *config*'s raw frames."""
+
+    def __init__(self, config: RadarConfig) -> None:
+        self.config = config
+        self.geometry = g = DemoGeometry.from_config(config)
+        self.layout = g.layout(gui_selection(config))
+        params = DspConfig(ti_like=True, range_fft_size=g.range_bins if g.range_bins != config.num_samples else None,
+                           doppler_fft_size=g.doppler_bins if g.doppler_bins != config.num_loops else None)
+        self.processor = p = FrameProcessor(config, params)
+        self.raw_layout = RawLayout.from_config(config)
+        self._cube = np.empty(config.cube_shape, np.complex64)
+        n_ant = len(g.heatmap_elements)
+        calibration = ChannelCalibration.from_config(config).for_array(config.virtual_array).ravel()[:n_ant]
+        self._weights = (calibration * HEATMAP_GAIN / (float(p.w_range.sum()) * float(p.w_doppler.sum()))
+                         ).astype(np.complex64)
+        #: Heatmap values clipped to int16 so far.
+        self.saturated = 0
+
+    def packet(self, raw, frame_number: int, time_s: float) -> tuple[bytes, int]:
+        """The packet of the raw frame *raw* (bytes of the DCA1000 layout) and its point count."""
+        g, p = self.geometry, self.processor
+        result = p.process(self.raw_layout.decode(np.frombuffer(raw, np.uint8), self._cube))
+        pts = result.points
+        points = np.zeros(len(pts), wire.POINT_DTYPE)
+        for name in ("x", "y", "z", "velocity"):
+            points[name] = pts[name]
+        side = np.zeros(len(pts), wire.SIDE_INFO_DTYPE)
+        side["snr"] = _int16(np.nan_to_num(pts["snr_db"]) * 10)
+        side["noise"] = _int16(np.nan_to_num(pts["noise_db"]) * 10)
+        n_ant = len(g.heatmap_elements)
+        slots, nrx = self.config.num_tx_slots, self.config.num_rx
+        zero = result.spectrum[p.n_doppler // 2].reshape(slots * nrx, -1)[:n_ant, :g.range_bins].T * self._weights
+        heat = np.empty(zero.shape, wire.HEATMAP_DTYPE)
+        for part, values in (("real", zero.real), ("imag", zero.imag)):
+            rounded = np.round(values)
+            self.saturated += int(np.count_nonzero(np.abs(rounded) > 32767))
+            heat[part] = np.clip(rounded, -32768, 32767)
+        log_mag = None
+        gui = self.layout.gui
+        if gui.log_mag_range or gui.noise_profile or gui.range_doppler_heat_map:
+            power = np.fft.ifftshift(result.power, axes=0).T[:g.range_bins]  # (range, Doppler), bin 0 first
+            log_mag = np.clip(np.round(0.5 * np.log2(np.maximum(power, 1.0)) * 512), 0, 65535)
+        packet = wire.encode_packet(self.layout, frame_number, points, side, heat, log_magnitude=log_mag,
+                                    time_cpu_cycles=int(time_s * DSP_CLOCK_HZ))
+        return packet, len(points)
+
+
+def _int16(values: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(values), -32768, 32767).astype(np.int16)

@@ -1,0 +1,136 @@
+"""The fake AWR1843's demo data port (driver/emulators/fake_demo_uart.py, demo_frames.py): packets
+made as the chip would from the simulator's scene, streamed on a pty on sensorStart, with line
+faults whose ground truth the tidemo:// source's accounting is checked against."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import serial
+from radarodom.cfg import RadarConfig
+from radarodom.driver import open_source
+from radarodom.driver.emulators.demo_frames import DemoFrameMaker
+from radarodom.driver.emulators.fake_demo_uart import ASSERT_LINE, DemoUartRig, UartFaults
+from radarodom.driver.live.awr1843 import Awr1843Cli
+from radarodom.driver.tidemo import wire
+from radarodom.driver.tidemo.layout import DemoGeometry
+from radarodom.driver.tidemo.products import static_antennas
+from radarodom.dsp.config import DspConfig
+from radarodom.dsp.heatmap import HeatmapMaker
+from radarodom.dsp.processor import FrameProcessor
+from radarodom.dsp.static_heatmap import StaticHeatmapMaker
+
+from tidemo_helpers import TIDEMO_CFG
+
+
+@pytest.fixture(scope="module")
+def cfg() -> RadarConfig:
+    return RadarConfig.from_text(TIDEMO_CFG, "tidemo.cfg")
+
+
+def test_packets_hold_the_chips_cfar_points_and_the_raw_paths_static_map(cfg):
+    """The emulated chip's points are the DSP's in TI's mode (the cfg's 15 dB CFAR); its static
+    map, through the tidemo heatmap, is the raw path's zero-Doppler heatmap of the same frame
+    (up to int16 rounding)."""
+    maker = DemoFrameMaker(cfg)
+    ti = FrameProcessor(cfg, DspConfig(ti_like=True))
+    raw = FrameProcessor(cfg, DspConfig())
+    heatmaps, static = HeatmapMaker(raw), StaticHeatmapMaker(raw)
+    geometry = DemoGeometry.from_config(cfg)
+    seen = 0
+    with open_source("sim://room?rate=max&duration=0.5", cfg) as source:
+        for frame in source:
+            data, n = maker.packet(frame.raw, frame.index + 1, frame.timestamp)
+            packet = wire.parse_packet(data)
+            assert not isinstance(packet, str) and packet.frame_number == frame.index + 1
+            expected = ti.process(frame.cube()).points
+            chip = packet.array(wire.Tlv.DETECTED_POINTS, wire.POINT_DTYPE)
+            assert n == len(expected) and len(chip) == n
+            for name in ("x", "y", "z", "velocity"):
+                np.testing.assert_array_equal(chip[name], expected[name])
+            side = packet.array(wire.Tlv.DETECTED_POINTS_SIDE_INFO, wire.SIDE_INFO_DTYPE)
+            if n:
+                np.testing.assert_array_equal(side["snr"], np.round(expected["snr_db"] * 10).astype(np.int16))
+            mine = static.range_azimuth(static_antennas(packet, geometry)).static
+            truth = heatmaps.range_azimuth(raw.process(frame.cube()).spectrum).static
+            assert mine.shape == truth.shape
+            np.testing.assert_allclose(mine / mine.max(), truth / truth.max(), atol=1e-3)
+            seen += 1
+    assert seen == 5 and maker.saturated == 0
+
+
+def test_the_source_counts_what_the_line_did_to_the_emulators_packets(cfg):
+    """Seeded noise, cut packets and lost bytes on the data port: every frame handed on is one the
+    emulator sent whole, every damaged one is rejected and counted, and a whole packet is lost
+    only when line noise follows it before the line is quiet."""
+    faults = UartFaults(garbage=0.25, truncate=0.15, drop=0.15, seed=7)
+    with DemoUartRig("sim://corridor", faults=faults, boot_time_s=0.05) as rig:
+        with open_source(rig.url(), cfg) as source:
+            numbers = []
+            for frame in source:
+                numbers.append(frame.index)
+                if rig.data.stats.packets >= 24:
+                    source.stop()
+            about = source.describe()
+        truth = rig.data.stats
+    first = min(truth.whole + truth.truncated + truth.dropped)
+    delivered = {n + first for n in numbers}
+    damaged = set(truth.truncated) | set(truth.dropped)
+    assert damaged and truth.garbage_before, "the seed must exercise every fault"
+    assert delivered <= set(truth.whole)
+    noisy_after = {n - 1 for n in truth.garbage_before}
+    assert set(truth.whole) - delivered <= noisy_after
+    assert about["rejected_packets"] >= len(damaged)
+    assert about["frames"] == len(numbers) and about["packets"] == len(numbers)
+    assert about["frames_skipped"] == max(numbers) + 1 - len(numbers)
+
+
+def test_a_packet_the_uart_cannot_carry_stops_the_demo_with_its_exception(cfg):
+    """A client that ignores the budget (here Awr1843Cli, not tidemo://) at 25 ms frames: the
+    emulated demo asserts after its first packet, as the chip's frame start does, and says so on
+    its CLI."""
+    fast = RadarConfig.from_text(TIDEMO_CFG.replace("frameCfg 0 2 16 0 100 1 0", "frameCfg 0 2 16 0 25 1 0"), "fast")
+    with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
+        data = serial.serial_for_url(rig.data_path, baudrate=921600, timeout=0.1)
+        with Awr1843Cli(rig.cli_path) as radar:
+            radar.configure(fast)
+            radar.start()
+        cli = serial.serial_for_url(rig.cli_path, baudrate=115200, timeout=0.1)  # what the CLI says next
+        deadline = time.monotonic() + 30
+        while not rig.data.stats.asserted and time.monotonic() < deadline:
+            data.read(4096)
+        heard = b""
+        while ASSERT_LINE.encode() not in heard and time.monotonic() < deadline:
+            heard += cli.read(256)
+        cli.close()
+        data.close()
+    assert rig.data.stats.asserted and rig.data.stats.packets == 1
+    assert ASSERT_LINE.encode() in heard
+
+
+def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp_path):
+    from conftest import REPO, console_command
+    from live_helpers import Emulator, Process
+
+    cfg_file = tmp_path / "tidemo.cfg"
+    cfg_file.write_text(TIDEMO_CFG)
+    with Emulator("--uart", "--source", "sim://corridor", "--cfg", cfg_file) as emu:
+        assert emu.command[:2] == ["radar-capture", "--source"] and emu.command[2].startswith("tidemo:///dev/")
+        assert emu.command[3:] == ["--cfg", str(cfg_file)]
+        capture = Process(emu.capture_argv("--frames", 5, "--no-publish"))
+        code = capture.wait(120)
+        capture.kill()
+        stdout, stderr = capture.output()
+        assert code == 0, stderr
+        assert "5 frames (0 incomplete, 0 bytes missing)" in stdout
+        assert emu.stop() == 0
+    assert "radar-emulate: sent" in emu.output()[0]
+    with Emulator("--uart", "--source", "sim://corridor") as emu:  # radar-capture is told to give a cfg
+        assert "needs a cfg whose frames the UART carries" in emu.output()[0]
+        assert "--cfg" not in emu.command
+    shipped = Process([*console_command("radar-emulate"), "--uart", "--source", "sim://corridor", "--cfg",
+                       str(REPO / "configs" / "awr1843_raw.cfg")])
+    assert shipped.wait(60) == 2
+    assert "the UART cannot carry this cfg's frames" in shipped.output()[1]
