@@ -15,6 +15,7 @@ from __future__ import annotations
 import abc
 import importlib
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
@@ -41,6 +42,14 @@ SCHEMES: dict[str, str] = {
     "coloradar": "radarodom.driver.coloradar.source:open_coloradar",
     "tidemo": "radarodom.driver.tidemo.source:open_tidemo",
 }
+
+#: ``replay://PATH?format=NAME`` -> "module:function" of the opener of recordings in another
+#: format than a capture directory (same signature as a scheme's opener, without ``format``).
+REPLAY_FORMATS: dict[str, str] = {
+    "tidemo": "radarodom.driver.tidemo.replay:open_tidemo_replay",
+}
+#: A file a directory of each replay format holds (``replay://DIR`` finds the format by it).
+REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
 
 
 def register_scheme(scheme: str, opener: str | Callable[..., "Source"]) -> None:
@@ -155,6 +164,13 @@ class Source(abc.ABC):
         """What a recording of this stream keeps in its metadata besides the frames (a
         simulation's scene, seed and board: :mod:`.replay` reads the board back)."""
         return {}
+
+    def recorder(self, directory: str) -> Any | None:
+        """A pipeline sink that records this stream as the source received it, for a source whose
+        frames are not raw ADC frames but can be recorded all the same (``tidemo://``: its UART
+        packets, which ``replay://`` plays again); None when the frames are recorded as raw ADC
+        frames (a capture directory) or not at all."""
+        return None
 
     def groundtruth(self) -> TumTrajectory | None:
         """The true poses of the stream's pose-giving frames, where the source knows them
@@ -298,6 +314,18 @@ def _resolve(opener: str | Callable[..., Source]) -> Callable[..., Source]:
     return getattr(importlib.import_module(module), func)
 
 
+def _replay_opener(path: str, options: UrlOptions, default: str | Callable[..., Source]):
+    """The opener of ``replay://PATH``: by its ``format=`` option, else by the file a directory
+    of a format holds (``uart.bin``: a demo's UART stream), else *default*."""
+    kind = options.take("format", one_of("capture", *REPLAY_FORMATS), None,
+                        " or ".join(("capture", *REPLAY_FORMATS)))
+    if kind is None:
+        directory = os.path.expanduser(path)
+        kind = next((name for name, file in REPLAY_FORMAT_FILES.items()
+                     if os.path.isfile(os.path.join(directory, file))), "capture")
+    return default if kind == "capture" else REPLAY_FORMATS[kind]
+
+
 def open_source(url: str, config: RadarConfig | None = None) -> Source:
     """Open the frame source *url* names.  *config* overrides the radar
     configuration the source would otherwise use (required where the source
@@ -307,7 +335,10 @@ def open_source(url: str, config: RadarConfig | None = None) -> Source:
         raise SourceError(f"unknown source scheme {scheme!r} in {url!r}; supported: "
                           f"{', '.join(s + '://' for s in sorted(SCHEMES))}")
     options = UrlOptions(url, query)
-    source = _resolve(SCHEMES[scheme])(path, options, config)
+    opener = SCHEMES[scheme]
+    if scheme == "replay":
+        opener = _replay_opener(path, options, opener)
+    source = _resolve(opener)(path, options, config)
     try:
         options.finish()
     except SourceError:

@@ -47,6 +47,7 @@ from ..live.source import FrameClock
 from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number
 from .framer import TlvFramer
 from .layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, demo_config, gui_selection
+from .recording import UartRecorder
 from .products import PacketFrames
 from .wire import Packet
 
@@ -210,6 +211,10 @@ class TidemoSource(Source):
         reader.join()
         for packet in self.framer.finish():
             self.deliver(packet)
+
+    def recorder(self, directory: str) -> UartRecorder:
+        """A sink that records this stream's packets as received (:class:`.recording.UartRecorder`)."""
+        return UartRecorder(directory, self.config, source=self.url, baud=self.baud)
 
     def describe(self) -> dict:
         """Where the demo's frames went: ``frames`` handed on, ``frames_skipped`` (frame numbers

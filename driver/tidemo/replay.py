@@ -1,0 +1,165 @@
+"""``replay://PATH?format=tidemo`` : a recorded demo UART stream played as the radar sent it.
+
+PATH is either
+
+- a file of the data port's bytes as a serial logger saves them (``cat /dev/ttyACM1 > uart.bin``;
+  TI's mmWave Demo Visualizer's recorded ``.dat`` files hold the same stream, as far as TI's forum
+  threads show), with ``--cfg`` the cfg the radar ran; or
+- a directory :class:`~.recording.UartRecorder` wrote (``radar-capture --record`` of a
+  ``tidemo://`` source): ``uart.bin``, ``timestamps.txt``, ``radar.cfg`` (the default cfg) and
+  ``capture.json``; ``replay://DIR`` finds the format by its ``uart.bin``.
+
+The stream is framed as the live source frames it (:mod:`.framer`: garbage, cut packets and lost
+bytes are counted and skipped).  Frame times: ``timestamps.txt`` beside the file when there is
+one, line k the time of frame number *first + k* (frames lost in the stream skip their lines,
+the header's frame numbers say which); else the cfg's frame period from 0.
+
+Options: ``rate`` (1.0: real time; ``max``), ``loop`` (passes, 0: until stopped), ``frames``
+(how many to play).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import mmap
+import os
+import time
+from typing import Iterator
+
+import numpy as np
+
+from ... import strict_json
+from ...cfg import RadarConfig
+from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError
+from ..recordings.capture_check import read_timestamps
+from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
+from .framer import TlvFramer
+from .layout import DemoGeometry, gui_selection
+from .products import FrameIndexer, PacketFrames
+from .recording import FORMAT_NAME, FORMAT_VERSION, METADATA, RADAR_CFG, TIMESTAMPS, UART_DATA
+from .wire import parse_packet
+
+log = logging.getLogger(__name__)
+
+#: Bytes the framer is fed at a time while scanning a file.
+_CHUNK = 1 << 20
+#: Largest capture.json read.
+_MAX_METADATA_BYTES = 1 << 20
+
+
+class TidemoReplaySource(Source):
+    """Plays the whole packets of a demo UART stream file."""
+
+    carries_raw = False
+
+    def __init__(self, path: str, config: RadarConfig, *, timestamps: str | None = None, rate: float = 1.0,
+                 loop: int = 1, frames: int | None = None) -> None:
+        super().__init__()
+        self.path, self.config, self.rate, self.loop = path, config, rate, loop
+        self.geometry = DemoGeometry.from_config(config)
+        layout = self.geometry.layout(gui_selection(config))
+        self.framer = TlvFramer(layout.packet_bytes(self.geometry.range_bins * self.geometry.doppler_bins))
+        try:
+            self._file = open(path, "rb")
+        except OSError as exc:
+            raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+        size = os.fstat(self._file.fileno()).st_size
+        self._data = mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+        # (offset, length, index) of every whole packet, found once.
+        indexer, found = FrameIndexer(), []
+        for at in range(0, size, _CHUNK):
+            found += self.framer.feed(self._data[at:at + _CHUNK])
+        found += self.framer.finish()
+        self.packets = [(p.offset, len(p.data), indexer(p.frame_number)) for p in found]
+        if frames is not None:
+            self.packets = self.packets[:frames]
+        if not self.packets:
+            raise CaptureFormatError(f"{path}: no whole demo packet in {size} bytes (the UART stream of TI's "
+                                     "SDK 3.x demo starts each with the magic word 02 01 04 03 06 05 08 07)")
+        last = self.packets[-1][2]
+        if timestamps is not None:
+            self.stamps = read_timestamps(timestamps, 1 << 40)
+            if len(self.stamps) <= last:
+                raise CaptureFormatError(f"{timestamps}: {len(self.stamps)} lines, but the stream's frame numbers "
+                                         f"need {last + 1} (one line per frame number from the first packet's)")
+        else:
+            self.stamps = np.arange(last + 1) * config.frame_period_s
+        self.timestamps_path = timestamps
+        self.frames_played = 0
+
+    def __iter__(self) -> Iterator[Frame]:
+        stamps = self.stamps
+        span = float(stamps[self.packets[-1][2]] - stamps[self.packets[0][2]]) + self.config.frame_period_s
+        pacer, passes = Pacer(self.rate, self), 0
+        period_indices = self.packets[-1][2] + 1
+        while not self.stop_requested and (self.loop == 0 or passes < self.loop):
+            offset_s, offset_i = passes * span, passes * period_indices
+            frames = PacketFrames(self.geometry, lambda i, p: float(stamps[i]) + offset_s)
+            for at, length, index in self.packets:
+                if self.stop_requested:
+                    return
+                pacer.wait(float(stamps[index] - stamps[self.packets[0][2]]) + offset_s)
+                packet = parse_packet(bytes(self._data[at:at + length]))
+                packet.offset = at
+                frame = frames(packet, 0.0)
+                frame.index = index + offset_i
+                frame.ready_monotonic = time.monotonic()
+                if self.stop_requested:
+                    return
+                yield frame
+                self.frames_played += 1
+            passes += 1
+
+    def describe(self) -> dict:
+        return {"url": self.url, "path": self.path, "frames": len(self.packets),
+                "rate": "max" if self.rate == math.inf else self.rate, "loop": self.loop,
+                "frames_skipped": self.packets[-1][2] + 1 - len(self.packets), **self.framer.stats.as_dict()}
+
+    def close(self) -> None:
+        if isinstance(self._data, mmap.mmap):
+            self._data.close()
+        self._file.close()
+
+
+def _check_metadata(path: str) -> None:
+    try:
+        with open(path, "rb") as fh:
+            meta = strict_json.loads(fh.read(_MAX_METADATA_BYTES + 1), max_bytes=_MAX_METADATA_BYTES)
+    except OSError as exc:
+        raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise CaptureFormatError(f"{path}: {exc}") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT_NAME:
+        raise CaptureFormatError(f"{path}: not a {FORMAT_NAME} recording's metadata (format "
+                                 f"{meta.get('format') if isinstance(meta, dict) else None!r})")
+    version = meta.get("format_version")
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= FORMAT_VERSION:
+        raise CaptureFormatError(f"{path}: format_version {version!r}: this radarodom reads {FORMAT_VERSION}")
+    if not meta.get("closed", False):
+        log.warning("%s: the recording was not closed (its process died): playing its whole packets", path)
+
+
+def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
+    rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
+    loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
+    frames = options.take("frames", at_least(1), None, "a number of frames >= 1")
+    options.finish()
+    if not path:
+        raise SourceError(f"{options.url}: no path: use replay://FILE?format=tidemo")
+    path = os.path.expanduser(path)
+    if os.path.isdir(path):
+        directory, data = path, os.path.join(path, UART_DATA)
+        if os.path.exists(os.path.join(directory, METADATA)):
+            _check_metadata(os.path.join(directory, METADATA))
+        if config is None and os.path.exists(os.path.join(directory, RADAR_CFG)):
+            config = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
+    else:
+        directory, data = os.path.dirname(path) or ".", path
+    if not os.path.isfile(data):
+        raise SourceError(f"{options.url}: {data}: no such file")
+    if config is None:
+        raise ConfigError(f"{data} holds the demo's UART stream: give the cfg the radar ran with --cfg", path=data)
+    stamps = os.path.join(directory, TIMESTAMPS)
+    return TidemoReplaySource(data, config, timestamps=stamps if os.path.isfile(stamps) else None, rate=rate,
+                              loop=loop, frames=frames)

@@ -1,0 +1,128 @@
+"""Recording the demo's UART stream (driver/tidemo/recording.py) and playing it again, or a serial
+logger's file of it, through replay:// (driver/tidemo/replay.py)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from radarodom.cfg import RadarConfig
+from radarodom.driver import open_source
+from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
+from radarodom.driver.tidemo import wire
+from radarodom.driver.tidemo.layout import DemoGeometry, gui_selection
+from radarodom.driver.tidemo.recording import UartRecorder
+from radarodom.errors import CaptureExistsError, CaptureFormatError, ConfigError, SourceError
+from radarodom.pipeline import Pipeline
+
+from tidemo_helpers import TIDEMO_CFG
+
+
+@pytest.fixture(scope="module")
+def cfg() -> RadarConfig:
+    return RadarConfig.from_text(TIDEMO_CFG, "tidemo.cfg")
+
+
+def packets(cfg: RadarConfig, numbers) -> list[bytes]:
+    g = DemoGeometry.from_config(cfg)
+    out = []
+    for n in numbers:
+        pts = np.zeros(n % 4, wire.POINT_DTYPE)
+        pts["y"] = n
+        heat = np.zeros((g.range_bins, 8), wire.HEATMAP_DTYPE)
+        heat["imag"][n % g.range_bins, 2] = n
+        out.append(wire.encode_packet(g.layout(gui_selection(cfg)), n, pts, np.zeros(len(pts), wire.SIDE_INFO_DTYPE),
+                                      heat))
+    return out
+
+
+def test_a_serial_loggers_file_plays_with_the_cfgs_period(tmp_path, cfg):
+    """``cat /dev/ttyACM1 > uart.bin``: noise from opening the port mid-packet, packets, a lost one,
+    one cut short; played with --cfg, frame times from the cfg's period by frame number."""
+    p = packets(cfg, range(3, 10))
+    data = p[1][100:] + p[1] + p[2] + p[4] + p[5][:-50] + p[6]  # from frame 4; 6 lost, 8 cut short
+    path = tmp_path / "uart.bin"
+    path.write_bytes(data)
+    with pytest.raises(ConfigError, match="give the cfg the radar ran with --cfg"):
+        open_source(f"replay://{path}?format=tidemo")
+    with open_source(f"replay://{path}?format=tidemo&rate=max", cfg) as source:
+        frames = list(source)
+        about = source.describe()
+    assert [f.index for f in frames] == [0, 1, 3, 5]
+    assert [f.points["y"][0] if len(f.points) else None for f in frames] == [None, 5, 7, 9]
+    assert [f.timestamp for f in frames] == pytest.approx([0.0, 0.1, 0.3, 0.5])
+    assert frames[2].static_antennas[7 % 64, 2] == 7j and frames[2].wire == p[4]
+    assert about["frames_skipped"] == 2 and about["rejected_cut_short"] == 1
+    assert about["discarded_bytes"] == len(p[1]) - 100 + len(p[5]) - 50
+
+
+def test_timestamps_beside_the_file_are_one_line_per_frame_number(tmp_path, cfg):
+    p = packets(cfg, [1, 2, 4])
+    (tmp_path / "uart.bin").write_bytes(b"".join(p))
+    (tmp_path / "timestamps.txt").write_text("10.0\n10.11\n10.2\n10.32\n")
+    with open_source(f"replay://{tmp_path / 'uart.bin'}?format=tidemo&rate=max", cfg) as source:
+        assert [(f.index, f.timestamp) for f in source] == [(0, 10.0), (1, 10.11), (3, 10.32)]
+    (tmp_path / "timestamps.txt").write_text("10.0\n10.11\n10.2\n")
+    with pytest.raises(CaptureFormatError, match="3 lines, but the stream's frame numbers need 4"):
+        open_source(f"replay://{tmp_path / 'uart.bin'}?format=tidemo", cfg)
+    (tmp_path / "timestamps.txt").write_text("10.0\nnan\n")
+    with pytest.raises(CaptureFormatError, match="timestamps.txt:2"):
+        open_source(f"replay://{tmp_path / 'uart.bin'}?format=tidemo", cfg)
+
+
+def test_a_file_without_a_packet_and_a_bad_format_are_refused(tmp_path, cfg):
+    (tmp_path / "noise.bin").write_bytes(b"\x00\x01" * 500)
+    with pytest.raises(CaptureFormatError, match="no whole demo packet in 1000 bytes"):
+        open_source(f"replay://{tmp_path / 'noise.bin'}?format=tidemo", cfg)
+    with pytest.raises(SourceError, match="format"):
+        open_source(f"replay://{tmp_path / 'noise.bin'}?format=visualizer", cfg)
+
+
+def test_a_recorded_stream_replays_frame_for_frame(tmp_path, cfg):
+    """The live stream recorded by its recorder sink while the pipeline runs the odometry, then
+    replay://DIR (its format found by uart.bin, its cfg by radar.cfg): the same frames, indices,
+    times, points and static values."""
+    out = tmp_path / "rec"
+    with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
+        with open_source(rig.url(), cfg) as source:
+            live = []
+
+            class Keep:
+                takes_raw, wants_heatmaps, full_heatmaps = True, False, False
+
+                def write_raw(self, frame, stats):
+                    live.append(frame)
+
+                def close(self, stats):
+                    pass
+
+            with Pipeline(source, sinks=[source.recorder(str(out)), Keep()], max_frames=12) as pipe:
+                pipe.run()
+    assert sorted(os.listdir(out)) == ["capture.json", "radar.cfg", "timestamps.txt", "uart.bin"]
+    assert RadarConfig.from_file(out / "radar.cfg") == cfg
+    with open_source(f"replay://{out}?rate=max") as replay:
+        played = list(replay)
+    assert len(played) == len(live) == 12
+    for a, b in zip(live, played):
+        assert (a.index, a.wire) == (b.index, b.wire)
+        assert a.timestamp == pytest.approx(b.timestamp, abs=1e-9)
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.static_antennas, b.static_antennas)
+    with pytest.raises(CaptureExistsError):
+        UartRecorder(out, cfg)
+
+
+def test_lost_frames_keep_their_timestamp_lines(tmp_path, cfg):
+    p = packets(cfg, [5, 6, 9])
+    rec = UartRecorder(tmp_path / "rec", cfg, source="test")
+    for data, index, t in zip(p, (0, 1, 4), (1.0, 1.1, 1.4)):
+        rec.write_packet(data, index, t)
+    rec.close()
+    lines = (tmp_path / "rec" / "timestamps.txt").read_text().split()
+    assert [float(x) for x in lines] == pytest.approx([1.0, 1.1, 1.2, 1.3, 1.4])
+    with open_source(f"replay://{tmp_path / 'rec'}?rate=max") as source:
+        assert [(f.index, round(f.timestamp, 9)) for f in source] == [(0, 1.0), (1, 1.1), (4, 1.4)]
+    empty = UartRecorder(tmp_path / "none", cfg)
+    empty.close()
+    assert not (tmp_path / "none").exists()  # a recording of nothing is removed
