@@ -14,7 +14,7 @@ from conftest import console_command
 from coloradar_synth import write_run_from_capture
 from test_calibration import _check_reflectors, calibrated
 
-from radarodom.cfg import RadarConfig
+from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.sim.board import load_board
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import Simulator
@@ -27,8 +27,9 @@ from radarodom.estimator.odometry import RadarOdometry
 from radarodom.pipeline import FrameProducts
 from radarodom.tum import TumTrajectory
 
-#: Seconds of the furnished room recorded: 60 frames, a left turn and straight driving.
-ROOM_SECONDS = 6
+#: Seconds of the furnished room recorded: 120 frames, along a wall (9.7 s) and a turn in place
+#: at the corner.
+ROOM_SECONDS = 12
 
 
 def _run(tool: str, *args) -> None:
@@ -38,20 +39,13 @@ def _run(tool: str, *args) -> None:
 
 
 @pytest.fixture(scope="module")
-def measured(shipped_cfg_module):
+def measured():
     """(the shipped cfg, the uncalibrated board's line as radar-calibrate measures it on the
     calibration scene's 3 m reflector, that cfg with the line)."""
-    cfg = shipped_cfg_module
+    cfg = RadarConfig.from_file(shipped_config_path())
     sim = Simulator(cfg, load_scene("calibration"), board=load_board("uncalibrated"))
     line = measure(cfg, (sim.layout.decode(sim.frame(i).raw) for i in range(10)), 3.0).calibration
     return cfg, line, calibrated(cfg, line)
-
-
-@pytest.fixture(scope="module")
-def shipped_cfg_module():
-    from radarodom.cfg import shipped_config_path
-
-    return RadarConfig.from_file(shipped_config_path())
 
 
 def _odometry(url: str, cfg: RadarConfig) -> dict:
@@ -80,7 +74,7 @@ def _odometry(url: str, cfg: RadarConfig) -> dict:
 
 
 def test_a_recording_of_an_uncalibrated_board_with_its_line_drives_like_a_perfect_one(tmp_path, measured):
-    """6 s of the furnished room recorded (radar-capture --record from sim://) on the
+    """12 s of the furnished room recorded (radar-capture --record from sim://) on the
     uncalibrated board and on the perfect one; the first replayed (replay://) with its measured
     line in the cfg: yaw-increment and velocity RMSE within 10 % of the perfect board's; with
     the identity line far worse.  (The drift over whole sequences, 18 of them, is in

@@ -6,12 +6,11 @@ radar-cfg warns about such a cfg."""
 from __future__ import annotations
 
 import math
+import subprocess
 
 import numpy as np
 import pytest
 from conftest import console_command
-
-import subprocess
 
 from radarodom.cfg import RadarConfig
 from radarodom.driver.sim.board import load_board
