@@ -207,6 +207,11 @@ class IcpConfig(Settings):
     #: then cannot reach (it ends on the window's edge); the scan guess is independent of ICP.
     #: The window grows only when the two disagree.
     field_window: str = "icp_and_scan"
+    #: Which points a field or scan score averages over: "inside", those inside the heatmap at
+    #: each rotation tried; "common", those inside at every rotation tried.  A mean over the
+    #: points inside at each rotation rises where a rotation turns the weak points at the field
+    #: of view's edge out of the heatmap, and so favours larger rotations (docs/estimator.md).
+    score_support: str = "inside"
     #: With the scan guess and the field refinement: when ICP fails (too few features or
     #: matches) but the scan found structure, measure the yaw by the field search around the
     #: scan guess instead of holding the last yaw rate (the frame keeps its icp_failed /
@@ -230,6 +235,7 @@ class IcpConfig(Settings):
         _check(self.field_smoothing_bins >= 0, "must be >= 0 (0: not smoothed)", "field_smoothing_bins")
         _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
+        check_choice(self.score_support, ("inside", "common"), "score_support")
 
 
 @dataclass
@@ -259,6 +265,13 @@ class OdometryConfig(Settings):
     #: Velocity at the middle of two heatmap frames (paper eq. 2): "interpolate" linearly
     #: between the bracketing velocity estimates, or take the "nearest".
     velocity_sync: str = "interpolate"
+    #: How the previous frame's features are moved to the current sensor position (paper eq.
+    #: 3): "velocity", by the step's mid velocity times its duration, in the previous frame's
+    #: axes (the paper); "chord", that displacement turned by half the step's predicted turn,
+    #: the chord of the arc the sensor drove (the mid velocity is in the mid-step body's axes,
+    #: half a turn from the previous frame's).  Uncorrected, a moving turn's features are moved
+    #: sideways by v dt sin(turn / 2), which the registration reads as extra rotation.
+    rectification: str = "velocity"
     #: Beyond the paper: smooth the measured yaw rate with a Kalman filter (a robot's yaw rate
     #: changes smoothly; frame-to-frame registration noise does not) ...
     yaw_rate_filter: bool = True
@@ -299,6 +312,25 @@ class OdometryConfig(Settings):
     #: every keyframe's error goes into one frame's increment.
     keyframe_noise_rad: float | None = math.radians(1.3)
 
+    #: Where the radar sits on the robot's base: x ahead, y left of the base's rotation axis
+    #: (m), and its yaw on the base (rad).  The odometry stays the radar's; with ``base``
+    #: "wheeled" the mounting lets the Doppler velocity measure the yaw rate.
+    mount_x_m: float = 0.0
+    mount_y_m: float = 0.0
+    mount_yaw_rad: float = 0.0
+    #: Beyond the paper (Kellner et al. 2014): "wheeled", the base cannot slide sideways, so a
+    #: radar mounted ahead of or behind its rotation axis moves sideways at yaw rate times
+    #: ``mount_x_m``: each step's Doppler velocity then measures the yaw rate, fused with the
+    #: heatmap registration (inverse-variance weighted) before the yaw-rate filter, and stands
+    #: in for it when the registration fails.  "any": the velocity says nothing of the yaw.
+    base: str = "any"
+    #: With ``base`` "wheeled": a lever arm shorter than this (m) makes the yaw rate too noisy
+    #: to use (its noise is the sideways velocity's over the lever arm) ...
+    min_lever_arm_m: float = 0.05
+    #: ... and the Doppler yaw rate counts as at least this noise, rad/s (the velocity fit's
+    #: covariance comes from its residuals, which do not see a bias of the fit).
+    doppler_yaw_rate_noise_radps: float = math.radians(2.0)
+
     #: The two models' switch probabilities per frame: from the steady model to the manoeuvre
     #: model, and back.  A turn's start or end takes a few frames, straight drives and steady
     #: turns last tens; the filter starts in the steady model.
@@ -321,6 +353,11 @@ class OdometryConfig(Settings):
 
     def __post_init__(self) -> None:
         _check(self.hold_s >= 0, "must be >= 0", "hold_s")
+        for name in ("mount_x_m", "mount_y_m", "mount_yaw_rad"):
+            _check(math.isfinite(getattr(self, name)), "must be a finite number", name)
+        check_choice(self.base, ("any", "wheeled"), "base")
+        _check(self.min_lever_arm_m > 0, "must be positive", "min_lever_arm_m")
+        _check(self.doppler_yaw_rate_noise_radps > 0, "must be positive", "doppler_yaw_rate_noise_radps")
         _check(0 <= self.yaw_manoeuvre_start_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_start_prob")
         _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
         _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")
@@ -337,6 +374,7 @@ class OdometryConfig(Settings):
                or self.yaw_manoeuvre_accel_std_radps2 > self.yaw_accel_std_radps2,
                "must be above yaw_accel_std_radps2 (or null: one model)", "yaw_manoeuvre_accel_std_radps2")
         check_choice(self.velocity_sync, ("interpolate", "nearest"), "velocity_sync")
+        check_choice(self.rectification, ("velocity", "chord"), "rectification")
         check_choice(self.velocity_fallback, VELOCITY_FALLBACKS, "velocity_fallback")
         _check(self.fallback_cells >= 2, "must be at least 2", "fallback_cells")
         check_choice(self.keyframe_start, KEYFRAME_STARTS, "keyframe_start")

@@ -276,45 +276,59 @@ def correlation_guess(previous_profile: np.ndarray, current_profile: np.ndarray,
 
 
 def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: float,
-               centre_rad: float = 0.0) -> tuple[float, float] | None:
+               centre_rad: float = 0.0, common_support: bool = False) -> tuple[float, float] | None:
     """Rotation (source -> target) that puts the rectified *source* points on the brightest
     part of the target heatmap: the maximum of the weighted mean log intensity sampled at
-    the rotated points, searched over centre +/- max every *step_rad*, refined by a parabola.
+    the rotated points, searched over centre +/- max every *step_rad*, refined by a parabola
+    (*common_support*: see :func:`_scores`).
 
     Returns (rotation, score), the score being that mean log intensity over the target's
     median (natural-log units: ~0 when the heatmaps hold only noise), or None when too
     few points stay inside the heatmap."""
     shifts = centre_rad + _offsets(max_rad, step_rad)
-    scores = _scores(source, target, shifts)
+    scores = _scores(source, target, shifts, common_support)
     best = _peak_at(scores, shifts)
     return None if best is None else (best, float(np.max(scores)))
 
 
-def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray) -> np.ndarray:
+def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray, common_support: bool = False) -> np.ndarray:
     """Weighted mean log intensity of *target* at the *source* points rotated by each of
-    *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside."""
+    *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside.
+
+    With *common_support* the mean is over the points inside the heatmap at every shift: a
+    mean over the points inside at each shift rises where a shift turns weak points (those at
+    the field of view's edge, where the antenna gain falls) out of the heatmap, which favours
+    larger rotations (docs/estimator.md)."""
     values, inside = target.sample_rotated(source.range_m, source.bearing_rad, shifts)
-    enough = np.count_nonzero(inside, axis=1) >= max(3, len(source) // 4)
     weight = source.weight.astype(values.dtype)  # float32 values stay float32 (no upcast copy)
+    if common_support:
+        everywhere = inside.all(axis=0)
+        enough = np.count_nonzero(everywhere) >= max(3, len(source) // 4)
+        weight = weight * everywhere
+        weighted = (values @ weight) / max(float(weight.sum()), 1e-30)
+        return np.full(len(shifts), -np.inf) if not enough else weighted
+    enough = np.count_nonzero(inside, axis=1) >= max(3, len(source) // 4)
     weighted = (values @ weight) / np.maximum(inside @ weight, 1e-30)
     return np.where(enough, weighted, -np.inf)
 
 
 def field_rotation(source: Features, target: Features, source_field: LogHeatmap, target_field: LogHeatmap,
-                   translation: np.ndarray, centre_rad: float, max_rad: float, step_rad: float) -> float | None:
+                   translation: np.ndarray, centre_rad: float, max_rad: float, step_rad: float,
+                   common_support: bool = False) -> float | None:
     """Rotation (source -> target, ``y = R (x - translation)``) within centre +/- max that
     maximises the two-way likelihood field: the mean log intensity of *target_field* at the
     *source* points moved to the target's position and rotated, plus that of *source_field*
     at the *target* points taken back to the source's position; searched every *step_rad*,
     refined by a parabola.  No correspondences: nothing to mismatch along walls.  None when
-    too few points fall inside the heatmaps."""
+    too few points fall inside the heatmaps.  *common_support*: see :func:`_scores`."""
     deltas = _offsets(max_rad, step_rad)
     forward = source.shifted(translation)
     # Back to the source: x = R(-centre) y + translation (a turn of the bearings, then the
     # sensor moved by -translation), then rotated by -delta.
     back = Features(target.range_m, target.bearing_rad - centre_rad, target.weight,
                     target.intensity).shifted(-np.asarray(translation, dtype=float))
-    scores = _scores(forward, target_field, centre_rad + deltas) + _scores(back, source_field, -deltas)
+    scores = (_scores(forward, target_field, centre_rad + deltas, common_support)
+              + _scores(back, source_field, -deltas, common_support))
     best = _peak_at(scores, deltas)
     return None if best is None else centre_rad + best
 

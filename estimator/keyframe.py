@@ -78,7 +78,7 @@ class KeyframeCorrection:
         initial, other = -predicted, None  # the search's start, and what its window spans
         if self._scan_start and key.frame.guide is not None:
             found = scan_guess(key.frame.guide.shifted(t_rel), frame.log, cfg.icp.scan_step_rad, self._search_rad,
-                               initial)
+                               initial, cfg.icp.score_support == "common")
             if found is not None and found[1] >= cfg.icp.min_scan_score:
                 if self._scan_replaces:
                     initial = found[0]

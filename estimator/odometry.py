@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import TimeOrderError
 from .config import EstimatorConfig
+from .doppler_yaw import doppler_yaw_part, fuse
 from .features import PolarHeatmap
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
@@ -95,8 +96,11 @@ class RadarOdometry:
         self.velocities = VelocityTrack(self.config)
         self.yaw = YawMeasurement(self.config, _PROFILE_STEP)
         self.rate = yaw_rate_part(odo)
+        self.doppler_yaw = doppler_yaw_part(odo)
+        self._yaw_noise_var = odo.yaw_noise_rad ** 2
         self.keyframes = KeyframeCorrection(self.config, self.yaw) if odo.keyframe_distance_m > 0 else NoKeyframes()
         self._held_rate_std = odo.held_yaw_rate_std_radps
+        self._chord = odo.rectification == "chord"
         self._previous: KeptFrame | None = None
         self._state: OdometryState | None = None
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate rad/s) of the last measured yaw
@@ -162,14 +166,22 @@ class RadarOdometry:
         flags: list[Flag] = []
         velocity = self.velocities.for_step(previous.t, t, frame.heatmap, flags)
         v = velocity.velocity
-        predicted = -self._good_rate[1] * dt if self.yaw.guess.uses_rate and self._good_rate is not None else 0.0
-        measured = self.yaw.measure(previous, current, frame, v * dt, predicted, flags)
-        if measured.rotation is None:
+        rate = self._good_rate[1] if self._good_rate is not None else 0.0
+        predicted = -rate * dt if self.yaw.guess.uses_rate else 0.0
+        measured = self.yaw.measure(previous, current, frame, self._translation(v, dt, rate * dt), predicted, flags)
+        registered = None if measured.rotation is None else -measured.rotation  # the world turns the other way
+        var_registered = measured.variance
+        doppler = None
+        if self.doppler_yaw is not None and not {Flag.VELOCITY_HELD, Flag.MOTION_LOST} & set(flags):
+            doppler = self.doppler_yaw(v, velocity.covariance)
+            var_registered = max(var_registered, self._yaw_noise_var)  # the filter's floor, before fusing
+        observed, var_observed = fuse(registered, var_registered, doppler, dt)
+        if observed is None:
             self.rate.restart()  # from the next measurement
             dyaw = self._held_rate(t, flags) * dt
             var_yaw = (self._held_rate_std * dt) ** 2 + measured.variance
         else:
-            dyaw, var_yaw = self.rate(-measured.rotation, measured.variance, dt)  # the world turns the other way
+            dyaw, var_yaw = self.rate(observed, var_observed, dt, floored=doppler is not None)
             self._good_rate = (t, dyaw / dt)
             dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame)
         pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt)
@@ -177,8 +189,17 @@ class RadarOdometry:
                               yaw_rate=float(dyaw / dt), pose_covariance=pose_cov, twist_covariance=twist,
                               flags=tuple(flags), features=len(current.features), yaw_increment=float(dyaw),
                               registration=measured.registration, velocity=velocity.estimate)
-        self.keyframes.update(state.pose, current, measured=measured.rotation is not None)
+        self.keyframes.update(state.pose, current, measured=observed is not None)
         return state
+
+    def _translation(self, v: np.ndarray, dt: float, turn: float) -> np.ndarray:
+        """The sensor's displacement over the step in the previous frame's axes, (2,) m: v dt,
+        turned by half the predicted *turn* (rad) with ``rectification`` "chord"."""
+        if not self._chord:
+            return v * dt
+        half = 0.5 * turn
+        c, s = math.cos(half), math.sin(half)
+        return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]]) * dt
 
     def _held_rate(self, t: float, flags: list[Flag]) -> float:
         """The last measured yaw rate while it may stand in (``hold_s``), else 0."""

@@ -118,13 +118,15 @@ class ScanGuess:
         self._step_rad = config.icp.scan_step_rad
         self._max_rad = config.icp.max_rotation_rad
         self._min_score = config.icp.min_scan_score
+        self._common = config.icp.score_support == "common"
 
     def view(self, frame: CurrentFrame) -> Features:
         return extract(frame.heatmap, self._scan_features)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                  predicted: float) -> float | None:
-        found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted)
+        found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted,
+                           self._common)
         if found is None or found[1] < self._min_score:
             return None
         return found[0]
@@ -140,6 +142,7 @@ class FieldSearch:
         self._smoothing_bins = config.icp.field_smoothing_bins
         self._search_rad = config.icp.field_search_rad
         self._step_rad = config.icp.field_step_rad
+        self._common = config.icp.score_support == "common"
 
     def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
         points = guide if self._views_are_scan_points else extract(frame.heatmap, self._scan_features)
@@ -157,7 +160,7 @@ class FieldSearch:
         if other is not None:
             centre, reach = 0.5 * (rotation + other), reach + 0.5 * abs(rotation - other)
         refined = field_rotation(source.points, target.points, source.smoothed, target.smoothed,
-                                 translation, centre, reach, self._step_rad)
+                                 translation, centre, reach, self._step_rad, self._common)
         return rotation if refined is None else refined
 
 

@@ -67,10 +67,11 @@ class FilteredYaw:
             self._switch = ((1.0 - start, start), (end, 1.0 - end))
         self._filter: YawRateFilter | None = None
 
-    def __call__(self, dyaw: float, var_yaw: float, dt: float) -> tuple[float, float]:
+    def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
         """The filtered increment (rad) and its variance (rad^2) for the measured *dyaw* of
-        variance *var_yaw* (taken as at least the configured per-frame noise) over *dt* s."""
-        r = max(var_yaw, self._noise_rad ** 2) / (dt * dt)  # rate measurement variance
+        variance *var_yaw* (taken as at least the configured per-frame noise unless *floored*:
+        a fusion of measurements floored each) over *dt* s."""
+        r = (var_yaw if floored else max(var_yaw, self._noise_rad ** 2)) / (dt * dt)  # rate measurement variance
         if self._filter is None:
             self._filter = YawRateFilter(self._accel, self._switch)
         rate, p = self._filter.update(dyaw / dt, r, dt)
@@ -83,7 +84,7 @@ class FilteredYaw:
 class UnfilteredYaw:
     """The measured yaw increment as it is (``yaw_rate_filter`` off)."""
 
-    def __call__(self, dyaw: float, var_yaw: float, dt: float) -> tuple[float, float]:
+    def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
         return dyaw, var_yaw
 
     def restart(self) -> None:
