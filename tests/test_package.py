@@ -89,6 +89,8 @@ ALLOWED = {
     "driver.emulators": {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.tidemo", "dsp",
                          "ext:serial"},
     "pipeline": DRIVER | {"dsp", "estimator", "messages", "publish"},
+    # The live view: a pipeline sink drawing the results with Rerun (the only part that may import it).
+    "view": {"pipeline", "dsp", "estimator", "ext:rerun"},
 }
 #: Third-party packages whose use is restricted to the parts ALLOWED names them for.
 RESTRICTED = {"zenoh", "rosbags", "serial", "usb", "rerun", "mcap", "mcap_ros2", "matplotlib"}
