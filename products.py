@@ -33,6 +33,11 @@ class RangeAzimuth:
     doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin, m/s
     range_m: np.ndarray  # (n_range,)
     azimuth_rad: np.ndarray  # (n_azimuth,), ascending, positive to the right
+    #: The elevation of each cell's power, rad, positive up (from the raised antennas' phase);
+    #: None where the array has no raised row.  The azimuth axis is arcsin of the direction's
+    #: sideways component: a cell at elevation el lies at azimuth arcsin(sin(az_axis) / cos(el)),
+    #: horizontal range r cos(el), height r sin(el).
+    elevation_rad: np.ndarray | None = None
 
 
 @dataclass

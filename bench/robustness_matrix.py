@@ -224,13 +224,23 @@ def record(cell: SimCell, data: str) -> str:
     return directory
 
 
-def _estimate_sim(cell: SimCell, data: str):
-    import sequences
+def estimator_config(cell: Cell, settings: dict | None = None):
+    """The estimator a cell runs: *settings* (EstimatorConfig.to_dict(), None: the defaults), and
+    for a radar mounted off the rotation axis, the mounting on a wheeled base, as a user gives it
+    (radar-capture --mount --wheeled)."""
     from radarodom.estimator.config import EstimatorConfig
+    config = EstimatorConfig() if settings is None else EstimatorConfig.from_dict(settings)
+    if isinstance(cell, SimCell) and cell.mount_m:
+        config = config.with_(odometry={"mount_x_m": cell.mount_m, "base": "wheeled"})
+    return config
+
+
+def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
+    import sequences
     from radarodom.estimator.odometry import RadarOdometry
     from radarodom.tum import TumTrajectory
     seq = sequences.load(record(cell, data), cell.name)
-    odom = RadarOdometry(EstimatorConfig())
+    odom = RadarOdometry(estimator_config(cell, settings))
     poses = np.zeros((len(seq), 3))
     flagged = 0
     for i in range(len(seq)):
@@ -240,31 +250,39 @@ def _estimate_sim(cell: SimCell, data: str):
     return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged
 
 
-def _estimate_coloradar(cell: ColoradarCell, data: str):
+def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None):
     from radarodom.driver.sources import open_source
     from radarodom.tum import read_tum
     out = os.path.join(data, "coloradar", f"{cell.name}-{hashlib.sha256(cell.url.encode()).hexdigest()[:8]}.tum")
     os.makedirs(os.path.dirname(out), exist_ok=True)
+    extra = []
+    if settings is not None:
+        config_file = out + ".estimator.json"
+        estimator_config(cell, settings).dump(config_file)
+        extra = ["--estimator-config", config_file]
     subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source", cell.url, "--no-publish",
-                    "--odom-out", out, "--overwrite", "-q"], check=True,
+                    "--odom-out", out, "--overwrite", "-q", *extra], check=True,
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     with open_source(cell.url) as source:
         truth = source.groundtruth()
     return read_tum(out), truth, None
 
 
-def run_cell(cell: Cell, data: str, fp: str) -> dict:
-    """The cell's metrics, from its cache or computed (and cached)."""
-    path = os.path.join(data, "results", f"{cell.name}-{cell_key(cell, fp)}.json")
+def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None) -> dict:
+    """The cell's metrics with the estimator *settings* (None: the defaults), from its cache or
+    computed (and cached)."""
+    key_fp = fp if settings is None else fp + json.dumps(settings, sort_keys=True)
+    path = os.path.join(data, "results", f"{cell.name}-{cell_key(cell, key_fp)}.json")
     if os.path.exists(path):
         with open(path, encoding="utf-8") as fh:
             return {**json.load(fh), "cached": True}
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.heading_metrics import heading_metrics
     started = time.monotonic()
-    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data)
+    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings)
     est_m, ref_m = associate(est, truth, 0.01)
-    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2())
+    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(),
+                              base_offset_m=cell.mount_m if isinstance(cell, SimCell) else 0.0)
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
               "compute_s": time.monotonic() - started, "fingerprint": fp}
@@ -307,8 +325,9 @@ def cells(args) -> list[Cell]:
 
 
 def run_all(todo: list[Cell], data: str, *, workers: int | None = None, cluster: str | None = None,
-            log=lambda msg: print(msg, file=sys.stderr)) -> list[dict]:
-    """Every cell's result, in *todo*'s order: on a local process pool, or on a Dask cluster."""
+            settings: dict | None = None, log=lambda msg: print(msg, file=sys.stderr)) -> list[dict]:
+    """Every cell's result, in *todo*'s order, with the estimator *settings* (None: the
+    defaults): on a local process pool, or on a Dask cluster."""
     fp = fingerprint()
     results: dict[int, dict] = {}
 
@@ -323,12 +342,12 @@ def run_all(todo: list[Cell], data: str, *, workers: int | None = None, cluster:
         except ImportError:
             raise SystemExit("--cluster needs Dask distributed: pip install \"dask[distributed]\"") from None
         with Client(cluster) as client:
-            futures = {client.submit(run_cell, c, data, fp, pure=False): i for i, c in enumerate(todo)}
+            futures = {client.submit(run_cell, c, data, fp, settings, pure=False): i for i, c in enumerate(todo)}
             for fut in as_completed(futures):
                 done(futures[fut], fut.result())
     else:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_cell, c, data, fp): i for i, c in enumerate(todo)}
+            futures = {pool.submit(run_cell, c, data, fp, settings): i for i, c in enumerate(todo)}
             for fut in concurrent.futures.as_completed(futures):
                 done(futures[fut], fut.result())
     return [results[i] for i in range(len(todo))]
@@ -375,6 +394,8 @@ def main(argv=None) -> int:
     parser.add_argument("--cluster", metavar="ADDRESS", help="a Dask distributed scheduler, e.g. tcp://host:8786")
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
     parser.add_argument("--out", default="robustness-out")
+    parser.add_argument("--estimator-config", metavar="FILE.json",
+                        help="estimator settings to run (EstimatorConfig.dump; default: the defaults)")
     parser.add_argument("--list", action="store_true", help="print the cells and stop")
     args = parser.parse_args(argv)
     if args.smoke:
@@ -387,7 +408,11 @@ def main(argv=None) -> int:
         print("\n".join(c.name for c in todo))
         return 0
     started = time.monotonic()
-    results = run_all(todo, args.data, workers=args.workers, cluster=args.cluster)
+    settings = None
+    if args.estimator_config:
+        from radarodom.estimator.config import EstimatorConfig
+        settings = EstimatorConfig.load(args.estimator_config).to_dict()
+    results = run_all(todo, args.data, workers=args.workers, cluster=args.cluster, settings=settings)
     header = (f"{len(results)} cells ({sum(r['cached'] for r in results)} from the cache); "
               f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
               f"{time.strftime('%Y-%m-%d')}; {time.monotonic() - started:.0f} s.\n\n")

@@ -42,10 +42,12 @@ class Sequence:
     range_m: np.ndarray
     azimuth_rad: np.ndarray
     groundtruth: TumTrajectory
+    #: (n, n_range, n_az) float32, rad: each cell's elevation; None without a raised antenna row.
+    elevation: np.ndarray | None = None
 
     def heatmap(self, i: int) -> RangeAzimuth:
         return RangeAzimuth(self.intensity[i], self.intensity[i], self.doppler[i], self.range_m,
-                            self.azimuth_rad)
+                            self.azimuth_rad, None if self.elevation is None else self.elevation[i])
 
     def __len__(self) -> int:
         return len(self.times)
@@ -82,12 +84,13 @@ def _key(dsp_config: DspConfig | None, cfg: RadarConfig | None) -> str:
 
 
 class _Arrays(Sink):
-    """Every frame's time, point cloud and full heatmap (intensity and dominant Doppler, float32)."""
+    """Every frame's time, point cloud and full heatmap (intensity, dominant Doppler and, with a
+    raised antenna row, elevation; float32)."""
 
     wants_heatmaps = full_heatmaps = True
 
     def __init__(self) -> None:
-        self.times, self.points, self.intensity, self.doppler = [], [], [], []
+        self.times, self.points, self.intensity, self.doppler, self.elevation = [], [], [], [], []
         self.heatmap: RangeAzimuth | None = None
 
     def write(self, result: FrameResult, stats) -> None:
@@ -96,6 +99,8 @@ class _Arrays(Sink):
         self.heatmap = result.heatmap
         self.intensity.append(result.heatmap.intensity.astype(np.float32))
         self.doppler.append(result.heatmap.doppler_mps.astype(np.float32))
+        if result.heatmap.elevation_rad is not None:
+            self.elevation.append(result.heatmap.elevation_rad.astype(np.float32))
 
 
 def _process(directory: str, dsp_config: DspConfig | None, cfg: RadarConfig | None) -> dict:
@@ -106,6 +111,7 @@ def _process(directory: str, dsp_config: DspConfig | None, cfg: RadarConfig | No
     return dict(times=np.array(arrays.times), counts=np.array([len(p) for p in points]),
                 points=np.concatenate(points) if points else np.zeros(0, POINT_DTYPE),
                 intensity=np.stack(arrays.intensity), doppler=np.stack(arrays.doppler),
+                elevation=np.stack(arrays.elevation) if arrays.elevation else np.zeros(0, np.float32),
                 range_m=arrays.heatmap.range_m, azimuth_rad=arrays.heatmap.azimuth_rad)
 
 
@@ -125,5 +131,6 @@ def load(directory: str, name: str | None = None, *, dsp_config: DspConfig | Non
     return Sequence(name or os.path.basename(os.path.normpath(directory)), directory, data["times"],
                     np.split(data["points"], splits), data["intensity"], data["doppler"],
                     data["range_m"], data["azimuth_rad"],
-                    read_tum(os.path.join(directory, "groundtruth.tum")))
+                    read_tum(os.path.join(directory, "groundtruth.tum")),
+                    data["elevation"] if data["elevation"].size else None)
 

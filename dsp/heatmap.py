@@ -1,7 +1,9 @@
 """Heatmaps: range-azimuth (and range-azimuth-elevation) intensity with Doppler.
 
 Like ColoRadar's heatmaps, each cell has an intensity and the radial velocity
-of its dominant Doppler bin.  Two intensities: over all Doppler bins, and over
+of its dominant Doppler bin; with a raised antenna row (3 TX on the xWR18xx), also the
+elevation of its power: the phase between the raised row's and the azimuth row's beams at the
+cell's azimuth, over all Doppler bins, as the point cloud's elevation is taken per detection.  Two intensities: over all Doppler bins, and over
 the static (zero-Doppler) bins only, which is what scan registration wants.
 
 - Range-azimuth: for every Doppler and range bin the TDM-compensated azimuth
@@ -92,6 +94,15 @@ class HeatmapMaker:
         if self._row_weights is not None:
             moved = np.flatnonzero(np.any(self._row_weights != 1, axis=(1, 2)))
             self._weighted_rows = slice(int(moved[0]), n_row) if len(moved) else slice(0, 0)
+        # The raised row's beams at the azimuth bins, and the cross products a cell's elevation
+        # needs: C = sum_hg R_hg D_ah conj(E_ag), with R the azimuth row x raised row covariance.
+        self._el_elements = np.asarray(processor.el_elements)
+        if len(self._el_elements):
+            el_dft = np.exp(-2j * np.pi * np.outer(k, processor.el_h) / n_az).astype(np.complex64)
+            self._el_dft = el_dft
+            self._el_cross = (self._az_dft_t[:, :, None] * np.conj(el_dft)[:, None, :]).reshape(n_az, -1).T.copy()
+            self._el_weights = (None if self._weights is None else
+                                np.ascontiguousarray(self._weights[:, self._el_elements].T)[:, None, :])
         n_el = elevation_bins or processor.params.elevation_fft_size
         kz = np.arange(n_el) - n_el // 2
         self.elevation_rad = np.arcsin(np.clip(2.0 * kz / n_el, -1.0, 1.0))
@@ -142,6 +153,8 @@ class HeatmapMaker:
         intensity = np.empty((n_az, nr), np.float32)
         static = np.empty((n_az, nr), np.float32)
         best = np.empty((n_az, nr), np.intp)
+        raised = self._raised_row(spectrum)  # (row_el, n_range, n_doppler) or None
+        cross = None if raised is None else np.empty((n_az, nr), np.complex64)
         for r0 in range(0, nr, rb):
             m = min(rb, nr - r0)
             a, p, q = az[:, :m], power[:, :m], scratch[:, :m]
@@ -154,9 +167,12 @@ class HeatmapMaker:
             p.sum(axis=-1, out=intensity[:, r0:r0 + m])
             p[..., self._static_rows].sum(axis=-1, out=static[:, r0:r0 + m])
             p.argmax(axis=-1, out=best[:, r0:r0 + m])
+            if raised is not None:
+                el = np.matmul(self._el_dft, raised[:, r0:r0 + m].reshape(len(raised), m * nd)).reshape(n_az, m, nd)
+                np.einsum("abd,abd->ab", a, np.conj(el), out=cross[:, r0:r0 + m])
         dominant = proc.velocity_mps[best.T].astype(np.float32)
         return RangeAzimuth(np.ascontiguousarray(intensity.T), np.ascontiguousarray(static.T), dominant,
-                            self.range_m, self.azimuth_rad)
+                            self.range_m, self.azimuth_rad, None if cross is None else _elevation(cross.T))
 
     def _range_azimuth_strong(self, spectrum: np.ndarray) -> RangeAzimuth:
         """Intensities from per-range covariances; dominant Doppler for the strongest cells."""
@@ -187,7 +203,25 @@ class HeatmapMaker:
             np.matmul(steer[i:j], self._row[:, r[i], :], out=spectra[i:j])
         best = (spectra.real**2 + spectra.imag**2).argmax(axis=1)
         dominant[r, a] = proc.velocity_mps[best]
-        return RangeAzimuth(intensity, static, dominant, self.range_m, self.azimuth_rad)
+        elevation = None
+        raised = self._raised_row(spectrum)
+        if raised is not None:
+            # The azimuth row x raised row covariance over Doppler bins, (n_range, row, row_el).
+            r_cross = np.matmul(x, np.conj(np.transpose(raised, (1, 2, 0))))
+            elevation = _elevation(r_cross.reshape(nr, -1) @ self._el_cross)
+        return RangeAzimuth(intensity, static, dominant, self.range_m, self.azimuth_rad, elevation)
+
+    def _raised_row(self, spectrum: np.ndarray) -> np.ndarray | None:
+        """The raised row's Doppler spectra, TDM-compensated and calibrated: complex64
+        (row_el, n_range, n_doppler); None without a raised row."""
+        if not len(self._el_elements):
+            return None
+        nd, slots, nrx, _ = spectrum.shape
+        row = spectrum.reshape(nd, slots * nrx, -1)[:, self._el_elements, :len(self.range_m)]  # (nd, row_el, nr)
+        out = np.ascontiguousarray(np.transpose(row, (1, 2, 0)))
+        if self._el_weights is not None:
+            out *= self._el_weights
+        return out
 
     def range_azimuth_elevation(self, spectrum: np.ndarray) -> RangeAzimuthElevation:
         data = self._compensated(spectrum)  # (n_doppler, elements, n_range)
@@ -202,6 +236,13 @@ class HeatmapMaker:
         return RangeAzimuthElevation(intensity.reshape(shape).astype(np.float32),
                                      static.reshape(shape).astype(np.float32),
                                      self.range_m, self.azimuth_rad, self.elevation_rad)
+
+
+def _elevation(cross: np.ndarray) -> np.ndarray:
+    """Elevation (rad, float32) from the azimuth beam x conj(raised beam) products: their
+    phase is pi sin(elevation), as for a detection's elevation (dsp/points.py)."""
+    wz = np.clip(np.angle(cross) / np.pi, -1.0, 1.0)
+    return np.arcsin(wz).astype(np.float32)
 
 
 class CartesianGrid:

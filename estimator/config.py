@@ -115,6 +115,14 @@ class FeatureConfig(Settings):
     #: times k covers them, local maxima and all, for the dynamic rejection, at a fraction of
     #: the full map's cost.
     doppler_cells_per_feature: int = 4
+    #: Beyond the paper: "use" the heatmap's elevation of each cell (when the array has a raised
+    #: row), placing a feature at its horizontal range r cos(el) and horizontal bearing, at its
+    #: height; "ignore" takes every cell as level with the radar.  The azimuth the array
+    #: measures is the sideways direction cosine, cos(el) sin(az): a reflector above or below
+    #: the radar turns by only cos(el) of the radar's turn on the heatmap's azimuth axis, so
+    #: level geometry under-measures turns near tall walls, floors and ceilings, and moves
+    #: elevated reflectors wrongly when features are rectified (docs/estimator.md).
+    elevation: str = "ignore"
 
     @property
     def doppler_cells(self) -> int:
@@ -125,6 +133,7 @@ class FeatureConfig(Settings):
         check_choice(self.method, FEATURE_METHODS, "method")
         _check(self.doppler_cells_per_feature >= 1, "must be at least 1", "doppler_cells_per_feature")
         check_choice(self.weighting, ("linear", "db"), "weighting")
+        check_choice(self.elevation, ("ignore", "use"), "elevation")
         _check(self.k >= 1, "must be at least 1", "k")
         _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")
         _check(self.max_range_m is None or self.max_range_m > self.min_range_m,
@@ -330,6 +339,11 @@ class OdometryConfig(Settings):
     #: ... and the Doppler yaw rate counts as at least this noise, rad/s (the velocity fit's
     #: covariance comes from its residuals, which do not see a bias of the fit).
     doppler_yaw_rate_noise_radps: float = math.radians(2.0)
+    #: ... and is used only where it is at least this large, rad/s: in turns, where heatmap
+    #: registration is weakest.  On straight drives a bias of the Doppler fit's direction (a
+    #: tenth of a degree is 2 mm/s sideways at 1 m/s: 0.4 deg/s over a 0.3 m lever arm) would
+    #: turn the heading steadily; there the registration and the keyframes keep it.
+    doppler_yaw_min_rate_radps: float = math.radians(10.0)
 
     #: The two models' switch probabilities per frame: from the steady model to the manoeuvre
     #: model, and back.  A turn's start or end takes a few frames, straight drives and steady
@@ -358,6 +372,7 @@ class OdometryConfig(Settings):
         check_choice(self.base, ("any", "wheeled"), "base")
         _check(self.min_lever_arm_m > 0, "must be positive", "min_lever_arm_m")
         _check(self.doppler_yaw_rate_noise_radps > 0, "must be positive", "doppler_yaw_rate_noise_radps")
+        _check(self.doppler_yaw_min_rate_radps >= 0, "must be >= 0", "doppler_yaw_min_rate_radps")
         _check(0 <= self.yaw_manoeuvre_start_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_start_prob")
         _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
         _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")

@@ -4,9 +4,11 @@ A base that cannot slide sideways moves at (v, 0) in its own frame while turning
 mounted at (mx, my) on it, yawed by m_yaw, moves at (v - w my, w mx) in the base's axes (Kellner
 et al., "Instantaneous ego-motion estimation using Doppler radar", 2014, cited by the paper).
 The Doppler fit gives the radar's velocity in its own axes, so the base's sideways component,
-divided by the lever arm mx, is the yaw rate: one measurement per step, unbiased by what biases
+divided by the lever arm mx, is the yaw rate: one measurement per step, free of what biases
 heatmap registration (scene structure, the beam's shape), fused with the registration's
-(inverse-variance weighted) before the yaw-rate filter.  Chosen once from the config.
+(inverse-variance weighted) before the yaw-rate filter.  It has a bias of its own (the Doppler
+fit's direction), which a straight drive would integrate: it is used in turns, where it stands
+well above that bias and registration is weakest, and wherever registration measured nothing.  Chosen once from the config.
 """
 
 from __future__ import annotations
@@ -27,9 +29,14 @@ class DopplerYawRate:
         # The base's sideways axis in the radar's axes, over the lever arm: w = row . v_radar.
         self._row = np.array([s, c]) / config.mount_x_m
         self._min_var = config.doppler_yaw_rate_noise_radps ** 2
+        self._min_rate = config.doppler_yaw_min_rate_radps
 
-    def __call__(self, velocity: np.ndarray, covariance: np.ndarray) -> tuple[float, float]:
+    def __call__(self, velocity: np.ndarray, covariance: np.ndarray, registered: bool) -> tuple[float, float] | None:
+        """(rate rad/s, variance (rad/s)^2); None below ``doppler_yaw_min_rate_radps`` when the
+        step's yaw was *registered* (else it is the only measurement there is)."""
         rate = float(self._row @ velocity)
+        if registered and abs(rate) < self._min_rate:
+            return None
         var = float(self._row @ covariance @ self._row) if np.all(np.isfinite(covariance)) else math.inf
         return rate, max(var, self._min_var)
 

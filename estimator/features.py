@@ -38,15 +38,29 @@ class PolarHeatmap(Protocol):
 
 @dataclass
 class Features:
-    """Polar point features in the body frame; arrays (n,)."""
+    """Polar point features in the body frame; arrays (n,).  Range and bearing are horizontal;
+    *height_m* is each feature's height above the radar (None: all level with it)."""
 
     range_m: np.ndarray
     bearing_rad: np.ndarray  # counter-clockwise from x (forward)
     weight: np.ndarray  # normalised: sums to one
     intensity: np.ndarray  # the heatmap's value, linear
+    height_m: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.range_m)
+
+    @functools.cached_property
+    def slant_m(self) -> np.ndarray:
+        """The range the radar measures, (n,) m: horizontal range and height together."""
+        return self.range_m if self.height_m is None else np.hypot(self.range_m, self.height_m)
+
+    @functools.cached_property
+    def cos_elevation(self) -> np.ndarray | None:
+        """Horizontal over slant range, (n,); None when every feature is level (all 1)."""
+        if self.height_m is None:
+            return None
+        return self.range_m / np.maximum(self.slant_m, 1e-12)
 
     @functools.cached_property
     def xy(self) -> np.ndarray:
@@ -57,13 +71,19 @@ class Features:
         return xy
 
     @classmethod
-    def from_xy(cls, xy: np.ndarray, weight: np.ndarray, intensity: np.ndarray) -> "Features":
-        return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity)
+    def from_xy(cls, xy: np.ndarray, weight: np.ndarray, intensity: np.ndarray,
+                height_m: np.ndarray | None = None) -> "Features":
+        return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity, height_m)
+
+    def turned(self, angle_rad: float) -> "Features":
+        """The same points with bearings turned by *angle_rad* (counter-clockwise)."""
+        return Features(self.range_m, self.bearing_rad + angle_rad, self.weight, self.intensity, self.height_m)
 
     def shifted(self, dxy: np.ndarray) -> "Features":
-        """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3)."""
+        """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3);
+        their heights stay."""
         xy = self.xy - np.asarray(dxy, dtype=float)[None, :]
-        out = Features.from_xy(xy, self.weight, self.intensity)
+        out = Features.from_xy(xy, self.weight, self.intensity, self.height_m)
         # The positions are known: ICP would otherwise make them again from range and bearing.
         xy.flags.writeable = False
         out.__dict__["xy"] = xy
@@ -117,7 +137,22 @@ def extract(heatmap: PolarHeatmap, config: FeatureConfig,
         rng, az = _subbin(intensity, ri, ai, heatmap.range_m, heatmap.azimuth_rad)
     else:
         rng, az = heatmap.range_m[ri].astype(float), heatmap.azimuth_rad[ai].astype(float)
-    return Features(rng, -az, _weights(values, intensity, valid, config.weighting), values)
+    weights = _weights(values, intensity, valid, config.weighting)
+    elevation = getattr(heatmap, "elevation_rad", None)
+    if config.elevation == "use" and elevation is not None:
+        rng, az, height = horizontal(rng, az, np.nan_to_num(elevation[ri, ai].astype(float)))
+        return Features(rng, -az, weights, values, height)
+    return Features(rng, -az, weights, values)
+
+
+def horizontal(slant_m: np.ndarray, azimuth_rad: np.ndarray, elevation_rad: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Horizontal range (m), horizontal azimuth (rad, TI frame) and height (m) of cells at
+    *slant_m* on the heatmap's azimuth axis *azimuth_rad* (arcsin of the sideways direction
+    cosine) at elevation *elevation_rad*; all (n,)."""
+    c = np.maximum(np.cos(elevation_rad), 1e-6)
+    az = np.arcsin(np.clip(np.sin(azimuth_rad) / c, -1.0, 1.0))
+    return slant_m * c, az, slant_m * np.sin(elevation_rad)
 
 
 def _top_k(intensity: np.ndarray, valid: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -227,6 +262,11 @@ def heatmap_doppler_points(heatmap: PolarHeatmap, config: FeatureConfig, cells: 
     out = np.zeros(len(ri), dtype=[("azimuth", "f8"), ("elevation", "f8"), ("velocity", "f8")])
     out["azimuth"] = heatmap.azimuth_rad[ai]
     out["velocity"] = doppler[ri, ai]
+    elevation = getattr(heatmap, "elevation_rad", None)
+    if config.elevation == "use" and elevation is not None:
+        el = np.nan_to_num(elevation[ri, ai].astype(float))
+        _, out["azimuth"], _ = horizontal(heatmap.range_m[ri].astype(float), out["azimuth"], el)
+        out["elevation"] = el
     return out
 
 
@@ -289,23 +329,28 @@ class LogHeatmap:
             out._set_values(scipy.ndimage.gaussian_filter(self.values, sigma_bins, mode="nearest"))
         return out
 
-    def sample_rotated(self, range_m: np.ndarray, bearing_rad: np.ndarray,
-                       shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Log intensity at the points (n,) rotated by each of *shifts* (m,): values and
-        whether inside, both (m, n) (values 0 outside).  The same numbers as :meth:`sample`
+    def sample_rotated(self, range_m: np.ndarray, bearing_rad: np.ndarray, shifts: np.ndarray,
+                       cos_elevation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Log intensity at the points (n,) rotated by each of *shifts* (m,) about the vertical:
+        values and whether inside, both (m, n) (values 0 outside).  *range_m* is the range the
+        heatmap measures (slant), *bearing_rad* horizontal; a point at elevation el
+        (*cos_elevation*, None: level) lies at cos(el) sin(bearing) on the azimuth axis.  The same numbers as :meth:`sample`
         up to rounding, computed for speed (it is most of the scan guess's and the field's
         time): the range index once for all rotations, sin(bearing + shift) from the
         angle-sum formula."""
         shifts = np.asarray(shifts, dtype=float)
         if not self._sin_az.uniform:
             # A non-uniform azimuth axis (ColoRadar's) has no arithmetic index: the general path.
-            values = self.sample(range_m[None, :], wrap(bearing_rad[None, :] + shifts[:, None]))
+            values = self.sample(range_m[None, :], wrap(bearing_rad[None, :] + shifts[:, None]),
+                                 None if cos_elevation is None else cos_elevation[None, :])
             inside = np.isfinite(values)
             return np.where(inside, values, 0.0), inside
         na = self.values.shape[1]
         r0, dr, ok_r = self._range_cells(range_m)
         inv_step = 1.0 / self._sin_az.step
         sin_b, cos_b = np.sin(bearing_rad), np.cos(bearing_rad)
+        if cos_elevation is not None:
+            sin_b, cos_b = sin_b * cos_elevation, cos_b * cos_elevation
         sin_s, cos_s = np.sin(shifts), np.cos(shifts)
         # sin(azimuth) / step = -sin(bearing + shift) / step, in float32 like the values (a
         # bin's 1e-7 of rounding is nothing to an interpolation, half the bytes is speed).
@@ -319,16 +364,19 @@ class LogHeatmap:
         inside &= ok_r
         if np.abs(bearing_rad).max(initial=0.0) + np.abs(shifts).max() >= 0.5 * np.pi:
             # Some points may turn past the side, where the sine repeats the front's: only
-            # the front half-plane, cos(bearing + shift) > 0, is inside.
+            # the front half-plane, cos(bearing + shift) > 0, is inside (cos(el) > 0 keeps the sign).
             front = np.multiply.outer(cos_s, cos_b)
             front -= np.multiply.outer(sin_s, sin_b)
             inside &= front > 0.0
         np.clip(fa, 0.0, na - 1, out=fa)
         return np.where(inside, self._bilinear(r0, dr, fa), np.float32(0.0)), inside
 
-    def sample(self, range_m: np.ndarray, bearing_rad: np.ndarray) -> np.ndarray:
-        """Log intensity at body-frame polar points (any shape); NaN outside the heatmap."""
-        fa, ok_a = self._sin_az.fraction(np.sin(-bearing_rad))
+    def sample(self, range_m: np.ndarray, bearing_rad: np.ndarray,
+               cos_elevation: np.ndarray | None = None) -> np.ndarray:
+        """Log intensity at body-frame polar points (any shape; *range_m* slant, *bearing_rad*
+        horizontal, *cos_elevation* None: level); NaN outside the heatmap."""
+        sin_az = np.sin(-bearing_rad) if cos_elevation is None else np.sin(-bearing_rad) * cos_elevation
+        fa, ok_a = self._sin_az.fraction(sin_az)
         r0, dr, ok_r = self._range_cells(range_m)
         inside = ok_a & ok_r & (np.abs(bearing_rad) <= self.region.max_azimuth_rad)
         return np.where(inside, self._bilinear(r0, dr, fa), np.nan)

@@ -61,6 +61,16 @@ class HeadingMetrics:
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in asdict(self).items()}
 
 
+def _base(ref: np.ndarray, offset_m: float) -> np.ndarray:
+    """The poses (n, 3) of the base whose rotation axis is *offset_m* behind the radar at *ref*."""
+    if offset_m == 0.0:
+        return ref
+    out = ref.copy()
+    out[:, 0] -= offset_m * np.cos(ref[:, 2])
+    out[:, 1] -= offset_m * np.sin(ref[:, 2])
+    return out
+
+
 def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: float = 2.0,
                   moving_speed_mps: float = 0.05, min_turn_deg: float = 10.0) -> list[tuple[int, int, bool]]:
     """The truth's turns as (first interval, end interval (exclusive), in place) over the
@@ -86,8 +96,11 @@ def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: floa
 
 
 def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
-                    min_turn_deg: float = 10.0) -> HeadingMetrics:
-    """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*)."""
+                    min_turn_deg: float = 10.0, base_offset_m: float = 0.0) -> HeadingMetrics:
+    """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*).
+    *base_offset_m*: the radar sits this far ahead of the rotation axis of the base that carries
+    it: straight drives and turns in place are told by the base's motion (a radar ahead of the
+    axis moves in a turn in place); the path and drift stay the radar's."""
     times = np.asarray(times, float)
     ref = np.asarray(ref, float)
     est = np.asarray(est, float)
@@ -98,7 +111,8 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
     d_est = _wrap(np.diff(est[:, 2]))
     err = _wrap(d_est - d_ref)
     step_m = np.hypot(*np.diff(ref[:, :2], axis=0).T)
-    speed = step_m / dt
+    base = _base(ref, base_offset_m)
+    speed = np.hypot(*np.diff(base[:, :2], axis=0).T) / dt
     rate_dps = np.degrees(np.abs(d_ref)) / dt
 
     straight = (rate_dps <= straight_rate_dps) & (speed > moving_speed_mps)
@@ -106,7 +120,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
     s_yaw = math.degrees(float(err[straight].sum()))  # the truth turns ~0 there; its ramps' rest removed
     nan = float("nan")
 
-    turns = segment_turns(times, ref, straight_rate_dps=straight_rate_dps, moving_speed_mps=moving_speed_mps,
+    turns = segment_turns(times, base, straight_rate_dps=straight_rate_dps, moving_speed_mps=moving_speed_mps,
                           min_turn_deg=min_turn_deg)
     kinds = {}
     for in_place in (False, True):

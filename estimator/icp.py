@@ -299,7 +299,7 @@ def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray, common_sup
     mean over the points inside at each shift rises where a shift turns weak points (those at
     the field of view's edge, where the antenna gain falls) out of the heatmap, which favours
     larger rotations (docs/estimator.md)."""
-    values, inside = target.sample_rotated(source.range_m, source.bearing_rad, shifts)
+    values, inside = target.sample_rotated(source.slant_m, source.bearing_rad, shifts, source.cos_elevation)
     weight = source.weight.astype(values.dtype)  # float32 values stay float32 (no upcast copy)
     if common_support:
         everywhere = inside.all(axis=0)
@@ -325,8 +325,7 @@ def field_rotation(source: Features, target: Features, source_field: LogHeatmap,
     forward = source.shifted(translation)
     # Back to the source: x = R(-centre) y + translation (a turn of the bearings, then the
     # sensor moved by -translation), then rotated by -delta.
-    back = Features(target.range_m, target.bearing_rad - centre_rad, target.weight,
-                    target.intensity).shifted(-np.asarray(translation, dtype=float))
+    back = target.turned(-centre_rad).shifted(-np.asarray(translation, dtype=float))
     scores = (_scores(forward, target_field, centre_rad + deltas, common_support)
               + _scores(back, source_field, -deltas, common_support))
     best = _peak_at(scores, deltas)

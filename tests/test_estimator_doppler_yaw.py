@@ -100,8 +100,11 @@ def test_fused_with_the_registration_the_turn_is_measured():
 def test_the_yaw_rate_is_the_sideways_velocity_over_the_lever_arm_and_fusion_weights_by_variance():
     part = DopplerYawRate(EstimatorConfig().odometry.__class__(base="wheeled", mount_x_m=0.5,
                                                                doppler_yaw_rate_noise_radps=1e-3))
-    rate, var = part(np.array([0.3, 0.2]), np.diag([1e-4, 4e-4]))
+    rate, var = part(np.array([0.3, 0.2]), np.diag([1e-4, 4e-4]), True)
     assert rate == pytest.approx(0.4) and var == pytest.approx(4e-4 / 0.25)
+    # Below doppler_yaw_min_rate_radps it stands in only for a registration that measured nothing.
+    assert part(np.array([0.3, 0.05]), np.diag([1e-4, 4e-4]), True) is None
+    assert part(np.array([0.3, 0.05]), np.diag([1e-4, 4e-4]), False)[0] == pytest.approx(0.1)
     assert fuse(0.1, 1.0, (2.0, 1.0), 0.1) == pytest.approx(((0.1 + 0.2 / 0.01) / (1 + 100), 1 / 101))
     assert fuse(None, 1.0, (2.0, 1.0), 0.1) == pytest.approx((0.2, 0.01))
     assert fuse(0.1, 1.0, None, 0.1) == (0.1, 1.0)
