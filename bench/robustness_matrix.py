@@ -86,13 +86,16 @@ class SimCell:
     straight_m: float = 3.0
     #: The radar's lever arm ahead of the base's rotation axis, m (the scene's trajectory mount).
     mount_m: float = 0.0
+    #: The simulator's fidelity (radar-sim --fidelity): "fast" records the matrix's hundreds of
+    #: sequences several times quicker; docs/benchmarks.md compares it with "exact" on cells.
+    fidelity: str = "fast"
     kind: str = "sim"
 
     @property
     def name(self) -> str:
         return (f"{self.scene}_s{self.seed}_{self.cfg}_snr{self.snr_db:g}_v{self.speed_mps:g}"
                 f"_w{self.turn_rate_dps:g}_{self.movers}_L{self.straight_m:g}"
-                + (f"_m{self.mount_m:g}" if self.mount_m else ""))
+                + (f"_m{self.mount_m:g}" if self.mount_m else "") + ("_exact" if self.fidelity == "exact" else ""))
 
 
 @dataclass(frozen=True)
@@ -218,7 +221,7 @@ def record(cell: SimCell, data: str) -> str:
         json.dump(scene_spec(cell), fh, indent=1)
     tmp = directory + ".tmp"
     subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene_file, "--seed", str(cell.seed),
-                    "--cfg", CFGS[cell.cfg], "--out", tmp, "--overwrite", "-q"], check=True,
+                    "--cfg", CFGS[cell.cfg], "--fidelity", cell.fidelity, "--out", tmp, "--overwrite", "-q"], check=True,
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     os.replace(tmp, directory)
     return directory
@@ -302,7 +305,8 @@ def cells(args) -> list[Cell]:
     axes = {"cfg": args.cfgs, "snr_db": args.snr, "speed_mps": args.speeds, "turn_rate_dps": args.turn_rates,
             "movers": args.movers, "mount_m": args.mounts}
     for scene, seed in itertools.product(args.scenes, args.seeds):
-        base = dataclasses.replace(BASE, scene=scene, seed=seed, straight_m=args.straight)
+        base = dataclasses.replace(BASE, scene=scene, seed=seed, straight_m=args.straight,
+                                   fidelity=getattr(args, "fidelity", "fast"))
         if args.design == "product":
             variants = [dataclasses.replace(base, **dict(zip(axes, combo))) for combo in itertools.product(*axes.values())]
         else:
@@ -387,6 +391,7 @@ def main(argv=None) -> int:
     parser.add_argument("--movers", nargs="+", choices=["scene", "none", "people"], default=["scene", "none", "people"])
     parser.add_argument("--mounts", nargs="+", type=float, default=[0.0, 0.3], metavar="M",
                         help="the radar's lever arm ahead of the rotation axis")
+    parser.add_argument("--fidelity", choices=["fast", "exact"], default="fast", help="the simulator's (radar-sim)")
     parser.add_argument("--straight", type=float, default=3.0, metavar="M", help="the loop's straights (at most)")
     parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
     parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")

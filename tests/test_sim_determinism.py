@@ -95,3 +95,19 @@ def test_the_exact_product_is_far_finer_than_an_adc_count_and_sums_every_block()
     empty = np.ones((3, 4), np.complex64)
     exact_product(np.zeros((3, 0), np.complex64), np.zeros((0, 4), np.complex64), empty)
     assert not empty.any()
+
+
+def test_radar_sim_fast_fidelity_records_what_sim_fast_streams(tmp_path):
+    """radar-sim --fidelity fast (one BLAS thread, as radar-capture runs it) writes the bytes
+    sim://...&fidelity=fast makes, and says the fidelity in the recording's source."""
+    sim_out, cap_out = tmp_path / "radar_sim", tmp_path / "capture"
+    proc = subprocess.run(console_command("radar-sim") + ["corridor", "--seed", "2", "--duration", "0.5",
+                                                          "--fidelity", "fast", "--out", str(sim_out), "-q"],
+                          env=_blas_env(1), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    proc = subprocess.run(console_command("radar-capture") + [
+        "--source", "sim://corridor?seed=2&rate=max&duration=0.5&fidelity=fast", "--record", str(cap_out),
+        "--no-publish", "--no-odom", "-q"], env=_blas_env(1), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert (sim_out / ADC_DATA).read_bytes() == (cap_out / ADC_DATA).read_bytes()
+    assert "fidelity=fast" in (sim_out / "capture.json").read_text()
