@@ -19,10 +19,11 @@ A session that is not closed keeps the interpreter from exiting (its callback
 threads are not daemons: zenoh-python #434), so :class:`Publisher` is a
 context manager and its :meth:`Publisher.close` always closes the session.
 
-ROS 2 (``ros2=True``): ``nav_msgs/msg/Odometry`` in CDR (rosbags' Jazzy
-typestore) on the key expression rmw_zenoh_cpp uses, with the attachment and
-the liveliness tokens it requires (rmw_zenoh_cpp >= 0.2.4 on Jazzy), so a ROS 2
-node using rmw_zenoh receives it.  Without ``connect`` it also connects to the
+ROS 2 (``ros2=True``): ``nav_msgs/msg/Odometry``, ``sensor_msgs/msg/PointCloud2`` and the TF
+tree (``/tf``: odom -> base_link; ``/tf_static``: base_link -> radar, the *mount*) in CDR
+(rosbags' Jazzy typestore) on the key expressions rmw_zenoh_cpp uses, with the attachment and
+the liveliness tokens it requires (rmw_zenoh_cpp >= 0.2.4 on Jazzy), so a ROS 2 node using
+rmw_zenoh receives them (:mod:`radarodom.ros2`).  Without ``connect`` it also connects to the
 ROS 2 router, :data:`ROS2_ROUTER_ENDPOINT`.
 """
 
@@ -36,8 +37,9 @@ import zenoh
 
 from . import messages, strict_json
 from .errors import PublishError
+from .mount import Mount
 from .products import RangeAzimuth
-from .ros2 import Ros2Odometry, ros2_typestore
+from .ros2 import Ros2Node, ros2_typestore
 # The session's options and opening live in zenoh_session; every name stays importable from
 # here, as before the split.
 from .zenoh_session import (  # noqa: F401
@@ -54,6 +56,8 @@ log.addHandler(logging.NullHandler())
 
 #: The published keys under the prefix.
 KINDS = ("odom", "pointcloud", "heatmap", "status")
+#: The ROS 2 publishers (:class:`radarodom.ros2.Ros2Node`).
+ROS2_KINDS = ("ros2", "ros2_points", "ros2_tf", "ros2_tf_static")
 ALIVE = "alive"
 
 
@@ -86,8 +90,10 @@ class Publisher:
     Methods may be called from any one thread at a time.
     """
 
-    def __init__(self, options: ZenohOptions | None = None) -> None:
+    def __init__(self, options: ZenohOptions | None = None, *, mount: Mount = Mount()) -> None:
         options = options or ZenohOptions()
+        #: Where the radar sits on the robot: the ROS 2 output's base_link -> radar.
+        self.mount = mount
         # rosbags is checked before anything opens: a missing extra is an option error.
         typestore = ros2_typestore() if options.ros2 else None
         self._session, self.options = open_session(options)
@@ -95,8 +101,9 @@ class Publisher:
         self._close_session = weakref.finalize(self, _close_session, self._session)
         self.keys = {kind: self.options.key(kind) for kind in KINDS}
         self._latest = _LatestReply(self.keys["odom"], messages.JSON_ENCODING)
-        #: Messages put per kind (``ros2``: the ROS 2 odometry).
-        self.counts = dict.fromkeys(KINDS + (("ros2",) if options.ros2 else ()), 0)
+        #: Messages put per kind (``ros2``: the ROS 2 odometry; ``ros2_points``, ``ros2_tf``,
+        #: ``ros2_tf_static``: its point clouds and transforms).
+        self.counts = dict.fromkeys(KINDS + (ROS2_KINDS if options.ros2 else ()), 0)
         try:
             self._declare(typestore)
         except BaseException:
@@ -124,9 +131,9 @@ class Publisher:
             }
             self._queryable = session.declare_queryable(keys["odom"], self._latest)
             self._alive = session.liveliness().declare_token(self.options.key(ALIVE))
-            self._ros2 = None if typestore is None else Ros2Odometry(session, self.options, typestore)
+            self._ros2 = None if typestore is None else Ros2Node(session, self.options, typestore, self.mount)
             if self._ros2 is not None:
-                self._publishers["ros2"] = self._ros2.publisher
+                self._publishers.update({kind: topic.publisher for kind, topic in self._ros2.topics.items()})
         except zenoh.ZError as exc:
             raise PublishError(f"cannot declare the publishers under {self.options.key_prefix}: "
                                f"{zenoh_reason(exc)}") from None
@@ -140,6 +147,11 @@ class Publisher:
     def ros2_key(self) -> str | None:
         """The rmw_zenoh key the ROS 2 odometry goes to, or None."""
         return None if self._ros2 is None else self._ros2.key
+
+    @property
+    def ros2_keys(self) -> dict[str, str]:
+        """The rmw_zenoh key of each ROS 2 publisher, by kind (empty without ROS 2)."""
+        return {} if self._ros2 is None else {kind: t.key for kind, t in self._ros2.topics.items()}
 
     @property
     def closed(self) -> bool:
@@ -161,11 +173,16 @@ class Publisher:
         self._put("odom", payload)
         self._latest.payload = payload
         if self._ros2 is not None:
-            self._put("ros2", *self._ros2.encode(state))
+            for kind, ros2_payload, attachment in self._ros2.odometry(state):
+                self._put(kind, ros2_payload, attachment)
 
     def pointcloud(self, frame: int, t: float, points: np.ndarray) -> None:
-        """Publish one frame's point cloud (POINT_DTYPE or any array with the wire fields)."""
+        """Publish one frame's point cloud (POINT_DTYPE or any array with the wire fields; for
+        ROS 2, POINT_DTYPE's)."""
         self._put("pointcloud", messages.encode_pointcloud(frame, t, points))
+        if self._ros2 is not None:
+            for kind, ros2_payload, attachment in self._ros2.pointcloud(t, points):
+                self._put(kind, ros2_payload, attachment)
 
     def heatmap(self, frame: int, t: float, heatmap: RangeAzimuth) -> None:
         """Publish one frame's range-azimuth heatmap (a RangeAzimuth)."""

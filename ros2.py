@@ -1,29 +1,32 @@
-"""ROS 2 without ROS: ``nav_msgs/msg/Odometry`` published over Zenoh as a ROS 2 node using
-rmw_zenoh_cpp (>= 0.2.4, Jazzy) would, so that ``ros2 topic echo`` and every ROS 2 node see it
-through the rmw_zenohd router.
+"""ROS 2 without ROS: radarodom's topics published over Zenoh as a ROS 2 node using
+rmw_zenoh_cpp (>= 0.2.4, Jazzy) would, so that ``ros2 topic echo``, rviz2 and every ROS 2 node
+see them through the rmw_zenohd router.
 
-- :func:`ros2_odometry` builds the message (with any rosbags typestore), serialized as CDR;
 - :data:`ROS2_ATTACHMENT` is the attachment rmw_zenoh_cpp wants on every sample;
 - :func:`ros2_topic_key` and :func:`ros2_liveliness_keys` are rmw_zenoh's key expressions of
-  the topic and of the node's and publisher's liveliness tokens (what puts them in the graph);
-- :class:`Ros2Odometry` declares them on a session and encodes each state
-  (:class:`radarodom.publish.Publisher` uses it with ``--ros2``).
+  a topic and of the node's and a publisher's liveliness tokens (what puts them in the graph);
+- :class:`Ros2Node` declares the node and its publishers on a session: ``nav_msgs/msg/Odometry``
+  (``--ros2-topic``, default ``/radar/odom``), ``sensor_msgs/msg/PointCloud2`` on
+  :data:`POINTS_TOPIC`, ``tf2_msgs/msg/TFMessage`` on ``/tf`` (odom -> base_link) and, transient
+  local as tf2's static broadcaster, on ``/tf_static`` (base_link -> radar), and encodes each
+  message (:class:`radarodom.publish.Publisher` uses it with ``--ros2``).
+
+The messages themselves: :mod:`radarodom.ros2_messages`; the frames: :mod:`radarodom.ros2_frames`.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import struct
 import time
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import zenoh
+import zenoh.ext
 
+from . import ros2_messages
 from .errors import MessageError, PublishConfigError, quoted
-from .messages import CHILD_FRAME_ID, ODOM_FRAME_ID
-from .tum import yaw_quaternion
+from .mount import Mount
 
 if TYPE_CHECKING:  # the estimator is not needed to publish what it made
     from .estimator.odometry import OdometryState
@@ -33,60 +36,29 @@ if TYPE_CHECKING:  # the estimator is not needed to publish what it made
 #: byte sequence (its length 16 as one LEB128 byte, then the bytes).  33 bytes.
 ROS2_ATTACHMENT = struct.Struct("<qqB16s")
 ROS2_GID_BYTES = 16
-ROS2_ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
-#: Covariance given to what a planar odometry does not observe (z, roll, pitch).
-ROS2_UNOBSERVED_VARIANCE = 1e6
-#: Where (x, y, yaw) and (vx, vy, yaw_rate) sit in ROS's 6x6 covariances
-#: (x, y, z, rotation about x, y, z).
-_PLANAR_IN_6D = (0, 1, 5)
+ROS2_ODOMETRY_TYPE = ros2_messages.ODOMETRY
+ROS2_UNOBSERVED_VARIANCE = ros2_messages.UNOBSERVED_VARIANCE
 #: The node's name in the ROS graph.
 ROS2_NODE_NAME = "radarodom"
-#: rmw_zenoh's QoS of the publisher token: reliable, volatile, keep last 10
-#: (only the depth differs from rmw_zenoh's defaults, so only it is written).
+POINTS_TOPIC = "/radar/points"
+TF_TOPIC = "/tf"
+TF_STATIC_TOPIC = "/tf_static"
+#: rmw_zenoh's QoS of a publisher token: reliable, volatile, keep last 10 (only the depth differs
+#: from rmw_zenoh's defaults, so only it is written) ...
 _ROS2_QOS = "::,10:,:,:,,"
+#: ... and of /tf_static, as tf2's static broadcaster: transient local (1), keep last 1.
+_ROS2_QOS_STATIC = ":1:,1:,:,:,,"
+#: rmw_zenoh's heartbeat of a reliable transient-local publisher (s): lets a subscriber that
+#: missed the last sample fetch it from the publisher's cache.
+_STATIC_HEARTBEAT_S = 0.5
+
+ros2_stamp = ros2_messages.stamp
 
 
-def ros2_stamp(t: float) -> tuple[int, int]:
-    """(sec, nanosec) of *t* seconds, nanosec in [0, 1e9)."""
-    # Split first: t * 1e9 of a present-day time in float would lose ~100 ns.
-    sec = math.floor(t)
-    nanosec = round((t - sec) * 1e9)
-    if nanosec == 1_000_000_000:
-        return sec + 1, 0
-    return sec, nanosec
-
-
-def _covariance_6x6(cov3: Any) -> np.ndarray:
-    """ROS's 6x6 covariance (row-major, 36) holding a planar 3x3 one; what a
-    planar odometry cannot see gets :data:`ROS2_UNOBSERVED_VARIANCE`."""
-    out = np.diag(np.full(6, ROS2_UNOBSERVED_VARIANCE))
-    out[np.ix_(_PLANAR_IN_6D, _PLANAR_IN_6D)] = np.asarray(cov3, float)
-    return out.ravel()
-
-
-def ros2_odometry(state: OdometryState, typestore: Any) -> Any:
-    """The ``nav_msgs/msg/Odometry`` of *state* as an instance of *typestore*'s
-    (rosbags) class: stamp from ``t``, frames ``odom`` -> ``base_radar``, the
-    planar pose and twist, and 6x6 covariances from the 3x3 ones."""
-    if not all(math.isfinite(float(v)) for v in (state.t, state.x, state.y, state.yaw,
-                                                 state.vx, state.vy, state.yaw_rate)):
-        raise MessageError("ROS 2 odometry: cannot encode a non-finite value")
-    types = typestore.types
-    vector, point = types["geometry_msgs/msg/Vector3"], types["geometry_msgs/msg/Point"]
-    sec, nanosec = ros2_stamp(float(state.t))
-    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
-                                          frame_id=ODOM_FRAME_ID)
-    qx, qy, qz, qw = (float(v) for v in yaw_quaternion(float(state.yaw)))
-    orientation = types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)
-    pose = types["geometry_msgs/msg/PoseWithCovariance"](
-        pose=types["geometry_msgs/msg/Pose"](position=point(x=float(state.x), y=float(state.y), z=0.0),
-                                             orientation=orientation),
-        covariance=_covariance_6x6(state.pose_covariance))
-    twist = types["geometry_msgs/msg/TwistWithCovariance"](
-        twist=types["geometry_msgs/msg/Twist"](linear=vector(x=float(state.vx), y=float(state.vy), z=0.0),
-                                               angular=vector(x=0.0, y=0.0, z=float(state.yaw_rate))),
-        covariance=_covariance_6x6(state.twist_covariance))
-    return types[ROS2_ODOMETRY_TYPE](header=header, child_frame_id=CHILD_FRAME_ID, pose=pose, twist=twist)
+def ros2_odometry(state: OdometryState, typestore: Any, mount: Mount = Mount()) -> Any:
+    """The ``nav_msgs/msg/Odometry`` of *state* as an instance of *typestore*'s (rosbags) class:
+    odom -> base_link (:func:`radarodom.ros2_messages.odometry`)."""
+    return ros2_messages.odometry(state, typestore.types, mount)
 
 
 def ros2_attachment(sequence: int, timestamp_ns: int, gid: bytes) -> bytes:
@@ -110,14 +82,15 @@ def _dds_type_name(msg_type: str) -> str:
 
 
 def ros2_liveliness_keys(domain: int, zid: str, topic: str, type_hash: str, node: str = ROS2_NODE_NAME,
-                         msg_type: str = ROS2_ODOMETRY_TYPE) -> tuple[str, str]:
+                         msg_type: str = ROS2_ODOMETRY_TYPE, *, entity: int = 10,
+                         qos: str = _ROS2_QOS) -> tuple[str, str]:
     """rmw_zenoh's liveliness tokens of a node (in the root namespace, default
-    enclave) and of its publisher of *topic*: what makes them part of the ROS
-    graph (``ros2 node list``, ``ros2 topic list``)."""
+    enclave) and of its publisher (entity id *entity*) of *topic*: what makes them part of the
+    ROS graph (``ros2 node list``, ``ros2 topic list``)."""
     # /<admin>/<domain>/<zid>/<node id>/<entity id>/<kind>/<enclave>/<namespace>/<node>: "/" is "%".
     node_key = f"@ros2_lv/{domain}/{zid}/0/0/NN/%/%/{node}"
-    publisher_key = (f"@ros2_lv/{domain}/{zid}/0/10/MP/%/%/{node}/{topic.replace('/', '%')}/"
-                     f"{_dds_type_name(msg_type)}/{type_hash}/{_ROS2_QOS}")
+    publisher_key = (f"@ros2_lv/{domain}/{zid}/0/{entity}/MP/%/%/{node}/{topic.replace('/', '%')}/"
+                     f"{_dds_type_name(msg_type)}/{type_hash}/{qos}")
     return node_key, publisher_key
 
 
@@ -130,25 +103,82 @@ def ros2_typestore() -> Any:
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-class Ros2Odometry:
-    """nav_msgs/msg/Odometry as a ROS 2 node using rmw_zenoh_cpp publishes it."""
+class Ros2Topic:
+    """One publisher of a ROS 2 node using rmw_zenoh_cpp: its key, its liveliness token, its gid
+    and sequence numbers.  *transient_local*: late subscribers get the last sample (rmw_zenoh's
+    AdvancedPublisher with a cache of one and publisher detection, as for ``/tf_static``)."""
 
-    def __init__(self, session: zenoh.Session, options: Any, typestore: Any) -> None:
+    def __init__(self, session: zenoh.Session, domain: int, topic: str, msg_type: str, entity: int,
+                 typestore: Any, *, transient_local: bool = False) -> None:
         self._store = typestore
-        type_hash = typestore.hash_rihs01(ROS2_ODOMETRY_TYPE)
-        self.key = ros2_topic_key(options.ros2_domain, options.ros2_topic, type_hash)
-        self.publisher = session.declare_publisher(self.key, priority=zenoh.Priority.REAL_TIME,
-                                                   congestion_control=zenoh.CongestionControl.DROP, express=True)
+        self.topic, self.msg_type = topic, msg_type
+        type_hash = typestore.hash_rihs01(msg_type)
+        typestore.get_msgdef(msg_type)  # its serializer made now, not in the first frame's time
+        self.key = ros2_topic_key(domain, topic, type_hash, msg_type)
+        if transient_local:
+            self.publisher = zenoh.ext.declare_advanced_publisher(
+                session, self.key, congestion_control=zenoh.CongestionControl.DROP,
+                cache=zenoh.ext.CacheConfig(1), publisher_detection=True,
+                sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=None,
+                                                                    sporadic_heartbeat=_STATIC_HEARTBEAT_S))
+        else:
+            self.publisher = session.declare_publisher(self.key, priority=zenoh.Priority.REAL_TIME,
+                                                       congestion_control=zenoh.CongestionControl.DROP,
+                                                       express=True)
         # rmw_zenoh derives its gid from the token; any fixed 16 bytes per publisher serve.
         self._gid = os.urandom(ROS2_GID_BYTES)
         self._sequence = 0
-        liveliness = session.liveliness()
-        self._tokens = [liveliness.declare_token(k) for k in
-                        ros2_liveliness_keys(options.ros2_domain, str(session.zid()), options.ros2_topic, type_hash)]
+        _, token = ros2_liveliness_keys(domain, str(session.zid()), topic, type_hash, msg_type=msg_type,
+                                        entity=entity, qos=_ROS2_QOS_STATIC if transient_local else _ROS2_QOS)
+        self._token = session.liveliness().declare_token(token)
 
-    def encode(self, state: OdometryState) -> tuple[bytes, bytes]:
+    def encode(self, msg: Any) -> tuple[bytes, bytes]:
         """(CDR payload, attachment) of the next sample."""
-        msg = ros2_odometry(state, self._store)
         self._sequence += 1
-        return (bytes(self._store.serialize_cdr(msg, ROS2_ODOMETRY_TYPE)),
+        return (bytes(self._store.serialize_cdr(msg, self.msg_type)),
                 ros2_attachment(self._sequence, time.time_ns(), self._gid))
+
+
+class Ros2Node:
+    """The node ``radarodom`` and its publishers (module docstring), keyed by the
+    :class:`radarodom.publish.Publisher`'s kinds: ``ros2`` (odometry), ``ros2_points``,
+    ``ros2_tf``, ``ros2_tf_static``.  *mount* places the radar on the base (base_link -> radar)."""
+
+    def __init__(self, session: zenoh.Session, options: Any, typestore: Any, mount: Mount = Mount()) -> None:
+        self.types = typestore.types
+        self.mount = mount
+        domain = options.ros2_domain
+        self.topics = {
+            "ros2": Ros2Topic(session, domain, options.ros2_topic, ros2_messages.ODOMETRY, 10, typestore),
+            "ros2_points": Ros2Topic(session, domain, POINTS_TOPIC, ros2_messages.POINTCLOUD2, 11, typestore),
+            "ros2_tf": Ros2Topic(session, domain, TF_TOPIC, ros2_messages.TF, 12, typestore),
+            "ros2_tf_static": Ros2Topic(session, domain, TF_STATIC_TOPIC, ros2_messages.TF, 13, typestore,
+                                        transient_local=True),
+        }
+        node_key, _ = ros2_liveliness_keys(domain, str(session.zid()), options.ros2_topic, "")
+        self._node_token = session.liveliness().declare_token(node_key)
+        self.static_sent = False
+
+    @property
+    def key(self) -> str:
+        """The odometry's key."""
+        return self.topics["ros2"].key
+
+    def odometry(self, state: OdometryState) -> list[tuple[str, bytes, bytes]]:
+        """(kind, payload, attachment) of the odometry and its odom -> base_link transform, and
+        of base_link -> radar before the first."""
+        out = [] if self.static_sent else [self._static(float(state.t))]
+        odometry, tf = ros2_messages.odometry_and_tf(state, self.types, self.mount)
+        out.append(("ros2", *self.topics["ros2"].encode(odometry)))
+        out.append(("ros2_tf", *self.topics["ros2_tf"].encode(tf)))
+        return out
+
+    def pointcloud(self, t: float, points: Any) -> list[tuple[str, bytes, bytes]]:
+        out = [] if self.static_sent else [self._static(t)]
+        out.append(("ros2_points", *self.topics["ros2_points"].encode(ros2_messages.pointcloud2(t, points, self.types))))
+        return out
+
+    def _static(self, t: float) -> tuple[str, bytes, bytes]:
+        self.static_sent = True
+        return ("ros2_tf_static", *self.topics["ros2_tf_static"].encode(ros2_messages.tf_mount(t, self.types,
+                                                                                               self.mount)))

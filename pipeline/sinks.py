@@ -8,6 +8,9 @@ processing fails.  A new output is a new sink, not an edit of the loop.
 
 - :class:`CaptureSink`: the raw frames, recorded to a new capture directory (before processing).
 - :class:`TumSink`: the odometry, one TUM line per heatmap frame.
+- :class:`OdometryJsonSink`: the odometry as JSON lines: each line exactly the odometry message
+  radarodom publishes (``radarodom/odom`` v1, :mod:`radarodom.messages`), what
+  ``radar-echo --json odom`` prints and ``radar-eval --flags`` reads.
 - :class:`PointsCsvSink`: point clouds as CSV: ``frame, t, x, y, z, range, azimuth, elevation,
   velocity, snr_db`` (TI sensor frame, m, rad, m/s, dB), one row per point, rows of a frame
   together, flushed frame by frame.
@@ -27,6 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import messages
 from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
 from ..driver.sources import Frame, Source
 from ..errors import CaptureError, CaptureExistsError
@@ -117,6 +121,32 @@ class TumSink(Sink):
         self._writer.close()
 
 
+def _new_text_file(path: str | os.PathLike):
+    """A new text file (ASCII, "\\n" lines), or the package's error saying why not."""
+    try:
+        return open(path, "x", encoding="ascii", newline="\n")
+    except FileExistsError:
+        raise CaptureExistsError(f"{os.fspath(path)} already exists; choose a new file") from None
+    except OSError as exc:
+        raise CaptureError(f"cannot create {os.fspath(path)}: {exc.strerror or exc}") from None
+
+
+class OdometryJsonSink(Sink):
+    """The odometry as a new JSON-lines file (module docstring), flushed line by line."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = os.fspath(path)
+        self._fh = _new_text_file(path)
+
+    def write(self, result: FrameResult, stats: PipelineStats) -> None:
+        if result.state is not None:
+            self._fh.write(messages.odometry_json(result.state).decode("ascii") + "\n")
+            self._fh.flush()
+
+    def close(self, stats: PipelineStats | None = None) -> None:
+        self._fh.close()
+
+
 POINT_COLUMNS = ("x", "y", "z", "range", "azimuth", "elevation", "velocity", "snr_db")
 
 
@@ -124,12 +154,7 @@ class PointsCsvSink(Sink):
     """Every point cloud as rows of a new CSV file (module docstring)."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        try:
-            self._fh = open(path, "x", encoding="ascii", newline="\n")
-        except FileExistsError:
-            raise CaptureExistsError(f"{os.fspath(path)} already exists; choose a new file") from None
-        except OSError as exc:
-            raise CaptureError(f"cannot create {os.fspath(path)}: {exc.strerror or exc}") from None
+        self._fh = _new_text_file(path)
         self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
         self._fh.flush()
 

@@ -287,7 +287,7 @@ def test_ros2_odometry_through_rosbags_cdr():
     assert cdr[:4] == b"\x00\x01\x00\x00"  # CDR, little-endian
     msg = store.deserialize_cdr(cdr, "nav_msgs/msg/Odometry")
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1000, 250_000_000)
-    assert (msg.header.frame_id, msg.child_frame_id) == ("odom", "base_radar")
+    assert (msg.header.frame_id, msg.child_frame_id) == ("odom", "base_link")  # no mount: the radar's motion
     p, q = msg.pose.pose.position, msg.pose.pose.orientation
     assert (p.x, p.y, p.z) == (1.5, -0.25, 0.0)
     assert 2 * math.atan2(q.z, q.w) == pytest.approx(2.5) and q.x == q.y == 0.0

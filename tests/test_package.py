@@ -73,7 +73,11 @@ ALLOWED = {
     "messages": {"message_format"},
     "publish": {"messages", "ros2", "zenoh_session", "ext:zenoh", "ext:rosbags"},
     "zenoh_session": {"ext:zenoh"},
-    "ros2": {"messages", "ext:zenoh", "ext:rosbags"},
+    "ros2": {"messages", "ros2_messages", "ext:zenoh", "ext:rosbags"},
+    # The ROS 2 messages (from a rosbags typestore given), the frames' arithmetic, the MCAP bag.
+    "ros2_messages": {"ros2_frames"},
+    "ros2_frames": {"message_format"},
+    "ros2_bag": {"ext:mcap"},
     "dsp": set(),
     "estimator": {"dsp"},
     "driver.sources": set(),
@@ -88,7 +92,8 @@ ALLOWED = {
     # heatmap): with radarodom's DSP in TI's mode, and the tidemo wire format.
     "driver.emulators": {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.tidemo", "dsp",
                          "ext:serial"},
-    "pipeline": DRIVER | {"dsp", "estimator", "messages", "publish"},
+    "pipeline": DRIVER | {"dsp", "estimator", "messages", "publish", "ros2", "ros2_bag", "ros2_frames",
+                          "ros2_messages"},
     # The live view: a pipeline sink drawing the results with Rerun (the only part that may import it).
     "view": {"pipeline", "dsp", "estimator", "ext:rerun"},
 }

@@ -33,7 +33,7 @@ from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
-from . import cli
+from . import cli, ros_outputs
 from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
 from .zenoh_args import add_zenoh_arguments
 
@@ -88,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="do not run the estimator (capture, record and DSP exports only)")
     parser.add_argument("--estimator-config", metavar="FILE.json",
                         help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones)")
+    ros_outputs.add_arguments(parser)
     cli.add_overwrite(parser)
     parser.add_argument("--no-publish", action="store_true",
                         help="do not publish over Zenoh (offline runs and evaluation)")
@@ -220,7 +221,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         if defaulted and args.source == DEFAULT_SIM_URL:
             log.warning("%s", _default_sim_note(source))
         _check_source_and_outputs(args, source)
-        publisher = None if zenoh_options is None else session.enter_context(_open_publisher(zenoh_options))
+        publisher = None if zenoh_options is None else session.enter_context(_open_publisher(zenoh_options, args.mount))
         summary = _run(args, source, publisher, status)
     print(f"radar-capture: {summary}")
     return 0
@@ -240,10 +241,10 @@ def _zenoh_options(args: argparse.Namespace):
     return options_from_args(args)
 
 
-def _open_publisher(options):
+def _open_publisher(options, mount):
     from ..publish import Publisher
 
-    return Publisher(options)
+    return Publisher(options, mount=mount)
 
 
 def _check_source_and_outputs(args: argparse.Namespace, source: Source) -> None:
@@ -258,12 +259,13 @@ def _outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
     """(path, kind) of every output asked for; kind as :func:`cli.replace_output` takes it."""
     outputs = [(args.record, "capture"), (args.heatmap_out, "heatmaps"), (args.points_out, "file"),
                (None if args.no_odom else args.odom_out, "file")]
-    return [(path, kind) for path, kind in outputs if path]
+    return [(path, kind) for path, kind in outputs if path] + ros_outputs.outputs(args)
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Every file output is new (or, with --overwrite, replaceable): checked before anything
     is created, so a refusal leaves nothing behind."""
+    ros_outputs.check(args)
     for path, kind in _outputs(args):
         if kind == "capture" and not (args.overwrite and os.path.exists(path)):
             continue  # a capture directory is checked by its writer (which makes its parents)
@@ -284,6 +286,7 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
             sinks.append(PointsCsvSink(args.points_out))
         if args.odom_out and not args.no_odom:
             sinks.append(TumSink(args.odom_out))
+        sinks += ros_outputs.build_sinks(args, source)
     except BaseException:
         for sink in sinks:
             sink.close(PipelineStats())  # no frame yet: a capture directory is removed

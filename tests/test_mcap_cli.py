@@ -1,0 +1,149 @@
+"""radar-capture --mcap, --odom-json and --mount as a user runs them (the installed console
+script, in a subprocess): any recording converts (a capture directory replayed at full speed, a
+ColoRadar run), a recording killed with SIGKILL stays readable up to its last chunk, and the
+options' refusals (an existing file, --odom-json without the estimator, a bad mount)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import time
+from collections import Counter
+
+import pytest
+from conftest import console_command
+
+pytest.importorskip("rosbags.typesys")
+mcap_reader = pytest.importorskip("mcap.reader")
+mcap_ros2_decoder = pytest.importorskip("mcap_ros2.decoder")
+from mcap.exceptions import EndOfFile  # noqa: E402
+from mcap.records import Channel, Message, Schema  # noqa: E402
+from mcap.stream_reader import StreamReader  # noqa: E402
+
+from coloradar_synth import write_run  # noqa: E402
+
+CAPTURE = console_command("radar-capture")
+
+
+def capture(*args, timeout=300, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run(CAPTURE + [str(a) for a in args] + ["--no-publish", "-q"], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def topics(path) -> dict[str, list]:
+    """Decoded messages by topic (mcap-ros2-support), from a complete file."""
+    out: dict[str, list] = {}
+    with open(path, "rb") as fh:
+        reader = mcap_reader.make_reader(fh, validate_crcs=True, decoder_factories=[mcap_ros2_decoder.DecoderFactory()])
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            out.setdefault(channel.topic, []).append(msg)
+    return out
+
+
+@pytest.fixture(scope="module")
+def corridor(tmp_path_factory):
+    """A capture directory of the simulated corridor (1 s, with its ground truth)."""
+    out = tmp_path_factory.mktemp("rec") / "corridor"
+    subprocess.run(console_command("radar-sim") + ["corridor", "--duration", "1", "--out", str(out), "-q"],
+                   check=True, timeout=300, stdin=subprocess.DEVNULL)
+    return out
+
+
+def test_a_recording_converts_at_full_speed_with_the_mount_and_the_odometry_lines(corridor, tmp_path):
+    out, lines = tmp_path / "run.mcap", tmp_path / "odom.jsonl"
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--odom-json", lines,
+                   "--mount", "0.3,0,0.2,90")
+    assert proc.returncode == 0, proc.stderr
+    frames = len((corridor / "timestamps.txt").read_text().split())
+    got = topics(out)
+    assert {k: len(v) for k, v in got.items() if k != "/diagnostics"} == {
+        "/tf_static": 1, "/radar/odom": frames, "/tf": frames, "/radar/points": frames, "/radar/heatmap": frames,
+        "/radar/heatmap/axes": frames, "/radar/groundtruth": frames}
+    mount = got["/tf_static"][0].transforms[0].transform
+    assert (mount.translation.x, mount.translation.y, mount.translation.z) == (0.3, 0.0, 0.2)
+    assert 2 * math.atan2(mount.rotation.z, mount.rotation.w) == pytest.approx(math.pi / 2)
+    odometry = [json.loads(line) for line in lines.read_text().splitlines()]
+    assert [o["frame"] for o in odometry] == list(range(frames))
+    assert [o["t"] for o in odometry] == pytest.approx([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+                                                        for m in got["/radar/odom"]], abs=1e-9)
+
+    # Outputs are never overwritten unasked; --overwrite replaces both.
+    out.write_bytes(b"mine")
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--frames", "2")
+    assert proc.returncode == 2 and "already exists" in proc.stderr and "Traceback" not in proc.stderr
+    assert out.read_bytes() == b"mine"
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--odom-json", lines,
+                   "--frames", "2", "--overwrite")
+    assert proc.returncode == 0, proc.stderr
+    assert len(topics(out)["/radar/odom"]) == 2 and len(lines.read_text().splitlines()) == 2
+
+
+def test_a_coloradar_run_converts(tmp_path):
+    run = write_run(tmp_path, "ec_hallways_run0", frames=6)
+    out = tmp_path / "run.mcap"
+    proc = capture("--source", f"coloradar://{run}?rate=max", "--mcap", out, "--odom-json", tmp_path / "odom.jsonl")
+    assert proc.returncode == 0, proc.stderr
+    got = topics(out)
+    states = len((tmp_path / "odom.jsonl").read_text().splitlines())
+    assert states >= 2 and len(got["/radar/odom"]) == len(got["/tf"]) == states
+    assert got["/radar/points"] and got["/radar/heatmap"] and got["/radar/groundtruth"]
+    assert {m.header.frame_id for m in got["/radar/points"]} == {"radar"}
+
+
+def test_a_recording_killed_with_sigkill_reads_back_up_to_its_last_chunk(corridor, tmp_path):
+    out = tmp_path / "run.mcap"
+    proc = subprocess.Popen(CAPTURE + ["--source", f"replay://{corridor}?rate=max&loop=0", "--mcap", str(out),
+                                       "--no-publish", "-q"], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 300  # a hang guard, not a speed limit
+        while not (out.exists() and out.stat().st_size > (2 << 20)):  # two chunks or more on disk
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "no chunks written"
+            time.sleep(0.2)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=60)
+        proc.stderr.close()
+    assert proc.returncode == -signal.SIGKILL
+    # No summary and no end magic: the indexed reader refuses, a reader that scans takes every
+    # whole chunk, in order, and stops at the cut.
+    with open(out, "rb") as fh, pytest.raises(Exception):
+        mcap_reader.make_reader(fh).get_summary()
+    schemas, channels, found = {}, {}, []
+    with open(out, "rb") as fh:
+        with pytest.raises(EndOfFile):
+            for record in StreamReader(fh, validate_crcs=True).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Message):
+                    found.append(record)
+    factory = mcap_ros2_decoder.DecoderFactory()
+    by_topic = Counter()
+    frames = []
+    for message in found:
+        channel = channels[message.channel_id]
+        msg = factory.decoder_for(channel.message_encoding, schemas[channel.schema_id])(message.data)
+        by_topic[channel.topic] += 1
+        if channel.topic == "/radar/odom":
+            frames.append(message.log_time)
+    assert by_topic["/tf_static"] == 1 and by_topic["/radar/odom"] >= 20
+    assert by_topic["/radar/odom"] == by_topic["/radar/points"] == by_topic["/radar/heatmap"]
+    assert frames == sorted(frames) and frames[0] == 0 and len(set(frames)) == len(frames)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--no-odom", "--odom-json", "x.jsonl"], "--no-odom turns the estimator off"),
+    (["--mount", "0.3,0,0"], "a mount is x,y,z,yaw_deg"),
+    (["--mount", "0.3,0,0,nan"], "mount yaw_deg"),
+])
+def test_refusals_name_the_option(tmp_path, args, message):
+    proc = capture("--source", "sim://corridor?rate=max&duration=0.2", *args, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "x.jsonl").exists()

@@ -1,0 +1,172 @@
+"""The ROS 2 output's point clouds and TF tree (radarodom.ros2.Ros2Node through the Publisher),
+tested as the odometry is in test_publish.py: real Zenoh sessions on loopback subscribe to the
+key expressions an rmw_zenoh_cpp subscription declares, and every sample is checked for its
+key, type hash, attachment, liveliness token and CDR (decoded by rosbags) against what was
+published.  /tf_static is transient local: a subscriber that joins later gets it, as
+rmw_zenoh's does (zenoh's advanced subscriber asking the publisher's cache)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+import zenoh
+from frames_helpers import base_in_odom, mount_matrix, of_msg
+from zenoh_helpers import Inbox, estimator_run, free_endpoint, peer, subscribe, wait_for
+
+from radarodom import ros2
+from radarodom.mount import Mount
+from radarodom.publish import Publisher, ZenohOptions
+
+typesys = pytest.importorskip("rosbags.typesys")
+
+MOUNT = Mount(0.4, 0.1, 0.3, math.radians(-20.0))
+TYPES = {"ros2": "nav_msgs/msg/Odometry", "ros2_points": "sensor_msgs/msg/PointCloud2",
+         "ros2_tf": "tf2_msgs/msg/TFMessage", "ros2_tf_static": "tf2_msgs/msg/TFMessage"}
+TOPICS = {"ros2": "/radar/odom", "ros2_points": "/radar/points", "ros2_tf": "/tf", "ros2_tf_static": "/tf_static"}
+
+
+@pytest.fixture(scope="module")
+def run():
+    return estimator_run(frames=12)
+
+
+@pytest.fixture(scope="module")
+def store():
+    return typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+
+
+def expected_key(store, kind: str, domain: int = 0) -> str:
+    package, kind_, name = TYPES[kind].split("/")
+    return f"{domain}/{TOPICS[kind].strip('/')}/{package}::{kind_}::dds_::{name}_/{store.hash_rihs01(TYPES[kind])}"
+
+
+def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
+    endpoint = free_endpoint()
+    options = ZenohOptions(listen=[endpoint], connect=(), ros2=True)
+    with Publisher(options, mount=MOUNT) as pub, peer(connect=[endpoint]) as session:
+        assert pub.ros2_keys == {kind: expected_key(store, kind) for kind in TYPES}
+        inboxes = {kind: subscribe(session, key) for kind, key in pub.ros2_keys.items() if kind != "ros2_tf_static"}
+        # /tf_static as rmw_zenoh subscribes to a transient-local topic: its put may go before the
+        # subscription is known, and the subscriber then fetches it from the publisher's cache.
+        inboxes["ros2_tf_static"] = Inbox()
+        static_sub = zenoh.ext.declare_advanced_subscriber(
+            session, pub.ros2_keys["ros2_tf_static"], inboxes["ros2_tf_static"],
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
+        assert wait_for(lambda: all(pub._publishers[k].matching_status.matching for k in ("ros2", "ros2_points",
+                                                                                          "ros2_tf")))
+        for i, (state, points, _) in enumerate(run):
+            pub.odometry(state)
+            pub.pointcloud(i, state.t, points)
+            assert wait_for(lambda: len(inboxes["ros2_points"].samples) == i + 1), i
+        assert wait_for(lambda: len(inboxes["ros2_tf"].samples) == len(run))
+        assert wait_for(lambda: len(inboxes["ros2_tf_static"].samples) == 1, 10.0)
+        time.sleep(0.2)  # a second copy would arrive by now
+        static_sub.undeclare()
+        tokens = sorted(str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/0/**", timeout=1.0)
+                        if r.ok is not None)
+        zid = pub.zid
+        counts = dict(pub.counts)
+    assert counts["ros2"] == counts["ros2_points"] == counts["ros2_tf"] == len(run)
+    assert counts["ros2_tf_static"] == 1
+
+    # Point clouds: the radar's REP-103 frame, every point, its velocity, SNR and noise.
+    for (_, _, payload, _), (state, points, _) in zip(inboxes["ros2_points"].samples, run):
+        cloud = store.deserialize_cdr(payload, TYPES["ros2_points"])
+        assert cloud.header.frame_id == "radar" and cloud.width == len(points) and cloud.height == 1
+        assert cloud.header.stamp.sec + cloud.header.stamp.nanosec * 1e-9 == pytest.approx(state.t, abs=1e-9)
+        offsets = {f.name: f.offset for f in cloud.fields}
+        data = bytes(cloud.data)
+        def column(name):
+            return np.ndarray(len(points), "<f4", data, offsets[name], (cloud.point_step,))
+        np.testing.assert_array_equal(column("x"), points["y"])
+        np.testing.assert_array_equal(column("y"), -points["x"])
+        np.testing.assert_array_equal(column("velocity"), points["velocity"])
+        np.testing.assert_array_equal(column("snr"), points["snr_db"])
+    # /tf: odom -> base_link, the base's pose through the mount, as the odometry's.
+    for (_, _, payload, _), (_, _, odom_payload, _), (state, _, _) in zip(inboxes["ros2_tf"].samples,
+                                                                       inboxes["ros2"].samples, run):
+        (tf,) = store.deserialize_cdr(payload, TYPES["ros2_tf"]).transforms
+        odom = store.deserialize_cdr(odom_payload, TYPES["ros2"])
+        assert (tf.header.frame_id, tf.child_frame_id) == ("odom", "base_link") == \
+            (odom.header.frame_id, odom.child_frame_id)
+        expected = base_in_odom(state, MOUNT)
+        np.testing.assert_allclose(of_msg(tf.transform.translation, tf.transform.rotation), expected, atol=1e-9)
+        np.testing.assert_allclose(of_msg(odom.pose.pose.position, odom.pose.pose.orientation), expected, atol=1e-9)
+    # /tf_static: base_link -> radar, once, before the first odometry.
+    (static,) = inboxes["ros2_tf_static"].samples
+    (mount_tf,) = store.deserialize_cdr(static[2], TYPES["ros2_tf_static"]).transforms
+    assert (mount_tf.header.frame_id, mount_tf.child_frame_id) == ("base_link", "radar")
+    np.testing.assert_allclose(of_msg(mount_tf.transform.translation, mount_tf.transform.rotation),
+                               mount_matrix(MOUNT), atol=1e-12)
+
+    # rmw_zenoh's attachment on every sample: sequence numbers from 1 per publisher, a gid each.
+    gids = {}
+    for kind, inbox in inboxes.items():
+        fields = [ros2.ROS2_ATTACHMENT.unpack(attachment) for _, _, _, attachment in inbox.samples]
+        assert [seq for seq, _, _, _ in fields] == list(range(1, len(fields) + 1)), kind
+        assert {n for _, _, n, _ in fields} == {16} and all(abs(ns - time.time_ns()) < 60e9 for _, ns, _, _ in fields)
+        (gids[kind],) = {gid for _, _, _, gid in fields}
+    assert len(set(gids.values())) == len(TYPES)
+
+    # The graph: the node and one publisher token per topic, with distinct entity ids and the
+    # QoS tf2 uses (/tf_static transient local, keep last 1).
+    node = f"@ros2_lv/0/{zid}/0/0/NN/%/%/radarodom"
+    assert node in tokens and len(tokens) == 5
+    publishers = {}
+    for token in tokens:
+        parts = token.split("/")
+        if parts[5] == "MP":
+            assert len(parts) == 13 and parts[8] == "radarodom"
+            publishers[parts[9].replace("%", "/")] = (parts[4], parts[10], parts[11], parts[12])
+    assert set(publishers) == set(TOPICS.values())
+    assert len({entity for entity, _, _, _ in publishers.values()}) == 4
+    for kind, topic in TOPICS.items():
+        _, dds, type_hash, qos = publishers[topic]
+        assert pub.ros2_keys[kind].split("/")[-2:] == [dds, type_hash]
+        assert qos == (":1:,1:,:,:,," if topic == "/tf_static" else "::,10:,:,:,,")
+
+
+def test_a_late_subscriber_gets_the_static_transform(store, run):
+    endpoint = free_endpoint()
+    with Publisher(ZenohOptions(listen=[endpoint], connect=(), ros2=True), mount=MOUNT) as pub:
+        pub.odometry(run[0][0])  # /tf_static goes out with the first message, to nobody
+        with peer(connect=[endpoint]) as session:
+            inbox = Inbox()
+            # What rmw_zenoh declares for a transient-local subscription.
+            sub = zenoh.ext.declare_advanced_subscriber(
+                session, pub.ros2_keys["ros2_tf_static"], inbox,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
+            try:
+                assert wait_for(lambda: len(inbox.samples) == 1, 10.0)
+            finally:
+                sub.undeclare()
+    (_, _, payload, attachment) = inbox.samples[0]
+    (mount_tf,) = store.deserialize_cdr(payload, TYPES["ros2_tf_static"]).transforms
+    assert mount_tf.child_frame_id == "radar" and mount_tf.transform.translation.x == pytest.approx(MOUNT.x)
+    assert ros2.ROS2_ATTACHMENT.unpack(attachment)[0] == 1
+
+
+def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store):
+    from test_cli_capture import run_capture_cli
+
+    here = free_endpoint()
+    keys = {kind: expected_key(store, kind) for kind in TYPES}
+    with peer(listen=[here]) as session:
+        inboxes = {kind: subscribe(session, key) for kind, key in keys.items()}
+        proc = run_capture_cli("--source", "sim://corridor?duration=1", "--ros2", "--mount", "0.4,0.1,0.3,-20",
+                               "--connect", here, "--listen", free_endpoint(), timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        assert wait_for(lambda: len(inboxes["ros2_tf"].samples) >= 10, 5.0)
+    assert {kind: len(inbox.samples) for kind, inbox in inboxes.items()} == \
+        {"ros2": 10, "ros2_points": 10, "ros2_tf": 10, "ros2_tf_static": 1}
+    points = [store.deserialize_cdr(p, TYPES["ros2_points"]) for _, _, p, _ in inboxes["ros2_points"].samples]
+    assert {p.header.frame_id for p in points} == {"radar"} and sum(p.width for p in points) > 0
+    stamps = [(t.header.stamp.sec, t.header.stamp.nanosec) for m in inboxes["ros2_tf"].samples
+              for t in store.deserialize_cdr(m[2], TYPES["ros2_tf"]).transforms]
+    assert stamps == sorted(stamps) and stamps[0] == (0, 0)
+    (mount_tf,) = store.deserialize_cdr(inboxes["ros2_tf_static"].samples[0][2], TYPES["ros2_tf"]).transforms
+    assert (mount_tf.transform.translation.x, mount_tf.transform.translation.y,
+            mount_tf.transform.translation.z) == (0.4, 0.1, 0.3)

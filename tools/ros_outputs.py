@@ -1,0 +1,68 @@
+"""radar-capture's robot-facing outputs: where the radar sits (``--mount``), the ROS 2 bag
+(``--mcap FILE``) and the odometry as JSON lines (``--odom-json FILE``); their options, their
+checks and their sinks, so that radar_capture.py only calls in."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..errors import UsageError
+from ..mount import Mount, parse_mount
+
+
+def _mount(text: str) -> Mount:
+    try:
+        return parse_mount(text)
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """--mount, --mcap, --odom-json."""
+    parser.add_argument("--mount", type=_mount, default=Mount(), metavar="X,Y,Z,YAW_DEG",
+                        help="where the radar sits on the robot: its position in base_link (m, REP-103: x ahead, "
+                             "y left, z up) and its yaw (degrees, counter-clockwise); the ROS 2 outputs' "
+                             "base_link -> radar transform (default: the radar is base_link)")
+    parser.add_argument("--mcap", metavar="FILE.mcap",
+                        help="write a ROS 2 bag (MCAP: odometry, TF, point clouds, heatmaps, diagnostics, ground "
+                             'truth) to this new file (needs pip install "radarodom[ros2]")')
+    parser.add_argument("--odom-json", metavar="FILE.jsonl",
+                        help="write every odometry message (as published, one JSON object per line) to this "
+                             "new file")
+
+
+def check(args: argparse.Namespace) -> None:
+    """Refuse what cannot be done as asked, before anything opens."""
+    if args.no_odom and args.odom_json:
+        raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-json")
+    if args.mcap:
+        # The libraries are checked before any output opens: a missing extra is an option error.
+        from ..ros2 import ros2_typestore
+        from ..ros2_bag import _mcap
+
+        ros2_typestore()
+        _mcap()
+
+
+def outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """(path, "file") of each output asked for, for radar-capture's new-file and --overwrite checks."""
+    return [(path, "file") for path in (args.mcap, args.odom_json) if path]
+
+
+def build_sinks(args: argparse.Namespace, source) -> list:
+    """The sinks of the outputs asked for (their paths checked by :func:`outputs`' caller)."""
+    sinks: list = []
+    try:
+        if args.odom_json:
+            from ..pipeline.sinks import OdometryJsonSink
+
+            sinks.append(OdometryJsonSink(args.odom_json))
+        if args.mcap:
+            from ..pipeline.mcap_sink import McapSink
+
+            sinks.append(McapSink(args.mcap, source, mount=args.mount, odom_topic=args.ros2_topic))
+    except BaseException:
+        for sink in sinks:
+            sink.close(None)
+        raise
+    return sinks
