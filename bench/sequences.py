@@ -57,11 +57,14 @@ def record(scene: str, seed: int, directory: str, duration: float | None = None,
     """Simulate *scene* on *board* with ``radar-sim`` unless *directory* already holds it."""
     if os.path.exists(os.path.join(directory, "capture.json")):
         return
+    # Into a temporary directory first: a recording cut short must not pass for a whole one.
+    tmp = directory.rstrip(os.sep) + ".tmp"
     cmd = [sys.executable, "-m", "radarodom.tools.radar_sim", scene, "--seed", str(seed),
-           "--board", board, "--out", directory, "-q"]
+           "--board", board, "--out", tmp, "--overwrite", "-q"]
     if duration is not None:
         cmd += ["--duration", str(duration)]
     subprocess.run(cmd, check=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+    os.replace(tmp, directory)
 
 
 def dsp_fingerprint() -> str:

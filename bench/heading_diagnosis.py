@@ -1,0 +1,166 @@
+"""Stage-by-stage heading diagnosis against the ground truth (issue 20).
+
+    python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
+                                      [--baselines 1 2 4 8]
+
+For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
+or bench/robustness_matrix.py record), every step is classified by the truth (standing still,
+driving straight, a moving turn, a turn in place) and the yaw increment is compared with the
+truth at each stage:
+
+- ``estimate``: the estimator's increment (after the yaw-rate filter and the keyframe);
+- ``field, true translation``: the likelihood-field search of the two frames (the estimator's
+  features and fields) moved by the TRUE translation and centred on the true rotation: what the
+  registration alone gives when everything before it is right;
+- ``field, no translation``: the same without moving the previous frame: how much the
+  rectification matters.
+
+Straight drives and standing still report the mean error (bias, deg per frame) and its RMS;
+turns the ratio of the summed increments (estimate / truth).  ``--baselines`` also registers
+frames 1, 2, 4, 8 steps apart on straight drives with the true motion and reports the forward
+term (the earlier frame's points in the later frame's field), the backward term and their sum
+separately: a bias that is the same at every baseline is an offset of each registration, one
+that grows with the baseline comes from the motion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import sequences  # noqa: E402  (bench/ is not a package)
+
+from radarodom.estimator.config import EstimatorConfig  # noqa: E402
+from radarodom.estimator.evaluation import associate  # noqa: E402
+from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
+from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
+from radarodom.tum import TumTrajectory  # noqa: E402
+
+STRAIGHT_RATE_DPS = 2.0
+MOVING_MPS = 0.05
+STAGES = ("estimate", "field, true translation", "field, no translation")
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def truth(seq: sequences.Sequence) -> np.ndarray:
+    """The true SE(2) poses (n, 3) at the sequence's frame times."""
+    stub = TumTrajectory.from_se2(seq.times, np.zeros((len(seq), 3)), source="frames")
+    _, ref = associate(stub, seq.groundtruth, 0.01)
+    return ref.se2()
+
+
+def step_motion(poses: np.ndarray, i: int, j: int) -> tuple[np.ndarray, float]:
+    """The true translation (2,) m in frame i's axes and rotation (rad) from frame i to j."""
+    d = poses[j, :2] - poses[i, :2]
+    c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]), float(_wrap(poses[j, 2] - poses[i, 2]))
+
+
+def kind(translation: np.ndarray, dyaw: float, dt: float) -> str:
+    """still, straight, moving turn or turn in place, by the truth."""
+    turning = math.degrees(abs(dyaw)) / dt > STRAIGHT_RATE_DPS
+    moving = float(np.hypot(*translation)) / dt > MOVING_MPS
+    if not turning:
+        return "straight" if moving else "still"
+    return "moving turn" if moving else "turn in place"
+
+
+def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list]:
+    """Per kind of step, per stage: lists of (estimated, true) increments; and the kept frames."""
+    poses = truth(seq)
+    odom = RadarOdometry(config)
+    icp = config.icp
+    common = icp.score_support == "common"
+    out: dict[str, dict[str, list]] = {}
+    kept, previous = [], None
+    for i in range(len(seq)):
+        state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        current = odom._previous  # what the estimator keeps of the frame (features, field)
+        kept.append(current)
+        if i > 0:
+            t, dyaw = step_motion(poses, i - 1, i)
+            rows = out.setdefault(kind(t, dyaw, seq.times[i] - seq.times[i - 1]), {s: [] for s in STAGES})
+            rows["estimate"].append((state.yaw_increment, dyaw))
+            if previous.field is not None and current.field is not None:
+                for stage, move in (("field, true translation", t), ("field, no translation", np.zeros(2))):
+                    r = field_rotation(previous.field.points, current.field.points, previous.field.smoothed,
+                                       current.field.smoothed, move, -dyaw, icp.field_search_rad, icp.field_step_rad,
+                                       common)
+                    if r is not None:
+                        rows[stage].append((-r, dyaw))
+        previous = current
+    return out, kept
+
+
+def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, steps: list[int]) -> list[str]:
+    """Forward, backward and two-way field registration of straight-drive frames *steps* apart."""
+    poses = truth(seq)
+    common = config.icp.score_support == "common"
+    deltas = _offsets(math.radians(3.0), math.radians(0.25))
+    lines = []
+    for k in steps:
+        errors: dict[str, list] = {"forward": [], "backward": [], "two-way": []}
+        for j in range(k, len(seq)):
+            ok = all(kind(*step_motion(poses, m - 1, m), seq.times[m] - seq.times[m - 1]) == "straight"
+                     for m in range(j - k + 1, j + 1))
+            a, b = kept[j - k].field, kept[j].field
+            if not ok or a is None or b is None:
+                continue
+            t, dyaw = step_motion(poses, j - k, j)
+            forward = _scores(a.points.shifted(t), b.smoothed, -dyaw + deltas, common)
+            backward = _scores(b.points.turned(dyaw).shifted(-t), a.smoothed, -deltas, common)
+            for name, scores in (("forward", forward), ("backward", backward), ("two-way", forward + backward)):
+                peak = _peak_at(scores, deltas)
+                if peak is not None:
+                    errors[name].append(-math.degrees(peak))
+        lines.append(f"  {k} frame(s) apart, n={len(errors['two-way'])}: " + ", ".join(
+            f"{name} {np.mean(v):+.3f}" for name, v in errors.items() if v) + " deg")
+    return lines
+
+
+def report(name: str, found: dict) -> list[str]:
+    lines = [name]
+    for k in ("still", "straight", "moving turn", "turn in place"):
+        if k not in found:
+            continue
+        parts = []
+        for stage in STAGES:
+            pairs = np.array(found[k][stage], float).reshape(-1, 2)
+            if not len(pairs):
+                continue
+            if k in ("still", "straight"):
+                err = np.degrees(pairs[:, 0] - pairs[:, 1])
+                parts.append(f"{stage}: bias {err.mean():+.4f} rms {math.sqrt(float(np.mean(err ** 2))):.3f}")
+            else:
+                parts.append(f"{stage}: ratio {pairs[:, 0].sum() / pairs[:, 1].sum():.4f}")
+        lines.append(f"  {k:13s} n={len(found[k]['estimate']):4d} | " + " | ".join(parts))
+    return lines
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("sequences", nargs="+", metavar="SEQUENCE_DIR")
+    parser.add_argument("--estimator-config", metavar="FILE.json", help="default: the defaults")
+    parser.add_argument("--baselines", nargs="*", type=int, default=[], metavar="K")
+    args = parser.parse_args(argv)
+    config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
+    for directory in args.sequences:
+        seq = sequences.load(directory)
+        found, kept = diagnose(seq, config)
+        print("\n".join(report(seq.name, found)))
+        if args.baselines:
+            print("\n".join(baselines(seq, kept, config, args.baselines)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
