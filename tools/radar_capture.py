@@ -164,12 +164,20 @@ def _summary(stats: PipelineStats, record: str | None) -> str:
     return text
 
 
-def _live_summary(live: dict) -> str:
-    """Where a live stream's frames and packets went (describe()'s accounting)."""
-    return (f"; {live['frames_dropped']} frames dropped by slow processing, {live['packets_lost']} packets "
-            f"lost (sequence gaps), {live['truncated_packets']} truncated and {live['late_packets']} late "
+def _live_summary(live: dict, stats: PipelineStats) -> str:
+    """Where a live stream's frames and packets went (describe()'s accounting), and any missing
+    bytes the packet headers do not account for."""
+    tail = live.get("tail_packets_lost", 0)
+    text = (f"; {live['frames_dropped']} frames dropped by slow processing, {live['packets_lost']} packets "
+            f"lost (sequence gaps{f', {tail} after the last received' if tail else ''}), "
+            f"{live['truncated_packets']} truncated and {live['late_packets']} late "
             f"of {live['packets']} received; {live['duplicate_packets']} duplicate, {live['foreign_packets']} "
             f"foreign and {live['malformed_packets']} malformed packets ignored")
+    headers = live.get("lost_bytes")
+    if headers is not None and headers != stats.lost_bytes:
+        text += (f"; of the bytes missing, the packet headers account for {headers} lost on the way, "
+                 f"not {stats.lost_bytes} (see docs/live.md)")
+    return text
 
 
 def _odometry_fields(stats: PipelineStats) -> list[Field]:
@@ -317,7 +325,7 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     live = source.describe()
     summary = _summary(stats, args.record) + _odometry_summary(stats, None if args.no_odom else args.odom_out)
     if "frames_dropped" in live:
-        summary += _live_summary(live)
+        summary += _live_summary(live, stats)
     if publisher is not None:
         counts = publisher.counts
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
