@@ -232,10 +232,13 @@ def test_frames_larger_than_half_the_receive_buffer_warn_about_rmem_max(small_ca
 def test_pipeline_records_incomplete_frames_with_their_missing_bytes(loss_capture, loss_cfg, tmp_path):
     directory, frames = loss_capture
     out = tmp_path / "rec"
+    # Buffers enough that a loaded machine's slow consumer drops no frame: frame k recorded is
+    # then the board's frame k (dropped frames are test_live_accounting's subject).
     with EmulatedRig(f"replay://{directory}", config=loss_cfg, faults=Faults(loss=0.1), seed=3) as rig:
-        with open_source(rig.url(**URL_TIMEOUTS), loss_cfg) as src:
+        with open_source(rig.url(buffers=64, **URL_TIMEOUTS), loss_cfg) as src:
             writer = CaptureWriter(out, src.config, source=src.url)
             stats = Pipeline(src, sinks=[CaptureSink(writer, src)], max_frames=40).run()
+            assert src.describe()["frames_dropped"] == 0
         lost = rig.board.lost_bytes_per_frame
 
     truth = {k: n for k, n in lost.items() if k < 40}
