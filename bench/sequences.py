@@ -80,17 +80,20 @@ def dsp_fingerprint() -> str:
 
 def _key(dsp_config: DspConfig | None, cfg: RadarConfig | None) -> str:
     """What makes a cache: the DSP's sources and backend, its settings, the cfg."""
-    digest = hashlib.sha256(dsp_fingerprint().encode())
+    digest = hashlib.sha256((dsp_fingerprint() + "/estimator-heatmaps").encode())
     digest.update(json.dumps((dsp_config or DspConfig()).to_dict(), sort_keys=True).encode())
     digest.update(b"" if cfg is None else cfg.to_text().encode())
     return digest.hexdigest()[:16]
 
 
 class _Arrays(Sink):
-    """Every frame's time, point cloud and full heatmap (intensity, dominant Doppler and, with a
+    """Every frame's time, point cloud and heatmap (intensity, dominant Doppler and, with a
     raised antenna row, elevation; float32)."""
 
-    wants_heatmaps = full_heatmaps = True
+    # The heatmaps radar-capture gives the estimator: every cell's intensity (and elevation),
+    # the dominant Doppler of its strongest cells (FeatureConfig.doppler_cells), for far less
+    # time than the full map, which gives every cell a Doppler the estimator never reads.
+    wants_heatmaps, full_heatmaps = True, False
 
     def __init__(self) -> None:
         self.times, self.points, self.intensity, self.doppler, self.elevation = [], [], [], [], []
