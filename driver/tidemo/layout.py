@@ -147,7 +147,8 @@ def check_uart_budget(cfg: RadarConfig, layout: PacketLayout, baud: int, max_poi
     if layout.gui.range_doppler_heat_map:
         fixes.insert(0, "no range-Doppler map (guiMonitor's rangeDopplerHeatMap 0)")
     heatmap_bytes = layout.range_bins * layout.azimuth_antennas * 4
-    room = int((b.available_s * baud / BITS_PER_BYTE - (b.packet_bytes - heatmap_bytes)) // (4 * layout.azimuth_antennas))
+    others = b.packet_bytes - heatmap_bytes
+    room = int((b.available_s * baud / BITS_PER_BYTE - others) // (4 * layout.azimuth_antennas))
     bins = 1 << (room.bit_length() - 1) if room > 0 else 0  # the demo's range bins are a power of two
     if 16 <= bins < layout.range_bins:
         fixes.append(f"fewer range bins (profileCfg's numAdcSamples {bins} or less)")
