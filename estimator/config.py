@@ -122,7 +122,7 @@ class FeatureConfig(Settings):
     #: the radar turns by only cos(el) of the radar's turn on the heatmap's azimuth axis, so
     #: level geometry under-measures turns near tall walls, floors and ceilings, and moves
     #: elevated reflectors wrongly when features are rectified (docs/estimator.md).
-    elevation: str = "ignore"
+    elevation: str = "use"
 
     @property
     def doppler_cells(self) -> int:
@@ -216,11 +216,17 @@ class IcpConfig(Settings):
     #: then cannot reach (it ends on the window's edge); the scan guess is independent of ICP.
     #: The window grows only when the two disagree.
     field_window: str = "icp_and_scan"
+    #: The scan guess and the field search leave out cells whose dominant Doppler differs by
+    #: more than this (m/s) from what a static reflector shows at the frame's velocity: their
+    #: strongest cells skip them and their log heatmaps set them to the background (None: off).
+    #: A person walking past fills the strongest cells with a reflector that does not turn
+    #: with the world; a static cell's Doppler is off by its bin's width and its elevation.
+    reject_moving_mps: float | None = 0.3
     #: Which points a field or scan score averages over: "inside", those inside the heatmap at
     #: each rotation tried; "common", those inside at every rotation tried.  A mean over the
     #: points inside at each rotation rises where a rotation turns the weak points at the field
     #: of view's edge out of the heatmap, and so favours larger rotations (docs/estimator.md).
-    score_support: str = "inside"
+    score_support: str = "common"
     #: With the scan guess and the field refinement: when ICP fails (too few features or
     #: matches) but the scan found structure, measure the yaw by the field search around the
     #: scan guess instead of holding the last yaw rate (the frame keeps its icp_failed /
@@ -245,6 +251,8 @@ class IcpConfig(Settings):
         _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
         check_choice(self.score_support, ("inside", "common"), "score_support")
+        _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
+               "reject_moving_mps")
 
 
 @dataclass
@@ -280,7 +288,7 @@ class OdometryConfig(Settings):
     #: the chord of the arc the sensor drove (the mid velocity is in the mid-step body's axes,
     #: half a turn from the previous frame's).  Uncorrected, a moving turn's features are moved
     #: sideways by v dt sin(turn / 2), which the registration reads as extra rotation.
-    rectification: str = "velocity"
+    rectification: str = "chord"
     #: Beyond the paper: smooth the measured yaw rate with a Kalman filter (a robot's yaw rate
     #: changes smoothly; frame-to-frame registration noise does not) ...
     yaw_rate_filter: bool = True
@@ -410,11 +418,12 @@ class EstimatorConfig(Settings):
     def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":
         """The paper's method (one of its variants), without the options beyond it."""
         return cls(velocity=VelocityConfig(),
-                   features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None),
+                   features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None,
+                                          elevation="ignore"),
                    icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero", neglect_aligned=True,
-                                 refinement="none"),
+                                 refinement="none", score_support="inside", reject_moving_mps=None),
                    odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0,
-                                           velocity_fallback="hold"))
+                                           velocity_fallback="hold", rectification="velocity"))
 
     def with_(self, **sections) -> "EstimatorConfig":
         """A copy with fields of sections replaced: ``cfg.with_(icp={"two_way": False})``."""

@@ -288,7 +288,8 @@ class LogHeatmap:
     The median is subtracted so that scores of different frames are comparable; sampling
     is bilinear in (range bin, sin(azimuth)), where the FFT bins are uniform."""
 
-    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig) -> None:
+    def __init__(self, heatmap: PolarHeatmap, config: FeatureConfig, masked: np.ndarray | None = None) -> None:
+        """*masked*: cells (n_range, n_azimuth) to set to the median, as a moving reflector's."""
         # float32 like the heatmaps themselves: the scan and the field gather these values
         # some 40 000 times a frame, and half the bytes is most of the speed.  In place in one
         # copy of the caller's heatmap (a few 64 kB temporaries fewer).
@@ -297,6 +298,8 @@ class LogHeatmap:
         valid = roi_mask(heatmap, config)
         if valid.any():
             log_i -= np.median(log_i[valid], overwrite_input=True)  # the boolean index copied
+        if masked is not None:
+            log_i[masked] = 0.0
         self._set_values(log_i)
         self._range = _Axis(np.asarray(heatmap.range_m, dtype=float))
         self._sin_az = _Axis(np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)))

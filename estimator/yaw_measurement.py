@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from .config import EstimatorConfig
-from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract
+from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract, static_mask
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess)
 from .quality import Flag
@@ -31,10 +31,13 @@ class CurrentFrame:
         #: Where the frame can see, as a registration target.
         self.region = Region(features.min_range_m, features.max_range_m or float(np.max(heatmap.range_m)),
                              features.max_azimuth_rad)
+        #: Cells whose Doppler says they move (n_range, n_azimuth), to leave out of the log
+        #: heatmap; None: none left out.  Set before :attr:`log` is first made.
+        self.moving: np.ndarray | None = None
 
     @cached_property
     def log(self) -> LogHeatmap:
-        return LogHeatmap(self.heatmap, self._features_config)
+        return LogHeatmap(self.heatmap, self._features_config, self.moving)
 
 
 @dataclass
@@ -76,7 +79,7 @@ class PredictedGuess:
     def __init__(self, uses_rate: bool) -> None:
         self.uses_rate = uses_rate
 
-    def view(self, frame: CurrentFrame) -> None:
+    def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> None:
         return None
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
@@ -97,7 +100,7 @@ class ProfileGuess:
         grid_max = config.features.max_azimuth_rad
         self._grid = np.arange(-grid_max, grid_max + 1e-9, step_rad)
 
-    def view(self, frame: CurrentFrame) -> np.ndarray:
+    def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> np.ndarray:
         return azimuth_profile(frame.heatmap, self._features, self._grid)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
@@ -120,8 +123,9 @@ class ScanGuess:
         self._min_score = config.icp.min_scan_score
         self._common = config.icp.score_support == "common"
 
-    def view(self, frame: CurrentFrame) -> Features:
-        return extract(frame.heatmap, self._scan_features)
+    def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
+        """The frame's strongest cells (moving ones left out, given the *velocity*)."""
+        return extract(frame.heatmap, self._scan_features, velocity)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                  predicted: float) -> float | None:
@@ -199,12 +203,17 @@ class YawMeasurement:
         self._field_fallback = scan and icp.field_fallback
         self._min_features = config.odometry.min_features
         self._unknown_variance = config.odometry.unmeasured_yaw_std_rad ** 2
+        self._moving_mps = icp.reject_moving_mps
 
     def keep(self, frame: CurrentFrame, velocity: np.ndarray | None) -> KeptFrame:
         """What the next frame needs of *frame*: its features (moving reflectors rejected by
         *velocity*, (2,) m/s, when known), the guess's view and the field."""
         features = extract(frame.heatmap, self._config.features, velocity)
-        guide = self.guess.view(frame)
+        scan_velocity = None
+        if self._moving_mps is not None and velocity is not None:
+            frame.moving = ~static_mask(frame.heatmap, velocity, self._moving_mps)
+            scan_velocity = velocity
+        guide = self.guess.view(frame, scan_velocity)
         return KeptFrame(frame.t, features, guide, self.field.field(frame, guide))
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
