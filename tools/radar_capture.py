@@ -33,7 +33,7 @@ from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
-from . import cli, ros_outputs
+from . import cli, ros_outputs, view_option
 from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
 from .zenoh_args import add_zenoh_arguments
 
@@ -89,6 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--estimator-config", metavar="FILE.json",
                         help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones)")
     ros_outputs.add_arguments(parser)
+    view_option.add_view_argument(parser)
     cli.add_overwrite(parser)
     parser.add_argument("--no-publish", action="store_true",
                         help="do not publish over Zenoh (offline runs and evaluation)")
@@ -267,7 +268,7 @@ def _outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
     """(path, kind) of every output asked for; kind as :func:`cli.replace_output` takes it."""
     outputs = [(args.record, "capture"), (args.heatmap_out, "heatmaps"), (args.points_out, "file"),
                (None if args.no_odom else args.odom_out, "file")]
-    return [(path, kind) for path, kind in outputs if path] + ros_outputs.outputs(args)
+    return [(path, kind) for path, kind in outputs if path] + ros_outputs.outputs(args) + view_option.outputs(args)
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
@@ -295,6 +296,7 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
         if args.odom_out and not args.no_odom:
             sinks.append(TumSink(args.odom_out))
         sinks += ros_outputs.build_sinks(args, source)
+        sinks += view_option.build_sinks(args, source)
     except BaseException:
         for sink in sinks:
             sink.close(PipelineStats())  # no frame yet: a capture directory is removed
@@ -331,7 +333,7 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
                     f"{counts['heatmap']} heatmap and {counts['status']} status messages under "
                     f"{publisher.options.key_prefix}")
-    return summary
+    return summary + view_option.summary(args, pipeline.sinks)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

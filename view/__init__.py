@@ -1,5 +1,16 @@
 """The live view (``radar-capture --view``): the pipeline's results drawn with Rerun.
 
-Rerun (``rerun-sdk``, the ``[view]`` extra) is imported only here, and only when a view is
-opened; the rest of radarodom never needs it.
+    sink = open_view(ViewTarget("save", path="run.rrd"), estimator=EstimatorConfig())
+    Pipeline(source, estimator=EstimatorConfig(), sinks=[sink]).run()
+    print(sink.where, sink.summary)
+
+:func:`open_view` opens the target (a viewer spawned here, the web viewer served, a viewer
+elsewhere, an .rrd file) in a process of its own and returns a :class:`ViewSink`;
+:mod:`.scene` says what is drawn and where.  Rerun (``rerun-sdk``, the ``[view]`` extra) is imported only when a view opens: the rest
+of radarodom never needs it.
 """
+
+from .sink import ThreadDrawer, Track, ViewSink
+from .target import ViewTarget, open_scene, open_view
+
+__all__ = ["ViewSink", "ViewTarget", "Track", "ThreadDrawer", "open_view", "open_scene"]

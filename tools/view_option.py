@@ -1,0 +1,80 @@
+"""radar-capture's ``--view [spawn|web[:PORT]|connect:ADDR|save:FILE.rrd]``: the option, its
+checks and its sink, so that radar_capture.py only calls in.  The view is radarodom.view's."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..errors import UsageError
+
+MISSING = 'the view needs rerun-sdk: pip install "radarodom[view]"'
+
+
+def parse_view(text: str):
+    """argparse type: the ``--view`` value as a :class:`radarodom.view.ViewTarget`; Rerun must
+    be installed (checked here, before anything opens)."""
+    kind, _, rest = text.partition(":")
+    try:
+        from ..view.target import ViewTarget
+
+        if kind == "web":
+            if rest and not rest.isdigit():
+                raise UsageError(f"--view web:PORT takes a port number, got {rest!r}")
+            target = ViewTarget("web", port=int(rest)) if rest else ViewTarget("web")
+        elif kind in ("spawn", "connect", "save"):
+            if (kind == "spawn") == bool(rest):
+                raise UsageError("spawn takes nothing after it" if rest else f"{kind}: needs {_NEEDS[kind]}")
+            target = ViewTarget(kind, address=rest) if kind == "connect" else ViewTarget(kind, path=rest)
+            if kind == "connect":
+                from ..view.target import grpc_url
+
+                grpc_url(rest)
+        else:
+            raise UsageError(f"expected spawn, web[:PORT], connect:HOST:PORT or save:FILE.rrd, got {text!r}")
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    try:
+        import rerun  # noqa: F401
+    except ImportError:
+        raise argparse.ArgumentTypeError(MISSING) from None
+    return target
+
+
+_NEEDS = {"connect": "the viewer's HOST:PORT (or a rerun+http:// URL)", "save": "a file name (FILE.rrd)"}
+
+
+def add_view_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--view", type=parse_view, nargs="?", const="spawn", metavar="MODE",
+                        help="draw the point clouds, heatmaps, features, trajectory and time series live with Rerun "
+                             "(docs/view.md): spawn (the default: a viewer window), web[:PORT] (serve the web "
+                             "viewer on PORT, default 9090, its data on PORT+1, for a browser elsewhere), "
+                             "connect:HOST:PORT (a viewer elsewhere) or save:FILE.rrd; a slow view drops its "
+                             'own frames, never the pipeline\'s (needs pip install "radarodom[view]")')
+
+
+def outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """The .rrd file of ``--view save:``, for radar-capture's new-file and --overwrite checks."""
+    target = args.view
+    return [(target.path, "file")] if target is not None and target.kind == "save" else []
+
+
+def build_sinks(args: argparse.Namespace, source) -> list:
+    """The view's sink when ``--view`` is given."""
+    if args.view is None:
+        return []
+    from ..view import open_view
+
+    sink = open_view(args.view, estimator=None if args.no_odom else args.estimator, config=source.config,
+                     mount=getattr(args, "mount", None))
+    print(f"radar-capture: view: {sink.where}", file=sys.stderr)
+    return [sink]
+
+
+def summary(args: argparse.Namespace, sinks: list) -> str:
+    """"; view: 300 frames drawn, 0 dropped" for the run summary, or "" without ``--view``."""
+    if args.view is None:
+        return ""
+    from ..view import ViewSink
+
+    return "".join(f"; view: {s.summary}" for s in sinks if isinstance(s, ViewSink))

@@ -1,0 +1,172 @@
+"""Where the view goes (a viewer spawned here, the web viewer served, a viewer elsewhere, an
+.rrd file) and the layout the viewer opens with.  Rerun is imported when a view opens."""
+
+from __future__ import annotations
+
+import os
+import socket
+import urllib.parse
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from ..errors import CaptureError, UsageError
+
+if TYPE_CHECKING:
+    from ..cfg import RadarConfig
+    from ..estimator.config import EstimatorConfig
+    from ..mount import Mount
+    from .sink import ViewSink
+
+#: Rerun's application id: the viewer groups recordings by it.
+APPLICATION = "radarodom"
+#: The web viewer's page when no port is given; its data (gRPC) is on the next port.
+DEFAULT_WEB_PORT = 9090
+#: A spawned viewer's port (Rerun's default: a viewer already running there is reused).
+SPAWN_PORT = 9876
+KINDS = ("spawn", "web", "connect", "save")
+
+
+@dataclass(frozen=True)
+class ViewTarget:
+    """*kind* "spawn" (open a viewer on this machine), "web" (serve the web viewer on *port* and
+    the data on *port* + 1), "connect" (send to the viewer at *address*, a Rerun gRPC URL) or
+    "save" (write the .rrd file *path*)."""
+
+    kind: str
+    port: int = DEFAULT_WEB_PORT
+    address: str = ""
+    path: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise UsageError(f"a view goes to one of {', '.join(KINDS)}, not {self.kind!r}")
+        if self.kind == "web" and not 1 <= self.port < 65535:
+            raise UsageError(f"the web viewer's port must be 1..65534 (its data uses the next), got {self.port}")
+
+    @property
+    def data_port(self) -> int:
+        """The web viewer's data (gRPC) port."""
+        return self.port + 1
+
+
+def grpc_url(address: str) -> str:
+    """A Rerun gRPC URL from ``HOST:PORT`` (or a ``rerun+http(s)://`` URL as it is)."""
+    if address.startswith(("rerun://", "rerun+http://", "rerun+https://")):
+        return address
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise UsageError(f"a viewer's address is HOST:PORT or a rerun+http:// URL, got {address!r}")
+    return f"rerun+http://{host}:{int(port)}/proxy"
+
+
+def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, config: RadarConfig | None = None,
+              mount: Mount | None = None, queue_frames: int = 4) -> ViewSink:
+    """A view sink drawing into *target* from a process of its own (:mod:`.process`); its
+    ``where`` says where to look, in one line.  Raises UsageError for a target that cannot work
+    here (no display, a port in use) and CaptureError for a file that cannot be written."""
+    from .process import ProcessDrawer
+    from .sink import ViewSink
+
+    check(target)
+    return ViewSink(ProcessDrawer(target, estimator=estimator, config=config, mount=mount), queue_frames=queue_frames)
+
+
+def check(target: ViewTarget) -> None:
+    """What can be known before Rerun starts: a display to spawn a viewer on, free ports."""
+    if target.kind == "spawn" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UsageError("--view spawn opens a viewer window, and this session has no display (neither DISPLAY "
+                         "nor WAYLAND_DISPLAY is set): use --view web[:PORT] and open it from a browser, or "
+                         "--view save:FILE.rrd")
+    if target.kind == "web":
+        _check_free(target)
+
+
+def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, config: RadarConfig | None = None,
+               mount: Mount | None = None):
+    """A :class:`~.scene.Scene` drawing into a new Rerun recording sent to *target*, and where
+    to look at it (in this process: the view's own, or a notebook's)."""
+    import rerun as rr
+
+    from .scene import Scene
+
+    check(target)
+    recording = rr.RecordingStream(APPLICATION)
+    where = _OPENERS[target.kind](recording, target, layout())
+    scene = Scene(recording, estimator=estimator, config=config, mount=mount)
+    scene.note(f"radarodom's view, sent to {where}", static=True)
+    return scene, where
+
+
+def _spawn(recording, target: ViewTarget, blueprint) -> str:
+    recording.spawn(port=SPAWN_PORT, default_blueprint=blueprint)
+    return f"a Rerun viewer on this machine (port {SPAWN_PORT})"
+
+
+def _web(recording, target: ViewTarget, blueprint) -> str:
+    import rerun as rr
+
+    # The page comes from target.port and fetches the data from the next port: a browser
+    # elsewhere (a laptop) sends that page's origin, which the data server must allow.
+    data = recording.serve_grpc(grpc_port=target.data_port, default_blueprint=blueprint,
+                                cors_allow_origin=[f"http://*:{target.port}", f"https://*:{target.port}"])
+    try:
+        rr.serve_web_viewer(web_port=target.port, open_browser=False, connect_to=data)
+    except RuntimeError as exc:
+        recording.disconnect()
+        raise UsageError(f"cannot serve the web viewer on port {target.port}: {exc}") from None
+    return f"the web viewer: open {web_page_url(socket.gethostname(), target)} (from this machine: localhost)"
+
+
+def web_page_url(host: str, target: ViewTarget) -> str:
+    """The page a browser opens to see the view served by *target* on *host*."""
+    data = f"rerun+http://{host}:{target.data_port}/proxy"
+    return f"http://{host}:{target.port}/?url={urllib.parse.quote(data, safe='')}"
+
+
+def _connect(recording, target: ViewTarget, blueprint) -> str:
+    url = grpc_url(target.address)
+    recording.connect_grpc(url, default_blueprint=blueprint)
+    return f"the Rerun viewer at {url}"
+
+
+def _save(recording, target: ViewTarget, blueprint) -> str:
+    try:
+        recording.save(target.path, default_blueprint=blueprint)
+    except RuntimeError as exc:
+        raise CaptureError(f"cannot write the view to {target.path}: {exc}") from None
+    return f"{target.path} (open it with: rerun {target.path})"
+
+
+_OPENERS = {"spawn": _spawn, "web": _web, "connect": _connect, "save": _save}
+
+
+def _check_free(target: ViewTarget) -> None:
+    """Rerun's gRPC server only logs a port in use; say so before anything starts."""
+    for port in (target.port, target.data_port):
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                sock.bind(("0.0.0.0", port))
+            except OSError as exc:
+                raise UsageError(f"--view web:{target.port} serves the page on port {target.port} and its data on "
+                                 f"{target.data_port}, and port {port} is taken ({exc.strerror}); choose another "
+                                 "with --view web:PORT") from None
+
+
+def layout():
+    """The viewer's layout: the 3-D scene in the odometry frame on the left; the polar heatmap,
+    the time series and the flags on the right; Rerun's side panels folded away."""
+    import rerun.blueprint as rrb
+
+    plots = [rrb.TimeSeriesView(origin=f"plots/{name}", name=title)
+             for name, title in (("speed", "speed, m/s"), ("yaw_rate", "yaw rate, deg/s"),
+                                 ("counts", "points, features, ICP matches"), ("time_ms", "latency, estimator, ms"))]
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="world", name="odom frame (REP-103: x ahead, y left, z up)"),
+            rrb.Vertical(rrb.Spatial2DView(origin="heatmap", name="range-azimuth heatmap: range across, azimuth down (left at the top)"),
+                         rrb.Grid(*plots), rrb.TextLogView(origin="log", name="quality flags, view"),
+                         row_shares=[3, 4, 2]),
+            column_shares=[3, 2]),
+        rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed"))
