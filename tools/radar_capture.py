@@ -88,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="do not run the estimator (capture, record and DSP exports only)")
     parser.add_argument("--estimator-config", metavar="FILE.json",
                         help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones)")
+    parser.add_argument("--wheeled", action="store_true",
+                        help="the robot's base cannot slide sideways: with --mount off its rotation axis, the "
+                             "radar's Doppler measures the yaw rate in turns (docs/estimator.md)")
     ros_outputs.add_arguments(parser)
     view_option.add_view_argument(parser)
     cli.add_overwrite(parser)
@@ -210,6 +213,21 @@ def _odometry_summary(stats: PipelineStats, odom_out: str | None) -> str:
     return text
 
 
+def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
+    """--estimator-config's settings (or the defaults) with --mount's place of the radar and,
+    with --wheeled, a base that cannot slide sideways."""
+    config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
+    mount = args.mount
+    if args.wheeled and abs(mount.x) < config.odometry.min_lever_arm_m:
+        raise UsageError(f"--wheeled needs --mount with the radar off the base's rotation axis (at least "
+                         f"{config.odometry.min_lever_arm_m:g} m ahead or behind): on the axis its Doppler "
+                         "sees no yaw rate")
+    odometry = {"mount_x_m": mount.x, "mount_y_m": mount.y, "mount_yaw_rad": mount.yaw}
+    if args.wheeled:
+        odometry["base"] = "wheeled"
+    return config.with_(odometry=odometry) if not mount.is_identity or args.wheeled else config
+
+
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     if args.no_odom and (args.odom_out or args.estimator_config):
@@ -217,8 +235,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
                          "take --estimator-config")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     # Read the estimator's settings before any hardware is touched.
-    args.estimator = (EstimatorConfig.load(args.estimator_config) if args.estimator_config
-                      else EstimatorConfig())
+    args.estimator = _estimator_config(args)
     defaulted = not args.source
     if defaulted:
         args.source = _default_source()
@@ -257,11 +274,20 @@ def _open_publisher(options, mount):
 
 
 def _check_source_and_outputs(args: argparse.Namespace, source: Source) -> None:
-    if args.record and not source.carries_raw:
+    if args.record and not (source.carries_raw or source.records_itself):
         raise UsageError(f"{args.source} gives point clouds and heatmaps, not raw ADC frames only: "
                          "--record needs a raw source (for ColoRadar: velocity=single_chip_adc"
                          "&heatmap=single_chip_adc)")
     _check_outputs(args)
+
+
+def _recording_sink(args: argparse.Namespace, source: Source):
+    """The --record sink: the source's own recorder (tidemo://: its UART packets), else a capture
+    directory of raw ADC frames."""
+    if source.records_itself:
+        return source.recorder(args.record)
+    return CaptureSink(CaptureWriter(args.record, source.config, source=args.source,
+                                     extra=source.recording_metadata()), source)
 
 
 def _outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
@@ -286,8 +312,7 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
     sinks: list = []
     try:
         if args.record:  # a recording takes the raw frames before anything can fail on them
-            sinks.append(CaptureSink(CaptureWriter(args.record, source.config, source=args.source,
-                                                   extra=source.recording_metadata()), source))
+            sinks.append(_recording_sink(args, source))
         # The heatmap directory next: it may already hold heatmaps, found only when opened.
         if args.heatmap_out:
             sinks.append(HeatmapSink(args.heatmap_out))
@@ -328,6 +353,9 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     summary = _summary(stats, args.record) + _odometry_summary(stats, None if args.no_odom else args.odom_out)
     if "frames_dropped" in live:
         summary += _live_summary(live, stats)
+    elif "discarded_bytes" in live:  # a serial stream (tidemo://, its replay): what the framer lost
+        summary += (f"; {live['frames_skipped']} frame numbers skipped, {live['rejected_packets']} packets "
+                    f"rejected, {live['discarded_bytes']} bytes discarded")
     if publisher is not None:
         counts = publisher.counts
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
