@@ -129,6 +129,8 @@ class Source(abc.ABC):
     config: RadarConfig | None
     #: True when every frame carries raw ADC bytes (so the stream can be recorded).
     carries_raw: bool = True
+    #: True when :meth:`recorder` gives a sink of the source's own (tidemo://: its UART packets).
+    records_itself: bool = False
     #: The TX-to-RX coupling a dataset ships for its raw frames, removed by the DSP
     #: (:class:`radarodom.calibration.RangeCoupling`); None for most sources.
     coupling: RangeCoupling | None = None
