@@ -84,11 +84,23 @@ def test_a_recorded_tidemo_stream_replays_through_radar_capture_to_the_same_odom
     assert (tmp_path / "replay.tum").read_text() == live_tum.read_text()
 
 
-@pytest.mark.xfail(strict=True, reason="radar-capture --record builds a CaptureSink of raw ADC frames; it needs "
-                                       "to take source.recorder(DIR) for tidemo:// (tools/radar_capture.py)")
-def test_radar_capture_records_a_tidemo_stream(tmp_path, cfg_file):
-    with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
-        proc = run_capture_cli("--source", rig.url(), "--cfg", cfg_file, "--frames", 5, "--no-publish",
-                               "--record", tmp_path / "rec", timeout=300)
+def test_radar_capture_records_a_tidemo_stream_that_replays_to_the_same_odometry(tmp_path, cfg_file):
+    """--record on tidemo:// keeps the UART packets (the source's recorder, not raw ADC frames), the
+    line's damage is in the closing line, and the recording replays through radar-capture to the
+    live run's trajectory; a replay records itself too (its first frames)."""
+    faults = UartFaults(garbage=0.2, truncate=0.1, drop=0.1, seed=5)
+    with DemoUartRig("sim://corridor", faults=faults, boot_time_s=0.05) as rig:
+        proc = run_capture_cli("--source", rig.url(), "--cfg", cfg_file, "--frames", 8, "--no-publish",
+                               "--record", tmp_path / "rec", "--odom-out", tmp_path / "live.tum", timeout=300)
+        truth = rig.data.stats
     assert proc.returncode == 0, proc.stderr
-    assert (tmp_path / "rec" / "uart.bin").stat().st_size > 0
+    assert "; recorded to " in proc.stdout and "frame numbers skipped, " in proc.stdout
+    assert len(truth.truncated) + len(truth.dropped), "the seed must damage packets"
+    rec = tmp_path / "rec"
+    assert sorted(os.listdir(rec)) == ["capture.json", "radar.cfg", "timestamps.txt", "uart.bin"]
+    replay = run_capture_cli("--source", f"replay://{rec}?rate=max", "--no-publish", "--odom-out",
+                             tmp_path / "replay.tum", "--record", tmp_path / "again", "--frames", 8, timeout=300)
+    assert replay.returncode == 0, replay.stderr
+    assert "radar-capture: 8 frames" in replay.stdout and "0 packets rejected, 0 bytes discarded" in replay.stdout
+    assert (tmp_path / "replay.tum").read_text() == (tmp_path / "live.tum").read_text()
+    assert (tmp_path / "again" / "uart.bin").read_bytes() == (rec / "uart.bin").read_bytes()

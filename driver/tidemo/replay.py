@@ -37,7 +37,7 @@ from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .framer import TlvFramer
 from .layout import DemoGeometry, gui_selection
 from .products import FrameIndexer, PacketFrames
-from .recording import FORMAT_NAME, FORMAT_VERSION, METADATA, RADAR_CFG, TIMESTAMPS, UART_DATA
+from .recording import FORMAT_NAME, FORMAT_VERSION, METADATA, RADAR_CFG, TIMESTAMPS, UART_DATA, UartRecorder
 from .wire import parse_packet
 
 log = logging.getLogger(__name__)
@@ -52,6 +52,7 @@ class TidemoReplaySource(Source):
     """Plays the whole packets of a demo UART stream file."""
 
     carries_raw = False
+    records_itself = True
 
     def __init__(self, path: str, config: RadarConfig, *, timestamps: str | None = None, rate: float = 1.0,
                  loop: int = 1, frames: int | None = None) -> None:
@@ -110,6 +111,11 @@ class TidemoReplaySource(Source):
                 yield frame
                 self.frames_played += 1
             passes += 1
+
+    def recorder(self, directory: str) -> UartRecorder:
+        """A sink that records the packets played (:class:`.recording.UartRecorder`), as the live
+        source's does: a part of a stream cut out (``frames``) is a recording of its own."""
+        return UartRecorder(directory, self.config, source=self.url)
 
     def describe(self) -> dict:
         return {"url": self.url, "path": self.path, "frames": len(self.packets),

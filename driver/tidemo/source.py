@@ -99,6 +99,7 @@ class TidemoSource(Source):
     """The demo's UART output as frames; see the module docstring."""
 
     carries_raw = False
+    records_itself = True
 
     def __init__(self, config: RadarConfig, data_url: str, cli_url: str, *, baud: int = DEFAULT_BAUD,
                  max_points: int = 64, policy: str = "latest", buffers: int = 8,
