@@ -19,8 +19,9 @@ A session that is not closed keeps the interpreter from exiting (its callback
 threads are not daemons: zenoh-python #434), so :class:`Publisher` is a
 context manager and its :meth:`Publisher.close` always closes the session.
 
-ROS 2 (``ros2=True``): ``nav_msgs/msg/Odometry``, ``sensor_msgs/msg/PointCloud2`` and the TF
-tree (``/tf``: odom -> base_link; ``/tf_static``: base_link -> radar, the *mount*) in CDR
+ROS 2 (``ros2=True``): ``nav_msgs/msg/Odometry``, ``sensor_msgs/msg/PointCloud2``, the TF
+tree (``/tf``: odom -> base_link; ``/tf_static``: base_link -> radar, the *mount*), the heatmap
+as ``sensor_msgs/msg/Image`` and the status and quality flags as ``/diagnostics`` in CDR
 (rosbags' Jazzy typestore) on the key expressions rmw_zenoh_cpp uses, with the attachment and
 the liveliness tokens it requires (rmw_zenoh_cpp >= 0.2.4 on Jazzy), so a ROS 2 node using
 rmw_zenoh receives them (:mod:`radarodom.ros2`).  Without ``connect`` it also connects to the
@@ -57,7 +58,8 @@ log.addHandler(logging.NullHandler())
 #: The published keys under the prefix.
 KINDS = ("odom", "pointcloud", "heatmap", "status")
 #: The ROS 2 publishers (:class:`radarodom.ros2.Ros2Node`).
-ROS2_KINDS = ("ros2", "ros2_points", "ros2_tf", "ros2_tf_static")
+ROS2_KINDS = ("ros2", "ros2_points", "ros2_tf", "ros2_tf_static", "ros2_heatmap", "ros2_heatmap_axes",
+              "ros2_diagnostics")
 ALIVE = "alive"
 
 
@@ -101,8 +103,8 @@ class Publisher:
         self._close_session = weakref.finalize(self, _close_session, self._session)
         self.keys = {kind: self.options.key(kind) for kind in KINDS}
         self._latest = _LatestReply(self.keys["odom"], messages.JSON_ENCODING)
-        #: Messages put per kind (``ros2``: the ROS 2 odometry; ``ros2_points``, ``ros2_tf``,
-        #: ``ros2_tf_static``: its point clouds and transforms).
+        #: Messages put per kind (``ros2``: the ROS 2 odometry; ``ros2_points``, ``ros2_tf``, ...:
+        #: the other ROS 2 topics, :data:`ROS2_KINDS`).
         self.counts = dict.fromkeys(KINDS + (ROS2_KINDS if options.ros2 else ()), 0)
         try:
             self._declare(typestore)
@@ -173,20 +175,20 @@ class Publisher:
         self._put("odom", payload)
         self._latest.payload = payload
         if self._ros2 is not None:
-            for kind, ros2_payload, attachment in self._ros2.odometry(state):
-                self._put(kind, ros2_payload, attachment)
+            self._put_ros2(self._ros2.odometry(state))
 
     def pointcloud(self, frame: int, t: float, points: np.ndarray) -> None:
         """Publish one frame's point cloud (POINT_DTYPE or any array with the wire fields; for
         ROS 2, POINT_DTYPE's)."""
         self._put("pointcloud", messages.encode_pointcloud(frame, t, points))
         if self._ros2 is not None:
-            for kind, ros2_payload, attachment in self._ros2.pointcloud(t, points):
-                self._put(kind, ros2_payload, attachment)
+            self._put_ros2(self._ros2.pointcloud(t, points))
 
     def heatmap(self, frame: int, t: float, heatmap: RangeAzimuth) -> None:
         """Publish one frame's range-azimuth heatmap (a RangeAzimuth)."""
         self._put("heatmap", messages.encode_heatmap(frame, t, heatmap))
+        if self._ros2 is not None:
+            self._put_ros2(self._ros2.heatmap(t, heatmap))
 
     def status(self, info: Mapping[str, Any]) -> None:
         """Publish a status message: *info* with the schema's ``schema`` and ``version``.
@@ -194,6 +196,12 @@ class Publisher:
         the first frame) goes out as ``null``, and numpy values as plain numbers and lists: a
         status is never lost for one unknown figure."""
         self._put("status", messages.status_json(strict_json.finite(info)))
+        if self._ros2 is not None:
+            self._put_ros2(self._ros2.status(info))
+
+    def _put_ros2(self, samples: list[tuple[str, bytes, bytes]]) -> None:
+        for kind, payload, attachment in samples:
+            self._put(kind, payload, attachment)
 
     def close(self) -> None:
         """Close the session (undeclaring everything); safe to call twice."""

@@ -8,8 +8,11 @@ see them through the rmw_zenohd router.
 - :class:`Ros2Node` declares the node and its publishers on a session: ``nav_msgs/msg/Odometry``
   (``--ros2-topic``, default ``/radar/odom``), ``sensor_msgs/msg/PointCloud2`` on
   :data:`POINTS_TOPIC`, ``tf2_msgs/msg/TFMessage`` on ``/tf`` (odom -> base_link) and, transient
-  local as tf2's static broadcaster, on ``/tf_static`` (base_link -> radar), and encodes each
-  message (:class:`radarodom.publish.Publisher` uses it with ``--ros2``).
+  local as tf2's static broadcaster, on ``/tf_static`` (base_link -> radar), the heatmap's
+  ``sensor_msgs/msg/Image`` and axes, and ``diagnostic_msgs/msg/DiagnosticArray`` on
+  ``/diagnostics``, and encodes each message (:class:`radarodom.publish.Publisher` uses it with
+  ``--ros2``).  The same topics as the bag (:mod:`radarodom.pipeline.mcap_sink`) but the ground
+  truth.
 
 The messages themselves: :mod:`radarodom.ros2_messages`; the frames: :mod:`radarodom.ros2_frames`.
 """
@@ -43,6 +46,9 @@ ROS2_NODE_NAME = "radarodom"
 POINTS_TOPIC = "/radar/points"
 TF_TOPIC = "/tf"
 TF_STATIC_TOPIC = "/tf_static"
+HEATMAP_TOPIC = "/radar/heatmap"
+HEATMAP_AXES_TOPIC = "/radar/heatmap/axes"
+DIAGNOSTICS_TOPIC = "/diagnostics"
 #: rmw_zenoh's QoS of a publisher token: reliable, volatile, keep last 10 (only the depth differs
 #: from rmw_zenoh's defaults, so only it is written) ...
 _ROS2_QOS = "::,10:,:,:,,"
@@ -109,7 +115,7 @@ class Ros2Topic:
     AdvancedPublisher with a cache of one and publisher detection, as for ``/tf_static``)."""
 
     def __init__(self, session: zenoh.Session, domain: int, topic: str, msg_type: str, entity: int,
-                 typestore: Any, *, transient_local: bool = False) -> None:
+                 typestore: Any, *, transient_local: bool = False, urgent: bool = False) -> None:
         self._store = typestore
         self.topic, self.msg_type = topic, msg_type
         type_hash = typestore.hash_rihs01(msg_type)
@@ -121,10 +127,13 @@ class Ros2Topic:
                 cache=zenoh.ext.CacheConfig(1), publisher_detection=True,
                 sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=None,
                                                                     sporadic_heartbeat=_STATIC_HEARTBEAT_S))
-        else:
+        elif urgent:  # the odometry, as the plain Zenoh one
             self.publisher = session.declare_publisher(self.key, priority=zenoh.Priority.REAL_TIME,
                                                        congestion_control=zenoh.CongestionControl.DROP,
                                                        express=True)
+        else:  # batched, at rmw_zenoh's (and Zenoh's) default priority, whose queue is the deepest
+            self.publisher = session.declare_publisher(self.key, priority=zenoh.Priority.DATA,
+                                                       congestion_control=zenoh.CongestionControl.DROP)
         # rmw_zenoh derives its gid from the token; any fixed 16 bytes per publisher serve.
         self._gid = os.urandom(ROS2_GID_BYTES)
         self._sequence = 0
@@ -149,15 +158,22 @@ class Ros2Node:
         self.mount = mount
         domain = options.ros2_domain
         self.topics = {
-            "ros2": Ros2Topic(session, domain, options.ros2_topic, ros2_messages.ODOMETRY, 10, typestore),
+            "ros2": Ros2Topic(session, domain, options.ros2_topic, ros2_messages.ODOMETRY, 10, typestore,
+                              urgent=True),
             "ros2_points": Ros2Topic(session, domain, POINTS_TOPIC, ros2_messages.POINTCLOUD2, 11, typestore),
             "ros2_tf": Ros2Topic(session, domain, TF_TOPIC, ros2_messages.TF, 12, typestore),
             "ros2_tf_static": Ros2Topic(session, domain, TF_STATIC_TOPIC, ros2_messages.TF, 13, typestore,
                                         transient_local=True),
+            "ros2_heatmap": Ros2Topic(session, domain, HEATMAP_TOPIC, ros2_messages.IMAGE, 14, typestore),
+            "ros2_heatmap_axes": Ros2Topic(session, domain, HEATMAP_AXES_TOPIC, ros2_messages.AXES, 15, typestore),
+            "ros2_diagnostics": Ros2Topic(session, domain, DIAGNOSTICS_TOPIC, ros2_messages.DIAGNOSTICS, 16,
+                                          typestore),
         }
         node_key, _ = ros2_liveliness_keys(domain, str(session.zid()), options.ros2_topic, "")
         self._node_token = session.liveliness().declare_token(node_key)
         self.static_sent = False
+        self._t = 0.0  # the latest frame's time: a status message's stamp
+        self._losses: dict[str, int] = {}
 
     @property
     def key(self) -> str:
@@ -165,17 +181,29 @@ class Ros2Node:
         return self.topics["ros2"].key
 
     def odometry(self, state: OdometryState) -> list[tuple[str, bytes, bytes]]:
-        """(kind, payload, attachment) of the odometry and its odom -> base_link transform, and
-        of base_link -> radar before the first."""
-        out = [] if self.static_sent else [self._static(float(state.t))]
+        """(kind, payload, attachment) of the odometry, its odom -> base_link transform and its
+        diagnostics, and of base_link -> radar before the first message."""
+        t = float(state.t)
         odometry, tf = ros2_messages.odometry_and_tf(state, self.types, self.mount)
-        out.append(("ros2", *self.topics["ros2"].encode(odometry)))
-        out.append(("ros2_tf", *self.topics["ros2_tf"].encode(tf)))
-        return out
+        diagnostics = ros2_messages.diagnostics(t, [ros2_messages.odometry_status(state)], self.types)
+        return self._encode(t, [("ros2", odometry), ("ros2_tf", tf), ("ros2_diagnostics", diagnostics)])
 
     def pointcloud(self, t: float, points: Any) -> list[tuple[str, bytes, bytes]]:
+        return self._encode(t, [("ros2_points", ros2_messages.pointcloud2(t, points, self.types))])
+
+    def heatmap(self, t: float, heatmap: Any) -> list[tuple[str, bytes, bytes]]:
+        return self._encode(t, [("ros2_heatmap", ros2_messages.heatmap_image(t, heatmap, self.types)),
+                                ("ros2_heatmap_axes", ros2_messages.heatmap_axes(heatmap, self.types))])
+
+    def status(self, info: Any) -> list[tuple[str, bytes, bytes]]:
+        """The pipeline's status message as diagnostics, stamped with the latest frame's time."""
+        entry, self._losses = ros2_messages.pipeline_status(info, self._losses)
+        return self._encode(self._t, [("ros2_diagnostics", ros2_messages.diagnostics(self._t, [entry], self.types))])
+
+    def _encode(self, t: float, msgs: list[tuple[str, Any]]) -> list[tuple[str, bytes, bytes]]:
+        self._t = t
         out = [] if self.static_sent else [self._static(t)]
-        out.append(("ros2_points", *self.topics["ros2_points"].encode(ros2_messages.pointcloud2(t, points, self.types))))
+        out += [(kind, *self.topics[kind].encode(msg)) for kind, msg in msgs]
         return out
 
     def _static(self, t: float) -> tuple[str, bytes, bytes]:

@@ -26,8 +26,8 @@ from .errors import CaptureError, CaptureExistsError, MessageError, UsageError
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
 
-#: Uncompressed size at which a chunk is closed and written: about 1.5 s of the simulator's
-#: corridor at 10 Hz with its heatmaps, which is what a killed recording loses at most.
+#: Uncompressed size at which a chunk is closed and written: what a killed recording loses at
+#: most (docs/ros2.md says how many seconds of the simulator's corridor that is).
 CHUNK_BYTES = 1 << 20
 PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"

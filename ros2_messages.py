@@ -6,20 +6,23 @@ Frames (:mod:`radarodom.ros2_frames`): ``odom -> base_link -> radar``.  Every st
 frame's timestamp (the radar's: host clock live, the recording's or the simulator's clock
 otherwise).  docs/ros2.md lists the topics and the fields.
 
-- :func:`odometry` (and :func:`odometry_and_tf`): ``nav_msgs/msg/Odometry``, odom -> base_link, the pose and twist with 6x6
-  covariances (the planar 3x3 ones in x, y, yaw; :data:`UNOBSERVED_VARIANCE` on z, roll, pitch).
+- :func:`odometry` (and :func:`odometry_and_tf`): ``nav_msgs/msg/Odometry``, odom -> base_link,
+  the pose and twist with 6x6 covariances (the planar 3x3 ones in x, y, yaw;
+  :data:`UNOBSERVED_VARIANCE` on z, roll, pitch).
 - :func:`tf_odom` / :func:`tf_mount`: ``tf2_msgs/msg/TFMessage`` of odom -> base_link and of the
   static base_link -> radar.
 - :func:`pointcloud2`: ``sensor_msgs/msg/PointCloud2`` in ``radar``: float32 fields
   :data:`POINTCLOUD2_FIELDS`.
 - :func:`heatmap_image` and :func:`heatmap_axes`: the range-azimuth intensity as
   ``sensor_msgs/msg/Image`` 32FC1 in dB, and its axes as ``std_msgs/msg/Float32MultiArray``.
-- :func:`diagnostics`: ``diagnostic_msgs/msg/DiagnosticArray`` of named key-value statuses.
+- :func:`diagnostics`: ``diagnostic_msgs/msg/DiagnosticArray`` of named key-value statuses
+  (:func:`odometry_status`, :func:`pipeline_status`).
 - :func:`pose_stamped`: ``geometry_msgs/msg/PoseStamped`` (the ground truth in odom).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
@@ -204,6 +207,43 @@ def diagnostics(t: float, statuses: Iterable[tuple[str, int, str, Mapping[str, A
         status(level=level, name=name, message=message, hardware_id=hardware_id,
                values=[key_value(key=k, value=_text(v)) for k, v in values.items()])
         for name, level, message, values in statuses])
+
+
+#: The figures whose growth makes a pipeline status a warning: data was lost.
+_LOSSES = ("incomplete_frames", "frames_dropped", "packets_lost")
+
+
+def odometry_status(state: OdometryState) -> tuple[str, int, str, dict[str, Any]]:
+    """The diagnostics entry of an odometry state: OK, or WARN with its quality flags."""
+    flags = [str(f) for f in state.flags]
+    values = {"frame": int(state.frame), "ok": bool(state.ok), "flags": flags, "features": int(state.features),
+              "compute_ms": round(1e3 * float(state.compute_s), 3)}
+    return "radarodom: odometry", OK if state.ok else WARN, ", ".join(flags) or "ok", values
+
+
+def pipeline_status(info: Mapping[str, Any], previous: Mapping[str, int]) -> tuple[tuple, dict[str, int]]:
+    """(the diagnostics entry of a status message's figures, the losses to compare the next one
+    with): WARN when frames went incomplete or were dropped, or packets were lost, since *previous*."""
+    grew = [k for k in _LOSSES if info.get(k, 0) > previous.get(k, 0)]
+    message = f"{info.get('frames', '?')} frames, {info.get('rate_hz', '?')} Hz" + \
+        ("" if info.get("running", True) else ", stopped")
+    if grew:
+        message += "; more " + ", ".join(k.replace("_", " ") for k in grew)
+    entry = ("radarodom: pipeline", WARN if grew else OK, message, flat(info))
+    return entry, {k: info.get(k, 0) for k in _LOSSES}
+
+
+def flat(info: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested dicts as dotted keys (``latency_ms.p50``); lists of other than scalars as JSON."""
+    out: dict[str, Any] = {}
+    for key, value in info.items():
+        if isinstance(value, Mapping):
+            out.update(flat(value, f"{prefix}{key}."))
+        elif isinstance(value, (list, tuple)) and not all(isinstance(v, (str, int, float)) for v in value):
+            out[prefix + key] = json.dumps(value)
+        else:
+            out[prefix + key] = value
+    return out
 
 
 def _text(value: Any) -> str:

@@ -21,7 +21,6 @@ whatever the replay's rate.
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Any
 
@@ -29,19 +28,15 @@ from .. import ros2_messages as rm
 from ..driver.sources import Source
 from ..mount import Mount
 from ..publish import DEFAULT_ROS2_TOPIC
-from ..ros2 import POINTS_TOPIC, TF_STATIC_TOPIC, TF_TOPIC, ros2_typestore
+from ..ros2 import (DIAGNOSTICS_TOPIC, HEATMAP_AXES_TOPIC, HEATMAP_TOPIC, POINTS_TOPIC, TF_STATIC_TOPIC, TF_TOPIC,
+                    ros2_typestore)
 from ..ros2_bag import QOS_STATIC, BagWriter
 from ..ros2_frames import TruthInOdom
 from .sinks import FrameResult, Sink
 from .stats import PipelineStats
 from .zenoh_sink import status
 
-HEATMAP_TOPIC = "/radar/heatmap"
-HEATMAP_AXES_TOPIC = "/radar/heatmap/axes"
-DIAGNOSTICS_TOPIC = "/diagnostics"
 GROUNDTRUTH_TOPIC = "/radar/groundtruth"
-#: The figures whose growth makes a pipeline status a warning: data was lost.
-_LOSSES = ("incomplete_frames", "frames_dropped", "packets_lost")
 
 
 class McapSink(Sink):
@@ -82,7 +77,7 @@ class McapSink(Sink):
             odometry, tf = rm.odometry_and_tf(state, types, self.mount)
             bag.write(self.odom_topic, odometry, t)
             bag.write(TF_TOPIC, tf, t)
-            bag.write(DIAGNOSTICS_TOPIC, rm.diagnostics(t, [_odometry_status(state)], types, self.source.url), t)
+            bag.write(DIAGNOSTICS_TOPIC, rm.diagnostics(t, [rm.odometry_status(state)], types), t)
         if result.points is not None:
             bag.write(POINTS_TOPIC, rm.pointcloud2(t, result.points, types), t)
         if result.heatmap is not None:
@@ -96,14 +91,8 @@ class McapSink(Sink):
         bag.flush()
 
     def _write_status(self, stats: PipelineStats, *, running: bool) -> None:
-        info = status(stats, self.source, running=running)
-        grew = [k for k in _LOSSES if info.get(k, 0) > self._losses.get(k, 0)]
-        self._losses = {k: info.get(k, 0) for k in _LOSSES}
-        message = f"{info['frames']} frames, {info['rate_hz']} Hz" + ("" if running else ", stopped")
-        if grew:
-            message += "; more " + ", ".join(k.replace("_", " ") for k in grew)
-        entry = ("radarodom: pipeline", rm.WARN if grew else rm.OK, message, _flat(info))
-        self.bag.write(DIAGNOSTICS_TOPIC, rm.diagnostics(self._t, [entry], self.types, self.source.url), self._t)
+        entry, self._losses = rm.pipeline_status(status(stats, self.source, running=running), self._losses)
+        self.bag.write(DIAGNOSTICS_TOPIC, rm.diagnostics(self._t, [entry], self.types), self._t)
 
     def close(self, stats: PipelineStats) -> None:
         try:
@@ -111,24 +100,3 @@ class McapSink(Sink):
                 self._write_status(stats, running=False)
         finally:
             self.bag.close()
-
-
-def _odometry_status(state) -> tuple[str, int, str, dict[str, Any]]:
-    flags = [str(f) for f in state.flags]
-    values = {"frame": int(state.frame), "ok": bool(state.ok), "flags": flags, "features": int(state.features),
-              "compute_ms": round(1e3 * float(state.compute_s), 3)}
-    return "radarodom: odometry", rm.OK if state.ok else rm.WARN, ", ".join(flags) or "ok", values
-
-
-def _flat(info: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested dicts as dotted keys (``latency_ms.p50``); other values as they are, non-scalars
-    as JSON."""
-    out: dict[str, Any] = {}
-    for key, value in info.items():
-        if isinstance(value, dict):
-            out.update(_flat(value, f"{prefix}{key}."))
-        elif isinstance(value, (list, tuple)) and not all(isinstance(v, (str, int, float)) for v in value):
-            out[prefix + key] = json.dumps(value)
-        else:
-            out[prefix + key] = value
-    return out

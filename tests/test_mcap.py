@@ -10,7 +10,11 @@ quaternions."""
 from __future__ import annotations
 
 import math
+import os
+import shutil
 import struct
+import subprocess
+import sys
 from collections import Counter, defaultdict
 
 import numpy as np
@@ -364,3 +368,38 @@ def test_a_time_a_bag_cannot_hold_is_refused_with_the_topic(tmp_path):
     writer.close()
     writer.close()
     assert Counter(t for t, _, _ in decoded(tmp_path / "run.mcap")) == {"/x": 1}
+
+
+# ============================================================================ other tools open it
+def test_rerun_checks_the_file_and_turns_its_topics_into_points_transforms_and_images(bag, tmp_path):
+    """Rerun's own MCAP importer (its CLI, shipped in rerun-sdk's wheel), analytics off."""
+    rerun = shutil.which("rerun", path=os.pathsep.join([os.path.dirname(sys.executable), os.environ["PATH"]]))
+    if rerun is None:
+        pytest.skip("no rerun command (pip install rerun-sdk)")
+    env = {**os.environ, "XDG_CONFIG_HOME": str(tmp_path), "RERUN_ANALYTICS": "0"}
+
+    def run(*args):
+        proc = subprocess.run([rerun, *map(str, args)], env=env, capture_output=True, text=True, timeout=300,
+                              stdin=subprocess.DEVNULL)
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout
+    run("analytics", "disable")
+    path, results, _ = bag
+    check = run("mcap", "check", path)
+    rows = [line.split() for line in check.splitlines() if line.split()[:1] in (["ok"], ["PROBLEM"])]
+    assert sorted(row[3] for row in rows) == sorted(TOPICS) and {row[0] for row in rows} == {"ok"}
+    run("mcap", "convert", path, "-o", tmp_path / "run.rrd")
+    run("rrd", "verify", tmp_path / "run.rrd")
+    printed = run("rrd", "print", tmp_path / "run.rrd")
+    rows_by = Counter()
+    for line in printed.splitlines():
+        if " - /" in line and "data columns:" in line:
+            count = int(line.split(" with ")[1].split()[0])
+            entity, columns = line.split(" - ")[1], line.split("data columns: ")[1]
+            for archetype in ("Points3D:positions", "Transform3D:translation", "DepthImage:buffer",
+                              "InstancePoses3D:translations"):
+                if archetype in columns:
+                    rows_by[(entity, archetype.split(":")[0])] += count
+    n = len(results)
+    assert rows_by == {("/radar/points", "Points3D"): n, ("/tf", "Transform3D"): n, ("/tf_static", "Transform3D"): 1,
+                       ("/radar/heatmap", "DepthImage"): n, ("/radar/groundtruth", "InstancePoses3D"): n}

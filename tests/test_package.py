@@ -41,6 +41,7 @@ def test_wheel_installs_only_the_radarodom_package(wheel):
     for folder in folders:
         assert f"radarodom/{folder.as_posix()}/__init__.py" in names, folder
     assert "radarodom/configs/awr1843_raw.cfg" in names
+    assert "radarodom/configs/radarodom.rviz" in names  # rviz2's view of the ROS 2 output (docs/ros2.md)
     assert not any(n.startswith(("radarodom/tests/", "radarodom/bench/")) for n in names)
 
 

@@ -1,4 +1,5 @@
-"""The ROS 2 output's point clouds and TF tree (radarodom.ros2.Ros2Node through the Publisher),
+"""The ROS 2 output's point clouds, TF tree, heatmaps and diagnostics (radarodom.ros2.Ros2Node
+through the Publisher),
 tested as the odometry is in test_publish.py: real Zenoh sessions on loopback subscribe to the
 key expressions an rmw_zenoh_cpp subscription declares, and every sample is checked for its
 key, type hash, attachment, liveliness token and CDR (decoded by rosbags) against what was
@@ -24,8 +25,13 @@ typesys = pytest.importorskip("rosbags.typesys")
 
 MOUNT = Mount(0.4, 0.1, 0.3, math.radians(-20.0))
 TYPES = {"ros2": "nav_msgs/msg/Odometry", "ros2_points": "sensor_msgs/msg/PointCloud2",
-         "ros2_tf": "tf2_msgs/msg/TFMessage", "ros2_tf_static": "tf2_msgs/msg/TFMessage"}
-TOPICS = {"ros2": "/radar/odom", "ros2_points": "/radar/points", "ros2_tf": "/tf", "ros2_tf_static": "/tf_static"}
+         "ros2_tf": "tf2_msgs/msg/TFMessage", "ros2_tf_static": "tf2_msgs/msg/TFMessage",
+         "ros2_heatmap": "sensor_msgs/msg/Image", "ros2_heatmap_axes": "std_msgs/msg/Float32MultiArray",
+         "ros2_diagnostics": "diagnostic_msgs/msg/DiagnosticArray"}
+TOPICS = {"ros2": "/radar/odom", "ros2_points": "/radar/points", "ros2_tf": "/tf", "ros2_tf_static": "/tf_static",
+          "ros2_heatmap": "/radar/heatmap", "ros2_heatmap_axes": "/radar/heatmap/axes",
+          "ros2_diagnostics": "/diagnostics"}
+VOLATILE = [kind for kind in TYPES if kind != "ros2_tf_static"]
 
 
 @pytest.fixture(scope="module")
@@ -38,14 +44,25 @@ def store():
     return typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
 
 
+@pytest.fixture
+def patient(tmp_path) -> str:
+    """A Zenoh config (JSON5) whose links wait up to 0.2 s for room in a full queue before they drop
+    a sample (Zenoh's default: 1 ms for a small one). What is under test here is what arrives, not
+    the drop policy, and on a loaded machine the sending thread can miss 1 ms."""
+    path = tmp_path / "patient.json5"
+    path.write_text('{mode: "peer", scouting: {multicast: {enabled: false}}, transport: {link: {tx: {queue: '
+                    '{congestion_control: {drop: {wait_before_drop: 200000}}}}}}}')
+    return str(path)
+
+
 def expected_key(store, kind: str, domain: int = 0) -> str:
     package, kind_, name = TYPES[kind].split("/")
     return f"{domain}/{TOPICS[kind].strip('/')}/{package}::{kind_}::dds_::{name}_/{store.hash_rihs01(TYPES[kind])}"
 
 
-def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
+def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run, patient):
     endpoint = free_endpoint()
-    options = ZenohOptions(listen=[endpoint], connect=(), ros2=True)
+    options = ZenohOptions(listen=[endpoint], connect=(), ros2=True, config_file=patient)
     with Publisher(options, mount=MOUNT) as pub, peer(connect=[endpoint]) as session:
         assert pub.ros2_keys == {kind: expected_key(store, kind) for kind in TYPES}
         inboxes = {kind: subscribe(session, key) for kind, key in pub.ros2_keys.items() if kind != "ros2_tf_static"}
@@ -55,12 +72,16 @@ def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
         static_sub = zenoh.ext.declare_advanced_subscriber(
             session, pub.ros2_keys["ros2_tf_static"], inboxes["ros2_tf_static"],
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True))
-        assert wait_for(lambda: all(pub._publishers[k].matching_status.matching for k in ("ros2", "ros2_points",
-                                                                                          "ros2_tf")))
-        for i, (state, points, _) in enumerate(run):
+        assert wait_for(lambda: all(pub._publishers[k].matching_status.matching for k in VOLATILE))
+        for i, (state, points, heatmap) in enumerate(run):
             pub.odometry(state)
             pub.pointcloud(i, state.t, points)
-            assert wait_for(lambda: len(inboxes["ros2_points"].samples) == i + 1), i
+            pub.heatmap(i, state.t, heatmap)
+            assert wait_for(lambda: len(inboxes["ros2_heatmap_axes"].samples) == i + 1), \
+                str((i, {k: len(v.samples) for k, v in inboxes.items()}))
+        pub.status({"frames": len(run), "rate_hz": 10.0, "running": False, "latency_ms": {"p50": 12.5},
+                    "incomplete_frames": 0})
+        assert wait_for(lambda: len(inboxes["ros2_diagnostics"].samples) == len(run) + 1)
         assert wait_for(lambda: len(inboxes["ros2_tf"].samples) == len(run))
         assert wait_for(lambda: len(inboxes["ros2_tf_static"].samples) == 1, 10.0)
         time.sleep(0.2)  # a second copy would arrive by now
@@ -69,8 +90,8 @@ def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
                         if r.ok is not None)
         zid = pub.zid
         counts = dict(pub.counts)
-    assert counts["ros2"] == counts["ros2_points"] == counts["ros2_tf"] == len(run)
-    assert counts["ros2_tf_static"] == 1
+    assert counts["ros2"] == counts["ros2_points"] == counts["ros2_tf"] == counts["ros2_heatmap"] == len(run)
+    assert counts["ros2_tf_static"] == 1 and counts["ros2_diagnostics"] == len(run) + 1
 
     # Point clouds: the radar's REP-103 frame, every point, its velocity, SNR and noise.
     for (_, _, payload, _), (state, points, _) in zip(inboxes["ros2_points"].samples, run):
@@ -95,6 +116,25 @@ def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
         expected = base_in_odom(state, MOUNT)
         np.testing.assert_allclose(of_msg(tf.transform.translation, tf.transform.rotation), expected, atol=1e-9)
         np.testing.assert_allclose(of_msg(odom.pose.pose.position, odom.pose.pose.orientation), expected, atol=1e-9)
+    # The heatmap: dB, the farthest range in row 0, and its axes beside it.
+    for (_, _, payload, _), (_, _, axes_payload, _), (_, _, heatmap) in zip(
+            inboxes["ros2_heatmap"].samples, inboxes["ros2_heatmap_axes"].samples, run):
+        image = store.deserialize_cdr(payload, TYPES["ros2_heatmap"])
+        rows, cols = heatmap.intensity.shape
+        assert (image.height, image.width, image.encoding, image.header.frame_id) == (rows, cols, "32FC1", "radar")
+        pixels = np.frombuffer(bytes(image.data), "<f4").reshape(rows, cols)
+        np.testing.assert_allclose(pixels, np.maximum(10 * np.log10(np.maximum(heatmap.intensity, 1e-300)), -300)[::-1],
+                                   rtol=1e-6, atol=1e-4)
+        axes = store.deserialize_cdr(axes_payload, TYPES["ros2_heatmap_axes"])
+        np.testing.assert_array_equal(axes.data[:rows], np.asarray(heatmap.range_m, np.float32)[::-1])
+    # /diagnostics: each state's flags, then the status message's figures.
+    diagnostics = [store.deserialize_cdr(p, TYPES["ros2_diagnostics"]).status[0] for _, _, p, _ in
+                   inboxes["ros2_diagnostics"].samples]
+    for status, (state, _, _) in zip(diagnostics, run):
+        assert status.name == "radarodom: odometry" and status.level == (0 if state.ok else 1)
+        assert {kv.key: kv.value for kv in status.values}["flags"] == ",".join(str(f) for f in state.flags)
+    assert diagnostics[-1].name == "radarodom: pipeline" and diagnostics[-1].message == "12 frames, 10.0 Hz, stopped"
+    assert {kv.key: kv.value for kv in diagnostics[-1].values}["latency_ms.p50"] == "12.5"
     # /tf_static: base_link -> radar, once, before the first odometry.
     (static,) = inboxes["ros2_tf_static"].samples
     (mount_tf,) = store.deserialize_cdr(static[2], TYPES["ros2_tf_static"]).transforms
@@ -114,7 +154,7 @@ def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
     # The graph: the node and one publisher token per topic, with distinct entity ids and the
     # QoS tf2 uses (/tf_static transient local, keep last 1).
     node = f"@ros2_lv/0/{zid}/0/0/NN/%/%/radarodom"
-    assert node in tokens and len(tokens) == 5
+    assert node in tokens and len(tokens) == 1 + len(TYPES)
     publishers = {}
     for token in tokens:
         parts = token.split("/")
@@ -122,7 +162,7 @@ def test_point_clouds_and_the_tf_tree_reach_rmw_zenoh_subscribers(store, run):
             assert len(parts) == 13 and parts[8] == "radarodom"
             publishers[parts[9].replace("%", "/")] = (parts[4], parts[10], parts[11], parts[12])
     assert set(publishers) == set(TOPICS.values())
-    assert len({entity for entity, _, _, _ in publishers.values()}) == 4
+    assert len({entity for entity, _, _, _ in publishers.values()}) == len(TYPES)
     for kind, topic in TOPICS.items():
         _, dds, type_hash, qos = publishers[topic]
         assert pub.ros2_keys[kind].split("/")[-2:] == [dds, type_hash]
@@ -149,24 +189,47 @@ def test_a_late_subscriber_gets_the_static_transform(store, run):
     assert ros2.ROS2_ATTACHMENT.unpack(attachment)[0] == 1
 
 
-def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store):
+def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store, patient):
     from test_cli_capture import run_capture_cli
 
     here = free_endpoint()
     keys = {kind: expected_key(store, kind) for kind in TYPES}
     with peer(listen=[here]) as session:
-        inboxes = {kind: subscribe(session, key) for kind, key in keys.items()}
+        inbox = subscribe(session, "0/**")  # one subscription for every topic, as test_cli_publish's
         proc = run_capture_cli("--source", "sim://corridor?duration=1", "--ros2", "--mount", "0.4,0.1,0.3,-20",
-                               "--connect", here, "--listen", free_endpoint(), timeout=300)
+                               "--connect", here, "--listen", free_endpoint(), "--zenoh-config", patient, timeout=300)
         assert proc.returncode == 0, proc.stderr
-        assert wait_for(lambda: len(inboxes["ros2_tf"].samples) >= 10, 5.0)
-    assert {kind: len(inbox.samples) for kind, inbox in inboxes.items()} == \
-        {"ros2": 10, "ros2_points": 10, "ros2_tf": 10, "ros2_tf_static": 1}
-    points = [store.deserialize_cdr(p, TYPES["ros2_points"]) for _, _, p, _ in inboxes["ros2_points"].samples]
+        # The process has ended; its last samples may still be on their way through the callbacks.
+        wait_for(lambda: len(inbox.samples) >= 10 * 6 + 1 + 11, 10.0)
+    samples = {kind: [s for s in inbox.samples if s[0] == key] for kind, key in keys.items()}
+    counts = {kind: len(got) for kind, got in samples.items()}
+    assert counts.pop("ros2_diagnostics") >= 11, counts  # each state's, and the status every second and at the end
+    assert counts == {"ros2": 10, "ros2_points": 10, "ros2_tf": 10, "ros2_tf_static": 1, "ros2_heatmap": 10,
+                      "ros2_heatmap_axes": 10}
+    points = [store.deserialize_cdr(p, TYPES["ros2_points"]) for _, _, p, _ in samples["ros2_points"]]
     assert {p.header.frame_id for p in points} == {"radar"} and sum(p.width for p in points) > 0
-    stamps = [(t.header.stamp.sec, t.header.stamp.nanosec) for m in inboxes["ros2_tf"].samples
+    stamps = [(t.header.stamp.sec, t.header.stamp.nanosec) for m in samples["ros2_tf"]
               for t in store.deserialize_cdr(m[2], TYPES["ros2_tf"]).transforms]
     assert stamps == sorted(stamps) and stamps[0] == (0, 0)
-    (mount_tf,) = store.deserialize_cdr(inboxes["ros2_tf_static"].samples[0][2], TYPES["ros2_tf"]).transforms
+    (mount_tf,) = store.deserialize_cdr(samples["ros2_tf_static"][0][2], TYPES["ros2_tf"]).transforms
     assert (mount_tf.transform.translation.x, mount_tf.transform.translation.y,
             mount_tf.transform.translation.z) == (0.4, 0.1, 0.3)
+
+
+def test_the_shipped_rviz_config_shows_the_published_topics_in_odom():
+    yaml = pytest.importorskip("ruamel.yaml")
+    from conftest import REPO
+
+    from radarodom.publish import DEFAULT_ROS2_TOPIC
+
+    config = yaml.YAML(typ="safe").load((REPO / "configs" / "radarodom.rviz").read_text())
+    manager = config["Visualization Manager"]
+    assert manager["Global Options"]["Fixed Frame"] == "odom"
+    displays = {d["Class"]: d for d in manager["Displays"]}
+    assert set(displays) >= {"rviz_default_plugins/TF", "rviz_default_plugins/PointCloud2",
+                             "rviz_default_plugins/Odometry", "rviz_default_plugins/Image"}
+    topics = {cls.rsplit("/", 1)[1]: d["Topic"]["Value"] for cls, d in displays.items() if "Topic" in d}
+    assert topics == {"PointCloud2": ros2.POINTS_TOPIC, "Odometry": DEFAULT_ROS2_TOPIC, "Image": ros2.HEATMAP_TOPIC}
+    cloud = displays["rviz_default_plugins/PointCloud2"]
+    assert cloud["Channel Name"] == "velocity"  # a field the point cloud has
+    assert all(d["Topic"]["Reliability Policy"] == "Reliable" for d in displays.values() if "Topic" in d)
