@@ -1,6 +1,6 @@
 """Reproduce the paper's two tables on simulated sequences, then measure the options beyond it.
 
-    python bench/paper_experiment.py [--data DIR] [--seeds 0 1 2] [--scenes corridor room lab]
+    python bench/paper_experiment.py [--data DIR] [--fidelity exact|fast] [--seeds 0 1 2] [--scenes corridor room lab]
                                      [--out DIR] [--plot]
 
 Records each scene with ``radar-sim`` (exact fidelity, ground truth) into --data
@@ -77,6 +77,14 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default, keyframe search from the scan guess": d.with_(odometry={"keyframe_start": "scan",
                                                                           "keyframe_noise_rad": None}),
         "default, keyframe search around the prediction": d.with_(odometry={"keyframe_start": "predicted"}),
+        # The heading options of issue 20, each turned off, and all four (the defaults before).
+        "default, score over the points inside at each rotation": d.with_(icp={"score_support": "inside"}),
+        "default, features level with the radar": d.with_(features={"elevation": "ignore"}),
+        "default, rectified by v dt": d.with_(odometry={"rectification": "velocity"}),
+        "default, moving cells in the field": d.with_(icp={"reject_moving_mps": None}),
+        "default without the four heading options (2026-11-25)": d.with_(
+            icp={"score_support": "inside", "reject_moving_mps": None}, features={"elevation": "ignore"},
+            odometry={"rectification": "velocity"}),
     }
     return {k: ("beyond", v) for k, v in out.items()}
 
@@ -164,6 +172,8 @@ def _plot(results: dict, scene: str, seed: int, out: str) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--fidelity", choices=["exact", "fast"], default="exact",
+                        help="the simulator's (radar-sim --fidelity); keep sequences of each in their own --data")
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/sim"),
                         help="where the simulated sequences are recorded and cached")
     parser.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
@@ -180,7 +190,7 @@ def main(argv=None) -> int:
     for scene in args.scenes:
         for seed in args.seeds:
             directory = os.path.join(args.data, f"{scene}_s{seed}")
-            sequences.record(scene, seed, directory)
+            sequences.record(scene, seed, directory, fidelity=args.fidelity)
             seq = sequences.load(directory, f"{scene}_s{seed}")
             for name in names:
                 results[(name, scene, seed)] = r = measure(seq, table[name][1])

@@ -53,14 +53,16 @@ class Sequence:
         return len(self.times)
 
 
-def record(scene: str, seed: int, directory: str, duration: float | None = None, board: str = "ideal") -> None:
-    """Simulate *scene* on *board* with ``radar-sim`` unless *directory* already holds it."""
+def record(scene: str, seed: int, directory: str, duration: float | None = None, board: str = "ideal",
+           fidelity: str = "exact") -> None:
+    """Simulate *scene* on *board* with ``radar-sim`` (at *fidelity*) unless *directory* already
+    holds it."""
     if os.path.exists(os.path.join(directory, "capture.json")):
         return
     # Into a temporary directory first: a recording cut short must not pass for a whole one.
     tmp = directory.rstrip(os.sep) + ".tmp"
     cmd = [sys.executable, "-m", "radarodom.tools.radar_sim", scene, "--seed", str(seed),
-           "--board", board, "--out", tmp, "--overwrite", "-q"]
+           "--board", board, "--fidelity", fidelity, "--out", tmp, "--overwrite", "-q"]
     if duration is not None:
         cmd += ["--duration", str(duration)]
     subprocess.run(cmd, check=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
