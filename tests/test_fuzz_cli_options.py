@@ -44,7 +44,9 @@ def _numeric_options() -> list[tuple[str, str, argparse.Action]]:
     for tool in TOOLS:
         parser = importlib.import_module(f"radarodom.tools.{tool}").build_parser()
         for action in parser._actions:
-            if action.type is not None and action.option_strings:
+            # radar-capture's --mount is four numbers (x,y,z,yaw_deg): tests/test_mount.py.
+            if action.type is not None and action.option_strings \
+                    and not getattr(action.type, "not_a_number", False):
                 found.append((tool, action.option_strings[-1], action))
     return found
 
