@@ -406,6 +406,63 @@ class OdometryConfig(Settings):
 
 
 @dataclass
+class PointYawConfig(Settings):
+    """Beyond the paper: the yaw from a radar's own few detected points on a short local map, and
+    from its zero-Doppler heatmap when slow (TI's demo firmware, ``tidemo://``; estimator/point_yaw.py
+    says how, docs/tidemo.md what it gives)."""
+
+    _what = "point-yaw"
+
+    #: Measure the yaw this way instead of registering heatmaps (and their keyframes).
+    use: bool = False
+    #: The map holds the static points of this many last frames.
+    map_frames: int = 10
+    #: A point's spread across its ray is its range times this, rad (one azimuth a point from a
+    #: small array), ...
+    bearing_noise_rad: float = math.radians(2.0)
+    #: ... along it this, m, ...
+    range_noise_m: float = 0.05
+    #: ... and at least this every way, m.
+    position_floor_m: float = 0.05
+    #: A point is static when its radial velocity is within this of a static reflector's, m/s.
+    static_threshold_mps: float = 0.1
+    #: Fewer static points than this in a frame, or map points than ``min_map_points``: no turn
+    #: from the points.
+    min_points: int = 2
+    min_map_points: int = 10
+    #: The turns tried: within this of the predicted turn, rad, ...
+    search_rad: float = math.radians(8.0)
+    #: ... every this, rad.
+    step_rad: float = math.radians(0.1)
+    #: The prior about the predicted turn that picks among peaks, rad (standard deviation).
+    prior_rad: float = math.radians(3.0)
+    #: A point's log-likelihood is at least that of this many standard deviations.
+    outlier_sigmas: float = 3.0
+    #: The points' turn has at least this noise, rad, and at most ``max_noise_rad``.
+    min_noise_rad: float = math.radians(1.5)
+    max_noise_rad: float = math.radians(4.0)
+    #: Below this speed the heatmap registration measures the turn too, m/s ...
+    slow_mps: float = 0.1
+    #: ... with at least this noise, rad; ...
+    heatmap_noise_rad: float = math.radians(1.5)
+    #: ... and when it disagrees with the points' by more than this many of their combined
+    #: standard deviations, the points' is taken.
+    agreement_sigmas: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check(self.map_frames >= 1, "must be at least 1", "map_frames")
+        for name in ("bearing_noise_rad", "range_noise_m", "position_floor_m", "static_threshold_mps", "search_rad",
+                     "step_rad", "prior_rad", "outlier_sigmas", "min_noise_rad", "heatmap_noise_rad",
+                     "agreement_sigmas"):
+            _check(getattr(self, name) > 0, "must be positive", name)
+        _check(self.min_points >= 1, "must be at least 1", "min_points")
+        _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")
+        _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
+        _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
+        _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")
+
+
+@dataclass
 class EstimatorConfig(Settings):
     _what = "estimator"
 
@@ -413,6 +470,7 @@ class EstimatorConfig(Settings):
     features: FeatureConfig = field(default_factory=FeatureConfig)
     icp: IcpConfig = field(default_factory=IcpConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
+    point_yaw: PointYawConfig = field(default_factory=PointYawConfig)
 
     @classmethod
     def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":
@@ -425,9 +483,17 @@ class EstimatorConfig(Settings):
                    odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0,
                                            velocity_fallback="hold", rectification="velocity"))
 
+    @classmethod
+    def tidemo(cls) -> "EstimatorConfig":
+        """The settings for TI's demo firmware's output (``tidemo://`` and its replays): the yaw
+        from its few points on a local map and its static heatmap when slow (``point_yaw``), a
+        velocity from as few as 3 points, standing still when half of them say so (a person
+        walking past a robot turning in place is a larger share of a handful of points)."""
+        return cls().with_(**TIDEMO_PRESET)
+
     def with_(self, **sections) -> "EstimatorConfig":
         """A copy with fields of sections replaced: ``cfg.with_(icp={"two_way": False})``."""
-        data = {name: getattr(self, name) for name in ("velocity", "features", "icp", "odometry")}
+        data = {name: getattr(self, name) for name in ("velocity", "features", "icp", "odometry", "point_yaw")}
         for name, changes in sections.items():
             if name not in data:
                 raise ConfigError(f"unknown estimator section {name!r}")
@@ -435,6 +501,11 @@ class EstimatorConfig(Settings):
             section.update(changes)
             data[name] = section
         return EstimatorConfig.from_dict(data)
+
+
+#: What :meth:`EstimatorConfig.tidemo` changes, by section (the changes a source's preset makes,
+#: ``pipeline.source_estimator``).
+TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5}, "point_yaw": {"use": True}}
 
 
 def paper_variants() -> dict[str, tuple[str, EstimatorConfig]]:

@@ -33,6 +33,7 @@ from .features import PolarHeatmap
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
+from .point_yaw import point_yaw_part
 from .quality import Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import VelocityTrack
@@ -99,6 +100,11 @@ class RadarOdometry:
         self.doppler_yaw = doppler_yaw_part(odo)
         self._yaw_noise_var = odo.yaw_noise_rad ** 2
         self.keyframes = KeyframeCorrection(self.config, self.yaw) if odo.keyframe_distance_m > 0 else NoKeyframes()
+        # point_yaw.use: the yaw from the point clouds on a local map (the heatmap's when slow),
+        # which also stands in for the keyframes.
+        self.point_yaw = point_yaw_part(self.config, self.yaw)
+        if self.point_yaw is not None:
+            self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
         self._held_rate_std = odo.held_yaw_rate_std_radps
         self._chord = odo.rectification == "chord"
         self._previous: KeptFrame | None = None
@@ -119,6 +125,8 @@ class RadarOdometry:
         _check_time(t, "point cloud")
         est = estimate_velocity(points, t, self.config.velocity, self.rng)
         self.add_velocity(est)
+        if self.point_yaw is not None:
+            self.point_yaw.add_points(t, points, est)
         self._velocity_s += time.perf_counter() - start
         return est
 

@@ -1,0 +1,217 @@
+"""The yaw from a radar's own detected points, registered to a short local map of the last frames'
+points, and from its zero-Doppler (static) heatmap where that holds the scene (``point_yaw.use``).
+
+TI's demo firmware (``tidemo://``, docs/tidemo.md) sends a handful of points a frame and the
+heatmap of the zero-Doppler bin only.  Driving at 0.5-1 m/s puts the static world 7-15 Doppler bins
+from zero, so that heatmap holds little of it but window leakage: registered frame to frame it says
+nothing of a moving turn.  The points carry the static world at every speed, too few a frame to
+register frame to frame, but enough against the points of the last second:
+
+- the map: the static points (Doppler consistent with the sensor's velocity) of the last
+  ``map_frames`` frames, each placed in the world by the pose of its frame along the map's own
+  chain of poses: each step's displacement as the odometry integrated it, turned by the yaw this
+  part measured (so that the lag of the yaw-rate filter in a turn's first frames does not turn
+  the map with it; where nothing was measured, the odometry's);
+- each map point is a Gaussian whose spread is its measurement's: ``range_noise_m`` along its ray,
+  ``bearing_noise_rad`` times its range across (the chip measures one azimuth a point with a small
+  array), at least ``position_floor_m``;
+- a step's turn: the frame's static points moved by the step's translation (the velocity's) and
+  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn,
+  scored by the log-likelihood of the points under the map (each point the log of its Gaussians'
+  sum, at least that of ``outlier_sigmas``: a point the map has not seen costs the same at every
+  turn); the best score plus a Gaussian prior of ``prior_rad`` about the prediction (which picks
+  among peaks, not their place) is refined by a parabola, and its variance is the inverse
+  curvature, between ``min_noise_rad`` and ``max_noise_rad`` squared;
+- below ``slow_mps`` the static heatmap holds the scene (standing, turning in place, creeping):
+  the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's) measures
+  the turn too, with a variance of at least ``heatmap_noise_rad`` squared (it has no elevation, and
+  near walls under-measures turns in place); both are averaged by their variances, or, when they
+  disagree by more than ``agreement_sigmas`` of their combined spread, the points' is taken.
+
+The measured turn goes on to the yaw-rate filter like a registration's; this part takes the
+keyframe correction's place (the map is its own).  Used by :class:`~.odometry.RadarOdometry` when
+``point_yaw.use`` is set (``EstimatorConfig.tidemo()``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from .config import EstimatorConfig, PointYawConfig
+from .quality import Flag
+from .velocity import OK, ZERO, VelocityEstimate
+from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement, YawStep
+
+
+def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float) -> np.ndarray:
+    """The horizontal body-frame positions (m, 2) of the *points* (TI frame, products.POINT_DTYPE)
+    whose radial velocity is within *threshold_mps* of a static reflector's at the sensor's
+    body-frame *velocity* (2,) m/s: v_r = -(vx cos b + vy sin b) cos(el)."""
+    if len(points) == 0:
+        return np.zeros((0, 2))
+    x, y = points["x"].astype(float), points["y"].astype(float)
+    bearing = np.arctan2(-x, y)
+    expected = -(velocity[0] * np.cos(bearing) + velocity[1] * np.sin(bearing)) * np.cos(points["elevation"])
+    static = np.abs(points["velocity"] - expected) <= threshold_mps
+    return np.stack([y[static], -x[static]], 1)
+
+
+def _world(xy: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.stack([pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]], 1)
+
+
+class LocalMap:
+    """The static points of the last frames in the world (see the module docstring), along the map's
+    chain of poses; in the keyframe correction's place in the odometry (:meth:`correct`,
+    :meth:`update`)."""
+
+    def __init__(self, config: PointYawConfig) -> None:
+        self._config = config
+        self._frames: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.map_frames)
+        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
+        #: The last frame's pose along the map's chain, and the odometry's.
+        self.pose: tuple[float, float, float] | None = None
+        self._odometry_pose: tuple[float, float, float] | None = None
+        #: The current step's turn as this part measured it (rad, counter-clockwise); its static points.
+        self.turn: float | None = None
+        self.pending: tuple[float, np.ndarray] | None = None
+
+    def correct(self, step, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
+        """The step's yaw as the filter gave it: the map measured it already."""
+        return step.dyaw, step.var_yaw
+
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool) -> None:
+        """The odometry's *pose* of *current*: the map's chain moves by the step (turned by the
+        measured turn, when there was one) and takes in the frame's static points."""
+        if self.pose is None or self._odometry_pose is None:
+            chained = pose
+        else:
+            ox, oy, oyaw = self._odometry_pose
+            c, s = math.cos(oyaw), math.sin(oyaw)
+            dx, dy = c * (pose[0] - ox) + s * (pose[1] - oy), -s * (pose[0] - ox) + c * (pose[1] - oy)
+            x, y, yaw = self.pose
+            c, s = math.cos(yaw), math.sin(yaw)
+            turn = self.turn if self.turn is not None else pose[2] - oyaw
+            chained = (x + c * dx - s * dy, y + s * dx + c * dy, yaw + turn)
+        self._odometry_pose, self.pose, self.turn = pose, chained, None
+        if self.pending is not None and self.pending[0] == current.t and len(self.pending[1]):
+            self._frames.append((_world(self.pending[1], chained), np.array(chained[:2])))
+            self._arrays = None
+        self.pending = None
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The map's points (m, 2) m and their Gaussians' inverse covariances (m, 2, 2), 1/m^2."""
+        if self._arrays is None:
+            cfg = self._config
+            if not self._frames:
+                return np.zeros((0, 2)), np.zeros((0, 2, 2))
+            points = np.concatenate([f[0] for f in self._frames])
+            origins = np.concatenate([np.broadcast_to(f[1], f[0].shape) for f in self._frames])
+            ray = points - origins
+            r = np.maximum(np.hypot(ray[:, 0], ray[:, 1]), 1e-6)
+            u = ray / r[:, None]
+            n = np.stack([-u[:, 1], u[:, 0]], 1)
+            across = (r * cfg.bearing_noise_rad) ** 2
+            cov = (cfg.range_noise_m ** 2 * u[:, :, None] * u[:, None, :] + across[:, None, None] * n[:, :, None]
+                   * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
+            self._arrays = points, np.linalg.inv(cov)
+        return self._arrays
+
+
+class PointYaw:
+    """The yaw measurement of ``point_yaw.use``: :meth:`keep` and :meth:`measure` as
+    :class:`~.yaw_measurement.YawMeasurement` (whose heatmap registration it runs when slow),
+    :meth:`add_points` for each point cloud, and :attr:`map` in the keyframe correction's place."""
+
+    def __init__(self, config: EstimatorConfig, heatmap: YawMeasurement) -> None:
+        self._config = config.point_yaw
+        self._heatmap = heatmap
+        #: The initial guess's part (the odometry predicts the turn from the yaw rate when it uses it).
+        self.guess = heatmap.guess
+        self.map = LocalMap(config.point_yaw)
+        self._points: tuple[float, np.ndarray, np.ndarray | None] | None = None
+        cfg = self._config
+        self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
+        self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
+
+    def add_points(self, t: float, points: np.ndarray, estimate: VelocityEstimate) -> None:
+        """The point cloud taken at *t* and the velocity estimated from it."""
+        velocity = estimate.velocity if estimate.status == OK else np.zeros(2) if estimate.status == ZERO else None
+        self._points = (t, points, velocity)
+        if self.map.pose is None and velocity is not None:  # the first frame's, for the map
+            self.map.pending = (t, static_points(points, velocity, self._config.static_threshold_mps))
+
+    def keep(self, frame: CurrentFrame, velocity: np.ndarray | None) -> KeptFrame:
+        return self._heatmap.keep(frame, velocity)
+
+    def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
+                predicted: float, flags: list[Flag]) -> YawStep:
+        """The rotation from *previous* to *current* (source -> target: minus the sensor's turn)
+        from the points on the map and, when slow, the heatmap; see the module docstring."""
+        cfg = self._config
+        dt = current.t - previous.t
+        velocity = translation / dt
+        xy = np.zeros((0, 2))
+        if self._points is not None and self._points[0] == current.t:
+            own = self._points[2]
+            xy = static_points(self._points[1], own if own is not None else velocity, cfg.static_threshold_mps)
+        self.map.pending = (current.t, xy)
+        found = []  # (turn rad, variance rad^2)
+        if float(np.hypot(*velocity)) < cfg.slow_mps:
+            step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
+            if step.rotation is not None:
+                found.append((-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2)))
+        points = self._register(xy, translation, -predicted)
+        if points is not None:
+            if found and abs(found[0][0] - points[0]) > cfg.agreement_sigmas * math.sqrt(found[0][1] + points[1]):
+                found = []
+            found.append(points)
+        if not found:
+            flags.append(Flag.FEW_FEATURES if len(xy) < cfg.min_points else Flag.NO_STRUCTURE)
+            return YawStep(None, None, 0.0)
+        weights = np.array([1.0 / var for _, var in found])
+        turn = float(weights @ np.array([t for t, _ in found]) / weights.sum())
+        self.map.turn = turn
+        return YawStep(-turn, None, float(1.0 / weights.sum()))
+
+    def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float) -> tuple[float, float] | None:
+        """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by
+        *translation* (2,) m in the previous frame's axes, best on the map, and its variance; None
+        with too few points or map points, or no peak inside the search."""
+        cfg = self._config
+        if self.map.pose is None or len(xy) < cfg.min_points:
+            return None
+        centres, inverse = self.map.arrays()
+        if len(centres) < cfg.min_map_points:
+            return None
+        x0, y0, yaw0 = self.map.pose
+        c0, s0 = math.cos(yaw0), math.sin(yaw0)
+        origin = (x0 + c0 * translation[0] - s0 * translation[1], y0 + s0 * translation[0] + c0 * translation[1])
+        turns = predicted_turn + self._offsets
+        c, s = np.cos(yaw0 + turns)[:, None], np.sin(yaw0 + turns)[:, None]
+        # Each point at each turn (T, n), less each map point (T, n, m).
+        ex = (origin[0] + c * xy[:, 0] - s * xy[:, 1])[:, :, None] - centres[:, 0]
+        ey = (origin[1] + s * xy[:, 0] + c * xy[:, 1])[:, :, None] - centres[:, 1]
+        q = ex * ex * inverse[:, 0, 0] + 2.0 * ex * ey * inverse[:, 0, 1] + ey * ey * inverse[:, 1, 1]
+        likelihood = np.exp(-0.5 * q).sum(axis=2)
+        score = np.log(np.maximum(likelihood, math.exp(self._log_outlier))).sum(axis=1)  # (T,)
+        best = int(np.argmax(score - 0.5 * (self._offsets / cfg.prior_rad) ** 2))
+        if best == 0 or best == len(score) - 1:
+            return None
+        left, mid, right = score[best - 1:best + 2]
+        curvature = left - 2.0 * mid + right
+        if curvature >= 0:
+            return None
+        offset = min(max(0.5 * (left - right) / curvature, -0.5), 0.5)
+        variance = -cfg.step_rad ** 2 / curvature
+        variance = min(max(variance, cfg.min_noise_rad ** 2), cfg.max_noise_rad ** 2)
+        return float(turns[best] + offset * cfg.step_rad), variance
+
+
+def point_yaw_part(config: EstimatorConfig, heatmap: YawMeasurement) -> PointYaw | None:
+    """The part for ``point_yaw.use`` (None when off: the heatmap registration alone)."""
+    return PointYaw(config, heatmap) if config.point_yaw.use else None
