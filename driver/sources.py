@@ -131,6 +131,9 @@ class Source(abc.ABC):
     carries_raw: bool = True
     #: True when :meth:`recorder` gives a sink of the source's own (tidemo://: its UART packets).
     records_itself: bool = False
+    #: The estimator settings this source's frames call for, by name (``EstimatorConfig.preset``:
+    #: "tidemo" for TI's demo firmware's points and static heatmap); None: the defaults.
+    estimator_preset: str | None = None
     #: The TX-to-RX coupling a dataset ships for its raw frames, removed by the DSP
     #: (:class:`radarodom.calibration.RangeCoupling`); None for most sources.
     coupling: RangeCoupling | None = None

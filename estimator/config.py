@@ -489,7 +489,15 @@ class EstimatorConfig(Settings):
         from its few points on a local map and its static heatmap when slow (``point_yaw``), a
         velocity from as few as 3 points, standing still when half of them say so (a person
         walking past a robot turning in place is a larger share of a handful of points)."""
-        return cls().with_(**TIDEMO_PRESET)
+        return cls().preset("tidemo")
+
+    def preset(self, name: str | None) -> "EstimatorConfig":
+        """These settings with the preset *name* of :data:`PRESETS` applied (None: unchanged)."""
+        if name is None:
+            return self
+        if name not in PRESETS:
+            raise ConfigError(f"unknown estimator preset {name!r} (known: {', '.join(sorted(PRESETS))})")
+        return self.with_(**PRESETS[name])
 
     def with_(self, **sections) -> "EstimatorConfig":
         """A copy with fields of sections replaced: ``cfg.with_(icp={"two_way": False})``."""
@@ -503,9 +511,11 @@ class EstimatorConfig(Settings):
         return EstimatorConfig.from_dict(data)
 
 
-#: What :meth:`EstimatorConfig.tidemo` changes, by section (the changes a source's preset makes,
-#: ``pipeline.source_estimator``).
+#: What :meth:`EstimatorConfig.tidemo` changes, by section.
 TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5}, "point_yaw": {"use": True}}
+#: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
+#: makes to other settings, by section (:meth:`EstimatorConfig.preset`).
+PRESETS = {"tidemo": TIDEMO_PRESET}
 
 
 def paper_variants() -> dict[str, tuple[str, EstimatorConfig]]:

@@ -40,6 +40,17 @@ log = logging.getLogger(__name__)
 _DURATION_TOLERANCE_S = 1e-6
 
 
+def source_estimator(source: Source, config: EstimatorConfig | None = None) -> EstimatorConfig:
+    """The estimator settings for *source*'s frames: *config* (default the built-in ones) with the
+    preset the source calls for applied (``Source.estimator_preset``: a ``tidemo://`` source's
+    points and static heatmap take ``EstimatorConfig.tidemo()``'s changes).  Settings a user chose
+    for the source (radar-capture's --estimator-config) are used as they are instead."""
+    config = config or EstimatorConfig()
+    if source.estimator_preset is not None:
+        log.info("estimator: the %r preset for this source's frames", source.estimator_preset)
+    return config.preset(source.estimator_preset)
+
+
 class OdometryFeed:
     """Feeds a frame's products to the estimator's stream(s) its role names: a "velocity" frame's
     point cloud, a "heatmap" frame's heatmap, or both; the new odometry state, or None for a
@@ -201,5 +212,5 @@ class Pipeline:
         self.close()
 
 
-__all__ = ["Pipeline", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "CaptureSink", "TumSink",
+__all__ = ["Pipeline", "source_estimator", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "CaptureSink", "TumSink",
            "PointsCsvSink", "HeatmapSink", "FrameProducts", "RateMeter", "LatencyMeter"]

@@ -113,3 +113,10 @@ def test_bad_settings_are_refused_naming_the_field(field, value):
     assert f"point_yaw.{field}" in str(info.value)
     with pytest.raises(ConfigError):
         PointYawConfig(**{field: value})
+
+
+def test_presets_by_name():
+    assert EstimatorConfig().preset("tidemo") == EstimatorConfig.tidemo()
+    assert EstimatorConfig().preset(None) == EstimatorConfig()
+    with pytest.raises(ConfigError, match="unknown estimator preset 'nope'"):
+        EstimatorConfig().preset("nope")

@@ -17,7 +17,7 @@ from radarodom.cfg import RadarConfig
 from radarodom.driver import open_source
 from radarodom.driver.emulators.fake_demo_uart import DemoUartRig, UartFaults
 from radarodom.estimator.config import EstimatorConfig
-from radarodom.pipeline import Pipeline, TumSink
+from radarodom.pipeline import Pipeline, TumSink, source_estimator
 from radarodom.tum import read_tum
 
 from tidemo_helpers import TIDEMO_CFG
@@ -67,18 +67,27 @@ def test_radar_capture_on_tidemo_gives_odometry_points_heatmaps_and_messages(tmp
     assert [m["t"] for m in odom_msgs] == pytest.approx(list(odom.times), abs=1e-6)
 
 
-def test_a_recorded_tidemo_stream_replays_through_radar_capture_to_the_same_odometry(tmp_path, cfg_file):
+@pytest.mark.parametrize("user_settings", [False, True], ids=["the source's preset", "--estimator-config"])
+def test_a_recorded_tidemo_stream_replays_through_radar_capture_to_the_same_odometry(tmp_path, cfg_file,
+                                                                                       user_settings):
     """Recorded live (the source's recorder sink, odometry by the same pipeline), then played with
-    radar-capture --source replay://DIR: the same trajectory, line for line."""
+    radar-capture --source replay://DIR: the same trajectory, line for line; radar-capture takes the
+    source's estimator preset (EstimatorConfig.tidemo()) unless --estimator-config says otherwise."""
     cfg = RadarConfig.from_file(cfg_file)
     rec, live_tum = tmp_path / "rec", tmp_path / "live.tum"
     with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
         with open_source(rig.url(), cfg) as source:
+            estimator = EstimatorConfig() if user_settings else source_estimator(source)
+            assert estimator.point_yaw.use != user_settings
             sinks = [source.recorder(str(rec)), TumSink(str(live_tum))]
-            with Pipeline(source, estimator=EstimatorConfig(), sinks=sinks, max_frames=FRAMES) as pipe:
+            with Pipeline(source, estimator=estimator, sinks=sinks, max_frames=FRAMES) as pipe:
                 pipe.run()
+    options = []
+    if user_settings:
+        EstimatorConfig().dump(tmp_path / "default.json")
+        options = ["--estimator-config", tmp_path / "default.json"]
     proc = run_capture_cli("--source", f"replay://{rec}?rate=max", "--no-publish", "--odom-out",
-                           tmp_path / "replay.tum", timeout=300)
+                           tmp_path / "replay.tum", *options, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert f"radar-capture: {FRAMES} frames" in proc.stdout
     assert (tmp_path / "replay.tum").read_text() == live_tum.read_text()

@@ -32,7 +32,7 @@ from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
-from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink
+from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
 from . import cli, ros_outputs, view_option
 from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
 from .zenoh_args import add_zenoh_arguments
@@ -338,7 +338,9 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     if args.overwrite:
         for path, kind in _outputs(args):
             cli.replace_output(path, kind)
-    pipeline = Pipeline(source, estimator=None if args.no_odom else args.estimator,
+    # Without --estimator-config, the settings the source's frames call for (tidemo://: its own).
+    estimator = args.estimator if args.estimator_config else source_estimator(source, args.estimator)
+    pipeline = Pipeline(source, estimator=None if args.no_odom else estimator,
                         sinks=_sinks(args, source, publisher), max_frames=args.frames, max_duration_s=args.duration)
 
     def on_frame(result, stats: PipelineStats) -> None:

@@ -53,6 +53,7 @@ class TidemoReplaySource(Source):
 
     carries_raw = False
     records_itself = True
+    estimator_preset = "tidemo"
 
     def __init__(self, path: str, config: RadarConfig, *, timestamps: str | None = None, rate: float = 1.0,
                  loop: int = 1, frames: int | None = None) -> None:

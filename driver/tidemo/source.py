@@ -100,6 +100,7 @@ class TidemoSource(Source):
 
     carries_raw = False
     records_itself = True
+    estimator_preset = "tidemo"
 
     def __init__(self, config: RadarConfig, data_url: str, cli_url: str, *, baud: int = DEFAULT_BAUD,
                  max_points: int = 64, policy: str = "latest", buffers: int = 8,
