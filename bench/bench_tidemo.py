@@ -1,21 +1,27 @@
 """The UART path (``tidemo://``, TI's demo firmware's points and static heatmap) against the raw path:
-its per-frame cost on the host, and the default estimator's accuracy on the simulator's scenes.
+its per-frame cost on the host, and the odometry's accuracy on the simulator's scenes.
 
-    python bench/bench_tidemo.py cost [--rounds 3] [--frames 40]
+    python bench/bench_tidemo.py cost [--rounds 3] [--frames 40] [--data DIR]
     python bench/bench_tidemo.py accuracy [--scenes corridor room lab] [--seeds 0 1 2]
-                                          [--thresholds 15 10] [--duration S] [--json FILE]
+                                          [--thresholds 15 10] [--data DIR] [--json FILE]
 
 ``cost``: per frame, the host's share of each path.  UART: framing a packet, parsing it, its points
 and static antenna values, and their heatmap (``dsp.static_heatmap``); raw: the DSP on the cube
 (``FrameProcessor.process``) and the estimator's heatmap (``HeatmapMaker``, its strongest cells'
 Doppler).  Both on the same simulated corridor frames of the tidemo cfg below, as multiples of an
-anchor timed in the same round: ``bench_estimator.py``'s scipy 2-D FFT (one thread).
+anchor timed in the same round: ``bench_estimator.py``'s scipy 2-D FFT (one thread).  Then the
+estimator's time a frame on each path's products (the corridor, seed 0, from the accuracy cache):
+the raw path's defaults, the UART path's preset (``EstimatorConfig.tidemo()``).
 
-``accuracy``: each scene and seed simulated once (``fidelity=exact``), every frame through the raw
-path and through the emulated demo (``driver.emulators.demo_frames``: the chip's CFAR at each
-``--thresholds`` dB in the cfg's cfarCfg lines, its zero-Doppler azimuth map), then the same
-default estimator (``EstimatorConfig()``); yaw-increment RMSE (deg per frame) and drift (% of the
-path) against the ground truth (``radarodom.estimator.evaluation``), and the points per frame.
+``accuracy``: each scene and seed simulated once (``radar-sim``, exact fidelity) with the tidemo cfg,
+through the raw path (``sequences.load``: the DSP's points and heatmaps) and through the emulated
+demo at each of ``--thresholds`` dB (both cfarCfg lines; ``tidemo_sequences.uart``: the packets as a
+tidemo recording, replayed into the pipeline's products), all cached under ``--data``.  Then the
+estimators: the raw path's defaults (``EstimatorConfig()``), and on the UART path the preset
+radar-capture takes for a tidemo source (``pipeline.source_estimator``: ``EstimatorConfig.tidemo()``)
+and, for comparison, the defaults.  Yaw-increment RMSE (deg per frame, overall and by kind of step:
+straight or turning, moving or not) and drift (% of the path) against the ground truth
+(``radarodom.estimator.evaluation``), and the points a frame.
 
 The cfg: the shipped one with 128 ADC samples (``configs/awr1843_raw.cfg`` at 10 frames/s; its 256
 samples make an 8 KB heatmap the 921600-baud UART cannot carry in the 73 ms between frames), the
@@ -26,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import sys
@@ -35,47 +42,23 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from bench_estimator import anchor_ms  # noqa: E402  (bench/ is not a package)
+import tidemo_sequences  # noqa: E402  (bench/ is not a package)
+from bench_estimator import anchor_ms, frame_times  # noqa: E402
+from paper_experiment import run  # noqa: E402
+from tidemo_sequences import tidemo_cfg  # noqa: E402
 
-from radarodom.cfg import RadarConfig, shipped_config_path  # noqa: E402
+from radarodom.cfg import RadarConfig  # noqa: E402
 from radarodom.driver import open_source  # noqa: E402
 from radarodom.driver.emulators.demo_frames import DemoFrameMaker  # noqa: E402
-from radarodom.driver.sources import Source  # noqa: E402
 from radarodom.driver.tidemo.framer import TlvFramer  # noqa: E402
 from radarodom.driver.tidemo.layout import DEFAULT_BAUD, DemoGeometry, gui_selection, uart_budget  # noqa: E402
 from radarodom.driver.tidemo.products import PacketFrames  # noqa: E402
 from radarodom.dsp.heatmap import HeatmapMaker  # noqa: E402
 from radarodom.dsp.processor import FrameProcessor  # noqa: E402
 from radarodom.dsp.static_heatmap import StaticHeatmapMaker  # noqa: E402
+from radarodom.estimator.angles import wrap  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.evaluation import evaluate  # noqa: E402
-from radarodom.pipeline import Pipeline  # noqa: E402
-from radarodom.tum import TumTrajectory  # noqa: E402
-
-SHIPPED_PROFILE = "profileCfg 0 77 100 6 40 0 0 96 1 256 8000 0 0 30"
-TIDEMO_PROFILE = "profileCfg 0 77 100 6 40 0 0 96 1 128 8000 0 0 30"
-
-
-def tidemo_cfg(threshold_db: float = 15.0) -> RadarConfig:
-    """The shipped cfg with 128 samples and both cfarCfg thresholds at *threshold_db*."""
-    text = open(shipped_config_path(), encoding="utf-8").read().replace(SHIPPED_PROFILE, TIDEMO_PROFILE)
-    text = text.replace("cfarCfg -1 0 2 8 4 3 0 15 1", f"cfarCfg -1 0 2 8 4 3 0 {threshold_db:g} 1")
-    text = text.replace("cfarCfg -1 1 0 8 4 4 1 15 1", f"cfarCfg -1 1 0 8 4 4 1 {threshold_db:g} 1")
-    return RadarConfig.from_text(text, f"tidemo_{threshold_db:g}dB.cfg")
-
-
-class _Held(Source):
-    """A source that only holds a cfg: the pipeline's products are built from it, frames are fed
-    to :meth:`Pipeline.process` one by one."""
-
-    carries_raw = False
-
-    def __init__(self, config: RadarConfig, calibrated: bool | None) -> None:
-        super().__init__()
-        self.config, self.calibrated = config, calibrated
-
-    def __iter__(self):
-        return iter(())
 
 
 class UartPath:
@@ -101,7 +84,7 @@ class UartPath:
 
 
 # ------------------------------------------------------------------ cost
-def cost(rounds: int, n_frames: int) -> dict:
+def cost(rounds: int, n_frames: int, data: str) -> dict:
     cfg = tidemo_cfg()
     uart = UartPath(cfg)
     proc = FrameProcessor(cfg)
@@ -112,71 +95,77 @@ def cost(rounds: int, n_frames: int) -> dict:
         for i, f in enumerate(source):
             raws.append(f)
             packets.append(uart.packet(f.raw, i + 1, f.timestamp))
+    directory = tidemo_sequences.record("corridor", 0, data)
+    raw_seq, (uart_seq, _) = tidemo_sequences.raw(directory), tidemo_sequences.uart(directory, 15.0)
     rows = []
     for r in range(rounds):
         anchor = anchor_ms()
         t_uart, t_raw = [], []
-        for f, data in zip(raws, packets):
+        for f, packet in zip(raws, packets):
             start = time.perf_counter()
-            frame = uart.frame(data, f.timestamp)
+            frame = uart.frame(packet, f.timestamp)
             static.range_azimuth(frame.static_antennas)
             t_uart.append(time.perf_counter() - start)
             start = time.perf_counter()
             heatmaps.range_azimuth(proc.process(f.cube()).spectrum)
             t_raw.append(time.perf_counter() - start)
         u, w = 1e3 * float(np.median(t_uart)), 1e3 * float(np.median(t_raw))
+        est_uart = float(np.median(frame_times(uart_seq, EstimatorConfig.tidemo())))
+        est_raw = float(np.median(frame_times(raw_seq, EstimatorConfig())))
         rows.append({"round": r, "anchor_ms": anchor, "uart_ms": u, "raw_ms": w, "uart_x_anchor": u / anchor,
-                     "raw_x_anchor": w / anchor})
-        print(f"round {r}: anchor {anchor:.2f} ms; UART path {u:.3f} ms ({u / anchor:.3f} x anchor); raw path "
-              f"{w:.2f} ms ({w / anchor:.2f} x anchor); packet {np.mean([len(p) for p in packets]):.0f} bytes")
+                     "raw_x_anchor": w / anchor, "uart_estimator_ms": est_uart, "raw_estimator_ms": est_raw,
+                     "uart_estimator_x_anchor": est_uart / anchor, "raw_estimator_x_anchor": est_raw / anchor})
+        print(f"round {r}: anchor {anchor:.2f} ms; UART path {u:.3f} ms ({u / anchor:.3f} x anchor), its estimator "
+              f"{est_uart:.2f} ms ({est_uart / anchor:.2f} x); raw path {w:.2f} ms ({w / anchor:.2f} x anchor), its "
+              f"estimator {est_raw:.2f} ms ({est_raw / anchor:.2f} x); packet "
+              f"{np.mean([len(p) for p in packets]):.0f} bytes", flush=True)
     return {"rounds": rows, "frames": len(raws), "cfg": cfg.path}
 
 
 # ------------------------------------------------------------------ accuracy
-def _trajectory(results: list, name: str) -> TumTrajectory:
-    se2 = np.array([(st.x, st.y, st.yaw) for _, st in results])
-    return TumTrajectory.from_se2(np.array([t for t, _ in results]), se2, source=name)
+#: Kinds of step by the truth: turning faster than this a frame, moving faster than this.
+TURNING_RAD, MOVING_MPS = math.radians(0.5), 0.1
 
 
-def accuracy(scenes: list[str], seeds: list[int], thresholds: list[float], duration: float | None) -> dict:
+def step_kinds(seq) -> np.ndarray:
+    """Each step's kind by the ground truth, (n - 1,): "straight" or "turn", "moving" or "still"."""
+    truth = seq.groundtruth.se2()
+    turn = np.abs(wrap(np.diff(truth[:, 2]))) > TURNING_RAD
+    moving = np.hypot(*np.diff(truth[:, :2], axis=0).T) / np.diff(seq.times) > MOVING_MPS
+    return np.char.add(np.where(turn, "turn_", "straight_"), np.where(moving, "moving", "still"))
+
+
+def measure(seq, config: EstimatorConfig) -> dict:
+    est, _, flagged = run(seq, config)
+    res = evaluate(est, seq.groundtruth)
+    kinds, errors = step_kinds(seq), res.yaw_error_deg
+    by_kind = {}
+    if len(kinds) == len(errors):  # every frame matched a ground-truth pose
+        by_kind = {k: {"frames": int(np.sum(kinds == k)), "rmse_deg": float(np.sqrt(np.mean(errors[kinds == k] ** 2))),
+                       "sum_deg": float(errors[kinds == k].sum())} for k in np.unique(kinds)}
+    return {"yaw_rmse_deg": res.yaw_rmse_deg, "drift_pct": res.drift_pct, "path_m": res.ref_path_m,
+            "final_yaw_error_deg": float(errors.sum()), "flagged": flagged, "by_kind": by_kind}
+
+
+def accuracy(scenes: list[str], seeds: list[int], thresholds: list[float], data: str) -> dict:
     out: dict = {}
     for scene in scenes:
         for seed in seeds:
             key = f"{scene}/{seed}"
-            cfgs = {t: tidemo_cfg(t) for t in thresholds}
-            base = cfgs[thresholds[0]]
-            url = f"sim://{scene}?seed={seed}&rate=max" + (f"&duration={duration:g}" if duration else "")
             started = time.monotonic()
-            with open_source(url, base) as source:
-                est = EstimatorConfig()
-                raw = Pipeline(source, estimator=est)
-                paths = {t: (UartPath(c), Pipeline(_Held(c, source.calibrated), estimator=est))
-                         for t, c in cfgs.items()}
-                got = {"raw": []} | {t: [] for t in thresholds}
-                truth = []
-                for f in source:
-                    truth.append((f.timestamp, f.pose))
-                    got["raw"].append((f.timestamp, raw.process(f).state))
-                    for t, (uart, pipe) in paths.items():
-                        frame = uart.frame(uart.packet(f.raw, f.index + 1, f.timestamp), f.timestamp)
-                        got[t].append((f.timestamp, pipe.process(frame).state))
-            poses = np.array([p for _, p in truth])
-            ref = TumTrajectory(np.array([t for t, _ in truth]), poses[:, :3], poses[:, 3:], source=key)
-            row = {}
-            for name, results in got.items():
-                res = evaluate(_trajectory(results, f"{key} {name}"), ref)
-                row[str(name)] = {"yaw_rmse_deg": res.yaw_rmse_deg, "drift_pct": res.drift_pct,
-                                  "path_m": res.ref_path_m, "flagged": sum(not st.ok for _, st in results)}
-                if name != "raw":
-                    uart = paths[name][0]
-                    budget = next(n for n in range(400, -1, -1)
-                                  if uart_budget(cfgs[name], uart.geometry.layout(gui_selection(cfgs[name])),
-                                                 DEFAULT_BAUD, n).fits)
-                    pts = np.array(uart.points)
-                    row[str(name)] |= {"points_mean": float(pts.mean()), "points_p90": float(np.percentile(pts, 90)),
-                                       "frames_without_points": int(np.sum(pts == 0)),
-                                       "frames_over_uart_budget": int(np.sum(pts > budget)),
-                                       "uart_budget_points": budget}
+            directory = tidemo_sequences.record(scene, seed, data)
+            row = {"raw": measure(tidemo_sequences.raw(directory), EstimatorConfig())}
+            for threshold in thresholds:
+                seq, points = tidemo_sequences.uart(directory, threshold)
+                cfg = tidemo_cfg(threshold)
+                layout = DemoGeometry.from_config(cfg).layout(gui_selection(cfg))
+                budget = next(n for n in range(400, -1, -1) if uart_budget(cfg, layout, DEFAULT_BAUD, n).fits)
+                pts = np.array(points)
+                extra = {"points_mean": float(pts.mean()), "points_p90": float(np.percentile(pts, 90)),
+                         "frames_without_points": int(np.sum(pts == 0)),
+                         "frames_over_uart_budget": int(np.sum(pts > budget)), "uart_budget_points": budget}
+                row[f"{threshold:g} dB"] = measure(seq, EstimatorConfig.tidemo()) | extra
+                row[f"{threshold:g} dB, default estimator"] = measure(seq, EstimatorConfig()) | extra
             out[key] = row
             print(f"{key} ({time.monotonic() - started:.0f} s): " + "; ".join(
                 f"{n}: yaw {v['yaw_rmse_deg']:.2f} deg, drift {v['drift_pct']:.1f} %"
@@ -195,12 +184,12 @@ def main(argv=None) -> int:
     a.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
     a.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     a.add_argument("--thresholds", nargs="+", type=float, default=[15.0, 10.0])
-    a.add_argument("--duration", type=float, default=None)
     for p in (c, a):
+        p.add_argument("--data", default=tidemo_sequences.DATA, help="the simulated sequences' cache")
         p.add_argument("--json", metavar="FILE")
     args = parser.parse_args(argv)
-    result = (cost(args.rounds, args.frames) if args.what == "cost"
-              else accuracy(args.scenes, args.seeds, args.thresholds, args.duration))
+    result = (cost(args.rounds, args.frames, args.data) if args.what == "cost"
+              else accuracy(args.scenes, args.seeds, args.thresholds, args.data))
     result = {"machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_version()}",
               "date": time.strftime("%Y-%m-%d"), "what": args.what, "result": result}
     if args.json:
