@@ -87,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-odom", action="store_true",
                         help="do not run the estimator (capture, record and DSP exports only)")
     parser.add_argument("--estimator-config", metavar="FILE.json",
-                        help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones)")
+                        help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones, "
+                             "or those the source's frames call for: tidemo:// EstimatorConfig.tidemo())")
     parser.add_argument("--wheeled", action="store_true",
                         help="the robot's base cannot slide sideways: with --mount off its rotation axis, the "
                              "radar's Doppler measures the yaw rate in turns (docs/estimator.md)")
