@@ -88,7 +88,10 @@ def test_a_recording_of_an_uncalibrated_board_with_its_line_drives_like_a_perfec
     identity = _odometry(f"replay://{tmp_path / 'uncalibrated'}?rate=max", cfg)
     for key in ("yaw_rmse_deg", "velocity_rmse"):
         assert with_line[key] <= 1.1 * perfect[key], (key, with_line, perfect)
-    assert identity["yaw_rmse_deg"] > 1.5 * perfect["yaw_rmse_deg"], (identity, perfect)
+    # The estimator's heading defaults of issue 20 (elevation-placed features among them) hold
+    # the yaw better on an uncalibrated board than those of issue 16's time (1.8 times the
+    # perfect board's then, 1.26 here): still clearly worse.
+    assert identity["yaw_rmse_deg"] > 1.2 * perfect["yaw_rmse_deg"], (identity, perfect)
     assert identity["velocity_rmse"] > 1.3 * perfect["velocity_rmse"], (identity, perfect)
 
 
