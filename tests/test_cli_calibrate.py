@@ -257,7 +257,8 @@ def test_library_refusals_say_which_limit():
         measure(cfg, [], 3.0, window_m=0.03)
     with pytest.raises(UsageError, match="outside the range"):
         measure(cfg, [], 12.4)
-    with pytest.raises(UsageError, match=r"outside the range this cfg measures well \(0.3 m to 10.00 m\)"):
+    # The cfg's cfarFovCfg (10 m) is capped at the usable range, 80 % of the IF band (9.99 m).
+    with pytest.raises(UsageError, match=r"outside the range this cfg measures well \(0.3 m to 9.99 m\)"):
         measure(cfg, [], 11.0)  # within the FFT, beyond the usable range: the IF filter's roll-off
     proc = run("--source", "sim://calibration?rate=max", "--distance", 3, "--search-window", 0.01)
     assert proc.returncode == 2 and "widen it" in proc.stderr
