@@ -19,7 +19,8 @@ takes every combination of the values given. ``--smoke`` is a small preset (thre
 seed, short loops).
 
 Each cell runs in a worker: the sequence is recorded with ``radar-sim`` (once), put through the
-DSP (once, cached beside it by bench/sequences.py), the default estimator runs on it and the
+DSP (once, cached beside it by bench/sequences.py; then the recording's ADC samples are dropped
+unless ``--keep-adc``, and recorded again if a changed DSP needs them), the default estimator runs on it and the
 heading metrics (:mod:`radarodom.estimator.heading_metrics`) compare it with the ground truth.
 A cell's result is cached in ``DATA/results/`` under a key of its parameters and a fingerprint
 of the simulator's, the DSP's and the estimator's sources: a rerun computes only what changed.
@@ -41,6 +42,7 @@ import json
 import math
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import time
@@ -102,9 +104,15 @@ def _sequence_dir(cell: SimCell, data: str) -> str:
 
 
 def record(cell: SimCell, data: str) -> str:
+    """The cell's recording, made with radar-sim unless it is there: its ADC file, or without it
+    (dropped by :func:`drop_adc`) the DSP products of today's DSP."""
+    import sequences
     directory = _sequence_dir(cell, data)
-    if os.path.exists(os.path.join(directory, "capture.json")):
+    if os.path.exists(os.path.join(directory, "capture.json")) and (
+            os.path.exists(os.path.join(directory, "adc_data.bin"))
+            or os.path.exists(sequences.cache_path(directory))):
         return directory
+    shutil.rmtree(directory, ignore_errors=True)
     os.makedirs(os.path.join(data, "seq"), exist_ok=True)
     scene_file = directory + ".scene.json"
     with open(scene_file, "w", encoding="utf-8") as fh:
@@ -115,6 +123,18 @@ def record(cell: SimCell, data: str) -> str:
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     os.replace(tmp, directory)
     return directory
+
+
+def drop_adc(directory: str) -> None:
+    """Keep only what the estimator reads: the DSP products of today's DSP (tens of MB) without the
+    recording's ADC samples (hundreds of MB a cell; the 252 cells' together filled a 250 GB disk).
+    :func:`record` records the cell again when a changed DSP needs them."""
+    import sequences
+    if os.path.exists(sequences.cache_path(directory)):
+        for name in os.listdir(directory):
+            if name == "adc_data.bin" or (name.startswith("dsp-") and name.endswith(".npz")
+                                          and os.path.join(directory, name) != sequences.cache_path(directory)):
+                os.remove(os.path.join(directory, name))
 
 
 def estimator_config(cell: Cell, settings: dict | None = None):
@@ -128,11 +148,14 @@ def estimator_config(cell: Cell, settings: dict | None = None):
     return config
 
 
-def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
+def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None, keep_adc: bool = False):
     import sequences
     from radarodom.estimator.odometry import RadarOdometry
     from radarodom.tum import TumTrajectory
-    seq = sequences.load(record(cell, data), cell.name)
+    directory = record(cell, data)
+    seq = sequences.load(directory, cell.name)
+    if not keep_adc:
+        drop_adc(directory)
     odom = RadarOdometry(estimator_config(cell, settings))
     poses = np.zeros((len(seq), 3))
     flagged = 0
@@ -143,7 +166,7 @@ def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
     return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged
 
 
-def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None):
+def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None, keep_adc: bool = False):
     from radarodom.driver.sources import open_source
     from radarodom.tum import read_tum
     out = os.path.join(data, "coloradar", f"{cell.name}-{hashlib.sha256(cell.url.encode()).hexdigest()[:8]}.tum")
@@ -161,9 +184,9 @@ def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = 
     return read_tum(out), truth, None
 
 
-def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None) -> dict:
+def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_adc: bool = False) -> dict:
     """The cell's metrics with the estimator *settings* (None: the defaults), from its cache or
-    computed (and cached)."""
+    computed (and cached); the recording's ADC samples kept only with *keep_adc*."""
     key_fp = fp if settings is None else fp + json.dumps(settings, sort_keys=True)
     path = os.path.join(data, "results", f"{cell.name}-{cell_key(cell, key_fp)}.json")
     if os.path.exists(path):
@@ -172,7 +195,7 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None) -> di
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.heading_metrics import heading_metrics
     started = time.monotonic()
-    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings)
+    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings, keep_adc)
     est_m, ref_m = associate(est, truth, 0.01)
     metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(),
                               base_offset_m=cell.mount_m if isinstance(cell, SimCell) else 0.0)
@@ -219,7 +242,7 @@ def cells(args) -> list[Cell]:
 
 
 def run_all(todo: list[Cell], data: str, *, workers: int | None = None, cluster: str | None = None,
-            settings: dict | None = None, log=lambda msg: print(msg, file=sys.stderr)) -> list[dict]:
+            settings: dict | None = None, keep_adc: bool = False, log=lambda msg: print(msg, file=sys.stderr)) -> list[dict]:
     """Every cell's result, in *todo*'s order, with the estimator *settings* (None: the
     defaults): on a local process pool, or on a Dask cluster."""
     fp = fingerprint()
@@ -236,12 +259,12 @@ def run_all(todo: list[Cell], data: str, *, workers: int | None = None, cluster:
         except ImportError:
             raise SystemExit("--cluster needs Dask distributed: pip install \"dask[distributed]\"") from None
         with Client(cluster) as client:
-            futures = {client.submit(run_cell, c, data, fp, settings, pure=False): i for i, c in enumerate(todo)}
+            futures = {client.submit(run_cell, c, data, fp, settings, keep_adc, pure=False): i for i, c in enumerate(todo)}
             for fut in as_completed(futures):
                 done(futures[fut], fut.result())
     else:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_cell, c, data, fp, settings): i for i, c in enumerate(todo)}
+            futures = {pool.submit(run_cell, c, data, fp, settings, keep_adc): i for i, c in enumerate(todo)}
             for fut in concurrent.futures.as_completed(futures):
                 done(futures[fut], fut.result())
     return [results[i] for i in range(len(todo))]
@@ -291,6 +314,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="robustness-out")
     parser.add_argument("--estimator-config", metavar="FILE.json",
                         help="estimator settings to run (EstimatorConfig.dump; default: the defaults)")
+    parser.add_argument("--keep-adc", action="store_true",
+                        help="keep each recording's ADC samples (default: only its DSP products; see drop_adc)")
     parser.add_argument("--list", action="store_true", help="print the cells and stop")
     args = parser.parse_args(argv)
     if args.smoke:
@@ -307,7 +332,8 @@ def main(argv=None) -> int:
     if args.estimator_config:
         from radarodom.estimator.config import EstimatorConfig
         settings = EstimatorConfig.load(args.estimator_config).to_dict()
-    results = run_all(todo, args.data, workers=args.workers, cluster=args.cluster, settings=settings)
+    results = run_all(todo, args.data, workers=args.workers, cluster=args.cluster, settings=settings,
+                      keep_adc=args.keep_adc)
     header = (f"{len(results)} cells ({sum(r['cached'] for r in results)} from the cache); "
               f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
               f"{time.strftime('%Y-%m-%d')}; {time.monotonic() - started:.0f} s.\n\n")

@@ -123,12 +123,17 @@ def _process(directory: str, dsp_config: DspConfig | None, cfg: RadarConfig | No
                 range_m=arrays.heatmap.range_m, azimuth_rad=arrays.heatmap.azimuth_rad)
 
 
+def cache_path(directory: str, dsp_config: DspConfig | None = None, cfg: RadarConfig | None = None) -> str:
+    """Where :func:`load` keeps *directory*'s DSP products for these settings and today's DSP."""
+    return os.path.join(directory, f"dsp-{_key(dsp_config, cfg)}.npz")
+
+
 def load(directory: str, name: str | None = None, *, dsp_config: DspConfig | None = None,
          cfg: RadarConfig | None = None) -> Sequence:
     """The sequence in *directory* through the DSP (*dsp_config*, default settings; the recording
     read with *cfg*, default its own radar.cfg), from its cache, made on first use and again
     whenever what makes it has changed."""
-    cache = os.path.join(directory, f"dsp-{_key(dsp_config, cfg)}.npz")
+    cache = cache_path(directory, dsp_config, cfg)
     if not os.path.exists(cache):
         data = _process(directory, dsp_config, cfg)
         tmp = cache + ".tmp.npz"

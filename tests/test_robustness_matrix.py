@@ -82,3 +82,22 @@ def test_cluster_without_dask_says_what_to_install(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "dask.distributed", None)
     with pytest.raises(SystemExit, match="dask\\[distributed\\]"):
         rm.run_all([rm.SimCell(scene="room")], str(tmp_path), cluster="tcp://127.0.0.1:1")
+
+
+def test_a_cell_keeps_its_dsp_products_and_drops_the_adc_samples(tmp_path):
+    import sequences
+    cell = rm.SimCell(scene="room")
+    directory = rm._sequence_dir(cell, str(tmp_path))
+    os.makedirs(directory)
+    current = sequences.cache_path(directory)
+    stale = os.path.join(directory, "dsp-0000000000000000.npz")
+    for name in ("capture.json", "adc_data.bin", "timestamps.txt", os.path.basename(stale)):
+        (tmp_path / directory / name).write_bytes(b"x")
+    rm.drop_adc(directory)  # no products of today's DSP yet: nothing goes
+    assert sorted(os.listdir(directory)) == sorted(["capture.json", "adc_data.bin", "timestamps.txt",
+                                                    os.path.basename(stale)])
+    open(current, "wb").close()
+    rm.drop_adc(directory)
+    assert sorted(os.listdir(directory)) == sorted(["capture.json", "timestamps.txt", os.path.basename(current)])
+    assert rm.record(cell, str(tmp_path)) == directory  # its products are there: not recorded again
+    assert sorted(os.listdir(directory)) == sorted(["capture.json", "timestamps.txt", os.path.basename(current)])
