@@ -95,8 +95,9 @@ ALLOWED = {
                          "ext:serial"},
     "pipeline": DRIVER | {"dsp", "estimator", "messages", "publish", "ros2", "ros2_bag", "ros2_frames",
                           "ros2_messages"},
-    # The live view: a pipeline sink drawing the results with Rerun (the only part that may import it).
-    "view": {"pipeline", "dsp", "estimator", "ext:rerun"},
+    # The live view: a pipeline sink drawing the results with Rerun (the only part that may import it),
+    # in the frames of the ROS 2 outputs (ros2_frames).
+    "view": {"pipeline", "dsp", "estimator", "ros2_frames", "ext:rerun"},
 }
 #: Third-party packages whose use is restricted to the parts ALLOWED names them for.
 RESTRICTED = {"zenoh", "rosbags", "serial", "usb", "rerun", "mcap", "mcap_ros2", "matplotlib"}

@@ -12,6 +12,7 @@ from __future__ import annotations
 import collections
 import json
 import math
+import re
 import subprocess
 import sys
 import threading
@@ -60,10 +61,10 @@ def rows(path) -> dict[str, list[dict]]:
     return out
 
 
-def saving(scene: Scene, path) -> ThreadDrawer:
-    """*scene* drawn into the .rrd *path*, in the sink's sender thread."""
+def saving(scene: Scene, path, **kwargs) -> ThreadDrawer:
+    """*scene* drawn into the .rrd *path*, in a thread of this process."""
     scene.rec.save(str(path))
-    return ThreadDrawer(scene)
+    return ThreadDrawer(scene, **kwargs)
 
 
 class HeldScene(Scene):
@@ -100,7 +101,7 @@ def test_a_slow_view_drops_only_its_own_frames(tmp_path, capture):
     release = threading.Event()
     estimator = EstimatorConfig()
     scene = HeldScene(rr.RecordingStream("radarodom-test"), estimator=estimator, release=release)
-    view = ViewSink(saving(scene, tmp_path / "slow.rrd"), queue_frames=4, close_timeout_s=GUARD_S)
+    view = ViewSink(saving(scene, tmp_path / "slow.rrd", queue_frames=4), close_timeout_s=GUARD_S)
     seen = []
 
     def on_frame(result, stats):
@@ -125,6 +126,29 @@ def test_a_slow_view_drops_only_its_own_frames(tmp_path, capture):
     assert notes and notes[-1].endswith("frames not drawn so far: the view fell behind")
 
 
+def test_a_view_that_takes_nothing_keeps_a_bounded_number_of_tracks(tmp_path, capture, monkeypatch):
+    """Tracks wait for the view at most MAX_TRACKS frames (here 10): the oldest go, counted."""
+    from radarodom.view import sink as view_sink
+
+    monkeypatch.setattr(view_sink, "MAX_TRACKS", 10)
+    release = threading.Event()
+    estimator = EstimatorConfig()
+    scene = HeldScene(rr.RecordingStream("radarodom-test"), estimator=estimator, release=release)
+    view = ViewSink(saving(scene, tmp_path / "bounded.rrd", queue_frames=1), close_timeout_s=GUARD_S)
+
+    def on_frame(result, stats):
+        if stats.frames == 30:
+            release.set()
+
+    with Pipeline.from_url(capture, estimator=estimator, sinks=[view]) as pipe:
+        assert pipe.run(on_frame).frames == 30
+    assert view.drawn in (1, 2) and view.drawn + view.dropped == 30
+    found = [r["frame"] for r in rows(tmp_path / "bounded.rrd")["/plots/time_ms"]]
+    assert len(found) == 30 - view.tracks_dropped and found[-10:] == list(range(20, 30))
+    assert view.summary.startswith(f"{view.drawn} frame") and \
+        f", {view.tracks_dropped} missing from its trajectory and time series" in view.summary
+
+
 def test_a_failing_view_stops_drawing_not_the_radar(tmp_path, capture, warnings_log):
     estimator = EstimatorConfig()
     view = ViewSink(saving(FailingScene(rr.RecordingStream("radarodom-test"), estimator=estimator),
@@ -134,18 +158,45 @@ def test_a_failing_view_stops_drawing_not_the_radar(tmp_path, capture, warnings_
     assert stats.frames == 30 and len(read_tum(tmp_path / "odom.tum")) == 30
     assert view.drawn == 3 and view.dropped == 27
     assert view.summary == "3 frames drawn, 27 dropped (the view failed: ValueError: a drawing bug)"
-    assert any("the view stopped drawing: ValueError: a drawing bug" in r.getMessage() for r in warnings_log.records)
+    assert any(r.getMessage() == "the view failed: ValueError: a drawing bug; it stopped drawing"
+               for r in warnings_log.records)
     assert len(rows(tmp_path / "failing.rrd")[RADAR + "/points"]) == 3  # what was drawn is kept
 
 
+def test_a_viewer_that_stops_reading_holds_up_neither_the_radar_nor_its_end(tmp_path, capture):
+    """``connect:`` to a host that accepts the connection and never reads: Rerun's last flush
+    waits for it for good; the view's process is stopped after the close timeout, the pipeline
+    and its other outputs have every frame, and the summary says what happened."""
+    import socket
+    import time
+
+    with socket.socket() as deaf:
+        deaf.bind(("127.0.0.1", 0))
+        deaf.listen()
+        held = []
+        threading.Thread(target=lambda: held.append(deaf.accept()), daemon=True).start()
+        estimator = EstimatorConfig()
+        view = open_view(ViewTarget("connect", address=f"127.0.0.1:{deaf.getsockname()[1]}"), estimator=estimator,
+                         close_timeout_s=5.0)
+        assert view.where == f"the Rerun viewer at rerun+http://127.0.0.1:{deaf.getsockname()[1]}/proxy"
+        started = time.monotonic()
+        with Pipeline.from_url(capture, estimator=estimator, sinks=[TumSink(tmp_path / "odom.tum"), view]) as pipe:
+            stats = pipe.run()
+        assert time.monotonic() - started < GUARD_S
+    assert stats.frames == 30 and len(read_tum(tmp_path / "odom.tum")) == 30
+    assert view.drawn + view.dropped == 30
+    assert view.problem == "the viewer did not take the view's last data within 5 s"
+    assert view.summary.endswith("(the viewer did not take the view's last data within 5 s)")
+
+
 def test_the_view_draws_every_frame_in_the_body_and_odometry_frames(tmp_path, capture, small_cfg):
-    """Drawn by the view's own process as radar-capture opens it: points in REP-103 (x = TI y,
-    y = -TI x), the base's pose as the estimator's, the ground truth aligned at the first frame,
-    a row per frame of every per-frame entity."""
+    """Drawn by a process of its own (as radar-capture's spawn and connect: views draw): points in
+    REP-103 (x = TI y, y = -TI x), the base's pose as the estimator's, the ground truth aligned at
+    the first frame, a row per frame of every per-frame entity."""
     from radarodom.pipeline import PointsCsvSink
 
     estimator = EstimatorConfig()
-    view = open_view(ViewTarget("save", path=str(tmp_path / "run.rrd")), estimator=estimator, queue_frames=64)
+    view = open_view(ViewTarget("save", path=str(tmp_path / "run.rrd")), estimator=estimator, process=True)
     assert view.where == f"{tmp_path / 'run.rrd'} (open it with: rerun {tmp_path / 'run.rrd'})"
     sinks = [PointsCsvSink(tmp_path / "points.csv"), TumSink(tmp_path / "odom.tum"), view]
     with Pipeline.from_url(capture, estimator=estimator, sinks=sinks) as pipe:
@@ -183,3 +234,120 @@ def _check_poses_against_tum(found, tum_path) -> None:
     base = found["/world/odom/base_link"]
     assert len(base) == len(tum)
     np.testing.assert_allclose([r["Transform3D:translation"][0][:2] for r in base], tum.positions[:, :2], atol=1e-9)
+
+
+# ---------------------------------------------------------------------------- radar-capture --view
+def capture_main(argv, capsys) -> tuple[int, str, str]:
+    from radarodom.tools import radar_capture
+
+    rc = radar_capture.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_radar_capture_saves_a_simulated_run_that_reads_back(tmp_path, capsys):
+    """``--view save:FILE.rrd`` on the simulator: every frame's points (as --points-out writes
+    them, in REP-103), the odometry (as --odom-out), the ground truth and the time series."""
+    rrd = tmp_path / "run.rrd"
+    rc, out, err = capture_main(["--source", "sim://corridor?rate=max&duration=0.5", "--no-publish",
+                                 "--view", f"save:{rrd}", "--points-out", tmp_path / "points.csv",
+                                 "--odom-out", tmp_path / "odom.tum"], capsys)
+    assert rc == 0, err
+    assert f"radar-capture: view: {rrd} (open it with: rerun {rrd})" in err
+    drawn, dropped = map(int, re.search(r"; view: (\d+) frames drawn, (\d+) dropped", out).groups())
+    assert "5 frames" in out and drawn + dropped == 5
+    found = rows(rrd)
+    _check_points_against_csv(found, tmp_path / "points.csv")
+    _check_poses_against_tum(found, tmp_path / "odom.tum")
+    assert len(found[RADAR + "/points"]) == len(found["/heatmap/polar"]) == drawn
+    for entity in ("/plots/time_ms", "/plots/counts", "/world/odom/base_link", "/world/odom/groundtruth/pose"):
+        assert [r["frame"] for r in found[entity]] == list(range(5)), entity
+    image = found["/heatmap/polar"][0]
+    width, height = image["Image:format"][0]["width"], image["Image:format"][0]["height"]
+    assert len(image["Image:buffer"][0]) == width * height * 3
+    opened = found["static:/log/opened"][0]["TextLog:text"][0]
+    assert opened == f"radarodom's view, sent to {rrd} (open it with: rerun {rrd})"
+
+
+@pytest.mark.parametrize("value, message", [
+    ("web:abc", "argument --view: web:PORT takes a port number, got 'abc'"),
+    ("web:65535", "the web viewer's port must be 1..65534 (its data uses the next), got 65535"),
+    ("connect:", "connect: needs the viewer's HOST:PORT (or a rerun+http:// URL)"),
+    ("connect:viewer", "a viewer's address is HOST:PORT or a rerun+http:// URL, got 'viewer'"),
+    ("save:", "save: needs a file name (FILE.rrd)"),
+    ("spawn:now", "spawn takes nothing after it"),
+    ("teleport", "expected spawn, web[:PORT], connect:HOST:PORT or save:FILE.rrd, got 'teleport'"),
+])
+def test_bad_view_values_are_usage_errors(capture, capsys, value, message):
+    rc, out, err = capture_main(["--source", capture, "--no-publish", "--view", value], capsys)
+    assert rc == 2 and message in err and out == ""
+
+
+def test_spawn_without_a_display_says_what_to_do_instead(capture, tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    rc, out, err = capture_main(["--source", capture, "--no-publish", "--odom-out", tmp_path / "odom.tum",
+                                 "--view"], capsys)
+    assert rc == 2 and "no display" in err and "--view web[:PORT]" in err and "--view save:FILE.rrd" in err
+    assert not (tmp_path / "odom.tum").exists()  # refused before anything opened
+
+
+def test_web_refuses_a_port_in_use(capture, capsys):
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("0.0.0.0", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        rc, _, err = capture_main(["--source", capture, "--no-publish", "--view", f"web:{port - 1}"], capsys)
+    assert rc == 2 and f"port {port} is taken" in err
+
+
+def test_an_existing_rrd_is_kept_unless_overwrite(capture, tmp_path, capsys):
+    rrd = tmp_path / "run.rrd"
+    rrd.write_bytes(b"mine")
+    rc, _, err = capture_main(["--source", capture, "--no-publish", "--view", f"save:{rrd}"], capsys)
+    assert rc == 2 and "already exists" in err and rrd.read_bytes() == b"mine"
+    rc, out, err = capture_main(["--source", capture, "--no-publish", "--view", f"save:{rrd}", "--overwrite"],
+                                capsys)
+    assert rc == 0, err
+    assert len(rows(rrd)["/plots/time_ms"]) == 30
+
+
+def test_without_rerun_the_view_says_which_extra_to_install(capture, tmp_path):
+    script = ("import sys; sys.modules['rerun'] = None\n"  # as if rerun-sdk were not installed
+              "from radarodom.tools.radar_capture import main\n"
+              f"sys.exit(main(['--source', {capture!r}, '--no-publish', '--view', 'save:{tmp_path / 'x.rrd'}']))")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=GUARD_S)
+    assert proc.returncode == 2, proc.stderr
+    assert 'the view needs rerun-sdk: pip install "radarodom[view]"' in proc.stderr
+    assert "Traceback" not in proc.stderr and not (tmp_path / "x.rrd").exists()
+
+
+def test_the_radar_sits_on_its_mount_and_the_base_moves_as_ros2_gets_it(tmp_path, capture):
+    """With a mount, base_link carries the radar at the mount (static) and moves as the ROS 2
+    outputs' base_link does (radarodom.ros2_frames: M R M^-1 of the estimator's radar poses)."""
+    import types
+
+    from radarodom.mount import Mount
+    from radarodom.ros2_frames import base_pose
+    from radarodom.tum import quaternion_yaw
+
+    mount = Mount(0.3, 0.1, 0.2, math.radians(10.0))
+    estimator = EstimatorConfig()
+    view = open_view(ViewTarget("save", path=str(tmp_path / "mounted.rrd")), estimator=estimator, mount=mount)
+    with Pipeline.from_url(capture, estimator=estimator, sinks=[TumSink(tmp_path / "odom.tum"), view]) as pipe:
+        pipe.run()
+    found = rows(tmp_path / "mounted.rrd")
+    (radar,) = found["static:" + RADAR]
+    np.testing.assert_allclose(radar["Transform3D:translation"][0], (0.3, 0.1, 0.2))
+    tum = read_tum(tmp_path / "odom.tum")
+    expected = [base_pose(types.SimpleNamespace(x=x, y=y, yaw=yaw, vx=0.0, vy=0.0, yaw_rate=0.0,
+                                                pose_covariance=np.zeros((3, 3)), twist_covariance=np.eye(3)), mount)
+                for (x, y, _), yaw in zip(tum.positions, quaternion_yaw(tum.quaternions))]
+    got = [r["Transform3D:translation"][0][:2] for r in found["/world/odom/base_link"]]
+    np.testing.assert_allclose(got, [(b.x, b.y) for b in expected], atol=1e-6)
+    # The truth goes the same way: 0.1 m a frame straight ahead of the radar, from the mount.
+    truth = [r["Transform3D:translation"][0][:2] for r in found["/world/odom/groundtruth/pose"]]
+    c, s = math.cos(mount.yaw), math.sin(mount.yaw)
+    np.testing.assert_allclose(truth, [(0.1 * i * c, 0.1 * i * s) for i in range(30)], atol=1e-9)

@@ -12,15 +12,15 @@ MISSING = 'the view needs rerun-sdk: pip install "radarodom[view]"'
 
 
 def parse_view(text: str):
-    """argparse type: the ``--view`` value as a :class:`radarodom.view.ViewTarget`; Rerun must
-    be installed (checked here, before anything opens)."""
+    """argparse type: the ``--view`` value as a :class:`radarodom.view.ViewTarget`, checked
+    before anything opens: Rerun installed, a display for ``spawn``, free ports for ``web``."""
     kind, _, rest = text.partition(":")
     try:
-        from ..view.target import ViewTarget
+        from ..view.target import ViewTarget, check
 
         if kind == "web":
             if rest and not rest.isdigit():
-                raise UsageError(f"--view web:PORT takes a port number, got {rest!r}")
+                raise UsageError(f"web:PORT takes a port number, got {rest!r}")
             target = ViewTarget("web", port=int(rest)) if rest else ViewTarget("web")
         elif kind in ("spawn", "connect", "save"):
             if (kind == "spawn") == bool(rest):
@@ -32,6 +32,7 @@ def parse_view(text: str):
                 grpc_url(rest)
         else:
             raise UsageError(f"expected spawn, web[:PORT], connect:HOST:PORT or save:FILE.rrd, got {text!r}")
+        check(target)  # a display to spawn on, free ports: before anything opens
     except UsageError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     try:
@@ -44,8 +45,19 @@ def parse_view(text: str):
 _NEEDS = {"connect": "the viewer's HOST:PORT (or a rerun+http:// URL)", "save": "a file name (FILE.rrd)"}
 
 
+class _ViewAction(argparse.Action):
+    """``--view`` alone means spawn; every value goes through :func:`parse_view` (argparse does
+    not convert an option's const)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        try:
+            setattr(namespace, self.dest, parse_view("spawn" if values is None else values))
+        except argparse.ArgumentTypeError as exc:
+            parser.error(f"argument {option_string}: {exc}")
+
+
 def add_view_argument(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--view", type=parse_view, nargs="?", const="spawn", metavar="MODE",
+    parser.add_argument("--view", action=_ViewAction, nargs="?", metavar="MODE",
                         help="draw the point clouds, heatmaps, features, trajectory and time series live with Rerun "
                              "(docs/view.md): spawn (the default: a viewer window), web[:PORT] (serve the web "
                              "viewer on PORT, default 9090, its data on PORT+1, for a browser elsewhere), "

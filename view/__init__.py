@@ -5,9 +5,10 @@
     print(sink.where, sink.summary)
 
 :func:`open_view` opens the target (a viewer spawned here, the web viewer served, a viewer
-elsewhere, an .rrd file) in a process of its own and returns a :class:`ViewSink`;
-:mod:`.scene` says what is drawn and where.  Rerun (``rerun-sdk``, the ``[view]`` extra) is imported only when a view opens: the rest
-of radarodom never needs it.
+elsewhere, an .rrd file) in a process of its own (:mod:`.process`) and returns a
+:class:`ViewSink` (:mod:`.sink`); :mod:`.scene` says what is drawn and where, :mod:`.target`
+where it goes.  Rerun (``rerun-sdk``, the ``[view]`` extra) is imported only when a view
+opens: the rest of radarodom never needs it.
 """
 
 from .sink import ThreadDrawer, Track, ViewSink

@@ -30,8 +30,8 @@ class ColorMaps:
         self.diverging = _table(_DIVERGING)
 
     def heat(self, unit: np.ndarray) -> np.ndarray:
-        """uint8 RGB (..., 3) of values in [0, 1] (clipped)."""
-        return self.sequential[_index(unit, len(self.sequential))]
+        """uint8 RGB (..., 3) of finite values in [0, 1] (a heatmap :func:`normalised`)."""
+        return self.sequential[(unit * (len(self.sequential) - 1) + 0.5).astype(np.uint8)]
 
     def velocity(self, velocity_mps: np.ndarray, limit_mps: float) -> np.ndarray:
         """uint8 RGB (n, 3): blue approaching, red receding, full colour at +-*limit_mps*."""

@@ -1,7 +1,9 @@
 """What the view draws, with Rerun: each frame's point cloud, heatmap and features, the
 odometry's trajectory and pose, its time series and quality flags, and the ground truth.
 
-The entity tree follows REP-103 (docs/conventions.md): x forward, y left, z up, metres.
+The entity tree follows REP-103 (docs/conventions.md): x forward, y left, z up, metres; its frames
+and the arithmetic that puts the radar's motion and the ground truth on the base are the ROS 2
+outputs' (radarodom.ros2_frames: the view shows what ``--ros2`` and ``--mcap`` publish).
 
     world                        the 3-D scene (right-handed, z up)
       odom                       the odometry frame: the robot's base at the first frame
@@ -39,8 +41,9 @@ from ..estimator.odometry import OdometryState
 from ..estimator.quality import Flag
 from ..mount import Mount
 from ..products import RangeAzimuth
+from ..ros2_frames import Rigid, TruthInOdom, base_pose, ti_to_radar
 from .colors import ColorMaps, decibels, normalised
-from .sink import Track
+from .sink import Track, ViewHeatmap
 
 ODOM = "world/odom"
 BASE = ODOM + "/base_link"
@@ -49,7 +52,7 @@ RADAR = BASE + "/radar"
 #: How often the view notes in its own log that it dropped frames, s.
 _NOTE_PERIOD_S = 1.0
 #: Poses per logged block of a trajectory: a frame re-logs only the current block.
-_BLOCK = 200
+_BLOCK = 100
 #: The Cartesian heatmap's largest side, cells (its texture is sent every frame).
 _GRID_CELLS = 160
 #: Rows per azimuth bin of the polar image (range across): a panel-shaped picture.
@@ -85,9 +88,11 @@ class Scene:
         self._flags: tuple[str, ...] = ()
         self._trajectory = _Polyline(recording, ODOM + "/trajectory", _ESTIMATE)
         self._truth = _Polyline(recording, ODOM + "/groundtruth", _TRUTH)
-        self._truth_anchor: tuple[float, float, float] | None = None
-        self._truth_last: tuple[float, float, float, float] | None = None  # t, aligned radar pose
+        # The truth as base_link in odom, anchored at the first odometry frame's true pose.
+        self._truth_in_odom: TruthInOdom | None = None
+        self._truth_last: tuple[float, float, float, float] | None = None  # t, x, y, yaw of the base
         self._grid: CartesianGrid | None = None
+        # The last drawn odometry frame's features: (estimator frame, radar pose, xy (n, 2)).
         self._previous: tuple[int, tuple[float, float, float], np.ndarray] | None = None
         self._noted, self._next_note = 0, 0.0
         self._static()
@@ -109,22 +114,22 @@ class Scene:
         log = self.rec.log
         st = track.state
         truth = (math.nan, math.nan)
-        if track.pose is not None and (st is not None or self._truth_anchor is not None):
+        if track.pose is not None and (st is not None or self._truth_in_odom is not None):
             truth = self._true_pose(track)
         nan = math.nan
         if st is not None:
-            x, y, yaw = self._base(st.pose)
-            log(BASE, rr.Transform3D(translation=(x, y, 0.0), quaternion=_yaw_quaternion(yaw)))
-            self._trajectory.append(x, y)
-            log("plots/speed", rr.Scalars([math.hypot(st.vx, st.vy), truth[0]]))
-            log("plots/yaw_rate", rr.Scalars([math.degrees(st.yaw_rate), truth[1]]))
+            base = base_pose(st, self._mount)  # the radar's motion moved onto the base, as ROS 2 gets it
+            log(BASE, rr.Transform3D(translation=(base.x, base.y, 0.0), quaternion=_yaw_quaternion(base.yaw)))
+            self._trajectory.append(base.x, base.y)
+            log("plots/speed", rr.Scalars([math.hypot(base.vx, base.vy), truth[0]]))
+            log("plots/yaw_rate", rr.Scalars([math.degrees(base.yaw_rate), truth[1]]))
             self._flag_changes(track, st.flags)
         matches = nan if st is None or st.registration is None else st.registration.matches
         log("plots/counts", rr.Scalars([nan if track.points is None else track.points,
                                         nan if st is None else st.features, matches]))
         log("plots/time_ms", rr.Scalars([1e3 * track.latency_s, nan if st is None else 1e3 * st.compute_s]))
 
-    def frame(self, track: Track, points: np.ndarray | None, heatmap: RangeAzimuth | None) -> None:
+    def frame(self, track: Track, points: np.ndarray | None, heatmap: RangeAzimuth | ViewHeatmap | None) -> None:
         """The frame's point cloud (products.POINT_DTYPE), heatmap and features."""
         self._time(track)
         if points is not None:
@@ -158,12 +163,6 @@ class Scene:
         self.rec.set_time("frame", sequence=track.frame)
         self.rec.set_time("stream_time", duration=track.t - self._t0)
 
-    def _base(self, radar_pose: tuple[float, float, float]) -> tuple[float, float, float]:
-        """The base's pose in odom from the radar's in its first frame: M T M^-1 (the odom frame
-        is the base at the first frame, the radar sits at M on the base)."""
-        m = (self._mount.x, self._mount.y, self._mount.yaw)
-        return _compose(_compose(m, radar_pose), _inverse(m))
-
     def _flag_changes(self, track: Track, flags) -> None:
         bad = tuple(str(f) for f in flags if f != Flag.FIRST_FRAME)
         if bad == self._flags:
@@ -176,32 +175,30 @@ class Scene:
         self._flags = bad
 
     def _true_pose(self, track: Track) -> tuple[float, float]:
-        """The source's true radar pose, aligned at the first odometry frame as the estimate is;
-        its speed (m/s) and yaw rate (deg/s) from the previous one (NaN at the first)."""
-        px, py, _, qx, qy, qz, qw = track.pose
-        pose = (px, py, math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
-        if self._truth_anchor is None:
-            self._truth_anchor = pose
-        aligned = _compose(_inverse(self._truth_anchor), pose)
-        x, y, yaw = self._base(aligned)
+        """The source's true pose as base_link in odom, anchored at the first odometry frame as
+        the estimate is (radarodom.ros2_frames.TruthInOdom); its speed (m/s) and yaw rate
+        (deg/s) from the previous one (NaN at the first)."""
+        if self._truth_in_odom is None:
+            self._truth_in_odom = TruthInOdom(self._mount)
+        base = self._truth_in_odom(track.pose)
+        x, y, yaw = base.translation[0], base.translation[1], base.yaw
         self.rec.log(ODOM + "/groundtruth/pose", rr.Transform3D(translation=(x, y, 0.0),
                                                                 quaternion=_yaw_quaternion(yaw)))
         self._truth.append(x, y)
-        last, self._truth_last = self._truth_last, (track.t, *aligned)
+        last, self._truth_last = self._truth_last, (track.t, x, y, yaw)
         if last is None or not track.t > last[0]:
             return math.nan, math.nan
         dt = track.t - last[0]
-        turn = math.remainder(aligned[2] - last[3], math.tau)
-        return math.hypot(aligned[0] - last[1], aligned[1] - last[2]) / dt, math.degrees(turn / dt)
+        return math.hypot(x - last[1], y - last[2]) / dt, math.degrees(math.remainder(yaw - last[3], math.tau) / dt)
 
     def _points(self, points: np.ndarray) -> None:
-        xyz = np.column_stack([points["y"], -points["x"], points["z"]])  # TI sensor frame -> REP-103
+        xyz = np.column_stack(ti_to_radar(points))  # TI sensor frame -> REP-103
         velocity = points["velocity"]
         limit = self._velocity_limit or max(1.0, float(np.abs(velocity).max(initial=0.0)))
         radii = np.clip(0.02 + 0.003 * points["snr_db"], 0.02, 0.12)
         self.rec.log(RADAR + "/points", rr.Points3D(xyz, colors=self.colors.velocity(velocity, limit), radii=radii))
 
-    def _heatmap(self, heatmap: RangeAzimuth) -> None:
+    def _heatmap(self, heatmap: RangeAzimuth | ViewHeatmap) -> None:
         unit = normalised(decibels(heatmap.intensity))
         if self._grid is None:
             self._start_heatmaps(heatmap)
@@ -214,7 +211,7 @@ class Scene:
             albedo_texture_format=rr.components.ImageFormat(width=width, height=height, color_model="RGB",
                                                             channel_datatype="U8")))
 
-    def _start_heatmaps(self, heatmap: RangeAzimuth) -> None:
+    def _start_heatmaps(self, heatmap: RangeAzimuth | ViewHeatmap) -> None:
         """At the first heatmap (its axes are the stream's): the Cartesian grid and the fan of
         triangles it is drawn on (the field of view), the outline, the polar image's labels."""
         r_max = float(heatmap.range_m[-1])
@@ -243,18 +240,19 @@ class Scene:
                                                    labels=[f"{heatmap.range_m[0]:.0f} m", f"{r_max:.1f} m"],
                                                    colors=(200, 200, 200), show_labels=True), static=True)
 
-    def _features(self, state: OdometryState, heatmap: RangeAzimuth) -> None:
+    def _features(self, state: OdometryState, heatmap: RangeAzimuth | ViewHeatmap) -> None:
         """The features the estimator keeps of this heatmap (extracted again with its settings and
-        the step's velocity), green where one of the previous frame's features, moved by the
-        estimated step, lies within the ICP's match gate (eps_max of eq. 4), orange elsewhere."""
+        the step's velocity), in the plane it registers them in (horizontal range and bearing),
+        green where one of the previous frame's features, moved by the estimated step, lies within
+        the ICP's match gate (eps_max of eq. 4), orange elsewhere."""
         features = extract(heatmap, self._estimator.features, np.array([state.vx, state.vy]))
         xy = np.asarray(features.xy)
         matched = np.zeros(len(xy), bool)
         previous = self._previous
         if previous is not None and previous[0] == state.frame - 1 and len(previous[2]) and len(xy):
-            step = _compose(_inverse(previous[1]), state.pose)  # the radar's motion over the step
-            c, s = math.cos(step[2]), math.sin(step[2])
-            d = previous[2] - np.array(step[:2])
+            step = Rigid.planar(*previous[1]).inverse() * Rigid.planar(*state.pose)  # the radar's motion
+            c, s = math.cos(step.yaw), math.sin(step.yaw)
+            d = previous[2] - np.array(step.translation[:2])
             moved = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
             icp = self._estimator.icp
             scale = np.array([math.sqrt(icp.alpha), math.sqrt(icp.beta)])
@@ -290,21 +288,11 @@ def _yaw_quaternion(yaw: float) -> rr.Quaternion:
     return rr.Quaternion(xyzw=[0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)])
 
 
-def _compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
-    """SE(2) a * b (poses x, y, yaw)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]
-
-
-def _inverse(a: tuple[float, float, float]) -> tuple[float, float, float]:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return -c * a[0] - s * a[1], s * a[0] - c * a[1], -a[2]
-
-
 def _polar(xy: np.ndarray) -> np.ndarray:
     """(range, bearing) of body-frame points (n, 2)."""
     return np.column_stack([np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0])])
 
 
 def _planar(xy: np.ndarray) -> np.ndarray:
+    """Body-frame points (n, 2) in the radar's plane, (n, 3)."""
     return np.column_stack([xy, np.zeros(len(xy))])

@@ -1,14 +1,18 @@
 """The view as a pipeline sink that never slows the pipeline.
 
-The pipeline's thread does two cheap things per frame (microseconds): it appends the frame's
-:class:`Track` (time, odometry state, point count, latency, true pose) to a list the view never
-drops, and offers the frame's point cloud and heatmap to a bounded queue.  When the queue is
-full (the drawing, or the viewer, lags behind the radar) that frame's drawing is dropped and
-counted: the pipeline's frames never wait for the view.  A sender thread hands the tracks, in
-order, and each queued frame to a drawer: :class:`~.process.ProcessDrawer` (what radar-capture
-uses: Rerun in a process of its own, so that drawing never holds this process's interpreter
-lock and a viewer that stops reading cannot hold up the end of the run) or
-:class:`ThreadDrawer` (draws in the sender thread, into a recording of your own).
+For every frame the pipeline's thread keeps the frame's :class:`Track` (time, odometry state,
+point count, latency, true pose), which the view does not drop (unless the drawer takes nothing
+for :data:`MAX_TRACKS` frames: then the oldest go, counted).  Then, if the drawer is ready for
+another frame, it hands over the tracks kept so far and the frame's point cloud and heatmap
+without waiting (:meth:`Drawer.offer`); if the drawer is still busy with earlier frames (the
+drawing, or the viewer, lags behind the radar), the frame's drawing is dropped and counted, and
+its track waits for the next frame handed over.  The drawers:
+
+- :class:`ThreadDrawer` (``--view save:``, and a Rerun recording of your own: a notebook's, a
+  test's): draws in a thread of this process from a queue of *queue_frames*.
+- :class:`~.process.ProcessDrawer` (``--view spawn``, ``web`` and ``connect:``): draws in a
+  process of its own, which a lagging or stopped reader holds up alone; the pipeline's thread
+  pickles the frame and writes it to a socket without blocking.
 """
 
 from __future__ import annotations
@@ -23,9 +27,9 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol
 from ..estimator.odometry import OdometryState
 from ..pipeline.sinks import FrameResult, Sink
 
-if TYPE_CHECKING:
-    import numpy as np
+import numpy as np
 
+if TYPE_CHECKING:
     from ..pipeline.stats import PipelineStats
     from ..products import RangeAzimuth
     from .scene import Scene
@@ -33,6 +37,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _END = object()
+#: Tracks kept for a drawer that takes nothing (5 minutes at 10 Hz): beyond, the oldest go, counted.
+MAX_TRACKS = 3000
 
 
 class Track(NamedTuple):
@@ -48,127 +54,125 @@ class Track(NamedTuple):
     pose: tuple[float, ...] | None
 
 
+class ViewHeatmap(NamedTuple):
+    """What the view draws of a frame's :class:`~radarodom.products.RangeAzimuth` (and the
+    estimator's features read): all but the zero-Doppler map, a quarter less to hand over."""
+
+    intensity: np.ndarray
+    doppler_mps: np.ndarray
+    range_m: np.ndarray
+    azimuth_rad: np.ndarray
+    elevation_rad: np.ndarray | None
+
+    @classmethod
+    def of(cls, heatmap: RangeAzimuth | None) -> ViewHeatmap | None:
+        if heatmap is None:
+            return None
+        return cls(heatmap.intensity, heatmap.doppler_mps, heatmap.range_m, heatmap.azimuth_rad,
+                   getattr(heatmap, "elevation_rad", None))
+
+
 #: A frame to draw: its track, point cloud (POINT_DTYPE) and heatmap (either may be None).
-FramePayload = tuple[Track, "np.ndarray | None", "RangeAzimuth | None"]
+FramePayload = tuple[Track, "np.ndarray | None", "ViewHeatmap | None"]
 
 
 class Drawer(Protocol):
-    """Where a :class:`ViewSink` hands what it draws (from its sender thread)."""
+    """What a :class:`ViewSink` hands the frames to; every method but :meth:`close` is called from
+    the pipeline's thread and returns at once."""
 
     #: Where the view goes, for the user (one line).
     where: str
 
-    def draw(self, tracks: list[Track], frame: FramePayload | None, dropped: int, offered: int) -> None:
-        """Draw *tracks* in order, then *frame*; *dropped* of *offered* frames were dropped so far.
-        May block while the drawing lags: the sink's queue absorbs it."""
+    def ready(self) -> bool:
+        """Whether another frame can be handed over now."""
 
-    def close(self, timeout_s: float) -> tuple[int | None, str | None]:
-        """Finish (within about *timeout_s*): the frames drawn (None: unknown, the drawing did not
-        finish) and the failure that stopped the drawing, if one did."""
+    def offer(self, tracks: list[Track], frame: FramePayload, dropped: int, offered: int) -> None:
+        """(After :meth:`ready`) Draw *tracks* in order, then *frame*; *dropped* of *offered* frames
+        were dropped so far.  Nothing handed over may be changed by the pipeline afterwards."""
 
-    def abandon(self) -> tuple[int | None, str | None]:
-        """Give up while a :meth:`draw` is still blocked: as :meth:`close`, without waiting."""
+    def close(self, tracks: list[Track], dropped: int, offered: int, timeout_s: float) -> tuple[int | None, str | None]:
+        """Draw the last *tracks* and finish, within about *timeout_s*: the frames drawn (None:
+        unknown, the drawing did not finish) and what went wrong, if anything."""
 
 
 class ViewSink(Sink):
-    """Hands each frame's results to *drawer* from a sender thread (see the module docstring).
+    """Hands each frame's results to *drawer* without ever waiting for it (module docstring).
 
-    *queue_frames*: frames waiting for the drawer before new ones are dropped; *close_timeout_s*:
-    how long :meth:`close` waits for the frames still queued to be drawn.  :attr:`offered` and
-    :attr:`dropped` count the frames as the run goes; once closed, :attr:`drawn` is what the
-    drawer drew and ``offered = drawn + dropped`` (frames a failure or the timeout left undrawn
-    count as dropped).
+    *close_timeout_s*: how long :meth:`close` lets the drawer finish.  :attr:`offered` and
+    :attr:`dropped` count the frames as the run goes; once closed, :attr:`drawn` is what was
+    drawn and ``offered = drawn + dropped`` (frames a failure or the timeout left undrawn count as
+    dropped), and :attr:`summary` says so in a line.
     """
 
     wants_heatmaps = True
 
-    def __init__(self, drawer: Drawer, *, queue_frames: int = 4, close_timeout_s: float = 30.0) -> None:
+    def __init__(self, drawer: Drawer, *, close_timeout_s: float = 30.0) -> None:
         self.drawer = drawer
         self.close_timeout_s = close_timeout_s
         self.offered = self.dropped = self.drawn = 0
-        self.failure: str | None = None
+        #: What went wrong with the view, if anything (a drawing error, a viewer that stopped reading).
+        self.problem: str | None = None
         self.finished = True
-        self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
-        self._tracks: collections.deque[Track] = collections.deque()
+        #: Tracks that went unsent (the drawer took nothing for MAX_TRACKS frames).
+        self.tracks_dropped = 0
+        self._tracks: collections.deque[Track] = collections.deque(maxlen=MAX_TRACKS)
         self._closed = False
-        self._sender = threading.Thread(target=self._send, name="radarodom-view", daemon=True)
-        self._sender.start()
 
     @property
     def where(self) -> str:
         return self.drawer.where
 
-    # ------------------------------------------------------------------ the pipeline's thread
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
         frame = result.frame
         points = result.points
         track = Track(frame.index, frame.timestamp, result.state, None if points is None else len(points),
                       time.monotonic() - frame.ready_monotonic, frame.pose)
+        if len(self._tracks) == MAX_TRACKS:
+            self.tracks_dropped += 1
         self._tracks.append(track)
         self.offered += 1
-        try:
-            self._queue.put_nowait((track, points, result.heatmap))
-        except queue.Full:
+        if not self.drawer.ready():
             self.dropped += 1
+            return
+        self.drawer.offer(self._take_tracks(), (track, points, ViewHeatmap.of(result.heatmap)), self.dropped,
+                          self.offered)
 
     def close(self, stats: PipelineStats | None = None) -> None:
-        """Hand over what is queued and let the drawer finish, within *close_timeout_s*."""
+        """Let the drawer draw what it has and finish, within *close_timeout_s*."""
         if self._closed:
             return
         self._closed = True
-        deadline = time.monotonic() + self.close_timeout_s
-        try:
-            self._queue.put(_END, timeout=self.close_timeout_s)
-        except queue.Full:
-            pass
-        self._sender.join(max(0.0, deadline - time.monotonic()))
-        if self._sender.is_alive():  # stuck handing a frame over: the drawer is not to be waited for
-            drawn, self.failure = self.drawer.abandon()
-        else:
-            drawn, self.failure = self.drawer.close(max(1.0, deadline - time.monotonic()))
+        drawn, self.problem = self.drawer.close(self._take_tracks(), self.dropped, self.offered, self.close_timeout_s)
         self.finished = drawn is not None
         if drawn is None:
-            log.warning("the view did not finish within %.0f s (a viewer that stopped reading?); what it had "
-                        "not sent is lost", self.close_timeout_s)
+            log.warning("the view did not finish within %.0f s; what it had not drawn is lost", self.close_timeout_s)
         self.drawn = drawn or 0
         self.dropped = self.offered - self.drawn
+
+    def _take_tracks(self) -> list[Track]:
+        tracks = list(self._tracks)
+        self._tracks.clear()
+        return tracks
 
     @property
     def summary(self) -> str:
         """"300 frames drawn, 2 dropped (the view fell behind the radar)"."""
         text = f"{self.drawn} frame{'' if self.drawn == 1 else 's'} drawn, {self.dropped} dropped"
-        if self.failure is not None:
-            return text + f" (the view failed: {self.failure})"
+        if self.tracks_dropped:
+            text += f", {self.tracks_dropped} missing from its trajectory and time series"
+        if self.problem is not None:
+            return text + f" ({self.problem})"
         if not self.finished:
             return text + " (the view did not finish)"
         return text + (" (the view fell behind the radar)" if self.dropped else "")
 
-    # ------------------------------------------------------------------ the sender thread
-    def _send(self) -> None:
-        while True:
-            item = self._queue.get()
-            if item is _END:
-                break
-            self.drawer.draw(self._tracks_until(item[0]), item, self.dropped, self.offered)
-        self.drawer.draw(self._tracks_until(None), None, self.dropped, self.offered)
 
-    def _tracks_until(self, last: Track | None) -> list[Track]:
-        """The tracks kept so far, in order, up to *last* (None: all)."""
-        out = []
-        while self._tracks:
-            out.append(self._tracks.popleft())
-            if out[-1] is last:
-                break
-        return out
+class Drawing:
+    """Draws what a drawer is handed into *scene* (a :class:`~.scene.Scene`): the tracks, the
+    frame, the drop count; a drawing that raises stops the drawing (logged), not the pipeline."""
 
-
-class ThreadDrawer:
-    """Draws into *scene* (a :class:`~.scene.Scene` on a Rerun recording of your own) in the
-    sink's sender thread; a drawing that raises stops the drawing (logged), not the pipeline."""
-
-    def __init__(self, scene: Scene, where: str = "a recording of this process") -> None:
+    def __init__(self, scene: Scene) -> None:
         self.scene = scene
-        self.where = where
         self.drawn = 0
         self.failure: str | None = None
 
@@ -181,17 +185,48 @@ class ThreadDrawer:
             if frame is not None:
                 self.scene.frame(*frame)
                 self.drawn += 1
-                self.scene.dropped(dropped, offered)
+            self.scene.dropped(dropped, offered)
         except Exception as exc:  # noqa: BLE001 (a view's failure must not stop the radar)
-            self.failure = f"{type(exc).__name__}: {exc}"
-            log.warning("the view stopped drawing: %s", self.failure)
+            self.failure = f"the view failed: {type(exc).__name__}: {exc}"
+            log.warning("%s; it stopped drawing", self.failure)
 
-    def close(self, timeout_s: float) -> tuple[int | None, str | None]:
+    def close(self) -> None:
         try:
             self.scene.close()
         except Exception as exc:  # noqa: BLE001 (what the radar recorded matters more than the view)
             log.warning("the view did not close cleanly: %s: %s", type(exc).__name__, exc)
-        return self.drawn, self.failure
 
-    def abandon(self) -> tuple[int | None, str | None]:
-        return None, self.failure  # the scene is still in use: it cannot be closed from here
+
+class ThreadDrawer:
+    """Draws into *scene* (a :class:`~.scene.Scene` on a Rerun recording of your own) in a thread
+    of this process, from a queue of *queue_frames* frames."""
+
+    def __init__(self, scene: Scene, where: str = "a recording of this process", *, queue_frames: int = 4) -> None:
+        self.where = where
+        self.drawing = Drawing(scene)
+        self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
+        self._thread = threading.Thread(target=self._work, name="radarodom-view", daemon=True)
+        self._thread.start()
+
+    def ready(self) -> bool:
+        return not self._queue.full()  # only the pipeline's thread puts: room now is room at the put
+
+    def offer(self, tracks: list[Track], frame: FramePayload, dropped: int, offered: int) -> None:
+        self._queue.put_nowait((tracks, frame, dropped, offered))
+
+    def close(self, tracks: list[Track], dropped: int, offered: int, timeout_s: float) -> tuple[int | None, str | None]:
+        deadline = time.monotonic() + timeout_s
+        try:
+            self._queue.put((tracks, None, dropped, offered), timeout=timeout_s)
+            self._queue.put(_END, timeout=max(0.0, deadline - time.monotonic()))
+        except queue.Full:
+            return None, self.drawing.failure
+        self._thread.join(max(0.0, deadline - time.monotonic()))
+        if self._thread.is_alive():
+            return None, self.drawing.failure  # the scene is still in use: it cannot be closed from here
+        self.drawing.close()
+        return self.drawing.drawn, self.drawing.failure
+
+    def _work(self) -> None:
+        while (item := self._queue.get()) is not _END:
+            self.drawing.draw(*item)

@@ -4,7 +4,9 @@
 from __future__ import annotations
 
 import os
+import shutil
 import socket
+import sys
 import urllib.parse
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -24,6 +26,8 @@ DEFAULT_WEB_PORT = 9090
 #: A spawned viewer's port (Rerun's default: a viewer already running there is reused).
 SPAWN_PORT = 9876
 KINDS = ("spawn", "web", "connect", "save")
+#: Rerun's batching period for the web viewer, s (its default, 0.2 s, for the others).
+WEB_FLUSH_TICK_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -60,23 +64,31 @@ def grpc_url(address: str) -> str:
 
 
 def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, config: RadarConfig | None = None,
-              mount: Mount | None = None, queue_frames: int = 4) -> ViewSink:
-    """A view sink drawing into *target* from a process of its own (:mod:`.process`); its
-    ``where`` says where to look, in one line.  Raises UsageError for a target that cannot work
-    here (no display, a port in use) and CaptureError for a file that cannot be written."""
+              mount: Mount | None = None, close_timeout_s: float = 30.0, process: bool | None = None) -> ViewSink:
+    """A view sink drawing into *target*; its ``where`` says where to look, in one line (the
+    sink's other settings: :class:`ViewSink`).  What a viewer or a browser reads (``spawn``,
+    ``web``, ``connect``) is drawn in a process of its own (:mod:`.process`): a reader that lags
+    or stops can hold Rerun's calls up, and there they hold up the view alone; a file is drawn in
+    a thread (*process* forces either).  Raises UsageError for a target that cannot work here (no
+    display, a port in use) and CaptureError for a file that cannot be written."""
     from .process import ProcessDrawer
-    from .sink import ViewSink
+    from .sink import ThreadDrawer, ViewSink
 
     check(target)
-    return ViewSink(ProcessDrawer(target, estimator=estimator, config=config, mount=mount), queue_frames=queue_frames)
+    if process if process is not None else target.kind != "save":
+        drawer = ProcessDrawer(target, estimator=estimator, config=config, mount=mount)
+    else:
+        scene, where = open_scene(target, estimator=estimator, config=config, mount=mount)
+        drawer = ThreadDrawer(scene, where)
+    return ViewSink(drawer, close_timeout_s=close_timeout_s)
 
 
 def check(target: ViewTarget) -> None:
     """What can be known before Rerun starts: a display to spawn a viewer on, free ports."""
     if target.kind == "spawn" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise UsageError("--view spawn opens a viewer window, and this session has no display (neither DISPLAY "
-                         "nor WAYLAND_DISPLAY is set): use --view web[:PORT] and open it from a browser, or "
-                         "--view save:FILE.rrd")
+        raise UsageError("spawn opens a viewer window, and this session has no display (neither DISPLAY nor "
+                         "WAYLAND_DISPLAY is set): serve the web viewer instead (--view web[:PORT]) and open it "
+                         "from a browser, or save the view (--view save:FILE.rrd)")
     if target.kind == "web":
         _check_free(target)
 
@@ -90,7 +102,10 @@ def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, 
     from .scene import Scene
 
     check(target)
-    recording = rr.RecordingStream(APPLICATION)
+    # A browser takes a few large chunks far faster than many small ones (Rerun batches what is
+    # logged within a tick into one chunk per entity; measured in docs/view.md).
+    batching = rr.ChunkBatcherConfig(flush_tick=WEB_FLUSH_TICK_S) if target.kind == "web" else None
+    recording = rr.RecordingStream(APPLICATION, batcher_config=batching)
     where = _OPENERS[target.kind](recording, target, layout())
     scene = Scene(recording, estimator=estimator, config=config, mount=mount)
     scene.note(f"radarodom's view, sent to {where}", static=True)
@@ -98,7 +113,9 @@ def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, 
 
 
 def _spawn(recording, target: ViewTarget, blueprint) -> str:
-    recording.spawn(port=SPAWN_PORT, default_blueprint=blueprint)
+    # Rerun looks for its viewer on PATH: a virtual environment's, not activated, is beside Python.
+    here = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
+    recording.spawn(port=SPAWN_PORT, default_blueprint=blueprint, executable_path=shutil.which("rerun", path=here))
     return f"a Rerun viewer on this machine (port {SPAWN_PORT})"
 
 
@@ -148,9 +165,24 @@ def _check_free(target: ViewTarget) -> None:
             try:
                 sock.bind(("0.0.0.0", port))
             except OSError as exc:
-                raise UsageError(f"--view web:{target.port} serves the page on port {target.port} and its data on "
+                raise UsageError(f"web:{target.port} serves the page on port {target.port} and its data on "
                                  f"{target.data_port}, and port {port} is taken ({exc.strerror}); choose another "
-                                 "with --view web:PORT") from None
+                                 "port (--view web:PORT)") from None
+
+
+def free_web_port() -> int:
+    """A port for ``ViewTarget("web", port=...)`` with it and the next free right now (a
+    benchmark's or a test's web viewer beside whatever else runs)."""
+    for _ in range(100):
+        with socket.socket() as sock:
+            sock.bind(("0.0.0.0", 0))
+            port = sock.getsockname()[1]
+        try:
+            _check_free(ViewTarget("web", port=port))
+        except UsageError:
+            continue
+        return port
+    raise UsageError("found no two adjacent free ports for the web viewer")
 
 
 def layout():
@@ -164,7 +196,8 @@ def layout():
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(origin="world", name="odom frame (REP-103: x ahead, y left, z up)"),
-            rrb.Vertical(rrb.Spatial2DView(origin="heatmap", name="range-azimuth heatmap: range across, azimuth down (left at the top)"),
+            rrb.Vertical(rrb.Spatial2DView(origin="heatmap",
+                                           name="range-azimuth heatmap: range across, azimuth down (left at the top)"),
                          rrb.Grid(*plots), rrb.TextLogView(origin="log", name="quality flags, view"),
                          row_shares=[3, 4, 2]),
             column_shares=[3, 2]),
