@@ -79,6 +79,8 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default, keyframe search around the prediction": d.with_(odometry={"keyframe_start": "predicted"}),
         # The heading options of issue 20, each turned off, and all four (the defaults before).
         "default, score over the points inside at each rotation": d.with_(icp={"score_support": "inside"}),
+        "default, the scan guess scored over the common points too (2026-11-27 morning)": d.with_(
+            icp={"scan_score_support": "common"}),
         "default, features level with the radar": d.with_(features={"elevation": "ignore"}),
         "default, rectified by v dt": d.with_(odometry={"rectification": "velocity"}),
         "default, moving cells in the field": d.with_(icp={"reject_moving_mps": None}),

@@ -222,11 +222,16 @@ class IcpConfig(Settings):
     #: A person walking past fills the strongest cells with a reflector that does not turn
     #: with the world; a static cell's Doppler is off by its bin's width and its elevation.
     reject_moving_mps: float | None = 0.3
-    #: Which points a field or scan score averages over: "inside", those inside the heatmap at
-    #: each rotation tried; "common", those inside at every rotation tried.  A mean over the
-    #: points inside at each rotation rises where a rotation turns the weak points at the field
-    #: of view's edge out of the heatmap, and so favours larger rotations (docs/estimator.md).
+    #: Which points the field search's score (and the keyframe's narrow scan's) averages over:
+    #: "inside", those inside the heatmap at each rotation tried; "common", those inside at
+    #: every rotation tried.  A mean over the points inside at each rotation rises where a
+    #: rotation turns the weak points at the field of view's edge out of the heatmap, and so
+    #: favours larger rotations (docs/estimator.md).
     score_support: str = "common"
+    #: The same for each step's scan guess.  Over its wide window (+/- max_rotation_rad) the points
+    #: inside at every rotation are few, and a scan centred on a wrong prediction followed its
+    #: own error from frame to frame (docs/estimator.md): "inside" by default.
+    scan_score_support: str = "inside"
     #: With the scan guess and the field refinement: when ICP fails (too few features or
     #: matches) but the scan found structure, measure the yaw by the field search around the
     #: scan guess instead of holding the last yaw rate (the frame keeps its icp_failed /
@@ -251,6 +256,7 @@ class IcpConfig(Settings):
         _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
         check_choice(self.score_support, ("inside", "common"), "score_support")
+        check_choice(self.scan_score_support, ("inside", "common"), "scan_score_support")
         _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
                "reject_moving_mps")
 

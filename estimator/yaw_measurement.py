@@ -121,7 +121,7 @@ class ScanGuess:
         self._step_rad = config.icp.scan_step_rad
         self._max_rad = config.icp.max_rotation_rad
         self._min_score = config.icp.min_scan_score
-        self._common = config.icp.score_support == "common"
+        self._common = config.icp.scan_score_support == "common"
 
     def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
         """The frame's strongest cells (moving ones left out, given the *velocity*)."""

@@ -761,3 +761,11 @@ def test_velocity_lookup_nearest_and_interpolated(seed):
             assert got.vx == pytest.approx(first + k - 1 + f * 1.0), q
         else:
             assert got.vx == first + int(np.argmin(np.abs(kept - q))), q
+
+
+@pytest.mark.parametrize("name", ["score_support", "scan_score_support"])
+def test_the_scores_supports_are_checked_and_default_to_the_field_common_and_the_scan_inside(name):
+    icp = EstimatorConfig().icp
+    assert (icp.score_support, icp.scan_score_support) == ("common", "inside")
+    with pytest.raises(ConfigError, match=name):
+        EstimatorConfig().with_(icp={name: "everywhere"})
