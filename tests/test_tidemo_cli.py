@@ -113,3 +113,14 @@ def test_radar_capture_records_a_tidemo_stream_that_replays_to_the_same_odometry
     assert "radar-capture: 8 frames" in replay.stdout and "0 packets rejected, 0 bytes discarded" in replay.stdout
     assert (tmp_path / "replay.tum").read_text() == (tmp_path / "live.tum").read_text()
     assert (tmp_path / "again" / "uart.bin").read_bytes() == (rec / "uart.bin").read_bytes()
+    # --overwrite replaces the recording, its uart.bin too, and leaves the directory's other files.
+    (tmp_path / "again" / "notes.txt").write_text("mine")
+    over = run_capture_cli("--source", f"replay://{rec}?rate=max", "--no-publish", "--record", tmp_path / "again",
+                           "--frames", 4, "--overwrite", timeout=300)
+    assert over.returncode == 0, over.stderr
+    assert sorted(os.listdir(tmp_path / "again")) == ["capture.json", "notes.txt", "radar.cfg", "timestamps.txt",
+                                                      "uart.bin"]
+    shorter = (tmp_path / "again" / "uart.bin").read_bytes()
+    assert 0 < len(shorter) < len((rec / "uart.bin").read_bytes())
+    assert (rec / "uart.bin").read_bytes().startswith(shorter)
+    assert (rec / "timestamps.txt").read_text().startswith((tmp_path / "again" / "timestamps.txt").read_text())

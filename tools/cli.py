@@ -114,11 +114,13 @@ def replace_output(path: str, kind: str = "file") -> None:
     """Remove an output ``--overwrite`` replaces (checked by :func:`check_new_path`): a file
     (*kind* "file"); of a capture directory radarodom wrote (its capture.json there; *kind*
     "capture") or a heatmap directory (its index.json; "heatmaps"), only the files radarodom
-    writes there, so that anything else in it stays.  Nothing else is touched."""
+    writes there (a source's own stream file too: ``uart.bin``), so that anything else in it
+    stays.  Nothing else is touched."""
     import os
     import re
 
     from ..driver.recordings.capture_dir import remove_capture_files
+    from ..driver.sources import REPLAY_FORMAT_FILES
     from ..errors import CaptureError
 
     try:
@@ -129,6 +131,9 @@ def replace_output(path: str, kind: str = "file") -> None:
             names = os.listdir(path)
             if kind == "capture" and "capture.json" in names:
                 remove_capture_files(path)
+                # A source that records itself (tidemo://) keeps its stream in a file of its own.
+                for name in set(REPLAY_FORMAT_FILES.values()) & set(names):
+                    os.remove(os.path.join(path, name))
             elif kind == "heatmaps" and "index.json" in names:
                 for name in names:
                     if name in ("index.json", "index.json.tmp") or re.fullmatch(
