@@ -489,3 +489,11 @@ def test_pipeline_records_a_frame_before_its_processing_fails(capture, tmp_path)
     rec = CaptureDirectory(out)
     assert rec.metadata["closed"] is True and rec.metadata["frame_count"] == 4
     assert [bytes(rec.raw(i)) for i in range(4)] == frames[:4]
+
+
+@pytest.mark.parametrize("path", [None, 7, "ti\0x", b"ti\0x"])
+def test_ti_recording_path_that_is_no_path_is_a_capture_error(small_cfg, path):
+    from radarodom.driver.recordings.ti_recorder import TiRecording
+    from radarodom.errors import CaptureError
+    with pytest.raises(CaptureError, match="path"):
+        TiRecording(path, small_cfg)

@@ -13,7 +13,7 @@ import re
 import numpy as np
 
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureFormatError
+from ...errors import CaptureError, CaptureFormatError, given_path
 from ...rawframe import RawLayout
 
 log = logging.getLogger(__name__)
@@ -60,7 +60,7 @@ class TiRecording:
     :class:`~radarodom.driver.recordings.capture_dir.CaptureDirectory`)."""
 
     def __init__(self, path: str | os.PathLike, config: RadarConfig, *, reordered: bool = True) -> None:
-        self.directory = os.fspath(path)
+        self.directory = given_path(path, CaptureError)
         self.config = config
         self.files = series_files(self.directory)
         self.layout = RawLayout.from_config(config, iq_interleaved=reordered)
