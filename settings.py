@@ -30,6 +30,12 @@ def _nested_type(cls: type, name: str) -> type | None:
     return hint if isinstance(hint, type) and hasattr(hint, "from_dict") else None
 
 
+def check_field(ok: bool, message: str, name: str) -> None:
+    """:class:`ConfigError` naming field *name* with *message* unless *ok*."""
+    if not ok:
+        raise ConfigError(message, field=name)
+
+
 def check_choice(value: Any, choices: tuple[str, ...], name: str) -> None:
     """:class:`ConfigError` naming field *name* unless *value* is one of *choices*."""
     if value not in choices:

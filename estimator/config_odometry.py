@@ -1,0 +1,221 @@
+"""The estimator's settings of integration (velocity and yaw into a pose, failed steps, the
+keyframe, a wheeled base's Doppler yaw rate) and of the yaw from a radar's own points: parts of
+:class:`~.config.EstimatorConfig`, which re-exports them.  Units: metres, seconds, radians."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..settings import Settings, check_choice
+from ..settings import check_field as _check
+
+KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
+VELOCITY_FALLBACKS = ("hold", "heatmap")
+
+
+@dataclass
+class OdometryConfig(Settings):
+    """Integration of velocity and yaw into a pose, and what happens when a step fails."""
+
+    _what = "odometry"
+
+    #: A failed step carries the last good velocity / yaw rate forward this long, s; after
+    #: that the motion it reports is zero (and flagged).
+    hold_s: float = 0.5
+    #: Beyond the paper: when the point cloud gives no velocity near a heatmap frame, "hold"
+    #: the last good one (for ``hold_s``), or take it from the "heatmap": its strongest
+    #: local-maximum cells' dominant Doppler, fitted like a point cloud (elevation unknown,
+    #: so taken as 0) and averaged with the velocity at the previous frame (the step's
+    #: mid-time), held only when that fails too.  A robot slowing down to stop or to turn in
+    #: place leaves the point cloud a handful of detections for several frames; holding the
+    #: speed from before adds drift, and the wrong rectification costs yaw
+    #: (docs/estimator.md, "Why the defaults").
+    velocity_fallback: str = "heatmap"
+    #: With the "heatmap" fallback: the number of strongest local-maximum cells it fits.  Most
+    #: weak maxima carry noise's Doppler: with too many, the static world's share falls below
+    #: ``velocity.min_inlier_ratio`` and the fallback fails (docs/estimator.md, "Why the defaults").
+    fallback_cells: int = 50
+    #: Fewer heatmap features than this: no registration ("few_features").
+    min_features: int = 10
+    #: Velocity at the middle of two heatmap frames (paper eq. 2): "interpolate" linearly
+    #: between the bracketing velocity estimates, or take the "nearest".
+    velocity_sync: str = "interpolate"
+    #: How the previous frame's features are moved to the current sensor position (paper eq.
+    #: 3): "velocity", by the step's mid velocity times its duration, in the previous frame's
+    #: axes (the paper); "chord", that displacement turned by half the step's predicted turn,
+    #: the chord of the arc the sensor drove (the mid velocity is in the mid-step body's axes,
+    #: half a turn from the previous frame's).  Uncorrected, a moving turn's features are moved
+    #: sideways by v dt sin(turn / 2), which the registration reads as extra rotation.
+    rectification: str = "chord"
+    #: Beyond the paper: smooth the measured yaw rate with a Kalman filter (a robot's yaw rate
+    #: changes smoothly; frame-to-frame registration noise does not) ...
+    yaw_rate_filter: bool = True
+    #: ... whose measurements have at least this noise per frame, rad ...
+    yaw_noise_rad: float = math.radians(1.0)
+    #: ... and whose yaw rate changes with this standard deviation of yaw acceleration, rad/s^2.
+    yaw_accel_std_radps2: float = math.radians(50.0)
+    #: ... and, when set, a second model of the yaw rate whose acceleration has this (larger)
+    #: standard deviation, rad/s^2: the filter then mixes the two by how well each predicts
+    #: the measurements (an interacting-multiple-model filter).  A robot turns on and off
+    #: within a few frames; one model smooth enough for straight drives and steady turns lags
+    #: those by degrees a frame, one loose enough to follow them lets registration noise
+    #: through (docs/estimator.md, "Why the defaults").  None: the one model.
+    yaw_manoeuvre_accel_std_radps2: float | None = math.radians(300.0)
+    #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
+    #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken
+    #: when the sensor is this far (m) or has turned this much (rad) from the last (0: off,
+    #: which saves time but lets the room's drift grow; docs/estimator.md, "Why the defaults") ...
+    keyframe_distance_m: float = 0.5
+    keyframe_angle_rad: float = math.radians(10.0)
+    #: ... and the keyframe registration may move the predicted yaw by at most this, rad (with
+    #: ``keyframe_start`` "predicted_and_scan", plus the scan guess's disagreement with it).
+    keyframe_search_rad: float = math.radians(3.0)
+    #: Where the keyframe registration's field search looks: "scan", +/- ``field_search_rad``
+    #: around the scan guess of the keyframe's strongest cells on the current heatmap (itself
+    #: searched within ``keyframe_search_rad`` of the frame chain's prediction); "predicted",
+    #: +/- ``keyframe_search_rad`` around the frame chain's predicted yaw relative to the
+    #: keyframe (no scan guess); "predicted_and_scan", from the smaller of the prediction and
+    #: the scan guess to the larger, widened by ``keyframe_search_rad`` each side, the
+    #: measurement then allowed to move the prediction by that much plus the two's
+    #: disagreement.  The scan guess against a keyframe is biased on straight drives and,
+    #: started from it, a keyframe cannot repair a chain that drifted more than a few degrees
+    #: (a filter lagging a turn's start); the prediction alone misses the turns the chain
+    #: under-measures.  Spanning both halves the room's drift (docs/estimator.md, "Why the defaults").
+    keyframe_start: str = "predicted_and_scan"
+    #: The keyframe measurement's yaw noise (at least), rad; None: ``yaw_noise_rad``.  It is the
+    #: noise measured against ground truth (docs/estimator.md, "Why the defaults"); weighted as less,
+    #: every keyframe's error goes into one frame's increment.
+    keyframe_noise_rad: float | None = math.radians(1.3)
+
+    #: Where the radar sits on the robot's base: x ahead, y left of the base's rotation axis
+    #: (m), and its yaw on the base (rad).  The odometry stays the radar's; with ``base``
+    #: "wheeled" the mounting lets the Doppler velocity measure the yaw rate.
+    mount_x_m: float = 0.0
+    mount_y_m: float = 0.0
+    mount_yaw_rad: float = 0.0
+    #: Beyond the paper (Kellner et al. 2014): "wheeled", the base cannot slide sideways, so a
+    #: radar mounted ahead of or behind its rotation axis moves sideways at yaw rate times
+    #: ``mount_x_m``: each step's Doppler velocity then measures the yaw rate, fused with the
+    #: heatmap registration (inverse-variance weighted) before the yaw-rate filter, and stands
+    #: in for it when the registration fails.  "any": the velocity says nothing of the yaw.
+    base: str = "any"
+    #: With ``base`` "wheeled": a lever arm shorter than this (m) makes the yaw rate too noisy
+    #: to use (its noise is the sideways velocity's over the lever arm) ...
+    min_lever_arm_m: float = 0.05
+    #: ... and the Doppler yaw rate counts as at least this noise, rad/s (the velocity fit's
+    #: covariance comes from its residuals, which do not see a bias of the fit).
+    doppler_yaw_rate_noise_radps: float = math.radians(2.0)
+    #: ... and is used only where it is at least this large, rad/s: in turns, where heatmap
+    #: registration is weakest.  On straight drives a bias of the Doppler fit's direction (a
+    #: tenth of a degree is 2 mm/s sideways at 1 m/s: 0.4 deg/s over a 0.3 m lever arm) would
+    #: turn the heading steadily; there the registration and the keyframes keep it.
+    doppler_yaw_min_rate_radps: float = math.radians(10.0)
+
+    #: The two models' switch probabilities per frame: from the steady model to the manoeuvre
+    #: model, and back.  A turn's start or end takes a few frames, straight drives and steady
+    #: turns last tens; the filter starts in the steady model.
+    yaw_manoeuvre_start_prob: float = 0.1
+    yaw_manoeuvre_end_prob: float = 0.3
+    #: Good velocity estimates kept for the interpolation to heatmap times: a second or more
+    #: of point clouds at any radar rate, so a heatmap stream that lags behind still finds
+    #: its velocities.
+    velocity_history: int = 32
+    #: A velocity held over a failed step is trusted less: its covariance times this.
+    held_velocity_variance_factor: float = 4.0
+    #: A yaw rate held over a step whose yaw was not measured (or the zero one reported after
+    #: ``hold_s``) has this standard deviation, rad/s: a robot's turn rate may change by
+    #: about this much over a few frames.
+    held_yaw_rate_std_radps: float = math.radians(10.0)
+    #: A registration whose angular residuals give no variance (too few to say) is taken to
+    #: have this standard deviation, rad: wide enough that the filter and the keyframe lean on
+    #: their prediction.
+    unmeasured_yaw_std_rad: float = math.radians(5.0)
+
+    def __post_init__(self) -> None:
+        _check(self.hold_s >= 0, "must be >= 0", "hold_s")
+        for name in ("mount_x_m", "mount_y_m", "mount_yaw_rad"):
+            _check(math.isfinite(getattr(self, name)), "must be a finite number", name)
+        check_choice(self.base, ("any", "wheeled"), "base")
+        _check(self.min_lever_arm_m > 0, "must be positive", "min_lever_arm_m")
+        _check(self.doppler_yaw_rate_noise_radps > 0, "must be positive", "doppler_yaw_rate_noise_radps")
+        _check(self.doppler_yaw_min_rate_radps >= 0, "must be >= 0", "doppler_yaw_min_rate_radps")
+        _check(0 <= self.yaw_manoeuvre_start_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_start_prob")
+        _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
+        _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")
+        _check(self.held_velocity_variance_factor >= 1, "must be at least 1", "held_velocity_variance_factor")
+        _check(self.held_yaw_rate_std_radps > 0, "must be positive", "held_yaw_rate_std_radps")
+        _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
+        _check(self.min_features >= 2, "must be at least 2", "min_features")
+        _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")
+        _check(self.keyframe_distance_m >= 0, "must be >= 0 (0: off)", "keyframe_distance_m")
+        _check(self.keyframe_angle_rad > 0, "must be positive", "keyframe_angle_rad")
+        _check(self.keyframe_search_rad > 0, "must be positive", "keyframe_search_rad")
+        _check(self.yaw_accel_std_radps2 > 0, "must be positive", "yaw_accel_std_radps2")
+        _check(self.yaw_manoeuvre_accel_std_radps2 is None
+               or self.yaw_manoeuvre_accel_std_radps2 > self.yaw_accel_std_radps2,
+               "must be above yaw_accel_std_radps2 (or null: one model)", "yaw_manoeuvre_accel_std_radps2")
+        check_choice(self.velocity_sync, ("interpolate", "nearest"), "velocity_sync")
+        check_choice(self.rectification, ("velocity", "chord"), "rectification")
+        check_choice(self.velocity_fallback, VELOCITY_FALLBACKS, "velocity_fallback")
+        _check(self.fallback_cells >= 2, "must be at least 2", "fallback_cells")
+        check_choice(self.keyframe_start, KEYFRAME_STARTS, "keyframe_start")
+        _check(self.keyframe_noise_rad is None or self.keyframe_noise_rad > 0,
+               "must be positive (or null: yaw_noise_rad)", "keyframe_noise_rad")
+
+
+@dataclass
+class PointYawConfig(Settings):
+    """Beyond the paper: the yaw from a radar's own few detected points on a short local map, and
+    from its zero-Doppler heatmap when slow (TI's demo firmware, ``tidemo://``; estimator/point_yaw.py
+    says how, docs/tidemo.md what it gives)."""
+
+    _what = "point-yaw"
+
+    #: Measure the yaw this way instead of registering heatmaps (and their keyframes).
+    use: bool = False
+    #: The map holds the static points of this many last frames.
+    map_frames: int = 10
+    #: A point's spread across its ray is its range times this, rad (one azimuth a point from a
+    #: small array), ...
+    bearing_noise_rad: float = math.radians(2.0)
+    #: ... along it this, m, ...
+    range_noise_m: float = 0.05
+    #: ... and at least this every way, m.
+    position_floor_m: float = 0.05
+    #: A point is static when its radial velocity is within this of a static reflector's, m/s.
+    static_threshold_mps: float = 0.1
+    #: Fewer static points than this in a frame, or map points than ``min_map_points``: no turn
+    #: from the points.
+    min_points: int = 2
+    min_map_points: int = 10
+    #: The turns tried: within this of the predicted turn, rad, ...
+    search_rad: float = math.radians(8.0)
+    #: ... every this, rad.
+    step_rad: float = math.radians(0.1)
+    #: The prior about the predicted turn that picks among peaks, rad (standard deviation).
+    prior_rad: float = math.radians(3.0)
+    #: A point's log-likelihood is at least that of this many standard deviations.
+    outlier_sigmas: float = 3.0
+    #: The points' turn has at least this noise, rad, and at most ``max_noise_rad``.
+    min_noise_rad: float = math.radians(1.5)
+    max_noise_rad: float = math.radians(4.0)
+    #: Below this speed the heatmap registration measures the turn too, m/s ...
+    slow_mps: float = 0.1
+    #: ... with at least this noise, rad; ...
+    heatmap_noise_rad: float = math.radians(1.5)
+    #: ... and when it disagrees with the points' by more than this many of their combined
+    #: standard deviations, the points' is taken.
+    agreement_sigmas: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check(self.map_frames >= 1, "must be at least 1", "map_frames")
+        for name in ("bearing_noise_rad", "range_noise_m", "position_floor_m", "static_threshold_mps", "search_rad",
+                     "step_rad", "prior_rad", "outlier_sigmas", "min_noise_rad", "heatmap_noise_rad",
+                     "agreement_sigmas"):
+            _check(getattr(self, name) > 0, "must be positive", name)
+        _check(self.min_points >= 1, "must be at least 1", "min_points")
+        _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")
+        _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
+        _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
+        _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")
