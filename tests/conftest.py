@@ -22,6 +22,17 @@ settings.load_profile("radarodom")
 from radarodom.cfg import RadarConfig
 from radarodom.driver.recordings.capture_dir import CaptureWriter
 
+
+def pytest_configure(config):
+    # A shell without job control starts a background command (`pytest &`, a CI runner's
+    # script) with SIGINT ignored, and a child inherits that: Python then installs no Ctrl-C
+    # handler, and the tests that stop a program with SIGINT waited for it in vain. The suite's
+    # own process takes Ctrl-C as Python's default does, and so does every program it starts.
+    import signal
+
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
 REPO = pathlib.Path(__file__).resolve().parent.parent
 SHARED = pathlib.Path(os.environ.get("RADARODOM_SHARED", REPO.parent / "shared")) / "reference"
 
