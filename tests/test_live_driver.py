@@ -321,8 +321,23 @@ def test_cli_capture_with_packet_loss_lists_incomplete_frames(loss_capture, tmp_
         stdout, stderr = capture.output()
         assert code == 0, stderr
         assert emu.stop() == 0
-    assert_one_period_apart(CaptureDirectory(out).timestamps, 0.01)  # no frame dropped: k is stream frame k
-    rec = _check_recording(out, frames, 40)
+    rec = CaptureDirectory(out)
+    assert rec.metadata["closed"] is True and rec.num_frames == rec.metadata["frame_count"] == 40
+    # Each recorded frame's place in the stream from the stamps' steps (a shortened step, the
+    # frame clock's grid moving earlier, is still one frame). A loaded machine may drop whole
+    # frames before the recording (the ring's policy): then the recording and the summary count them.
+    steps = np.diff(rec.timestamps)
+    assert (steps > 0).all(), steps
+    place = np.concatenate([[0], np.cumsum(np.maximum(1, np.rint(steps / 0.01)).astype(int))])
+    skipped = int(place[-1] + 1 - len(place))
+    dropped = rec.metadata.get("dropped_frames", 0)
+    assert dropped >= skipped, (dropped, np.flatnonzero(np.diff(place) > 1))
+    assert f"; {dropped} frames dropped by slow processing" in stdout, stdout
+    first = [j for j in range(len(frames)) if frame_problem(rec.raw(0), frames[j], rec.missing_bytes(0)) is None]
+    assert first, "the first recorded frame is none of the source's"
+    for k in range(rec.num_frames):
+        problem = frame_problem(rec.raw(k), frames[(first[0] + place[k]) % len(frames)], rec.missing_bytes(k))
+        assert problem is None, f"recorded frame {k}: {problem}"
     incomplete = rec.metadata["incomplete_frames"]
     assert incomplete, "10 % loss and no incomplete frame"
     assert all(0 < e["missing_bytes"] <= rec.config.frame_bytes for e in incomplete)
@@ -331,7 +346,8 @@ def test_cli_capture_with_packet_loss_lists_incomplete_frames(loss_capture, tmp_
     assert f"40 frames ({len(incomplete)} incomplete, {lost} bytes missing: {lost} lost on the way)" in stdout, stdout
     packets_lost = re.search(r"(\d+) packets lost \(sequence gaps", stdout)
     assert packets_lost and int(packets_lost.group(1)) > 0, stdout
-    assert "packet headers account" not in stdout, stdout  # the headers' count agrees with the frames
+    if not dropped:  # the headers' count agrees with the frames (a dropped frame's lost packets are not theirs)
+        assert "packet headers account" not in stdout, stdout
     emu_out, _ = emu.output()
     dropped = re.search(r"\((\d+) dropped", emu_out)
     assert dropped and int(dropped.group(1)) > 0, emu_out
