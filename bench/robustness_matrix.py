@@ -130,10 +130,10 @@ def drop_adc(directory: str) -> None:
     recording's ADC samples (hundreds of MB a cell; the 252 cells' together filled a 250 GB disk).
     :func:`record` records the cell again when a changed DSP needs them."""
     import sequences
-    if os.path.exists(sequences.cache_path(directory)):
+    kept = os.path.basename(sequences.cache_path(directory))  # hashes the DSP's sources: once
+    if os.path.exists(os.path.join(directory, kept)):
         for name in os.listdir(directory):
-            if name == "adc_data.bin" or (name.startswith("dsp-") and name.endswith(".npz")
-                                          and os.path.join(directory, name) != sequences.cache_path(directory)):
+            if name == "adc_data.bin" or (name.startswith("dsp-") and name.endswith(".npz") and name != kept):
                 os.remove(os.path.join(directory, name))
 
 
@@ -148,14 +148,11 @@ def estimator_config(cell: Cell, settings: dict | None = None):
     return config
 
 
-def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None, keep_adc: bool = False):
+def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
     import sequences
     from radarodom.estimator.odometry import RadarOdometry
     from radarodom.tum import TumTrajectory
-    directory = record(cell, data)
-    seq = sequences.load(directory, cell.name)
-    if not keep_adc:
-        drop_adc(directory)
+    seq = sequences.load(record(cell, data), cell.name)
     odom = RadarOdometry(estimator_config(cell, settings))
     poses = np.zeros((len(seq), 3))
     flagged = 0
@@ -166,7 +163,7 @@ def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None, keep_a
     return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged
 
 
-def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None, keep_adc: bool = False):
+def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None):
     from radarodom.driver.sources import open_source
     from radarodom.tum import read_tum
     out = os.path.join(data, "coloradar", f"{cell.name}-{hashlib.sha256(cell.url.encode()).hexdigest()[:8]}.tum")
@@ -195,7 +192,9 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.heading_metrics import heading_metrics
     started = time.monotonic()
-    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings, keep_adc)
+    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings)
+    if isinstance(cell, SimCell) and not keep_adc:
+        drop_adc(_sequence_dir(cell, data))
     est_m, ref_m = associate(est, truth, 0.01)
     metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(),
                               base_offset_m=cell.mount_m if isinstance(cell, SimCell) else 0.0)
