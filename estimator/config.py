@@ -184,6 +184,13 @@ class IcpConfig(Settings):
     #: cells over the heatmap's median, natural-log units) stays below this holds no structure
     #: to register (noise, a blocked radar): its yaw is not measured ("no_structure").
     min_scan_score: float = 1.0
+    #: Whose structure the scan's verdict asks for: "two_way" (the default), each frame's
+    #: strongest cells on the other's bright cells at the rotation found (the previous frame's
+    #: on the current heatmap, and the current's, taken back, on the previous one); "one_way",
+    #: the previous frame's alone, which a noise-only previous frame passes whenever the
+    #: current heatmap is bright: its noise cells land on bright cells somewhere in the window
+    #: (docs/estimator.md).
+    scan_structure: str = "two_way"
     #: Beyond the paper: after ICP, "field" refines the rotation without correspondences:
     #: the rotation (within +/- ``field_search_rad`` of ICP's) that maximises the two-way
     #: likelihood field, the mean log intensity of each frame's ``scan_points`` strongest cells
@@ -252,6 +259,7 @@ class IcpConfig(Settings):
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
         check_choice(self.score_support, ("inside", "common"), "score_support")
         check_choice(self.scan_score_support, ("inside", "common"), "scan_score_support")
+        check_choice(self.scan_structure, ("one_way", "two_way"), "scan_structure")
         _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
                "reject_moving_mps")
 

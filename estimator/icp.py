@@ -291,6 +291,14 @@ def scan_guess(source: Features, target: LogHeatmap, step_rad: float, max_rad: f
     return None if best is None else (best, float(np.max(scores)))
 
 
+def score_back(target: Features, source: LogHeatmap, rotation_rad: float, translation: np.ndarray) -> float:
+    """The scan score of *target*'s points taken back to the *source* frame (the inverse of a
+    registration source -> target by *rotation_rad* after *translation*, (2,) m) on the source's
+    log heatmap; -inf when fewer than a quarter of them fall inside it."""
+    back = target.turned(-rotation_rad).shifted(-np.asarray(translation, dtype=float))
+    return float(_scores(back, source, np.zeros(1))[0])
+
+
 def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray, common_support: bool = False) -> np.ndarray:
     """Weighted mean log intensity of *target* at the *source* points rotated by each of
     *shifts*, (len(shifts),); -inf where fewer than a quarter of the points fall inside.

@@ -15,7 +15,7 @@ import numpy as np
 from .config import EstimatorConfig
 from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract, static_mask
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
-                  register_two_way, scan_guess)
+                  register_two_way, scan_guess, score_back)
 from .quality import Flag
 
 
@@ -59,6 +59,8 @@ class KeptFrame:
     #: or None (a guess from the yaw rate alone).
     guide: Any
     field: LikelihoodField | None
+    #: The frame's log heatmap, for the scan's two-way verdict (None: not asked for).
+    log: LogHeatmap | None = None
 
 
 @dataclass
@@ -122,6 +124,8 @@ class ScanGuess:
         self._max_rad = config.icp.max_rotation_rad
         self._min_score = config.icp.min_scan_score
         self._common = config.icp.scan_score_support == "common"
+        #: Whether the verdict asks the current frame's structure of the previous heatmap too.
+        self.two_way = config.icp.scan_structure == "two_way"
 
     def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
         """The frame's strongest cells (moving ones left out, given the *velocity*)."""
@@ -132,6 +136,9 @@ class ScanGuess:
         found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted,
                            self._common)
         if found is None or found[1] < self._min_score:
+            return None
+        if previous.log is not None and score_back(current.guide, previous.log, found[0],
+                                                   translation) < self._min_score:
             return None
         return found[0]
 
@@ -214,7 +221,8 @@ class YawMeasurement:
             frame.moving = ~static_mask(frame.heatmap, velocity, self._moving_mps)
             scan_velocity = velocity
         guide = self.guess.view(frame, scan_velocity)
-        return KeptFrame(frame.t, features, guide, self.field.field(frame, guide))
+        log = frame.log if self.scans and self.guess.two_way else None
+        return KeptFrame(frame.t, features, guide, self.field.field(frame, guide), log)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                 predicted: float, flags: list[Flag]) -> YawStep:

@@ -397,6 +397,25 @@ class TestFlags:
             assert finite_state(s)
         assert states[-1].x == pytest.approx(0.3, abs=1e-6)  # the velocity still counts
 
+    @pytest.mark.parametrize("structure", ["two_way", "one_way"])
+    def test_a_frame_of_noise_is_not_registered_against(self, structure):
+        # Between two views of the scene, a frame that sees one reflector in its noise. Its
+        # strongest cells are mostly noise: the scene's bright cells are not in it (the step
+        # to it holds no structure, either way), but its own cells land on the next frame's
+        # bright cells well enough to pass a one-way verdict, which measures that step on noise.
+        rng = np.random.default_rng(0)
+        odom = RadarOdometry(EstimatorConfig().with_(icp={"scan_structure": structure}))
+        states = [odom.step(0.1 * i, static_cloud((0.0, 0.0), seed=i),
+                            synth.heatmap(SCENE_WORLD[:1] if i == 2 else SCENE_WORLD, 1.0, noise=1e-4, rng=rng))
+                  for i in range(4)]
+        assert odo_mod.NO_STRUCTURE not in states[1].flags and odo_mod.NO_STRUCTURE in states[2].flags
+        after = states[3]
+        if structure == "two_way":
+            assert odo_mod.NO_STRUCTURE in after.flags and odo_mod.YAW_HELD in after.flags
+            assert after.yaw_rate == pytest.approx(states[2].yaw_rate)
+        else:
+            assert after.ok and after.registration is not None
+
     def test_velocity_failure_holds_then_motion_lost(self):
         cfg = EstimatorConfig().with_(odometry={"hold_s": 0.25, "velocity_fallback": "hold"})
         odom = RadarOdometry(cfg)
