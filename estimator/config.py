@@ -103,7 +103,7 @@ class FeatureConfig(Settings):
     subbin: bool = True
     #: Beyond the paper: drop cells whose dominant Doppler disagrees with the Doppler a
     #: static reflector would have at the estimated ego-velocity, by more than this, m/s
-    #: (None: off).
+    #: (None: off); not without a velocity estimated within half a frame period of the frame.
     dynamic_rejection_mps: float | None = 0.15
     #: The DSP gives a dominant Doppler to this many times ``k`` of the heatmap's strongest
     #: cells (the rest get none): the features are chosen among the strongest cells, so a few
@@ -223,6 +223,8 @@ class IcpConfig(Settings):
     #: strongest cells skip them and their log heatmaps set them to the background (None: off).
     #: A person walking past fills the strongest cells with a reflector that does not turn
     #: with the world; a static cell's Doppler is off by its bin's width and its elevation.
+    #: The frame's velocity is its own (estimated within half a frame period of it): with none,
+    #: no cell is left out (a velocity held from before a hard stop calls the world moving).
     reject_moving_mps: float | None = 0.3
     #: Which points the field search's score (and the keyframe's narrow scan's) averages over:
     #: "inside", those inside the heatmap at each rotation tried; "common", those inside at

@@ -151,7 +151,10 @@ class RadarOdometry:
                                  "feed frames in time order")
         frame = CurrentFrame(t, heatmap, self.config)
         near = self.velocities.near(t)
-        current = self.yaw.keep(frame, None if near is None else near.velocity)
+        # Moving cells are told from static ones by this frame's own velocity: one held from
+        # before a hard stop calls the whole static world moving, and leaves a blank heatmap.
+        own = near is not None and (previous is None or abs(near.t - t) <= 0.5 * (t - previous.t))
+        current = self.yaw.keep(frame, near.velocity if own else None)
         index, self._frames = self._frames, self._frames + 1
         if previous is None:
             state = OdometryState(t=t, frame=index, flags=(Flag.FIRST_FRAME,), features=len(current.features))

@@ -416,6 +416,24 @@ class TestFlags:
         else:
             assert after.ok and after.registration is not None
 
+    def test_a_held_velocity_does_not_call_the_static_world_moving(self):
+        # Braking from 1 m/s to 0.2 m/s and turning, the point clouds give no velocity: the last
+        # one (1 m/s) is held. The heatmap's Doppler says the world moves at 0.2 m/s; against the
+        # held velocity every static cell would count as moving (icp.reject_moving_mps), the
+        # heatmap would be blank and the turn not measured.
+        trajectory = Trajectory([(0.5, 1.0, 0.0), (0.5, 0.2, 30 * DEG)])
+        odom = RadarOdometry(EstimatorConfig())
+        rng = np.random.default_rng(1)
+        states = []
+        for i in range(10):
+            t = 0.1 * i
+            v = trajectory.twist(t)[0]
+            cloud = static_cloud((v, 0.0), seed=i) if i < 5 else few_points_cloud()
+            states.append(odom.step(t, cloud, scene_heatmap(trajectory.pose(t), velocity_xy=(v, 0.0), rng=rng)))
+        for s in states[5:]:
+            assert odo_mod.VELOCITY_FAILED in s.flags and odo_mod.NO_STRUCTURE not in s.flags, s.flags
+        assert states[-1].yaw == pytest.approx(trajectory.pose(0.9)[2], abs=1.5 * DEG)
+
     def test_velocity_failure_holds_then_motion_lost(self):
         cfg = EstimatorConfig().with_(odometry={"hold_s": 0.25, "velocity_fallback": "hold"})
         odom = RadarOdometry(cfg)
