@@ -9,6 +9,8 @@ import os
 import sys
 from dataclasses import dataclass
 
+import numpy as np
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 PACKAGE = os.path.dirname(HERE)
 
@@ -20,15 +22,20 @@ CFGS = {
     "slope60": os.path.join(HERE, "cfgs", "awr1843_slope60.cfg"),
 }
 
-#: Where the loop fits in each built-in scene: start (x, y) heading +x, the largest x the first
-#: straight and moving turn may reach, the largest y the second straight may reach, and the path of
-#: the person added with movers="people" (the lab has its own). The corridor's loop ends its
-#: moving turn at x = 16 (the middle of its north branch): its start is placed backwards from there.
+#: Where the loop fits in each built-in scene: its first straight runs along y = y0 toward +x and
+#: its moving turn ends at x = turn_x, heading +y (the start is placed backwards from there, no
+#: further back than x_min); the second straight reaches at most y_max; the path of the person
+#: added with movers="people" (the lab has its own). Every loop keeps CLEARANCE_M from the walls
+#: and the furniture (:func:`loop_segments` checks it): a radar driven through a pillar or a
+#: table sees nothing, which no robot meets.
 LAYOUT = {
-    "corridor": {"start": None, "turn_x": 16.0, "y_max": 11.0, "person": [[2.0, -0.5], [14.0, -0.5]]},
-    "room": {"start": (1.0, 0.8), "x_max": 7.2, "y_max": 5.2, "person": [[2.0, 4.6], [6.0, 4.6]]},
-    "lab": {"start": (1.0, 3.0), "x_max": 9.0, "y_max": 7.2, "person": [[1.0, 4.0], [9.0, 4.0]]},
+    "corridor": {"x_min": -0.5, "y0": 0.0, "turn_x": 16.0, "y_max": 11.0, "person": [[2.0, -0.5], [14.0, -0.5]]},
+    "room": {"x_min": 1.0, "y0": 0.6, "turn_x": 7.0, "y_max": 5.4, "person": [[2.0, 4.6], [6.0, 4.6]]},
+    "lab": {"x_min": 1.0, "y0": 3.0, "turn_x": 6.0, "y_max": 7.0, "person": [[1.0, 4.0], [9.0, 4.0]]},
 }
+
+#: The least distance, m, between the loop and a wall or the footprint of an object of the scene.
+CLEARANCE_M = 0.25
 
 
 @dataclass(frozen=True)
@@ -80,15 +87,12 @@ Cell = SimCell | ColoradarCell
 
 # ------------------------------------------------------------------ scenes and trajectories
 def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: float) -> tuple[list, list]:
-    """(segments, start [x, y, yaw deg]) of the matrix's closed loop in *scene* (module text)."""
+    """(segments, start [x, y, yaw deg]) of the matrix's closed loop in *scene* (module text);
+    ValueError when it does not fit, or passes nearer than CLEARANCE_M to a wall or an object."""
     lay = LAYOUT[scene]
     r = speed / math.radians(turn_rate_dps)
-    if lay["start"] is None:
-        l1 = min(straight_m, lay["turn_x"] - r + 0.5)
-        x0, y0 = lay["turn_x"] - r - l1, 0.0
-    else:
-        (x0, y0) = lay["start"]
-        l1 = min(straight_m, lay["x_max"] - x0 - r)
+    l1 = min(straight_m, lay["turn_x"] - r - lay["x_min"])
+    x0, y0 = lay["turn_x"] - r - l1, lay["y0"]
     l2 = min(straight_m, lay["y_max"] - y0 - r)
     if min(l1, l2) < 0.5:
         raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s (radius {r:.2f} m) does not fit")
@@ -96,18 +100,79 @@ def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: fl
             {"straight": l2, "speed": speed}, {"rotate": 180, "rate": turn_rate_dps},
             {"straight": l2, "speed": speed}, {"turn": -90, "radius": r, "speed": speed},
             {"straight": l1, "speed": speed}, {"pause": 1.0}]
-    return segs, [x0, y0, 0.0]
+    start = [x0, y0, 0.0]
+    clearance, what = loop_clearance(_scene_table(scene), segs, start)
+    if clearance < CLEARANCE_M:
+        raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s passes {clearance:.2f} m from "
+                         f"{what} (at least {CLEARANCE_M} m)")
+    return segs, start
 
 
-def scene_spec(cell: SimCell) -> dict:
-    """The built-in scene's table with the cell's trajectory, SNR and movers."""
+def _scene_table(scene: str) -> dict:
     if sys.version_info >= (3, 11):
         import tomllib
     else:  # pragma: no cover
         import tomli as tomllib
     from importlib import resources
-    text = resources.files("radarodom.driver.sim").joinpath("scenes", f"{cell.scene}.toml").read_text("utf-8")
-    spec = tomllib.loads(text)
+    return tomllib.loads(resources.files("radarodom.driver.sim").joinpath("scenes", f"{scene}.toml").read_text("utf-8"))
+
+
+def _path(segs: list, start: list, step_m: float = 0.02) -> np.ndarray:
+    """Points (n, 2) m along the loop's *segs* from *start* (x, y, yaw deg), every *step_m*."""
+    x, y, yaw = start[0], start[1], math.radians(start[2])
+    points = [(x, y)]
+    for seg in segs:
+        if "straight" in seg:
+            n = max(1, math.ceil(seg["straight"] / step_m))
+            for _ in range(n):
+                x, y = x + seg["straight"] / n * math.cos(yaw), y + seg["straight"] / n * math.sin(yaw)
+                points.append((x, y))
+        elif "turn" in seg:
+            turn, radius = math.radians(seg["turn"]), seg["radius"]
+            n = max(1, math.ceil(abs(turn) * radius / step_m))
+            for _ in range(n):
+                d = turn / n
+                x, y = x + radius * abs(d) * math.cos(yaw + d / 2), y + radius * abs(d) * math.sin(yaw + d / 2)
+                yaw += d
+                points.append((x, y))
+        elif "rotate" in seg:
+            yaw += math.radians(seg["rotate"])
+    return np.array(points)
+
+
+def loop_clearance(table: dict, segs: list, start: list) -> tuple[float, str]:
+    """The least distance (m; negative: inside) from the loop to the scene *table*'s walls and the
+    footprints of its boxes and cylinders, and what it is."""
+    path = _path(segs, start)
+    found = [(math.inf, "nothing")]
+    for wall in table.get("walls", []):
+        corners = np.asarray(wall["points"], float)
+        for a, b in zip(corners[:-1], corners[1:]):
+            ab = b - a
+            f = np.clip((path - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+            found.append((float(np.min(np.hypot(*(path - a - f[:, None] * ab).T))), f"the wall {a.tolist()}-{b.tolist()}"))
+    for obj in table.get("objects", []):
+        centre = np.asarray(obj.get("center", (math.nan, math.nan)), float)
+        if obj.get("type") == "cylinder":
+            distance = np.hypot(*(path - centre).T) - obj.get("radius", 0.2)
+        elif obj.get("type") == "box":
+            yaw = math.radians(obj.get("yaw", 0.0))
+            c, s = math.cos(yaw), math.sin(yaw)
+            rel = path - centre
+            along, across = np.abs(c * rel[:, 0] + s * rel[:, 1]), np.abs(-s * rel[:, 0] + c * rel[:, 1])
+            half = np.asarray(obj["size"][:2], float) / 2
+            outside = np.hypot(np.maximum(along - half[0], 0.0), np.maximum(across - half[1], 0.0))
+            distance = np.where((along < half[0]) & (across < half[1]),
+                                -np.minimum(half[0] - along, half[1] - across), outside)
+        else:
+            continue
+        found.append((float(np.min(distance)), f"the {obj['type']} at {centre.tolist()}"))
+    return min(found, key=lambda item: item[0])
+
+
+def scene_spec(cell: SimCell) -> dict:
+    """The built-in scene's table with the cell's trajectory, SNR and movers."""
+    spec = _scene_table(cell.scene)
     segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m)
     spec["trajectory"] = {"start": start, "height": spec.get("trajectory", {}).get("height", 0.4), "segments": segs,
                           "mount": [float(cell.mount_m), 0.0, 0.0]}

@@ -90,7 +90,11 @@ def fingerprint() -> str:
 
 
 def cell_key(cell: Cell, fp: str) -> str:
+    """A cell's key under *fp*: its parameters and, for a simulated cell, the scene file the
+    simulator is given (its loop included: a changed layout records anew)."""
     body = json.dumps(dataclasses.asdict(cell), sort_keys=True)
+    if isinstance(cell, SimCell):
+        body += json.dumps(scene_spec(cell), sort_keys=True)
     if isinstance(cell, SimCell):
         with open(CFGS[cell.cfg], "rb") as fh:
             body += hashlib.sha256(fh.read()).hexdigest()

@@ -42,6 +42,19 @@ def test_each_scene_drives_a_closed_loop_with_the_cells_speed_turn_rate_snr_and_
     assert not scene_from_dict(rm.scene_spec(dataclasses.replace(cell, movers="none"))).movers
 
 
+def test_a_loop_through_the_furniture_is_refused(monkeypatch):
+    # The room's loop once drove through its pillar at 0.3 m/s and 90 deg/s: a radar inside a
+    # pillar sees nothing, which no robot meets.
+    import matrix_cells
+    table = matrix_cells._scene_table("room")
+    through = [{"straight": 3.0, "speed": 0.8}]
+    clearance, what = matrix_cells.loop_clearance(table, through, [2.8, 3.0, 0.0])
+    assert clearance < 0 and what == "the cylinder at [4.3, 3.0]"
+    monkeypatch.setitem(matrix_cells.LAYOUT, "room", {**matrix_cells.LAYOUT["room"], "turn_x": 4.5})
+    with pytest.raises(ValueError, match="passes -?[0-9.]+ m from the"):
+        matrix_cells.loop_segments("room", 0.8, 90.0, 3.0)
+
+
 def test_cells_are_selected_by_axis_in_star_and_product_designs():
     args = SimpleNamespace(scenes=["room"], seeds=[0, 1], cfgs=["shipped", "2tx"], snr=[0.0, -10.0],
                            speeds=[0.8], turn_rates=[45.0], movers=["scene"], mounts=[0.0], straight=2.0,
