@@ -114,3 +114,18 @@ def test_a_cell_keeps_its_dsp_products_and_drops_the_adc_samples(tmp_path):
     assert sorted(os.listdir(directory)) == sorted(["capture.json", "timestamps.txt", os.path.basename(current)])
     assert rm.record(cell, str(tmp_path)) == directory  # its products are there: not recorded again
     assert sorted(os.listdir(directory)) == sorted(["capture.json", "timestamps.txt", os.path.basename(current)])
+
+
+def test_the_summary_gives_a_row_per_axis_and_the_goals_before_and_after():
+    import matrix_summary
+    def result(name, drift, **cell):
+        return {"name": name, "cell": {**dataclasses.asdict(rm.SimCell(scene="room")), **cell}, "yaw_rmse_deg": 0.3,
+                "straight_bias_deg_per_frame": -0.004, "moving_turn_ratio": 1.01, "inplace_turn_ratio": None,
+                "drift_pct": drift, "final_heading_error_deg": -2.0}
+    before = [result("a", 3.0), result("b", 9.0, speed_mps=1.5), result("only-before", 1.0)]
+    after = [result("a", 1.0), result("b", 4.0, speed_mps=1.5)]
+    text = matrix_summary.summary([before, after])
+    lines = text.splitlines()
+    assert lines[2].startswith("| base (") and "| 3.0 / 3.0 -> 1.0 / 1.0 |" in lines[2]
+    assert lines[3].startswith("| 1.5 m/s (1) |") and "9.0 / 9.0 -> 4.0 / 4.0" in lines[3]
+    assert "cells 2 -> 2" in text and "drift <= 2 % 0 -> 1" in text and "straight bias <= 0.005 2 -> 2" in text

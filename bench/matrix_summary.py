@@ -1,0 +1,95 @@
+"""The robustness matrix's summary, as docs/benchmarks.md gives it: one row per axis of the star
+design (the base cells, then each value changed), means and ranges over its cells, and the whole
+matrix against issue 20's goals; given two runs, each figure as BEFORE -> AFTER.
+
+    python bench/matrix_summary.py [BEFORE/robustness.json] AFTER/robustness.json
+
+Only the cells both runs hold are compared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+
+BASE = {"cfg": "shipped", "snr_db": 0.0, "speed_mps": 0.8, "turn_rate_dps": 45.0, "movers": "scene", "mount_m": 0.0}
+LABELS = {"cfg": "cfg {}", "snr_db": "SNR {:g} dB", "speed_mps": "{:g} m/s", "turn_rate_dps": "{:g} deg/s",
+          "movers": "movers: {}", "mount_m": "radar {:g} m ahead, wheeled"}
+
+
+def row_of(cell: dict) -> str:
+    """The star design's row of a simulated cell (the first axis off the base), or its scene for
+    other cells."""
+    for axis, base in BASE.items():
+        if cell.get(axis, base) != base:
+            return LABELS[axis].format(cell[axis])
+    return "base (shipped cfg, scene SNR, 0.8 m/s, 45 deg/s)" if cell.get("kind") == "sim" else cell.get("run", "?")
+
+
+def _stats(results: list[dict]) -> dict:
+    def ratio_range(key: str) -> str:
+        values = [r[key] for r in results if r.get(key) is not None]
+        return f"{min(values):.3f}-{max(values):.3f}" if values else "-"
+    bias = [abs(r["straight_bias_deg_per_frame"]) for r in results]
+    drift = [r["drift_pct"] for r in results]
+    return {"yaw": f"{statistics.mean(r['yaw_rmse_deg'] for r in results):.2f}",
+            "bias": f"{statistics.mean(bias):.3f} / {max(bias):.3f}",
+            "moving": ratio_range("moving_turn_ratio"), "inplace": ratio_range("inplace_turn_ratio"),
+            "drift": f"{statistics.mean(drift):.1f} / {max(drift):.1f}"}
+
+
+def _within(results: list[dict], key: str) -> int:
+    return sum(r.get(key) is None or abs(r[key] - 1.0) <= 0.02 for r in results)
+
+
+def totals(results: list[dict]) -> dict:
+    """Issue 20's goals over the whole run."""
+    bias = [abs(r["straight_bias_deg_per_frame"]) for r in results]
+    drift = [r["drift_pct"] for r in results]
+    return {"cells": len(results), "yaw RMSE deg": f"{statistics.mean(r['yaw_rmse_deg'] for r in results):.2f}",
+            "mean |straight bias| deg/frame": f"{statistics.mean(bias):.3f}",
+            "straight bias <= 0.005": sum(b <= 0.005 for b in bias),
+            "moving turns within 2 %": _within(results, "moving_turn_ratio"),
+            "turns in place within 2 %": _within(results, "inplace_turn_ratio"),
+            "drift % mean": f"{statistics.mean(drift):.2f}", "drift % median": f"{statistics.median(drift):.2f}",
+            "drift <= 2 %": sum(d <= 2.0 for d in drift), "drift % worst": f"{max(drift):.1f}",
+            "|final heading| deg": f"{statistics.mean(abs(r['final_heading_error_deg']) for r in results):.1f}"}
+
+
+def summary(runs: list[list[dict]]) -> str:
+    names = set.intersection(*({r["name"] for r in run} for run in runs))
+    runs = [[r for r in run if r["name"] in names] for run in runs]
+    rows: dict[str, list[list[dict]]] = {}
+    for i, run in enumerate(runs):
+        for r in sorted(run, key=lambda r: r["name"]):
+            rows.setdefault(row_of(r["cell"]), [[] for _ in runs])[i].append(r)
+    joined = lambda values: " -> ".join(values)  # noqa: E731
+    lines = ["| cells | yaw RMSE deg | straight bias deg/frame, mean / max abs | moving-turn ratio | in-place ratio "
+             "| drift %, mean / max |", "| --- | ---: | ---: | ---: | ---: | ---: |"]
+    for label, per_run in sorted(rows.items(), key=lambda item: not item[0].startswith("base")):
+        stats = [_stats(results) for results in per_run]
+        lines.append(f"| {label} ({len(per_run[0])}) | " + " | ".join(
+            joined([s[key] for s in stats]) for key in ("yaw", "bias", "moving", "inplace", "drift")) + " |")
+    all_totals = [totals(run) for run in runs]
+    lines.append("")
+    lines.append("; ".join(f"{key} {joined([str(t[key]) for t in all_totals])}" for key in all_totals[0]))
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", metavar="ROBUSTNESS.json", help="one run, or BEFORE then AFTER")
+    args = parser.parse_args(argv)
+    if len(args.runs) > 2:
+        parser.error("give one run, or two (before and after)")
+    runs = []
+    for path in args.runs:
+        with open(path, encoding="utf-8") as fh:
+            runs.append(json.load(fh))
+    print(summary(runs))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
