@@ -30,6 +30,7 @@ from ..plain_numbers import plain_float, plain_int
 from ..products import RangeAzimuth
 from ..rawframe import RawLayout
 from ..tum import TumTrajectory
+from .recordings.capture_dir import REPLAY_FORMAT_FILES
 
 log = logging.getLogger(__name__)
 
@@ -48,8 +49,6 @@ SCHEMES: dict[str, str] = {
 REPLAY_FORMATS: dict[str, str] = {
     "tidemo": "radarodom.driver.tidemo.replay:open_tidemo_replay",
 }
-#: A file a directory of each replay format holds (``replay://DIR`` finds the format by it).
-REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
 
 
 def register_scheme(scheme: str, opener: str | Callable[..., "Source"]) -> None:

@@ -120,7 +120,6 @@ def replace_output(path: str, kind: str = "file") -> None:
     import re
 
     from ..driver.recordings.capture_dir import remove_capture_files
-    from ..driver.sources import REPLAY_FORMAT_FILES
     from ..errors import CaptureError
 
     try:
@@ -131,9 +130,6 @@ def replace_output(path: str, kind: str = "file") -> None:
             names = os.listdir(path)
             if kind == "capture" and "capture.json" in names:
                 remove_capture_files(path)
-                # A source that records itself (tidemo://) keeps its stream in a file of its own.
-                for name in set(REPLAY_FORMAT_FILES.values()) & set(names):
-                    os.remove(os.path.join(path, name))
             elif kind == "heatmaps" and "index.json" in names:
                 for name in names:
                     if name in ("index.json", "index.json.tmp") or re.fullmatch(

@@ -102,6 +102,10 @@ def missing_data_message(directory: str) -> str:
 
 
 _CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
+#: The stream file a recording of another replay format keeps in its directory (a demo's UART
+#: stream, which ``tidemo://`` records beside its capture.json): ``replay://DIR`` finds the
+#: format by it, and it is part of the recording that ``--overwrite`` replaces.
+REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
 
 
 def _holds_no_frame(directory: str) -> bool:
@@ -116,8 +120,9 @@ def _holds_no_frame(directory: str) -> bool:
 
 
 def remove_capture_files(directory: str) -> None:
-    """Remove the files a capture consists of from *directory* (nothing else in it)."""
-    for name in _CAPTURE_FILES:
+    """Remove the files a capture consists of from *directory*, a replay format's stream file
+    among them (nothing else in it)."""
+    for name in (*_CAPTURE_FILES, *REPLAY_FORMAT_FILES.values()):
         try:
             os.remove(os.path.join(directory, name))
         except FileNotFoundError:
