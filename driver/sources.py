@@ -30,7 +30,6 @@ from ..plain_numbers import plain_float, plain_int
 from ..products import RangeAzimuth
 from ..rawframe import RawLayout
 from ..tum import TumTrajectory
-from .recordings.capture_dir import REPLAY_FORMAT_FILES
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +48,10 @@ SCHEMES: dict[str, str] = {
 REPLAY_FORMATS: dict[str, str] = {
     "tidemo": "radarodom.driver.tidemo.replay:open_tidemo_replay",
 }
+#: The stream file a recording of another replay format keeps in its directory (a demo's UART
+#: stream, which ``tidemo://`` records beside its capture.json): ``replay://DIR`` finds the
+#: format by it, and a capture directory's files include it (``--overwrite`` replaces it).
+REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
 
 
 def register_scheme(scheme: str, opener: str | Callable[..., "Source"]) -> None:

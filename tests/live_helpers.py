@@ -135,6 +135,14 @@ def assert_frames_match(got: list[Got], source_frames: list[bytes]) -> None:
     assert not problems, "\n".join(problems[:10])
 
 
+def assert_drops_accounted(indices: list[int], frames_dropped: int) -> None:
+    """The delivered frames (*indices*) come in order, and every frame of the stream they skip
+    is counted in *frames_dropped* (a loaded machine's consumer may be too slow for some)."""
+    assert indices == sorted(set(indices)), f"frame indices {indices}"
+    skipped = indices[-1] + 1 - len(indices)
+    assert frames_dropped >= skipped, f"{skipped} frames skipped, {frames_dropped} counted as dropped: {indices}"
+
+
 def assert_continuous(indices: list[int], start: int | None = 0) -> None:
     first = indices[0] if start is None else start
     assert indices == list(range(first, first + len(indices))), f"frame indices {indices}"

@@ -20,7 +20,7 @@ from conftest import SMALL_CFG, warning_messages
 from live_helpers import (
     NO_LVDS_CFG,
     URL_TIMEOUTS,
-    assert_continuous,
+    assert_drops_accounted,
     assert_frames_match,
     cfg_line,
     collect,
@@ -76,24 +76,22 @@ def test_packet_loss_is_accounted_exactly_per_frame(loss_capture, loss_cfg, loss
     directory, frames = loss_capture
     got, described, lost, stats = stream_under(Faults(loss=loss), directory, loss_cfg, n)
     assert len(got) == n
-    assert_continuous([g.index for g in got])
+    assert_drops_accounted([g.index for g in got], described["frames_dropped"])
     assert stats.dropped > 0, "nothing was lost: the test proves nothing"
     assert_exact_accounting(got, lost)
     assert_frames_match(got, frames)
     assert any(g.missing_bytes for g in got)
-    assert described["frames_dropped"] == 0, described
     assert described["foreign_packets"] == described["malformed_packets"] == 0
     assert described["missing_bytes"] >= sum(g.missing_bytes for g in got)
 
 
-def test_packet_loss_with_small_frames_and_a_fast_consumer_drops_no_frame(small_capture, small_cfg):
+def test_packet_loss_with_small_frames_is_accounted_exactly_per_frame(small_capture, small_cfg):
     directory, frames = small_capture
     got, described, lost, _ = stream_under(Faults(loss=0.1), directory, small_cfg, 25, seed=5)
     assert_exact_accounting(got, lost)
     assert_frames_match(got, frames)
-    assert described["frames_dropped"] == 0, described
     assert len(got) == 25
-    assert_continuous([g.index for g in got])
+    assert_drops_accounted([g.index for g in got], described["frames_dropped"])
 
 
 # ---------------------------------------------------------------------- other stream faults
@@ -113,10 +111,10 @@ def test_stream_faults_never_corrupt_or_misalign_a_frame(loss_capture, loss_cfg,
     faults = STREAM_FAULTS[name]
     got, d, lost, stats = stream_under(faults, directory, loss_cfg, 50)
     assert len(got) == 50
-    assert_continuous([g.index for g in got])
+    assert_drops_accounted([g.index for g in got], d["frames_dropped"])
     assert_exact_accounting(got, lost)
     assert_frames_match(got, frames)
-    assert d["frames_dropped"] == 0 and d["late_packets"] == 0, d
+    assert d["late_packets"] == 0, d
     if faults.duplicate:
         assert stats.duplicates > 0 and d["duplicate_packets"] > 0, d
     if faults.foreign:

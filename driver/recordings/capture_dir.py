@@ -66,6 +66,7 @@ from ...cfg import RadarConfig
 from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, ConfigError, given_path
 from ...rawframe import RawLayout
 from ...tum import TumWriter, read_tum
+from ..sources import REPLAY_FORMAT_FILES
 from . import capture_check
 from .capture_check import FORMAT_NAME, FORMAT_VERSION
 
@@ -102,10 +103,6 @@ def missing_data_message(directory: str) -> str:
 
 
 _CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
-#: The stream file a recording of another replay format keeps in its directory (a demo's UART
-#: stream, which ``tidemo://`` records beside its capture.json): ``replay://DIR`` finds the
-#: format by it, and it is part of the recording that ``--overwrite`` replaces.
-REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
 
 
 def _holds_no_frame(directory: str) -> bool:
