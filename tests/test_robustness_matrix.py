@@ -129,3 +129,17 @@ def test_the_summary_gives_a_row_per_axis_and_the_goals_before_and_after():
     assert lines[2].startswith("| base (") and "| 3.0 / 3.0 -> 1.0 / 1.0 |" in lines[2]
     assert lines[3].startswith("| 1.5 m/s (1) |") and "9.0 / 9.0 -> 4.0 / 4.0" in lines[3]
     assert "cells 2 -> 2" in text and "drift <= 2 % 0 -> 1" in text and "straight bias <= 0.005 2 -> 2" in text
+
+
+@pytest.mark.parametrize("scene", sorted(rm.LAYOUT))
+def test_the_built_in_scenes_own_paths_keep_clear_of_their_furniture(scene):
+    # The lab's own path crossed a bench until 2026-11-28, as the matrix's loops crossed tables.
+    # The room's passes 0.15 m from a chair: near, not through.
+    import matrix_cells
+    from radarodom.driver.sim.trajectory import waypoint_segments
+    table = matrix_cells._scene_table(scene)
+    trajectory = table["trajectory"]
+    start = [*trajectory["start"][:2], trajectory["start"][2] if len(trajectory["start"]) > 2 else 0.0]
+    segments = trajectory.get("segments") or waypoint_segments(trajectory["waypoints"], start_yaw_deg=start[2])
+    clearance, what = matrix_cells.loop_clearance(table, segments, start)
+    assert clearance >= 0.1, f"{scene}'s own path passes {clearance:.2f} m from {what}"
