@@ -16,7 +16,8 @@ truth at each stage:
   rectification matters.
 
 Straight drives and standing still report the mean error (bias, deg per frame) and its RMS;
-turns the ratio of the summed increments (estimate / truth).  ``--baselines`` also registers
+turns the ratio of the summed increments (estimate / truth), each taken in its turn's direction
+(a loop's left and right turns would otherwise cancel).  ``--baselines`` also registers
 frames 1, 2, 4, 8 steps apart on straight drives with the true motion and reports the forward
 term (the earlier frame's points in the later frame's field), the backward term and their sum
 separately: a bias that is the same at every baseline is an offset of each registration, one
@@ -141,7 +142,9 @@ def report(name: str, found: dict) -> list[str]:
                 err = np.degrees(pairs[:, 0] - pairs[:, 1])
                 parts.append(f"{stage}: bias {err.mean():+.4f} rms {math.sqrt(float(np.mean(err ** 2))):.3f}")
             else:
-                parts.append(f"{stage}: ratio {pairs[:, 0].sum() / pairs[:, 1].sum():.4f}")
+                # Over the turns' sizes: a loop's left and right turns would cancel in plain sums.
+                sign = np.sign(pairs[:, 1])
+                parts.append(f"{stage}: ratio {(pairs[:, 0] * sign).sum() / np.abs(pairs[:, 1]).sum():.4f}")
         lines.append(f"  {k:13s} n={len(found[k]['estimate']):4d} | " + " | ".join(parts))
     return lines
 
