@@ -101,7 +101,8 @@ def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: fl
             {"straight": l2, "speed": speed}, {"turn": -90, "radius": r, "speed": speed},
             {"straight": l1, "speed": speed}, {"pause": 1.0}]
     start = [x0, y0, 0.0]
-    clearance, what = loop_clearance(_scene_table(scene), segs, start)
+    from radarodom.driver.sim.trajectory import from_segments
+    clearance, what = loop_clearance(_scene_table(scene), from_segments(segs, start=start))
     if clearance < CLEARANCE_M:
         raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s passes {clearance:.2f} m from "
                          f"{what} (at least {CLEARANCE_M} m)")
@@ -117,33 +118,11 @@ def _scene_table(scene: str) -> dict:
     return tomllib.loads(resources.files("radarodom.driver.sim").joinpath("scenes", f"{scene}.toml").read_text("utf-8"))
 
 
-def _path(segs: list, start: list, step_m: float = 0.02) -> np.ndarray:
-    """Points (n, 2) m along the loop's *segs* from *start* (x, y, yaw deg), every *step_m*."""
-    x, y, yaw = start[0], start[1], math.radians(start[2])
-    points = [(x, y)]
-    for seg in segs:
-        if "straight" in seg:
-            n = max(1, math.ceil(seg["straight"] / step_m))
-            for _ in range(n):
-                x, y = x + seg["straight"] / n * math.cos(yaw), y + seg["straight"] / n * math.sin(yaw)
-                points.append((x, y))
-        elif "turn" in seg:
-            turn, radius = math.radians(seg["turn"]), seg["radius"]
-            n = max(1, math.ceil(abs(turn) * radius / step_m))
-            for _ in range(n):
-                d = turn / n
-                x, y = x + radius * abs(d) * math.cos(yaw + d / 2), y + radius * abs(d) * math.sin(yaw + d / 2)
-                yaw += d
-                points.append((x, y))
-        elif "rotate" in seg:
-            yaw += math.radians(seg["rotate"])
-    return np.array(points)
-
-
-def loop_clearance(table: dict, segs: list, start: list) -> tuple[float, str]:
-    """The least distance (m; negative: inside) from the loop to the scene *table*'s walls and the
-    footprints of its boxes and cylinders, and what it is."""
-    path = _path(segs, start)
+def loop_clearance(table: dict, trajectory) -> tuple[float, str]:
+    """The least distance (m; negative: inside) from the *trajectory* (the simulator's, as it
+    drives it) to the scene *table*'s walls and the footprints of its boxes and cylinders, and
+    what it is."""
+    path = np.column_stack([trajectory.x, trajectory.y])[::10]  # every 10 ms: under 2 cm apart
     found = [(math.inf, "nothing")]
     for wall in table.get("walls", []):
         corners = np.asarray(wall["points"], float)

@@ -95,7 +95,6 @@ def cell_key(cell: Cell, fp: str) -> str:
     body = json.dumps(dataclasses.asdict(cell), sort_keys=True)
     if isinstance(cell, SimCell):
         body += json.dumps(scene_spec(cell), sort_keys=True)
-    if isinstance(cell, SimCell):
         with open(CFGS[cell.cfg], "rb") as fh:
             body += hashlib.sha256(fh.read()).hexdigest()
     return hashlib.sha256((body + fp).encode()).hexdigest()[:16]

@@ -46,9 +46,10 @@ def test_a_loop_through_the_furniture_is_refused(monkeypatch):
     # The room's loop once drove through its pillar at 0.3 m/s and 90 deg/s: a radar inside a
     # pillar sees nothing, which no robot meets.
     import matrix_cells
+    from radarodom.driver.sim.trajectory import from_segments
     table = matrix_cells._scene_table("room")
-    through = [{"straight": 3.0, "speed": 0.8}]
-    clearance, what = matrix_cells.loop_clearance(table, through, [2.8, 3.0, 0.0])
+    through = from_segments([{"straight": 3.0, "speed": 0.8}], start=[2.8, 3.0, 0.0])
+    clearance, what = matrix_cells.loop_clearance(table, through)
     assert clearance < 0 and what == "the cylinder at [4.3, 3.0]"
     monkeypatch.setitem(matrix_cells.LAYOUT, "room", {**matrix_cells.LAYOUT["room"], "turn_x": 4.5})
     with pytest.raises(ValueError, match="passes -?[0-9.]+ m from the"):
@@ -136,10 +137,7 @@ def test_the_built_in_scenes_own_paths_keep_clear_of_their_furniture(scene):
     # The lab's own path crossed a bench until 2026-11-28, as the matrix's loops crossed tables.
     # The room's passes 0.15 m from a chair: near, not through.
     import matrix_cells
-    from radarodom.driver.sim.trajectory import waypoint_segments
+    from radarodom.driver.sim.trajectory import from_spec
     table = matrix_cells._scene_table(scene)
-    trajectory = table["trajectory"]
-    start = [*trajectory["start"][:2], trajectory["start"][2] if len(trajectory["start"]) > 2 else 0.0]
-    segments = trajectory.get("segments") or waypoint_segments(trajectory["waypoints"], start_yaw_deg=start[2])
-    clearance, what = matrix_cells.loop_clearance(table, segments, start)
+    clearance, what = matrix_cells.loop_clearance(table, from_spec(table["trajectory"]))
     assert clearance >= 0.1, f"{scene}'s own path passes {clearance:.2f} m from {what}"
