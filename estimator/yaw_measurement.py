@@ -124,8 +124,6 @@ class ScanGuess:
         self._max_rad = config.icp.max_rotation_rad
         self._min_score = config.icp.min_scan_score
         self._common = config.icp.scan_score_support == "common"
-        #: Whether the verdict asks the current frame's structure of the previous heatmap too.
-        self.two_way = config.icp.scan_structure == "two_way"
 
     def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
         """The frame's strongest cells (moving ones left out, given the *velocity*)."""
@@ -204,6 +202,8 @@ class YawMeasurement:
             self.guess = PredictedGuess(uses_rate=icp.initial_guess == "constant_rate")
         #: Whether the guess searches the heatmap itself (and so may find no structure).
         self.scans = scan
+        # The scan's two-way verdict samples the previous frame's log heatmap: kept only for it.
+        self._keeps_log = scan and icp.scan_structure == "two_way"
         self.field: FieldSearch | NoFieldSearch = (FieldSearch(config, scan_features, scan)
                                                    if icp.refinement == "field" else NoFieldSearch())
         self._window_spans_scan = scan and icp.field_window == "icp_and_scan"
@@ -221,8 +221,8 @@ class YawMeasurement:
             frame.moving = ~static_mask(frame.heatmap, velocity, self._moving_mps)
             scan_velocity = velocity
         guide = self.guess.view(frame, scan_velocity)
-        log = frame.log if self.scans and self.guess.two_way else None
-        return KeptFrame(frame.t, features, guide, self.field.field(frame, guide), log)
+        return KeptFrame(frame.t, features, guide, self.field.field(frame, guide),
+                         frame.log if self._keeps_log else None)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                 predicted: float, flags: list[Flag]) -> YawStep:
