@@ -21,7 +21,9 @@ turns the ratio of the summed increments (estimate / truth), each taken in its t
 frames 1, 2, 4, 8 steps apart on straight drives with the true motion and reports the forward
 term (the earlier frame's points in the later frame's field), the backward term and their sum
 separately: a bias that is the same at every baseline is an offset of each registration, one
-that grows with the baseline comes from the motion.
+that grows with the baseline comes from the motion; and, over moving turns and turns in place,
+the two-way registration's turn ratio at each baseline (what a keyframe that many frames back
+measures, given the true motion).
 """
 
 from __future__ import annotations
@@ -103,29 +105,48 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
 
 
 def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, steps: list[int]) -> list[str]:
-    """Forward, backward and two-way field registration of straight-drive frames *steps* apart."""
+    """Forward, backward and two-way field registration of straight-drive frames *steps* apart,
+    and the two-way registration's turn ratio over frames *steps* apart within a turn."""
     poses = truth(seq)
-    common = config.icp.score_support == "common"
+    kinds = [""] + [kind(*step_motion(poses, m - 1, m), seq.times[m] - seq.times[m - 1]) for m in range(1, len(seq))]
+    icp = config.icp
+    common = icp.score_support == "common"
     deltas = _offsets(math.radians(3.0), math.radians(0.25))
     lines = []
     for k in steps:
         errors: dict[str, list] = {"forward": [], "backward": [], "two-way": []}
+        turns: dict[str, list] = {"moving turn": [], "turn in place": []}
         for j in range(k, len(seq)):
-            ok = all(kind(*step_motion(poses, m - 1, m), seq.times[m] - seq.times[m - 1]) == "straight"
-                     for m in range(j - k + 1, j + 1))
+            between = set(kinds[j - k + 1:j + 1])
             a, b = kept[j - k].field, kept[j].field
-            if not ok or a is None or b is None:
+            if len(between) != 1 or a is None or b is None:
                 continue
             t, dyaw = step_motion(poses, j - k, j)
+            if between <= set(turns):
+                r = field_rotation(a.points, b.points, a.smoothed, b.smoothed, t, -dyaw, icp.field_search_rad,
+                                   icp.field_step_rad, common)
+                if r is not None:
+                    turns[between.pop()].append((-r, dyaw))
+                continue
+            if between != {"straight"}:
+                continue
             forward = _scores(a.points.shifted(t), b.smoothed, -dyaw + deltas, common)
             backward = _scores(b.points.turned(dyaw).shifted(-t), a.smoothed, -deltas, common)
             for name, scores in (("forward", forward), ("backward", backward), ("two-way", forward + backward)):
                 peak = _peak_at(scores, deltas)
                 if peak is not None:
                     errors[name].append(-math.degrees(peak))
+        ratios = [f"{name} ratio {_ratio(np.array(v)):.3f} (n={len(v)})" for name, v in turns.items() if v]
         lines.append(f"  {k} frame(s) apart, n={len(errors['two-way'])}: " + ", ".join(
-            f"{name} {np.mean(v):+.3f}" for name, v in errors.items() if v) + " deg")
+            f"{name} {np.mean(v):+.3f}" for name, v in errors.items() if v) + " deg"
+            + "".join("; " + r for r in ratios))
     return lines
+
+
+def _ratio(pairs: np.ndarray) -> float:
+    """Estimated over true turned angle of (estimated, true) increments (n, 2), each taken in
+    its turn's direction (a loop's left and right turns would otherwise cancel)."""
+    return float((pairs[:, 0] * np.sign(pairs[:, 1])).sum() / np.abs(pairs[:, 1]).sum())
 
 
 def report(name: str, found: dict) -> list[str]:
@@ -142,9 +163,7 @@ def report(name: str, found: dict) -> list[str]:
                 err = np.degrees(pairs[:, 0] - pairs[:, 1])
                 parts.append(f"{stage}: bias {err.mean():+.4f} rms {math.sqrt(float(np.mean(err ** 2))):.3f}")
             else:
-                # Over the turns' sizes: a loop's left and right turns would cancel in plain sums.
-                sign = np.sign(pairs[:, 1])
-                parts.append(f"{stage}: ratio {(pairs[:, 0] * sign).sum() / np.abs(pairs[:, 1]).sum():.4f}")
+                parts.append(f"{stage}: ratio {_ratio(pairs):.4f}")
         lines.append(f"  {k:13s} n={len(found[k]['estimate']):4d} | " + " | ".join(parts))
     return lines
 
