@@ -12,6 +12,7 @@ from ..settings import check_field as _check
 
 KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
 VELOCITY_FALLBACKS = ("hold", "heatmap")
+HEATMAP_USES = ("fallback", "fuse")
 
 
 @dataclass
@@ -200,13 +201,22 @@ class PointYawConfig(Settings):
     #: The points' turn has at least this noise, rad, and at most ``max_noise_rad``.
     min_noise_rad: float = math.radians(1.5)
     max_noise_rad: float = math.radians(4.0)
-    #: Below this speed the heatmap registration measures the turn too, m/s ...
+    #: Below this speed the static heatmap's registration may measure the turn, m/s ...
     slow_mps: float = 0.1
+    #: ... "fallback": only when the points give none; "fuse": averaged with the points' by their
+    #: variances.  The demo's heatmap has no elevation, so the registration reads a cell at
+    #: elevation el at cos(el) of its bearing's sine: near floors, ceilings and walls it measures
+    #: turns in place short (docs/tidemo.md, "Odometry from what the chip sends").
+    heatmap_use: str = "fallback"
     #: ... with at least this noise, rad; ...
     heatmap_noise_rad: float = math.radians(1.5)
-    #: ... and when it disagrees with the points' by more than this many of their combined
+    #: ... and, fused, when it disagrees with the points' by more than this many of their combined
     #: standard deviations, the points' is taken.
     agreement_sigmas: float = 2.0
+    #: Correct the yaw-rate filter's yaw by the map's chain of measured turns over the map's
+    #: length (``map_frames``), as the keyframes correct the raw path's: the filter lags a turn's
+    #: first frames and what it loses there is otherwise lost for good.
+    correct_lag: bool = True
 
     def __post_init__(self) -> None:
         _check(self.map_frames >= 1, "must be at least 1", "map_frames")
@@ -219,3 +229,4 @@ class PointYawConfig(Settings):
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")
+        check_choice(self.heatmap_use, HEATMAP_USES, "heatmap_use")

@@ -23,20 +23,28 @@ register frame to frame, but enough against the points of the last second:
   among peaks, not their place) is refined by a parabola, and its variance is the inverse
   curvature, between ``min_noise_rad`` and ``max_noise_rad`` squared;
 - below ``slow_mps`` the static heatmap holds the scene (standing, turning in place, creeping):
-  the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's) measures
-  the turn too, with a variance of at least ``heatmap_noise_rad`` squared (it has no elevation, and
-  near walls under-measures turns in place); both are averaged by their variances, or, when they
-  disagree by more than ``agreement_sigmas`` of their combined spread, the points' is taken.
+  there the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's)
+  measures the turn when the points give none (``heatmap_use`` "fallback"), with a variance of at
+  least ``heatmap_noise_rad`` squared: it has no elevation (the demo sends the azimuth row only),
+  so it reads every cell at cos(elevation) of its bearing's sine and measures turns in place short
+  near floors, ceilings and walls.  With "fuse" both are averaged by their variances, or, when
+  they disagree by more than ``agreement_sigmas`` of their combined spread, the points' is taken.
 
-The measured turn goes on to the yaw-rate filter like a registration's; this part takes the
-keyframe correction's place (the map is its own).  Used by :class:`~.odometry.RadarOdometry` when
-``point_yaw.use`` is set (``EstimatorConfig.tidemo()``).
+The measured turn goes on to the yaw-rate filter like a registration's.  This part takes the
+keyframe correction's place (the map is its own) and its role (``correct_lag``): the filter lags a
+turn's first frames, and the yaw it loses there is corrected by the map's chain, whose turns are
+the measured ones, over the map's length: a Kalman update of the filtered yaw relative to the
+chain's pose ``map_frames`` back (or since the last frame whose yaw was not measured), by the
+chain's own yaw since then, whose variance is the sum of its measured turns' (their errors add up
+along the chain).  Used by :class:`~.odometry.RadarOdometry` when ``point_yaw.use`` is set
+(``EstimatorConfig.tidemo()``).
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -64,6 +72,17 @@ def _world(xy: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
     return np.stack([pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]], 1)
 
 
+@dataclass
+class _Reference:
+    """The frame ``correct_lag`` measures the yaw from (see :class:`LocalMap`)."""
+
+    odometry_yaw: float
+    chain_yaw: float
+    odometry_var: float = 0.0
+    chain_var: float = 0.0
+    steps: int = 0
+
+
 class LocalMap:
     """The static points of the last frames in the world (see the module docstring), along the map's
     chain of poses; in the keyframe correction's place in the odometry (:meth:`correct`,
@@ -76,13 +95,29 @@ class LocalMap:
         #: The last frame's pose along the map's chain, and the odometry's.
         self.pose: tuple[float, float, float] | None = None
         self._odometry_pose: tuple[float, float, float] | None = None
-        #: The current step's turn as this part measured it (rad, counter-clockwise); its static points.
+        #: The current step's turn as this part measured it (rad, counter-clockwise) and its
+        #: variance (rad^2); its static points.
         self.turn: float | None = None
+        self.turn_variance = 0.0
         self.pending: tuple[float, np.ndarray] | None = None
+        #: For ``correct_lag``: the odometry's and the chain's yaw at the reference frame (rad),
+        #: the variances of the odometry's and the chain's yaw relative to it (rad^2), and the
+        #: steps since it.
+        self._reference: _Reference | None = None
 
     def correct(self, step, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
-        """The step's yaw as the filter gave it: the map measured it already."""
-        return step.dyaw, step.var_yaw
+        """The step's yaw increment (rad) and variance (rad^2) as the filter gave it, corrected
+        with ``correct_lag`` by the chain's yaw since the reference frame (module docstring)."""
+        ref = self._reference
+        if ref is None or self.turn is None or self.pose is None:
+            return step.dyaw, step.var_yaw
+        ref.odometry_var += step.var_yaw
+        ref.chain_var += self.turn_variance
+        predicted = step.pose[2] + step.dyaw - ref.odometry_yaw
+        measured = self.pose[2] + self.turn - ref.chain_yaw
+        gain = ref.odometry_var / (ref.odometry_var + ref.chain_var)
+        ref.odometry_var *= 1.0 - gain
+        return step.dyaw + gain * (measured - predicted), (1.0 - gain) * step.var_yaw
 
     def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool) -> None:
         """The odometry's *pose* of *current*: the map's chain moves by the step (turned by the
@@ -97,6 +132,11 @@ class LocalMap:
             c, s = math.cos(yaw), math.sin(yaw)
             turn = self.turn if self.turn is not None else pose[2] - oyaw
             chained = (x + c * dx - s * dy, y + s * dx + c * dy, yaw + turn)
+        if self._config.correct_lag:
+            ref = self._reference
+            if ref is None or not measured or ref.steps >= self._config.map_frames:
+                self._reference = ref = _Reference(pose[2], chained[2])
+            ref.steps += 1
         self._odometry_pose, self.pose, self.turn = pose, chained, None
         if self.pending is not None and self.pending[0] == current.t and len(self.pending[1]):
             self._frames.append((_world(self.pending[1], chained), np.array(chained[:2])))
@@ -137,6 +177,7 @@ class PointYaw:
         cfg = self._config
         self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
+        self._fuse = cfg.heatmap_use == "fuse"
 
     def add_points(self, t: float, points: np.ndarray, estimate: VelocityEstimate) -> None:
         """The point cloud taken at *t* and the velocity estimated from it."""
@@ -160,23 +201,22 @@ class PointYaw:
             own = self._points[2]
             xy = static_points(self._points[1], own if own is not None else velocity, cfg.static_threshold_mps)
         self.map.pending = (current.t, xy)
-        found = []  # (turn rad, variance rad^2)
-        if float(np.hypot(*velocity)) < cfg.slow_mps:
+        points = self._register(xy, translation, -predicted)
+        heatmap = None
+        if float(np.hypot(*velocity)) < cfg.slow_mps and (self._fuse or points is None):
             step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
             if step.rotation is not None:
-                found.append((-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2)))
-        points = self._register(xy, translation, -predicted)
-        if points is not None:
-            if found and abs(found[0][0] - points[0]) > cfg.agreement_sigmas * math.sqrt(found[0][1] + points[1]):
-                found = []
-            found.append(points)
+                heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))
+        found = [m for m in (heatmap, points) if m is not None]  # (turn rad, variance rad^2)
+        if len(found) == 2 and abs(heatmap[0] - points[0]) > cfg.agreement_sigmas * math.sqrt(heatmap[1] + points[1]):
+            found = [points]
         if not found:
             flags.append(Flag.FEW_FEATURES if len(xy) < cfg.min_points else Flag.NO_STRUCTURE)
             return YawStep(None, None, 0.0)
         weights = np.array([1.0 / var for _, var in found])
         turn = float(weights @ np.array([t for t, _ in found]) / weights.sum())
-        self.map.turn = turn
-        return YawStep(-turn, None, float(1.0 / weights.sum()))
+        self.map.turn, self.map.turn_variance = turn, float(1.0 / weights.sum())
+        return YawStep(-turn, None, self.map.turn_variance)
 
     def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float) -> tuple[float, float] | None:
         """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by

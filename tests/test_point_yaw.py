@@ -15,7 +15,8 @@ import pytest
 from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig, PointYawConfig
 from radarodom.estimator.odometry import RadarOdometry
-from radarodom.estimator.point_yaw import static_points
+from radarodom.estimator.keyframe import ChainStep
+from radarodom.estimator.point_yaw import LocalMap, static_points
 from radarodom.products import RangeAzimuth
 
 DT = 0.1
@@ -42,7 +43,7 @@ def _chip_points(world, pose, velocity, rng, *, few=8, bearing_noise_deg=1.0):
     return synth.points_polar(b, 0.0, velocity, range_m=r[pick], quantum=0.07, noise_mps=0.01, rng=rng)
 
 
-def _run(config, phases, *, seed=5):
+def _run(config, phases, *, seed=5, few=8):
     traj = synth.Trajectory(phases)
     world, amp = synth.scene(traj, 80, seed=seed, separation_m=1.0)
     rng = np.random.default_rng(seed)
@@ -52,7 +53,7 @@ def _run(config, phases, *, seed=5):
         t = k * DT
         v, _, w = traj.twist(t)
         pose = traj.pose(t)
-        cloud = _chip_points(world, pose, (v, 0.0), rng)
+        cloud = _chip_points(world, pose, (v, 0.0), rng, few=few)
         still = v == 0.0
         hm = (synth.heatmap(synth.world_to_body(world, pose), amp, noise=1e-3, rng=rng, doppler_channel=False)
               if still else _blank(rng))
@@ -74,13 +75,52 @@ def test_the_points_on_the_map_follow_a_moving_turn_the_heatmap_registration_los
     assert sum("no_structure" in s.flags for s in states) > len(states) // 2
 
 
-def test_standing_and_turning_in_place_the_static_heatmap_joins_the_points():
+def test_standing_and_turning_in_place_the_points_measure_the_turn_and_the_heatmap_may_join_them():
     states, final_error, rmse = _run(EstimatorConfig.tidemo(), IN_PLACE)
     assert abs(final_error) < 3.0, final_error
     assert rmse < 1.0
-    # Without the heatmap (points only) the turn is measured too, less well.
+    # Fused with the static heatmap ("fuse"; these synthetic heatmaps are level, the demo's real
+    # ones are not) and without any heatmap, the turn is measured too.
+    _, final_fused, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"heatmap_use": "fuse"}), IN_PLACE)
+    assert abs(final_fused) < 3.0
     _, final_points_only, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"slow_mps": 0.0}), IN_PLACE)
     assert abs(final_points_only) < 6.0
+
+
+def test_turning_in_place_the_static_heatmap_stands_in_when_the_points_give_no_turn():
+    # One point a frame: too few to register (min_points 2), so only the heatmap measures the turn.
+    # (With one point no velocity either: the frames are flagged for that, not for their yaw.)
+    states, final_error, _ = _run(EstimatorConfig.tidemo(), IN_PLACE, few=1)
+    assert abs(final_error) < 6.0, final_error  # the raw path's registration of these heatmaps: 4-5
+    assert not any({"few_features", "yaw_held"} & set(s.flags) for s in states[1:])
+    states, final_error, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"slow_mps": 0.0}), IN_PLACE, few=1)
+    assert abs(final_error) > 90.0  # nothing measured the 180 degrees
+    assert sum("few_features" in s.flags for s in states) > len(states) // 2
+
+
+def _lagging_turn(correct_lag: bool, steps: int = 8) -> tuple[float, float]:
+    """The map's chain measures a turn of 5 degrees a frame while the filter passes on 3: the
+    odometry's yaw and the chain's after *steps* frames, degrees."""
+    local = LocalMap(PointYawConfig(correct_lag=correct_lag))
+    pose = (0.0, 0.0, 0.0)
+    local.update(pose, None, measured=True)
+    for _ in range(steps):
+        local.turn, local.turn_variance = math.radians(5.0), math.radians(1.5) ** 2
+        step = ChainStep(pose, np.array([0.8, 0.0]), DT, math.radians(3.0), math.radians(0.5) ** 2)
+        dyaw, variance = local.correct(step, None, None)
+        assert 0.0 < variance <= step.var_yaw
+        pose = (0.0, 0.0, pose[2] + dyaw)
+        local.update(pose, None, measured=True)
+    return math.degrees(pose[2]), math.degrees(local.pose[2])
+
+
+def test_the_maps_chain_gives_back_what_the_filter_lags_in_a_turn():
+    lagging, chain = _lagging_turn(correct_lag=False)
+    assert lagging == pytest.approx(24.0) and chain == pytest.approx(40.0)
+    corrected, chain = _lagging_turn(correct_lag=True)
+    assert chain == pytest.approx(40.0)  # the chain follows the measured turns, corrected or not
+    # Pulled towards the measured turns, never past them.
+    assert lagging + 3.0 < corrected <= chain
 
 
 def test_the_static_points_are_those_whose_doppler_a_static_reflector_has():
@@ -106,7 +146,8 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
 
 
 @pytest.mark.parametrize("field, value", [("map_frames", 0), ("bearing_noise_rad", 0.0), ("min_points", 0),
-                                          ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0)])
+                                          ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0),
+                                          ("heatmap_use", "sometimes")])
 def test_bad_settings_are_refused_naming_the_field(field, value):
     with pytest.raises(ConfigError) as info:
         EstimatorConfig.from_dict({"point_yaw": {field: value}})
