@@ -86,14 +86,17 @@ Cell = SimCell | ColoradarCell
 
 
 # ------------------------------------------------------------------ scenes and trajectories
-def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: float) -> tuple[list, list]:
-    """(segments, start [x, y, yaw deg]) of the matrix's closed loop in *scene* (module text);
-    ValueError when it does not fit, or passes nearer than CLEARANCE_M to a wall or an object."""
+def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: float,
+                  mount_m: float = 0.0) -> tuple[list, list]:
+    """(segments, start [x, y, yaw deg]) of the matrix's closed loop in *scene* (module text) for
+    a radar *mount_m* ahead of the base's axis (the base's second straight is shortened by it, so
+    that the radar, not the base, stops at y_max before turning in place); ValueError when it does
+    not fit, or when the base or the radar passes nearer than CLEARANCE_M to a wall or an object."""
     lay = LAYOUT[scene]
     r = speed / math.radians(turn_rate_dps)
     l1 = min(straight_m, lay["turn_x"] - r - lay["x_min"])
     x0, y0 = lay["turn_x"] - r - l1, lay["y0"]
-    l2 = min(straight_m, lay["y_max"] - y0 - r)
+    l2 = min(straight_m, lay["y_max"] - y0 - r - max(mount_m, 0.0))
     if min(l1, l2) < 0.5:
         raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s (radius {r:.2f} m) does not fit")
     segs = [{"pause": 1.0}, {"straight": l1, "speed": speed}, {"turn": 90, "radius": r, "speed": speed},
@@ -102,10 +105,14 @@ def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: fl
             {"straight": l1, "speed": speed}, {"pause": 1.0}]
     start = [x0, y0, 0.0]
     from radarodom.driver.sim.trajectory import from_segments
-    clearance, what = loop_clearance(_scene_table(scene), from_segments(segs, start=start))
-    if clearance < CLEARANCE_M:
-        raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s passes {clearance:.2f} m from "
-                         f"{what} (at least {CLEARANCE_M} m)")
+    table = _scene_table(scene)
+    for mount, who in ((0.0, "a loop"), (mount_m, f"the radar {mount_m:g} m ahead of its base's axis on a loop")):
+        clearance, what = loop_clearance(table, from_segments(segs, start=start, mount=(mount, 0.0, 0.0)))
+        if clearance < CLEARANCE_M:
+            raise ValueError(f"{scene}: {who} at {speed} m/s and {turn_rate_dps} deg/s passes {clearance:.2f} m from "
+                             f"{what} (at least {CLEARANCE_M} m)")
+        if not mount_m:
+            break
     return segs, start
 
 
@@ -152,7 +159,7 @@ def loop_clearance(table: dict, trajectory) -> tuple[float, str]:
 def scene_spec(cell: SimCell) -> dict:
     """The built-in scene's table with the cell's trajectory, SNR and movers."""
     spec = _scene_table(cell.scene)
-    segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m)
+    segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m, cell.mount_m)
     spec["trajectory"] = {"start": start, "height": spec.get("trajectory", {}).get("height", 0.4), "segments": segs,
                           "mount": [float(cell.mount_m), 0.0, 0.0]}
     spec.setdefault("radar", {})["snr_db"] = float(cell.snr_db)

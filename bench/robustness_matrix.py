@@ -231,7 +231,7 @@ def cells(args) -> list[Cell]:
                 variants += [dataclasses.replace(variants[0], **{axis: v}) for v in values[1:]]
         for v in variants:
             try:
-                loop_segments(v.scene, v.speed_mps, v.turn_rate_dps, v.straight_m)
+                loop_segments(v.scene, v.speed_mps, v.turn_rate_dps, v.straight_m, v.mount_m)
             except ValueError as exc:
                 print(f"skipped {v.name}: {exc}", file=sys.stderr)
                 continue

@@ -56,9 +56,27 @@ def test_a_loop_through_the_furniture_is_refused(monkeypatch):
         matrix_cells.loop_segments("room", 0.8, 90.0, 3.0)
 
 
+def test_a_radar_mounted_ahead_of_its_base_keeps_clear_too(monkeypatch):
+    # Until 2026-11-28 only the base's path was checked: the lab's radar, 0.3 m ahead of the axis,
+    # turned in place 0.1 m from a 2 m cabinet and saw almost nothing for a second.
+    import matrix_cells
+    from radarodom.driver.sim.trajectory import from_segments
+    table = matrix_cells._scene_table("lab")
+    for mount in (0.0, 0.3):
+        segs, start = matrix_cells.loop_segments("lab", 0.8, 45.0, 3.0, mount)
+        radar = from_segments(segs, start=start, mount=(mount, 0.0, 0.0))
+        assert max(radar.y) == pytest.approx(matrix_cells.LAYOUT["lab"]["y_max"], abs=0.01)  # the radar stops there
+        assert matrix_cells.loop_clearance(table, radar)[0] >= matrix_cells.CLEARANCE_M
+    monkeypatch.setitem(matrix_cells.LAYOUT, "lab", {**matrix_cells.LAYOUT["lab"], "y_max": 7.25})
+    with pytest.raises(ValueError, match="the radar 0.3 m ahead of its base's axis on a loop .* passes 0.15 m from"):
+        matrix_cells.loop_segments("lab", 0.8, 45.0, 3.0, 0.3)
+    with pytest.raises(ValueError, match="lab: a loop at .* passes 0.15 m from"):
+        matrix_cells.loop_segments("lab", 0.8, 45.0, 3.5)
+
+
 def test_cells_are_selected_by_axis_in_star_and_product_designs():
     args = SimpleNamespace(scenes=["room"], seeds=[0, 1], cfgs=["shipped", "2tx"], snr=[0.0, -10.0],
-                           speeds=[0.8], turn_rates=[45.0], movers=["scene"], mounts=[0.0], straight=2.0,
+                           speeds=[0.8], turn_rates=[45.0], movers=["scene"], mounts=[0.0], straight=3.0,
                            design="star", coloradar=None)
     star = rm.cells(args)
     assert len(star) == 2 * 3  # per seed: the base, the 2-TX cfg, -10 dB
