@@ -184,6 +184,12 @@ class IcpConfig(Settings):
     #: cells over the heatmap's median, natural-log units) stays below this holds no structure
     #: to register (noise, a blocked radar): its yaw is not measured ("no_structure").
     min_scan_score: float = 1.0
+    #: ... unless the frames' own structure is weaker (a weak radar, a low SNR: at -15 dB the
+    #: simulated lab's frames score 1-2 where they score 3-5 at 0 dB): then the threshold is this
+    #: fraction of the median score of the last 50 steps that held structure (once there are
+    #: five; yaw_measurement.SCORE_HISTORY_FRAMES), never below this fraction of ``min_scan_score``; None: always
+    #: ``min_scan_score``.  A noise-only frame scores about 0.1 at any SNR.
+    scan_score_fraction: float | None = 0.3
     #: Whose structure the scan's verdict asks for: "two_way" (the default), each frame's
     #: strongest cells on the other's bright cells at the rotation found (the previous frame's
     #: on the current heatmap, and the current's, taken back, on the previous one); "one_way",
@@ -262,6 +268,8 @@ class IcpConfig(Settings):
         check_choice(self.score_support, ("inside", "common"), "score_support")
         check_choice(self.scan_score_support, ("inside", "common"), "scan_score_support")
         check_choice(self.scan_structure, ("one_way", "two_way"), "scan_structure")
+        _check(self.scan_score_fraction is None or 0 < self.scan_score_fraction <= 1, "must be in (0, 1] or null",
+               "scan_score_fraction")
         _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
                "reject_moving_mps")
 

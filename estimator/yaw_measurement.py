@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from collections import deque
 from functools import cached_property
 from typing import Any
 
@@ -111,6 +112,12 @@ class ProfileGuess:
         return predicted if guess is None else guess
 
 
+#: How many of the last steps that held structure set the usual score (``icp.scan_score_fraction``):
+#: 5 s at 10 frames/s.  Only steps that passed count: heatmaps that never hold structure (a covered
+#: radome, the zero-Doppler map of a moving radar) must not lower the bar to their own level.
+SCORE_HISTORY_FRAMES = 50
+
+
 class ScanGuess:
     """The rotation that lays the previous frame's strongest cells, rectified, on the brightest
     cells of the current heatmap, around the prediction; None when the best score says the
@@ -123,6 +130,9 @@ class ScanGuess:
         self._step_rad = config.icp.scan_step_rad
         self._max_rad = config.icp.max_rotation_rad
         self._min_score = config.icp.min_scan_score
+        self._fraction = config.icp.scan_score_fraction
+        #: The best forward scores of the last steps that held structure (``scan_score_fraction``).
+        self._scores: deque[float] = deque(maxlen=SCORE_HISTORY_FRAMES)
         self._common = config.icp.scan_score_support == "common"
 
     def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
@@ -133,12 +143,22 @@ class ScanGuess:
                  predicted: float) -> float | None:
         found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted,
                            self._common)
-        if found is None or found[1] < self._min_score:
+        threshold = self.min_score
+        if found is None or found[1] < threshold:
             return None
-        if previous.log is not None and score_back(current.guide, previous.log, found[0],
-                                                   translation) < self._min_score:
+        if previous.log is not None and score_back(current.guide, previous.log, found[0], translation) < threshold:
             return None
+        self._scores.append(found[1])
         return found[0]
+
+    @property
+    def min_score(self) -> float:
+        """The score below which a step holds no structure (``min_scan_score``, lowered to the
+        frames' own structure by ``scan_score_fraction``)."""
+        if self._fraction is None or len(self._scores) < 5:
+            return self._min_score
+        usual = self._fraction * float(np.median(self._scores))
+        return min(self._min_score, max(usual, self._fraction * self._min_score))
 
 
 # ---------------------------------------------------------------------- field refinement

@@ -416,6 +416,31 @@ class TestFlags:
         else:
             assert after.ok and after.registration is not None
 
+    @staticmethod
+    def _turn_in_noise(noise: float, fraction: float | None) -> tuple[list, float]:
+        """Turning in place 2 degrees a frame for 29 steps over the scene's reflectors in noise of
+        *noise*: the states and the turn measured, degrees (58 true)."""
+        rng = np.random.default_rng(0)
+        odom = RadarOdometry(EstimatorConfig().with_(icp={"scan_score_fraction": fraction}))
+        states = [odom.step(0.1 * i, static_cloud((0.0, 0.0), seed=i),
+                            synth.heatmap(synth.world_to_body(SCENE_WORLD, (0.0, 0.0, 2.0 * DEG * i)), 1.0,
+                                          noise=noise, rng=rng)) for i in range(30)]
+        return states, math.degrees(states[-1].yaw - states[0].yaw)
+
+    def test_weak_structure_is_judged_against_the_frames_own(self):
+        # In a noise floor of 0.07 (the reflectors peak at 1; 1e-4 elsewhere in these tests) the
+        # scene's steps score about 0.9 (7.8 with the usual floor): below min_scan_score, a fixed
+        # threshold leaves most of the turn unmeasured; judged against the frames' own usual
+        # score every step is measured.
+        states, turned = self._turn_in_noise(0.07, None)
+        assert sum(odo_mod.NO_STRUCTURE in s.flags for s in states) > 10 and turned < 40.0
+        states, turned = self._turn_in_noise(0.07, 0.3)
+        assert not any(odo_mod.NO_STRUCTURE in s.flags for s in states) and turned == pytest.approx(58.0, abs=1.0)
+        # At a floor of 0.3 the reflectors no longer stand out: the steps score about 0 and none
+        # is registered.
+        states, turned = self._turn_in_noise(0.3, 0.3)
+        assert all(odo_mod.NO_STRUCTURE in s.flags for s in states[1:]) and turned == 0.0
+
     def test_a_held_velocity_does_not_call_the_static_world_moving(self):
         # Braking from 1 m/s to 0.2 m/s and turning, the point clouds give no velocity: the last
         # one (1 m/s) is held. The heatmap's Doppler says the world moves at 0.2 m/s; against the
