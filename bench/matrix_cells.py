@@ -106,13 +106,14 @@ def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: fl
     start = [x0, y0, 0.0]
     from radarodom.driver.sim.trajectory import from_segments
     table = _scene_table(scene)
-    for mount, who in ((0.0, "a loop"), (mount_m, f"the radar {mount_m:g} m ahead of its base's axis on a loop")):
+    paths = [(0.0, "a loop")]
+    if mount_m:
+        paths.append((mount_m, f"the radar {mount_m:g} m ahead of its base's axis on a loop"))
+    for mount, who in paths:
         clearance, what = loop_clearance(table, from_segments(segs, start=start, mount=(mount, 0.0, 0.0)))
         if clearance < CLEARANCE_M:
             raise ValueError(f"{scene}: {who} at {speed} m/s and {turn_rate_dps} deg/s passes {clearance:.2f} m from "
                              f"{what} (at least {CLEARANCE_M} m)")
-        if not mount_m:
-            break
     return segs, start
 
 

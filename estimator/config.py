@@ -187,8 +187,9 @@ class IcpConfig(Settings):
     #: ... unless the frames' own structure is weaker (a weak radar, a low SNR: at -15 dB the
     #: simulated lab's frames score 1-2 where they score 3-5 at 0 dB): then the threshold is this
     #: fraction of the median score of the last 50 steps that held structure (once there are
-    #: five; yaw_measurement.SCORE_HISTORY_FRAMES), never below this fraction of ``min_scan_score``; None: always
-    #: ``min_scan_score``.  A noise-only frame scores about 0.1 at any SNR.
+    #: five; yaw_measurement.SCORE_HISTORY_FRAMES), never below this fraction of
+    #: ``min_scan_score``; None: always ``min_scan_score``.  A noise-only frame scores about 0.1
+    #: at any SNR.
     scan_score_fraction: float | None = 0.3
     #: Whose structure the scan's verdict asks for: "two_way" (the default), each frame's
     #: strongest cells on the other's bright cells at the rotation found (the previous frame's

@@ -6,8 +6,8 @@ refinement.  The options (``icp.initial_guess``, ``icp.refinement``, ``icp.field
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
 from collections import deque
+from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Any
 
