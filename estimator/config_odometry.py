@@ -201,7 +201,8 @@ class PointYawConfig(Settings):
     #: The points' turn has at least this noise, rad, and at most ``max_noise_rad``.
     min_noise_rad: float = math.radians(1.5)
     max_noise_rad: float = math.radians(4.0)
-    #: Below this speed the static heatmap's registration may measure the turn, m/s ...
+    #: Below this speed (the step's, or with none the last measured; none before the first) the
+    #: static heatmap's registration may measure the turn, m/s ...
     slow_mps: float = 0.1
     #: ... "fallback": only when the points give none; "fuse": averaged with the points' by their
     #: variances.  The demo's heatmap has no elevation, so the registration reads a cell at

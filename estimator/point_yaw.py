@@ -22,7 +22,9 @@ register frame to frame, but enough against the points of the last second:
   turn); the best score plus a Gaussian prior of ``prior_rad`` about the prediction (which picks
   among peaks, not their place) is refined by a parabola, and its variance is the inverse
   curvature, between ``min_noise_rad`` and ``max_noise_rad`` squared;
-- below ``slow_mps`` the static heatmap holds the scene (standing, turning in place, creeping):
+- below ``slow_mps`` the static heatmap holds the scene (standing, turning in place, creeping;
+  where the step has no velocity at all, the last one measured says, and before the first none
+  does: a radar starting off with too few points for a velocity has a smeared zero-Doppler map):
   there the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's)
   measures the turn when the points give none (``heatmap_use`` "fallback"), with a variance of at
   least ``heatmap_noise_rad`` squared: it has no elevation (the demo sends the azimuth row only),
@@ -174,6 +176,8 @@ class PointYaw:
         self.guess = heatmap.guess
         self.map = LocalMap(config.point_yaw)
         self._points: tuple[float, np.ndarray, np.ndarray | None] | None = None
+        #: The speed of the last point cloud whose velocity was measured, m/s (None: none yet).
+        self._last_speed: float | None = None
         cfg = self._config
         self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
@@ -183,6 +187,8 @@ class PointYaw:
         """The point cloud taken at *t* and the velocity estimated from it."""
         velocity = estimate.velocity if estimate.status == OK else np.zeros(2) if estimate.status == ZERO else None
         self._points = (t, points, velocity)
+        if velocity is not None:
+            self._last_speed = float(np.hypot(*velocity))
         if self.map.pose is None and velocity is not None:  # the first frame's, for the map
             self.map.pending = (t, static_points(points, velocity, self._config.static_threshold_mps))
 
@@ -203,7 +209,7 @@ class PointYaw:
         self.map.pending = (current.t, xy)
         points = self._register(xy, translation, -predicted)
         heatmap = None
-        if float(np.hypot(*velocity)) < cfg.slow_mps and (self._fuse or points is None):
+        if self._slow(velocity, flags) and (self._fuse or points is None):
             step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
             if step.rotation is not None:
                 heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))
@@ -217,6 +223,15 @@ class PointYaw:
         turn = float(weights @ np.array([t for t, _ in found]) / weights.sum())
         self.map.turn, self.map.turn_variance = turn, float(1.0 / weights.sum())
         return YawStep(-turn, None, self.map.turn_variance)
+
+    def _slow(self, velocity: np.ndarray, flags: list[Flag]) -> bool:
+        """Whether the step is slow enough for the static heatmap: its *velocity* (2,) m/s below
+        ``slow_mps``; where the step has no velocity at all (none measured near it, none held:
+        a zero that is no evidence), the last one measured, and never before the first (a radar
+        starting off from a stop has a smeared zero-Doppler map)."""
+        unknown = Flag.VELOCITY_FAILED in flags and not {Flag.VELOCITY_HELD, Flag.VELOCITY_FROM_HEATMAP} & set(flags)
+        speed = self._last_speed if unknown else float(np.hypot(*velocity))
+        return speed is not None and speed < self._config.slow_mps
 
     def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float) -> tuple[float, float] | None:
         """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by

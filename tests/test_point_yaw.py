@@ -43,20 +43,25 @@ def _chip_points(world, pose, velocity, rng, *, few=8, bearing_noise_deg=1.0):
     return synth.points_polar(b, 0.0, velocity, range_m=r[pick], quantum=0.07, noise_mps=0.01, rng=rng)
 
 
-def _run(config, phases, *, seed=5, few=8):
+def _run(config, phases, *, seed=5, few=8, moving_map=None):
+    """The odometry over the *phases*; *few* points a frame (or few(t)); the zero-Doppler map
+    blank while moving, or moving_map(k, world, pose, amp, rng) for the k-th moving frame."""
     traj = synth.Trajectory(phases)
     world, amp = synth.scene(traj, 80, seed=seed, separation_m=1.0)
     rng = np.random.default_rng(seed)
     odom = RadarOdometry(config)
-    states, truth = [], []
+    states, truth, moving = [], [], 0
     for k in range(int(round(traj.duration / DT)) + 1):
         t = k * DT
         v, _, w = traj.twist(t)
         pose = traj.pose(t)
-        cloud = _chip_points(world, pose, (v, 0.0), rng, few=few)
+        cloud = _chip_points(world, pose, (v, 0.0), rng, few=few(t) if callable(few) else few)
         still = v == 0.0
-        hm = (synth.heatmap(synth.world_to_body(world, pose), amp, noise=1e-3, rng=rng, doppler_channel=False)
-              if still else _blank(rng))
+        if still:
+            hm = synth.heatmap(synth.world_to_body(world, pose), amp, noise=1e-3, rng=rng, doppler_channel=False)
+        else:
+            hm = _blank(rng) if moving_map is None else moving_map(moving, world, pose, amp, rng)
+            moving += 1
         states.append(odom.step(t, cloud, hm))
         truth.append(pose[2])
     est = np.array([s.yaw for s in states])
@@ -87,15 +92,40 @@ def test_standing_and_turning_in_place_the_points_measure_the_turn_and_the_heatm
     assert abs(final_points_only) < 6.0
 
 
+def _standing_then_one(t):
+    """Eight points a frame while standing at the start (they say it stands), then one."""
+    return 8 if t < 0.45 else 1
+
+
 def test_turning_in_place_the_static_heatmap_stands_in_when_the_points_give_no_turn():
-    # One point a frame: too few to register (min_points 2), so only the heatmap measures the turn.
-    # (With one point no velocity either: the frames are flagged for that, not for their yaw.)
-    states, final_error, _ = _run(EstimatorConfig.tidemo(), IN_PLACE, few=1)
+    # One point a frame once turning: too few to register (min_points 2), so only the heatmap
+    # measures the turn; and no velocity either (the frames are flagged for that, not for their
+    # yaw): the last one measured, standing, says the zero-Doppler map holds the scene.
+    states, final_error, _ = _run(EstimatorConfig.tidemo(), IN_PLACE, few=_standing_then_one)
     assert abs(final_error) < 6.0, final_error  # the raw path's registration of these heatmaps: 4-5
     assert not any({"few_features", "yaw_held"} & set(s.flags) for s in states[1:])
-    states, final_error, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"slow_mps": 0.0}), IN_PLACE, few=1)
+    states, final_error, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"slow_mps": 0.0}), IN_PLACE,
+                                  few=_standing_then_one)
     assert abs(final_error) > 90.0  # nothing measured the 180 degrees
     assert sum("few_features" in s.flags for s in states) > len(states) // 2
+
+
+def _turning_map(k, world, pose, amp, rng):
+    """A zero-Doppler map while moving that holds structure which is not the scene's: the
+    reflectors as if the radar had turned 4 degrees more each frame (a smeared map's leakage)."""
+    turned = (pose[0], pose[1], pose[2] + math.radians(4.0) * (k + 1))
+    return synth.heatmap(synth.world_to_body(world, turned), amp, noise=1e-3, rng=rng, doppler_channel=False)
+
+
+def test_starting_off_with_no_velocity_measured_the_zero_doppler_map_is_not_registered():
+    # Standing, then driving straight off, one point a frame for the first second: no velocity is
+    # measured, and the step's zero velocity is no evidence of standing.  The zero-Doppler map of
+    # a radar that has started moving holds no scene; registered, it turned the heading.
+    phases = [(0.3, 0.0, 0.0), (2.5, 0.8, 0.0)]
+    states, final_error, _ = _run(EstimatorConfig.tidemo(), phases, few=lambda t: 1 if t < 1.0 else 8,
+                                  moving_map=_turning_map)
+    assert all(abs(math.degrees(s.yaw)) < 1.0 for s in states[:10]), [round(math.degrees(s.yaw), 2) for s in states]
+    assert abs(final_error) < 3.0, final_error
 
 
 def _lagging_turn(correct_lag: bool, steps: int = 8) -> tuple[float, float]:
