@@ -19,6 +19,7 @@ from ..settings import check_field as _check
 from .config_odometry import KEYFRAME_STARTS, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig  # noqa: F401  (re-exported)
 
 FEATURE_METHODS = ("topk", "raymax", "cfar")
+DOPPLER_ELEVATIONS = ("off", "turns", "always")
 PROJECTIONS = ("divide", "paper", "none")
 INITIAL_GUESSES = ("zero", "constant_rate", "profile", "scan")
 REFINEMENTS = ("none", "field")
@@ -118,6 +119,16 @@ class FeatureConfig(Settings):
     #: level geometry under-measures turns near tall walls, floors and ceilings, and moves
     #: elevated reflectors wrongly when features are rectified (docs/estimator.md).
     elevation: str = "use"
+    #: Beyond the paper, for arrays without a raised row (2 TX): each cell's elevation from its
+    #: dominant Doppler and the frame's own velocity, where the heatmap has none: "off", "turns"
+    #: (only while the last measured yaw rate is above ``doppler_elevation_turn_radps``), or
+    #: "always".  A static reflector's radial velocity is -(vx cos(el) cos(az) - vy u), u the
+    #: azimuth axis, so cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2 (docs/estimator.md, 2-TX arrays).
+    doppler_elevation: str = "off"
+    #: ... from a forward speed of at least this, m/s, ...
+    doppler_elevation_min_mps: float = 0.2
+    #: ... and with "turns", a turn rate above this, rad/s.
+    doppler_elevation_turn_radps: float = math.radians(10.0)
 
     @property
     def doppler_cells(self) -> int:
@@ -129,6 +140,9 @@ class FeatureConfig(Settings):
         _check(self.doppler_cells_per_feature >= 1, "must be at least 1", "doppler_cells_per_feature")
         check_choice(self.weighting, ("linear", "db"), "weighting")
         check_choice(self.elevation, ("ignore", "use"), "elevation")
+        check_choice(self.doppler_elevation, DOPPLER_ELEVATIONS, "doppler_elevation")
+        _check(self.doppler_elevation_min_mps > 0, "must be positive", "doppler_elevation_min_mps")
+        _check(self.doppler_elevation_turn_radps >= 0, "must be >= 0", "doppler_elevation_turn_radps")
         _check(self.k >= 1, "must be at least 1", "k")
         _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")
         _check(self.max_range_m is None or self.max_range_m > self.min_range_m,

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import TimeOrderError
 from .config import EstimatorConfig
+from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse
 from .features import PolarHeatmap
 from .icp import Registration
@@ -98,6 +99,7 @@ class RadarOdometry:
         self.yaw = YawMeasurement(self.config, _PROFILE_STEP)
         self.rate = yaw_rate_part(odo)
         self.doppler_yaw = doppler_yaw_part(odo)
+        self.doppler_elevation = doppler_elevation_part(self.config.features)
         self._yaw_noise_var = odo.yaw_noise_rad ** 2
         self.keyframes = KeyframeCorrection(self.config, self.yaw) if odo.keyframe_distance_m > 0 else NoKeyframes()
         # point_yaw.use: the yaw from the point clouds on a local map (the heatmap's when slow),
@@ -149,11 +151,14 @@ class RadarOdometry:
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "
                                  "feed frames in time order")
-        frame = CurrentFrame(t, heatmap, self.config)
         near = self.velocities.near(t)
         # Moving cells are told from static ones by this frame's own velocity: one held from
         # before a hard stop calls the whole static world moving, and leaves a blank heatmap.
         own = near is not None and (previous is None or abs(near.t - t) <= 0.5 * (t - previous.t))
+        if self.doppler_elevation is not None:
+            rate = self._good_rate[1] if self._good_rate is not None else 0.0
+            heatmap = self.doppler_elevation(heatmap, near.velocity if own else None, rate)
+        frame = CurrentFrame(t, heatmap, self.config)
         current = self.yaw.keep(frame, near.velocity if own else None)
         index, self._frames = self._frames, self._frames + 1
         if previous is None:
