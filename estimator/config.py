@@ -123,10 +123,14 @@ class FeatureConfig(Settings):
     #: dominant Doppler and the frame's own velocity, where the heatmap has none: "off", "turns"
     #: (only while the last measured yaw rate is above ``doppler_elevation_turn_radps``), or
     #: "always".  A static reflector's radial velocity is -(vx cos(el) cos(az) - vy u), u the
-    #: azimuth axis, so cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2 (docs/estimator.md, 2-TX arrays).
-    doppler_elevation: str = "off"
-    #: ... from a forward speed of at least this, m/s, ...
+    #: azimuth axis, so cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2 (estimator/doppler_elevation.py,
+    #: docs/estimator.md item 10).
+    doppler_elevation: str = "turns"
+    #: ... from a forward speed of at least this, m/s; slower (at rest, turning in place), each
+    #: range bin keeps its elevation from the last frame that moved, ...
     doppler_elevation_min_mps: float = 0.2
+    #: ... for at most this long, s; ...
+    doppler_elevation_rest_s: float = 5.0
     #: ... and with "turns", a turn rate above this, rad/s.
     doppler_elevation_turn_radps: float = math.radians(10.0)
 
@@ -143,6 +147,7 @@ class FeatureConfig(Settings):
         check_choice(self.doppler_elevation, DOPPLER_ELEVATIONS, "doppler_elevation")
         _check(self.doppler_elevation_min_mps > 0, "must be positive", "doppler_elevation_min_mps")
         _check(self.doppler_elevation_turn_radps >= 0, "must be >= 0", "doppler_elevation_turn_radps")
+        _check(self.doppler_elevation_rest_s >= 0, "must be >= 0 (0: not at rest)", "doppler_elevation_rest_s")
         _check(self.k >= 1, "must be at least 1", "k")
         _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")
         _check(self.max_range_m is None or self.max_range_m > self.min_range_m,
@@ -304,7 +309,7 @@ class EstimatorConfig(Settings):
         """The paper's method (one of its variants), without the options beyond it."""
         return cls(velocity=VelocityConfig(),
                    features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None,
-                                          elevation="ignore"),
+                                          elevation="ignore", doppler_elevation="off"),
                    icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero", neglect_aligned=True,
                                  refinement="none", score_support="inside", reject_moving_mps=None),
                    odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0,

@@ -1,13 +1,17 @@
 """Beyond the paper, for arrays without a raised antenna row (2 TX on the xWR18xx): each heatmap
 cell's elevation from its dominant Doppler and the frame's own velocity
-(``features.doppler_elevation``).
+(``features.doppler_elevation``), and at rest the elevation each range bin had when the radar
+last moved.
 
 A static reflector at elevation el on the azimuth axis u = cos(el) sin(az) (TI frame, positive to
 the right) seen from a sensor moving at (vx, vy) in its body frame has the radial velocity
 v_r = -(vx cos(el) cos(az) - vy u), so that cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2: the cone of
 one Doppler crossed with the array's cone of one u.  The sign of el is not observable; the
 registration needs only its cosine (features at r cos(el), sampled at cos(el) sin(bearing)).
-Cells without a Doppler are taken as level.
+Cells without a Doppler are taken as level.  A radar at rest (turning in place) has no Doppler
+to tell elevation by, but it keeps its distance to everything around it: each range bin keeps
+the elevation of its cells, power-weighted, from the last frame that moved (floors and ceilings
+are where they were), for ``doppler_elevation_rest_s``.
 """
 
 from __future__ import annotations
@@ -20,30 +24,44 @@ from .config import FeatureConfig
 
 
 class DopplerElevation:
-    """:meth:`__call__` gives a heatmap without elevation its cells' elevation from the Doppler."""
+    """:meth:`__call__` gives a heatmap without elevation its cells' elevation (module docstring)."""
 
     def __init__(self, config: FeatureConfig) -> None:
         self._min_mps = config.doppler_elevation_min_mps
         self._turn_radps = config.doppler_elevation_turn_radps if config.doppler_elevation == "turns" else None
+        self._rest_s = config.doppler_elevation_rest_s
+        #: The last moving frame's time (s) and each range bin's cos(elevation), (n_range,),
+        #: 1 where none of its cells had a Doppler.
+        self._profile: tuple[float, np.ndarray] | None = None
 
-    def __call__(self, heatmap, velocity: np.ndarray | None, yaw_rate_radps: float):
-        """*heatmap* with ``elevation_rad`` (n_range, n_azimuth) rad from its ``doppler_mps`` and
-        the frame's own body *velocity* (2,) m/s; unchanged when it has an elevation or no
-        Doppler, without a velocity, below the forward speed, or (with "turns") while the last
-        measured *yaw_rate_radps* is below the turn rate."""
+    def __call__(self, heatmap, t: float, velocity: np.ndarray | None, yaw_rate_radps: float):
+        """*heatmap* (taken at *t*, s) with ``elevation_rad`` (n_range, n_azimuth) rad: from its
+        ``doppler_mps`` and the frame's own body *velocity* (2,) m/s when it moves forward at
+        ``doppler_elevation_min_mps`` or more (with "turns", only while the last measured
+        *yaw_rate_radps* is above ``doppler_elevation_turn_radps``); below that speed each range
+        bin's from the last moving frame.  Unchanged when it has an elevation or no Doppler, or
+        without a velocity of its own."""
         if (not dataclasses.is_dataclass(heatmap) or getattr(heatmap, "elevation_rad", None) is not None
-                or getattr(heatmap, "doppler_mps", None) is None):
+                or getattr(heatmap, "doppler_mps", None) is None or velocity is None):
             return heatmap
-        if velocity is None or velocity[0] < self._min_mps:
+        radial = np.asarray(heatmap.doppler_mps, dtype=float)
+        has_doppler = np.isfinite(radial)
+        if not has_doppler.any():
             return heatmap
+        if velocity[0] < self._min_mps:
+            if self._profile is None or t - self._profile[0] > self._rest_s:
+                return heatmap
+            rows = np.arccos(np.clip(self._profile[1], 0.0, 1.0)).astype(np.float32)
+            return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], radial.shape[1], axis=1))
+        u = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float))[None, :]
+        w = (velocity[1] * u - np.where(has_doppler, radial, 0.0)) / velocity[0]
+        cos_el = np.where(has_doppler, np.sqrt(np.clip(w * w + u * u, 0.0, 1.0)), 1.0)
+        power = np.where(has_doppler, np.asarray(heatmap.intensity, dtype=float), 0.0)
+        total = power.sum(axis=1)
+        self._profile = (t, np.where(total > 0, (power * cos_el).sum(axis=1) / np.maximum(total, 1e-30), 1.0))
         if self._turn_radps is not None and abs(yaw_rate_radps) < self._turn_radps:
             return heatmap
-        u = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float))[None, :]
-        radial = np.asarray(heatmap.doppler_mps, dtype=float)
-        w = (velocity[1] * u - radial) / velocity[0]
-        cos2 = np.clip(w * w + u * u, 0.0, 1.0)
-        elevation = np.where(np.isfinite(radial), np.arccos(np.sqrt(cos2)), 0.0).astype(np.float32)
-        return dataclasses.replace(heatmap, elevation_rad=elevation)
+        return dataclasses.replace(heatmap, elevation_rad=np.arccos(cos_el).astype(np.float32))
 
 
 def doppler_elevation_part(config: FeatureConfig) -> DopplerElevation | None:

@@ -157,7 +157,7 @@ class RadarOdometry:
         own = near is not None and (previous is None or abs(near.t - t) <= 0.5 * (t - previous.t))
         if self.doppler_elevation is not None:
             rate = self._good_rate[1] if self._good_rate is not None else 0.0
-            heatmap = self.doppler_elevation(heatmap, near.velocity if own else None, rate)
+            heatmap = self.doppler_elevation(heatmap, t, near.velocity if own else None, rate)
         frame = CurrentFrame(t, heatmap, self.config)
         current = self.yaw.keep(frame, near.velocity if own else None)
         index, self._frames = self._frames, self._frames + 1

@@ -38,30 +38,46 @@ def test_the_cosine_of_each_cells_elevation_comes_from_its_doppler():
     elevation = rng.uniform(-25.0, 25.0, size=(len(RANGE), len(AZIMUTH)))
     velocity = np.array([0.8, 0.03])
     part = doppler_elevation_part(EstimatorConfig().with_(features={"doppler_elevation": "always"}).features)
-    out = part(_heatmap(elevation, velocity), velocity, 0.0)
+    out = part(_heatmap(elevation, velocity), 0.0, velocity, 0.0)
     found = np.degrees(out.elevation_rad)
     # The sign of the elevation is not observable, its size is.
     assert np.allclose(found, np.abs(elevation), atol=0.05)
     # Cells without a Doppler are level.
     partly = _heatmap(elevation, velocity)
     partly.doppler_mps[:, :5] = np.nan
-    assert np.all(part(partly, velocity, 0.0).elevation_rad[:, :5] == 0.0)
+    assert np.all(part(partly, 0.0, velocity, 0.0).elevation_rad[:, :5] == 0.0)
 
 
 def test_it_stands_aside_where_it_cannot_tell_or_is_not_asked():
     elevation = np.full((len(RANGE), len(AZIMUTH)), 10.0)
     velocity = np.array([0.8, 0.0])
-    config = EstimatorConfig().with_(features={"doppler_elevation": "turns"}).features
+    config = EstimatorConfig().features
+    assert config.doppler_elevation == "turns"  # the default
     part = doppler_elevation_part(config)
     heatmap = _heatmap(elevation, velocity)
-    assert part(heatmap, velocity, math.radians(20.0)).elevation_rad is not None  # turning: given
-    assert part(heatmap, velocity, math.radians(2.0)) is heatmap  # driving straight: "turns" only
-    assert part(heatmap, None, math.radians(20.0)) is heatmap  # no velocity of the frame's own
-    assert part(heatmap, np.array([0.1, 0.0]), math.radians(20.0)) is heatmap  # too slow to say
+    assert part(heatmap, 0.0, None, math.radians(20.0)) is heatmap  # no velocity of the frame's own
+    assert part(heatmap, 0.1, velocity, math.radians(2.0)) is heatmap  # driving straight: "turns" only
+    assert part(heatmap, 0.2, velocity, math.radians(20.0)).elevation_rad is not None  # turning: given
     raised = _heatmap(elevation, velocity, array_elevation=np.zeros_like(elevation, dtype=np.float32))
-    assert part(raised, velocity, math.radians(20.0)) is raised  # the array's own elevation stands
-    assert doppler_elevation_part(EstimatorConfig().features) is None  # off by default
-    assert RadarOdometry(EstimatorConfig()).doppler_elevation is None
+    assert part(raised, 0.3, velocity, math.radians(20.0)) is raised  # the array's own elevation stands
+    no_doppler = _heatmap(elevation, velocity, with_doppler=False)
+    assert part(no_doppler, 0.3, velocity, math.radians(20.0)) is no_doppler  # TI's zero-Doppler map
+    assert doppler_elevation_part(EstimatorConfig().with_(features={"doppler_elevation": "off"}).features) is None
+    assert RadarOdometry(EstimatorConfig.paper()).doppler_elevation is None
+
+
+def test_at_rest_each_range_bin_keeps_the_elevation_it_had_when_the_radar_last_moved():
+    # Turning in place there is no Doppler to tell elevation by, but every reflector stays at its
+    # range: a floor 10 degrees below at every range, seen while driving straight, then at rest.
+    elevation = np.full((len(RANGE), len(AZIMUTH)), 10.0)
+    part = doppler_elevation_part(EstimatorConfig().features)
+    moving = np.array([0.8, 0.0])
+    assert part(_heatmap(elevation, moving), 0.0, moving, 0.0).elevation_rad is None  # straight: not used
+    standing = np.zeros(2)
+    at_rest = part(_heatmap(elevation, standing), 1.0, standing, math.radians(45.0))
+    assert np.allclose(np.degrees(at_rest.elevation_rad), 10.0, atol=0.05)
+    # ... for doppler_elevation_rest_s (5 s) after the last frame that moved.
+    assert part(_heatmap(elevation, standing), 6.0, standing, math.radians(45.0)).elevation_rad is None
 
 
 def test_a_bad_setting_names_the_field():
