@@ -44,24 +44,30 @@ class DopplerElevation:
         if (not dataclasses.is_dataclass(heatmap) or getattr(heatmap, "elevation_rad", None) is not None
                 or getattr(heatmap, "doppler_mps", None) is None or velocity is None):
             return heatmap
-        radial = np.asarray(heatmap.doppler_mps, dtype=float)
-        has_doppler = np.isfinite(radial)
-        if not has_doppler.any():
+        doppler = np.asarray(heatmap.doppler_mps)
+        # The DSP gives a Doppler to the strongest cells only: the arithmetic is on those.
+        cells = np.flatnonzero(np.isfinite(doppler))
+        if len(cells) == 0:
             return heatmap
+        shape = doppler.shape
         if velocity[0] < self._min_mps:
             if self._profile is None or t - self._profile[0] > self._rest_s:
                 return heatmap
             rows = np.arccos(np.clip(self._profile[1], 0.0, 1.0)).astype(np.float32)
-            return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], radial.shape[1], axis=1))
-        u = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float))[None, :]
-        w = (velocity[1] * u - np.where(has_doppler, radial, 0.0)) / velocity[0]
-        cos_el = np.where(has_doppler, np.sqrt(np.clip(w * w + u * u, 0.0, 1.0)), 1.0)
-        power = np.where(has_doppler, np.asarray(heatmap.intensity, dtype=float), 0.0)
-        total = power.sum(axis=1)
-        self._profile = (t, np.where(total > 0, (power * cos_el).sum(axis=1) / np.maximum(total, 1e-30), 1.0))
+            return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], shape[1], axis=1))
+        r, a = np.divmod(cells, shape[1])
+        u = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)[a])
+        w = (velocity[1] * u - doppler.ravel()[cells].astype(float)) / velocity[0]
+        cos_el = np.sqrt(np.clip(w * w + u * u, 0.0, 1.0))
+        power = np.asarray(heatmap.intensity).ravel()[cells].astype(float)
+        total = np.bincount(r, power, minlength=shape[0])
+        weighted = np.bincount(r, power * cos_el, minlength=shape[0])
+        self._profile = (t, np.where(total > 0, weighted / np.maximum(total, 1e-30), 1.0))
         if self._turn_radps is not None and abs(yaw_rate_radps) < self._turn_radps:
             return heatmap
-        return dataclasses.replace(heatmap, elevation_rad=np.arccos(cos_el).astype(np.float32))
+        elevation = np.zeros(shape, np.float32)
+        elevation.ravel()[cells] = np.arccos(cos_el)
+        return dataclasses.replace(heatmap, elevation_rad=elevation)
 
 
 def doppler_elevation_part(config: FeatureConfig) -> DopplerElevation | None:
