@@ -36,11 +36,11 @@ class DopplerElevation:
 
     def __call__(self, heatmap, t: float, velocity: np.ndarray | None, yaw_rate_radps: float):
         """*heatmap* (taken at *t*, s) with ``elevation_rad`` (n_range, n_azimuth) rad: from its
-        ``doppler_mps`` and the frame's own body *velocity* (2,) m/s when it moves forward at
-        ``doppler_elevation_min_mps`` or more (with "turns", only while the last measured
-        *yaw_rate_radps* is above ``doppler_elevation_turn_radps``); below that speed each range
-        bin's from the last moving frame.  Unchanged when it has an elevation or no Doppler, or
-        without a velocity of its own."""
+        ``doppler_mps`` and the frame's own body *velocity* (2,) m/s when it moves forward or
+        backward at ``doppler_elevation_min_mps`` or more (with "turns", only while the last
+        measured *yaw_rate_radps* is above ``doppler_elevation_turn_radps``); slower than that
+        every way, each range bin's from the last moving frame.  Unchanged when it has an
+        elevation or no Doppler, or without a velocity of its own."""
         if (not dataclasses.is_dataclass(heatmap) or getattr(heatmap, "elevation_rad", None) is not None
                 or getattr(heatmap, "doppler_mps", None) is None or velocity is None):
             return heatmap
@@ -50,8 +50,11 @@ class DopplerElevation:
         if len(cells) == 0:
             return heatmap
         shape = doppler.shape
-        if velocity[0] < self._min_mps:
-            if self._profile is None or t - self._profile[0] > self._rest_s:
+        if abs(velocity[0]) < self._min_mps:
+            # Too slow along the boresight to tell: at rest the last moving frame's profile;
+            # sliding sideways, nothing.
+            if (float(np.hypot(*velocity)) >= self._min_mps or self._profile is None
+                    or t - self._profile[0] > self._rest_s):
                 return heatmap
             rows = np.arccos(np.clip(self._profile[1], 0.0, 1.0)).astype(np.float32)
             return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], shape[1], axis=1))

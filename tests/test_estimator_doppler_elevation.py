@@ -78,6 +78,12 @@ def test_at_rest_each_range_bin_keeps_the_elevation_it_had_when_the_radar_last_m
     assert np.allclose(np.degrees(at_rest.elevation_rad), 10.0, atol=0.05)
     # ... for doppler_elevation_rest_s (5 s) after the last frame that moved.
     assert part(_heatmap(elevation, standing), 6.0, standing, math.radians(45.0)).elevation_rad is None
+    # Backing up it is measured as driving forward; sliding sideways it is left alone.
+    backing = np.array([-0.8, 0.0])
+    turned = part(_heatmap(elevation, backing), 7.0, backing, math.radians(20.0))
+    assert np.allclose(np.degrees(turned.elevation_rad), 10.0, atol=0.05)
+    sideways = np.array([0.0, 0.5])
+    assert part(_heatmap(elevation, sideways), 7.1, sideways, math.radians(20.0)).elevation_rad is None
 
 
 def test_a_bad_setting_names_the_field():
