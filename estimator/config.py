@@ -126,8 +126,9 @@ class FeatureConfig(Settings):
     #: azimuth axis, so cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2 (estimator/doppler_elevation.py,
     #: docs/estimator.md item 10).
     doppler_elevation: str = "turns"
-    #: ... from a forward speed of at least this, m/s; slower (at rest, turning in place), each
-    #: range bin keeps its elevation from the last frame that moved, ...
+    #: ... from a speed along the boresight (forward or back) of at least this, m/s; slower every
+    #: way (at rest, turning in place), each range bin keeps its elevation from the last frame
+    #: that moved, ...
     doppler_elevation_min_mps: float = 0.2
     #: ... for at most this long, s; ...
     doppler_elevation_rest_s: float = 5.0
