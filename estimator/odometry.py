@@ -155,11 +155,11 @@ class RadarOdometry:
         # Moving cells are told from static ones by this frame's own velocity: one held from
         # before a hard stop calls the whole static world moving, and leaves a blank heatmap.
         own = near is not None and (previous is None or abs(near.t - t) <= 0.5 * (t - previous.t))
+        own_velocity = near.velocity if own else None
         if self.doppler_elevation is not None:
-            rate = self._good_rate[1] if self._good_rate is not None else 0.0
-            heatmap = self.doppler_elevation(heatmap, t, near.velocity if own else None, rate)
+            heatmap = self.doppler_elevation(heatmap, t, own_velocity, self._last_rate)
         frame = CurrentFrame(t, heatmap, self.config)
-        current = self.yaw.keep(frame, near.velocity if own else None)
+        current = self.yaw.keep(frame, own_velocity)
         index, self._frames = self._frames, self._frames + 1
         if previous is None:
             state = OdometryState(t=t, frame=index, flags=(Flag.FIRST_FRAME,), features=len(current.features))
@@ -182,7 +182,7 @@ class RadarOdometry:
         flags: list[Flag] = []
         velocity = self.velocities.for_step(previous.t, t, frame.heatmap, flags)
         v = velocity.velocity
-        rate = self._good_rate[1] if self._good_rate is not None else 0.0
+        rate = self._last_rate
         predicted = -rate * dt if self.yaw.guess.uses_rate else 0.0
         measured = self.yaw.measure(previous, current, frame, self._translation(v, dt, rate * dt), predicted, flags)
         registered = None if measured.rotation is None else -measured.rotation  # the world turns the other way
@@ -208,6 +208,11 @@ class RadarOdometry:
                               registration=measured.registration, velocity=velocity.estimate)
         self.keyframes.update(state.pose, current, measured=observed is not None)
         return state
+
+    @property
+    def _last_rate(self) -> float:
+        """The last measured yaw rate, rad/s (0 before any)."""
+        return self._good_rate[1] if self._good_rate is not None else 0.0
 
     def _translation(self, v: np.ndarray, dt: float, turn: float) -> np.ndarray:
         """The sensor's displacement over the step in the previous frame's axes, (2,) m: v dt,
