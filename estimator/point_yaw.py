@@ -227,10 +227,10 @@ class PointYaw:
     def _slow(self, velocity: np.ndarray, flags: list[Flag]) -> bool:
         """Whether the step is slow enough for the static heatmap: its *velocity* (2,) m/s below
         ``slow_mps``; where the step has no velocity at all (none measured near it, none held:
-        a zero that is no evidence), the last one measured, and never before the first (a radar
-        starting off from a stop has a smeared zero-Doppler map)."""
-        unknown = Flag.VELOCITY_FAILED in flags and not {Flag.VELOCITY_HELD, Flag.VELOCITY_FROM_HEATMAP} & set(flags)
-        speed = self._last_speed if unknown else float(np.hypot(*velocity))
+        a zero that is no evidence: the velocity track flags it ``motion_lost``), the last one
+        measured, and never before the first (a radar starting off from a stop has a smeared
+        zero-Doppler map)."""
+        speed = self._last_speed if Flag.MOTION_LOST in flags else float(np.hypot(*velocity))
         return speed is not None and speed < self._config.slow_mps
 
     def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float) -> tuple[float, float] | None:

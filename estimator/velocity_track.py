@@ -148,6 +148,8 @@ class VelocityTrack:
             if found is not None:
                 flags.append(Flag.VELOCITY_FROM_HEATMAP)
                 return StepVelocity(estimate, *found)
-        if estimate is not None and may_hold(self._good_t, t, self._hold_s, Flag.VELOCITY_HELD, flags):
+        # Never measured (no estimate, no good time): not held, and flagged motion_lost like a
+        # hold that ran out, since the zero below is no evidence of standing.
+        if may_hold(self._good_t, t, self._hold_s, Flag.VELOCITY_HELD, flags) and estimate is not None:
             return StepVelocity(estimate, estimate.velocity, estimate.covariance * self._held_factor)
         return StepVelocity(estimate, np.zeros(2), np.eye(2))

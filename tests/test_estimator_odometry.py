@@ -489,6 +489,18 @@ class TestFlags:
         s = odom.step(1.0, static_cloud((0.4, 0.0)), hm)
         assert odo_mod.VELOCITY_FAILED not in s.flags
 
+    def test_no_velocity_ever_measured_is_motion_lost(self):
+        # A radar whose first point clouds give no velocity: its steps' zero velocity is no
+        # evidence of standing, and says so like a hold that ran out.
+        odom = RadarOdometry(EstimatorConfig().with_(odometry={"velocity_fallback": "hold"}))
+        hm = scene_heatmap()
+        states = [odom.step(i * 0.1, few_points_cloud(), hm) for i in range(4)]
+        for s in states[1:]:
+            assert odo_mod.VELOCITY_FAILED in s.flags and odo_mod.MOTION_LOST in s.flags, s.flags
+            assert odo_mod.VELOCITY_HELD not in s.flags and s.vx == 0.0 and s.vy == 0.0
+        s = odom.step(0.4, static_cloud((0.4, 0.0)), hm)
+        assert odo_mod.MOTION_LOST not in s.flags and odo_mod.VELOCITY_FAILED not in s.flags
+
     @pytest.mark.parametrize("fallback", ["hold", "heatmap"])
     def test_velocity_fallback_while_slowing_down(self, fallback):
         # Driving at 0.6 m/s, then braking at 1.5 m/s^2 to a stop while the point cloud has too
