@@ -231,12 +231,19 @@ class IcpConfig(Settings):
     refinement: str = "field"
     field_search_rad: float = math.radians(3.0)
     field_smoothing_bins: float = 2.0
+    #: The smoothed field is evaluated every 1/``field_upsampling`` azimuth bin (the Gaussian at
+    #: those places) and sampled bilinearly on that finer grid.  Sampled bilinearly on the
+    #: heatmap's own bins, a field of points at bin centres scores rotations that move the points
+    #: by whole bins highest (the interpolation is piecewise linear, kinked at the bins), which
+    #: draws the rotation to multiples of the bin (docs/estimator.md, heading item 11).
+    #: 1: the heatmap's bins (so too with ``field_smoothing_bins`` 0: no field to evaluate).
+    field_upsampling: int = 4
     #: Grid step of the field search, rad; the best rotation on the grid is refined by a
     #: parabola through it and its two neighbours.  The field's peak is some degrees wide
     #: (beams of about 15 degrees, smoothed): a parabola through points 1.5 degrees apart fits
-    #: that peak, one through points 0.5 degrees apart fits the speckle on it.  The default has
-    #: a lower yaw RMSE and drift than 0.5 degrees with a third of the samples
-    #: (docs/estimator.md, "Why the defaults").
+    #: that peak.  With ``field_upsampling`` 0.5 degrees measures as well, with three times the
+    #: samples; without it, a fine step finds the bilinear sampling's kinks (docs/estimator.md,
+    #: "Why the defaults").
     field_step_rad: float = math.radians(1.5)
     #: Where the frame-to-frame field search looks: "icp", +/- ``field_search_rad`` around ICP's
     #: rotation; "icp_and_scan", from the smaller of ICP's rotation and the scan guess to the
@@ -284,6 +291,7 @@ class IcpConfig(Settings):
         check_choice(self.refinement, REFINEMENTS, "refinement")
         _check(self.field_search_rad > 0, "must be positive", "field_search_rad")
         _check(self.field_smoothing_bins >= 0, "must be >= 0 (0: not smoothed)", "field_smoothing_bins")
+        _check(1 <= self.field_upsampling <= 16, "must be from 1 to 16", "field_upsampling")
         _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
         check_choice(self.score_support, ("inside", "common"), "score_support")

@@ -24,7 +24,8 @@ import numpy as np
 
 from .angles import wrap
 from .config import IcpConfig
-from .features import Features, LogHeatmap
+from .features import Features
+from .log_heatmap import LogHeatmap
 from .quality import TextEnum
 
 

@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from .config import EstimatorConfig
-from .features import Features, LogHeatmap, PolarHeatmap, azimuth_profile, extract, static_mask
+from .features import Features, PolarHeatmap, azimuth_profile, extract, static_mask
+from .log_heatmap import LogHeatmap
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess, score_back)
 from .quality import Flag
@@ -169,13 +170,14 @@ class FieldSearch:
         self._scan_features = scan_features
         self._views_are_scan_points = views_are_scan_points
         self._smoothing_bins = config.icp.field_smoothing_bins
+        self._upsampling = config.icp.field_upsampling
         self._search_rad = config.icp.field_search_rad
         self._step_rad = config.icp.field_step_rad
         self._common = config.icp.score_support == "common"
 
     def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
         points = guide if self._views_are_scan_points else extract(frame.heatmap, self._scan_features)
-        return LikelihoodField(points, frame.log.smoothed(self._smoothing_bins))
+        return LikelihoodField(points, frame.log.smoothed(self._smoothing_bins, self._upsampling))
 
     def refine(self, source: LikelihoodField | None, target: LikelihoodField | None, translation: np.ndarray,
                rotation: float, other: float | None = None, reach: float | None = None) -> float:

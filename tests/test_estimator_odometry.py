@@ -350,16 +350,17 @@ class TestTrajectory:
         states, truths = run_sequence(EstimatorConfig.paper(), STRAIGHT_ARC_TURN)
         assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
 
-    @pytest.mark.parametrize("keyframes", [
-        pytest.param(0.5, id="default"),
-        pytest.param(0.0, id="no-keyframes", marks=pytest.mark.xfail(strict=True, reason=(
-            "LIMITATION: frame-to-frame registration under-measures the 30 deg/s turn in place by "
-            "about 4 % (5.6 deg short of 150); keyframe registration, the default, removes most of it"))),
+    # Frame to frame alone (no keyframes) the 30 deg/s turn in place is measured some 3 % short
+    # (5.0 of 150 degrees; 0.8 with keyframes, the default): a LIMITATION the keyframe
+    # registration removes most of.
+    @pytest.mark.parametrize(("keyframes", "tolerance_deg"), [
+        pytest.param(0.5, 2.0, id="default"),
+        pytest.param(0.0, 6.0, id="no-keyframes"),
     ])
-    def test_default_config_follows_the_trajectory(self, keyframes):
+    def test_default_config_follows_the_trajectory(self, keyframes, tolerance_deg):
         cfg = EstimatorConfig().with_(odometry={"keyframe_distance_m": keyframes})
         states, truths = run_sequence(cfg, STRAIGHT_ARC_TURN)
-        assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
+        assert abs(states[-1].yaw - truths[-1][2]) < tolerance_deg * DEG
         assert all(finite_state(s) for s in states)
 
 
