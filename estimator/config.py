@@ -231,8 +231,8 @@ class IcpConfig(Settings):
     refinement: str = "field"
     field_search_rad: float = math.radians(3.0)
     field_smoothing_bins: float = 2.0
-    #: The smoothed field is evaluated every 1/``field_upsampling`` azimuth bin (the Gaussian at
-    #: those places) and sampled bilinearly on that finer grid.  Sampled bilinearly on the
+    #: The smoothed field is interpolated every 1/``field_upsampling`` azimuth bin (a cubic spline
+    #: through its bins) and sampled bilinearly on that finer grid.  Sampled bilinearly on the
     #: heatmap's own bins, a field of points at bin centres scores rotations that move the points
     #: by whole bins highest (the interpolation is piecewise linear, kinked at the bins), which
     #: draws the rotation to multiples of the bin (docs/estimator.md, heading item 11).

@@ -840,7 +840,7 @@ class TestFieldRotation:
         # The same reflectors turned by angles between the bins (a bin is 1.8 degrees at
         # boresight), searched on a fine grid from the truth: sampled bilinearly between the
         # heatmap's bins the field scores whole-bin turns highest and errs by up to 0.7 degrees
-        # (RMS 0.4); evaluated every quarter bin it finds each turn within 0.2 degrees.
+        # (RMS 0.4); interpolated every quarter bin it finds each turn within 0.2 degrees.
         from radarodom.estimator.log_heatmap import LogHeatmap
 
         cfg = FeatureConfig(method="topk", k=400, weighting="db", peaks_only=False, subbin=False,
