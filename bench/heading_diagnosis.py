@@ -24,6 +24,11 @@ separately: a bias that is the same at every baseline is an offset of each regis
 that grows with the baseline comes from the motion; and, over moving turns and turns in place,
 the two-way registration's turn ratio at each baseline (what a keyframe that many frames back
 measures, given the true motion).
+
+Last, what makes the drift (``drift parts``,
+:func:`radarodom.estimator.heading_metrics.drift_parts`): the estimate's drift, and the drift that
+each kind of frame's yaw errors (straight, the first frames after a turn, moving turns, turns in
+place, the rest) and the estimate's translation make alone.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ import sequences  # noqa: E402  (bench/ is not a package)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.evaluation import associate  # noqa: E402
+from radarodom.estimator.heading_metrics import drift_parts  # noqa: E402
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
@@ -77,16 +83,19 @@ def kind(translation: np.ndarray, dyaw: float, dt: float) -> str:
     return "moving turn" if moving else "turn in place"
 
 
-def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list]:
-    """Per kind of step, per stage: lists of (estimated, true) increments; and the kept frames."""
+def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray]:
+    """Per kind of step, per stage: lists of (estimated, true) increments; the kept frames; and
+    the estimated poses (n, 3)."""
     poses = truth(seq)
     odom = RadarOdometry(config)
     icp = config.icp
     common = icp.score_support == "common"
     out: dict[str, dict[str, list]] = {}
     kept, previous = [], None
+    estimated = np.zeros((len(seq), 3))
     for i in range(len(seq)):
         state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        estimated[i] = state.pose
         current = odom._previous  # what the estimator keeps of the frame (features, field)
         kept.append(current)
         if i > 0:
@@ -101,7 +110,7 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
                     if r is not None:
                         rows[stage].append((-r, dyaw))
         previous = current
-    return out, kept
+    return out, kept, estimated
 
 
 def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, steps: list[int]) -> list[str]:
@@ -177,10 +186,12 @@ def main(argv=None) -> int:
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     for directory in args.sequences:
         seq = sequences.load(directory)
-        found, kept = diagnose(seq, config)
+        found, kept, estimated = diagnose(seq, config)
         print("\n".join(report(seq.name, found)))
         if args.baselines:
             print("\n".join(baselines(seq, kept, config, args.baselines)))
+        parts = drift_parts(seq.times, truth(seq), estimated)
+        print("  drift parts (% of the path): " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items()))
     return 0
 
 

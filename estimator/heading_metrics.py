@@ -16,6 +16,9 @@ or too small.  These metrics measure them separately, by segmenting the truth:
 - **drift** (% of the path): final position error, the estimate aligned at the first pose;
 - **final heading error** (deg, signed, wrapped).
 
+:func:`drift_parts` says what makes the drift: the drift each kind of frame's yaw errors make
+alone, and the translation's.
+
 Both trajectories are SE(2) arrays (n, 3) of x (m), y (m), yaw (rad) at the same times
 (as :func:`radarodom.estimator.evaluation.associate` pairs them).
 """
@@ -29,7 +32,10 @@ import numpy as np
 
 from .evaluation import se2_compose, se2_inverse
 
-__all__ = ["HeadingMetrics", "heading_metrics", "segment_turns"]
+__all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns"]
+
+#: The parts :func:`drift_parts` reports, in order.
+DRIFT_PARTS = ("all", "straight", "after turn", "moving turn", "turn in place", "other", "translation")
 
 
 def _wrap(a):
@@ -147,3 +153,61 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
         moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
         inplace_turns=kinds[True][0], inplace_turn_deg=kinds[True][1], inplace_turn_ratio=kinds[True][2],
         path_m=path, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
+
+
+def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
+                min_turn_deg: float = 10.0, after_turn_frames: int = 3, base_offset_m: float = 0.0
+                ) -> dict[str, float]:
+    """Drift (% of the path, as :func:`heading_metrics`) that each kind of frame makes alone: the
+    true path integrated again from its own steps, with the estimate's yaw increments on that
+    kind's frames only: "straight" (as the straight-drive bias counts them, less the first
+    *after_turn_frames* after a turn, which are "after turn"), "moving turn", "turn in place"
+    (as :func:`segment_turns` finds them) and "other" (standing, a turn's ramps); "translation":
+    the estimate's own steps (body frame) with the true yaw increments; "all": the estimate's
+    drift.  The parts do not add up (a heading error moves everything after it), but the largest
+    is what to mend first.  *ref*, *est*: (n, 3) SE(2) at *times*; keywords as heading_metrics."""
+    times = np.asarray(times, float)
+    ref = np.asarray(ref, float)
+    est = np.asarray(est, float)
+    if ref.shape != est.shape or ref.ndim != 2 or ref.shape[1] != 3 or len(ref) != len(times) or len(ref) < 2:
+        raise ValueError("ref and est must be (n, 3) SE(2) arrays at the n >= 2 times")
+    dt = np.diff(times)
+    d_ref = _wrap(np.diff(ref[:, 2]))
+    err = _wrap(_wrap(np.diff(est[:, 2])) - d_ref)
+    base = _base(ref, base_offset_m)
+    speed = np.hypot(*np.diff(base[:, :2], axis=0).T) / dt
+    straight = (np.degrees(np.abs(d_ref)) / dt <= straight_rate_dps) & (speed > moving_speed_mps)
+    kind = np.where(straight, "straight", "other").astype(object)
+    for i, j, in_place in segment_turns(times, base, straight_rate_dps=straight_rate_dps,
+                                        moving_speed_mps=moving_speed_mps, min_turn_deg=min_turn_deg):
+        kind[i:j] = "turn in place" if in_place else "moving turn"
+        after = j
+        while after < len(kind) and after < j + after_turn_frames and straight[after]:
+            kind[after] = "after turn"
+            after += 1
+    ref_steps, est_steps = _body_steps(ref), _body_steps(est)
+    path = float(np.hypot(*ref_steps.T).sum())
+
+    def drift(poses_xy: np.ndarray) -> float:
+        return 100.0 * float(np.hypot(*(poses_xy - ref[-1, :2]))) / path if path > 0 else float("nan")
+
+    parts = {"all": drift(_end(ref[0], d_ref + err, est_steps))}
+    for name in DRIFT_PARTS[1:-1]:
+        parts[name] = drift(_end(ref[0], d_ref + np.where(kind == name, err, 0.0), ref_steps))
+    parts["translation"] = drift(_end(ref[0], d_ref, est_steps))
+    return parts
+
+
+def _body_steps(poses: np.ndarray) -> np.ndarray:
+    """Each step's translation (n-1, 2), m, in the axes of the pose it starts from."""
+    d = np.diff(poses[:, :2], axis=0)
+    c, s = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
+    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], 1)
+
+
+def _end(start: np.ndarray, dyaw: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """The last position (2,), m, of a path from pose *start* (3,) by yaw increments *dyaw* (n-1,)
+    rad and body-frame *steps* (n-1, 2) m, each step taken in the heading before its turn."""
+    yaw = start[2] + np.concatenate([[0.0], np.cumsum(dyaw)[:-1]])
+    c, s = np.cos(yaw), np.sin(yaw)
+    return start[:2] + np.array([(c * steps[:, 0] - s * steps[:, 1]).sum(), (s * steps[:, 0] + c * steps[:, 1]).sum()])

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from radarodom.driver.sim.trajectory import from_segments
-from radarodom.estimator.heading_metrics import heading_metrics, segment_turns
+from radarodom.estimator.heading_metrics import DRIFT_PARTS, drift_parts, heading_metrics, segment_turns
 
 SEGMENTS = [{"pause": 1.0}, {"straight": 4.0, "speed": 1.0}, {"turn": 90, "radius": 1.0, "speed": 0.8},
             {"straight": 3.0, "speed": 0.5}, {"rotate": 180, "rate": 60}, {"straight": 3.0, "speed": 0.5},
@@ -96,3 +96,50 @@ def test_a_still_truth_has_no_straight_or_turn_numbers():
     assert math.isnan(m.moving_turn_ratio) and m.to_dict()["moving_turn_ratio"] is None
     with pytest.raises(ValueError):
         heading_metrics(t, ref, ref[:5])
+
+
+def test_drift_parts_of_a_perfect_estimate_are_all_zero():
+    t, ref = truth()
+    parts = drift_parts(t, ref, ref.copy())
+    assert list(parts) == list(DRIFT_PARTS)
+    assert all(v == pytest.approx(0.0, abs=1e-9) for v in parts.values())
+
+
+def test_drift_parts_put_a_turn_in_place_scale_error_on_the_turn_in_place_alone():
+    t, ref = truth()
+    est = estimate(t, ref, inplace_k=1.05)
+    parts = drift_parts(t, ref, est)
+    assert parts["all"] == pytest.approx(heading_metrics(t, ref, est).drift_pct, rel=1e-9)
+    assert parts["turn in place"] == pytest.approx(parts["all"], rel=1e-6)
+    assert parts["turn in place"] > 5.0  # 9 degrees turned too far with 7 m still to drive
+    for name in ("straight", "after turn", "moving turn", "other", "translation"):
+        assert parts[name] == pytest.approx(0.0, abs=1e-9), name
+
+
+def test_drift_parts_tell_straight_frames_from_the_first_ones_after_a_turn():
+    t, ref = truth()
+    est = estimate(t, ref, bias_deg=0.05)
+    parts = drift_parts(t, ref, est)
+    assert parts["all"] == pytest.approx(heading_metrics(t, ref, est).drift_pct, rel=1e-9)
+    assert parts["straight"] > parts["after turn"] > 0.0  # 3 frames after each of 3 turns, the rest straight
+    assert parts["moving turn"] == pytest.approx(0.0, abs=1e-9)
+    assert parts["turn in place"] == pytest.approx(0.0, abs=1e-9)
+    assert drift_parts(t, ref, est, after_turn_frames=0)["after turn"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_drift_parts_put_a_speed_error_on_the_translation_alone():
+    t, ref = truth()
+    est = ref.copy()
+    steps = np.diff(ref[:, :2], axis=0) * 1.1  # every step 10 % long, the headings true
+    est[1:, :2] = ref[0, :2] + np.cumsum(steps, axis=0)
+    parts = drift_parts(t, ref, est)
+    assert parts["translation"] == pytest.approx(parts["all"], rel=1e-6)
+    assert parts["translation"] == pytest.approx(10.0 * np.hypot(*(ref[-1, :2] - ref[0, :2]))
+                                                 / np.hypot(*np.diff(ref[:, :2], axis=0).T).sum(), rel=1e-6)
+    assert all(parts[name] == pytest.approx(0.0, abs=1e-9) for name in DRIFT_PARTS[1:-1])
+
+
+def test_drift_parts_refuse_trajectories_of_different_lengths():
+    t, ref = truth()
+    with pytest.raises(ValueError, match=r"\(n, 3\) SE\(2\) arrays"):
+        drift_parts(t, ref, ref[:-1])
