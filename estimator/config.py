@@ -117,14 +117,14 @@ class FeatureConfig(Settings):
     #: measures is the sideways direction cosine, cos(el) sin(az): a reflector above or below
     #: the radar turns by only cos(el) of the radar's turn on the heatmap's azimuth axis, so
     #: level geometry under-measures turns near tall walls, floors and ceilings, and moves
-    #: elevated reflectors wrongly when features are rectified (docs/estimator.md).
+    #: elevated reflectors wrongly when features are rectified (docs/heading.md, item 2).
     elevation: str = "use"
     #: Beyond the paper, for arrays without a raised row (2 TX): each cell's elevation from its
     #: dominant Doppler and the frame's own velocity, where the heatmap has none: "off", "turns"
     #: (only while the last measured yaw rate is above ``doppler_elevation_turn_radps``), or
     #: "always".  A static reflector's radial velocity is -(vx cos(el) cos(az) - vy u), u the
     #: azimuth axis, so cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2 (estimator/doppler_elevation.py,
-    #: docs/estimator.md item 10).
+    #: docs/heading.md item 10).
     doppler_elevation: str = "turns"
     #: ... from a speed along the boresight (forward or back) of at least this, m/s; slower every
     #: way (at rest, turning in place), each range bin keeps its elevation from the last frame
@@ -216,7 +216,7 @@ class IcpConfig(Settings):
     #: on the current heatmap, and the current's, taken back, on the previous one); "one_way",
     #: the previous frame's alone, which a noise-only previous frame passes whenever the
     #: current heatmap is bright: its noise cells land on bright cells somewhere in the window
-    #: (docs/estimator.md).
+    #: (docs/heading.md, item 7).
     scan_structure: str = "two_way"
     #: Beyond the paper: after ICP, "field" refines the rotation without correspondences:
     #: the rotation (within +/- ``field_search_rad`` of ICP's) that maximises the two-way
@@ -235,7 +235,7 @@ class IcpConfig(Settings):
     #: through its bins) and sampled bilinearly on that finer grid.  Sampled bilinearly on the
     #: heatmap's own bins, a field of points at bin centres scores rotations that move the points
     #: by whole bins highest (the interpolation is piecewise linear, kinked at the bins), which
-    #: draws the rotation to multiples of the bin (docs/estimator.md, heading item 11).
+    #: draws the rotation to multiples of the bin (docs/heading.md, item 11).
     #: 1: the heatmap's bins (so too with ``field_smoothing_bins`` 0: no field to evaluate).
     field_upsampling: int = 4
     #: Grid step of the field search, rad; the best rotation on the grid is refined by a
@@ -264,11 +264,11 @@ class IcpConfig(Settings):
     #: "inside", those inside the heatmap at each rotation tried; "common", those inside at
     #: every rotation tried.  A mean over the points inside at each rotation rises where a
     #: rotation turns the weak points at the field of view's edge out of the heatmap, and so
-    #: favours larger rotations (docs/estimator.md).
+    #: favours larger rotations (docs/heading.md, item 1).
     score_support: str = "common"
     #: The same for each step's scan guess.  Over its wide window (+/- max_rotation_rad) the points
     #: inside at every rotation are few, and a scan centred on a wrong prediction followed its
-    #: own error from frame to frame (docs/estimator.md): "inside" by default.
+    #: own error from frame to frame (docs/heading.md, item 1): "inside" by default.
     scan_score_support: str = "inside"
     #: With the scan guess and the field refinement: when ICP fails (too few features or
     #: matches) but the scan found structure, measure the yaw by the field search around the

@@ -307,7 +307,7 @@ def _scores(source: Features, target: LogHeatmap, shifts: np.ndarray, common_sup
     With *common_support* the mean is over the points inside the heatmap at every shift: a
     mean over the points inside at each shift rises where a shift turns weak points (those at
     the field of view's edge, where the antenna gain falls) out of the heatmap, which favours
-    larger rotations (docs/estimator.md)."""
+    larger rotations (docs/heading.md, item 1)."""
     values, inside = target.sample_rotated(source.slant_m, source.bearing_rad, shifts, source.cos_elevation)
     weight = source.weight.astype(values.dtype)  # float32 values stay float32 (no upcast copy)
     if common_support:

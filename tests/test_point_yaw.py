@@ -103,7 +103,7 @@ def test_turning_in_place_the_static_heatmap_stands_in_when_the_points_give_no_t
     # yaw): the last one measured, standing, says the zero-Doppler map holds the scene.
     states, final_error, _ = _run(EstimatorConfig.tidemo(), IN_PLACE, few=_standing_then_one)
     # The raw path's registration of these heatmaps measures the 180 degrees 5.8 short (5.2 with
-    # the field sampled on the heatmap's own bins: docs/estimator.md, heading item 11).
+    # the field sampled on the heatmap's own bins: docs/heading.md, item 11).
     assert abs(final_error) < 7.0, final_error
     assert not any({"few_features", "yaw_held"} & set(s.flags) for s in states[1:])
     states, final_error, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"slow_mps": 0.0}), IN_PLACE,
