@@ -67,6 +67,16 @@ class HeadingMetrics:
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in asdict(self).items()}
 
 
+def _trajectories(times, ref, est) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """*times* (n,), *ref* and *est* (n, 3) as float arrays; ValueError unless they match."""
+    times = np.asarray(times, float)
+    ref = np.asarray(ref, float)
+    est = np.asarray(est, float)
+    if ref.shape != est.shape or ref.ndim != 2 or ref.shape[1] != 3 or len(ref) != len(times) or len(ref) < 2:
+        raise ValueError("ref and est must be (n, 3) SE(2) arrays at the n >= 2 times")
+    return times, ref, est
+
+
 def _base(ref: np.ndarray, offset_m: float) -> np.ndarray:
     """The poses (n, 3) of the base whose rotation axis is *offset_m* behind the radar at *ref*."""
     if offset_m == 0.0:
@@ -107,11 +117,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
     *base_offset_m*: the radar sits this far ahead of the rotation axis of the base that carries
     it: straight drives and turns in place are told by the base's motion (a radar ahead of the
     axis moves in a turn in place); the path and drift stay the radar's."""
-    times = np.asarray(times, float)
-    ref = np.asarray(ref, float)
-    est = np.asarray(est, float)
-    if ref.shape != est.shape or ref.ndim != 2 or ref.shape[1] != 3 or len(ref) != len(times) or len(ref) < 2:
-        raise ValueError("ref and est must be (n, 3) SE(2) arrays at the n >= 2 times")
+    times, ref, est = _trajectories(times, ref, est)
     dt = np.diff(times)
     d_ref = _wrap(np.diff(ref[:, 2]))
     d_est = _wrap(np.diff(est[:, 2]))
@@ -166,11 +172,7 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed
     the estimate's own steps (body frame) with the true yaw increments; "all": the estimate's
     drift.  The parts do not add up (a heading error moves everything after it), but the largest
     is what to mend first.  *ref*, *est*: (n, 3) SE(2) at *times*; keywords as heading_metrics."""
-    times = np.asarray(times, float)
-    ref = np.asarray(ref, float)
-    est = np.asarray(est, float)
-    if ref.shape != est.shape or ref.ndim != 2 or ref.shape[1] != 3 or len(ref) != len(times) or len(ref) < 2:
-        raise ValueError("ref and est must be (n, 3) SE(2) arrays at the n >= 2 times")
+    times, ref, est = _trajectories(times, ref, est)
     dt = np.diff(times)
     d_ref = _wrap(np.diff(ref[:, 2]))
     err = _wrap(_wrap(np.diff(est[:, 2])) - d_ref)
