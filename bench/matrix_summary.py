@@ -1,6 +1,8 @@
 """The robustness matrix's summary, as docs/benchmarks.md gives it: one row per axis of the star
 design (the base cells, then each value changed), means and ranges over its cells, and the whole
-matrix against issue 20's goals; given two runs, each figure as BEFORE -> AFTER.
+matrix against issue 20's goals; given two runs, each figure as BEFORE -> AFTER. Then, per row,
+what makes the drift (the cells' drift parts, means: the drift each kind of frame's yaw errors
+make alone, and the translation's; heading_metrics.drift_parts), of the last run.
 
     python bench/matrix_summary.py [BEFORE/robustness.json] AFTER/robustness.json
 
@@ -57,6 +59,24 @@ def totals(results: list[dict]) -> dict:
             "|final heading| deg": f"{statistics.mean(abs(r['final_heading_error_deg']) for r in results):.1f}"}
 
 
+def parts_table(results: list[dict]) -> list[str]:
+    """Per row of the star, the means of the cells' drift parts (% of the path); none when the
+    results have none (runs before 2026-11-29)."""
+    from radarodom.estimator.heading_metrics import DRIFT_PARTS
+    rows: dict[str, list[dict]] = {}
+    for r in sorted(results, key=lambda r: r["name"]):
+        if r.get("drift_parts"):
+            rows.setdefault(row_of(r["cell"]), []).append(r["drift_parts"])
+    if not rows:
+        return []
+    lines = ["| cells | " + " | ".join(DRIFT_PARTS) + " |", "| --- |" + " ---: |" * len(DRIFT_PARTS)]
+    for label, parts in sorted(rows.items(), key=lambda item: not item[0].startswith("base")):
+        values = [[p[k] for p in parts if p.get(k) is not None] for k in DRIFT_PARTS]
+        lines.append(f"| {label} ({len(parts)}) | " + " | ".join(f"{statistics.mean(v):.2f}" if v else "-"
+                                                                 for v in values) + " |")
+    return lines
+
+
 def summary(runs: list[list[dict]]) -> str:
     names = set.intersection(*({r["name"] for r in run} for run in runs))
     runs = [[r for r in run if r["name"] in names] for run in runs]
@@ -74,6 +94,10 @@ def summary(runs: list[list[dict]]) -> str:
     all_totals = [totals(run) for run in runs]
     lines.append("")
     lines.append("; ".join(f"{key} {joined([str(t[key]) for t in all_totals])}" for key in all_totals[0]))
+    parts = parts_table(runs[-1])
+    if parts:
+        lines += ["", "What makes the drift (% of the path, means; each kind of frame's yaw errors alone, "
+                      "and the translation's):", ""] + parts
     return "\n".join(lines)
 
 

@@ -21,7 +21,9 @@ seed, short loops).
 Each cell runs in a worker: the sequence is recorded with ``radar-sim`` (once), put through the
 DSP (once, cached beside it by bench/sequences.py; then the recording's ADC samples are dropped
 unless ``--keep-adc``, and recorded again if a changed DSP needs them), the default estimator runs on it and the
-heading metrics (:mod:`radarodom.estimator.heading_metrics`) compare it with the ground truth.
+heading metrics (:mod:`radarodom.estimator.heading_metrics`) compare it with the ground truth,
+and its drift parts say what made the drift (``drift_parts``: each kind of frame's yaw errors
+alone, and the translation's).
 A cell's result is cached in ``DATA/results/`` under a key of its parameters and a fingerprint
 of the simulator's, the DSP's and the estimator's sources: a rerun computes only what changed.
 Workers: a local process pool (``--workers``, default the CPU count), or with ``--cluster
@@ -193,16 +195,18 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
         with open(path, encoding="utf-8") as fh:
             return {**json.load(fh), "cached": True}
     from radarodom.estimator.evaluation import associate
-    from radarodom.estimator.heading_metrics import heading_metrics
+    from radarodom.estimator.heading_metrics import drift_parts, heading_metrics
     started = time.monotonic()
     est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings)
     if isinstance(cell, SimCell) and not keep_adc:
         drop_adc(_sequence_dir(cell, data))
     est_m, ref_m = associate(est, truth, 0.01)
-    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(),
-                              base_offset_m=cell.mount_m if isinstance(cell, SimCell) else 0.0)
+    offset = cell.mount_m if isinstance(cell, SimCell) else 0.0
+    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(), base_offset_m=offset)
+    parts = drift_parts(ref_m.times, ref_m.se2(), est_m.se2(), base_offset_m=offset)
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
+              "drift_parts": {k: (v if math.isfinite(v) else None) for k, v in parts.items()},
               "compute_s": time.monotonic() - started, "fingerprint": fp}
     os.makedirs(os.path.dirname(path), exist_ok=True)
     with open(path + ".tmp", "w", encoding="utf-8") as fh:

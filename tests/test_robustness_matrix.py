@@ -104,6 +104,7 @@ def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
     assert not first["cached"] and first["frames"] > 10
     assert first["path_m"] > 1.0 and first["moving_turns"] >= 1  # the synthetic run drives a left arc
     assert first["yaw_rmse_deg"] < 2.0 and first["moving_turn_ratio"] == pytest.approx(1.0, abs=0.2)
+    assert first["drift_parts"]["all"] == pytest.approx(first["drift_pct"])  # and what made it, by kind of frame
     again = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
     assert again["cached"] and again["yaw_rmse_deg"] == first["yaw_rmse_deg"]
     assert "coloradar_" in rm.table([again])
@@ -148,6 +149,23 @@ def test_the_summary_gives_a_row_per_axis_and_the_goals_before_and_after():
     assert lines[2].startswith("| base (") and "| 3.0 / 3.0 -> 1.0 / 1.0 |" in lines[2]
     assert lines[3].startswith("| 1.5 m/s (1) |") and "9.0 / 9.0 -> 4.0 / 4.0" in lines[3]
     assert "cells 2 -> 2" in text and "drift <= 2 % 0 -> 1" in text and "straight bias <= 0.005 2 -> 2" in text
+    assert "What makes the drift" not in text  # results without drift parts (before 2026-11-29)
+
+
+def test_the_summary_says_what_makes_the_drift_per_row():
+    import matrix_summary
+    from radarodom.estimator.heading_metrics import DRIFT_PARTS
+    def result(name, turn_in_place, **cell):
+        parts = dict.fromkeys(DRIFT_PARTS, 0.5) | {"turn in place": turn_in_place, "other": None}
+        return {"name": name, "cell": {**dataclasses.asdict(rm.SimCell(scene="room")), **cell}, "yaw_rmse_deg": 0.3,
+                "straight_bias_deg_per_frame": 0.0, "moving_turn_ratio": 1.0, "inplace_turn_ratio": 1.0,
+                "drift_pct": 1.0, "final_heading_error_deg": 0.0, "drift_parts": parts}
+    text = matrix_summary.summary([[result("a", 1.0), result("b", 3.0, seed=1), result("c", 2.0, speed_mps=1.5)]])
+    lines = text.split("What makes the drift")[1].splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("| cells |"))
+    assert lines[head] == "| cells | " + " | ".join(DRIFT_PARTS) + " |"
+    assert lines[head + 2] == "| base (shipped cfg, scene SNR, 0.8 m/s, 45 deg/s) (2) | 0.50 | 0.50 | 0.50 | 0.50 | 2.00 | - | 0.50 |"
+    assert lines[head + 3] == "| 1.5 m/s (1) | 0.50 | 0.50 | 0.50 | 0.50 | 2.00 | - | 0.50 |"
 
 
 @pytest.mark.parametrize("scene", sorted(rm.LAYOUT))
