@@ -106,7 +106,6 @@ def noise_factor(method: str, side: float, channels: int, rank: float | None) ->
     """E[noise estimate] / E[cell power] for independent Gamma(channels) cells, *side* cells a
     side (independent-cell worth), OS rank *rank* of 2 * side."""
     from scipy.special import gammainc, gammaincc, gammaln
-    from scipy.stats import gamma
 
     if method == "ca":
         return 1.0
@@ -115,7 +114,10 @@ def noise_factor(method: str, side: float, channels: int, rank: float | None) ->
     L = float(channels)
     if method in ("cago", "caso"):
         a = side * L  # a side's mean: Gamma(a) scaled to unit mean
-        cdf = gamma(a, scale=1.0 / a).cdf
+        scale = 1.0 / a
+
+        def cdf(x):  # scipy.stats.gamma(a, scale=scale).cdf, without importing scipy.stats
+            return gammainc(a, x / scale)
 
         def integrand(x):  # E[max] = int 1 - F^2, E[min] = int (1 - F)^2
             f = cdf(x)

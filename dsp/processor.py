@@ -28,7 +28,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
-import scipy.signal
 
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
@@ -43,10 +42,19 @@ from .points import POINT_DTYPE, PointMaker, three_bin_response
 log = logging.getLogger(__name__)
 
 
+#: The windows numpy makes, the same to the last bit in float32 as scipy's symmetric ones of
+#: those names: importing scipy.signal for them is most of the start-up of every program that
+#: runs the DSP (docs/benchmarks.md, "Start-up").
+_NUMPY_WINDOWS = {"hann": np.hanning, "hamming": np.hamming, "blackman": np.blackman, "bartlett": np.bartlett}
+
+
 def make_window(name: str, n: int) -> np.ndarray:
     """A float32 window of length *n* by scipy's name ("rect" for none)."""
     if name in ("rect", "boxcar", "none"):
         return np.ones(n, np.float32)
+    if name in _NUMPY_WINDOWS:
+        return _NUMPY_WINDOWS[name](n).astype(np.float32)
+    import scipy.signal  # any other of scipy's windows, by name
     try:
         return scipy.signal.get_window(name, n, fftbins=False).astype(np.float32)
     except (ValueError, TypeError) as exc:

@@ -36,9 +36,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
+from conftest import REPO
 from sim_helpers import point_scene, truth
 
 from radarodom.driver.sim.physics import AntennaPattern
@@ -583,6 +586,31 @@ def test_three_bin_response_inverts_a_tone(window, pad):
                                      loops * pad))
         measured = (spectrum[11] - spectrum[9]) / spectrum[10]
         assert np.interp(measured, ratio, offset) == pytest.approx(true, abs=1e-3)
+
+
+@pytest.mark.parametrize("n", [7, 16, 64, 128, 256, 1024])
+def test_windows_are_scipys_to_the_last_bit(n):
+    """The windows the DSP makes with numpy are scipy's symmetric ones of the same names, bit for
+    bit in float32; any other of scipy's names still works; an unknown one is a ConfigError."""
+    import scipy.signal
+    for name in ("hann", "hamming", "blackman", "bartlett", "nuttall", "flattop"):
+        expected = scipy.signal.get_window(name, n, fftbins=False).astype(np.float32)
+        np.testing.assert_array_equal(make_window(name, n), expected, err_msg=name)
+    assert make_window("rect", n).tolist() == [1.0] * n
+    with pytest.raises(ConfigError, match="unknown window 'hanny'"):
+        make_window("hanny", n)
+
+
+def test_the_dsp_starts_without_scipy_signal():
+    """scipy.signal (with scipy.stats behind it) was most of every radar program's start-up: the
+    DSP with its default windows and CFAR does not import it (docs/benchmarks.md, "Start-up")."""
+    code = ("import sys\nfrom radarodom.cfg import RadarConfig\nfrom radarodom.dsp.config import DspConfig\n"
+            "from radarodom.dsp.processor import FrameProcessor\n"
+            f"FrameProcessor(RadarConfig.from_file({str(REPO / 'configs' / 'awr1843_raw.cfg')!r}), DspConfig())\n"
+            "print(sorted(m for m in ('scipy.signal', 'scipy.stats') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
 
 
 def test_three_bin_response_refuses_too_few_bins():
