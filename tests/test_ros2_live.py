@@ -199,8 +199,14 @@ def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store, patien
         proc = run_capture_cli("--source", "sim://corridor?duration=1", "--ros2", "--mount", "0.4,0.1,0.3,-20",
                                "--connect", here, "--listen", free_endpoint(), "--zenoh-config", patient, timeout=300)
         assert proc.returncode == 0, proc.stderr
-        # The process has ended; its last samples may still be on their way through the callbacks.
-        wait_for(lambda: len(inbox.samples) >= 10 * 6 + 1 + 11, 10.0)
+        # The process has ended; its last samples may still be on their way through the callbacks:
+        # wait (up to 10 s) until every topic has the count checked below. (A total of 10 * 6 + 1 + 11
+        # was waited for before: 10 frames publish on 5 topics and the diagnostics, so it was never
+        # reached and the wait always ran its 10 s.)
+        wanted = {"ros2": 10, "ros2_points": 10, "ros2_tf": 10, "ros2_tf_static": 1, "ros2_heatmap": 10,
+                  "ros2_heatmap_axes": 10, "ros2_diagnostics": 11}
+        wait_for(lambda: all(sum(1 for s in list(inbox.samples) if s[0] == keys[kind]) >= n
+                             for kind, n in wanted.items()), 10.0)
     samples = {kind: [s for s in inbox.samples if s[0] == key] for kind, key in keys.items()}
     counts = {kind: len(got) for kind, got in samples.items()}
     assert counts.pop("ros2_diagnostics") >= 11, counts  # each state's, and the status every second and at the end

@@ -128,8 +128,9 @@ def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp
         assert emu.stop() == 0
     assert "radar-emulate: sent" in emu.output()[0]
     with Emulator("--uart", "--source", "sim://corridor") as emu:  # radar-capture is told to give a cfg
-        assert "needs a cfg whose frames the UART carries" in emu.output()[0]
         assert "--cfg" not in emu.command
+    # Read once it has stopped: output() waits for the end of its pipes (5 s each while it runs).
+    assert "needs a cfg whose frames the UART carries" in emu.output()[0]
     shipped = Process([*console_command("radar-emulate"), "--uart", "--source", "sim://corridor", "--cfg",
                        str(REPO / "configs" / "awr1843_raw.cfg")])
     assert shipped.wait(60) == 2
