@@ -95,6 +95,19 @@ def make_capture(directory, cfg: RadarConfig, n: int = 10, *, t0: float = 1000.0
     return frames
 
 
+def run_together(*calls: dict) -> list:
+    """``subprocess.run(**call)`` for every call at the same time, each on a thread of its own:
+    independent programs (none reads what another writes) then take about the time of the
+    longest on two cores instead of the sum.  The CompletedProcesses in the calls' order; an
+    exception of one (its timeout, say) is raised once every run has ended."""
+    import subprocess
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(len(calls)) as pool:
+        futures = [pool.submit(subprocess.run, **call) for call in calls]
+    return [future.result() for future in futures]
+
+
 def console_command(name: str) -> list[str]:
     """The installed console script *name*, or ``python -m`` of its module."""
     path = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
@@ -132,6 +145,33 @@ def private_zenoh(argv) -> list[str]:
     if any(a in argv for a in ("--no-publish", "--listen", "--connect", "--zenoh-config")):
         return argv
     return [*argv, "--listen", free_endpoint()]
+
+
+#: 3 s of the simulated corridor (1 s standing still, then driving straight ahead and speeding up
+#: to 1.2 m/s): 30 frames at the shipped cfg's 10 Hz.
+CORRIDOR_URL = "sim://corridor?rate=max&duration=3"
+
+
+@pytest.fixture(scope="session")
+def corridor_run(tmp_path_factory):
+    """radar-capture streaming :data:`CORRIDOR_URL` (publishing on a free loopback port of its
+    own), recording it (``--record``) and writing its odometry (``--odom-out``), once for the
+    session: the same run was made by test_cli_odometry, test_eval_plots, test_cli_publish and
+    test_coloradar_source each.  Namespace of base (the run's folder), rec, tum, proc (the
+    CompletedProcess) and seconds.  The recording and the trajectory are read, never changed:
+    a test that edits the recording works on a copy (``shutil.copytree``)."""
+    import subprocess
+    import time
+    from types import SimpleNamespace
+
+    base = tmp_path_factory.mktemp("corridor_run")
+    rec, tum = base / "rec", base / "live.tum"
+    start = time.monotonic()
+    proc = subprocess.run(console_command("radar-capture") + private_zenoh(["--source", CORRIDOR_URL, "--record", rec,
+                                                                            "--odom-out", tum]),
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return SimpleNamespace(base=base, rec=rec, tum=tum, proc=proc, seconds=time.monotonic() - start)
 
 
 @pytest.fixture

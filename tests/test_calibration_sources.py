@@ -10,7 +10,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import console_command
+from conftest import console_command, run_together
 from coloradar_synth import write_run_from_capture
 from test_calibration import _check_reflectors, calibrated
 
@@ -32,9 +32,13 @@ from radarodom.tum import TumTrajectory
 ROOM_SECONDS = 12
 
 
+def _call(tool: str, *args) -> dict:
+    return dict(args=console_command(tool) + [str(a) for a in args], stdin=subprocess.DEVNULL, capture_output=True,
+                text=True, timeout=600)
+
+
 def _run(tool: str, *args) -> None:
-    proc = subprocess.run(console_command(tool) + [str(a) for a in args], stdin=subprocess.DEVNULL,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(**_call(tool, *args))
     assert proc.returncode == 0, proc.stderr
 
 
@@ -80,9 +84,11 @@ def test_a_recording_of_an_uncalibrated_board_with_its_line_drives_like_a_perfec
     the identity line far worse.  (The drift over whole sequences, 18 of them, is in
     docs/dsp.md's DSP experiment.)"""
     cfg, _, line_cfg = measured
-    for board in ("ideal", "uncalibrated"):
-        _run("radar-capture", "--no-publish", "-q", "--no-odom", "--record", tmp_path / board, "--source",
-             f"sim://room?rate=max&fidelity=fast&duration={ROOM_SECONDS}&board={board}")
+    # The two recordings are independent: made at the same time.
+    for proc in run_together(*(_call("radar-capture", "--no-publish", "-q", "--no-odom", "--record", tmp_path / board,
+                                     "--source", f"sim://room?rate=max&fidelity=fast&duration={ROOM_SECONDS}&board={board}")
+                               for board in ("ideal", "uncalibrated"))):
+        assert proc.returncode == 0, proc.stderr
     perfect = _odometry(f"replay://{tmp_path / 'ideal'}?rate=max", cfg)
     with_line = _odometry(f"replay://{tmp_path / 'uncalibrated'}?rate=max", line_cfg)
     identity = _odometry(f"replay://{tmp_path / 'uncalibrated'}?rate=max", cfg)

@@ -789,14 +789,6 @@ def test_radar_capture_sigterm_closes_recording(tmp_path, small_cfg, warnings_lo
     assert warning_messages(warnings_log) == []
 
 
-def test_radar_capture_refuses_existing_recording(tmp_path, small_cfg):
-    src = tmp_path / "src"
-    make_capture(src, small_cfg, 3)
-    out = tmp_path / "out"
-    make_capture(out, small_cfg, 2, seed=5)
-    before = _files(out)
-    proc = subprocess.run([*_radar_capture(), "--source", f"replay://{src}?rate=max", "--record", str(out)],
-                          capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 2, proc.stderr
-    assert "already holds a capture" in proc.stderr
-    assert _files(out) == before
+# radar-capture --record into a directory that holds another capture: refused (exit 2, "already
+# holds a capture"), the capture's files untouched: test_cli_capture.py's
+# test_record_into_an_existing_capture_is_refused (its bytes and times, and the one error line).

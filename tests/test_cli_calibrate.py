@@ -13,7 +13,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import console_command
+from conftest import console_command, run_together
 
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.sim.board import Board, load_board
@@ -131,13 +131,14 @@ def test_measure_then_use_the_line_on_a_recording(tmp_path):
     proc = run("--source", f"replay://{rec}?rate=max", "--distance", 3, "--write-cfg", board_cfg)
     assert proc.returncode == 0, proc.stderr
     rows = {}
-    for name, cfg in (("with", board_cfg), ("without", rec / "radar.cfg")):
-        out = tmp_path / f"{name}.csv"
-        capture = subprocess.run(console_command("radar-capture") + [
-            "--source", f"replay://{rec}?rate=max", "--cfg", str(cfg), "--no-odom", "--no-publish", "-q",
-            "--points-out", str(out)], capture_output=True, text=True, timeout=120)
+    cfgs = {"with": board_cfg, "without": rec / "radar.cfg"}
+    captures = run_together(*(dict(args=console_command("radar-capture") + [  # both replays at the same time
+        "--source", f"replay://{rec}?rate=max", "--cfg", str(cfg), "--no-odom", "--no-publish", "-q",
+        "--points-out", str(tmp_path / f"{name}.csv")], capture_output=True, text=True, timeout=120)
+        for name, cfg in cfgs.items()))
+    for name, capture in zip(cfgs, captures):
         assert capture.returncode == 0, capture.stderr
-        rows[name] = _points_csv(out)
+        rows[name] = _points_csv(tmp_path / f"{name}.csv")
     for name, expect_ok in (("with", True), ("without", False)):
         pts = rows[name]
         boresight = pts[np.abs(pts[:, 5] - 3.0) < 0.1]

@@ -3,8 +3,9 @@
 
 The programs run as subprocesses on real files.  One short simulation of the
 ``corridor`` scene (1 s standing still, then 2 s driving straight ahead and
-speeding up to 1.2 m/s) is streamed once per module through ``sim://`` with
-``--record`` and ``--odom-out``; the other runs replay that recording.
+speeding up to 1.2 m/s) is streamed once per session through ``sim://`` with
+``--record`` and ``--odom-out`` (conftest's ``corridor_run``, shared with other
+modules); the other runs replay that recording.
 """
 
 from __future__ import annotations
@@ -16,11 +17,10 @@ import re
 import signal
 import subprocess
 import time
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import console_command, private_zenoh
+from conftest import CORRIDOR_URL, console_command, private_zenoh, run_together
 from test_cli_capture import one_error_line, popen_capture, run_capture_cli, summary_re
 
 from radarodom.estimator.config import EstimatorConfig
@@ -29,6 +29,7 @@ DURATION_S = 3
 FRAMES = 30  # 10 Hz (configs/awr1843_raw.cfg)
 STANDING_S = 1.0  # the corridor's trajectory starts with a 1 s pause
 SIM_URL = f"sim://corridor?rate=max&duration={DURATION_S}"
+assert SIM_URL == CORRIDOR_URL  # the run is conftest's corridor_run
 
 #: The odometry part radar-capture adds to its summary when the estimator runs.
 ODOM_PART = (r"; odometry: x (?P<x>-?\d+\.\d\d) m, y (?P<y>-?\d+\.\d\d) m, yaw (?P<yaw>-?\d+\.\d) deg, "
@@ -63,14 +64,10 @@ def snapshot(path) -> tuple[bytes, int]:
 
 
 @pytest.fixture(scope="module")
-def sim_run(tmp_path_factory):
-    """radar-capture streaming the simulator, recording it and writing the odometry."""
-    base = tmp_path_factory.mktemp("odom_cli")
-    rec, tum = base / "rec", base / "live.tum"
-    start = time.monotonic()
-    proc = run_capture_cli("--source", SIM_URL, "--record", rec, "--odom-out", tum, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    return SimpleNamespace(base=base, rec=rec, tum=tum, proc=proc, seconds=time.monotonic() - start)
+def sim_run(corridor_run):
+    """radar-capture streaming the simulator (SIM_URL), recording it and writing the odometry:
+    conftest's session-wide run of it (read only)."""
+    return corridor_run
 
 
 def replay_url(sim_run) -> str:
@@ -133,8 +130,8 @@ def test_the_estimate_follows_the_corridor(sim_run):
     assert np.all(np.abs(np.degrees(yaw_of(p[:, 4:]))) < 2.0)
 
 
-def test_radar_eval_on_the_run(sim_run):
-    out = sim_run.base / "eval.json"
+def test_radar_eval_on_the_run(sim_run, tmp_path):
+    out = tmp_path / "eval.json"
     proc = run_eval(sim_run.tum, sim_run.rec / "groundtruth.tum", "--json", out)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
@@ -318,8 +315,11 @@ def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
 
 # ------------------------------------------------------------------ a radar on a wheeled base
 def test_wheeled_needs_a_radar_off_the_rotation_axis():
-    for extra in ([], ["--mount", "0,0.2,0.4,0"]):
-        proc = run_capture_cli("--source", "sim://corridor?rate=max&duration=0.3", "--no-publish", "--wheeled", *extra)
+    extras = ([], ["--mount", "0,0.2,0.4,0"])
+    procs = run_together(*(dict(args=console_command("radar-capture") + [
+        "--source", "sim://corridor?rate=max&duration=0.3", "--no-publish", "--wheeled", *extra],
+        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60) for extra in extras))
+    for proc in procs:  # the two refusals, made at the same time
         assert proc.returncode == 2
         assert "--wheeled needs --mount" in one_error_line(proc)
 

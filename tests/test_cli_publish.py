@@ -1,8 +1,8 @@
 """radar-capture publishing over Zenoh, end to end: real radar-capture processes and real
 Zenoh sessions on loopback (peers, multicast scouting off, explicit endpoints on free ports).
 
-A 3 s recording of the simulated corridor (30 frames) is made once per module; the runs
-replay it.
+A 3 s recording of the simulated corridor (30 frames) is made once per session (conftest's
+corridor_run, shared with other modules); the runs replay it.
 """
 
 from __future__ import annotations
@@ -23,12 +23,10 @@ FRAMES = 30
 
 
 @pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    rec = tmp_path_factory.mktemp("publish_cli") / "rec"
-    proc = run_capture_cli("--source", "sim://corridor?rate=max&duration=3", "--record", rec, "--no-publish",
-                           "--no-odom", timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    return rec
+def recording(corridor_run):
+    """The recording of sim://corridor?rate=max&duration=3 (read only)."""
+    assert corridor_run.proc.returncode == 0, corridor_run.proc.stderr
+    return corridor_run.rec
 
 
 def _odometry(inbox: Inbox) -> list[dict]:

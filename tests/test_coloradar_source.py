@@ -17,11 +17,12 @@ from __future__ import annotations
 import json
 import math
 import pathlib
+import shutil
 import subprocess
 
 import numpy as np
 import pytest
-from conftest import console_command
+from conftest import CORRIDOR_URL, console_command, run_together
 from coloradar_synth import TX_POSITIONS, write_moving_run, write_run, write_run_from_capture
 from test_cli_capture import one_error_line
 
@@ -36,14 +37,23 @@ from radarodom.tum import read_tum
 SIM_SECONDS = 3
 
 
+def _capture_call(*args) -> dict:
+    """_capture's subprocess.run arguments (for conftest.run_together)."""
+    return dict(args=console_command("radar-capture") + ["--no-publish", "-q", *map(str, args)],
+                stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+
+
 def _capture(*args) -> subprocess.CompletedProcess:
-    return subprocess.run(console_command("radar-capture") + ["--no-publish", "-q", *map(str, args)],
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+    return subprocess.run(**_capture_call(*args))
+
+
+def _eval_call(*args) -> dict:
+    return dict(args=console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
+                capture_output=True, text=True, timeout=120)
 
 
 def _eval(*args) -> subprocess.CompletedProcess:
-    return subprocess.run(console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(**_eval_call(*args))
 
 
 def _xwr_order_cfg(path: pathlib.Path) -> pathlib.Path:
@@ -60,11 +70,20 @@ def _xwr_order_cfg(path: pathlib.Path) -> pathlib.Path:
 def sim_pair(request, tmp_path_factory):
     """(recording, its odometry TUM, the same frames as a ColoRadar run)."""
     root = tmp_path_factory.mktemp(f"coloradar_{request.param}")
-    cfg_args = [] if request.param == "ti_order" else ["--cfg", _xwr_order_cfg(root / "xwr.cfg")]
     rec, odom = root / "rec", root / "replay.tum"
-    proc = _capture("--source", f"sim://corridor?rate=max&duration={SIM_SECONDS}", *cfg_args, "--record", rec,
-                    "--no-odom")
-    assert proc.returncode == 0, proc.stderr
+    url = f"sim://corridor?rate=max&duration={SIM_SECONDS}"
+    if request.param == "ti_order":
+        # The shipped cfg's recording of this URL is conftest's session-wide corridor_run: a copy
+        # of it (edited below).
+        corridor_run = request.getfixturevalue("corridor_run")
+        assert url == CORRIDOR_URL and corridor_run.proc.returncode == 0
+        shutil.copytree(corridor_run.rec, rec)
+    else:
+        # What is compared is this recording with itself (replay:// and coloradar://), so the
+        # simulator's fast fidelity (half the exact one's cost) makes as good a recording.
+        proc = _capture("--source", url + "&fidelity=fast", "--cfg", _xwr_order_cfg(root / "xwr.cfg"), "--record", rec,
+                        "--no-odom")
+        assert proc.returncode == 0, proc.stderr
     # As a real board's recording: a ColoRadar run cannot know that the identity line fits its board
     # (one azimuth a cell, docs/calibration.md), so neither may the replay it is compared with.
     meta_path = rec / "capture.json"
@@ -84,8 +103,8 @@ def test_adc_frames_give_exactly_the_recordings_odometry(sim_pair, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert odom.read_text() == replay_odom.read_text()  # bit for bit
     assert len(odom.read_text().splitlines()) == 10 * SIM_SECONDS
-    # The run's ground truth, through the source URL, is the recording's.
-    a, b = _eval(odom, url), _eval(odom, f"replay://{rec}")
+    # The run's ground truth, through the source URL, is the recording's (both evaluated at once).
+    a, b = run_together(*(_eval_call(odom, reference) for reference in (url, f"replay://{rec}")))
     assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
     assert a.stdout.splitlines()[1:] == b.stdout.splitlines()[1:]  # all but the header naming the files
 
@@ -203,10 +222,12 @@ def test_a_missing_stream_is_named(tmp_path):
 
 def test_record_and_cfg_are_refused_where_there_are_no_raw_frames(tmp_path):
     run = write_run(tmp_path, "ec_hallways_run0", frames=3)
-    proc = _capture("--source", f"coloradar://{run}?rate=max", "--record", tmp_path / "rec")
+    proc, with_cfg = run_together(  # the two refusals, made at the same time
+        _capture_call("--source", f"coloradar://{run}?rate=max", "--record", tmp_path / "rec"),
+        _capture_call("--source", f"coloradar://{run}?rate=max", "--cfg", shipped_config_path()))
     assert proc.returncode == 2 and "--record needs a raw source" in one_error_line(proc)
     assert not (tmp_path / "rec").exists()
-    proc = _capture("--source", f"coloradar://{run}?rate=max", "--cfg", shipped_config_path())
+    proc = with_cfg
     assert proc.returncode == 2 and "applies to ADC frames" in one_error_line(proc)
 
 

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import hashlib
 import math
+import multiprocessing
 import tomllib
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
 
@@ -82,13 +84,7 @@ def _simulate(scene: Scene) -> Sequence:
     return Sequence(cfg, scene, np.array(times), points, heatmaps, np.array(truth))
 
 
-@pytest.fixture(scope="module")
-def straight() -> Sequence:
-    return _simulate(load_scene("corridor"))
-
-
-@pytest.fixture(scope="module")
-def turn() -> Sequence:
+def _simulate_turn() -> Sequence:
     ref = resources.files("radarodom.driver.sim").joinpath("scenes", "corridor.toml")
     spec = tomllib.loads(ref.read_text(encoding="utf-8"))
     spec["trajectory"]["start"] = [13.0, 0.0, 0.0]
@@ -96,6 +92,27 @@ def turn() -> Sequence:
                                       {"turn": 90, "radius": 0.8, "speed": 0.8},
                                       {"straight": 3.0, "speed": 1.0}]
     return _simulate(scene_from_dict(spec, where="corridor-turn"))
+
+
+@pytest.fixture(scope="module")
+def sequences() -> dict[str, Sequence]:
+    """Both sequences, made at the same time: ``turn`` in a process of its own (spawned, not
+    forked from this one's threads) while this one makes ``straight``.  Exact fidelity gives the
+    same frames in any process (test_sim_determinism)."""
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        turn = pool.submit(_simulate_turn)
+        straight = _simulate(load_scene("corridor"))
+        return {"straight": straight, "turn": turn.result(timeout=600)}
+
+
+@pytest.fixture(scope="module")
+def straight(sequences) -> Sequence:
+    return sequences["straight"]
+
+
+@pytest.fixture(scope="module")
+def turn(sequences) -> Sequence:
+    return sequences["turn"]
 
 
 def run(seq: Sequence, config: EstimatorConfig, *, heatmap_every: int = 1

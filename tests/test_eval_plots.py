@@ -5,6 +5,7 @@ quality flags read from odometry messages; radar-eval --plot on a short simulate
 from __future__ import annotations
 
 import re
+import shutil
 import struct
 import subprocess
 from types import SimpleNamespace
@@ -246,14 +247,15 @@ def png_size(path) -> tuple[int, int]:
 
 
 @pytest.fixture(scope="module")
-def sim_run(tmp_path_factory):
+def sim_run(tmp_path_factory, corridor_run):
     """3 s of the simulated corridor, recorded (its ground truth) with the odometry as TUM, and
-    a flags file written by hand at the odometry's times."""
+    a flags file written by hand at the odometry's times.  The run is conftest's session-wide
+    corridor_run (radar-capture --source sim://corridor?rate=max&duration=3 --record --odom-out);
+    its trajectory is copied here under this module's name for it."""
+    assert corridor_run.proc.returncode == 0
     base = tmp_path_factory.mktemp("eval_plots")
-    rec, tum = base / "rec", base / "corridor.tum"
-    proc = run_cli("radar-capture", "--source", "sim://corridor?rate=max&duration=3", "--no-publish",
-                   "--record", rec, "--odom-out", tum)
-    assert proc.returncode == 0, proc.stderr
+    rec, tum = corridor_run.rec, base / "corridor.tum"
+    shutil.copyfile(corridor_run.tum, tum)
     times = read_tum(tum).times
     flags = base / "corridor.odom.jsonl"
     flags.write_text("".join(odom_line(t, k, [Flag.FIRST_FRAME] if k == 0 else

@@ -8,11 +8,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import subprocess
 import sys
 
 import numpy as np
-from conftest import console_command
+import pytest
+from conftest import console_command, run_together
 
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.recordings.capture_dir import ADC_DATA
@@ -41,40 +41,44 @@ def _blas_env(threads: int) -> dict:
     return env
 
 
-def _hashes_in_subprocess(threads: int, frames) -> list[str]:
-    proc = subprocess.run([sys.executable, "-c", _HASH_FRAMES, json.dumps(list(frames))], env=_blas_env(threads),
-                          capture_output=True, text=True, timeout=300, check=True)
-    return json.loads(proc.stdout)
+@pytest.fixture(scope="module")
+def subprocess_hashes() -> dict[int, list[str]]:
+    """{BLAS threads: the FRAMES' hashes made in a process of their own with that many}, the three
+    processes run at the same time (a process's BLAS threads are its own whatever runs beside
+    it); the tests below read them."""
+    calls = [dict(args=[sys.executable, "-c", _HASH_FRAMES, json.dumps(list(FRAMES))], env=_blas_env(threads),
+                  capture_output=True, text=True, timeout=300, check=True) for threads in (1, 2, 4)]
+    return {threads: json.loads(proc.stdout) for threads, proc in zip((1, 2, 4), run_together(*calls))}
 
 
-def test_frames_are_the_same_bytes_with_one_two_and_four_blas_threads():
-    one = _hashes_in_subprocess(1, FRAMES)
-    assert _hashes_in_subprocess(2, FRAMES) == one
-    assert _hashes_in_subprocess(4, FRAMES) == one
+def test_frames_are_the_same_bytes_with_one_two_and_four_blas_threads(subprocess_hashes):
+    one = subprocess_hashes[1]
+    assert subprocess_hashes[2] == one
+    assert subprocess_hashes[4] == one
 
 
-def test_frames_do_not_depend_on_the_order_they_are_made_in():
+def test_frames_do_not_depend_on_the_order_they_are_made_in(subprocess_hashes):
     cfg = RadarConfig.from_file(shipped_config_path())
     in_order = Simulator(cfg, load_scene("corridor", seed=2), seed=2)
     expected = [in_order.frame(i).raw for i in FRAMES]
     backwards = Simulator(cfg, load_scene("corridor", seed=2), seed=2)
     got = {i: backwards.frame(i).raw for i in reversed(FRAMES)}
     assert [got[i] for i in FRAMES] == expected
-    assert _hashes_in_subprocess(2, FRAMES) == [hashlib.sha256(raw).hexdigest() for raw in expected]
+    assert subprocess_hashes[2] == [hashlib.sha256(raw).hexdigest() for raw in expected]
 
 
 def test_radar_sim_and_sim_rate_max_record_the_same_bytes(tmp_path):
     """radar-sim (BLAS threads as the environment says, here two) and radar-capture (which runs
-    OpenBLAS on one thread) with sim://...&rate=max."""
+    OpenBLAS on one thread) with sim://...&rate=max, run at the same time."""
     sim_out, cap_out = tmp_path / "radar_sim", tmp_path / "capture"
-    proc = subprocess.run(console_command("radar-sim") + ["corridor", "--seed", "2", "--duration", "1.5",
-                                                          "--out", str(sim_out), "-q"],
-                          env=_blas_env(2), capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    proc = subprocess.run(console_command("radar-capture") + [
-        "--source", "sim://corridor?seed=2&rate=max&duration=1.5", "--record", str(cap_out),
-        "--no-publish", "--no-odom", "-q"], env=_blas_env(1), capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
+    procs = run_together(
+        dict(args=console_command("radar-sim") + ["corridor", "--seed", "2", "--duration", "1.5", "--out", str(sim_out),
+                                                  "-q"], env=_blas_env(2), capture_output=True, text=True, timeout=300),
+        dict(args=console_command("radar-capture") + ["--source", "sim://corridor?seed=2&rate=max&duration=1.5",
+                                                      "--record", str(cap_out), "--no-publish", "--no-odom", "-q"],
+             env=_blas_env(1), capture_output=True, text=True, timeout=300))
+    for proc in procs:
+        assert proc.returncode == 0, proc.stderr
     a, b = (sim_out / ADC_DATA).read_bytes(), (cap_out / ADC_DATA).read_bytes()
     assert len(a) == len(b) > 0
     frame = len(a) // 15
@@ -101,13 +105,14 @@ def test_radar_sim_fast_fidelity_records_what_sim_fast_streams(tmp_path):
     """radar-sim --fidelity fast (one BLAS thread, as radar-capture runs it) writes the bytes
     sim://...&fidelity=fast makes, and says the fidelity in the recording's source."""
     sim_out, cap_out = tmp_path / "radar_sim", tmp_path / "capture"
-    proc = subprocess.run(console_command("radar-sim") + ["corridor", "--seed", "2", "--duration", "0.5",
-                                                          "--fidelity", "fast", "--out", str(sim_out), "-q"],
-                          env=_blas_env(1), capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    proc = subprocess.run(console_command("radar-capture") + [
-        "--source", "sim://corridor?seed=2&rate=max&duration=0.5&fidelity=fast", "--record", str(cap_out),
-        "--no-publish", "--no-odom", "-q"], env=_blas_env(1), capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
+    procs = run_together(
+        dict(args=console_command("radar-sim") + ["corridor", "--seed", "2", "--duration", "0.5", "--fidelity", "fast",
+                                                  "--out", str(sim_out), "-q"],
+             env=_blas_env(1), capture_output=True, text=True, timeout=300),
+        dict(args=console_command("radar-capture") + ["--source", "sim://corridor?seed=2&rate=max&duration=0.5&fidelity=fast",
+                                                      "--record", str(cap_out), "--no-publish", "--no-odom", "-q"],
+             env=_blas_env(1), capture_output=True, text=True, timeout=300))
+    for proc in procs:
+        assert proc.returncode == 0, proc.stderr
     assert (sim_out / ADC_DATA).read_bytes() == (cap_out / ADC_DATA).read_bytes()
     assert "fidelity=fast" in (sim_out / "capture.json").read_text()
