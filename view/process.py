@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from ..cfg import RadarConfig
     from ..estimator.config import EstimatorConfig
     from ..mount import Mount
-    from .sink import FramePayload, Track
+    from .frames import FramePayload, Track
     from .target import ViewTarget
 
 log = logging.getLogger(__name__)

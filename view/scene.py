@@ -43,7 +43,7 @@ from ..mount import Mount
 from ..products import RangeAzimuth
 from ..ros2_frames import Rigid, TruthInOdom, base_pose, ti_to_radar
 from .colors import ColorMaps, decibels, normalised
-from .sink import Track, ViewHeatmap
+from .frames import Track, ViewHeatmap
 
 ODOM = "world/odom"
 BASE = ODOM + "/base_link"

@@ -1,6 +1,6 @@
 """The view as a pipeline sink that never slows the pipeline.
 
-For every frame the pipeline's thread keeps the frame's :class:`Track` (time, odometry state,
+For every frame the pipeline's thread keeps the frame's :class:`~.frames.Track` (time, odometry state,
 point count, latency, true pose), which the view does not drop (unless the drawer takes nothing
 for :data:`MAX_TRACKS` frames: then the oldest go, counted).  Then, if the drawer is ready for
 another frame, it hands over the tracks kept so far and the frame's point cloud and heatmap
@@ -22,16 +22,13 @@ import logging
 import queue
 import threading
 import time
-from typing import TYPE_CHECKING, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Protocol
 
-from ..estimator.odometry import OdometryState
 from ..pipeline.sinks import FrameResult, Sink
-
-import numpy as np
+from .frames import FramePayload, Track, ViewHeatmap
 
 if TYPE_CHECKING:
     from ..pipeline.stats import PipelineStats
-    from ..products import RangeAzimuth
     from .scene import Scene
 
 log = logging.getLogger(__name__)
@@ -39,41 +36,6 @@ log = logging.getLogger(__name__)
 _END = object()
 #: Tracks kept for a drawer that takes nothing (5 minutes at 10 Hz): beyond, the oldest go, counted.
 MAX_TRACKS = 3000
-
-
-class Track(NamedTuple):
-    """What the view keeps of every frame (never dropped): its index and time (s), the new
-    odometry (None on a velocity-only frame or without an estimator), the point count (None
-    without a point cloud), the latency until the view got it (s) and the true pose."""
-
-    frame: int
-    t: float
-    state: OdometryState | None
-    points: int | None
-    latency_s: float
-    pose: tuple[float, ...] | None
-
-
-class ViewHeatmap(NamedTuple):
-    """What the view draws of a frame's :class:`~radarodom.products.RangeAzimuth` (and the
-    estimator's features read): all but the zero-Doppler map, a quarter less to hand over."""
-
-    intensity: np.ndarray
-    doppler_mps: np.ndarray
-    range_m: np.ndarray
-    azimuth_rad: np.ndarray
-    elevation_rad: np.ndarray | None
-
-    @classmethod
-    def of(cls, heatmap: RangeAzimuth | None) -> ViewHeatmap | None:
-        if heatmap is None:
-            return None
-        return cls(heatmap.intensity, heatmap.doppler_mps, heatmap.range_m, heatmap.azimuth_rad,
-                   getattr(heatmap, "elevation_rad", None))
-
-
-#: A frame to draw: its track, point cloud (POINT_DTYPE) and heatmap (either may be None).
-FramePayload = tuple[Track, "np.ndarray | None", "ViewHeatmap | None"]
 
 
 class Drawer(Protocol):
