@@ -29,7 +29,6 @@ Importing this module also registers the pyserial URL scheme
 
 from __future__ import annotations
 
-import dataclasses
 import errno
 import logging
 import os
@@ -60,68 +59,10 @@ from ..live.awr1843_protocol import (
     PROMPT,
     SKIPPED,
 )
+from .demo_cli_text import (BOOT_BANNER, EXTRA_COMMANDS, INVALID_USAGE, RUNTIME_COMMANDS, SDK_VERSION, VERSION_LINES,
+                            known_commands, usage)
 
 log = logging.getLogger(__name__)
-
-#: SDK version the fake claims to run.
-SDK_VERSION = "03.05.00.04"
-
-#: What ``version`` prints before ``Done``: the fields the SDK 3.x demo prints;
-#: the RF firmware and mmWaveLink numbers are plausible, not copied from a board.
-VERSION_LINES = (
-    "Platform                : xWR18xx",
-    f"mmWave SDK Version      : {SDK_VERSION}",
-    "Device Info             : AWR18XX non-secure ES 02.00",
-    "RF F/W Version          : 02.02.00.01.20.07.23",
-    "RF F/W Patch            : 00.00.00.00.00.00.00",
-    "mmWaveLink Version      : 01.02.06.06",
-)
-
-#: What a reset (RESET_AR_DEV, power-up) prints before the first prompt.
-BOOT_BANNER = (
-    "******************************************",
-    f"xWR18xx MMW Demo {SDK_VERSION}",
-    "******************************************",
-)
-
-#: Commands the demo knows besides those radarodom types or keeps verbatim,
-#: with their argument counts (SDK 3.5 user guide).  radarodom refuses them
-#: in a cfg; the firmware accepts them and fails only at sensorStart.
-EXTRA_COMMANDS: dict[str, tuple[int, ...]] = {
-    "advFrameCfg": (5,),
-    "subFrameCfg": (10,),
-}
-
-#: Known commands that do not change the configuration: allowed while running.
-_RUNTIME_COMMANDS = frozenset({"sensorStart", "sensorStop", "version", "help", "queryDemoStatus"})
-
-#: Verbatim commands' argument names, for ``help`` (SDK 3.5 user guide).
-_VERBATIM_USAGE = {
-    "sensorStart": "[doReconfig(optional, default:enabled)]",
-    "sensorStop": "No arguments",
-    "flushCfg": "No arguments",
-    "guiMonitor": "<subFrameIdx> <detectedObjects> <logMagRange> <noiseProfile> "
-                  "<rangeAzimuthHeatMap> <rangeDopplerHeatMap> <statsInfo>",
-    "measureRangeBiasAndRxChanPhase": "<enabled> <targetDistance> <searchWin>",
-    "CQRxSatMonitor": "<profile> <satMonSel> <priSliceDuration> <numSlices> <rxChanMask>",
-    "CQSigImgMonitor": "<profile> <numSlices> <numSamplePerSlice>",
-    "analogMonitor": "<rxSaturation> <sigImgBand>",
-    "calibData": "<save enable> <restore enable> <Flash offset>",
-    "bpmCfg": "<subFrameIdx> <enabled> <chirp0Idx> <chirp1Idx>",
-    "configDataPort": "<baudrate> <ackPing>",
-    "queryDemoStatus": "No arguments",
-    "idlePowerCycle": "<subFrameIdx> <enDSPpowerdown> <enDSSclkgate> <enMMWclkgate> "
-                      "<enBSSclkgate> <enRFpowerdown>",
-    "version": "No arguments",
-    "help": "No arguments",
-    "advFrameCfg": "<numOfSubFrames> <forceProfile> <numFrames> <triggerSelect> <frameTrigDelay>",
-    "subFrameCfg": "<subFrameNum> <forceProfileIdx> <chirpStartIdx> <numOfChirps> <numLoops> "
-                   "<burstPeriodicity> <chirpStartIdxOffset> <numOfBurst> <numOfBurstLoops> "
-                   "<subFramePeriodicity>",
-}
-
-#: Explanatory line the demo prints before "Error -1" for a malformed command.
-INVALID_USAGE = "Error: Invalid usage of the CLI command"
 
 #: Sensor states ``queryDemoStatus`` reports (the SDK demo's enum).
 _STATE_OPENED, _STATE_STARTED, _STATE_STOPPED = 1, 2, 3
@@ -136,11 +77,6 @@ WRITE_TIMEOUT_S = 2.0
 #: reading its flash and the 1 s pyRadar waits after RESET_AR_DEV before talking to a CLI that
 #: then answers.  A client that talks to it sooner sees its first command lost, as on a board.
 BOOT_TIME_S = 0.5
-
-
-def known_commands() -> tuple[str, ...]:
-    """Every command name the fake firmware recognises."""
-    return (*cc.TYPED_COMMANDS, *cc.VERBATIM_COMMANDS, *EXTRA_COMMANDS)
 
 
 @dataclass
@@ -159,15 +95,6 @@ class CliFaults:
     disappear_on: str | None = None
     #: Delay after each byte sent, s (a slow UART; exercises a client's framing).
     char_delay_s: float = 0.0
-
-
-def _usage(name: str) -> str:
-    cls = cc.TYPED_COMMANDS.get(name)
-    if cls is None:
-        return _VERBATIM_USAGE.get(name, "")
-    if cls is cc.CompRangeBiasAndRxChanPhase:
-        return f"<rangeBias> <Re00> <Im00> ... ({cc.NUM_COMP_VIRTUAL_ANTENNAS} virtual antennas)"
-    return " ".join(f"<{f.metadata['ti_name']}>" for f in dataclasses.fields(cls))
 
 
 class FakeAwr1843:
@@ -411,7 +338,7 @@ class FakeAwr1843:
         if counts is None and name not in cc.TYPED_COMMANDS:
             return [f"'{name}' {NOT_RECOGNIZED}"], None
         with self._lock:
-            if self.started and name not in _RUNTIME_COMMANDS:
+            if self.started and name not in RUNTIME_COMMANDS:
                 return [NOT_ALLOWED_AFTER_START, DONE], None
             problem = self._check_args(name, args, counts)
             if problem is not None:
@@ -499,7 +426,7 @@ class FakeAwr1843:
 
     def _help_lines(self) -> list[str]:
         lines = ["help: Display the usage of the CLI commands"]
-        lines += [f"{name}: {_usage(name)}" for name in known_commands() if name != "help"]
+        lines += [f"{name}: {usage(name)}" for name in known_commands() if name != "help"]
         return lines
 
     @staticmethod
@@ -640,3 +567,7 @@ def register_url_handler() -> None:
 
 
 register_url_handler()
+
+
+__all__ = ["BOOT_BANNER", "BOOT_TIME_S", "SDK_VERSION", "VERSION_LINES", "CliFaults", "FakeAwr1843",
+           "FakeAwr1843Serial", "known_commands", "register_url_handler"]
