@@ -87,6 +87,15 @@ def _base(ref: np.ndarray, offset_m: float) -> np.ndarray:
     return out
 
 
+def _straight(dt: np.ndarray, d_ref: np.ndarray, base: np.ndarray, straight_rate_dps: float,
+              moving_speed_mps: float) -> np.ndarray:
+    """Which of the n-1 steps (durations *dt* s, true yaw increments *d_ref* rad, the *base*'s
+    poses (n, 3)) drive straight: the truth turning at most *straight_rate_dps*, the base moving
+    faster than *moving_speed_mps*."""
+    speed = np.hypot(*np.diff(base[:, :2], axis=0).T) / dt
+    return (np.degrees(np.abs(d_ref)) / dt <= straight_rate_dps) & (speed > moving_speed_mps)
+
+
 def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: float = 2.0,
                   moving_speed_mps: float = 0.05, min_turn_deg: float = 10.0) -> list[tuple[int, int, bool]]:
     """The truth's turns as (first interval, end interval (exclusive), in place) over the
@@ -124,10 +133,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
     err = _wrap(d_est - d_ref)
     step_m = np.hypot(*np.diff(ref[:, :2], axis=0).T)
     base = _base(ref, base_offset_m)
-    speed = np.hypot(*np.diff(base[:, :2], axis=0).T) / dt
-    rate_dps = np.degrees(np.abs(d_ref)) / dt
-
-    straight = (rate_dps <= straight_rate_dps) & (speed > moving_speed_mps)
+    straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     s_m, s_s = float(step_m[straight].sum()), float(dt[straight].sum())
     s_yaw = math.degrees(float(err[straight].sum()))  # the truth turns ~0 there; its ramps' rest removed
     nan = float("nan")
@@ -177,8 +183,7 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed
     d_ref = _wrap(np.diff(ref[:, 2]))
     err = _wrap(_wrap(np.diff(est[:, 2])) - d_ref)
     base = _base(ref, base_offset_m)
-    speed = np.hypot(*np.diff(base[:, :2], axis=0).T) / dt
-    straight = (np.degrees(np.abs(d_ref)) / dt <= straight_rate_dps) & (speed > moving_speed_mps)
+    straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     kind = np.where(straight, "straight", "other").astype(object)
     for i, j, in_place in segment_turns(times, base, straight_rate_dps=straight_rate_dps,
                                         moving_speed_mps=moving_speed_mps, min_turn_deg=min_turn_deg):
