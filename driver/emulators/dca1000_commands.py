@@ -132,10 +132,8 @@ class CommandPort:
         return _OK
 
     def _config_fpga_gen(self, data: bytes) -> int:
-        try:
-            cfg = FpgaConfig.parse(data)
-        except WireError as exc:
-            log.warning("fake DCA1000: CONFIG_FPGA_GEN refused: %s", exc)
+        cfg = _parsed(FpgaConfig, "CONFIG_FPGA_GEN", data)
+        if cfg is None:
             return _FAILURE
         problem = _fpga_config_problem(cfg)
         if problem:
@@ -146,10 +144,8 @@ class CommandPort:
         return _OK
 
     def _config_packet_data(self, data: bytes) -> int:
-        try:
-            pkt = PacketConfig.parse(data)
-        except WireError as exc:
-            log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: %s", exc)
+        pkt = _parsed(PacketConfig, "CONFIG_PACKET_DATA", data)
+        if pkt is None:
             return _FAILURE
         if not MIN_PACKET_SIZE <= pkt.packet_size <= MAX_PACKET_SIZE:
             log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: packet size %d outside "
@@ -164,10 +160,8 @@ class CommandPort:
         return _OK
 
     def _config_eeprom(self, data: bytes) -> int:
-        try:
-            eeprom = EepromConfig.parse(data)
-        except WireError as exc:
-            log.warning("fake DCA1000: CONFIG_EEPROM refused: %s", exc)
+        eeprom = _parsed(EepromConfig, "CONFIG_EEPROM", data)
+        if eeprom is None:
             return _FAILURE
         with self._cond:
             self._eeprom_config = eeprom
@@ -247,6 +241,16 @@ class CommandPort:
             with self._cond:
                 self._stats.send_errors += 1
             return False
+
+
+def _parsed(wire: type, command: str, data: bytes):
+    """*data* parsed as the *wire* structure (its ``parse``), or None, logged as *command*
+    refused, when it is malformed."""
+    try:
+        return wire.parse(data)
+    except WireError as exc:
+        log.warning("fake DCA1000: %s refused: %s", command, exc)
+        return None
 
 
 def _fpga_config_problem(cfg: FpgaConfig) -> str:
