@@ -20,30 +20,23 @@ failures users of real boards report: error replies, commands that hang until
 a reset, a ``sensorStart`` that never answers, line noise, a slow UART and a
 port that disappears.
 
+This module holds what the firmware does with what it receives; the pty under it (opening
+it, the serving thread, paced writes, closing) is :class:`~.awr1843_pty.Awr1843Pty`, which
+:class:`FakeAwr1843` inherits, and what the firmware prints of itself is :mod:`.demo_cli_text`.
 The demo's data port, its UART output of points and heatmaps on a second pty, is
 :mod:`.fake_demo_uart` (it takes :attr:`FakeAwr1843.on_sensor_start` as a DCA1000 does).
 
 Importing this module also registers the pyserial URL scheme
-``fakeawr1843://`` (see :class:`FakeAwr1843Serial`).
+``fakeawr1843://`` (see :class:`~.awr1843_url.FakeAwr1843Serial`, exported here too).
 """
 
 from __future__ import annotations
 
-import errno
 import logging
-import os
-import select
-import sys
 import threading
 import time
-import tty
-import types
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
-
-import serial
-import serial.serialposix
 
 from ... import cfg_commands as cc
 from ...cfg import RadarConfig
@@ -59,6 +52,9 @@ from ..live.awr1843_protocol import (
     PROMPT,
     SKIPPED,
 )
+from .awr1843_pty import WRITE_TIMEOUT_S, Awr1843Pty  # noqa: F401 (WRITE_TIMEOUT_S re-exported: it was here)
+from .awr1843_url import (  # noqa: F401 (URL_SCHEME, serial_class_for_url re-exported: they were here)
+    _NAMED, URL_SCHEME, FakeAwr1843Serial, register_url_handler, serial_class_for_url)
 from .demo_cli_text import (BOOT_BANNER, EXTRA_COMMANDS, INVALID_USAGE, RUNTIME_COMMANDS, SDK_VERSION, VERSION_LINES,
                             known_commands, usage)
 
@@ -66,10 +62,6 @@ log = logging.getLogger(__name__)
 
 #: Sensor states ``queryDemoStatus`` reports (the SDK demo's enum).
 _STATE_OPENED, _STATE_STARTED, _STATE_STOPPED = 1, 2, 3
-
-#: Longest a reply may wait for a client that does not read before it is
-#: dropped (a real UART never waits: its bytes are lost).
-WRITE_TIMEOUT_S = 2.0
 
 #: Seconds from a reset (RESET_AR_DEV) to the boot banner, during which the radar answers
 #: nothing and what it is sent is lost.  No TI document gives the xWR18xx's boot time from
@@ -97,8 +89,8 @@ class CliFaults:
     char_delay_s: float = 0.0
 
 
-class FakeAwr1843:
-    """The demo firmware's CLI on a pseudo-terminal.
+class FakeAwr1843(Awr1843Pty):
+    """The demo firmware's CLI on a pseudo-terminal (:class:`~.awr1843_pty.Awr1843Pty`).
 
     State (read it from any thread): :attr:`started`, :attr:`config` (the
     last started :class:`RadarConfig`, None until the first start and after
@@ -118,6 +110,7 @@ class FakeAwr1843:
         boot_time_s: float = BOOT_TIME_S,
         expects_lvds: bool = True,
     ) -> None:
+        super().__init__()  # the pty: path, disappeared and the fds, closed
         self.faults = faults if faults is not None else CliFaults()
         #: Whether a DCA1000 takes the raw ADC data (False: the demo's UART output is used).
         self.expects_lvds = expects_lvds
@@ -129,90 +122,14 @@ class FakeAwr1843:
         self.started = False
         self.config: RadarConfig | None = None
         self.received: list[str] = []
-        #: Slave path of the open pty, or None.
-        self.path: str | None = None
-        #: True once a ``disappear_on`` fault closed the port.
-        self.disappeared = False
         self.name = name
         self._stored: list[str] = []  # configuration lines accepted since boot / flushCfg
         self._ever_started = False
         self._hung = False
         self._inbuf = bytearray()
         self._lock = threading.RLock()  # firmware state
-        self._io_lock = threading.Lock()  # the master fd and writes to it
-        self._master: int | None = None
-        self._slave: int | None = None
-        self._wake_r: int | None = None
-        self._wake_w: int | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         if name is not None:
             _NAMED[name] = self
-
-    # ------------------------------------------------------------------ pty
-    def open_pty(self) -> str:
-        """Create the pty, serve it on a daemon thread, return the slave's path."""
-        if self._master is not None:
-            raise RuntimeError(f"the fake AWR1843 already serves {self.path}")
-        self._join_old_thread()  # after a disappearance the old thread is ending
-        with self._io_lock:
-            if self._master is not None:
-                raise RuntimeError(f"the fake AWR1843 already serves {self.path}")
-            master, slave = os.openpty()
-            # Raw: no echo, no CR/LF translation, no signals from the line discipline.
-            tty.setraw(slave)
-            os.set_blocking(master, False)
-            wake_r, wake_w = os.pipe()
-            self._master, self._slave = master, slave  # the slave stays open so the
-            self._wake_r, self._wake_w = wake_r, wake_w  # master never sees EIO between clients
-            self.path = os.ttyname(slave)
-            self.disappeared = False
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._serve, args=(master, wake_r),
-                                            name=f"fake-awr1843 {self.path}", daemon=True)
-            self._thread.start()
-        log.info("fake AWR1843 CLI on %s", self.path)
-        return self.path
-
-    def close(self) -> None:
-        """Stop serving and close the pty (idempotent)."""
-        self._stop.set()
-        with self._io_lock:
-            if self._wake_w is not None:
-                try:
-                    os.write(self._wake_w, b"x")
-                except OSError:
-                    pass
-        self._join_old_thread()
-        with self._io_lock:
-            self._close_fds()
-
-    def _join_old_thread(self) -> None:
-        thread = self._thread
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout=5.0)
-            if thread.is_alive():  # pragma: no cover - a callback that never returns
-                log.warning("fake AWR1843 thread did not stop")
-        if thread is not threading.current_thread():
-            self._thread = None
-
-    def _close_fds(self) -> None:
-        """Close every fd (caller holds _io_lock)."""
-        self.path = None
-        for attr in ("_master", "_slave", "_wake_r", "_wake_w"):
-            fd = getattr(self, attr)
-            setattr(self, attr, None)
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
-
-    def __enter__(self) -> FakeAwr1843:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
     # ---------------------------------------------------------------- reset
     def reset(self) -> None:
@@ -253,28 +170,6 @@ class FakeAwr1843:
         self._send(banner, slow=False)
 
     # -------------------------------------------------------------- serving
-    def _serve(self, master: int, wake_r: int) -> None:
-        while not self._stop.is_set():
-            try:
-                ready, _, _ = select.select([master, wake_r], [], [])
-            except (OSError, ValueError):  # closed under us
-                break
-            if wake_r in ready:
-                break
-            try:
-                data = os.read(master, 4096)
-            except BlockingIOError:
-                continue
-            except OSError as exc:
-                log.info("fake AWR1843 pty read failed: %s", exc)
-                break
-            if not data:
-                break
-            self._feed(data)
-            if self.disappeared:
-                break
-        log.debug("fake AWR1843 serving thread ends")
-
     def _feed(self, data: bytes) -> None:
         """Cut *data* into lines and answer each complete one (nothing while booting)."""
         with self._lock:
@@ -443,50 +338,6 @@ class FakeAwr1843:
         """Print *line* unasked, as the firmware's CLI_write does (an exception report)."""
         self._send((line + FIRMWARE_EOL).encode(), slow=False)
 
-    def _send(self, data: bytes, *, slow: bool = True) -> None:
-        """Write *data* to the client (byte by byte with faults.char_delay_s)."""
-        delay = self.faults.char_delay_s if slow else 0.0
-        with self._io_lock:
-            fd = self._master
-            if fd is None:
-                return
-            if delay > 0:
-                for i in range(len(data)):
-                    if not self._write_all(fd, data[i:i + 1]) or self._stop.wait(delay):
-                        return
-            else:
-                self._write_all(fd, data)
-
-    def _write_all(self, fd: int, data: bytes) -> bool:
-        deadline = time.monotonic() + WRITE_TIMEOUT_S
-        view = memoryview(data)
-        while view:
-            if self._stop.is_set():
-                return False
-            try:
-                n = os.write(fd, view)
-            except BlockingIOError:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    log.warning("fake AWR1843: the client does not read; %d bytes lost "
-                                "(a UART overruns)", len(view))
-                    return False
-                select.select([], [fd], [], min(left, 0.1))
-                continue
-            except OSError as exc:
-                if exc.errno != errno.EINTR:
-                    log.info("fake AWR1843 pty write failed: %s", exc)
-                    return False
-                continue
-            view = view[n:]
-        return True
-
-    def _disappear(self) -> None:
-        """Close the pty now, like pulling the USB cable (called on the serving thread)."""
-        with self._io_lock:
-            self.disappeared = True  # set before the client can see the hang-up
-            self._close_fds()
-
 
 def _atoi(token: str) -> int:
     """C atoi: leading integer digits, 0 when there are none."""
@@ -502,70 +353,8 @@ def _atoi(token: str) -> int:
         return 0
 
 
-# --------------------------------------------------------------- pyserial URL
-#: Fakes created with a name, for ``fakeawr1843://<name>``.
-_NAMED: weakref.WeakValueDictionary[str, FakeAwr1843] = weakref.WeakValueDictionary()
-
-URL_SCHEME = "fakeawr1843"
-
-
-class FakeAwr1843Serial(serial.serialposix.Serial):
-    """pyserial port for ``fakeawr1843://[name]``.
-
-    ``fakeawr1843://`` starts a private :class:`FakeAwr1843`, closed with the
-    port; ``fakeawr1843://<name>`` attaches to the live fake created with
-    ``FakeAwr1843(name=<name>)`` (opening its pty if needed).  Either way the
-    port is a real pty client; the fake is :attr:`fake`.
-    """
-
-    fake: FakeAwr1843 | None = None
-    _owns_fake = False
-
-    def open(self) -> None:
-        url = self._port
-        if not isinstance(url, str) or not url.lower().startswith(URL_SCHEME + "://"):
-            raise serial.SerialException(f"not a {URL_SCHEME}:// URL: {url!r}")
-        name = url[len(URL_SCHEME) + 3:].split("?", 1)[0].strip("/")
-        if name:
-            fake = _NAMED.get(name)
-            if fake is None:
-                raise serial.SerialException(f"no FakeAwr1843 named {name!r}")
-            owns = False
-        else:
-            fake, owns = FakeAwr1843(), True
-        path = fake.path or fake.open_pty()
-        self.fake, self._owns_fake = fake, owns
-        self.portstr = path  # PosixSerial opens portstr; port keeps the URL
-        try:
-            super().open()
-        except BaseException:
-            if owns:
-                fake.close()
-            raise
-
-    def close(self) -> None:
-        super().close()
-        if self._owns_fake and self.fake is not None:
-            self.fake.close()
-
-
-def serial_class_for_url(url: str):
-    """pyserial's protocol-handler hook."""
-    return url, FakeAwr1843Serial
-
-
-def register_url_handler() -> None:
-    """Make ``serial.serial_for_url("fakeawr1843://...")`` work (idempotent)."""
-    handler = f"{__package__}.protocol_{URL_SCHEME}"
-    if handler not in sys.modules:
-        module = types.ModuleType(handler, "pyserial handler for fakeawr1843:// (fake_awr1843.py)")
-        module.serial_class_for_url = serial_class_for_url  # type: ignore[attr-defined]
-        module.Serial = FakeAwr1843Serial  # type: ignore[attr-defined]
-        sys.modules[handler] = module
-    if __package__ not in serial.protocol_handler_packages:
-        serial.protocol_handler_packages.append(__package__)
-
-
+# fakeawr1843:// makes a FakeAwr1843 (awr1843_url.py serves the board but does not import it).
+FakeAwr1843Serial.make_fake = FakeAwr1843
 register_url_handler()
 
 
