@@ -1,7 +1,8 @@
 """The files of a ColoRadar run and its calibration: the binary cells, where each stream lies,
 the heatmap and waveform configs, and the text readers (every error names its file and line).
 
-Split out of :mod:`.coloradar`, which re-exports all of it; see there for the dataset's layout.
+Split out of the reader (:mod:`.run`), which re-exports all of it; see there for the dataset's
+layout (and :mod:`.streams` for how the streams' files are numbered and paired with their times).
 """
 
 from __future__ import annotations
