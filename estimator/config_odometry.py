@@ -214,6 +214,11 @@ class PointYawConfig(Settings):
     #: ... and, fused, when it disagrees with the points' by more than this many of their combined
     #: standard deviations, the points' is taken.
     agreement_sigmas: float = 2.0
+    #: Standing in for the points' (none of theirs), its turn is not believed further from the
+    #: predicted one (the last measured rate's) than this yaw acceleration allows over the step
+    #: (times its duration squared) plus three of ``heatmap_noise_rad``, rad/s^2 (None: always
+    #: believed): facing a wall, the few cells in view register to false turns (docs/tidemo.md).
+    heatmap_max_accel_radps2: float | None = math.radians(300.0)
     #: Correct the yaw-rate filter's yaw by the map's chain of measured turns over the map's
     #: length (``map_frames``), as the keyframes correct the raw path's: the filter lags a turn's
     #: first frames and what it loses there is otherwise lost for good.
@@ -231,3 +236,5 @@ class PointYawConfig(Settings):
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")
         check_choice(self.heatmap_use, HEATMAP_USES, "heatmap_use")
+        _check(self.heatmap_max_accel_radps2 is None or self.heatmap_max_accel_radps2 > 0,
+               "must be positive (or null: no check)", "heatmap_max_accel_radps2")

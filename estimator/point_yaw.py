@@ -29,8 +29,11 @@ register frame to frame, but enough against the points of the last second:
   measures the turn when the points give none (``heatmap_use`` "fallback"), with a variance of at
   least ``heatmap_noise_rad`` squared: it has no elevation (the demo sends the azimuth row only),
   so it reads every cell at cos(elevation) of its bearing's sine and measures turns in place short
-  near floors, ceilings and walls.  With "fuse" both are averaged by their variances, or, when
-  they disagree by more than ``agreement_sigmas`` of their combined spread, the points' is taken.
+  near floors, ceilings and walls; and facing a wall its few cells register to false turns, so
+  where it stands in for the points its turn is not believed further from the predicted one than
+  ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.  With "fuse" both
+  are averaged by their variances, or, when they disagree by more than ``agreement_sigmas`` of
+  their combined spread, the points' is taken.
 
 The measured turn goes on to the yaw-rate filter like a registration's.  This part takes the
 keyframe correction's place (the map is its own) and its role (``correct_lag``): the filter lags a
@@ -211,7 +214,7 @@ class PointYaw:
         heatmap = None
         if self._slow(velocity, flags) and (self._fuse or points is None):
             step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
-            if step.rotation is not None:
+            if step.rotation is not None and (points is not None or self._plausible(-step.rotation, -predicted, dt)):
                 heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))
         found = [m for m in (heatmap, points) if m is not None]  # (turn rad, variance rad^2)
         if len(found) == 2 and abs(heatmap[0] - points[0]) > cfg.agreement_sigmas * math.sqrt(heatmap[1] + points[1]):
@@ -232,6 +235,14 @@ class PointYaw:
         zero-Doppler map)."""
         speed = self._last_speed if Flag.MOTION_LOST in flags else float(np.hypot(*velocity))
         return speed is not None and speed < self._config.slow_mps
+
+    def _plausible(self, turn: float, predicted_turn: float, dt: float) -> bool:
+        """Whether the static heatmap's *turn* (rad), standing in for the points', lies within
+        ``heatmap_max_accel_radps2`` over *dt* (s) and three of its noise of the *predicted_turn*."""
+        cfg = self._config
+        if cfg.heatmap_max_accel_radps2 is None:
+            return True
+        return abs(turn - predicted_turn) <= cfg.heatmap_max_accel_radps2 * dt * dt + 3.0 * cfg.heatmap_noise_rad
 
     def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float) -> tuple[float, float] | None:
         """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by
