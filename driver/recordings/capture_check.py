@@ -7,6 +7,10 @@ agree on, telling a recording cut by a crash (played, with a warning) from one w
 files contradict each other (refused, saying what disagrees).  Every refusal is a
 :class:`~radarodom.errors.CaptureFormatError` naming the file and, where there is one,
 its line or field.
+
+The format's names are defined here too (the files' names, the format's name and version, the
+timestamps' bound), so that the writer (:mod:`.capture_writer`) and the reader
+(:mod:`.capture_dir`) share them without importing each other.
 """
 
 from __future__ import annotations
@@ -25,6 +29,12 @@ log = logging.getLogger(__name__)
 
 FORMAT_NAME = "radarodom-capture"
 FORMAT_VERSION = 1
+#: The files of a capture directory (:mod:`.capture_dir` describes each).
+RADAR_CFG = "radar.cfg"
+ADC_DATA = "adc_data.bin"
+TIMESTAMPS = "timestamps.txt"
+METADATA = "capture.json"
+GROUNDTRUTH = "groundtruth.tum"
 #: Timestamps are seconds (Unix time or from the start of a stream); larger magnitudes are
 #: no time any recording was made at (1e10 s is the year 2286).
 TIMESTAMP_LIMIT_S = 1e10
@@ -290,6 +300,7 @@ def timestamps_for(directory: str, stamps: np.ndarray | None, whole: int, period
     return stamps
 
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "TIMESTAMP_LIMIT_S", "check_frame_bytes", "check_metadata",
-           "frame_count", "read_metadata", "read_timestamps", "timestamps_for"]
+__all__ = ["ADC_DATA", "FORMAT_NAME", "FORMAT_VERSION", "GROUNDTRUTH", "METADATA", "RADAR_CFG", "TIMESTAMPS",
+           "TIMESTAMP_LIMIT_S", "check_frame_bytes", "check_metadata", "frame_count", "read_metadata",
+           "read_timestamps", "timestamps_for"]
 

@@ -1,0 +1,267 @@
+"""The writer of capture directories: :class:`CaptureWriter`, what ``--record`` and
+``radar-sim`` record through, and the helpers only writing needs.
+
+Kept apart from the reader (:mod:`.capture_dir`, which re-exports every name defined here, and whose
+docstring is the format: the files, timestamps.txt, capture.json's schema, what the reader
+takes of a directory cut short) so that each module holds one side of the format.  Also
+here: :func:`write_json_atomically`, which the tidemo recorder, the pipeline's sinks and
+radar-eval use for their own JSON files, and :func:`remove_capture_files`, with which
+radar-capture clears a directory.
+
+Crash safety: the writer hands every frame to the kernel before the next one
+(one unbuffered write for the data, then its timestamp line), and replaces
+capture.json atomically, so a process killed at any moment leaves a directory
+that reads back up to its last whole frame.  A capture that recorded no frame
+is removed on close, and one left by a killed run is recorded over.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import time
+from typing import Any, Sequence
+
+from ... import __version__, strict_json
+from ...cfg import RadarConfig
+from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, given_path
+from ...tum import TumWriter
+from ..sources import REPLAY_FORMAT_FILES
+from . import capture_check
+from .capture_check import ADC_DATA, FORMAT_NAME, FORMAT_VERSION, GROUNDTRUTH, METADATA, RADAR_CFG, TIMESTAMPS
+
+log = logging.getLogger(__name__)
+
+#: Incomplete frames listed in capture.json as soon as they are written, up to this many;
+#: beyond, the list is rewritten at most every _INCOMPLETE_FLUSH_S seconds.
+_IMMEDIATE_INCOMPLETE_LIMIT = 1000
+_INCOMPLETE_FLUSH_S = 0.25
+
+
+def write_json_atomically(path: str, obj: Any) -> None:
+    """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(strict_json.dumps(obj, indent=1))
+        fh.write("\n")
+    os.replace(tmp, path)
+
+
+_CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
+
+
+def _holds_no_frame(directory: str) -> bool:
+    """Whether the capture in *directory* recorded nothing: no frame data, no timestamp, no pose."""
+    for name in (ADC_DATA, TIMESTAMPS, GROUNDTRUTH):
+        try:
+            if os.path.getsize(os.path.join(directory, name)):
+                return False
+        except FileNotFoundError:
+            pass
+    return True
+
+
+def remove_capture_files(directory: str) -> None:
+    """Remove the files a capture consists of from *directory*, a replay format's stream file
+    among them (nothing else in it)."""
+    for name in (*_CAPTURE_FILES, *REPLAY_FORMAT_FILES.values()):
+        try:
+            os.remove(os.path.join(directory, name))
+        except FileNotFoundError:
+            pass
+
+
+def _write_all(fd: int, data) -> None:
+    view = memoryview(data).cast("B")
+    while view:
+        view = view[os.write(fd, view):]
+
+
+
+class CaptureWriter:
+    """Append frames to a new capture directory.
+
+    Use as a context manager; :meth:`close` marks the capture as closed in
+    capture.json.  Refuses a directory that already holds a capture.
+    """
+
+    def __init__(
+        self,
+        directory: str | os.PathLike,
+        config: RadarConfig,
+        *,
+        source: str = "",
+        metadata_interval_s: float = 1.0,
+        extra: dict[str, Any] | None = None,
+    ) -> None:
+        self.directory = given_path(directory, CaptureError)
+        self.config = config
+        self.frame_bytes = config.frame_bytes
+        self._source = source
+        self._interval = metadata_interval_s
+        self._extra = dict(extra or {})
+        self._incomplete: list[dict[str, int]] = []
+        self._frames = 0
+        self._saved_frames = 0
+        self._lost_bytes = 0
+        self._cut_bytes = 0
+        self._closed = False
+        self._start_time = time.time()
+        self._last_meta = 0.0
+        self._first_ts: float | None = None
+        self._last_ts: float | None = None
+        try:
+            self._made_directory = not os.path.isdir(self.directory)
+            os.makedirs(self.directory, exist_ok=True)
+            if os.path.exists(os.path.join(self.directory, ADC_DATA)):
+                if not _holds_no_frame(self.directory):
+                    raise CaptureExistsError(f"{self.directory} already holds a capture ({ADC_DATA}); "
+                                             f"choose a new directory")
+                # A run that recorded nothing and was killed before it could clean up.
+                log.info("%s holds a capture of no frame; recording over it", self.directory)
+                remove_capture_files(self.directory)
+            config.write(os.path.join(self.directory, RADAR_CFG))
+            self._data_fd = os.open(os.path.join(self.directory, ADC_DATA),
+                                    os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
+            self._ts = open(os.path.join(self.directory, TIMESTAMPS), "x", buffering=1, encoding="ascii")
+            self._gt: TumWriter | None = None
+        except OSError as exc:
+            raise CaptureError(f"cannot create capture directory {self.directory}: "
+                               f"{exc.strerror or exc}") from None
+        self._write_metadata()
+
+    @property
+    def frame_count(self) -> int:
+        return self._frames
+
+    def write(
+        self,
+        raw,
+        timestamp: float,
+        missing_bytes: int = 0,
+        pose: Sequence[float] | None = None,
+        *,
+        cut_bytes: int = 0,
+    ) -> None:
+        """Append one frame: its *raw* bytes (exactly ``frame_bytes``), the time of
+        its first chirp, how many of its bytes were lost (zero-filled), and
+        optionally the ground-truth pose ``(x, y, z, qx, qy, qz, qw)``.  *cut_bytes*: of the
+        missing bytes, those never sent because the stream stopped (listed with the frame)."""
+        if not 0 <= cut_bytes <= missing_bytes <= self.frame_bytes:
+            raise CaptureError(f"{cut_bytes} bytes cut at stop of a frame missing {missing_bytes} of "
+                               f"{self.frame_bytes}")
+        if self._closed:
+            raise CaptureError(f"{self.directory}: the capture is closed")
+        # The reader refuses such times, so recording them would lose the recording.
+        try:
+            timestamp = float(timestamp)
+        except (TypeError, ValueError):
+            raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp!r} is not a "
+                               f"number") from None
+        if not (math.isfinite(timestamp) and abs(timestamp) <= capture_check.TIMESTAMP_LIMIT_S):
+            raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp!r} is not a finite "
+                               f"time of at most {capture_check.TIMESTAMP_LIMIT_S:g} s; recording stops here")
+        if self._last_ts is not None and not float(f"{timestamp:.9f}") > float(f"{self._last_ts:.9f}"):
+            raise CaptureError(f"{self.directory}: frame {self._frames}: timestamp {timestamp:.9f} is not after "
+                               f"the previous frame's {self._last_ts:.9f}; recording stops here")
+        n = memoryview(raw).nbytes
+        if n != self.frame_bytes:
+            raise CaptureFormatError(f"frame of {n} bytes, the configuration needs {self.frame_bytes}")
+        try:
+            _write_all(self._data_fd, raw)
+            self._ts.write(f"{timestamp:.9f}\n")
+            if pose is not None:
+                self._write_pose(timestamp, pose)
+        except OSError as exc:
+            raise CaptureError(f"writing {self.directory} failed: {exc.strerror or exc}") from None
+        index = self._frames
+        self._frames += 1
+        if self._first_ts is None:
+            self._first_ts = timestamp
+        self._last_ts = timestamp
+        now = time.monotonic()
+        if missing_bytes:
+            entry = {"frame": index, "missing_bytes": int(missing_bytes)}
+            if cut_bytes:
+                entry["cut_bytes"] = int(cut_bytes)
+            self._incomplete.append(entry)
+            self._lost_bytes += int(missing_bytes)
+            self._cut_bytes += int(cut_bytes)
+        # capture.json is the only place that says a frame is zero-filled, so an
+        # incomplete frame is listed before the next frame is written; once the
+        # list is long (heavy loss), at most every quarter second to bound the cost.
+        if self._incomplete_unsaved():
+            due = 0.0 if len(self._incomplete) <= _IMMEDIATE_INCOMPLETE_LIMIT else _INCOMPLETE_FLUSH_S
+        else:
+            due = self._interval
+        if now - self._last_meta >= due:
+            self._write_metadata()
+
+    def _incomplete_unsaved(self) -> bool:
+        return bool(self._incomplete) and self._incomplete[-1]["frame"] >= self._saved_frames
+
+    def _write_pose(self, timestamp: float, pose: Sequence[float]) -> None:
+        if self._gt is None:
+            self._gt = TumWriter(os.path.join(self.directory, GROUNDTRUTH))
+        self._gt.write_pose(timestamp, pose[:3], pose[3:])
+
+    def metadata(self) -> dict[str, Any]:
+        """What capture.json holds now."""
+        meta = {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "software": f"radarodom {__version__}",
+            "source": self._source,
+            "start_time_unix": self._start_time,
+            "start_time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(self._start_time)),
+            "frame_bytes": self.frame_bytes,
+            "frame_count": self._frames,
+            "first_timestamp": self._first_ts,
+            "last_timestamp": self._last_ts,
+            "incomplete_frames": list(self._incomplete),
+            # Every zero-filled byte (the key predates cut_bytes, which it includes).
+            "lost_bytes": self._lost_bytes,
+            "cut_bytes": self._cut_bytes,
+            "closed": self._closed,
+        }
+        meta.update(self._extra)
+        return meta
+
+    def annotate(self, **items: Any) -> None:
+        """Add *items* to capture.json (written with the next update, at the latest on close)."""
+        self._extra.update(items)
+
+    def _write_metadata(self) -> None:
+        self._saved_frames = self._frames
+        write_json_atomically(os.path.join(self.directory, METADATA), self.metadata())
+        self._last_meta = time.monotonic()
+
+    def close(self) -> None:
+        """Mark the capture closed in capture.json; a capture of no frame (a radar that never
+        started) is removed instead, so that the directory can take the next run."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            os.close(self._data_fd)
+            self._ts.close()
+            if self._gt is not None:
+                self._gt.close()
+            if self._frames:
+                self._write_metadata()
+                return
+            remove_capture_files(self.directory)
+            if self._made_directory:
+                with contextlib.suppress(OSError):  # something else was put there: leave it
+                    os.rmdir(self.directory)
+            log.info("%s: no frame recorded; the capture directory was removed", self.directory)
+        except OSError as exc:
+            raise CaptureError(f"closing {self.directory} failed: {exc.strerror or exc}") from None
+
+    def __enter__(self) -> "CaptureWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
