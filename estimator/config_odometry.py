@@ -215,7 +215,8 @@ class PointYawConfig(Settings):
     #: standard deviations, the points' is taken.
     agreement_sigmas: float = 2.0
     #: Standing in for the points' (none of theirs), its turn is not believed further from the
-    #: predicted one (the last measured rate's) than this yaw acceleration allows over the step
+    #: predicted one (the last measured rate's; ``icp.initial_guess`` "zero" predicts none, and
+    #: then it is not checked) than this yaw acceleration allows over the step
     #: (times its duration squared) plus three of ``heatmap_noise_rad``, rad/s^2 (None: always
     #: believed): facing a wall, the few cells in view register to false turns (docs/tidemo.md).
     heatmap_max_accel_radps2: float | None = math.radians(300.0)

@@ -238,9 +238,10 @@ class PointYaw:
 
     def _plausible(self, turn: float, predicted_turn: float, dt: float) -> bool:
         """Whether the static heatmap's *turn* (rad), standing in for the points', lies within
-        ``heatmap_max_accel_radps2`` over *dt* (s) and three of its noise of the *predicted_turn*."""
+        ``heatmap_max_accel_radps2`` over *dt* (s) and three of its noise of the *predicted_turn*
+        (always, when nothing is predicted: ``icp.initial_guess`` "zero")."""
         cfg = self._config
-        if cfg.heatmap_max_accel_radps2 is None:
+        if cfg.heatmap_max_accel_radps2 is None or not self.guess.uses_rate:
             return True
         return abs(turn - predicted_turn) <= cfg.heatmap_max_accel_radps2 * dt * dt + 3.0 * cfg.heatmap_noise_rad
 
