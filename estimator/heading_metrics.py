@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .evaluation import se2_compose, se2_inverse
+from .evaluation import se2_compose, se2_inverse, se2_relative
 
 __all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns"]
 
@@ -192,7 +192,7 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed
         while after < len(kind) and after < j + after_turn_frames and straight[after]:
             kind[after] = "after turn"
             after += 1
-    ref_steps, est_steps = _body_steps(ref), _body_steps(est)
+    ref_steps, est_steps = se2_relative(ref[:-1], ref[1:])[:, :2], se2_relative(est[:-1], est[1:])[:, :2]
     path = float(np.hypot(*ref_steps.T).sum())
 
     def drift(poses_xy: np.ndarray) -> float:
@@ -203,13 +203,6 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed
         parts[name] = drift(_end(ref[0], d_ref + np.where(kind == name, err, 0.0), ref_steps))
     parts["translation"] = drift(_end(ref[0], d_ref, est_steps))
     return parts
-
-
-def _body_steps(poses: np.ndarray) -> np.ndarray:
-    """Each step's translation (n-1, 2), m, in the axes of the pose it starts from."""
-    d = np.diff(poses[:, :2], axis=0)
-    c, s = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
-    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], 1)
 
 
 def _end(start: np.ndarray, dyaw: np.ndarray, steps: np.ndarray) -> np.ndarray:
