@@ -36,8 +36,7 @@ import numpy as np
 from ...errors import CaptureError, CaptureFormatError, UsageError  # noqa: F401 (CaptureError: importable here as before)
 from ...tum import TumTrajectory, quaternion_yaw
 
-# The reader's public names live in two modules; they are all importable from here (and the
-# private ones run.py imported before the stream readers moved to .streams).
+# The reader's public names live in two modules; they are all importable from here.
 from .files import (  # noqa: F401
     _LAYOUT,
     ADC_SAMPLE,
@@ -48,9 +47,7 @@ from .files import (  # noqa: F401
     STREAMS,
     HeatmapConfig,
     WaveformConfig,
-    _read_lines,
     _read_table,
-    _StreamLayout,
     check_file_size,
     finite_values,
     read_heatmap_config,

@@ -67,12 +67,7 @@ from . import capture_check
 from .capture_check import (  # noqa: F401 (FORMAT_NAME, FORMAT_VERSION re-exported: they were imported here)
     ADC_DATA, FORMAT_NAME, FORMAT_VERSION, GROUNDTRUTH, METADATA, RADAR_CFG, TIMESTAMPS)
 from .capture_writer import (  # noqa: F401 (re-exported: they were defined here)
-    _CAPTURE_FILES,
-    _IMMEDIATE_INCOMPLETE_LIMIT,
-    _INCOMPLETE_FLUSH_S,
     CaptureWriter,
-    _holds_no_frame,
-    _write_all,
     remove_capture_files,
     write_json_atomically,
 )
