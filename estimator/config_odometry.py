@@ -12,7 +12,7 @@ from ..settings import check_field as _check
 
 KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
 VELOCITY_FALLBACKS = ("hold", "heatmap")
-HEATMAP_USES = ("fallback", "fuse")
+HEATMAP_USES = ("check", "fallback", "fuse")
 
 
 @dataclass
@@ -175,8 +175,9 @@ class PointYawConfig(Settings):
 
     #: Measure the yaw this way instead of registering heatmaps (and their keyframes).
     use: bool = False
-    #: The map holds the static points of this many last frames.
-    map_frames: int = 10
+    #: The map holds the static points of this many last frames: a long map anchors each frame's
+    #: few points to what the frames before saw (docs/tidemo.md, "A longer map").
+    map_frames: int = 80
     #: A point's spread across its ray is its range times this, rad (one azimuth a point from a
     #: small array), ...
     bearing_noise_rad: float = math.radians(2.0)
@@ -204,32 +205,40 @@ class PointYawConfig(Settings):
     #: Below this speed (the step's, or with none the last measured; none before the first) the
     #: static heatmap's registration may measure the turn, m/s ...
     slow_mps: float = 0.1
-    #: ... "fallback": only when the points give none; "fuse": averaged with the points' by their
-    #: variances.  The demo's heatmap has no elevation, so the registration reads a cell at
-    #: elevation el at cos(el) of its bearing's sine: near floors, ceilings and walls it measures
-    #: turns in place short (docs/tidemo.md, "Odometry from what the chip sends").
-    heatmap_use: str = "fallback"
+    #: ... "check": measured beside the points' and taken instead of it where the two disagree
+    #: by more than ``check_sigmas`` of their combined standard deviations, and where the points
+    #: give none; "fallback": only where the points give none; "fuse": averaged with the points'
+    #: by their variances.  The demo's heatmap has no elevation, so the registration reads a cell
+    #: at elevation el at cos(el) of its bearing's sine: near floors, ceilings and walls it measures
+    #: turns in place short (docs/tidemo.md, "Odometry from what the chip sends"), but it does not
+    #: jump as a turn from 3-5 points does.
+    heatmap_use: str = "check"
     #: ... with at least this noise, rad; ...
     heatmap_noise_rad: float = math.radians(1.5)
     #: ... and, fused, when it disagrees with the points' by more than this many of their combined
     #: standard deviations, the points' is taken.
     agreement_sigmas: float = 2.0
+    #: With "check", the heatmap's turn is taken where it differs from the points' by more than
+    #: this many of their combined standard deviations.
+    check_sigmas: float = 1.0
     #: Standing in for the points' (none of theirs), its turn is not believed further from the
     #: predicted one (the last measured rate's; ``icp.initial_guess`` "zero" predicts none, and
     #: then it is not checked) than this yaw acceleration allows over the step
     #: (times its duration squared) plus three of ``heatmap_noise_rad``, rad/s^2 (None: always
     #: believed): facing a wall, the few cells in view register to false turns (docs/tidemo.md).
     heatmap_max_accel_radps2: float | None = math.radians(300.0)
-    #: Correct the yaw-rate filter's yaw by the map's chain of measured turns over the map's
-    #: length (``map_frames``), as the keyframes correct the raw path's: the filter lags a turn's
+    #: Correct the yaw-rate filter's yaw by the map's chain of measured turns over the last
+    #: ``lag_frames`` frames, as the keyframes correct the raw path's: the filter lags a turn's
     #: first frames and what it loses there is otherwise lost for good.
     correct_lag: bool = True
+    lag_frames: int = 10
 
     def __post_init__(self) -> None:
         _check(self.map_frames >= 1, "must be at least 1", "map_frames")
+        _check(self.lag_frames >= 1, "must be at least 1", "lag_frames")
         for name in ("bearing_noise_rad", "range_noise_m", "position_floor_m", "static_threshold_mps", "search_rad",
                      "step_rad", "prior_rad", "outlier_sigmas", "min_noise_rad", "heatmap_noise_rad",
-                     "agreement_sigmas"):
+                     "agreement_sigmas", "check_sigmas"):
             _check(getattr(self, name) > 0, "must be positive", name)
         _check(self.min_points >= 1, "must be at least 1", "min_points")
         _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")

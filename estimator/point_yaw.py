@@ -1,17 +1,19 @@
-"""The yaw from a radar's own detected points, registered to a short local map of the last frames'
+"""The yaw from a radar's own detected points, registered to a local map of the last frames'
 points, and from its zero-Doppler (static) heatmap where that holds the scene (``point_yaw.use``).
 
 TI's demo firmware (``tidemo://``, docs/tidemo.md) sends a handful of points a frame and the
 heatmap of the zero-Doppler bin only.  Driving at 0.5-1 m/s puts the static world 7-15 Doppler bins
 from zero, so that heatmap holds little of it but window leakage: registered frame to frame it says
 nothing of a moving turn.  The points carry the static world at every speed, too few a frame to
-register frame to frame, but enough against the points of the last second:
+register frame to frame, but enough against the points of the last seconds:
 
 - the map: the static points (Doppler consistent with the sensor's velocity) of the last
-  ``map_frames`` frames, each placed in the world by the pose of its frame along the map's own
-  chain of poses: each step's displacement as the odometry integrated it, turned by the yaw this
-  part measured (so that the lag of the yaw-rate filter in a turn's first frames does not turn
-  the map with it; where nothing was measured, the odometry's);
+  ``map_frames`` frames (8 s at 10 frames/s: a long map anchors a frame's few points to what the
+  frames before saw, and its errors do not add up from frame to frame as a short one's do), each
+  placed in the world by the pose of its frame along the map's own chain of poses: each step's
+  displacement as the odometry integrated it, turned by the yaw this part measured (so that the
+  lag of the yaw-rate filter in a turn's first frames does not turn the map with it; where nothing
+  was measured, the odometry's);
 - each map point is a Gaussian whose spread is its measurement's: ``range_noise_m`` along its ray,
   ``bearing_noise_rad`` times its range across (the chip measures one azimuth a point with a small
   array), at least ``position_floor_m``;
@@ -26,20 +28,23 @@ register frame to frame, but enough against the points of the last second:
   where the step has no velocity at all, the last one measured says, and before the first none
   does: a radar starting off with too few points for a velocity has a smeared zero-Doppler map):
   there the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's)
-  measures the turn when the points give none (``heatmap_use`` "fallback"), with a variance of at
-  least ``heatmap_noise_rad`` squared: it has no elevation (the demo sends the azimuth row only),
-  so it reads every cell at cos(elevation) of its bearing's sine and measures turns in place short
-  near floors, ceilings and walls; and facing a wall its few cells register to false turns, so
-  where it stands in for the points its turn is not believed further from the predicted one than
-  ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.  With "fuse" both
-  are averaged by their variances, or, when they disagree by more than ``agreement_sigmas`` of
-  their combined spread, the points' is taken.
+  measures the turn too, with a variance of at least ``heatmap_noise_rad`` squared, and with
+  ``heatmap_use`` "check" its turn is taken where the points give none or where the two differ by
+  more than ``check_sigmas`` of their combined spread (a turn from 3-5 points can be far off; the
+  heatmap's comes from the whole static scene).  It has no elevation (the demo sends the azimuth
+  row only), so it reads every cell at cos(elevation) of its bearing's sine and measures turns in
+  place short near floors, ceilings and walls: where the two agree, the points' is kept.  Facing a
+  wall its few cells register to false turns, so its turn is not believed further from the
+  predicted one than ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.
+  With "fallback" it is measured only where the points give none; with "fuse" both are averaged
+  by their variances, or, when they disagree by more than ``agreement_sigmas`` of their combined
+  spread, the points' is taken.
 
 The measured turn goes on to the yaw-rate filter like a registration's.  This part takes the
 keyframe correction's place (the map is its own) and its role (``correct_lag``): the filter lags a
 turn's first frames, and the yaw it loses there is corrected by the map's chain, whose turns are
-the measured ones, over the map's length: a Kalman update of the filtered yaw relative to the
-chain's pose ``map_frames`` back (or since the last frame whose yaw was not measured), by the
+the measured ones, over the last frames: a Kalman update of the filtered yaw relative to the
+chain's pose ``lag_frames`` back (or since the last frame whose yaw was not measured), by the
 chain's own yaw since then, whose variance is the sum of its measured turns' (their errors add up
 along the chain).  Used by :class:`~.odometry.RadarOdometry` when ``point_yaw.use`` is set
 (``EstimatorConfig.tidemo()``).
@@ -57,6 +62,10 @@ from .config import EstimatorConfig, PointYawConfig
 from .quality import Flag
 from .velocity import OK, ZERO, VelocityEstimate
 from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement, YawStep
+
+#: Map points further than this many of their largest standard deviation from where a point can
+#: lie are left out of its likelihood (see :meth:`PointYaw._pairs`).
+_REACH_SIGMAS = 6.0
 
 
 def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float) -> np.ndarray:
@@ -139,7 +148,7 @@ class LocalMap:
             chained = (x + c * dx - s * dy, y + s * dx + c * dy, yaw + turn)
         if self._config.correct_lag:
             ref = self._reference
-            if ref is None or not measured or ref.steps >= self._config.map_frames:
+            if ref is None or not measured or ref.steps >= self._config.lag_frames:
                 self._reference = ref = _Reference(pose[2], chained[2])
             ref.steps += 1
         self._odometry_pose, self.pose, self.turn = pose, chained, None
@@ -148,12 +157,13 @@ class LocalMap:
             self._arrays = None
         self.pending = None
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """The map's points (m, 2) m and their Gaussians' inverse covariances (m, 2, 2), 1/m^2."""
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The map's points (m, 2) m, their Gaussians' inverse covariances (m, 2, 2), 1/m^2, and
+        their largest standard deviations (m,), m."""
         if self._arrays is None:
             cfg = self._config
             if not self._frames:
-                return np.zeros((0, 2)), np.zeros((0, 2, 2))
+                return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0)
             points = np.concatenate([f[0] for f in self._frames])
             origins = np.concatenate([np.broadcast_to(f[1], f[0].shape) for f in self._frames])
             ray = points - origins
@@ -163,7 +173,8 @@ class LocalMap:
             across = (r * cfg.bearing_noise_rad) ** 2
             cov = (cfg.range_noise_m ** 2 * u[:, :, None] * u[:, None, :] + across[:, None, None] * n[:, :, None]
                    * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
-            self._arrays = points, np.linalg.inv(cov)
+            sigma = np.sqrt(np.maximum(across, cfg.range_noise_m ** 2) + cfg.position_floor_m ** 2)
+            self._arrays = points, np.linalg.inv(cov), sigma
         return self._arrays
 
 
@@ -185,6 +196,8 @@ class PointYaw:
         self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
         self._fuse = cfg.heatmap_use == "fuse"
+        #: Whether the heatmap is measured beside the points' turn (not only in its absence).
+        self._beside = cfg.heatmap_use in ("check", "fuse")
 
     def add_points(self, t: float, points: np.ndarray, estimate: VelocityEstimate) -> None:
         """The point cloud taken at *t* and the velocity estimated from it."""
@@ -212,13 +225,12 @@ class PointYaw:
         self.map.pending = (current.t, xy)
         points = self._register(xy, translation, -predicted)
         heatmap = None
-        if self._slow(velocity, flags) and (self._fuse or points is None):
+        if self._slow(velocity, flags) and (self._beside or points is None):
             step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
-            if step.rotation is not None and (points is not None or self._plausible(-step.rotation, -predicted, dt)):
+            if step.rotation is not None and ((self._fuse and points is not None)
+                                              or self._plausible(-step.rotation, -predicted, dt)):
                 heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))
-        found = [m for m in (heatmap, points) if m is not None]  # (turn rad, variance rad^2)
-        if len(found) == 2 and abs(heatmap[0] - points[0]) > cfg.agreement_sigmas * math.sqrt(heatmap[1] + points[1]):
-            found = [points]
+        found = self._choose(heatmap, points)  # (turn rad, variance rad^2)
         if not found:
             flags.append(Flag.FEW_FEATURES if len(xy) < cfg.min_points else Flag.NO_STRUCTURE)
             return YawStep(None, None, 0.0)
@@ -226,6 +238,20 @@ class PointYaw:
         turn = float(weights @ np.array([t for t, _ in found]) / weights.sum())
         self.map.turn, self.map.turn_variance = turn, float(1.0 / weights.sum())
         return YawStep(-turn, None, self.map.turn_variance)
+
+    def _choose(self, heatmap: tuple[float, float] | None,
+                points: tuple[float, float] | None) -> list[tuple[float, float]]:
+        """The measurements (turn rad, variance rad^2) the step's turn is averaged from, by
+        ``heatmap_use``: where both measured, "check" keeps the points' unless the heatmap's
+        differs by more than ``check_sigmas`` of their combined spread, "fuse" both unless they
+        differ by more than ``agreement_sigmas`` (then the points')."""
+        if heatmap is None or points is None:
+            return [m for m in (heatmap, points) if m is not None]
+        cfg = self._config
+        difference = abs(heatmap[0] - points[0]) / math.sqrt(heatmap[1] + points[1])
+        if self._fuse:
+            return [heatmap, points] if difference <= cfg.agreement_sigmas else [points]
+        return [heatmap] if difference > cfg.check_sigmas else [points]
 
     def _slow(self, velocity: np.ndarray, flags: list[Flag]) -> bool:
         """Whether the step is slow enough for the static heatmap: its *velocity* (2,) m/s below
@@ -252,19 +278,25 @@ class PointYaw:
         cfg = self._config
         if self.map.pose is None or len(xy) < cfg.min_points:
             return None
-        centres, inverse = self.map.arrays()
+        centres, inverse, sigma = self.map.arrays()
         if len(centres) < cfg.min_map_points:
             return None
         x0, y0, yaw0 = self.map.pose
         c0, s0 = math.cos(yaw0), math.sin(yaw0)
-        origin = (x0 + c0 * translation[0] - s0 * translation[1], y0 + s0 * translation[0] + c0 * translation[1])
+        origin = np.array([x0 + c0 * translation[0] - s0 * translation[1], y0 + s0 * translation[0] + c0 * translation[1]])
+        point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma)
         turns = predicted_turn + self._offsets
         c, s = np.cos(yaw0 + turns)[:, None], np.sin(yaw0 + turns)[:, None]
-        # Each point at each turn (T, n), less each map point (T, n, m).
-        ex = (origin[0] + c * xy[:, 0] - s * xy[:, 1])[:, :, None] - centres[:, 0]
-        ey = (origin[1] + s * xy[:, 0] + c * xy[:, 1])[:, :, None] - centres[:, 1]
-        q = ex * ex * inverse[:, 0, 0] + 2.0 * ex * ey * inverse[:, 0, 1] + ey * ey * inverse[:, 1, 1]
-        likelihood = np.exp(-0.5 * q).sum(axis=2)
+        # Each pair's point at each turn less its map point (T, pairs).
+        ex = origin[0] + c * xy[point, 0] - s * xy[point, 1] - centres[near, 0]
+        ey = origin[1] + s * xy[point, 0] + c * xy[point, 1] - centres[near, 1]
+        inv = inverse[near]
+        q = ex * ex * inv[:, 0, 0] + 2.0 * ex * ey * inv[:, 0, 1] + ey * ey * inv[:, 1, 1]
+        likelihood = np.zeros((len(turns), len(xy)))  # (T, n)
+        counts = np.bincount(point, minlength=len(xy))
+        if len(point):
+            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            likelihood[:, counts > 0] = np.add.reduceat(np.exp(-0.5 * q), starts[counts > 0], axis=1)
         score = np.log(np.maximum(likelihood, math.exp(self._log_outlier))).sum(axis=1)  # (T,)
         best = int(np.argmax(score - 0.5 * (self._offsets / cfg.prior_rad) ** 2))
         if best == 0 or best == len(score) - 1:
@@ -277,6 +309,25 @@ class PointYaw:
         variance = -cfg.step_rad ** 2 / curvature
         variance = min(max(variance, cfg.min_noise_rad ** 2), cfg.max_noise_rad ** 2)
         return float(turns[best] + offset * cfg.step_rad), variance
+
+    def _pairs(self, xy: np.ndarray, origin: np.ndarray, yaw: float, centres: np.ndarray,
+               sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The (point, map point) pairs, as two index arrays sorted by point, that can score at some
+        turn searched: a point at *xy* (n, 2) m from the sensor at *origin* (2,) m, turned by *yaw*
+        (rad) give or take ``search_rad``, sweeps an arc about it; map points at *centres* (m, 2)
+        m further from that arc than ``_REACH_SIGMAS`` of their largest standard deviation *sigma*
+        (m,) m add less than exp(-18) to its likelihood, and are left out (a long map's points are
+        mostly far from any one point)."""
+        reach = _REACH_SIGMAS * sigma
+        rho = np.hypot(xy[:, 0], xy[:, 1])[:, None]  # (n, 1)
+        offset = centres - origin
+        distance = np.hypot(offset[:, 0], offset[:, 1])  # (m,)
+        gap = np.angle(np.exp(1j * (np.arctan2(offset[:, 1], offset[:, 0])
+                                   - (yaw + np.arctan2(xy[:, 1], xy[:, 0]))[:, None])))  # (n, m)
+        # Points on a circle at angles apart are at least 2/pi of the smaller radius times the angle apart.
+        beyond = (np.abs(gap) - self._config.search_rad) * np.minimum(rho, distance) * (2.0 / math.pi)
+        near = (np.abs(distance - rho) <= reach) & (beyond <= reach)
+        return np.nonzero(near)
 
 
 def point_yaw_part(config: EstimatorConfig, heatmap: YawMeasurement) -> PointYaw | None:

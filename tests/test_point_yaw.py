@@ -16,6 +16,7 @@ from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig, PointYawConfig
 from radarodom.estimator.odometry import RadarOdometry
 from radarodom.estimator.keyframe import ChainStep
+from radarodom.estimator import point_yaw
 from radarodom.estimator.point_yaw import LocalMap, static_points
 from radarodom.products import RangeAzimuth
 
@@ -43,10 +44,11 @@ def _chip_points(world, pose, velocity, rng, *, few=8, bearing_noise_deg=1.0):
     return synth.points_polar(b, 0.0, velocity, range_m=r[pick], quantum=0.07, noise_mps=0.01, rng=rng)
 
 
-def _run(config, phases, *, seed=5, few=8, moving_map=None, still_turn=None):
-    """The odometry over the *phases*; *few* points a frame (or few(t)); the zero-Doppler map
-    blank while moving, or moving_map(k, world, pose, amp, rng) for the k-th moving frame; while
-    still, the scene's, seen turned by still_turn(t) rad more when given."""
+def _run(config, phases, *, seed=5, few=8, moving_map=None, still_turn=None, points_turn=None):
+    """The odometry over the *phases*; *few* points a frame (or few(t)), seen turned by
+    points_turn(t) rad more when given; the zero-Doppler map blank while moving, or
+    moving_map(k, world, pose, amp, rng) for the k-th moving frame; while still, the scene's, seen
+    turned by still_turn(t) rad more when given."""
     traj = synth.Trajectory(phases)
     world, amp = synth.scene(traj, 80, seed=seed, separation_m=1.0)
     rng = np.random.default_rng(seed)
@@ -56,7 +58,8 @@ def _run(config, phases, *, seed=5, few=8, moving_map=None, still_turn=None):
         t = k * DT
         v, _, w = traj.twist(t)
         pose = traj.pose(t)
-        cloud = _chip_points(world, pose, (v, 0.0), rng, few=few(t) if callable(few) else few)
+        chip_pose = pose if points_turn is None else (pose[0], pose[1], pose[2] + points_turn(t))
+        cloud = _chip_points(world, chip_pose, (v, 0.0), rng, few=few(t) if callable(few) else few)
         still = v == 0.0
         if still:
             seen = pose if still_turn is None else (pose[0], pose[1], pose[2] + still_turn(t))
@@ -69,6 +72,14 @@ def _run(config, phases, *, seed=5, few=8, moving_map=None, still_turn=None):
     est = np.array([s.yaw for s in states])
     increments = np.degrees(np.diff(est) - np.diff(truth))
     return states, float(np.degrees(est[-1] - truth[-1])), float(np.sqrt(np.mean(increments ** 2)))
+
+
+def _increment_errors(config, phases, **kwargs):
+    """Each step's yaw increment less the truth's, degrees (n - 1,)."""
+    traj = synth.Trajectory(phases)
+    states, _, _ = _run(config, phases, **kwargs)
+    truth = [traj.pose(k * DT)[2] for k in range(len(states))]
+    return np.degrees(np.diff([s.yaw for s in states]) - np.diff(truth))
 
 
 def test_the_points_on_the_map_follow_a_moving_turn_the_heatmap_registration_loses():
@@ -138,6 +149,50 @@ def test_a_false_turn_of_the_static_heatmap_standing_in_for_the_points_is_not_be
         assert final_error - its_without_jump < -9.0, (final_error, its_without_jump)
 
 
+def test_turning_in_place_a_jump_of_the_points_the_static_heatmap_disagrees_with_is_not_taken():
+    # One frame's points (at 1.5 s, turning in place) seen 5 degrees further round than the radar
+    # is, as a turn from 3-5 points can come out.  "check" (the preset's) measures the static
+    # heatmap beside them and, as they differ by far more than their combined spread, takes the
+    # heatmap's turn; "fallback" takes the points' jump (and the next frame's way back).
+    def jump(t):
+        return math.radians(5.0) if abs(t - 1.5) < 0.01 else 0.0
+
+    assert EstimatorConfig.tidemo().point_yaw.heatmap_use == "check"
+    checked = _increment_errors(EstimatorConfig.tidemo(), IN_PLACE, points_turn=jump)
+    assert np.abs(checked[13:17]).max() < 2.0, checked[13:17]
+    fallback = _increment_errors(EstimatorConfig.tidemo().with_(point_yaw={"heatmap_use": "fallback"}), IN_PLACE,
+                                 points_turn=jump)
+    assert np.abs(fallback[13:17]).max() > 3.0, fallback[13:17]
+    # Where they agree the points' turn is kept: without the jump both give the same increments.
+    plain_check = _increment_errors(EstimatorConfig.tidemo(), IN_PLACE)
+    plain_fallback = _increment_errors(EstimatorConfig.tidemo().with_(point_yaw={"heatmap_use": "fallback"}),
+                                       IN_PLACE)
+    assert np.sqrt(np.mean(plain_check ** 2)) < 1.0
+    assert np.sqrt(np.mean((plain_check - plain_fallback) ** 2)) < 0.5
+
+
+def test_the_map_points_left_out_of_a_points_likelihood_change_nothing(monkeypatch):
+    # A long map (80 frames of 12 points around a room) and a frame's points: the registration
+    # on the pairs within reach gives the turn and variance that every pair gives.
+    rng = np.random.default_rng(3)
+    part = RadarOdometry(EstimatorConfig.tidemo()).point_yaw
+    for k in range(80):
+        origin = np.array([0.05 * k, 0.02 * k])
+        part.map._frames.append((rng.uniform(-6.0, 6.0, (12, 2)) + origin, origin))
+    part.map.pose = (4.0, 1.6, math.radians(20.0))
+    world = part.map.arrays()[0][-40:]
+    turn = math.radians(3.0)
+    c, s = math.cos(part.map.pose[2] + turn), math.sin(part.map.pose[2] + turn)
+    offset = world - np.array(part.map.pose[:2])
+    xy = np.stack([c * offset[:, 0] + s * offset[:, 1], -s * offset[:, 0] + c * offset[:, 1]], 1)
+    xy = xy[np.hypot(xy[:, 0], xy[:, 1]) < 8.0][:10] + 0.02 * rng.standard_normal((10, 2))
+    pruned = part._register(xy, np.zeros(2), math.radians(1.0))
+    monkeypatch.setattr(point_yaw, "_REACH_SIGMAS", math.inf)
+    every_pair = part._register(xy, np.zeros(2), math.radians(1.0))
+    assert pruned is not None and math.degrees(pruned[0]) == pytest.approx(3.0, abs=0.5)
+    assert pruned == pytest.approx(every_pair, rel=1e-9, abs=1e-12)
+
+
 def _turning_map(k, world, pose, amp, rng):
     """A zero-Doppler map while moving that holds structure which is not the scene's: the
     reflectors as if the radar had turned 4 degrees more each frame (a smeared map's leakage)."""
@@ -203,7 +258,7 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
     assert EstimatorConfig.from_dict(same) == preset
 
 
-@pytest.mark.parametrize("field, value", [("map_frames", 0), ("bearing_noise_rad", 0.0), ("min_points", 0),
+@pytest.mark.parametrize("field, value", [("map_frames", 0), ("lag_frames", 0), ("check_sigmas", 0.0), ("bearing_noise_rad", 0.0), ("min_points", 0),
                                           ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0),
                                           ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0)])
 def test_bad_settings_are_refused_naming_the_field(field, value):
