@@ -176,7 +176,7 @@ class PointYawConfig(Settings):
     #: Measure the yaw this way instead of registering heatmaps (and their keyframes).
     use: bool = False
     #: The map holds the static points of this many last frames: a long map anchors each frame's
-    #: few points to what the frames before saw (docs/tidemo.md, "A longer map").
+    #: few points to what the frames before saw (docs/tidemo.md, "How it compares").
     map_frames: int = 80
     #: A point's spread across its ray is its range times this, rad (one azimuth a point from a
     #: small array), ...
@@ -221,8 +221,8 @@ class PointYawConfig(Settings):
     #: With "check", the heatmap's turn is taken where it differs from the points' by more than
     #: this many of their combined standard deviations.
     check_sigmas: float = 1.0
-    #: Standing in for the points' (none of theirs), its turn is not believed further from the
-    #: predicted one (the last measured rate's; ``icp.initial_guess`` "zero" predicts none, and
+    #: Standing in for the points' or checking them ("check", "fallback"; not fused), its turn is
+    #: not believed further from the predicted one (the last measured rate's; ``icp.initial_guess`` "zero" predicts none, and
     #: then it is not checked) than this yaw acceleration allows over the step
     #: (times its duration squared) plus three of ``heatmap_noise_rad``, rad/s^2 (None: always
     #: believed): facing a wall, the few cells in view register to false turns (docs/tidemo.md).
