@@ -222,10 +222,11 @@ class PointYawConfig(Settings):
     #: this many of their combined standard deviations.
     check_sigmas: float = 1.0
     #: Standing in for the points' or checking them ("check", "fallback"; not fused), its turn is
-    #: not believed further from the predicted one (the last measured rate's; ``icp.initial_guess`` "zero" predicts none, and
-    #: then it is not checked) than this yaw acceleration allows over the step
-    #: (times its duration squared) plus three of ``heatmap_noise_rad``, rad/s^2 (None: always
-    #: believed): facing a wall, the few cells in view register to false turns (docs/tidemo.md).
+    #: not believed further from the predicted one (the last measured rate's;
+    #: ``icp.initial_guess`` "zero" predicts none, and then it is not checked) than this yaw
+    #: acceleration allows over the step (times its duration squared) plus three of
+    #: ``heatmap_noise_rad``, rad/s^2 (None: always believed): facing a wall, the few cells in
+    #: view register to false turns (docs/tidemo.md).
     heatmap_max_accel_radps2: float | None = math.radians(300.0)
     #: Correct the yaw-rate filter's yaw by the map's chain of measured turns over the last
     #: ``lag_frames`` frames, as the keyframes correct the raw path's: the filter lags a turn's
