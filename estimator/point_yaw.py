@@ -283,7 +283,8 @@ class PointYaw:
             return None
         x0, y0, yaw0 = self.map.pose
         c0, s0 = math.cos(yaw0), math.sin(yaw0)
-        origin = np.array([x0 + c0 * translation[0] - s0 * translation[1], y0 + s0 * translation[0] + c0 * translation[1]])
+        origin = np.array([x0 + c0 * translation[0] - s0 * translation[1],
+                           y0 + s0 * translation[0] + c0 * translation[1]])
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma)
         turns = predicted_turn + self._offsets
         c, s = np.cos(yaw0 + turns)[:, None], np.sin(yaw0 + turns)[:, None]

@@ -258,7 +258,8 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
     assert EstimatorConfig.from_dict(same) == preset
 
 
-@pytest.mark.parametrize("field, value", [("map_frames", 0), ("lag_frames", 0), ("check_sigmas", 0.0), ("bearing_noise_rad", 0.0), ("min_points", 0),
+@pytest.mark.parametrize("field, value", [("map_frames", 0), ("lag_frames", 0), ("check_sigmas", 0.0),
+                                          ("bearing_noise_rad", 0.0), ("min_points", 0),
                                           ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0),
                                           ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0)])
 def test_bad_settings_are_refused_naming_the_field(field, value):
