@@ -187,6 +187,9 @@ def test_the_map_points_left_out_of_a_points_likelihood_change_nothing(monkeypat
     xy = np.stack([c * offset[:, 0] + s * offset[:, 1], -s * offset[:, 0] + c * offset[:, 1]], 1)
     xy = xy[np.hypot(xy[:, 0], xy[:, 1]) < 8.0][:10] + 0.02 * rng.standard_normal((10, 2))
     pruned = part._register(xy, np.zeros(2), math.radians(1.0))
+    centres, _, sigma = part.map.arrays()
+    pairs, _ = part._pairs(xy, np.array(part.map.pose[:2]), part.map.pose[2] + math.radians(1.0), centres, sigma)
+    assert 0 < len(pairs) < 0.25 * len(xy) * len(centres)  # most pairs are left out
     monkeypatch.setattr(point_yaw, "_REACH_SIGMAS", math.inf)
     every_pair = part._register(xy, np.zeros(2), math.radians(1.0))
     assert pruned is not None and math.degrees(pruned[0]) == pytest.approx(3.0, abs=0.5)
