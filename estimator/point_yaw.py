@@ -58,6 +58,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .angles import wrap
 from .config import EstimatorConfig, PointYawConfig
 from .quality import Flag
 from .velocity import OK, ZERO, VelocityEstimate
@@ -323,8 +324,7 @@ class PointYaw:
         rho = np.hypot(xy[:, 0], xy[:, 1])[:, None]  # (n, 1)
         offset = centres - origin
         distance = np.hypot(offset[:, 0], offset[:, 1])  # (m,)
-        gap = np.angle(np.exp(1j * (np.arctan2(offset[:, 1], offset[:, 0])
-                                   - (yaw + np.arctan2(xy[:, 1], xy[:, 0]))[:, None])))  # (n, m)
+        gap = wrap(np.arctan2(offset[:, 1], offset[:, 0]) - (yaw + np.arctan2(xy[:, 1], xy[:, 0]))[:, None])  # (n, m)
         # Points on a circle at angles apart are at least 2/pi of the smaller radius times the angle apart.
         beyond = (np.abs(gap) - self._config.search_rad) * np.minimum(rho, distance) * (2.0 / math.pi)
         near = (np.abs(distance - rho) <= reach) & (beyond <= reach)
