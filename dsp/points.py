@@ -30,6 +30,10 @@ from .config import DspConfig
 
 
 
+#: How far from its cell's Doppler bin a point's radial velocity may be placed, bins (the
+#: neighbouring bin's centre; see PointMaker._offset_table).
+DOPPLER_SPAN_BINS = 1.0
+
 #: A cell whose strongest azimuth peak grows by this factor (0.6 dB) under another TDM
 #: hypothesis holds one aliased target, not several reflectors (_further_peaks; chosen between
 #: what the two cases measure, docs/dsp.md, "Several reflectors in one cell").
@@ -37,12 +41,16 @@ ALIASED_GAIN = 10 ** 0.06
 
 
 def three_bin_response(window: np.ndarray, n_fft: int, setting: str = "doppler_interpolation",
-                       fix: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+                       fix: str | None = None, span: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """How an FFT of *n_fft* points of the *window*ed tone answers the tone's offset from a bin.
 
-    Returns (ratio, offset): for a tone ``offset`` bins from bin k (-0.5 .. 0.5, 1001 steps),
-    ``ratio = (|X(k+1)| - |X(k-1)|) / |X(k)|``, increasing, so that
-    ``np.interp(measured_ratio, ratio, offset)`` inverts it (clamped to the bin).  Taken from
+    Returns (ratio, offset): for a tone ``offset`` bins from bin k (-span .. span, 1000 steps a
+    bin), ``ratio = (|X(k+1)| - |X(k-1)|) / |X(k)|``, increasing, so that
+    ``np.interp(measured_ratio, ratio, offset)`` inverts it (clamped to the span).  A *span*
+    beyond half a bin is for a bin that need not be the tone's own (a cell's further reflector,
+    :class:`PointMaker`): it is cut to the offsets over which the ratio still grows (a tapered
+    window's to nearly two bins, where the tone's main lobe leaves bin k; a rectangular one's to
+    one, where bin k falls on its null), and never below half a bin.  Taken from
     the window itself, so it holds for any window and zero padding (a window with zero taps
     is an aperture with gaps).  *setting* is the DspConfig field that asked, for errors, and
     *fix* what to do about one (default: set it false).
@@ -51,18 +59,27 @@ def three_bin_response(window: np.ndarray, n_fft: int, setting: str = "doppler_i
     if n_fft < 3:
         raise ConfigError(f"interpolating between FFT bins needs three bins, the FFT has {n_fft}: {fix}",
                           field=setting)
-    offset = np.linspace(-0.5, 0.5, 1001)
+    steps = int(round(1000 * span))
+    offset = np.linspace(-span, span, 2 * steps + 1)
     taps = np.arange(len(window))
     weights = np.asarray(window, dtype=float)
 
     def magnitude(f: np.ndarray) -> np.ndarray:  # |DTFT of the window| f bins from its peak
         return np.abs(np.exp(-2j * np.pi * np.outer(f, taps) / n_fft) @ weights)
 
-    ratio = (magnitude(1.0 - offset) - magnitude(-1.0 - offset)) / magnitude(-offset)
-    if not np.all(np.diff(ratio) > 0):
+    centre = magnitude(-offset)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = (magnitude(1.0 - offset) - magnitude(-1.0 - offset)) / centre
+    grows = np.isfinite(ratio[1:]) & np.isfinite(ratio[:-1]) & (np.diff(ratio) > 0)
+    # The widest span about zero over which the ratio grows both ways.
+    reach = 0
+    while reach < steps and grows[steps + reach] and grows[steps - reach - 1]:
+        reach += 1
+    if offset[steps + reach] < 0.5 - 1e-9:
         raise ConfigError("the window's three-bin response does not grow with the tone's offset, "
                           f"so it cannot be inverted: {fix}", field=setting)
-    return ratio, offset
+    keep = slice(steps - reach, steps + reach + 1)
+    return ratio[keep], offset[keep]
 
 
 def invert_three_bins(below: np.ndarray, centre: np.ndarray, above: np.ndarray,
@@ -120,8 +137,12 @@ class PointMaker:
         #: coefficient.  complex64 (n_doppler, elements); the heatmaps use it.
         self.angle_weights = (weights if self.calibration_weights is None
                               else (weights * self.calibration_weights).astype(np.complex64))
-        #: (ratio, offset) of three_bin_response for sub-bin Doppler, or None (bin centres).
-        self._offset_table = (three_bin_response(w_doppler, self.n_doppler)
+        #: (ratio, offset) of three_bin_response for sub-bin Doppler, or None (bin centres).  It
+        #: reaches a bin each way: a cell's further reflector may lie up to a bin from the cell's
+        #: own Doppler bin (its peak in the next cell, its main lobe strong enough here); clamped
+        #: to half a bin, it read up to half a bin toward the cell's (docs/dsp.md, "Radial velocity
+        #: between Doppler bins").
+        self._offset_table = (three_bin_response(w_doppler, self.n_doppler, span=DOPPLER_SPAN_BINS)
                               if params.doppler_interpolation else None)
         self._aoa = cfg.aoa_fov if params.ti_like else None
 
@@ -342,4 +363,4 @@ class PointMaker:
 
 
 
-__all__ = ["ALIASED_GAIN", "POINT_DTYPE", "PointMaker", "three_bin_response"]
+__all__ = ["ALIASED_GAIN", "DOPPLER_SPAN_BINS", "POINT_DTYPE", "PointMaker", "three_bin_response"]

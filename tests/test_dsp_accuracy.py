@@ -554,6 +554,29 @@ def test_radial_velocity_between_doppler_bins(shipped_cfg, offset):
     assert centre["velocity"] == pytest.approx(-8 * cfg.velocity_resolution_mps)
 
 
+def test_further_reflector_a_bin_away_keeps_its_radial_velocity(shipped_cfg):
+    """Two reflectors 6 m away, driven toward at 8 Doppler bins: one ahead (bin -8), a weaker
+    one 22 degrees left whose radial velocity is 7.37 bins, beyond half a bin from the cell it
+    shares with the first.  Its radial velocity is placed over the whole bin between (within
+    0.05 of a bin of the truth); clamped to half a bin, as before, it read 0.13 bins fast
+    (docs/dsp.md, "Several reflectors in one cell")."""
+    cfg = shipped_cfg
+    res = cfg.velocity_resolution_mps
+    second = math.acos((8 - 0.62) / 8)
+    ahead, left = [6.0, 0.0, 0.4], [6.0 * math.cos(second), 6.0 * math.sin(second), 0.4]
+    scene = point_scene([ahead, left], [{"straight": 8.0, "speed": 8 * res}],
+                        extra={"objects": [{"type": "point", "position": ahead, "rcs": 10.0},
+                                           {"type": "point", "position": left, "rcs": 1.0}]})
+    f, cube = simulate(cfg, scene, frame=2)
+    points = FrameProcessor(cfg, calibrated=True).process(cube).points
+    assert len(points) == 2 and set(points["doppler_bin"]) == {-8}, points
+    for point in (ahead, left):
+        tr = geometry(scene, cfg, point, f.timestamp)
+        q = points[np.argmin(np.abs(points["azimuth"] - tr["az"]))]
+        assert abs(q["velocity"] - tr["v_r"]) <= 0.05 * res, (point, q["velocity"], tr["v_r"])
+    assert abs(geometry(scene, cfg, left, f.timestamp)["v_r"] / res + 8) > 0.55  # beyond half a bin
+
+
 @pytest.mark.parametrize("bearing_deg", [30, 50])
 @pytest.mark.parametrize("bins", [2.6, 8.4])
 def test_radial_velocity_off_boresight(shipped_cfg, bearing_deg, bins):
@@ -602,6 +625,24 @@ def test_three_bin_response_inverts_a_tone(window, pad):
                                      loops * pad))
         measured = (spectrum[11] - spectrum[9]) / spectrum[10]
         assert np.interp(measured, ratio, offset) == pytest.approx(true, abs=1e-3)
+
+
+@pytest.mark.parametrize("window", ["hann", "blackman", "rect"])
+def test_three_bin_response_reaches_the_next_bin(window):
+    """With a span of a bin, the table inverts a tone up to the neighbouring bin's centre (a
+    cell's further reflector); a rectangular window's ratio stops growing where bin k falls on
+    its null, one bin out, so its table ends there; half a bin is the default."""
+    loops = 64
+    w = make_window(window, loops).astype(float)
+    ratio, offset = three_bin_response(w, loops, span=1.5)
+    assert offset[-1] == pytest.approx(-offset[0]) and offset[-1] <= 1.5
+    assert offset[-1] == pytest.approx(1.0) if window == "rect" else offset[-1] == pytest.approx(1.5)
+    assert np.all(np.diff(ratio) > 0)
+    for true in (-0.9, -0.7, -0.55, 0.6, 0.8, 0.95):
+        spectrum = np.abs(np.fft.fft(w * np.exp(2j * np.pi * (10 + true) * np.arange(loops) / loops)))
+        measured = (spectrum[11] - spectrum[9]) / spectrum[10]
+        assert np.interp(measured, ratio, offset) == pytest.approx(true, abs=1e-3)
+    assert three_bin_response(w, loops)[1][[0, -1]].tolist() == [-0.5, 0.5]
 
 
 @pytest.mark.parametrize("n", [7, 16, 64, 128, 256, 1024])
