@@ -5,12 +5,14 @@ A sequence is a capture directory written by ``radar-sim`` with the tidemo cfg (
 with groundtruth.tum) under ``--data`` (default ``~/.cache/radarodom/tidemo``).  Beside its raw
 frames (whose raw-path products ``sequences.load`` caches as for the other experiments):
 
-- ``uart-<T>dB/``: what the emulated demo sends for each raw frame with both cfarCfg thresholds at
-  T dB, as a ``tidemo://`` recording (uart.bin, timestamps.txt, radar.cfg, capture.json: what
-  ``radar-capture --source replay://DIR`` plays);
-- ``uart-<T>dB/products-<key>.npz``: that recording replayed through the pipeline's products as
-  radar-capture makes them (the chip's points, the static heatmap of ``dsp.static_heatmap``), the
-  key naming the dsp package's and the tidemo driver's sources (a change makes it anew).
+- ``uart-<T>dB-<key>/``: what the emulated demo sends for each raw frame with both cfarCfg
+  thresholds at T dB, as a ``tidemo://`` recording (uart.bin, timestamps.txt, radar.cfg,
+  capture.json: what ``radar-capture --source replay://DIR`` plays);
+- ``uart-<T>dB-<key>/products-<key>.npz``: that recording replayed through the pipeline's products
+  as radar-capture makes them (the chip's points, the static heatmap of ``dsp.static_heatmap``);
+
+the key naming the sources of the dsp package, the tidemo driver and the emulated chip
+(``demo_frames.py``): a change to any makes both anew.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import sequences
 from radarodom import dsp
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver import open_source, tidemo
+from radarodom.driver.emulators import demo_frames
 from radarodom.driver.emulators.demo_frames import DemoFrameMaker
 from radarodom.driver.tidemo.recording import UartRecorder
 from radarodom.pipeline import Pipeline
@@ -70,7 +73,7 @@ def raw(directory: str) -> sequences.Sequence:
 def _uart_recording(directory: str, threshold_db: float) -> tuple[str, list[int]]:
     """The emulated demo's stream of the recording at *threshold_db*, recorded once; and the
     points each packet carries."""
-    out = os.path.join(directory, f"uart-{threshold_db:g}dB")
+    out = os.path.join(directory, f"uart-{threshold_db:g}dB-{_fingerprint()}")
     counts = os.path.join(out, "points.txt")
     if not os.path.exists(counts):
         cfg = tidemo_cfg(threshold_db)
@@ -94,6 +97,8 @@ def _uart_recording(directory: str, threshold_db: float) -> tuple[str, list[int]
 
 
 def _fingerprint() -> str:
+    """What makes the emulated demo's stream and its products: the sources of the dsp package, the
+    tidemo driver and the emulated chip."""
     digest = hashlib.sha256()
     for package in (dsp, tidemo):
         folder = os.path.dirname(package.__file__)
@@ -101,6 +106,8 @@ def _fingerprint() -> str:
             if name.endswith(".py"):
                 with open(os.path.join(folder, name), "rb") as fh:
                     digest.update(name.encode() + b"\0" + fh.read())
+    with open(demo_frames.__file__, "rb") as fh:
+        digest.update(b"demo_frames.py\0" + fh.read())
     return digest.hexdigest()[:16]
 
 

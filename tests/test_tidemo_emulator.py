@@ -31,15 +31,17 @@ def cfg() -> RadarConfig:
 
 
 def test_packets_hold_the_chips_cfar_points_and_the_raw_paths_static_map(cfg):
-    """The emulated chip's points are the DSP's in TI's mode (the cfg's 15 dB CFAR); its static
-    map, through the tidemo heatmap, is the raw path's zero-Doppler heatmap of the same frame
-    (up to int16 rounding)."""
+    """The emulated chip's points are the DSP's in TI's mode (the cfg's 15 dB CFAR), placed on the
+    FFTs' bins as the demo places them: each radial velocity a whole number of Doppler steps, each
+    Wx = x / range a whole number of 2 / 64; its static map, through the tidemo heatmap, is the
+    raw path's zero-Doppler heatmap of the same frame (up to int16 rounding)."""
     maker = DemoFrameMaker(cfg)
-    ti = FrameProcessor(cfg, DspConfig(ti_like=True))
+    ti = FrameProcessor(cfg, DspConfig(ti_like=True, doppler_interpolation=False, azimuth_interpolation=False))
+    step = cfg.velocity_resolution_mps * cfg.num_loops / ti.n_doppler
     raw = FrameProcessor(cfg, DspConfig())
     heatmaps, static = HeatmapMaker(raw), StaticHeatmapMaker(raw)
     geometry = DemoGeometry.from_config(cfg)
-    seen = 0
+    seen, moving = 0, False
     with open_source("sim://room?rate=max&duration=0.5", cfg) as source:
         for frame in source:
             data, n = maker.packet(frame.raw, frame.index + 1, frame.timestamp)
@@ -50,6 +52,10 @@ def test_packets_hold_the_chips_cfar_points_and_the_raw_paths_static_map(cfg):
             assert n == len(expected) and len(chip) == n
             for name in ("x", "y", "z", "velocity"):
                 np.testing.assert_array_equal(chip[name], expected[name])
+            np.testing.assert_allclose(chip["velocity"] / step, np.round(chip["velocity"] / step), atol=1e-4)
+            wx = chip["x"] / np.sqrt(chip["x"] ** 2 + chip["y"] ** 2 + chip["z"] ** 2) * 32
+            np.testing.assert_allclose(wx, np.round(wx), atol=1e-3)
+            moving |= bool(np.any(chip["velocity"] != 0))
             side = packet.array(wire.Tlv.DETECTED_POINTS_SIDE_INFO, wire.SIDE_INFO_DTYPE)
             if n:
                 np.testing.assert_array_equal(side["snr"], np.round(expected["snr_db"] * 10).astype(np.int16))
@@ -58,7 +64,7 @@ def test_packets_hold_the_chips_cfar_points_and_the_raw_paths_static_map(cfg):
             assert mine.shape == truth.shape
             np.testing.assert_allclose(mine / mine.max(), truth / truth.max(), atol=1e-3)
             seen += 1
-    assert seen == 5 and maker.saturated == 0
+    assert seen == 5 and maker.saturated == 0 and moving
 
 
 def test_the_source_counts_what_the_line_did_to_the_emulators_packets(cfg):

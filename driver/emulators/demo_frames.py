@@ -5,7 +5,9 @@ The chip's processing is modelled with radarodom's DSP in TI's mode (``DspConfig
 the cfg's cfarCfg thresholds and peak grouping, its clutterRemoval, multiObjBeamForming,
 aoaFovCfg and cfarFovCfg), on the demo's FFT sizes (samples and loops rounded up to powers of two):
 
-- points: the detections' x, y, z and radial velocity; side info: their SNR and noise in 0.1 dB;
+- points: the detections' x, y, z and radial velocity, on the FFTs' bins as the demo places them
+  (radial velocity at its Doppler bin's centre, Wx from the azimuth FFT's peak bin, no sub-bin
+  interpolation); side info: their SNR and noise in 0.1 dB;
 - the azimuth static heatmap: the zero-Doppler bin of the windowed Doppler spectrum of the first
   ``numVirtualAntAzim`` antennas in chirp order, multiplied by the cfg's compRangeBiasAndRxChanPhase
   coefficients (``aoaprochwa.c`` ``AoAProcHWA_PrepareRangeAzimuthHeatmap``), as int16 (imaginary,
@@ -44,7 +46,11 @@ class DemoFrameMaker:
         self.config = config
         self.geometry = g = DemoGeometry.from_config(config)
         self.layout = g.layout(gui_selection(config))
-        params = DspConfig(ti_like=True, range_fft_size=g.range_bins if g.range_bins != config.num_samples else None,
+        # The demo places a point on its cell's bins: radial velocity dopplerStep x the Doppler bin,
+        # Wx = 2 k / 64 of the azimuth FFT's peak bin k (aoaprochwa.c, AoAProcHWA_XYZestimation),
+        # not between them as radarodom's DSP does.
+        params = DspConfig(ti_like=True, doppler_interpolation=False, azimuth_interpolation=False,
+                           range_fft_size=g.range_bins if g.range_bins != config.num_samples else None,
                            doppler_fft_size=g.doppler_bins if g.doppler_bins != config.num_loops else None)
         self.processor = p = FrameProcessor(config, params)
         self.raw_layout = RawLayout.from_config(config)
