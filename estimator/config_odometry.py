@@ -197,6 +197,13 @@ class PointYawConfig(Settings):
     step_rad: float = math.radians(0.1)
     #: The prior about the predicted turn that picks among peaks, rad (standard deviation).
     prior_rad: float = math.radians(3.0)
+    #: After frames whose turn went unmeasured (the held rate stood in), the search and the prior
+    #: widen by this much for each of them, rad, ...
+    gap_widen_rad: float = math.radians(2.0)
+    #: ... for at most this many: the turn the gap held back is uncertain by what the robot may
+    #: have turned meanwhile (braking into a turn in place), and the map, placed before the gap,
+    #: can measure it (docs/tidemo.md, "The turn after a gap").
+    gap_widen_frames: int = 4
     #: A point's log-likelihood is at least that of this many standard deviations.
     outlier_sigmas: float = 3.0
     #: The points' turn has at least this noise, rad, and at most ``max_noise_rad``.
@@ -243,6 +250,8 @@ class PointYawConfig(Settings):
             _check(getattr(self, name) > 0, "must be positive", name)
         _check(self.min_points >= 1, "must be at least 1", "min_points")
         _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")
+        _check(self.gap_widen_rad >= 0, "must be >= 0", "gap_widen_rad")
+        _check(self.gap_widen_frames >= 0, "must be >= 0", "gap_widen_frames")
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")

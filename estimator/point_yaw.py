@@ -18,7 +18,10 @@ register frame to frame, but enough against the points of the last seconds:
   ``bearing_noise_rad`` times its range across (the chip measures one azimuth a point with a small
   array), at least ``position_floor_m``;
 - a step's turn: the frame's static points moved by the step's translation (the velocity's) and
-  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn,
+  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn (wider
+  by ``gap_widen_rad`` for each step before whose turn went unmeasured, at most
+  ``gap_widen_frames``, the prior likewise: braking into a turn in place, the held rate misses
+  what the map can still measure),
   scored by the log-likelihood of the points under the map (each point the log of its Gaussians'
   sum, at least that of ``outlier_sigmas``: a point the map has not seen costs the same at every
   turn); the best score plus a Gaussian prior of ``prior_rad`` about the prediction (which picks
@@ -195,6 +198,8 @@ class PointYaw:
         self._last_speed: float | None = None
         cfg = self._config
         self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
+        #: Consecutive steps whose turn went unmeasured, up to the last (``gap_widen_frames``).
+        self._gap = 0
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
         self._fuse = cfg.heatmap_use == "fuse"
         #: Whether the heatmap is measured beside the points' turn (not only in its absence).
@@ -234,7 +239,9 @@ class PointYaw:
         found = self._choose(heatmap, points)  # (turn rad, variance rad^2)
         if not found:
             flags.append(Flag.FEW_FEATURES if len(xy) < cfg.min_points else Flag.NO_STRUCTURE)
+            self._gap += 1
             return YawStep(None, None, 0.0)
+        self._gap = 0
         weights = np.array([1.0 / var for _, var in found])
         turn = float(weights @ np.array([t for t, _ in found]) / weights.sum())
         self.map.turn, self.map.turn_variance = turn, float(1.0 / weights.sum())
@@ -286,8 +293,13 @@ class PointYaw:
         c0, s0 = math.cos(yaw0), math.sin(yaw0)
         origin = np.array([x0 + c0 * translation[0] - s0 * translation[1],
                            y0 + s0 * translation[0] + c0 * translation[1]])
-        point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma)
-        turns = predicted_turn + self._offsets
+        # After unmeasured steps the search and the prior widen by what the held rate may have missed.
+        widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
+        offsets = self._offsets if widen == 0 else np.arange(
+            -(cfg.search_rad + widen), cfg.search_rad + widen + 0.5 * cfg.step_rad, cfg.step_rad)
+        prior_rad = math.hypot(cfg.prior_rad, widen)
+        point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
+        turns = predicted_turn + offsets
         c, s = np.cos(yaw0 + turns)[:, None], np.sin(yaw0 + turns)[:, None]
         # Each pair's point at each turn less its map point (T, pairs).
         ex = origin[0] + c * xy[point, 0] - s * xy[point, 1] - centres[near, 0]
@@ -300,7 +312,7 @@ class PointYaw:
             starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
             likelihood[:, counts > 0] = np.add.reduceat(np.exp(-0.5 * q), starts[counts > 0], axis=1)
         score = np.log(np.maximum(likelihood, math.exp(self._log_outlier))).sum(axis=1)  # (T,)
-        best = int(np.argmax(score - 0.5 * (self._offsets / cfg.prior_rad) ** 2))
+        best = int(np.argmax(score - 0.5 * (offsets / prior_rad) ** 2))
         if best == 0 or best == len(score) - 1:
             return None
         left, mid, right = score[best - 1:best + 2]
@@ -313,10 +325,10 @@ class PointYaw:
         return float(turns[best] + offset * cfg.step_rad), variance
 
     def _pairs(self, xy: np.ndarray, origin: np.ndarray, yaw: float, centres: np.ndarray,
-               sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               sigma: np.ndarray, search_rad: float) -> tuple[np.ndarray, np.ndarray]:
         """The (point, map point) pairs, as two index arrays sorted by point, that can score at some
         turn searched: a point at *xy* (n, 2) m from the sensor at *origin* (2,) m, turned by *yaw*
-        (rad) give or take ``search_rad``, sweeps an arc about it; map points at *centres* (m, 2)
+        (rad) give or take *search_rad*, sweeps an arc about it; map points at *centres* (m, 2)
         m further from that arc than ``_REACH_SIGMAS`` of their largest standard deviation *sigma*
         (m,) m add less than exp(-18) to its likelihood, and are left out (a long map's points are
         mostly far from any one point)."""
@@ -326,7 +338,7 @@ class PointYaw:
         distance = np.hypot(offset[:, 0], offset[:, 1])  # (m,)
         gap = wrap(np.arctan2(offset[:, 1], offset[:, 0]) - (yaw + np.arctan2(xy[:, 1], xy[:, 0]))[:, None])  # (n, m)
         # Points on a circle at angles apart are at least 2/pi of the smaller radius times the angle apart.
-        beyond = (np.abs(gap) - self._config.search_rad) * np.minimum(rho, distance) * (2.0 / math.pi)
+        beyond = (np.abs(gap) - search_rad) * np.minimum(rho, distance) * (2.0 / math.pi)
         near = (np.abs(distance - rho) <= reach) & (beyond <= reach)
         return np.nonzero(near)
 

@@ -188,7 +188,8 @@ def test_the_map_points_left_out_of_a_points_likelihood_change_nothing(monkeypat
     xy = xy[np.hypot(xy[:, 0], xy[:, 1]) < 8.0][:10] + 0.02 * rng.standard_normal((10, 2))
     pruned = part._register(xy, np.zeros(2), math.radians(1.0))
     centres, _, sigma = part.map.arrays()
-    pairs, _ = part._pairs(xy, np.array(part.map.pose[:2]), part.map.pose[2] + math.radians(1.0), centres, sigma)
+    pairs, _ = part._pairs(xy, np.array(part.map.pose[:2]), part.map.pose[2] + math.radians(1.0), centres, sigma,
+                           part._config.search_rad)
     assert 0 < len(pairs) < 0.25 * len(xy) * len(centres)  # most pairs are left out
     monkeypatch.setattr(point_yaw, "_REACH_SIGMAS", math.inf)
     every_pair = part._register(xy, np.zeros(2), math.radians(1.0))
@@ -201,6 +202,33 @@ def _turning_map(k, world, pose, amp, rng):
     reflectors as if the radar had turned 4 degrees more each frame (a smeared map's leakage)."""
     turned = (pose[0], pose[1], pose[2] + math.radians(4.0) * (k + 1))
     return synth.heatmap(synth.world_to_body(world, turned), amp, noise=1e-3, rng=rng, doppler_channel=False)
+
+
+def test_after_unmeasured_steps_the_search_widens_to_the_turn_the_held_rate_missed():
+    # A map of a room's points and a frame turned 13 degrees from the predicted turn (the held
+    # rate's, after steps whose turn went unmeasured: braking into a turn in place): beyond the
+    # 8-degree search it is not found; after three such steps the search and the prior have
+    # widened by 3 x 2 degrees and it is, at its place.
+    rng = np.random.default_rng(5)
+    part = RadarOdometry(EstimatorConfig.tidemo()).point_yaw
+    for k in range(40):
+        origin = np.array([0.03 * k, 0.0])
+        part.map._frames.append((rng.uniform(-5.0, 5.0, (12, 2)) + origin, origin))
+    part.map.pose = (1.2, 0.0, 0.0)
+    world = part.map.arrays()[0]
+    turn = math.radians(13.0)
+    c, s = math.cos(turn), math.sin(turn)
+    offset = world - np.array(part.map.pose[:2])
+    xy = np.stack([c * offset[:, 0] + s * offset[:, 1], -s * offset[:, 0] + c * offset[:, 1]], 1)
+    xy = xy[np.hypot(xy[:, 0], xy[:, 1]) < 6.0][:8] + 0.02 * rng.standard_normal((8, 2))
+    found = part._register(xy, np.zeros(2), 0.0)
+    assert found is None or abs(math.degrees(found[0]) - 13.0) > 2.0, found
+    part._gap = 3
+    widened = part._register(xy, np.zeros(2), 0.0)
+    assert widened is not None and math.degrees(widened[0]) == pytest.approx(13.0, abs=0.5), widened
+    part._gap = 10  # at most gap_widen_frames (4) count: +/- 16 degrees, short of 17
+    capped = part._register(xy, np.zeros(2), math.radians(-4.0))
+    assert capped is None or abs(math.degrees(capped[0]) - 13.0) > 1.0, capped
 
 
 def test_starting_off_with_no_velocity_measured_the_zero_doppler_map_is_not_registered():
@@ -264,7 +292,8 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
 @pytest.mark.parametrize("field, value", [("map_frames", 0), ("lag_frames", 0), ("check_sigmas", 0.0),
                                           ("bearing_noise_rad", 0.0), ("min_points", 0),
                                           ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0),
-                                          ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0)])
+                                          ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0),
+                                          ("gap_widen_rad", -0.01), ("gap_widen_frames", -1)])
 def test_bad_settings_are_refused_naming_the_field(field, value):
     with pytest.raises(ConfigError) as info:
         EstimatorConfig.from_dict({"point_yaw": {field: value}})
