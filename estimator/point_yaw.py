@@ -18,10 +18,10 @@ register frame to frame, but enough against the points of the last seconds:
   ``bearing_noise_rad`` times its range across (the chip measures one azimuth a point with a small
   array), at least ``position_floor_m``;
 - a step's turn: the frame's static points moved by the step's translation (the velocity's) and
-  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn (wider
-  by ``gap_widen_rad`` for each step before whose turn went unmeasured, at most
-  ``gap_widen_frames``, the prior likewise: braking into a turn in place, the held rate misses
-  what the map can still measure),
+  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn
+  (wider by ``gap_widen_rad`` for each of the steps just before whose turn went unmeasured, at
+  most ``gap_widen_frames`` of them, the prior likewise: braking into a turn in place, the held
+  rate misses what the map can still measure),
   scored by the log-likelihood of the points under the map (each point the log of its Gaussians'
   sum, at least that of ``outlier_sigmas``: a point the map has not seen costs the same at every
   turn); the best score plus a Gaussian prior of ``prior_rad`` about the prediction (which picks
@@ -198,7 +198,7 @@ class PointYaw:
         self._last_speed: float | None = None
         cfg = self._config
         self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
-        #: Consecutive steps whose turn went unmeasured, up to the last (``gap_widen_frames``).
+        #: How many steps in a row, up to the last, went unmeasured (``gap_widen_frames``).
         self._gap = 0
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
         self._fuse = cfg.heatmap_use == "fuse"
