@@ -72,6 +72,11 @@ from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement, YawStep
 _REACH_SIGMAS = 6.0
 
 
+def _search_grid(search_rad: float, step_rad: float) -> np.ndarray:
+    """The turns tried about the predicted one: every *step_rad* within *search_rad*, rad."""
+    return np.arange(-search_rad, search_rad + 0.5 * step_rad, step_rad)
+
+
 def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float) -> np.ndarray:
     """The horizontal body-frame positions (m, 2) of the *points* (TI frame, products.POINT_DTYPE)
     whose radial velocity is within *threshold_mps* of a static reflector's at the sensor's
@@ -197,7 +202,7 @@ class PointYaw:
         #: The speed of the last point cloud whose velocity was measured, m/s (None: none yet).
         self._last_speed: float | None = None
         cfg = self._config
-        self._offsets = np.arange(-cfg.search_rad, cfg.search_rad + 0.5 * cfg.step_rad, cfg.step_rad)
+        self._offsets = _search_grid(cfg.search_rad, cfg.step_rad)
         #: How many steps in a row, up to the last, went unmeasured (``gap_widen_frames``).
         self._gap = 0
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
@@ -295,8 +300,7 @@ class PointYaw:
                            y0 + s0 * translation[0] + c0 * translation[1]])
         # After unmeasured steps the search and the prior widen by what the held rate may have missed.
         widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
-        offsets = self._offsets if widen == 0 else np.arange(
-            -(cfg.search_rad + widen), cfg.search_rad + widen + 0.5 * cfg.step_rad, cfg.step_rad)
+        offsets = self._offsets if widen == 0 else _search_grid(cfg.search_rad + widen, cfg.step_rad)
         prior_rad = math.hypot(cfg.prior_rad, widen)
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets

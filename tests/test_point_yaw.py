@@ -171,21 +171,29 @@ def test_turning_in_place_a_jump_of_the_points_the_static_heatmap_disagrees_with
     assert np.sqrt(np.mean((plain_check - plain_fallback) ** 2)) < 0.5
 
 
+def _map_and_frame(rng, frames, half_width, step, pose, turn_deg, radius, n, last=None):
+    """The UART preset's point part with a map of *frames* frames of 12 points each, uniform within
+    *half_width* m of each frame's origin (*step* (2,) m apart), its chain at *pose*; and a frame's
+    *n* points (2 cm noise) within *radius* m, of the map's (the *last* of them, when given) seen
+    from *pose* turned by *turn_deg* more."""
+    part = RadarOdometry(EstimatorConfig.tidemo()).point_yaw
+    for k in range(frames):
+        origin = np.array([step[0] * k, step[1] * k])
+        part.map._frames.append((rng.uniform(-half_width, half_width, (12, 2)) + origin, origin))
+    part.map.pose = pose
+    world = part.map.arrays()[0]
+    world = world[-last:] if last else world
+    c, s = math.cos(pose[2] + math.radians(turn_deg)), math.sin(pose[2] + math.radians(turn_deg))
+    offset = world - np.array(pose[:2])
+    xy = np.stack([c * offset[:, 0] + s * offset[:, 1], -s * offset[:, 0] + c * offset[:, 1]], 1)
+    return part, xy[np.hypot(xy[:, 0], xy[:, 1]) < radius][:n] + 0.02 * rng.standard_normal((n, 2))
+
+
 def test_the_map_points_left_out_of_a_points_likelihood_change_nothing(monkeypatch):
     # A long map (80 frames of 12 points around a room) and a frame's points: the registration
     # on the pairs within reach gives the turn and variance that every pair gives.
     rng = np.random.default_rng(3)
-    part = RadarOdometry(EstimatorConfig.tidemo()).point_yaw
-    for k in range(80):
-        origin = np.array([0.05 * k, 0.02 * k])
-        part.map._frames.append((rng.uniform(-6.0, 6.0, (12, 2)) + origin, origin))
-    part.map.pose = (4.0, 1.6, math.radians(20.0))
-    world = part.map.arrays()[0][-40:]
-    turn = math.radians(3.0)
-    c, s = math.cos(part.map.pose[2] + turn), math.sin(part.map.pose[2] + turn)
-    offset = world - np.array(part.map.pose[:2])
-    xy = np.stack([c * offset[:, 0] + s * offset[:, 1], -s * offset[:, 0] + c * offset[:, 1]], 1)
-    xy = xy[np.hypot(xy[:, 0], xy[:, 1]) < 8.0][:10] + 0.02 * rng.standard_normal((10, 2))
+    part, xy = _map_and_frame(rng, 80, 6.0, (0.05, 0.02), (4.0, 1.6, math.radians(20.0)), 3.0, 8.0, 10, last=40)
     pruned = part._register(xy, np.zeros(2), math.radians(1.0))
     centres, _, sigma = part.map.arrays()
     pairs, _ = part._pairs(xy, np.array(part.map.pose[:2]), part.map.pose[2] + math.radians(1.0), centres, sigma,
@@ -210,17 +218,7 @@ def test_after_unmeasured_steps_the_search_widens_to_the_turn_the_held_rate_miss
     # 8-degree search it is not found; after three such steps the search and the prior have
     # widened by 3 x 2 degrees and it is, at its place.
     rng = np.random.default_rng(5)
-    part = RadarOdometry(EstimatorConfig.tidemo()).point_yaw
-    for k in range(40):
-        origin = np.array([0.03 * k, 0.0])
-        part.map._frames.append((rng.uniform(-5.0, 5.0, (12, 2)) + origin, origin))
-    part.map.pose = (1.2, 0.0, 0.0)
-    world = part.map.arrays()[0]
-    turn = math.radians(13.0)
-    c, s = math.cos(turn), math.sin(turn)
-    offset = world - np.array(part.map.pose[:2])
-    xy = np.stack([c * offset[:, 0] + s * offset[:, 1], -s * offset[:, 0] + c * offset[:, 1]], 1)
-    xy = xy[np.hypot(xy[:, 0], xy[:, 1]) < 6.0][:8] + 0.02 * rng.standard_normal((8, 2))
+    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.0), (1.2, 0.0, 0.0), 13.0, 6.0, 8)
     found = part._register(xy, np.zeros(2), 0.0)
     assert found is None or abs(math.degrees(found[0]) - 13.0) > 2.0, found
     part._gap = 3
