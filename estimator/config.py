@@ -53,6 +53,11 @@ class VelocityConfig(Settings):
     #: Largest condition number of the inliers' normal matrix: above it the azimuths are too
     #: few or too clustered to tell vx from vy ("ill_conditioned").
     max_condition: float = 200.0
+    #: The platform's largest acceleration, m/s^2 (None: any): a point cloud's velocity further
+    #: from the last one measured than this allows over the time between them (plus the last
+    #: one's noise) is refused for the consensus of the points a reachable velocity explains
+    #: ("implausible" when they make none).
+    max_accel_mps2: float | None = 5.0
     #: Seed of the random generator (results are reproducible).
     seed: int = 0
 
@@ -64,6 +69,8 @@ class VelocityConfig(Settings):
         _check(0 < self.zero_velocity_ratio <= 1, "must be in (0, 1]", "zero_velocity_ratio")
         _check(0 < self.max_elevation_rad <= math.pi / 2, "must be in (0, pi/2]", "max_elevation_rad")
         _check(self.max_condition > 1, "must be above 1", "max_condition")
+        _check(self.max_accel_mps2 is None or self.max_accel_mps2 > 0, "must be positive (or null: any)",
+               "max_accel_mps2")
         check_choice(self.elevation_projection, PROJECTIONS, "elevation_projection")
 
 

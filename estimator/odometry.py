@@ -125,7 +125,7 @@ class RadarOdometry:
         velocity) taken at *t* and keep it for the heatmap frames around it."""
         start = time.perf_counter()
         _check_time(t, "point cloud")
-        est = estimate_velocity(points, t, self.config.velocity, self.rng)
+        est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         self.add_velocity(est)
         if self.point_yaw is not None:
             self.point_yaw.add_points(t, points, est)

@@ -36,10 +36,14 @@ class VelocityStatus(TextEnum):
     ILL_CONDITIONED = "ill_conditioned"
     #: No hypothesis gathered ``min_inlier_ratio`` of the points.
     NO_CONSENSUS = "no_consensus"
+    #: The largest consensus moves faster than ``max_accel_mps2`` allows since the last
+    #: velocity, and none of the points it leaves makes one that does not.
+    IMPLAUSIBLE = "implausible"
 
 
 OK, ZERO, FEW_POINTS = VelocityStatus.OK, VelocityStatus.ZERO, VelocityStatus.FEW_POINTS
 ILL_CONDITIONED, NO_CONSENSUS = VelocityStatus.ILL_CONDITIONED, VelocityStatus.NO_CONSENSUS
+IMPLAUSIBLE = VelocityStatus.IMPLAUSIBLE
 
 
 @dataclass
@@ -112,10 +116,29 @@ def _inverse(normal: np.ndarray) -> np.ndarray:
     return np.array([[c, -b], [-b, a]]) / (a * c - b * b)
 
 
-def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
-                      rng: np.random.Generator) -> VelocityEstimate:
+@dataclass(frozen=True)
+class ReachableVelocity:
+    """The velocities the platform can have now: within *reach_mps* of *velocity* (2,) m/s (the
+    last one measured), ``max_accel_mps2`` times the time since it plus its noise."""
+
+    velocity: np.ndarray
+    reach_mps: float
+
+    def reaches(self, velocity: np.ndarray) -> bool:
+        return math.hypot(*(velocity - self.velocity)) <= self.reach_mps
+
+    def explains(self, rows: np.ndarray, rhs: np.ndarray, threshold_mps: float) -> np.ndarray:
+        """Which points of the model (rows (n, 2), rhs (n,)) some reachable velocity explains
+        to *threshold_mps*: a unit row moves a point's value by at most the reach."""
+        return np.abs(rows @ self.velocity - rhs) <= self.reach_mps + threshold_mps
+
+
+def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig, rng: np.random.Generator,
+                      expected: ReachableVelocity | None = None) -> VelocityEstimate:
     """RANSAC + least squares on a point cloud with fields azimuth, elevation (rad) and
     velocity (m/s, positive receding), like :data:`radarodom.dsp.processor.POINT_DTYPE`.
+    Given the *expected* velocities, a consensus outside them is refused for the largest
+    inside them (status ``implausible`` when there is none).
 
     Never raises for bad data: an ill-posed cloud gives an estimate whose ``status`` says
     why and whose ``ok`` is False.
@@ -146,13 +169,53 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
     if n < config.min_points:
         return out
     needed = max(config.min_points, config.min_inlier_ratio * n)
-    inliers = _ransac(rows, rhs, config, rng)
-    if inliers is None or inliers.sum() < needed:
-        out.status = NO_CONSENSUS
-        out.inliers = 0 if inliers is None else int(inliers.sum())
+    found = _consensus_fit(rows, rhs, np.ones(n, bool), needed, config, rng)
+    if expected is not None and found.status == OK and not expected.reaches(found.fit[0]):
+        # The largest consensus is one the platform cannot have reached since the last velocity
+        # (people walking past a robot that sees a handful of points): the static world is among
+        # the points a reachable velocity explains.
+        among = expected.explains(rows, rhs, config.inlier_threshold_mps)
+        found = _consensus_fit(rows, rhs, among, needed, config, rng)
+        if found.status != OK or not expected.reaches(found.fit[0]):
+            found.status = IMPLAUSIBLE
+    out.inliers = int(found.inliers.sum())
+    if found.status != OK:
+        out.status = found.status
         return out
-    # Refine: least squares on the consensus, then up to twice more on the points each fit
-    # explains (while they are still enough).
+    v, inverse, sigma2 = found.fit
+    # The Doppler grid quantises every measurement: the residual variance never drops
+    # below the bin's uniform-quantisation variance, whatever few points agree.
+    sigma2 = max(sigma2, config.inlier_threshold_mps ** 2 / 12.0)
+    out.vx, out.vy = float(v[0]), float(v[1])
+    out.covariance = sigma2 * inverse
+    out.inlier_mask[np.flatnonzero(keep)[found.inliers]] = True
+    out.status = OK
+    return out
+
+
+@dataclass
+class _Consensus:
+    """What :func:`_consensus_fit` found: its status, the inliers (n,) bool, and for OK the
+    least-squares fit (velocity (2,) m/s, inverse normal matrix, residual variance)."""
+
+    status: VelocityStatus
+    inliers: np.ndarray
+    fit: tuple[np.ndarray, np.ndarray, float] | None = None
+
+
+def _consensus_fit(rows: np.ndarray, rhs: np.ndarray, among: np.ndarray, needed: float, config: VelocityConfig,
+                   rng: np.random.Generator) -> _Consensus:
+    """RANSAC on the points *among* (n,) bool, then least squares on the consensus and up to
+    twice more on the points each fit explains (while they are at least *needed*)."""
+    subset = np.flatnonzero(among)
+    inliers = np.zeros(len(rhs), bool)
+    if len(subset) < needed:
+        return _Consensus(NO_CONSENSUS, inliers)
+    chosen = _ransac(rows[subset], rhs[subset], config, rng)
+    if chosen is not None:
+        inliers[subset[chosen]] = True
+    if chosen is None or inliers.sum() < needed:
+        return _Consensus(NO_CONSENSUS, inliers)
     fit = _fit(rows, rhs, inliers, config)
     for _ in range(2):
         if fit is None:
@@ -162,19 +225,7 @@ def estimate_velocity(points: np.ndarray, t: float, config: VelocityConfig,
             break
         inliers = refined
         fit = _fit(rows, rhs, inliers, config)
-    if fit is None:
-        out.status, out.inliers = ILL_CONDITIONED, int(inliers.sum())
-        return out
-    v, inverse, sigma2 = fit
-    # The Doppler grid quantises every measurement: the residual variance never drops
-    # below the bin's uniform-quantisation variance, whatever few points agree.
-    sigma2 = max(sigma2, config.inlier_threshold_mps ** 2 / 12.0)
-    out.vx, out.vy = float(v[0]), float(v[1])
-    out.covariance = sigma2 * inverse
-    out.inliers = int(inliers.sum())
-    out.inlier_mask[np.flatnonzero(keep)[inliers]] = True
-    out.status = OK
-    return out
+    return _Consensus(OK if fit is not None else ILL_CONDITIONED, inliers, fit)
 
 
 def _fit(rows: np.ndarray, rhs: np.ndarray, inliers: np.ndarray,

@@ -5,6 +5,7 @@ heatmap's Doppler, or the last good velocity held).  Chosen once from the config
 from __future__ import annotations
 
 import bisect
+import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Callable
@@ -15,7 +16,7 @@ from ..errors import TimeOrderError
 from .config import EstimatorConfig
 from .features import PolarHeatmap, heatmap_doppler_points
 from .quality import Flag, may_hold
-from .velocity import VelocityEstimate, estimate_velocity
+from .velocity import ReachableVelocity, VelocityEstimate, estimate_velocity
 
 
 class VelocityHistory:
@@ -122,12 +123,23 @@ class VelocityTrack:
         self._fallback = HeatmapVelocity(config, self.history) if odo.velocity_fallback == "heatmap" else None
         self._last: VelocityEstimate | None = None  # the latest, good or not
         self._good_t: float | None = None  # the latest good one's time
+        self._max_accel = config.velocity.max_accel_mps2
 
     def add(self, est: VelocityEstimate) -> None:
         self._last = est
         if est.ok:
             self.history.add(est)
             self._good_t = est.t
+
+    def reachable(self, t: float) -> ReachableVelocity | None:
+        """The velocities the platform can have at *t* after the last good one (``max_accel_mps2``
+        over the time since, plus three of its standard deviation); None without either."""
+        if self._max_accel is None or not self.history.items:
+            return None
+        last = self.history.items[-1]
+        spread = float(np.trace(last.covariance))  # a velocity from elsewhere may come without one
+        noise = math.sqrt(spread) if math.isfinite(spread) and spread > 0.0 else 0.0
+        return ReachableVelocity(last.velocity, self._max_accel * max(t - last.t, 0.0) + 3.0 * noise)
 
     def near(self, t: float) -> VelocityEstimate | None:
         """The good estimate nearest *t* (None when there is none)."""

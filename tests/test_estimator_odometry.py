@@ -98,6 +98,7 @@ class TestConfig:
         ("velocity", "zero_velocity_ratio", 0.0),
         ("velocity", "max_elevation_rad", 2.0),
         ("velocity", "max_condition", 1.0),
+        ("velocity", "max_accel_mps2", 0.0),
         ("velocity", "elevation_projection", "multiply"),
         ("features", "method", "sift"),
         ("features", "k", 0),
@@ -622,6 +623,22 @@ class TestVelocitySync:
             step = synth.rot(half) @ np.array(v_of(mid)) * dt
             assert s.x - prev.x == pytest.approx(step[0], abs=1e-6)
             assert s.y - prev.y == pytest.approx(step[1], abs=1e-6)
+
+    @pytest.mark.parametrize("max_accel", [5.0, None])
+    def test_a_jump_the_platform_cannot_make_is_not_taken(self, max_accel):
+        # 0.8 m/s for a second, then a cloud whose largest consensus says 2.8 m/s (a person
+        # walking past a handful of static points) and the static world again.
+        cfg = EstimatorConfig().with_(velocity={"min_points": 3, "max_accel_mps2": max_accel})
+        odom = RadarOdometry(cfg)
+        for i in range(10):
+            assert odom.add_points(0.1 * i, static_cloud((0.8, 0.0), seed=i)).ok
+        static = points_polar(np.radians([-40.0, 5.0, 45.0]), 0.0, (0.8, 0.0))
+        person = points_polar(np.radians([-12.0, -4.0, 3.0, 11.0]), 0.0, (2.8, 0.0))
+        est = odom.add_points(1.0, np.concatenate([static, person]))
+        assert est.ok
+        assert est.vx == pytest.approx(0.8 if max_accel else 2.8, abs=1e-6)
+        # A second later the platform may have reached 2.8 m/s: taken.
+        assert odom.add_points(2.0, person).vx == pytest.approx(2.8, abs=1e-6)
 
     def test_nearest_mode(self):
         cfg = EstimatorConfig().with_(odometry={"velocity_sync": "nearest"})

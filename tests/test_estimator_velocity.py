@@ -170,6 +170,40 @@ def test_coherent_moving_object_is_rejected():
     assert est.inlier_mask[:n_static].mean() > 0.95
 
 
+def _handful_with_a_person(rng: np.random.Generator) -> tuple[np.ndarray, tuple[float, float]]:
+    """What TI's demo gives a robot at 0.8 m/s with a person walking past: 3 static points and
+    4 of the person, who makes the larger consensus (2.8 m/s ahead)."""
+    v = (0.8, 0.0)
+    static = points_polar(np.radians([-40.0, 5.0, 45.0]), 0.0, v, quantum=DOPPLER_BIN)
+    person = points_polar(np.radians(rng.uniform(-25.0, 25.0, 4)), 0.0, (2.8, 0.0), quantum=DOPPLER_BIN)
+    return np.concatenate([static, person]), v
+
+
+def test_a_velocity_the_platform_cannot_reach_is_refused_for_the_static_points():
+    cloud, v = _handful_with_a_person(np.random.default_rng(21))
+    config = VelocityConfig(min_points=3)
+    alone = estimate(cloud, config)
+    assert alone.ok and alone.vx == pytest.approx(2.8, abs=0.1)  # the person wins without the gate
+    # 0.1 s after 0.8 m/s at 5 m/s^2: within 0.5 m/s (plus the last one's noise) of it.
+    expected = vel.ReachableVelocity(np.array(v), 5.0 * 0.1 + 0.05)
+    est = estimate_velocity(cloud, 1.0, config, np.random.default_rng(0), expected)
+    assert est.status == vel.OK
+    assert np.hypot(est.vx - v[0], est.vy - v[1]) < 0.1
+    np.testing.assert_array_equal(est.inlier_mask, [True] * 3 + [False] * 4)
+    assert est.inliers == 3
+
+
+def test_only_unreachable_points_give_an_implausible_velocity():
+    rng = np.random.default_rng(22)
+    cloud = points_polar(spread_bearings(8, rng), 0.0, (2.8, 0.0), quantum=DOPPLER_BIN)
+    expected = vel.ReachableVelocity(np.array([0.8, 0.0]), 0.55)
+    est = estimate_velocity(cloud, 1.0, VelocityConfig(), np.random.default_rng(0), expected)
+    assert est.status == vel.IMPLAUSIBLE and not est.ok
+    # A consensus within reach is not refitted: the same answer as without the gate.
+    near = vel.ReachableVelocity(np.array([2.6, 0.0]), 0.55)
+    assert estimate_velocity(cloud, 1.0, VelocityConfig(), np.random.default_rng(0), near).vx == estimate(cloud).vx
+
+
 def test_zero_velocity():
     rng = np.random.default_rng(4)
     n = 80
