@@ -228,6 +228,13 @@ class PointYawConfig(Settings):
     #: With "check", the heatmap's turn is taken where it differs from the points' by more than
     #: this many of their combined standard deviations.
     check_sigmas: float = 1.0
+    #: ... unless it has been taken instead of the points' this many steps running (0: always
+    #: taken) by differences of one sign within ``check_steady_rad`` of each other: a steady
+    #: difference is the map's chain off by a turn the steps before missed (a braking gap whose
+    #: turn the points found only once the heatmap measured it), which the points see against the
+    #: map and the heatmap, frame to frame, cannot: then the points' turn is taken.
+    check_steady_frames: int = 3
+    check_steady_rad: float = math.radians(3.0)
     #: Standing in for the points' or checking them ("check", "fallback"; not fused), its turn is
     #: not believed further from the predicted one (the last measured rate's;
     #: ``icp.initial_guess`` "zero" predicts none, and then it is not checked) than this yaw
@@ -252,6 +259,8 @@ class PointYawConfig(Settings):
         _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")
         _check(self.gap_widen_rad >= 0, "must be >= 0", "gap_widen_rad")
         _check(self.gap_widen_frames >= 0, "must be >= 0", "gap_widen_frames")
+        _check(self.check_steady_frames >= 0, "must be >= 0", "check_steady_frames")
+        _check(self.check_steady_rad > 0, "must be positive", "check_steady_rad")
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")

@@ -34,10 +34,12 @@ register frame to frame, but enough against the points of the last seconds:
   measures the turn too, with a variance of at least ``heatmap_noise_rad`` squared, and with
   ``heatmap_use`` "check" its turn is taken where the points give none or where the two differ by
   more than ``check_sigmas`` of their combined spread (a turn from 3-5 points can be far off; the
-  heatmap's comes from the whole static scene).  It has no elevation (the demo sends the azimuth
-  row only), so it reads every cell at cos(elevation) of its bearing's sine and measures turns in
-  place short near floors, ceilings and walls: where the two agree, the points' is kept.  Facing a
-  wall its few cells register to false turns, so its turn is not believed further from the
+  heatmap's comes from the whole static scene), unless it has been taken so for
+  ``check_steady_frames`` steps running by a steady difference: that is the map's chain off by a
+  turn the steps before missed, which the points see against the map and the heatmap cannot.
+  It has no elevation (the demo sends the azimuth row only), so it reads every cell at
+  cos(elevation) of its bearing's sine and measures turns in place short near floors, ceilings
+  and walls: where the two agree, the points' is kept.  Facing a wall its few cells register to false turns, so its turn is not believed further from the
   predicted one than ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.
   With "fallback" it is measured only where the points give none; with "fuse" both are averaged
   by their variances, or, when they disagree by more than ``agreement_sigmas`` of their combined
@@ -205,6 +207,9 @@ class PointYaw:
         self._offsets = _search_grid(cfg.search_rad, cfg.step_rad)
         #: How many steps in a row, up to the last, went unmeasured (``gap_widen_frames``).
         self._gap = 0
+        #: The points' turn less the heatmap's (rad) in the steps running whose turn the heatmap's
+        #: check took from the heatmap (``check_steady_frames``).
+        self._overrides: deque[float] = deque(maxlen=max(cfg.check_steady_frames, 1))
         self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
         self._fuse = cfg.heatmap_use == "fuse"
         #: Whether the heatmap is measured beside the points' turn (not only in its absence).
@@ -257,14 +262,25 @@ class PointYaw:
         """The measurements (turn rad, variance rad^2) the step's turn is averaged from, by
         ``heatmap_use``: where both measured, "check" keeps the points' unless the heatmap's
         differs by more than ``check_sigmas`` of their combined spread, "fuse" both unless they
-        differ by more than ``agreement_sigmas`` (then the points')."""
+        differ by more than ``agreement_sigmas`` (then the points'); "check" takes the points'
+        after ``check_steady_frames`` steps running of the heatmap's taken by a steady difference."""
         if heatmap is None or points is None:
+            self._overrides.clear()
             return [m for m in (heatmap, points) if m is not None]
         cfg = self._config
         difference = abs(heatmap[0] - points[0]) / math.sqrt(heatmap[1] + points[1])
         if self._fuse:
             return [heatmap, points] if difference <= cfg.agreement_sigmas else [points]
-        return [heatmap] if difference > cfg.check_sigmas else [points]
+        if difference <= cfg.check_sigmas:
+            self._overrides.clear()
+            return [points]
+        run = self._overrides
+        run.append(points[0] - heatmap[0])
+        if (len(run) == cfg.check_steady_frames and (min(run) > 0 or max(run) < 0)
+                and max(run) - min(run) <= cfg.check_steady_rad):
+            run.clear()
+            return [points]
+        return [heatmap]
 
     def _slow(self, velocity: np.ndarray, flags: list[Flag]) -> bool:
         """Whether the step is slow enough for the static heatmap: its *velocity* (2,) m/s below

@@ -171,6 +171,23 @@ def test_turning_in_place_a_jump_of_the_points_the_static_heatmap_disagrees_with
     assert np.sqrt(np.mean((plain_check - plain_fallback) ** 2)) < 0.5
 
 
+def test_a_steady_difference_between_the_points_and_the_static_heatmap_is_the_maps_and_taken():
+    # Turning in place, from 1.5 s on every frame's points lie 5 degrees further round on the map
+    # than the heatmap's turns put the radar: the map's chain is off by a turn the steps before
+    # missed (a braking gap), which the points see against the map and the heatmap, frame to
+    # frame, cannot.  The check takes the heatmap's turn twice, then, the difference steady over
+    # three steps, the points': the heading moves by the 5 degrees.  Without it, never.
+    def offset(t):
+        return math.radians(5.0) if t > 1.45 else 0.0
+
+    assert EstimatorConfig.tidemo().point_yaw.check_steady_frames == 3
+    _, steady, _ = _run(EstimatorConfig.tidemo(), IN_PLACE, points_turn=offset)
+    _, never, _ = _run(EstimatorConfig.tidemo().with_(point_yaw={"check_steady_frames": 0}), IN_PLACE,
+                       points_turn=offset)
+    assert steady == pytest.approx(5.0, abs=1.0), steady
+    assert abs(never) < 1.0, never
+
+
 def _map_and_frame(rng, frames, half_width, step, pose, turn_deg, radius, n, last=None):
     """The UART preset's point part with a map of *frames* frames of 12 points each, uniform within
     *half_width* m of each frame's origin (*step* (2,) m apart), its chain at *pose*; and a frame's
@@ -291,7 +308,8 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
                                           ("bearing_noise_rad", 0.0), ("min_points", 0),
                                           ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0),
                                           ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0),
-                                          ("gap_widen_rad", -0.01), ("gap_widen_frames", -1)])
+                                          ("gap_widen_rad", -0.01), ("gap_widen_frames", -1),
+                                          ("check_steady_frames", -1), ("check_steady_rad", 0.0)])
 def test_bad_settings_are_refused_naming_the_field(field, value):
     with pytest.raises(ConfigError) as info:
         EstimatorConfig.from_dict({"point_yaw": {field: value}})
