@@ -429,3 +429,30 @@ def test_pyserial_url_handler():
             port.close()
     with pytest.raises(serial.SerialException):
         serial.serial_for_url("fakeawr1843://nobody")
+
+
+# --------------------------------------------------------------------------- the emulators' pty writes
+def test_a_pty_write_to_a_client_that_does_not_read_loses_the_rest_after_its_timeout(caplog):
+    # The CLI's and the demo data port's writes share write_all: a real pty whose slave nobody
+    # reads fills up; the write gives up after its timeout with what went in, as a UART loses
+    # bytes, and says so.  Stopped or closed, it writes nothing.
+    import os
+    import tty
+
+    from radarodom.driver.emulators.awr1843_pty import write_all
+
+    master, slave = os.openpty()
+    tty.setraw(slave)  # as the emulators' ptys: bytes as they are, no line discipline
+    os.set_blocking(master, False)
+    try:
+        data = bytes(range(256)) * 4096  # 1 MiB: far more than a pty buffers
+        with caplog.at_level("WARNING"):
+            written = write_all(lambda: master, data, 0.2, lambda: False, "test pty")
+        assert 0 < written < len(data)
+        assert f"{len(data) - written} bytes lost" in caplog.text
+        assert os.read(slave, 256) == data[:256]  # in order, from the start
+        assert write_all(lambda: master, b"more", 0.2, lambda: True, "test pty") == 0
+        assert write_all(lambda: None, b"more", 0.2, lambda: False, "test pty") == 0
+    finally:
+        os.close(master)
+        os.close(slave)

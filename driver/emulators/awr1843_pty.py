@@ -3,7 +3,8 @@
 :class:`Awr1843Pty` opens a real pty (raw, the slave kept open so the master never sees EIO
 between clients), reads it on a daemon thread and hands every chunk received to
 :meth:`~Awr1843Pty._feed`, writes replies to it (byte by byte with ``faults.char_delay_s``, a
-client that does not read losing them after :data:`WRITE_TIMEOUT_S`, as a UART overruns), and
+client that does not read losing them after :data:`WRITE_TIMEOUT_S`, as a UART overruns:
+:func:`write_all`, which the demo's data port uses too), and
 closes it: on :meth:`~Awr1843Pty.close`, or at once when the USB cable is pulled
 (:meth:`~Awr1843Pty._disappear`).  :class:`~.fake_awr1843.FakeAwr1843` inherits it and supplies
 :meth:`~Awr1843Pty._feed` (the firmware's line handling) and ``faults``.
@@ -11,13 +12,13 @@ closes it: on :meth:`~Awr1843Pty.close`, or at once when the USB cable is pulled
 
 from __future__ import annotations
 
-import errno
 import logging
 import os
 import select
 import threading
 import time
 import tty
+from collections.abc import Callable
 from typing import Protocol, TypeVar
 
 log = logging.getLogger(__name__)
@@ -27,6 +28,33 @@ log = logging.getLogger(__name__)
 WRITE_TIMEOUT_S = 2.0
 
 _P = TypeVar("_P", bound="Awr1843Pty")
+
+
+def write_all(fd: Callable[[], int | None], data: bytes, timeout_s: float, stopped: Callable[[], bool],
+              who: str) -> int:
+    """Write *data* to the non-blocking pty master ``fd()`` (None once closed), waiting while the
+    client leaves it full for at most *timeout_s* in all: a UART does not wait, the rest is lost
+    (logged as *who*'s). The bytes written: fewer than ``len(data)`` when ``stopped()``, closed,
+    not read in time or failed."""
+    deadline = time.monotonic() + timeout_s
+    view = memoryview(data)
+    written = 0
+    while written < len(data):
+        current = fd()
+        if current is None or stopped():
+            break
+        try:
+            written += os.write(current, view[written:])
+        except BlockingIOError:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                log.warning("%s: the client does not read; %d bytes lost (a UART overruns)", who, len(data) - written)
+                break
+            select.select([], [current], [], min(left, 0.01))
+        except OSError as exc:  # EINTR is retried by os.write itself (PEP 475)
+            log.info("%s pty write failed: %s", who, exc)
+            break
+    return written
 
 
 class _Pacing(Protocol):
@@ -165,28 +193,7 @@ class Awr1843Pty:
                 self._write_all(fd, data)
 
     def _write_all(self, fd: int, data: bytes) -> bool:
-        deadline = time.monotonic() + WRITE_TIMEOUT_S
-        view = memoryview(data)
-        while view:
-            if self._stop.is_set():
-                return False
-            try:
-                n = os.write(fd, view)
-            except BlockingIOError:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    log.warning("fake AWR1843: the client does not read; %d bytes lost "
-                                "(a UART overruns)", len(view))
-                    return False
-                select.select([], [fd], [], min(left, 0.1))
-                continue
-            except OSError as exc:
-                if exc.errno != errno.EINTR:
-                    log.info("fake AWR1843 pty write failed: %s", exc)
-                    return False
-                continue
-            view = view[n:]
-        return True
+        return write_all(lambda: fd, data, WRITE_TIMEOUT_S, self._stop.is_set, "fake AWR1843") == len(data)
 
     def _disappear(self) -> None:
         """Close the pty now, like pulling the USB cable (called on the serving thread)."""
@@ -195,4 +202,4 @@ class Awr1843Pty:
             self._close_fds()
 
 
-__all__ = ["WRITE_TIMEOUT_S", "Awr1843Pty"]
+__all__ = ["WRITE_TIMEOUT_S", "Awr1843Pty", "write_all"]

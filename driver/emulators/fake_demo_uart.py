@@ -26,7 +26,6 @@ from __future__ import annotations
 import logging
 import os
 import random
-import select
 import threading
 import time
 import tty
@@ -37,6 +36,7 @@ from urllib.parse import urlencode
 from ...cfg import RadarConfig
 from ..tidemo.layout import BITS_PER_BYTE, DEFAULT_BAUD
 from .demo_frames import DemoFrameMaker
+from .awr1843_pty import write_all
 from .fake_awr1843 import BOOT_TIME_S, CliFaults, FakeAwr1843
 
 log = logging.getLogger(__name__)
@@ -267,29 +267,12 @@ class FakeDemoDataPort:
         for at in range(0, len(data), chunk):
             if self.rate == "paced":
                 self._sleep_until(start + at / byte_rate, generation)  # a started packet is finished
-            if not self._write(data[at:at + chunk]):
-                self.stats.bytes_unread += len(data) - at
+            part = data[at:at + chunk]
+            written = write_all(lambda: self._master, part, WRITE_TIMEOUT_S, lambda: False, "fake demo data port")
+            self.stats.bytes_written += written
+            if written < len(part):
+                self.stats.bytes_unread += len(data) - at - written
                 return
-
-    def _write(self, data: bytes) -> bool:
-        deadline = time.monotonic() + WRITE_TIMEOUT_S
-        view = memoryview(data)
-        while view:
-            fd = self._master
-            if fd is None:
-                return False
-            try:
-                n = os.write(fd, view)
-            except BlockingIOError:
-                if time.monotonic() > deadline:
-                    return False
-                select.select([], [fd], [], 0.01)
-                continue
-            except OSError:
-                return False
-            view = view[n:]
-            self.stats.bytes_written += n
-        return True
 
 
 class DemoUartRig:
