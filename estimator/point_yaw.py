@@ -39,8 +39,9 @@ register frame to frame, but enough against the points of the last seconds:
   turn the steps before missed, which the points see against the map and the heatmap cannot.
   It has no elevation (the demo sends the azimuth row only), so it reads every cell at
   cos(elevation) of its bearing's sine and measures turns in place short near floors, ceilings
-  and walls: where the two agree, the points' is kept.  Facing a wall its few cells register to false turns, so its turn is not believed further from the
-  predicted one than ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.
+  and walls: where the two agree, the points' is kept.  Facing a wall its few cells register to
+  false turns, so its turn is not believed further from the predicted one than
+  ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.
   With "fallback" it is measured only where the points give none; with "fuse" both are averaged
   by their variances, or, when they disagree by more than ``agreement_sigmas`` of their combined
   spread, the points' is taken.
