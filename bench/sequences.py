@@ -69,14 +69,19 @@ def record(scene: str, seed: int, directory: str, duration: float | None = None,
     os.replace(tmp, directory)
 
 
-def dsp_fingerprint() -> str:
-    """What makes the DSP's output: the dsp package's sources and the FFT backend in use."""
-    digest = hashlib.sha256()
-    folder = os.path.dirname(dsp.__file__)
-    for name in sorted(os.listdir(folder)):
+def digest_sources(digest, folder: str, names: list[str] | None = None) -> None:
+    """Feed *digest* the Python sources of *folder* (only *names*, when given), each by its name
+    and content, in name order."""
+    for name in sorted(os.listdir(folder) if names is None else names):
         if name.endswith(".py"):
             with open(os.path.join(folder, name), "rb") as fh:
                 digest.update(name.encode() + b"\0" + fh.read())
+
+
+def dsp_fingerprint() -> str:
+    """What makes the DSP's output: the dsp package's sources and the FFT backend in use."""
+    digest = hashlib.sha256()
+    digest_sources(digest, os.path.dirname(dsp.__file__))
     return f"{digest.hexdigest()[:16]}/{resolve_backend('auto')}"
 
 

@@ -101,13 +101,8 @@ def _fingerprint() -> str:
     tidemo driver and the emulated chip."""
     digest = hashlib.sha256()
     for package in (dsp, tidemo):
-        folder = os.path.dirname(package.__file__)
-        for name in sorted(os.listdir(folder)):
-            if name.endswith(".py"):
-                with open(os.path.join(folder, name), "rb") as fh:
-                    digest.update(name.encode() + b"\0" + fh.read())
-    with open(demo_frames.__file__, "rb") as fh:
-        digest.update(b"demo_frames.py\0" + fh.read())
+        sequences.digest_sources(digest, os.path.dirname(package.__file__))
+    sequences.digest_sources(digest, os.path.dirname(demo_frames.__file__), [os.path.basename(demo_frames.__file__)])
     return digest.hexdigest()[:16]
 
 
