@@ -120,14 +120,16 @@ def main(argv=None) -> int:
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/sim"))
     parser.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4, 5])
-    parser.add_argument("--only", nargs="+", help="run only these variants")
+    parser.add_argument("--only", nargs="+", metavar="VARIANT",
+                        help="run only these variants, by their names in the tables (a wrong name is refused with "
+                             "the list)")
     parser.add_argument("--out", default="experiment-out")
     args = parser.parse_args(argv)
-    os.makedirs(args.out, exist_ok=True)
     started = time.monotonic()
     line = calibrate_on_the_simulator("uncalibrated")
     table = variants(line)
-    names = [n for n in table if not args.only or n in args.only]
+    names = sequences.chosen_variants(parser, list(table), args.only)
+    os.makedirs(args.out, exist_ok=True)
     results: dict = {}
     for name in names:
         board, dsp_config, cfg = table[name]

@@ -181,13 +181,15 @@ def main(argv=None) -> int:
                         help="where the simulated sequences are recorded and cached")
     parser.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    parser.add_argument("--only", nargs="+", help="run only these variants")
+    parser.add_argument("--only", nargs="+", metavar="VARIANT",
+                        help='run only these variants, by their names in the tables (quoted: "default (all of the '
+                             'above, keyframes)"); a wrong name is refused with the list')
     parser.add_argument("--out", default="experiment-out", help="tables.md, results.json and the plot go here")
     parser.add_argument("--plot", action="store_true", help="plot the cumulative yaw error (needs matplotlib)")
     args = parser.parse_args(argv)
-    os.makedirs(args.out, exist_ok=True)
     table = variants()
-    names = [n for n in table if not args.only or n in args.only]
+    names = sequences.chosen_variants(parser, list(table), args.only)
+    os.makedirs(args.out, exist_ok=True)
     results: dict = {}
     started = time.monotonic()
     for scene in args.scenes:

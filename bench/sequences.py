@@ -69,6 +69,16 @@ def record(scene: str, seed: int, directory: str, duration: float | None = None,
     os.replace(tmp, directory)
 
 
+def chosen_variants(parser, names: list[str], only: list[str] | None) -> list[str]:
+    """The variants ``--only`` names, in the order of *names* (all of them without it); a name not
+    among them is refused through the argparse *parser* (exit 2) with the list of names."""
+    unknown = [n for n in only or [] if n not in names]
+    if unknown:
+        parser.error(f"--only: no variant named {', '.join(map(repr, unknown))}; the variants are:\n  "
+                     + "\n  ".join(names))
+    return [n for n in names if not only or n in only]
+
+
 def digest_sources(digest, folder: str, names: list[str] | None = None) -> None:
     """Feed *digest* the Python sources of *folder* (only *names*, when given), each by its name
     and content, in name order."""
