@@ -204,6 +204,28 @@ class PointYawConfig(Settings):
     #: have turned meanwhile (braking into a turn in place), and the map, placed before the gap,
     #: can measure it (docs/tidemo.md, "The turn after a gap").
     gap_widen_frames: int = 4
+    #: After at least ``relocate_gap_frames`` unmeasured steps, when slow (the static heatmap then
+    #: holds the scene), this many of the heatmap's strongest cells are registered on the map as
+    #: the points are (0: never): where the chip's 0-2 points a frame cannot find the turn a braking
+    #: gap missed, the whole static scene can.  Its search is wider by ``relocate_widen_rad`` for
+    #: each unmeasured step, on top of the points' widening, and its prior ``relocate_prior_rad``.
+    #: The turn found goes to the map's chain; the yaw-rate filter takes the step's own (the
+    #: heatmap's, frame to frame), and the odometry's yaw follows the chain (``correct_lag``).
+    relocate_cells: int = 40
+    relocate_gap_frames: int = 4
+    relocate_widen_rad: float = math.radians(5.0)
+    relocate_prior_rad: float = math.radians(20.0)
+    #: ... on a grid of this step, rad (a search seven times the points' on their grid would cost
+    #: a frame period).
+    relocate_step_rad: float = math.radians(0.5)
+    #: A step whose turn went unmeasured may have missed this much of it, rad (standard
+    #: deviation): ``correct_lag`` keeps its reference from before such steps, its yaw uncertain
+    #: by this much more for each, so that what the map's chain finds afterwards reaches the
+    #: odometry's yaw, ...
+    gap_turn_std_rad: float = 0.2
+    #: ... at most this much a step, rad (a turn found after a gap lands over a few frames, not
+    #: all in one).
+    gap_correction_max_rad: float = math.radians(3.0)
     #: A point's log-likelihood is at least that of this many standard deviations.
     outlier_sigmas: float = 3.0
     #: The points' turn has at least this noise, rad, and at most ``max_noise_rad``.
@@ -259,6 +281,11 @@ class PointYawConfig(Settings):
         _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")
         _check(self.gap_widen_rad >= 0, "must be >= 0", "gap_widen_rad")
         _check(self.gap_widen_frames >= 0, "must be >= 0", "gap_widen_frames")
+        _check(self.relocate_cells >= 0, "must be >= 0 (0: never)", "relocate_cells")
+        _check(self.relocate_gap_frames >= 1, "must be at least 1", "relocate_gap_frames")
+        _check(self.relocate_widen_rad >= 0, "must be >= 0", "relocate_widen_rad")
+        for name in ("relocate_prior_rad", "relocate_step_rad", "gap_turn_std_rad", "gap_correction_max_rad"):
+            _check(getattr(self, name) > 0, "must be positive", name)
         _check(self.check_steady_frames >= 0, "must be >= 0", "check_steady_frames")
         _check(self.check_steady_rad > 0, "must be positive", "check_steady_rad")
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")

@@ -46,11 +46,18 @@ register frame to frame, but enough against the points of the last seconds:
   by their variances, or, when they disagree by more than ``agreement_sigmas`` of their combined
   spread, the points' is taken.
 
+After ``relocate_gap_frames`` unmeasured steps (a braking gap: 0-2 points a frame, the rate held)
+and slow again, the static heatmap's ``relocate_cells`` strongest cells are registered on the map
+like points, in a search widened further (``relocate_widen_rad``): the whole scene finds the turn
+the gap missed where a frame's few points cannot.  That turn goes to the map's chain only; the
+yaw-rate filter takes the step's own (the heatmap's, or the predicted one).
+
 The measured turn goes on to the yaw-rate filter like a registration's.  This part takes the
-keyframe correction's place (the map is its own) and its role (``correct_lag``): the filter lags a
-turn's first frames, and the yaw it loses there is corrected by the map's chain, whose turns are
-the measured ones, over the last frames: a Kalman update of the filtered yaw relative to the
-chain's pose ``lag_frames`` back (or since the last frame whose yaw was not measured), by the
+keyframe correction's place (the map is its own) and its role (``correct_lag``, in
+:mod:`.point_map`): the filter lags a turn's first frames, and the yaw it loses there is corrected
+by the map's chain, whose turns are the measured ones, over the last frames: a Kalman update of
+the filtered yaw relative to the chain's pose ``lag_frames`` back (kept over unmeasured steps, so
+that what the chain finds after a gap reaches the yaw, ``gap_correction_max_rad`` a step), by the
 chain's own yaw since then, whose variance is the sum of its measured turns' (their errors add up
 along the chain).  Used by :class:`~.odometry.RadarOdometry` when ``point_yaw.use`` is set
 (``EstimatorConfig.tidemo()``).
@@ -60,12 +67,12 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 
 import numpy as np
 
 from .angles import wrap
-from .config import EstimatorConfig, PointYawConfig
+from .config import EstimatorConfig
+from .point_map import LocalMap
 from .quality import Flag
 from .velocity import OK, ZERO, VelocityEstimate
 from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement, YawStep
@@ -91,103 +98,6 @@ def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float
     expected = -(velocity[0] * np.cos(bearing) + velocity[1] * np.sin(bearing)) * np.cos(points["elevation"])
     static = np.abs(points["velocity"] - expected) <= threshold_mps
     return np.stack([y[static], -x[static]], 1)
-
-
-def _world(xy: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    return np.stack([pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]], 1)
-
-
-@dataclass
-class _Reference:
-    """The frame ``correct_lag`` measures the yaw from (see :class:`LocalMap`)."""
-
-    odometry_yaw: float
-    chain_yaw: float
-    odometry_var: float = 0.0
-    chain_var: float = 0.0
-    steps: int = 0
-
-
-class LocalMap:
-    """The static points of the last frames in the world (see the module docstring), along the map's
-    chain of poses; in the keyframe correction's place in the odometry (:meth:`correct`,
-    :meth:`update`)."""
-
-    def __init__(self, config: PointYawConfig) -> None:
-        self._config = config
-        self._frames: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.map_frames)
-        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
-        #: The last frame's pose along the map's chain, and the odometry's.
-        self.pose: tuple[float, float, float] | None = None
-        self._odometry_pose: tuple[float, float, float] | None = None
-        #: The current step's turn as this part measured it (rad, counter-clockwise) and its
-        #: variance (rad^2); its static points.
-        self.turn: float | None = None
-        self.turn_variance = 0.0
-        self.pending: tuple[float, np.ndarray] | None = None
-        #: For ``correct_lag``: the odometry's and the chain's yaw at the reference frame (rad),
-        #: the variances of the odometry's and the chain's yaw relative to it (rad^2), and the
-        #: steps since it.
-        self._reference: _Reference | None = None
-
-    def correct(self, step, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
-        """The step's yaw increment (rad) and variance (rad^2) as the filter gave it, corrected
-        with ``correct_lag`` by the chain's yaw since the reference frame (module docstring)."""
-        ref = self._reference
-        if ref is None or self.turn is None or self.pose is None:
-            return step.dyaw, step.var_yaw
-        ref.odometry_var += step.var_yaw
-        ref.chain_var += self.turn_variance
-        predicted = step.pose[2] + step.dyaw - ref.odometry_yaw
-        measured = self.pose[2] + self.turn - ref.chain_yaw
-        gain = ref.odometry_var / (ref.odometry_var + ref.chain_var)
-        ref.odometry_var *= 1.0 - gain
-        return step.dyaw + gain * (measured - predicted), (1.0 - gain) * step.var_yaw
-
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool) -> None:
-        """The odometry's *pose* of *current*: the map's chain moves by the step (turned by the
-        measured turn, when there was one) and takes in the frame's static points."""
-        if self.pose is None or self._odometry_pose is None:
-            chained = pose
-        else:
-            ox, oy, oyaw = self._odometry_pose
-            c, s = math.cos(oyaw), math.sin(oyaw)
-            dx, dy = c * (pose[0] - ox) + s * (pose[1] - oy), -s * (pose[0] - ox) + c * (pose[1] - oy)
-            x, y, yaw = self.pose
-            c, s = math.cos(yaw), math.sin(yaw)
-            turn = self.turn if self.turn is not None else pose[2] - oyaw
-            chained = (x + c * dx - s * dy, y + s * dx + c * dy, yaw + turn)
-        if self._config.correct_lag:
-            ref = self._reference
-            if ref is None or not measured or ref.steps >= self._config.lag_frames:
-                self._reference = ref = _Reference(pose[2], chained[2])
-            ref.steps += 1
-        self._odometry_pose, self.pose, self.turn = pose, chained, None
-        if self.pending is not None and self.pending[0] == current.t and len(self.pending[1]):
-            self._frames.append((_world(self.pending[1], chained), np.array(chained[:2])))
-            self._arrays = None
-        self.pending = None
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The map's points (m, 2) m, their Gaussians' inverse covariances (m, 2, 2), 1/m^2, and
-        their largest standard deviations (m,), m."""
-        if self._arrays is None:
-            cfg = self._config
-            if not self._frames:
-                return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0)
-            points = np.concatenate([f[0] for f in self._frames])
-            origins = np.concatenate([np.broadcast_to(f[1], f[0].shape) for f in self._frames])
-            ray = points - origins
-            r = np.maximum(np.hypot(ray[:, 0], ray[:, 1]), 1e-6)
-            u = ray / r[:, None]
-            n = np.stack([-u[:, 1], u[:, 0]], 1)
-            across = (r * cfg.bearing_noise_rad) ** 2
-            cov = (cfg.range_noise_m ** 2 * u[:, :, None] * u[:, None, :] + across[:, None, None] * n[:, :, None]
-                   * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
-            sigma = np.sqrt(np.maximum(across, cfg.range_noise_m ** 2) + cfg.position_floor_m ** 2)
-            self._arrays = points, np.linalg.inv(cov), sigma
-        return self._arrays
 
 
 class PointYaw:
@@ -241,18 +151,27 @@ class PointYaw:
             xy = static_points(self._points[1], own if own is not None else velocity, cfg.static_threshold_mps)
         self.map.pending = (current.t, xy)
         points = self._register(xy, translation, -predicted)
+        slow = self._slow(velocity, flags)
+        relocated = self._relocate(current, translation, -predicted) if slow else None
         heatmap = None
-        if self._slow(velocity, flags) and (self._beside or points is None):
+        if slow and (self._beside or points is None or relocated is not None):
             step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
             if step.rotation is not None and ((self._fuse and points is not None)
                                               or self._plausible(-step.rotation, -predicted, dt)):
                 heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))
+        if relocated is not None:
+            # The map's chain takes the turn the gap missed; the yaw rate the step's own.
+            self._gap = 0
+            self._overrides.clear()
+            self.map.turn, self.map.turn_variance = relocated
+            return YawStep(-heatmap[0], None, heatmap[1]) if heatmap else YawStep(predicted, None, relocated[1])
         found = self._choose(heatmap, points)  # (turn rad, variance rad^2)
         if not found:
             flags.append(Flag.FEW_FEATURES if len(xy) < cfg.min_points else Flag.NO_STRUCTURE)
             self._gap += 1
             return YawStep(None, None, 0.0)
-        self._gap = 0
+        if points is not None:  # only the map registers what the gap missed
+            self._gap = 0
         weights = np.array([1.0 / var for _, var in found])
         turn = float(weights @ np.array([t for t, _ in found]) / weights.sum())
         self.map.turn, self.map.turn_variance = turn, float(1.0 / weights.sum())
@@ -301,10 +220,27 @@ class PointYaw:
             return True
         return abs(turn - predicted_turn) <= cfg.heatmap_max_accel_radps2 * dt * dt + 3.0 * cfg.heatmap_noise_rad
 
-    def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float) -> tuple[float, float] | None:
+    def _relocate(self, current: KeptFrame, translation: np.ndarray,
+                  predicted_turn: float) -> tuple[float, float] | None:
+        """After ``relocate_gap_frames`` unmeasured steps, the turn (rad) and variance that lay the
+        static heatmap's ``relocate_cells`` strongest cells of *current* best on the map, searched
+        wider than the points (see :meth:`_register`); None otherwise, or without a peak."""
+        cfg = self._config
+        if cfg.relocate_cells == 0 or self._gap < cfg.relocate_gap_frames or not len(current.features):
+            return None
+        features = current.features
+        strongest = np.argsort(features.intensity)[::-1][:cfg.relocate_cells]
+        widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad + self._gap * cfg.relocate_widen_rad
+        return self._register(features.xy[strongest], translation, predicted_turn, widen, cfg.relocate_prior_rad,
+                              cfg.relocate_step_rad)
+
+    def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float, widen: float | None = None,
+                  prior_rad: float | None = None, step_rad: float | None = None) -> tuple[float, float] | None:
         """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by
         *translation* (2,) m in the previous frame's axes, best on the map, and its variance; None
-        with too few points or map points, or no peak inside the search."""
+        with too few points or map points, or no peak inside the search (widened by *widen* rad, by
+        default after unmeasured steps; a prior of *prior_rad*, by default the widened one's; turns
+        every *step_rad*, by default ``step_rad``)."""
         cfg = self._config
         if self.map.pose is None or len(xy) < cfg.min_points:
             return None
@@ -315,10 +251,13 @@ class PointYaw:
         c0, s0 = math.cos(yaw0), math.sin(yaw0)
         origin = np.array([x0 + c0 * translation[0] - s0 * translation[1],
                            y0 + s0 * translation[0] + c0 * translation[1]])
-        # After unmeasured steps the search and the prior widen by what the held rate may have missed.
-        widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
-        offsets = self._offsets if widen == 0 else _search_grid(cfg.search_rad + widen, cfg.step_rad)
-        prior_rad = math.hypot(cfg.prior_rad, widen)
+        if widen is None:
+            # After unmeasured steps the search and the prior widen by what the held rate may have missed.
+            widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
+        step = cfg.step_rad if step_rad is None else step_rad
+        offsets = self._offsets if widen == 0 and step_rad is None else _search_grid(cfg.search_rad + widen, step)
+        if prior_rad is None:
+            prior_rad = math.hypot(cfg.prior_rad, widen)
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets
         c, s = np.cos(yaw0 + turns)[:, None], np.sin(yaw0 + turns)[:, None]
@@ -341,9 +280,9 @@ class PointYaw:
         if curvature >= 0:
             return None
         offset = min(max(0.5 * (left - right) / curvature, -0.5), 0.5)
-        variance = -cfg.step_rad ** 2 / curvature
+        variance = -step ** 2 / curvature
         variance = min(max(variance, cfg.min_noise_rad ** 2), cfg.max_noise_rad ** 2)
-        return float(turns[best] + offset * cfg.step_rad), variance
+        return float(turns[best] + offset * step), variance
 
     def _pairs(self, xy: np.ndarray, origin: np.ndarray, yaw: float, centres: np.ndarray,
                sigma: np.ndarray, search_rad: float) -> tuple[np.ndarray, np.ndarray]:

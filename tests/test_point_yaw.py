@@ -7,6 +7,7 @@ while moving (the zero-Doppler map then holds nothing to register) and the refle
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import estimator_synth as synth
 import numpy as np
@@ -17,7 +18,9 @@ from radarodom.estimator.config import EstimatorConfig, PointYawConfig
 from radarodom.estimator.odometry import RadarOdometry
 from radarodom.estimator.keyframe import ChainStep
 from radarodom.estimator import point_yaw
-from radarodom.estimator.point_yaw import LocalMap, static_points
+from radarodom.estimator.features import Features
+from radarodom.estimator.point_map import LocalMap
+from radarodom.estimator.point_yaw import static_points
 from radarodom.products import RangeAzimuth
 
 DT = 0.1
@@ -246,6 +249,57 @@ def test_after_unmeasured_steps_the_search_widens_to_the_turn_the_held_rate_miss
     assert capped is None or abs(math.degrees(capped[0]) - 13.0) > 1.0, capped
 
 
+def test_after_a_braking_gap_the_static_heatmaps_cells_find_the_turn_the_points_cannot():
+    # Four steps went unmeasured (braking into a turn in place) and the map's chain is 22 degrees
+    # behind the frame: beyond the points' widened search (+/- 16), and two points a frame could
+    # not tell it.  Slow again, the static heatmap's strongest cells (here 40 of the map's points,
+    # as the heatmap sees the room) are registered on the map in a wider search and find it; the
+    # step after it, the gap closed, they are not asked.
+    rng = np.random.default_rng(7)
+    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.0), (1.2, 0.0, 0.0), 22.0, 6.0, 40)
+    cells = SimpleNamespace(features=Features.from_xy(xy, np.full(len(xy), 1.0 / len(xy)), np.ones(len(xy))))
+    part._gap = 4
+    points = part._register(xy, np.zeros(2), 0.0)
+    assert points is None or abs(math.degrees(points[0]) - 22.0) > 1.0, points
+    found = part._relocate(cells, np.zeros(2), 0.0)
+    assert found is not None and math.degrees(found[0]) == pytest.approx(22.0, abs=0.5), found
+    part._gap = 3  # fewer unmeasured steps than relocate_gap_frames: not asked
+    assert part._relocate(cells, np.zeros(2), 0.0) is None
+    off = RadarOdometry(EstimatorConfig.tidemo().with_(point_yaw={"relocate_cells": 0})).point_yaw
+    off.map, off._gap = part.map, 4
+    assert off._relocate(cells, np.zeros(2), 0.0) is None
+
+
+def _gap_then_found(steps_unmeasured: int, missed_deg: float, cap_deg: float = 3.0) -> list[float]:
+    """The odometry's yaw (degrees) each step: standing and measured, then *steps_unmeasured*
+    steps held at zero turn while the chain's map later finds *missed_deg* more in one measured
+    step (as after a braking gap), then measured steps of no turn."""
+    local = LocalMap(PointYawConfig(gap_correction_max_rad=math.radians(cap_deg)))
+    pose = (0.0, 0.0, 0.0)
+    local.update(pose, None, measured=True)
+    yaws = []
+    plan = [None] * steps_unmeasured + [missed_deg] + [0.0] * 12
+    for turn in plan:
+        dyaw, var = 0.0, math.radians(1.0) ** 2
+        if turn is not None:
+            local.turn, local.turn_variance = math.radians(turn), math.radians(1.5) ** 2
+            dyaw, var = local.correct(ChainStep(pose, np.zeros(2), DT, 0.0, var), None, None)
+        pose = (0.0, 0.0, pose[2] + dyaw)
+        local.update(pose, None, measured=turn is not None)
+        yaws.append(math.degrees(pose[2]))
+    return yaws
+
+
+def test_what_the_chain_finds_after_a_gap_reaches_the_yaw_a_few_degrees_a_step():
+    yaws = _gap_then_found(4, 15.0)
+    steps = np.diff([0.0] + yaws)
+    assert np.all(np.abs(steps) <= 3.0 + 1e-9), steps  # at most the cap a step ...
+    assert yaws[-1] == pytest.approx(15.0, abs=1.5), yaws  # ... and nearly all of it, in order
+    assert np.all(np.diff(yaws) >= -1e-9)
+    whole = _gap_then_found(4, 15.0, cap_deg=90.0)
+    assert whole[4] == pytest.approx(whole[-1], abs=0.5) and whole[-1] == pytest.approx(15.0, abs=1.5)
+
+
 def test_starting_off_with_no_velocity_measured_the_zero_doppler_map_is_not_registered():
     # Standing, then driving straight off, one point a frame for the first second: no velocity is
     # measured, and the step's zero velocity is no evidence of standing.  The zero-Doppler map of
@@ -309,7 +363,10 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
                                           ("step_rad", 1.0), ("max_noise_rad", 0.001), ("slow_mps", -1.0),
                                           ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0),
                                           ("gap_widen_rad", -0.01), ("gap_widen_frames", -1),
-                                          ("check_steady_frames", -1), ("check_steady_rad", 0.0)])
+                                          ("check_steady_frames", -1), ("check_steady_rad", 0.0),
+                                          ("relocate_cells", -1), ("relocate_gap_frames", 0),
+                                          ("relocate_widen_rad", -0.1), ("relocate_prior_rad", 0.0),
+                                          ("gap_turn_std_rad", 0.0), ("gap_correction_max_rad", 0.0)])
 def test_bad_settings_are_refused_naming_the_field(field, value):
     with pytest.raises(ConfigError) as info:
         EstimatorConfig.from_dict({"point_yaw": {field: value}})
