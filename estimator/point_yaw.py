@@ -150,7 +150,7 @@ class PointYaw:
             own = self._points[2]
             xy = static_points(self._points[1], own if own is not None else velocity, cfg.static_threshold_mps)
         self.map.pending = (current.t, xy)
-        points = self._register(xy, translation, -predicted)
+        points = self._points_turn(xy, translation, -predicted)
         slow = self._slow(velocity, flags)
         relocated = self._relocate(current, translation, -predicted) if slow else None
         heatmap = None
@@ -219,6 +219,22 @@ class PointYaw:
         if cfg.heatmap_max_accel_radps2 is None or not self.guess.uses_rate:
             return True
         return abs(turn - predicted_turn) <= cfg.heatmap_max_accel_radps2 * dt * dt + 3.0 * cfg.heatmap_noise_rad
+
+    def _points_turn(self, xy: np.ndarray, translation: np.ndarray,
+                     predicted_turn: float) -> tuple[float, float] | None:
+        """The static points' turn and variance (:meth:`_register`); where the search found no peak,
+        with ``look_beyond`` a second search as far again beyond it, whose peak counts only outside
+        the first (a rate held from a false turn puts the true one past the edge)."""
+        found = self._register(xy, translation, predicted_turn)
+        cfg = self._config
+        if found is not None or not cfg.look_beyond:
+            return found
+        widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
+        beyond = self._register(xy, translation, predicted_turn, widen + cfg.search_rad,
+                                math.hypot(cfg.prior_rad, widen))
+        if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad + widen - cfg.step_rad:
+            return None
+        return beyond
 
     def _relocate(self, current: KeptFrame, translation: np.ndarray,
                   predicted_turn: float) -> tuple[float, float] | None:

@@ -249,6 +249,21 @@ def test_after_unmeasured_steps_the_search_widens_to_the_turn_the_held_rate_miss
     assert capped is None or abs(math.degrees(capped[0]) - 13.0) > 1.0, capped
 
 
+def test_a_turn_past_the_searchs_edge_is_looked_for_beyond_it():
+    # The held rate came from a false turn, and the frame's true turn lies 11 degrees from the
+    # predicted one: past the 8-degree search, whose score rises to its edge.  A second look as far
+    # again beyond finds it; without it there is no turn (and the false rate would be held).
+    rng = np.random.default_rng(5)
+    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.0), (1.2, 0.0, 0.0), 11.0, 6.0, 10)
+    assert part._register(xy, np.zeros(2), 0.0) is None
+    found = part._points_turn(xy, np.zeros(2), 0.0)
+    assert found is not None and math.degrees(found[0]) == pytest.approx(11.0, abs=0.5), found
+    inside = part._points_turn(xy, np.zeros(2), math.radians(6.0))  # within the search: found there
+    assert inside == part._register(xy, np.zeros(2), math.radians(6.0))
+    part._config = PointYawConfig(look_beyond=False)
+    assert part._points_turn(xy, np.zeros(2), 0.0) is None
+
+
 def test_after_a_braking_gap_the_static_heatmaps_cells_find_the_turn_the_points_cannot():
     # Four steps went unmeasured (braking into a turn in place) and the map's chain is 22 degrees
     # behind the frame: beyond the points' widened search (+/- 16), and two points a frame could
