@@ -220,6 +220,12 @@ class PointYaw:
             return True
         return abs(turn - predicted_turn) <= cfg.heatmap_max_accel_radps2 * dt * dt + 3.0 * cfg.heatmap_noise_rad
 
+    @property
+    def _gap_widen_rad(self) -> float:
+        """How much wider the points' search and prior are after the unmeasured steps just before,
+        rad: what the held rate may have missed (``gap_widen_rad`` each, ``gap_widen_frames`` at most)."""
+        return min(self._gap, self._config.gap_widen_frames) * self._config.gap_widen_rad
+
     def _points_turn(self, xy: np.ndarray, translation: np.ndarray,
                      predicted_turn: float) -> tuple[float, float] | None:
         """The static points' turn and variance (:meth:`_register`); where the search found no peak,
@@ -229,7 +235,7 @@ class PointYaw:
         cfg = self._config
         if found is not None or not cfg.look_beyond:
             return found
-        widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
+        widen = self._gap_widen_rad
         beyond = self._register(xy, translation, predicted_turn, widen + cfg.search_rad,
                                 math.hypot(cfg.prior_rad, widen))
         if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad + widen - cfg.step_rad:
@@ -246,7 +252,7 @@ class PointYaw:
             return None
         features = current.features
         strongest = np.argsort(features.intensity)[::-1][:cfg.relocate_cells]
-        widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad + self._gap * cfg.relocate_widen_rad
+        widen = self._gap_widen_rad + self._gap * cfg.relocate_widen_rad
         return self._register(features.xy[strongest], translation, predicted_turn, widen, cfg.relocate_prior_rad,
                               cfg.relocate_step_rad)
 
@@ -268,8 +274,7 @@ class PointYaw:
         origin = np.array([x0 + c0 * translation[0] - s0 * translation[1],
                            y0 + s0 * translation[0] + c0 * translation[1]])
         if widen is None:
-            # After unmeasured steps the search and the prior widen by what the held rate may have missed.
-            widen = min(self._gap, cfg.gap_widen_frames) * cfg.gap_widen_rad
+            widen = self._gap_widen_rad
         step = cfg.step_rad if step_rad is None else step_rad
         offsets = self._offsets if widen == 0 and step_rad is None else _search_grid(cfg.search_rad + widen, step)
         if prior_rad is None:
