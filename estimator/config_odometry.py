@@ -88,6 +88,11 @@ class OdometryConfig(Settings):
     #: noise measured against ground truth (docs/estimator.md, "Why the defaults"); weighted as less,
     #: every keyframe's error goes into one frame's increment.
     keyframe_noise_rad: float | None = math.radians(1.3)
+    #: A keyframe taken while the step turned faster than this, rad/s, is renewed at the first
+    #: frame whose step turns less than half as fast: the chain lags a turn by the filter's
+    #: delay, so that keyframe's pose carries the lag, and the straight drive after the turn
+    #: would be corrected towards it (docs/heading.md).  None: only distance and angle renew.
+    keyframe_turn_renew_radps: float | None = None
 
     #: Where the radar sits on the robot's base: x ahead, y left of the base's rotation axis
     #: (m), and its yaw on the base (rad).  The odometry stays the radar's; with ``base``
@@ -163,6 +168,8 @@ class OdometryConfig(Settings):
         check_choice(self.keyframe_start, KEYFRAME_STARTS, "keyframe_start")
         _check(self.keyframe_noise_rad is None or self.keyframe_noise_rad > 0,
                "must be positive (or null: yaw_noise_rad)", "keyframe_noise_rad")
+        _check(self.keyframe_turn_renew_radps is None or self.keyframe_turn_renew_radps > 0,
+               "must be positive (or null: off)", "keyframe_turn_renew_radps")
 
 
 @dataclass

@@ -24,6 +24,8 @@ class Keyframe:
     frame: KeptFrame
     #: Variance of the yaw relative to it, rad^2: grows by each frame's, shrinks by each update.
     yaw_var: float = 0.0
+    #: Whether it was taken in a turn (``keyframe_turn_renew_radps``): renewed when the turn ends.
+    in_turn: bool = False
 
 
 @dataclass
@@ -50,6 +52,7 @@ class KeyframeCorrection:
         self._distance_m, self._angle_rad = odo.keyframe_distance_m, odo.keyframe_angle_rad
         self._search_rad = odo.keyframe_search_rad
         self._noise_var = (odo.keyframe_noise_rad or odo.yaw_noise_rad) ** 2
+        self._turn_rate = odo.keyframe_turn_renew_radps
         start = odo.keyframe_start
         # Whether the scan guess of the keyframe on the current heatmap starts the search (and
         # whether it replaces the prediction, or the search spans both).
@@ -106,14 +109,20 @@ class KeyframeCorrection:
         key.yaw_var *= 1.0 - gain
         return step.dyaw + (corrected - predicted), (1.0 - gain) * step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool) -> None:
-        """Make *current* (at *pose*) the keyframe when the last one is far enough behind, or
-        when this frame's yaw was not *measured* (the chain broke)."""
-        if self.key is not None and measured:
-            kx, ky, kyaw = self.key.pose
-            if math.hypot(pose[0] - kx, pose[1] - ky) < self._distance_m and abs(pose[2] - kyaw) < self._angle_rad:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool,
+               rate: float = 0.0) -> None:
+        """Make *current* (at *pose*, its step turning at *rate* rad/s) the keyframe when the last
+        one is far enough behind, or was taken in a turn that has ended, or when this frame's yaw
+        was not *measured* (the chain broke)."""
+        turn_rate = self._turn_rate
+        key = self.key
+        if key is not None and measured:
+            kx, ky, kyaw = key.pose
+            near = math.hypot(pose[0] - kx, pose[1] - ky) < self._distance_m and abs(pose[2] - kyaw) < self._angle_rad
+            turn_ended = key.in_turn and abs(rate) < 0.5 * turn_rate
+            if near and not turn_ended:
                 return
-        self.key = Keyframe(pose, current)
+        self.key = Keyframe(pose, current, in_turn=turn_rate is not None and abs(rate) > turn_rate)
 
 
 class NoKeyframes:
@@ -122,5 +131,6 @@ class NoKeyframes:
     def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
         return step.dyaw, step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool,
+               rate: float = 0.0) -> None:
         pass

@@ -206,7 +206,7 @@ class RadarOdometry:
                               yaw_rate=float(dyaw / dt), pose_covariance=pose_cov, twist_covariance=twist,
                               flags=tuple(flags), features=len(current.features), yaw_increment=float(dyaw),
                               registration=measured.registration, velocity=velocity.estimate)
-        self.keyframes.update(state.pose, current, measured=observed is not None)
+        self.keyframes.update(state.pose, current, measured=observed is not None, rate=state.yaw_rate)
         return state
 
     @property

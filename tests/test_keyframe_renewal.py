@@ -1,0 +1,86 @@
+"""The keyframe taken in a turn, renewed when the turn ends (``odometry.keyframe_turn_renew_radps``,
+estimator/keyframe.py): the rule on its own, then in the streaming odometry on a synthetic turn in
+place followed by a stop (tests/estimator_synth.py)."""
+
+from __future__ import annotations
+
+import math
+
+import estimator_synth as synth
+import numpy as np
+import pytest
+from radarodom.errors import ConfigError
+from radarodom.estimator.config import EstimatorConfig
+from radarodom.estimator.odometry import RadarOdometry
+from radarodom.estimator.yaw_measurement import CurrentFrame
+
+DEG = math.radians(1.0)
+_r = np.array([3.0, 5.0, 7.0, 4.0, 9.0, 6.0, 8.0, 2.5, 5.5, 10.0, 6.5, 3.5])
+_b = np.radians([-50, -40, -30, -20, -10, 0, 10, 20, 30, 40, 50, -5])
+WORLD = np.column_stack([_r * np.cos(_b), _r * np.sin(_b)])
+
+
+def heatmap(yaw: float):
+    return synth.heatmap(synth.world_to_body(WORLD, (0.0, 0.0, yaw)), 1.0, noise=1e-4)
+
+
+def odometry(renew_degps: float | None) -> RadarOdometry:
+    renew = None if renew_degps is None else renew_degps * DEG
+    return RadarOdometry(EstimatorConfig().with_(odometry={"keyframe_turn_renew_radps": renew}))
+
+
+def still_cloud() -> np.ndarray:
+    """Static points seen by a radar turning on its own axis: no Doppler."""
+    rng = np.random.default_rng(0)
+    return synth.points_polar(np.radians(rng.uniform(-60, 60, 40)), 0.0, (0.0, 0.0), range_m=rng.uniform(1, 10, 40))
+
+
+def kept(odom: RadarOdometry, t: float):
+    return odom.yaw.keep(CurrentFrame(t, heatmap(0.0), odom.config), None)
+
+
+@pytest.mark.parametrize("renew_degps", [30.0, None])
+def test_a_keyframe_taken_in_a_turn_is_renewed_when_the_step_turns_less_than_half_as_fast(renew_degps):
+    odom = odometry(renew_degps)
+    keys = odom.keyframes
+    frames = [kept(odom, 0.1 * i) for i in range(5)]
+    keys.update((0.0, 0.0, 0.0), frames[0], measured=True, rate=40 * DEG)  # the first: taken in the turn
+    first = keys.key
+    assert first.frame is frames[0] and first.in_turn == (renew_degps is not None)
+    # Slower but not yet below half the threshold (15 deg/s), and near: kept.
+    keys.update((0.0, 0.0, 2 * DEG), frames[1], measured=True, rate=-20 * DEG)
+    assert keys.key is first
+    # Below half: renewed with the option, kept without (0.5 m and 10 degrees not reached).
+    keys.update((0.0, 0.0, 3 * DEG), frames[2], measured=True, rate=10 * DEG)
+    if renew_degps is None:
+        assert keys.key is first
+        return
+    assert keys.key.frame is frames[2] and not keys.key.in_turn
+    # A keyframe taken out of a turn is renewed by distance and angle alone, as before.
+    renewed = keys.key
+    keys.update((0.0, 0.0, 4 * DEG), frames[3], measured=True, rate=0.0)
+    assert keys.key is renewed
+    keys.update((0.0, 0.0, 14 * DEG), frames[4], measured=True, rate=0.0)
+    assert keys.key.frame is frames[4]
+
+
+def test_in_the_odometry_the_turns_last_keyframe_gives_way_to_the_first_still_frame():
+    # A turn in place at 60 deg/s for 1 s, then 1.5 s standing: with the option the keyframe at the
+    # end is a frame after the turn; without it, the last one the turn took (the rest is within
+    # 10 degrees of it).
+    dt, turn = 0.1, 60 * DEG
+    yaws = [turn * min(i * dt, 1.0) for i in range(26)]
+    ends = {}
+    for renew in (30.0, None):
+        odom = odometry(renew)
+        for i, yaw in enumerate(yaws):
+            odom.step(i * dt, still_cloud(), heatmap(yaw))
+        ends[renew] = odom.keyframes.key
+    assert ends[30.0].frame.t > 1.0 and not ends[30.0].in_turn
+    assert ends[None].frame.t <= 1.0 + 1e-9
+
+
+def test_the_threshold_is_checked():
+    with pytest.raises(ConfigError) as exc:
+        EstimatorConfig.from_dict({"odometry": {"keyframe_turn_renew_radps": 0.0}})
+    assert exc.value.field == "odometry.keyframe_turn_renew_radps"
