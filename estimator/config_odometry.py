@@ -89,9 +89,9 @@ class OdometryConfig(Settings):
     #: every keyframe's error goes into one frame's increment.
     keyframe_noise_rad: float | None = math.radians(1.3)
     #: A keyframe taken while the step turned faster than this, rad/s, is renewed at the first
-    #: frame whose step turns less than half as fast: the chain lags a turn by the filter's
-    #: delay, so that keyframe's pose carries the lag, and the drive after the turn would be
-    #: corrected towards it (docs/heading.md, item 14).  None: only distance and angle renew.
+    #: measured frame whose step turns less than half as fast: the chain lags a turn by the
+    #: filter's delay, so that keyframe's pose carries the lag, and the drive after the turn
+    #: would be corrected towards it (docs/heading.md, item 14).  None: only distance and angle renew.
     keyframe_turn_renew_radps: float | None = math.radians(25.0)
 
     #: Where the radar sits on the robot's base: x ahead, y left of the base's rotation axis

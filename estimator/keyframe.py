@@ -1,7 +1,8 @@
 """Keyframe correction (beyond the paper): each frame is also registered to a keyframe, a frame
-up to ``keyframe_distance_m`` / ``keyframe_angle_rad`` back, and the frame chain's yaw is
-corrected by it (a Kalman update of the yaw relative to the keyframe), so that registration
-noise does not add up frame by frame.  ``keyframe_start`` is chosen once."""
+up to ``keyframe_distance_m`` / ``keyframe_angle_rad`` back (one taken in a turn only until the
+turn ends, ``keyframe_turn_renew_radps``), and the frame chain's yaw is corrected by it (a Kalman
+update of the yaw relative to the keyframe), so that registration noise does not add up frame by
+frame.  ``keyframe_start`` is chosen once."""
 
 from __future__ import annotations
 
@@ -43,7 +44,7 @@ class ChainStep:
 
 class KeyframeCorrection:
     """Corrects each measured yaw increment against the keyframe (:meth:`correct`) and takes a
-    new keyframe when the last is far enough behind (:meth:`update`)."""
+    new keyframe when the last is far enough behind or its turn has ended (:meth:`update`)."""
 
     def __init__(self, config: EstimatorConfig, yaw: YawMeasurement) -> None:
         odo = config.odometry
@@ -53,6 +54,8 @@ class KeyframeCorrection:
         self._search_rad = odo.keyframe_search_rad
         self._noise_var = (odo.keyframe_noise_rad or odo.yaw_noise_rad) ** 2
         self._turn_rate = odo.keyframe_turn_renew_radps
+        # The turn has ended where the step turns less than half as fast as a turn counts.
+        self._turn_end_radps = 0.0 if self._turn_rate is None else 0.5 * self._turn_rate
         start = odo.keyframe_start
         # Whether the scan guess of the keyframe on the current heatmap starts the search (and
         # whether it replaces the prediction, or the search spans both).
@@ -109,20 +112,20 @@ class KeyframeCorrection:
         key.yaw_var *= 1.0 - gain
         return step.dyaw + (corrected - predicted), (1.0 - gain) * step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool,
-               rate: float = 0.0) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float) -> None:
         """Make *current* (at *pose*, its step turning at *rate* rad/s) the keyframe when the last
         one is far enough behind, or was taken in a turn that has ended, or when this frame's yaw
         was not *measured* (the chain broke)."""
-        turn_rate = self._turn_rate
         key = self.key
         if key is not None and measured:
             kx, ky, kyaw = key.pose
             near = math.hypot(pose[0] - kx, pose[1] - ky) < self._distance_m and abs(pose[2] - kyaw) < self._angle_rad
-            turn_ended = key.in_turn and abs(rate) < 0.5 * turn_rate
+            turn_ended = key.in_turn and abs(rate) < self._turn_end_radps
             if near and not turn_ended:
                 return
-        self.key = Keyframe(pose, current, in_turn=turn_rate is not None and abs(rate) > turn_rate)
+        # Only by the step's own rate: one taken by distance or angle while a turn slows down and
+        # counted in the turn too did worse over the robustness matrix (docs/heading.md, item 14).
+        self.key = Keyframe(pose, current, in_turn=self._turn_rate is not None and abs(rate) > self._turn_rate)
 
 
 class NoKeyframes:
@@ -131,6 +134,5 @@ class NoKeyframes:
     def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
         return step.dyaw, step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool,
-               rate: float = 0.0) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float) -> None:
         pass

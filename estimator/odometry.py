@@ -165,7 +165,7 @@ class RadarOdometry:
             state = OdometryState(t=t, frame=index, flags=(Flag.FIRST_FRAME,), features=len(current.features))
             if near is not None:
                 state.vx, state.vy, state.velocity = near.vx, near.vy, near
-            self.keyframes.update(state.pose, current, measured=False)
+            self.keyframes.update(state.pose, current, measured=False, rate=0.0)
         else:
             state = self._step(previous, current, frame, index)
         self._previous, self._state = current, state

@@ -85,8 +85,7 @@ class LocalMap:
         ref.odometry_var *= 1.0 - gain
         return step.dyaw + correction, (1.0 - gain) * step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, measured: bool,
-               rate: float = 0.0) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float) -> None:
         """The odometry's *pose* of *current*: the map's chain moves by the step (turned by the
         measured turn, when there was one) and takes in the frame's static points (*rate*, the
         step's yaw rate, is the keyframes' concern)."""

@@ -291,7 +291,7 @@ def _gap_then_found(steps_unmeasured: int, missed_deg: float, cap_deg: float = 3
     step (as after a braking gap), then measured steps of no turn."""
     local = LocalMap(PointYawConfig(gap_correction_max_rad=math.radians(cap_deg)))
     pose = (0.0, 0.0, 0.0)
-    local.update(pose, None, measured=True)
+    local.update(pose, None, measured=True, rate=0.0)
     yaws = []
     plan = [None] * steps_unmeasured + [missed_deg] + [0.0] * 12
     for turn in plan:
@@ -300,7 +300,7 @@ def _gap_then_found(steps_unmeasured: int, missed_deg: float, cap_deg: float = 3
             local.turn, local.turn_variance = math.radians(turn), math.radians(1.5) ** 2
             dyaw, var = local.correct(ChainStep(pose, np.zeros(2), DT, 0.0, var), None, None)
         pose = (0.0, 0.0, pose[2] + dyaw)
-        local.update(pose, None, measured=turn is not None)
+        local.update(pose, None, measured=turn is not None, rate=0.0)
         yaws.append(math.degrees(pose[2]))
     return yaws
 
@@ -331,14 +331,14 @@ def _lagging_turn(correct_lag: bool, steps: int = 8) -> tuple[float, float]:
     odometry's yaw and the chain's after *steps* frames, degrees."""
     local = LocalMap(PointYawConfig(correct_lag=correct_lag))
     pose = (0.0, 0.0, 0.0)
-    local.update(pose, None, measured=True)
+    local.update(pose, None, measured=True, rate=0.0)
     for _ in range(steps):
         local.turn, local.turn_variance = math.radians(5.0), math.radians(1.5) ** 2
         step = ChainStep(pose, np.array([0.8, 0.0]), DT, math.radians(3.0), math.radians(0.5) ** 2)
         dyaw, variance = local.correct(step, None, None)
         assert 0.0 < variance <= step.var_yaw
         pose = (0.0, 0.0, pose[2] + dyaw)
-        local.update(pose, None, measured=True)
+        local.update(pose, None, measured=True, rate=0.0)
     return math.degrees(pose[2]), math.degrees(local.pose[2])
 
 
