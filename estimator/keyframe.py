@@ -53,9 +53,11 @@ class KeyframeCorrection:
         self._distance_m, self._angle_rad = odo.keyframe_distance_m, odo.keyframe_angle_rad
         self._search_rad = odo.keyframe_search_rad
         self._noise_var = (odo.keyframe_noise_rad or odo.yaw_noise_rad) ** 2
-        self._turn_rate = odo.keyframe_turn_renew_radps
-        # The turn has ended where the step turns less than half as fast as a turn counts.
-        self._turn_end_radps = 0.0 if self._turn_rate is None else 0.5 * self._turn_rate
+        # A keyframe is in a turn above this rate (never without the option), and the turn has
+        # ended where the step turns less than half as fast.
+        renew = odo.keyframe_turn_renew_radps
+        self._turn_radps = math.inf if renew is None else renew
+        self._turn_end_radps = 0.5 * self._turn_radps
         start = odo.keyframe_start
         # Whether the scan guess of the keyframe on the current heatmap starts the search (and
         # whether it replaces the prediction, or the search spans both).
@@ -125,7 +127,7 @@ class KeyframeCorrection:
                 return
         # Only by the step's own rate: one taken by distance or angle while a turn slows down and
         # counted in the turn too did worse over the robustness matrix (docs/heading.md, item 14).
-        self.key = Keyframe(pose, current, in_turn=self._turn_rate is not None and abs(rate) > self._turn_rate)
+        self.key = Keyframe(pose, current, in_turn=abs(rate) > self._turn_radps)
 
 
 class NoKeyframes:
