@@ -222,3 +222,22 @@ def frame(world_xy: np.ndarray, amplitude: np.ndarray, pose, velocity_xy, rng: n
     cloud = points(body[seen], velocity_xy, quantum=quantum, noise_mps=noise_mps, rng=rng)
     hm = heatmap(body, amplitude, velocity_xy=velocity_xy, noise=1e-3, rng=rng, **(heatmap_kwargs or {}))
     return cloud, hm
+
+
+#: Twelve point reflectors 2.5-10 m from the origin, over +/- 50 degrees of bearing (m, world): a
+#: scene whose heatmaps register (the odometry's and the keyframes' tests).
+_SCENE_R = np.array([3.0, 5.0, 7.0, 4.0, 9.0, 6.0, 8.0, 2.5, 5.5, 10.0, 6.5, 3.5])
+_SCENE_B = np.radians([-50, -40, -30, -20, -10, 0, 10, 20, 30, 40, 50, -5])
+SCENE_WORLD = np.column_stack([_SCENE_R * np.cos(_SCENE_B), _SCENE_R * np.sin(_SCENE_B)])
+
+
+def scene_heatmap(pose=(0.0, 0.0, 0.0), world: np.ndarray | None = None, **kw) -> RangeAzimuth:
+    """The heatmap of *world* (default :data:`SCENE_WORLD`) seen from *pose* (x, y m, yaw rad)."""
+    world = SCENE_WORLD if world is None else world
+    return heatmap(world_to_body(world, pose), 1.0, noise=1e-4, **kw)
+
+
+def static_cloud(v, n: int = 40, seed: int = 0) -> np.ndarray:
+    """A noise-free cloud of static points seen moving at body velocity *v*."""
+    rng = np.random.default_rng(seed)
+    return points_polar(np.radians(rng.uniform(-60, 60, n)), 0.0, v, range_m=rng.uniform(1, 10, n))

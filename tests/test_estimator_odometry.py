@@ -16,7 +16,8 @@ import math
 import estimator_synth as synth
 import numpy as np
 import pytest
-from estimator_synth import AZIMUTH_RAD, RANGE_M, Trajectory, points_polar
+from estimator_synth import (AZIMUTH_RAD, RANGE_M, SCENE_WORLD, Trajectory, points_polar, scene_heatmap,
+                             static_cloud)
 from radarodom.dsp.cfar import CfarParams
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.errors import ConfigError, TimeOrderError
@@ -220,24 +221,8 @@ def blind_heatmap() -> RangeAzimuth:
     return RangeAzimuth(hm.intensity[:n], hm.static[:n], hm.doppler_mps[:n], hm.range_m[:n], hm.azimuth_rad)
 
 
-def static_cloud(v, n: int = 40, seed: int = 0) -> np.ndarray:
-    """A noise-free cloud of static points seen moving at body velocity *v*."""
-    rng = np.random.default_rng(seed)
-    return points_polar(np.radians(rng.uniform(-60, 60, n)), 0.0, v, range_m=rng.uniform(1, 10, n))
-
-
 def few_points_cloud() -> np.ndarray:
     return points_polar(np.radians([10.0, 20.0]), 0.0, (1.0, 0.0))
-
-
-def scene_heatmap(pose=(0.0, 0.0, 0.0), world=None, **kw) -> RangeAzimuth:
-    world = SCENE_WORLD if world is None else world
-    return synth.heatmap(synth.world_to_body(world, pose), 1.0, noise=1e-4, **kw)
-
-
-_r = np.array([3.0, 5.0, 7.0, 4.0, 9.0, 6.0, 8.0, 2.5, 5.5, 10.0, 6.5, 3.5])
-_b = np.radians([-50, -40, -30, -20, -10, 0, 10, 20, 30, 40, 50, -5])
-SCENE_WORLD = np.column_stack([_r * np.cos(_b), _r * np.sin(_b)])
 
 
 def finite_state(s: OdometryState) -> bool:

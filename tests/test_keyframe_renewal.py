@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import estimator_synth as synth
-import numpy as np
 import pytest
 from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig
@@ -15,24 +14,15 @@ from radarodom.estimator.odometry import RadarOdometry
 from radarodom.estimator.yaw_measurement import CurrentFrame
 
 DEG = math.radians(1.0)
-_r = np.array([3.0, 5.0, 7.0, 4.0, 9.0, 6.0, 8.0, 2.5, 5.5, 10.0, 6.5, 3.5])
-_b = np.radians([-50, -40, -30, -20, -10, 0, 10, 20, 30, 40, 50, -5])
-WORLD = np.column_stack([_r * np.cos(_b), _r * np.sin(_b)])
 
 
 def heatmap(yaw: float):
-    return synth.heatmap(synth.world_to_body(WORLD, (0.0, 0.0, yaw)), 1.0, noise=1e-4)
+    return synth.scene_heatmap((0.0, 0.0, yaw))
 
 
 def odometry(renew_degps: float | None) -> RadarOdometry:
     renew = None if renew_degps is None else renew_degps * DEG
     return RadarOdometry(EstimatorConfig().with_(odometry={"keyframe_turn_renew_radps": renew}))
-
-
-def still_cloud() -> np.ndarray:
-    """Static points seen by a radar turning on its own axis: no Doppler."""
-    rng = np.random.default_rng(0)
-    return synth.points_polar(np.radians(rng.uniform(-60, 60, 40)), 0.0, (0.0, 0.0), range_m=rng.uniform(1, 10, 40))
 
 
 def kept(odom: RadarOdometry, t: float):
@@ -99,7 +89,7 @@ def test_in_the_odometry_the_heading_holds_after_a_turn_in_place():
     runs = {}
     for renew in (30.0, None):
         odom = odometry(renew)
-        states = [odom.step(i * dt, still_cloud(), heatmap(yaw)) for i, yaw in enumerate(yaws)]
+        states = [odom.step(i * dt, synth.static_cloud((0.0, 0.0)), heatmap(yaw)) for i, yaw in enumerate(yaws)]
         runs[renew] = odom, states
     odom, states = runs[30.0]
     ended = next(s for s in states if s.t > 1.0 and abs(s.yaw_rate) < 15 * DEG)

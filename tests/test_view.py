@@ -292,15 +292,17 @@ def test_spawn_without_a_display_says_what_to_do_instead(capture, tmp_path, caps
     assert not (tmp_path / "odom.tum").exists()  # refused before anything opened
 
 
-def _taken_port_after_a_free_one(socket_mod):
+def _taken_port_after_a_free_one():
     """A listening socket on a port whose port below is free (on a busy machine the one below an
     ephemeral port may be someone else's: then another pair is drawn)."""
+    import socket
+
     for _ in range(50):
-        taken = socket_mod.socket()
+        taken = socket.socket()
         taken.bind(("0.0.0.0", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        with socket_mod.socket() as probe:
+        with socket.socket() as probe:
             try:
                 probe.bind(("0.0.0.0", port - 1))
             except OSError:
@@ -311,9 +313,7 @@ def _taken_port_after_a_free_one(socket_mod):
 
 
 def test_web_refuses_a_port_in_use(capture, capsys):
-    import socket
-
-    taken, port = _taken_port_after_a_free_one(socket)
+    taken, port = _taken_port_after_a_free_one()
     with taken:
         rc, _, err = capture_main(["--source", capture, "--no-publish", "--view", f"web:{port - 1}"], capsys)
     assert rc == 2 and f"port {port} is taken" in err
