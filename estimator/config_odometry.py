@@ -129,6 +129,12 @@ class OdometryConfig(Settings):
     velocity_history: int = 32
     #: A velocity held over a failed step is trusted less: its covariance times this.
     held_velocity_variance_factor: float = 4.0
+    #: On a step whose velocity is held, the rotation is measured again without the
+    #: translation, and this times the two rotations' difference is added to the measurement's
+    #: standard deviation (in quadrature); None: off.  A robot braking while its velocity
+    #: goes unmeasured moves less than the held velocity says, and the registration turns the
+    #: heading to make up for features moved too far (docs/heading.md, item 15).
+    held_velocity_yaw_check: float | None = 1.0
     #: A yaw rate held over a step whose yaw was not measured (or the zero one reported after
     #: ``hold_s``) has this standard deviation, rad/s: a robot's turn rate may change by
     #: about this much over a few frames.
@@ -150,6 +156,8 @@ class OdometryConfig(Settings):
         _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
         _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")
         _check(self.held_velocity_variance_factor >= 1, "must be at least 1", "held_velocity_variance_factor")
+        _check(self.held_velocity_yaw_check is None or self.held_velocity_yaw_check > 0,
+               "must be positive (null: off)", "held_velocity_yaw_check")
         _check(self.held_yaw_rate_std_radps > 0, "must be positive", "held_yaw_rate_std_radps")
         _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
         _check(self.min_features >= 2, "must be at least 2", "min_features")

@@ -184,7 +184,8 @@ class RadarOdometry:
         v = velocity.velocity
         rate = self._last_rate
         predicted = -rate * dt if self.yaw.guess.uses_rate else 0.0
-        measured = self.yaw.measure(previous, current, frame, self._translation(v, dt, rate * dt), predicted, flags)
+        measured = self.yaw.measure(previous, current, frame, self._translation(v, dt, rate * dt), predicted, flags,
+                                    translation_held=Flag.VELOCITY_HELD in flags)
         registered = None if measured.rotation is None else -measured.rotation  # the world turns the other way
         var_registered = measured.variance
         doppler = None

@@ -139,9 +139,10 @@ class PointYaw:
         return self._heatmap.keep(frame, velocity)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                predicted: float, flags: list[Flag]) -> YawStep:
+                predicted: float, flags: list[Flag], *, translation_held: bool = False) -> YawStep:
         """The rotation from *previous* to *current* (source -> target: minus the sensor's turn)
-        from the points on the map and, when slow, the heatmap; see the module docstring."""
+        from the points on the map and, when slow, the heatmap; see the module docstring.
+        *translation_held*: as :meth:`YawMeasurement.measure`, for the heatmap's part."""
         cfg = self._config
         dt = current.t - previous.t
         velocity = translation / dt
@@ -155,7 +156,8 @@ class PointYaw:
         relocated = self._relocate(current, translation, -predicted) if slow else None
         heatmap = None
         if slow and (self._beside or points is None or relocated is not None):
-            step = self._heatmap.measure(previous, current, frame, translation, predicted, [])
+            step = self._heatmap.measure(previous, current, frame, translation, predicted, [],
+                                         translation_held=translation_held)
             if step.rotation is not None and ((self._fuse and points is not None)
                                               or self._plausible(-step.rotation, -predicted, dt)):
                 heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))

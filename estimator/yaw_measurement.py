@@ -232,6 +232,7 @@ class YawMeasurement:
         self._field_fallback = scan and icp.field_fallback
         self._min_features = config.odometry.min_features
         self._unknown_variance = config.odometry.unmeasured_yaw_std_rad ** 2
+        self._held_check = config.odometry.held_velocity_yaw_check or 0.0
         self._moving_mps = icp.reject_moving_mps
 
     def keep(self, frame: CurrentFrame, velocity: np.ndarray | None) -> KeptFrame:
@@ -247,9 +248,20 @@ class YawMeasurement:
                          frame.log if self._keeps_log else None)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                predicted: float, flags: list[Flag]) -> YawStep:
+                predicted: float, flags: list[Flag], *, translation_held: bool = False) -> YawStep:
         """The rotation from *previous* (moved by *translation*, (2,) m) to *current*, starting
-        from *predicted* (rad), flagged in *flags* when it fails."""
+        from *predicted* (rad), flagged in *flags* when it fails.  *translation_held*: the
+        translation comes from a held velocity, not a measured one; with
+        ``held_velocity_yaw_check`` the rotation measured without it widens the variance."""
+        step = self._measure(previous, current, frame, translation, predicted, flags)
+        if translation_held and self._held_check and step.rotation is not None:
+            unmoved = self._measure(previous, current, frame, np.zeros(2), predicted, [])
+            if unmoved.rotation is not None:
+                step.variance += (self._held_check * (unmoved.rotation - step.rotation)) ** 2
+        return step
+
+    def _measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
+                 predicted: float, flags: list[Flag]) -> YawStep:
         initial = self.guess(previous, current, frame, translation, predicted)
         step = self._register(previous.features, current.features, frame.region, translation, initial, flags)
         scan = initial if self.scans else None
