@@ -159,7 +159,8 @@ class RadarOdometry:
         if self.doppler_elevation is not None:
             heatmap = self.doppler_elevation(heatmap, t, own_velocity, self._last_rate)
         frame = CurrentFrame(t, heatmap, self.config)
-        current = self.yaw.keep(frame, own_velocity)
+        dt = None if previous is None else t - previous.t
+        current = self.yaw.keep(frame, own_velocity, turn_rad=0.0 if dt is None else self._last_rate * dt, dt=dt)
         index, self._frames = self._frames, self._frames + 1
         if previous is None:
             state = OdometryState(t=t, frame=index, flags=(Flag.FIRST_FRAME,), features=len(current.features))

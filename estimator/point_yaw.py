@@ -135,8 +135,9 @@ class PointYaw:
         if self.map.pose is None and velocity is not None:  # the first frame's, for the map
             self.map.pending = (t, static_points(points, velocity, self._config.static_threshold_mps))
 
-    def keep(self, frame: CurrentFrame, velocity: np.ndarray | None) -> KeptFrame:
-        return self._heatmap.keep(frame, velocity)
+    def keep(self, frame: CurrentFrame, velocity: np.ndarray | None, *, turn_rad: float = 0.0,
+             dt: float | None = None) -> KeptFrame:
+        return self._heatmap.keep(frame, velocity, turn_rad=turn_rad, dt=dt)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                 predicted: float, flags: list[Flag], *, translation_held: bool = False) -> YawStep:

@@ -18,6 +18,7 @@ from .features import Features, PolarHeatmap, azimuth_profile, extract, static_m
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess, score_back)
 from .log_heatmap import LogHeatmap
+from .movers import MoverTracks
 from .quality import Flag
 
 
@@ -234,16 +235,25 @@ class YawMeasurement:
         self._unknown_variance = config.odometry.unmeasured_yaw_std_rad ** 2
         self._held_check = config.odometry.held_velocity_yaw_check or 0.0
         self._moving_mps = icp.reject_moving_mps
+        # Movers are followed to leave them out of the scan's points (which the field scores too).
+        self._movers = MoverTracks() if scan and icp.track_movers and icp.reject_moving_mps is not None else None
 
-    def keep(self, frame: CurrentFrame, velocity: np.ndarray | None) -> KeptFrame:
+    def keep(self, frame: CurrentFrame, velocity: np.ndarray | None, *, turn_rad: float = 0.0,
+             dt: float | None = None) -> KeptFrame:
         """What the next frame needs of *frame*: its features (moving reflectors rejected by
-        *velocity*, (2,) m/s, when known), the guess's view and the field."""
+        *velocity*, (2,) m/s, when known), the guess's view and the field.  *turn_rad* and *dt*
+        (s; None: none before) are the radar's predicted turn and the time since the previous
+        frame, for the movers followed across the view (``icp.track_movers``)."""
         features = extract(frame.heatmap, self._config.features, velocity)
         scan_velocity = None
         if self._moving_mps is not None and velocity is not None:
             frame.moving = ~static_mask(frame.heatmap, velocity, self._moving_mps)
             scan_velocity = velocity
+            if self._movers is not None:
+                self._movers.update(frame.heatmap, frame.moving, velocity, turn_rad, dt)
         guide = self.guess.view(frame, scan_velocity)
+        if self._movers is not None and scan_velocity is not None:
+            guide = self._movers.leave_out(guide)
         return KeptFrame(frame.t, features, guide, self.field.field(frame, guide),
                          frame.log if self._keeps_log else None)
 
