@@ -267,9 +267,10 @@ class IcpConfig(Settings):
     #: The frame's velocity is its own (estimated within half a frame period of it): with none,
     #: no cell is left out (a velocity held from before a hard stop calls the world moving).
     reject_moving_mps: float | None = 0.3
-    #: With ``reject_moving_mps`` and the scan guess, a blob it flags is followed from frame to
-    #: frame, and while it crosses the line of sight (its Doppler then like the static world's)
-    #: the scan's points around it are left out too: a person walking across the radar's view
+    #: With ``reject_moving_mps`` and the scan guess (without either it does nothing), a blob it
+    #: flags is followed from frame to frame, and while it crosses the line of sight (its Doppler
+    #: then like the static world's) the scan's points around it (which the field search scores
+    #: too; ICP's features keep them) are left out: a person walking across the radar's view
     #: turned the heading by its own bearing rate (estimator/movers.py; docs/heading.md, item 16).
     track_movers: bool = True
     #: Which points the field search's score (and the keyframe's narrow scan's) averages over:

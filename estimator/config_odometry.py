@@ -156,8 +156,9 @@ class OdometryConfig(Settings):
         _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
         _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")
         _check(self.held_velocity_variance_factor >= 1, "must be at least 1", "held_velocity_variance_factor")
-        _check(self.held_velocity_yaw_check is None or self.held_velocity_yaw_check > 0,
-               "must be positive (null: off)", "held_velocity_yaw_check")
+        _check(self.held_velocity_yaw_check is None
+               or (math.isfinite(self.held_velocity_yaw_check) and self.held_velocity_yaw_check > 0),
+               "must be positive and finite (null: off)", "held_velocity_yaw_check")
         _check(self.held_yaw_rate_std_radps > 0, "must be positive", "held_yaw_rate_std_radps")
         _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
         _check(self.min_features >= 2, "must be at least 2", "min_features")

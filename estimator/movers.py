@@ -80,6 +80,8 @@ class Track:
     hits: int = 1
     unflagged: int = 0
     lost: int = 0
+    #: Whether *velocity* has been measured (a track starts at rest, unknown).
+    moved: bool = False
 
 
 class MoverTracks:
@@ -92,10 +94,12 @@ class MoverTracks:
     def update(self, heatmap: PolarHeatmap, moving: np.ndarray, velocity: np.ndarray, turn_rad: float,
                dt: float | None) -> None:
         """Follow the tracks into this frame.  *moving* (n_range, n_azimuth) bool: the cells
-        flagged by their Doppler; *velocity* (2,) m/s: the frame's; *turn_rad*: the radar's
-        turn since the previous frame; *dt* (s): the time since it (None: the first frame)."""
+        flagged by their Doppler; *velocity* (2,) m/s body axes: the frame's; *turn_rad*: the
+        radar's turn since the previous frame, counter-clockwise; *dt* (s): the time since it
+        (None: the first frame).  A heatmap without Doppler ends every track."""
         doppler = getattr(heatmap, "doppler_mps", None)
         if doppler is None:
+            self.tracks.clear()
             return
         grid = self._geometry(heatmap)
         candidates = moving & grid.region
@@ -103,7 +107,7 @@ class MoverTracks:
             return  # nothing to follow, nothing to start from: most frames of a static scene
         intensity = np.asarray(heatmap.intensity, float)
         k = int(STRONG_QUANTILE * (intensity.size - 1))
-        strong = intensity >= np.partition(intensity.ravel(), k)[k]
+        strong = (intensity >= np.partition(intensity.ravel(), k)[k]) & (intensity > 0)
         x, y = grid.x, grid.y
         static = -(velocity[0] * grid.cos + velocity[1] * grid.sin)
         off = np.asarray(doppler, float) - static  # a mover's own radial speed, m/s
@@ -148,11 +152,16 @@ class MoverTracks:
                         points.intensity[keep], height)
 
     @staticmethod
-    def _update(track: Track, blobs, used, strong, intensity, x, y, velocity, turn_rad, dt) -> bool:
-        """Move *track* to this frame (False: it ends)."""
+    def _update(track: Track, blobs: list[tuple[np.ndarray, float]], used: list[bool], strong: np.ndarray,
+                intensity: np.ndarray, x: np.ndarray, y: np.ndarray, velocity: np.ndarray, turn_rad: float,
+                dt: float) -> bool:
+        """Move *track* to this frame (False: it ends): *blobs* as :func:`_blobs` gives them
+        (*used* marks those taken), *strong*, *intensity*, *x* and *y* the cells' (n_range,
+        n_azimuth), the radar's *velocity* (2,) m/s, *turn_rad* and *dt* (s) as in :meth:`update`."""
         c, s = math.cos(-turn_rad), math.sin(-turn_rad)
         turn = np.array([[c, -s], [s, c]])
-        carried = turn @ (track.position - np.asarray(velocity, float) * dt)  # a static point's place now
+        # Where the track would be now were it static: the radar moved and turned under it.
+        carried = turn @ (track.position - np.asarray(velocity, float) * dt)
         own = turn @ track.velocity
         predicted = carried + own * dt
         best, index = GATE_M, None
@@ -179,8 +188,8 @@ class MoverTracks:
             track.lost += 1
         else:
             moved = (seen - carried) / dt
-            track.velocity = 0.5 * own + 0.5 * moved if track.hits > 1 or track.unflagged else moved
-            track.position, track.lost = seen, 0
+            track.velocity = 0.5 * own + 0.5 * moved if track.moved else moved
+            track.position, track.lost, track.moved = seen, 0, True
         speed = float(np.hypot(*track.velocity))
         return not (track.lost > LOST or track.unflagged > MAX_UNFLAGGED
                     or (track.unflagged > 0 and not SPEED_RANGE_MPS[0] < speed < SPEED_RANGE_MPS[1]))
@@ -201,5 +210,7 @@ def _blobs(flagged: np.ndarray, intensity: np.ndarray, off: np.ndarray, x: np.nd
 
 
 def _centroid(cells: np.ndarray, intensity: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The intensity-weighted place (2,) m of *cells* (n_range, n_azimuth) bool, whose
+    intensities are positive, given the cells' places *x*, *y* (n_range, n_azimuth) m."""
     w = intensity[cells]
     return np.array([(x[cells] * w).sum() / w.sum(), (y[cells] * w).sum() / w.sum()])

@@ -88,7 +88,7 @@ class PredictedGuess:
         return None
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float) -> float | None:
+                 predicted: float, record: bool = True) -> float | None:
         return predicted
 
 
@@ -109,7 +109,7 @@ class ProfileGuess:
         return azimuth_profile(frame.heatmap, self._features, self._grid)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float) -> float | None:
+                 predicted: float, record: bool = True) -> float | None:
         guess = correlation_guess(previous.guide, current.guide, self._step_rad, self._max_rad, predicted)
         return predicted if guess is None else guess
 
@@ -142,7 +142,9 @@ class ScanGuess:
         return extract(frame.heatmap, self._scan_features, velocity)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float) -> float | None:
+                 predicted: float, record: bool = True) -> float | None:
+        """The scan's rotation, None when the step holds no structure; *record*: a step's first
+        look, whose score joins the usual scores (a second look at the same step must not)."""
         found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted,
                            self._common)
         threshold = self.min_score
@@ -150,7 +152,8 @@ class ScanGuess:
             return None
         if previous.log is not None and score_back(current.guide, previous.log, found[0], translation) < threshold:
             return None
-        self._scores.append(found[1])
+        if record:
+            self._scores.append(found[1])
         return found[0]
 
     @property
@@ -241,9 +244,10 @@ class YawMeasurement:
     def keep(self, frame: CurrentFrame, velocity: np.ndarray | None, *, turn_rad: float = 0.0,
              dt: float | None = None) -> KeptFrame:
         """What the next frame needs of *frame*: its features (moving reflectors rejected by
-        *velocity*, (2,) m/s, when known), the guess's view and the field.  *turn_rad* and *dt*
-        (s; None: none before) are the radar's predicted turn and the time since the previous
-        frame, for the movers followed across the view (``icp.track_movers``)."""
+        *velocity*, (2,) m/s body axes, when known), the guess's view and the field.  *turn_rad*
+        (counter-clockwise) and *dt* (s; None: none before) are the radar's predicted turn and
+        the time since the previous frame, for the movers followed across the view
+        (``icp.track_movers``)."""
         features = extract(frame.heatmap, self._config.features, velocity)
         scan_velocity = None
         if self._moving_mps is not None and velocity is not None:
@@ -251,6 +255,8 @@ class YawMeasurement:
             scan_velocity = velocity
             if self._movers is not None:
                 self._movers.update(frame.heatmap, frame.moving, velocity, turn_rad, dt)
+        elif self._movers is not None:
+            self._movers.tracks.clear()  # not followed through a frame without its velocity
         guide = self.guess.view(frame, scan_velocity)
         if self._movers is not None and scan_velocity is not None:
             guide = self._movers.leave_out(guide)
@@ -265,14 +271,15 @@ class YawMeasurement:
         ``held_velocity_yaw_check`` the rotation measured without it widens the variance."""
         step = self._measure(previous, current, frame, translation, predicted, flags)
         if translation_held and self._held_check and step.rotation is not None:
-            unmoved = self._measure(previous, current, frame, np.zeros(2), predicted, [])
-            if unmoved.rotation is not None:
+            # A second look at the same step: its flags and its scan score are not the step's.
+            unmoved = self._measure(previous, current, frame, np.zeros(2), predicted, [], record=False)
+            if unmoved.rotation is not None:  # else the variance stays as measured
                 step.variance += (self._held_check * (unmoved.rotation - step.rotation)) ** 2
         return step
 
     def _measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float, flags: list[Flag]) -> YawStep:
-        initial = self.guess(previous, current, frame, translation, predicted)
+                 predicted: float, flags: list[Flag], record: bool = True) -> YawStep:
+        initial = self.guess(previous, current, frame, translation, predicted, record)
         step = self._register(previous.features, current.features, frame.region, translation, initial, flags)
         scan = initial if self.scans else None
         if step.rotation is not None:

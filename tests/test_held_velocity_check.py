@@ -35,6 +35,8 @@ def measure(check: float | None, translation, *, held: bool):
     flags: list[Flag] = []
     step = yaw.measure(kept[0], kept[1], frames[1], np.asarray(translation, float), 0.0, flags,
                        translation_held=held)
+    # The scan's usual scores take the step's first look only (icp.scan_score_fraction).
+    assert len(yaw.guess._scores) == 1
     return step, flags
 
 
@@ -81,7 +83,7 @@ def test_in_the_odometry_only_held_steps_change_and_the_heading_turns_less():
         assert abs(a.yaw) < abs(b.yaw)
 
 
-@pytest.mark.parametrize("bad", [0.0, -1.0])
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.inf])
 def test_the_factor_is_checked(bad):
     with pytest.raises(ConfigError) as exc:
         EstimatorConfig.from_dict({"odometry": {"held_velocity_yaw_check": bad}})

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from radarodom.estimator.config import EstimatorConfig
 from radarodom.estimator.features import Features, static_mask
-from radarodom.estimator.movers import CONFIRM_HITS, MASK_M, MoverTracks
+from radarodom.estimator.movers import CONFIRM_HITS, GATE_M, MASK_M, MoverTracks, Track
 from radarodom.estimator.odometry import RadarOdometry
 
 DT = 0.1
@@ -78,6 +78,71 @@ def test_a_person_crossing_square_to_the_line_of_sight_stays_out_of_the_points()
     assert unflagged_frames >= 10
 
 
+def test_a_track_is_carried_by_the_radars_own_motion():
+    # The radar drives at 0.6 m/s turning left at 10 deg/s while the person walks across 4 m ahead
+    # (world frame): the track's prediction has to move and turn with the radar to stay on it.
+    speed, rate = 0.6, math.radians(10.0)
+    velocity = np.array([speed, 0.0])
+    tracks = MoverTracks()
+    pose = np.zeros(3)
+    followed = 0
+    for i in range(30):
+        if i:
+            pose = pose + [speed * DT * math.cos(pose[2] + 0.5 * rate * DT),
+                           speed * DT * math.sin(pose[2] + 0.5 * rate * DT), rate * DT]
+        person_world = np.array([4.0, -3.0 + WALK_MPS * DT * i])
+        body = synth.world_to_body(np.vstack([synth.SCENE_WORLD, person_world]), tuple(pose))
+        bearing = np.arctan2(body[:, 1], body[:, 0])
+        unit = np.column_stack([np.cos(bearing), np.sin(bearing)])
+        own = np.zeros((len(body), 2))
+        own[-1] = synth.rot(-pose[2]) @ [0.0, WALK_MPS]  # the person's velocity in the radar's axes
+        radial = ((own - velocity) * unit).sum(axis=1)
+        heatmap = synth.heatmap(body, np.r_[np.ones(len(synth.SCENE_WORLD)), 4.0], radial_velocity=radial,
+                                noise=1e-4)
+        tracks.update(heatmap, ~static_mask(heatmap, velocity, 0.3), velocity, rate * DT, None if i == 0 else DT)
+        for track in tracks.tracks:
+            if track.unflagged:  # followed without flags: only ever near the person (its last
+                # flagged cells, the blob's edge, can pull a track off by up to the mask's radius)
+                assert np.hypot(*(track.position - body[-1])) < 0.6, i
+                followed += 1
+    assert followed >= 6  # it crossed unflagged for several frames and was followed there
+
+
+def test_the_prediction_moves_with_the_radar_and_the_track():
+    # A track 3 m ahead walking left at 3 m/s; the radar drives at 3 m/s and turns 0.1 rad in the
+    # step: the blob where the track must be now is taken, one where a sign error would put it
+    # (each beyond the 0.5 m gate) is not.
+    turn, dt = 0.1, DT
+    radar = np.array([3.0, 0.0])
+    expected = synth.rot(-turn) @ (np.array([3.0, 0.0]) - radar * dt) + synth.rot(-turn) @ [0.0, 3.0] * dt
+    wrong = [synth.rot(turn) @ (np.array([3.0, 0.0]) - radar * dt) + synth.rot(turn) @ [0.0, 3.0] * dt,
+             synth.rot(-turn) @ (np.array([3.0, 0.0]) + radar * dt) + synth.rot(-turn) @ [0.0, 3.0] * dt,
+             synth.rot(-turn) @ (np.array([3.0, 0.0]) - radar * dt) - synth.rot(-turn) @ [0.0, 3.0] * dt]
+    grid = np.zeros((2, 2))
+    for place, taken in [(expected, True)] + [(w, False) for w in wrong]:
+        assert taken or np.hypot(*(place - expected)) > GATE_M
+        track = Track(np.array([3.0, 0.0]), np.array([0.0, 3.0]), 1.0, hits=CONFIRM_HITS, moved=True)
+        used = [False]
+        alive = MoverTracks._update(track, [(place, 0.8)], used, grid > 0, grid, grid, grid, radar, turn, dt)
+        assert used == [taken]
+        if taken:
+            assert alive and np.allclose(track.position, expected) and track.hits == CONFIRM_HITS + 1
+
+
+def test_without_a_doppler_channel_a_live_track_ends():
+    tracks = MoverTracks()
+    for i in range(12):  # a followed track: flagged, then crossing
+        heatmap, _ = crossing(i)
+        tracks.update(heatmap, ~static_mask(heatmap, np.zeros(2), 0.3), np.zeros(2), 0.0, None if i == 0 else DT)
+    assert tracks.tracks and tracks.tracks[0].unflagged > 0
+    heatmap, person = crossing(12)
+    tracks.update(dataclasses.replace(heatmap, doppler_mps=None), np.zeros(heatmap.intensity.shape, bool),
+                  np.zeros(2), 0.0, DT)
+    assert tracks.tracks == []
+    points = points_near(heatmap, person)
+    assert tracks.leave_out(points) is points
+
+
 @pytest.mark.parametrize("pattern", ["flickering", "steady"])
 def test_static_structure_is_never_followed(pattern):
     # A static reflector 3 m ahead whose Doppler reads 0.8 m/s every other frame (a ghost), or
@@ -95,14 +160,6 @@ def test_static_structure_is_never_followed(pattern):
         assert not any(t.unflagged for t in tracks.tracks), i
         points = points_near(heatmap, place)
         assert tracks.leave_out(points) is points
-
-
-def test_without_the_doppler_channel_nothing_is_followed():
-    tracks = MoverTracks()
-    heatmap, _ = crossing(0)
-    heatmap = dataclasses.replace(heatmap, doppler_mps=None)
-    tracks.update(heatmap, np.ones(heatmap.intensity.shape, bool), np.zeros(2), 0.0, None)
-    assert tracks.tracks == []
 
 
 def run(track: bool, strength: float) -> list[float]:
