@@ -91,14 +91,15 @@ class MoverTracks:
         self.tracks: list[Track] = []
         self._grid: _Grid | None = None
 
-    def update(self, heatmap: PolarHeatmap, moving: np.ndarray, velocity: np.ndarray, turn_rad: float,
-               dt: float | None) -> None:
+    def update(self, heatmap: PolarHeatmap, moving: np.ndarray | None, velocity: np.ndarray | None,
+               turn_rad: float, dt: float | None) -> None:
         """Follow the tracks into this frame.  *moving* (n_range, n_azimuth) bool: the cells
         flagged by their Doppler; *velocity* (2,) m/s body axes: the frame's; *turn_rad*: the
         radar's turn since the previous frame, counter-clockwise; *dt* (s): the time since it
-        (None: the first frame).  A heatmap without Doppler ends every track."""
+        (None: the first frame).  A frame without its velocity (*moving* and *velocity* None) or
+        a heatmap without Doppler ends every track: none is followed through it."""
         doppler = getattr(heatmap, "doppler_mps", None)
-        if doppler is None:
+        if doppler is None or velocity is None or moving is None:
             self.tracks.clear()
             return
         grid = self._geometry(heatmap)

@@ -253,12 +253,10 @@ class YawMeasurement:
         if self._moving_mps is not None and velocity is not None:
             frame.moving = ~static_mask(frame.heatmap, velocity, self._moving_mps)
             scan_velocity = velocity
-            if self._movers is not None:
-                self._movers.update(frame.heatmap, frame.moving, velocity, turn_rad, dt)
-        elif self._movers is not None:
-            self._movers.tracks.clear()  # not followed through a frame without its velocity
+        if self._movers is not None:
+            self._movers.update(frame.heatmap, frame.moving, scan_velocity, turn_rad, dt)
         guide = self.guess.view(frame, scan_velocity)
-        if self._movers is not None and scan_velocity is not None:
+        if self._movers is not None:
             guide = self._movers.leave_out(guide)
         return KeptFrame(frame.t, features, guide, self.field.field(frame, guide),
                          frame.log if self._keeps_log else None)
