@@ -94,7 +94,8 @@ class FeatureConfig(Settings):
     #: or "cfar" (cells that CFAR detects along range and along azimuth).
     method: str = "topk"
     k: int = 200
-    #: Region of interest: range and bearing limits of the features, m and rad.
+    #: Region of interest: range and bearing limits of the features, m and rad; with the
+    #: ``elevation`` used, features placed nearer than ``min_range_m`` (at r cos(el)) are dropped.
     min_range_m: float = 0.5
     max_range_m: float | None = None
     max_azimuth_rad: float = math.radians(65.0)

@@ -138,6 +138,13 @@ def extract(heatmap: PolarHeatmap, config: FeatureConfig,
     elevation = getattr(heatmap, "elevation_rad", None)
     if config.elevation == "use" and elevation is not None:
         rng, az, height = horizontal(rng, az, np.nan_to_num(elevation[ri, ai].astype(float)))
+        # Placed nearer than the region's range (the floor beneath the radar, a steep elevation's
+        # noise), a feature's bearing is swung by any error of a step's translation: dropped
+        # (docs/heading.md item 17).
+        inside = rng >= config.min_range_m
+        if np.count_nonzero(inside) >= 3 and not inside.all():
+            rng, az, height, values = rng[inside], az[inside], height[inside], values[inside]
+            weights = weights[inside] / weights[inside].sum()
         return Features(rng, -az, weights, values, height)
     return Features(rng, -az, weights, values)
 
