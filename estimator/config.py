@@ -274,6 +274,12 @@ class IcpConfig(Settings):
     #: too; ICP's features keep them) are left out: a person walking across the radar's view
     #: turned the heading by its own bearing rate (estimator/movers.py; docs/heading.md, item 16).
     track_movers: bool = True
+    #: With the scan guess: while the radar moves and turns (yaw_measurement.MOVING_TURN_MPS and
+    #: MOVING_TURN_DPS or more), the scan's points (which the field search scores too) nearer than
+    #: this are left out, m (None: never), unless they hold most of the points' weight: in a moving
+    #: turn near walls their cells do not move as the reflectors the registration takes them for, and
+    #: the room's turns came out 3-5 % short (docs/heading.md item 18).
+    moving_turn_min_range_m: float | None = 1.0
     #: Which points the field search's score (and the keyframe's narrow scan's) averages over:
     #: "inside", those inside the heatmap at each rotation tried; "common", those inside at
     #: every rotation tried.  A mean over the points inside at each rotation rises where a
@@ -315,6 +321,8 @@ class IcpConfig(Settings):
                "scan_score_fraction")
         _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
                "reject_moving_mps")
+        _check(self.moving_turn_min_range_m is None or 0 < self.moving_turn_min_range_m < math.inf,
+               "must be positive and finite (None: off)", "moving_turn_min_range_m")
 
 
 @dataclass

@@ -72,6 +72,12 @@ class Features:
                 height_m: np.ndarray | None = None) -> "Features":
         return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity, height_m)
 
+    def subset(self, keep: np.ndarray) -> "Features":
+        """The points where *keep* (n,) bool, their weights normalised again."""
+        height = None if self.height_m is None else self.height_m[keep]
+        weight = self.weight[keep]
+        return Features(self.range_m[keep], self.bearing_rad[keep], weight / weight.sum(), self.intensity[keep], height)
+
     def turned(self, angle_rad: float) -> "Features":
         """The same points with bearings turned by *angle_rad* (counter-clockwise)."""
         return Features(self.range_m, self.bearing_rad + angle_rad, self.weight, self.intensity, self.height_m)
@@ -141,11 +147,9 @@ def extract(heatmap: PolarHeatmap, config: FeatureConfig,
         # Placed nearer than the region's range (the floor beneath the radar, a steep elevation's
         # noise), a feature's bearing is swung by any error of a step's translation: dropped
         # (docs/heading.md item 17).
+        features = Features(rng, -az, weights, values, height)
         inside = rng >= config.min_range_m
-        if np.count_nonzero(inside) >= 3 and not inside.all():
-            rng, az, height, values = rng[inside], az[inside], height[inside], values[inside]
-            weights = weights[inside] / weights[inside].sum()
-        return Features(rng, -az, weights, values, height)
+        return features.subset(inside) if np.count_nonzero(inside) >= 3 and not inside.all() else features
     return Features(rng, -az, weights, values)
 
 

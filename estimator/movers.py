@@ -147,10 +147,7 @@ class MoverTracks:
                 near |= np.hypot(*(points.xy - track.position).T) < MASK_M
         if not near.any() or np.count_nonzero(~near) < 3:
             return points
-        keep = ~near
-        height = None if points.height_m is None else points.height_m[keep]
-        return Features(points.range_m[keep], points.bearing_rad[keep], points.weight[keep] / points.weight[keep].sum(),
-                        points.intensity[keep], height)
+        return points.subset(~near)
 
     @staticmethod
     def _update(track: Track, blobs: list[tuple[np.ndarray, float]], used: list[bool], strong: np.ndarray,

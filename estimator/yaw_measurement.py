@@ -209,6 +209,35 @@ class NoFieldSearch:
         return rotation
 
 
+# ---------------------------------------------------------------------- near points in a moving turn
+#: A frame is in a moving turn (``icp.moving_turn_min_range_m``) above this speed, m/s, and turn
+#: rate, deg/s: the radar drives through its turn (a robot braking into a turn in place passes
+#: through it too, which NEAR_SHARE guards).
+MOVING_TURN_MPS = 0.2
+MOVING_TURN_DPS = 10.0
+#: The near points are kept where they hold more than this share of the points' weight: a radar
+#: facing a close obstacle has nothing else to turn by.
+NEAR_SHARE = 0.5
+
+
+def far_in_moving_turn(points: Features, min_range_m: float, velocity: np.ndarray | None, turn_rad: float,
+                       dt: float | None) -> Features:
+    """*points* without those nearer than *min_range_m* (horizontal range, m) while the radar
+    moves (*velocity* (2,) m/s body axes, None: unknown) and turns (*turn_rad* in *dt* s); as they
+    are otherwise, or when fewer than three would be left or the near ones hold more than
+    NEAR_SHARE of the weight.  In a moving turn near walls, the near cells are mostly the walls',
+    which do not move as the fixed reflectors the registration moves them as (docs/heading.md
+    item 18)."""
+    if velocity is None or dt is None or dt <= 0:
+        return points
+    if float(np.hypot(*velocity)) <= MOVING_TURN_MPS or abs(turn_rad) / dt <= math.radians(MOVING_TURN_DPS):
+        return points
+    far = points.range_m >= min_range_m
+    if np.count_nonzero(far) < 3 or far.all() or points.weight[far].sum() < (1.0 - NEAR_SHARE) * points.weight.sum():
+        return points
+    return points.subset(far)
+
+
 # ---------------------------------------------------------------------- the measurement
 class YawMeasurement:
     """Keeps what each frame needs (:meth:`keep`) and measures the rotation between two
@@ -240,6 +269,7 @@ class YawMeasurement:
         self._moving_mps = icp.reject_moving_mps
         # Movers are followed to leave them out of the scan's points (which the field scores too).
         self._movers = MoverTracks() if scan and icp.track_movers and icp.reject_moving_mps is not None else None
+        self._moving_turn_min_range_m = icp.moving_turn_min_range_m if scan else None
 
     def keep(self, frame: CurrentFrame, velocity: np.ndarray | None, *, turn_rad: float = 0.0,
              dt: float | None = None) -> KeptFrame:
@@ -247,7 +277,8 @@ class YawMeasurement:
         *velocity*, (2,) m/s body axes, when known), the guess's view and the field.  *turn_rad*
         (counter-clockwise) and *dt* (s; None: none before) are the radar's predicted turn and
         the time since the previous frame, for the movers followed across the view
-        (``icp.track_movers``)."""
+        (``icp.track_movers``) and the near points left out in a moving turn
+        (``icp.moving_turn_min_range_m``)."""
         features = extract(frame.heatmap, self._config.features, velocity)
         scan_velocity = None
         if self._moving_mps is not None and velocity is not None:
@@ -256,6 +287,8 @@ class YawMeasurement:
         if self._movers is not None:
             self._movers.update(frame.heatmap, frame.moving, scan_velocity, turn_rad, dt)
         guide = self.guess.view(frame, scan_velocity)
+        if self._moving_turn_min_range_m is not None:
+            guide = far_in_moving_turn(guide, self._moving_turn_min_range_m, velocity, turn_rad, dt)
         if self._movers is not None:
             guide = self._movers.leave_out(guide)
         return KeptFrame(frame.t, features, guide, self.field.field(frame, guide),

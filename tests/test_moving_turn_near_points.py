@@ -1,0 +1,83 @@
+"""Near points left out of the scan in a moving turn (``icp.moving_turn_min_range_m``,
+estimator/yaw_measurement.py; docs/heading.md item 18).
+
+While the radar drives through a turn near walls, the cells within a metre are mostly the
+walls', which do not move as the fixed reflectors the registration moves them as: the scan's
+points (which the field search scores too) nearer than the option are left out then, and only
+then: driving straight, turning in place, or facing a close obstacle that holds most of the
+points' weight, they stay.  ICP's features keep them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import estimator_synth as synth
+import numpy as np
+import pytest
+from radarodom.errors import ConfigError
+from radarodom.estimator.config import EstimatorConfig
+from radarodom.estimator.yaw_measurement import CurrentFrame, YawMeasurement
+
+DT = 0.1
+TURN = math.radians(45.0) * DT  # 45 deg/s
+DRIVING = np.array([0.8, 0.0])
+#: Reflectors 0.6-0.9 m away on both sides and ahead, and others 3-8 m away.
+NEAR = np.array([(0.6, 0.3), (0.7, -0.4), (0.5, 0.6), (0.8, 0.0), (0.4, -0.7)])
+FAR = np.array([(r * math.cos(b), r * math.sin(b)) for r, b in
+                zip((3.0, 5.0, 7.0, 4.0, 8.0, 6.0, 3.5, 5.5), np.radians((-45, -30, -15, 0, 10, 25, 40, 50)))])
+
+
+def keep(velocity, turn_rad: float, dt: float | None = DT, *, near_amplitude: float = 1.0,
+         option: float | None = 1.0, far: np.ndarray = FAR):
+    cfg = EstimatorConfig().with_(icp={"moving_turn_min_range_m": option})
+    yaw = YawMeasurement(cfg, math.radians(0.25))
+    world = np.vstack([NEAR, far])
+    amplitude = np.concatenate([np.full(len(NEAR), near_amplitude), np.ones(len(far))])
+    v = (0.0, 0.0) if velocity is None else tuple(velocity)
+    frame = CurrentFrame(0.0, synth.heatmap(world, amplitude, velocity_xy=v), cfg)
+    return yaw.keep(frame, None if velocity is None else np.asarray(velocity, float), turn_rad=turn_rad, dt=dt)
+
+
+def near_weight(points) -> float:
+    return float(points.weight[points.range_m < 1.0].sum())
+
+
+def test_in_a_moving_turn_the_scan_leaves_the_near_points_out():
+    kept = keep(DRIVING, TURN)
+    assert len(kept.guide) >= 3 and kept.guide.range_m.min() >= 1.0
+    assert math.isclose(kept.guide.weight.sum(), 1.0)
+    assert kept.field.points is kept.guide  # the field search scores the same points
+    assert np.any(kept.features.range_m < 1.0)  # ICP's features keep them
+    # Turning the other way, or backing through the turn: the same.
+    for velocity, turn in ((DRIVING, -TURN), (-DRIVING, TURN)):
+        assert keep(velocity, turn).guide.range_m.min() >= 1.0
+
+
+@pytest.mark.parametrize("velocity, turn, dt", [
+    (DRIVING, 0.0, DT),                          # driving straight
+    (DRIVING, math.radians(5.0) * DT, DT),       # a gentle curve, under 10 deg/s
+    (np.zeros(2), TURN, DT),                     # turning in place
+    (np.array([0.15, 0.0]), TURN, DT),           # crawling, under 0.2 m/s
+    (None, TURN, DT),                            # the frame's velocity unknown
+    (DRIVING, TURN, None),                       # the first frame
+])
+def test_otherwise_the_near_points_stay(velocity, turn, dt):
+    kept = keep(velocity, turn, dt)
+    assert near_weight(kept.guide) > 0.05
+
+
+def test_a_close_obstacle_holding_most_of_the_weight_stays():
+    # Few, faint reflectors beyond it: the near cells are what the turn is measured by.
+    kept = keep(DRIVING, TURN, near_amplitude=1e4, far=FAR[:2])
+    assert near_weight(kept.guide) > 0.5
+
+
+def test_off_the_near_points_stay():
+    assert near_weight(keep(DRIVING, TURN, option=None).guide) > 0.05
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, math.inf, math.nan])
+def test_the_option_must_be_a_positive_finite_range(value):
+    with pytest.raises(ConfigError, match="moving_turn_min_range_m"):
+        EstimatorConfig().with_(icp={"moving_turn_min_range_m": value})
