@@ -274,11 +274,11 @@ class IcpConfig(Settings):
     #: too; ICP's features keep them) are left out: a person walking across the radar's view
     #: turned the heading by its own bearing rate (estimator/movers.py; docs/heading.md, item 16).
     track_movers: bool = True
-    #: With the scan guess: while the radar moves and turns (yaw_measurement.MOVING_TURN_MPS and
-    #: MOVING_TURN_DPS or more), the scan's points (which the field search scores too) nearer than
-    #: this are left out, m (None: never), unless they hold most of the points' weight: in a moving
-    #: turn near walls their cells do not move as the reflectors the registration takes them for, and
-    #: the room's turns came out 3-5 % short (docs/heading.md item 18).
+    #: With the scan guess: while the radar moves and turns (faster than yaw_measurement's
+    #: MOVING_TURN_MPS and MOVING_TURN_DPS), the scan's points (which the field search scores too)
+    #: nearer than this are left out, m (None: off), unless they hold most of the points' weight: in
+    #: a moving turn near walls their cells do not move as the reflectors the registration takes them
+    #: for, and turns came out short (docs/heading.md item 18).
     moving_turn_min_range_m: float | None = 1.0
     #: Which points the field search's score (and the keyframe's narrow scan's) averages over:
     #: "inside", those inside the heatmap at each rotation tried; "common", those inside at

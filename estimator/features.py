@@ -73,7 +73,8 @@ class Features:
         return cls(np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0]), weight, intensity, height_m)
 
     def subset(self, keep: np.ndarray) -> "Features":
-        """The points where *keep* (n,) bool, their weights normalised again."""
+        """The points where *keep* (n,) bool, their weights normalised again (the kept weights
+        must not all be zero)."""
         height = None if self.height_m is None else self.height_m[keep]
         weight = self.weight[keep]
         return Features(self.range_m[keep], self.bearing_rad[keep], weight / weight.sum(), self.intensity[keep], height)
@@ -118,7 +119,9 @@ def static_mask(heatmap: PolarHeatmap, velocity_xy: np.ndarray, threshold_mps: f
 def extract(heatmap: PolarHeatmap, config: FeatureConfig,
             velocity_xy: np.ndarray | None = None) -> Features:
     """Features of one heatmap by ``config.method``; *velocity_xy* enables the
-    dynamic-object rejection when the config asks for it."""
+    dynamic-object rejection when the config asks for it.  With ``config.elevation`` "use",
+    features placed (at their sub-bin range with ``config.subbin``, times cos(el)) nearer than
+    ``config.min_range_m`` are dropped, unless fewer than three would be left."""
     intensity = np.asarray(heatmap.intensity, dtype=np.float32)
     if intensity.shape != (len(heatmap.range_m), len(heatmap.azimuth_rad)):
         raise ValueError(f"heatmap intensity {intensity.shape} does not match its axes "

@@ -228,9 +228,11 @@ def far_in_moving_turn(points: Features, min_range_m: float, velocity: np.ndarra
     NEAR_SHARE of the weight.  In a moving turn near walls, the near cells are mostly the walls',
     which do not move as the fixed reflectors the registration moves them as (docs/heading.md
     item 18)."""
-    if velocity is None or dt is None or dt <= 0:
+    if velocity is None or dt is None or not dt > 0:
         return points
-    if float(np.hypot(*velocity)) <= MOVING_TURN_MPS or abs(turn_rad) / dt <= math.radians(MOVING_TURN_DPS):
+    speed, rate = math.hypot(velocity[0], velocity[1]), abs(turn_rad) / dt
+    # Written so that a NaN or an infinite speed or rate (an outside velocity) changes nothing.
+    if not (MOVING_TURN_MPS < speed < math.inf and math.radians(MOVING_TURN_DPS) < rate < math.inf):
         return points
     far = points.range_m >= min_range_m
     if np.count_nonzero(far) < 3 or far.all() or points.weight[far].sum() < (1.0 - NEAR_SHARE) * points.weight.sum():

@@ -13,6 +13,7 @@ import dataclasses
 import math
 
 import numpy as np
+import pytest
 from estimator_synth import AZIMUTH_RAD, RANGE_M
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.estimator.config import FeatureConfig
@@ -50,17 +51,41 @@ def test_features_placed_nearer_than_the_region_are_dropped():
     dropped = np.count_nonzero(level.bearing_rad > 0)  # the left half's (bearing = -azimuth)
     assert 0 < dropped < CONFIG.k
     assert len(steep) == CONFIG.k - dropped
-    assert math.isclose(steep.weight.sum(), 1.0)
-    np.testing.assert_allclose(np.sort(steep.intensity), np.sort(level.intensity[level.bearing_rad < 0]))
+    kept = level.bearing_rad < 0
+    np.testing.assert_allclose(np.sort(steep.intensity), np.sort(level.intensity[kept]))
+    # Each kept feature's weight is its weight among the k, normalised again.
+    order, level_order = np.argsort(steep.intensity), np.argsort(level.intensity[kept])
+    np.testing.assert_allclose(steep.weight[order], level.weight[kept][level_order] / level.weight[kept].sum())
 
 
-def test_a_moderate_elevation_that_stays_in_the_region_is_placed_not_dropped():
-    features = extract(_heatmap(_elevation(-30.0)), CONFIG)  # r cos(el) = 0.43-0.87 m
-    assert features.range_m.min() >= CONFIG.min_range_m
+def test_a_moderate_elevation_places_the_cells_and_drops_only_those_it_brings_inside():
+    level = extract(_heatmap(_elevation(0.0)), CONFIG)
+    features = extract(_heatmap(_elevation(-30.0)), CONFIG)
+    # The left half's near cells at 30 degrees lie at r cos(30) = 0.43-0.87 m: those under 0.5 m
+    # (slant 0.5-0.55 m) are dropped, the others placed there, at their height.
+    cos30 = math.cos(math.radians(30.0))
+    left = level.bearing_rad > 0
+    inside = ~left | (level.range_m * cos30 >= CONFIG.min_range_m)
+    assert 0 < np.count_nonzero(~inside) and len(features) == np.count_nonzero(inside)
     placed = features.height_m < -0.1
-    assert placed.any()
-    slant = features.range_m[placed] / math.cos(math.radians(30.0))
-    assert np.all((slant > 0.5 - 1e-6) & (slant < 1.0 + 1e-6))
+    np.testing.assert_allclose(np.sort(features.range_m[placed]), np.sort(level.range_m[left & inside] * cos30))
+    np.testing.assert_allclose(features.height_m[placed], -features.range_m[placed] * math.tan(math.radians(30.0)))
+
+
+@pytest.mark.parametrize("left, kept", [(2, 50), (3, 3)])
+def test_fewer_than_three_left_keeps_them_all(left, kept):
+    # Every near cell steep but *left* of them level: those alone would be left.
+    elevation = np.zeros((len(RANGE_M), len(AZIMUTH_RAD)))
+    elevation[NEAR] = -70.0
+    rows = np.flatnonzero(NEAR)
+    middle = slice(len(AZIMUTH_RAD) // 2, len(AZIMUTH_RAD) // 2 + left)  # near boresight
+    elevation[rows[-1], middle] = 0.0
+    heatmap = _heatmap(elevation)
+    heatmap.intensity[rows[-1], middle] *= 1000.0  # among the k strongest
+    features = extract(heatmap, CONFIG)
+    assert len(features) == kept
+    if kept == 3:
+        np.testing.assert_allclose(features.range_m, RANGE_M[rows[-1]])
 
 
 def test_a_frame_of_only_such_features_keeps_them():
