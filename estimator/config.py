@@ -322,7 +322,7 @@ class IcpConfig(Settings):
         _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
                "reject_moving_mps")
         _check(self.moving_turn_min_range_m is None or 0 < self.moving_turn_min_range_m < math.inf,
-               "must be positive and finite (None: off)", "moving_turn_min_range_m")
+               "must be positive and finite (null: off)", "moving_turn_min_range_m")
 
 
 @dataclass
