@@ -139,6 +139,15 @@ class OdometryConfig(Settings):
     #: ``hold_s``) has this standard deviation, rad/s: a robot's turn rate may change by
     #: about this much over a few frames.
     held_yaw_rate_std_radps: float = math.radians(10.0)
+    #: A platform's fastest turn, rad/s.  Over a step longer than ``hold_s`` (frames lost on a
+    #: stalled link), the step's search for its turn (the scan guess) reaches beyond its usual
+    #: window by every turn this fast over the part of the step the last measured rate cannot
+    #: stand in for, either side of that rate's turn: the radar may have started, stopped or
+    #: kept turning.
+    gap_yaw_rate_radps: float = math.radians(90.0)
+    #: ... but reaches at most this much further, rad: a longer search finds more false peaks
+    #: than turns (docs/estimator.md, "Frames lost").
+    gap_search_rad: float = math.radians(45.0)
     #: A registration whose angular residuals give no variance (too few to say) is taken to
     #: have this standard deviation, rad: wide enough that the filter and the keyframe lean on
     #: their prediction.
@@ -160,6 +169,9 @@ class OdometryConfig(Settings):
                or (math.isfinite(self.held_velocity_yaw_check) and self.held_velocity_yaw_check > 0),
                "must be positive and finite (null: off)", "held_velocity_yaw_check")
         _check(self.held_yaw_rate_std_radps > 0, "must be positive", "held_yaw_rate_std_radps")
+        _check(math.isfinite(self.gap_yaw_rate_radps) and self.gap_yaw_rate_radps >= 0,
+               "must be >= 0 and finite (0: search no wider after a gap)", "gap_yaw_rate_radps")
+        _check(0 <= self.gap_search_rad <= math.pi, "must be in [0, pi]", "gap_search_rad")
         _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
         _check(self.min_features >= 2, "must be at least 2", "min_features")
         _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")

@@ -186,7 +186,8 @@ class RadarOdometry:
         rate = self._last_rate
         predicted = -rate * dt if self.yaw.guess.uses_rate else 0.0
         measured = self.yaw.measure(previous, current, frame, self._translation(v, dt, rate * dt), predicted, flags,
-                                    translation_held=Flag.VELOCITY_HELD in flags)
+                                    translation_held=Flag.VELOCITY_HELD in flags,
+                                    widen_rad=self._gap_doubt(dt) if self.yaw.guess.uses_rate else 0.0)
         registered = None if measured.rotation is None else -measured.rotation  # the world turns the other way
         var_registered = measured.variance
         doppler = None
@@ -215,6 +216,15 @@ class RadarOdometry:
     def _last_rate(self) -> float:
         """The last measured yaw rate, rad/s (0 before any)."""
         return self._good_rate[1] if self._good_rate is not None else 0.0
+
+    def _gap_doubt(self, dt: float) -> float:
+        """How much further either side of the last rate's turn the search of a step of *dt* s
+        reaches, rad.  The rate stands in for ``hold_s``; over the rest of a longer step (frames
+        lost) the radar may have started, stopped or kept turning, at up to
+        ``gap_yaw_rate_radps`` (``gap_search_rad`` at most).  A run of unmeasured short steps
+        does not widen it: each step's usual window spans any change of rate it can hold."""
+        odo = self.config.odometry
+        return min(odo.gap_yaw_rate_radps * max(0.0, dt - odo.hold_s), odo.gap_search_rad)
 
     def _translation(self, v: np.ndarray, dt: float, turn: float) -> np.ndarray:
         """The sensor's displacement over the step in the previous frame's axes, (2,) m: v dt,

@@ -140,10 +140,11 @@ class PointYaw:
         return self._heatmap.keep(frame, velocity, turn_rad=turn_rad, dt=dt)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                predicted: float, flags: list[Flag], *, translation_held: bool = False) -> YawStep:
+                predicted: float, flags: list[Flag], *, translation_held: bool = False,
+                widen_rad: float = 0.0) -> YawStep:
         """The rotation from *previous* to *current* (source -> target: minus the sensor's turn)
         from the points on the map and, when slow, the heatmap; see the module docstring.
-        *translation_held*: as :meth:`YawMeasurement.measure`, for the heatmap's part."""
+        *translation_held*, *widen_rad*: as :meth:`YawMeasurement.measure`, for the heatmap's part."""
         cfg = self._config
         dt = current.t - previous.t
         velocity = translation / dt
@@ -158,7 +159,7 @@ class PointYaw:
         heatmap = None
         if slow and (self._beside or points is None or relocated is not None):
             step = self._heatmap.measure(previous, current, frame, translation, predicted, [],
-                                         translation_held=translation_held)
+                                         translation_held=translation_held, widen_rad=widen_rad)
             if step.rotation is not None and ((self._fuse and points is not None)
                                               or self._plausible(-step.rotation, -predicted, dt)):
                 heatmap = (-step.rotation, max(step.variance, cfg.heatmap_noise_rad ** 2))

@@ -88,7 +88,7 @@ class PredictedGuess:
         return None
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float, record: bool = True) -> float | None:
+                 predicted: float, record: bool = True, widen_rad: float = 0.0) -> float | None:
         return predicted
 
 
@@ -109,8 +109,8 @@ class ProfileGuess:
         return azimuth_profile(frame.heatmap, self._features, self._grid)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float, record: bool = True) -> float | None:
-        guess = correlation_guess(previous.guide, current.guide, self._step_rad, self._max_rad, predicted)
+                 predicted: float, record: bool = True, widen_rad: float = 0.0) -> float | None:
+        guess = correlation_guess(previous.guide, current.guide, self._step_rad, self._max_rad + widen_rad, predicted)
         return predicted if guess is None else guess
 
 
@@ -142,11 +142,12 @@ class ScanGuess:
         return extract(frame.heatmap, self._scan_features, velocity)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float, record: bool = True) -> float | None:
+                 predicted: float, record: bool = True, widen_rad: float = 0.0) -> float | None:
         """The scan's rotation, None when the step holds no structure; *record*: a step's first
-        look, whose score joins the usual scores (a second look at the same step must not)."""
-        found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad, predicted,
-                           self._common)
+        look, whose score joins the usual scores (a second look at the same step must not);
+        *widen_rad*: the search reaches that much further either side of *predicted*."""
+        found = scan_guess(previous.guide.shifted(translation), frame.log, self._step_rad, self._max_rad + widen_rad,
+                           predicted, self._common)
         threshold = self.min_score
         if found is None or found[1] < threshold:
             return None
@@ -297,22 +298,26 @@ class YawMeasurement:
                          frame.log if self._keeps_log else None)
 
     def measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                predicted: float, flags: list[Flag], *, translation_held: bool = False) -> YawStep:
+                predicted: float, flags: list[Flag], *, translation_held: bool = False,
+                widen_rad: float = 0.0) -> YawStep:
         """The rotation from *previous* (moved by *translation*, (2,) m) to *current*, starting
         from *predicted* (rad), flagged in *flags* when it fails.  *translation_held*: the
         translation comes from a held velocity, not a measured one; with
-        ``held_velocity_yaw_check`` the rotation measured without it widens the variance."""
-        step = self._measure(previous, current, frame, translation, predicted, flags)
+        ``held_velocity_yaw_check`` the rotation measured without it widens the variance.
+        *widen_rad*: how much further either side of *predicted* the step's guess searches
+        (the prediction's own doubt, e.g. after a gap in the frames)."""
+        step = self._measure(previous, current, frame, translation, predicted, flags, widen_rad=widen_rad)
         if translation_held and self._held_check and step.rotation is not None:
             # A second look at the same step: its flags and its scan score are not the step's.
-            unmoved = self._measure(previous, current, frame, np.zeros(2), predicted, [], record=False)
+            unmoved = self._measure(previous, current, frame, np.zeros(2), predicted, [], record=False,
+                                    widen_rad=widen_rad)
             if unmoved.rotation is not None:  # else the variance stays as measured
                 step.variance += (self._held_check * (unmoved.rotation - step.rotation)) ** 2
         return step
 
     def _measure(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
-                 predicted: float, flags: list[Flag], record: bool = True) -> YawStep:
-        initial = self.guess(previous, current, frame, translation, predicted, record)
+                 predicted: float, flags: list[Flag], record: bool = True, widen_rad: float = 0.0) -> YawStep:
+        initial = self.guess(previous, current, frame, translation, predicted, record, widen_rad)
         step = self._register(previous.features, current.features, frame.region, translation, initial, flags)
         scan = initial if self.scans else None
         if step.rotation is not None:

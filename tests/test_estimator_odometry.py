@@ -556,6 +556,49 @@ class TestFlags:
                 assert odo_mod.MOTION_LOST in s.flags and s.yaw_rate == 0.0
             assert finite_state(s)
 
+    @pytest.mark.parametrize("rate_before_dps, rate_after_dps, gap_s", [
+        (30.0, 0.0, 1.0), (30.0, 0.0, 2.0),    # stopped turning as the link stalled
+        (30.0, 30.0, 1.0), (30.0, 30.0, 2.0),  # kept turning
+        (0.0, 30.0, 1.0), (0.0, 20.0, 2.0),    # started turning
+    ], ids=["stopped-1s", "stopped-2s", "kept-1s", "kept-2s", "started-1s", "started-2s"])
+    def test_a_gap_in_the_frames_longer_than_hold_s_finds_the_turn_made_in_it(self, rate_before_dps,
+                                                                               rate_after_dps, gap_s):
+        # No frames for longer than hold_s (a stalled link): the last rate stands in for hold_s
+        # only, so the step over the gap searches the turns the radar could have made in the
+        # rest of it, and finds the one it made.
+        odom = RadarOdometry(EstimatorConfig())
+        before, after_rate = rate_before_dps * DEG, rate_after_dps * DEG
+        turning = [odom.step(0.1 * i, static_cloud((0.0, 0.0)), scene_heatmap((0.0, 0.0, before * 0.1 * i)))
+                   for i in range(6)]
+        assert turning[-1].yaw == pytest.approx(0.5 * before, abs=1.5 * DEG)
+        after = []
+        for k in range(5):
+            t = 0.5 + gap_s + 0.1 * k
+            after.append(odom.step(t, static_cloud((0.0, 0.0)),
+                                   scene_heatmap((0.0, 0.0, 0.5 * before + after_rate * (t - 0.5)))))
+        assert [s.frame for s in after] == [6, 7, 8, 9, 10]
+        assert after[0].yaw_increment == pytest.approx(after_rate * gap_s, abs=1.0 * DEG)
+        assert after[0].yaw == pytest.approx(0.5 * before + after_rate * gap_s, abs=2.0 * DEG)
+        assert all(finite_state(s) for s in after)
+        if not after_rate:  # (turning, the scene leaves the field of view)
+            assert after[-1].yaw == pytest.approx(0.5 * before, abs=1.5 * DEG)
+
+    @pytest.mark.parametrize("gap_s", [0.3, 5.0, 30.0])
+    def test_standing_still_across_a_gap_stays_put(self, gap_s):
+        # A standing radar whose link stalls, for however long: the wider search after the gap
+        # still finds no turn (the same view scores best).
+        odom = RadarOdometry(EstimatorConfig())
+        still = [odom.step(0.1 * i, static_cloud((0.0, 0.0)), scene_heatmap()) for i in range(6)]
+        after = [odom.step(0.5 + gap_s + 0.1 * k, static_cloud((0.0, 0.0)), scene_heatmap()) for k in range(3)]
+        for s in still + after:
+            assert abs(s.yaw) < 0.2 * DEG and finite_state(s)
+
+    def test_the_gap_options_are_checked(self):
+        for field, value in (("gap_yaw_rate_radps", -0.1), ("gap_yaw_rate_radps", math.inf),
+                             ("gap_search_rad", -0.1), ("gap_search_rad", 4.0), ("gap_search_rad", math.nan)):
+            with pytest.raises(ConfigError, match=field):
+                EstimatorConfig().with_(odometry={field: value})
+
     def test_never_nan_on_garbage(self):
         rng = np.random.default_rng(5)
         odom = RadarOdometry(EstimatorConfig())

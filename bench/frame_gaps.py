@@ -1,0 +1,117 @@
+"""Frames lost on the way (dropped UDP frames, a link that stalls): the default estimator on the
+heading matrix's base cells with frames taken out.
+
+    python bench/frame_gaps.py [--scenes corridor room lab] [--seeds 0 1 2 3 4 5]
+        [--losses none drop5 gap1 gap2] [--workers N] [--data DIR] [--json OUT]
+
+Each base cell of bench/robustness_matrix.py (the shipped cfg at 0 dB, 0.8 m/s, 45 deg/s: a loop
+of straights, a moving left turn, a turn in place of 180 degrees and a moving right turn; recorded
+into DATA as the matrix records it, or reused from there) runs through the default estimator with
+some of its frames, heatmap and point cloud alike, never delivered:
+
+- ``none``: every frame;
+- ``dropP``: P % of the frames at random (the same ones in every run), as a lost UDP packet loses
+  its frame;
+- ``gapS``: every frame within S seconds after each 7 s mark from 5 s on (a link that stalls for
+  S seconds every 7 s; a gap lands in straights and in turns alike).
+
+Prints, for each loss, the drift (% of the path) and the final heading error (degrees) over the
+cells, mean and worst; ``--json`` writes every cell's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import json
+import math
+import os
+import platform
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+from matrix_cells import SimCell  # noqa: E402
+
+#: The gaps' first start and spacing, s.
+GAP_FROM_S, GAP_EVERY_S = 5.0, 7.0
+
+
+def delivered(times: np.ndarray, loss: str) -> np.ndarray:
+    """Which frames (at *times*, (n,) s) arrive under *loss* ("none", "dropP", "gapS"): (n,) bool.
+    The first frame always does."""
+    keep = np.ones(len(times), bool)
+    kind = next((k for k in ("drop", "gap") if loss.startswith(k)), None)
+    try:
+        amount = float(loss[len(kind):]) if kind else None
+    except ValueError:
+        amount = None
+    if loss != "none" and amount is None:
+        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames) or gapS (S seconds every {GAP_EVERY_S:g} s)")
+    if kind == "drop":
+        keep[1:] = np.random.default_rng(7).random(len(times) - 1) >= amount / 100.0
+    elif kind == "gap":
+        for start in np.arange(times[0] + GAP_FROM_S, times[-1] - GAP_FROM_S, GAP_EVERY_S):
+            keep &= ~((times > start) & (times < start + amount))
+    return keep
+
+
+def run(cell: SimCell, loss: str, data: str) -> dict:
+    """The estimator on *cell*'s frames that *loss* delivers: drift and final heading error."""
+    import robustness_matrix
+    import sequences
+    from radarodom.estimator.evaluation import associate
+    from radarodom.estimator.heading_metrics import heading_metrics
+    from radarodom.estimator.odometry import RadarOdometry
+    from radarodom.tum import TumTrajectory
+    seq = sequences.load(robustness_matrix.record(cell, data), cell.name)
+    odom = RadarOdometry(robustness_matrix.estimator_config(cell))
+    frames = np.flatnonzero(delivered(seq.times, loss))
+    poses = np.zeros((len(frames), 3))
+    for j, i in enumerate(frames):
+        state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        poses[j] = state.x, state.y, state.yaw
+    est, ref = associate(TumTrajectory.from_se2(seq.times[frames], poses, source=cell.name), seq.groundtruth, 0.01)
+    metrics = heading_metrics(ref.times, ref.se2(), est.se2())
+    return {"cell": cell.name, "loss": loss, "frames": int(len(frames)), "of": int(len(seq.times)),
+            "drift_pct": metrics.drift_pct, "final_heading_error_deg": metrics.final_heading_error_deg}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4, 5])
+    ap.add_argument("--losses", nargs="+", default=["none", "drop5", "gap1", "gap2"])
+    ap.add_argument("--workers", type=int, default=os.cpu_count())
+    ap.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"),
+                    help="where the matrix's recordings are (or go): robustness_matrix.py's --data")
+    ap.add_argument("--json", help="write every cell's result here")
+    args = ap.parse_args(argv)
+    for loss in args.losses:
+        delivered(np.arange(2.0), loss)  # a bad name fails here, not in a worker
+    cells = [SimCell(scene=scene, seed=seed) for scene in args.scenes for seed in args.seeds]
+    todo = [(cell, loss) for loss in args.losses for cell in cells]
+    with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
+        results = list(pool.map(run, *zip(*todo), [args.data] * len(todo)))
+    print(f"{len(cells)} cells; {platform.processor() or platform.machine()}, Python {platform.python_version()}")
+    print("| loss | frames delivered | drift %, mean / worst | final heading error deg, mean abs / worst |")
+    print("| --- | ---: | ---: | ---: |")
+    for loss in args.losses:
+        rows = [r for r in results if r["loss"] == loss]
+        share = sum(r["frames"] for r in rows) / sum(r["of"] for r in rows)
+        drift = [r["drift_pct"] for r in rows]
+        heading = [abs(r["final_heading_error_deg"]) for r in rows]
+        print(f"| {loss} | {100 * share:.0f} % | {np.mean(drift):.2f} / {max(drift):.1f} | "
+              f"{np.mean(heading):.1f} / {max(heading):.1f} |")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump([{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
+                       for r in results], fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
