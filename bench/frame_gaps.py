@@ -1,19 +1,22 @@
-"""Frames lost on the way (dropped UDP frames, a link that stalls): the default estimator on the
-heading matrix's base cells with frames taken out.
+"""Frames lost on the way (dropped UDP frames, a link that stalls) or blind (a person right in
+front of the radar): the default estimator on the heading matrix's base cells with frames taken
+out or blanked.
 
     python bench/frame_gaps.py [--scenes corridor room lab] [--seeds 0 1 2 3 4 5]
-        [--losses none drop5 gap1 gap2] [--workers N] [--data DIR] [--json OUT]
+        [--losses none drop5 gap1 gap2 blind1] [--workers N] [--data DIR] [--json OUT]
 
 Each base cell of bench/robustness_matrix.py (the shipped cfg at 0 dB, 0.8 m/s, 45 deg/s: a loop
 of straights, a moving left turn, a turn in place of 180 degrees and a moving right turn; recorded
 into DATA as the matrix records it, or reused from there) runs through the default estimator with
-some of its frames, heatmap and point cloud alike, never delivered:
+some of its frames, heatmap and point cloud alike, never delivered or seeing nothing:
 
 - ``none``: every frame;
 - ``dropP``: P % of the frames at random (the same ones in every run), as a lost UDP packet loses
   its frame;
 - ``gapS``: every frame within S seconds after each 7 s mark from 5 s on (a link that stalls for
-  S seconds every 7 s; a gap lands in straights and in turns alike).
+  S seconds every 7 s; a gap lands in straights and in turns alike);
+- ``blindS``: the same frames delivered, but their heatmap only noise (exponential, at the frame's
+  median) and their point cloud empty (the radar covered, or a person right in front of it).
 
 Prints, for each loss, the drift (% of the path) and the final heading error (degrees) over the
 cells, mean and worst; ``--json`` writes every cell's.
@@ -41,22 +44,47 @@ GAP_FROM_S, GAP_EVERY_S = 5.0, 7.0
 
 
 def delivered(times: np.ndarray, loss: str) -> np.ndarray:
-    """Which frames (at *times*, (n,) s) arrive under *loss* ("none", "dropP", "gapS"): (n,) bool.
-    The first frame always does."""
+    """Which frames (at *times*, (n,) s) arrive under *loss* ("none", "dropP", "gapS", "blindS"):
+    (n,) bool, the first frame always; "blindS" delivers all (:func:`blinded` says which see
+    nothing)."""
     keep = np.ones(len(times), bool)
-    kind = next((k for k in ("drop", "gap") if loss.startswith(k)), None)
+    kind = next((k for k in ("drop", "gap", "blind") if loss.startswith(k)), None)
     try:
         amount = float(loss[len(kind):]) if kind else None
     except ValueError:
         amount = None
     if loss != "none" and amount is None:
-        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames) or gapS (S seconds every {GAP_EVERY_S:g} s)")
+        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames), gapS or blindS (S seconds every "
+                         f"{GAP_EVERY_S:g} s)")
     if kind == "drop":
         keep[1:] = np.random.default_rng(7).random(len(times) - 1) >= amount / 100.0
     elif kind == "gap":
-        for start in np.arange(times[0] + GAP_FROM_S, times[-1] - GAP_FROM_S, GAP_EVERY_S):
-            keep &= ~((times > start) & (times < start + amount))
+        keep &= ~_in_gaps(times, amount)
     return keep
+
+
+def blinded(times: np.ndarray, loss: str) -> np.ndarray:
+    """Which frames see nothing under *loss* ("blindS"; none for the others): (n,) bool."""
+    delivered(times, loss)  # checks the name
+    return _in_gaps(times, float(loss[5:])) if loss.startswith("blind") else np.zeros(len(times), bool)
+
+
+def _in_gaps(times: np.ndarray, length: float) -> np.ndarray:
+    """The frames within *length* s after each mark (``GAP_FROM_S``, every ``GAP_EVERY_S``)."""
+    inside = np.zeros(len(times), bool)
+    for start in np.arange(times[0] + GAP_FROM_S, times[-1] - GAP_FROM_S, GAP_EVERY_S):
+        inside |= (times > start) & (times < start + length)
+    return inside
+
+
+def blind_frame(heatmap, rng: np.random.Generator):
+    """*heatmap* as a radar that sees nothing gives it: noise at its median, no Doppler."""
+    from radarodom.products import RangeAzimuth
+    noise = (float(np.median(heatmap.intensity)) * rng.exponential(1.0, heatmap.intensity.shape)).astype(
+        heatmap.intensity.dtype)
+    elevation = None if heatmap.elevation_rad is None else np.zeros_like(heatmap.elevation_rad)
+    return RangeAzimuth(noise, noise, np.zeros_like(heatmap.doppler_mps), heatmap.range_m, heatmap.azimuth_rad,
+                        elevation)
 
 
 def run(cell: SimCell, loss: str, data: str) -> dict:
@@ -66,13 +94,19 @@ def run(cell: SimCell, loss: str, data: str) -> dict:
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.heading_metrics import heading_metrics
     from radarodom.estimator.odometry import RadarOdometry
+    from radarodom.products import POINT_DTYPE
     from radarodom.tum import TumTrajectory
     seq = sequences.load(robustness_matrix.record(cell, data), cell.name)
     odom = RadarOdometry(robustness_matrix.estimator_config(cell))
     frames = np.flatnonzero(delivered(seq.times, loss))
+    blind = blinded(seq.times, loss)
+    rng = np.random.default_rng(3)
     poses = np.zeros((len(frames), 3))
     for j, i in enumerate(frames):
-        state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        if blind[i]:
+            state = odom.step(seq.times[i], np.zeros(0, POINT_DTYPE), blind_frame(seq.heatmap(i), rng))
+        else:
+            state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
         poses[j] = state.x, state.y, state.yaw
     est, ref = associate(TumTrajectory.from_se2(seq.times[frames], poses, source=cell.name), seq.groundtruth, 0.01)
     metrics = heading_metrics(ref.times, ref.se2(), est.se2())
@@ -84,7 +118,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4, 5])
-    ap.add_argument("--losses", nargs="+", default=["none", "drop5", "gap1", "gap2"])
+    ap.add_argument("--losses", nargs="+", default=["none", "drop5", "gap1", "gap2", "blind1"])
     ap.add_argument("--workers", type=int, default=os.cpu_count())
     ap.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"),
                     help="where the matrix's recordings are (or go): robustness_matrix.py's --data")

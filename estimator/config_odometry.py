@@ -139,15 +139,22 @@ class OdometryConfig(Settings):
     #: ``hold_s``) has this standard deviation, rad/s: a robot's turn rate may change by
     #: about this much over a few frames.
     held_yaw_rate_std_radps: float = math.radians(10.0)
-    #: A platform's fastest turn, rad/s.  Over a step longer than ``hold_s`` (frames lost on a
-    #: stalled link), the step's search for its turn (the scan guess) reaches beyond its usual
-    #: window by every turn this fast over the part of the step the last measured rate cannot
-    #: stand in for, either side of that rate's turn: the radar may have started, stopped or
-    #: kept turning.
+    #: A platform's fastest turn, rad/s.  A long step (frames lost on a stalled link, or a run of
+    #: blind frames bridged, ``bridge_s``) is searched for its turn (by the scan guess) around
+    #: the last measured rate's turn, out to every turn this much faster or slower than that
+    #: rate would make over the step: the radar may have started, stopped or kept turning.
+    #: Within a short step the usual window (``icp.max_rotation_rad``) spans that already.
     gap_yaw_rate_radps: float = math.radians(90.0)
-    #: ... but reaches at most this much further, rad: a longer search finds more false peaks
-    #: than turns (docs/estimator.md, "Frames lost").
+    #: ... but at most this much beyond the usual window, rad: a longer search finds more false
+    #: peaks than turns (docs/estimator.md, "Frames lost").
     gap_search_rad: float = math.radians(45.0)
+    #: A run of frames that see nothing (no heatmap structure to register and no point cloud to
+    #: fit a velocity to: the radar covered, a person right in front of it) is bridged for up to
+    #: this long, s (0: off): the first frame that sees the world again is registered against the
+    #: last one whose step was measured, across the run, like frames lost on the link, and the
+    #: pose moves on from there (the run's own states hold the last motion, as before).  Not with
+    #: ``point_yaw.use``, which relocates on its map instead.
+    bridge_s: float = 2.0
     #: A registration whose angular residuals give no variance (too few to say) is taken to
     #: have this standard deviation, rad: wide enough that the filter and the keyframe lean on
     #: their prediction.
@@ -172,6 +179,7 @@ class OdometryConfig(Settings):
         _check(math.isfinite(self.gap_yaw_rate_radps) and self.gap_yaw_rate_radps >= 0,
                "must be >= 0 and finite (0: search no wider after a gap)", "gap_yaw_rate_radps")
         _check(0 <= self.gap_search_rad <= math.pi, "must be in [0, pi]", "gap_search_rad")
+        _check(math.isfinite(self.bridge_s) and self.bridge_s >= 0, "must be >= 0 and finite (0: off)", "bridge_s")
         _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
         _check(self.min_features >= 2, "must be at least 2", "min_features")
         _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")

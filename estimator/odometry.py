@@ -37,7 +37,7 @@ from .motion import integrate
 from .point_yaw import point_yaw_part
 from .quality import Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
-from .velocity_track import VelocityTrack
+from .velocity_track import StepVelocity, VelocityTrack
 from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement
 from .yaw_rate import yaw_rate_part
 
@@ -86,6 +86,21 @@ class OdometryState:
         return self.x, self.y, self.yaw
 
 
+@dataclass
+class _Measured:
+    """One step's measurement from *base* (the state at the frame registered against): its
+    velocity, the registration, the yaw observed (None: not measured) and its variance, and
+    whether the Doppler's yaw rate was fused in."""
+
+    base: OdometryState
+    dt: float
+    velocity: StepVelocity
+    registration: Registration | None
+    observed: float | None
+    variance: float
+    fused_doppler: bool
+
+
 class RadarOdometry:
     """Streaming odometry; see the module docstring.  Its parts are chosen once from the
     config: the velocity track (with its fallback), the yaw measurement (guess, ICP, field),
@@ -108,6 +123,12 @@ class RadarOdometry:
         if self.point_yaw is not None:
             self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
         self._held_rate_std = odo.held_yaw_rate_std_radps
+        # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*).
+        self._bridge_s = odo.bridge_s if self.point_yaw is None else 0.0
+        # The last frame whose step was measured, and the state there (``bridge_s``); and whether
+        # every frame since saw nothing, not even a point cloud to fit a velocity to.
+        self._anchor: tuple[KeptFrame, OdometryState] | None = None
+        self._blind_since = False
         self._chord = odo.rectification == "chord"
         self._previous: KeptFrame | None = None
         self._state: OdometryState | None = None
@@ -177,10 +198,51 @@ class RadarOdometry:
     def _step(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, index: int) -> OdometryState:
         """The odometry of the step from *previous* to *current*: velocity at its middle (eq. 2),
         yaw from the registration of the rectified previous frame (eq. 3) filtered and
-        corrected against the keyframe, then the pose integrated along the arc."""
-        t, dt = current.t, current.t - previous.t
-        last = self._state
+        corrected against the keyframe, then the pose integrated along the arc.  When the yaw
+        cannot be measured from *previous* and the frames since the last measured step saw
+        nothing (no heatmap structure, no point cloud's velocity) for at most ``bridge_s``, it is
+        measured across from that step's frame, and the pose moves on from the state there."""
+        t = current.t
         flags: list[Flag] = []
+        step = self._measure(previous, self._state, current, frame, flags)
+        bridged = False
+        if step.observed is None and self._blind_since and self._anchor is not None \
+                and self._anchor[0] is not previous and t - self._anchor[0].t <= self._bridge_s:
+            across_flags: list[Flag] = []
+            across = self._measure(*self._anchor, current, frame, across_flags)
+            if across.observed is not None:
+                step, flags, bridged = across, across_flags, True
+        last, dt, velocity = step.base, step.dt, step.velocity
+        v = velocity.velocity
+        if step.observed is None:
+            self.rate.restart()  # from the next measurement
+            dyaw = self._held_rate(t, flags) * dt
+            var_yaw = (self._held_rate_std * dt) ** 2 + step.variance
+        else:
+            dyaw, var_yaw = self.rate(step.observed, step.variance, dt, floored=step.fused_doppler)
+            self._good_rate = (t, dyaw / dt)
+            if not bridged:  # (the keyframe is a frame of the run: a new one starts here)
+                dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame)
+        pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt)
+        # Across a bridged run, the increment since the latest state (the run's held motion).
+        increment = dyaw if last is self._state else pose[2] - self._state.yaw
+        state = OdometryState(t=t, frame=index, x=pose[0], y=pose[1], yaw=pose[2], vx=float(v[0]), vy=float(v[1]),
+                              yaw_rate=float(dyaw / dt), pose_covariance=pose_cov, twist_covariance=twist,
+                              flags=tuple(flags), features=len(current.features), yaw_increment=float(increment),
+                              registration=step.registration, velocity=velocity.estimate)
+        self.keyframes.update(state.pose, current, measured=step.observed is not None and not bridged,
+                              rate=state.yaw_rate)
+        if step.observed is not None:
+            self._anchor, self._blind_since = (current, state), True
+        else:
+            self._blind_since &= Flag.VELOCITY_FAILED in flags
+        return state
+
+    def _measure(self, previous: KeptFrame, base: OdometryState, current: KeptFrame, frame: CurrentFrame,
+                 flags: list[Flag]) -> _Measured:
+        """The velocity and the yaw measured from *previous* (whose state is *base*) to
+        *current*, flagged in *flags*."""
+        t, dt = current.t, current.t - previous.t
         velocity = self.velocities.for_step(previous.t, t, frame.heatmap, flags)
         v = velocity.velocity
         rate = self._last_rate
@@ -196,21 +258,8 @@ class RadarOdometry:
             if doppler is not None:
                 var_registered = max(var_registered, self._yaw_noise_var)  # the filter's floor, before fusing
         observed, var_observed = fuse(registered, var_registered, doppler, dt)
-        if observed is None:
-            self.rate.restart()  # from the next measurement
-            dyaw = self._held_rate(t, flags) * dt
-            var_yaw = (self._held_rate_std * dt) ** 2 + measured.variance
-        else:
-            dyaw, var_yaw = self.rate(observed, var_observed, dt, floored=doppler is not None)
-            self._good_rate = (t, dyaw / dt)
-            dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame)
-        pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt)
-        state = OdometryState(t=t, frame=index, x=pose[0], y=pose[1], yaw=pose[2], vx=float(v[0]), vy=float(v[1]),
-                              yaw_rate=float(dyaw / dt), pose_covariance=pose_cov, twist_covariance=twist,
-                              flags=tuple(flags), features=len(current.features), yaw_increment=float(dyaw),
-                              registration=measured.registration, velocity=velocity.estimate)
-        self.keyframes.update(state.pose, current, measured=observed is not None, rate=state.yaw_rate)
-        return state
+        return _Measured(base, dt, velocity, measured.registration, observed,
+                         var_observed if observed is not None else measured.variance, doppler is not None)
 
     @property
     def _last_rate(self) -> float:
@@ -219,12 +268,13 @@ class RadarOdometry:
 
     def _gap_doubt(self, dt: float) -> float:
         """How much further either side of the last rate's turn the search of a step of *dt* s
-        reaches, rad.  The rate stands in for ``hold_s``; over the rest of a longer step (frames
-        lost) the radar may have started, stopped or kept turning, at up to
-        ``gap_yaw_rate_radps`` (``gap_search_rad`` at most).  A run of unmeasured short steps
-        does not widen it: each step's usual window spans any change of rate it can hold."""
+        reaches, rad: every turn the radar could have made at up to ``gap_yaw_rate_radps`` more
+        or less than that rate (it may have started, stopped or kept turning), beyond what the
+        usual window (``icp.max_rotation_rad``) spans already; ``gap_search_rad`` at most.  Only
+        a long step (frames lost, a bridged run) needs it."""
         odo = self.config.odometry
-        return min(odo.gap_yaw_rate_radps * max(0.0, dt - odo.hold_s), odo.gap_search_rad)
+        reach = odo.gap_yaw_rate_radps * dt - self.config.icp.max_rotation_rad
+        return min(max(0.0, reach), odo.gap_search_rad)
 
     def _translation(self, v: np.ndarray, dt: float, turn: float) -> np.ndarray:
         """The sensor's displacement over the step in the previous frame's axes, (2,) m: v dt,

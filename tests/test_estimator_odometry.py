@@ -384,20 +384,25 @@ class TestFlags:
             assert finite_state(s)
         assert states[-1].x == pytest.approx(0.3, abs=1e-6)  # the velocity still counts
 
-    @pytest.mark.parametrize("structure", ["two_way", "one_way"])
-    def test_a_frame_of_noise_is_not_registered_against(self, structure):
+    @pytest.mark.parametrize("structure, blind", [("two_way", False), ("one_way", False), ("two_way", True)])
+    def test_a_frame_of_noise_is_not_registered_against(self, structure, blind):
         # Between two views of the scene, a frame that sees one reflector in its noise. Its
         # strongest cells are mostly noise: the scene's bright cells are not in it (the step
         # to it holds no structure, either way), but its own cells land on the next frame's
         # bright cells well enough to pass a one-way verdict, which measures that step on noise.
+        # When that frame's point cloud gives no velocity either (*blind*: it saw nothing), the
+        # next frame is registered against the one before it (``bridge_s``).
         rng = np.random.default_rng(0)
         odom = RadarOdometry(EstimatorConfig().with_(icp={"scan_structure": structure}))
-        states = [odom.step(0.1 * i, static_cloud((0.0, 0.0), seed=i),
+        states = [odom.step(0.1 * i, few_points_cloud() if blind and i == 2 else static_cloud((0.0, 0.0), seed=i),
                             synth.heatmap(SCENE_WORLD[:1] if i == 2 else SCENE_WORLD, 1.0, noise=1e-4, rng=rng))
                   for i in range(4)]
         assert odo_mod.NO_STRUCTURE not in states[1].flags and odo_mod.NO_STRUCTURE in states[2].flags
         after = states[3]
-        if structure == "two_way":
+        if blind:
+            assert odo_mod.VELOCITY_FAILED in states[2].flags
+            assert after.ok and after.registration is not None and abs(after.yaw) < 0.2 * DEG
+        elif structure == "two_way":
             assert odo_mod.NO_STRUCTURE in after.flags and odo_mod.YAW_HELD in after.flags
             assert after.yaw_rate == pytest.approx(states[2].yaw_rate)
         else:

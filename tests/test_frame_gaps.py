@@ -37,7 +37,22 @@ def test_a_gap_loses_the_frames_within_its_length_after_each_mark():
     assert all(any(start < t < start + 1.0 for start in marks) for t in lost)
 
 
-@pytest.mark.parametrize("loss", ["lose5", "dropx", "gap"])
+def test_a_blind_run_delivers_every_frame_and_blanks_those_a_gap_would_lose():
+    assert frame_gaps.delivered(TIMES, "blind1").all()
+    assert np.array_equal(frame_gaps.blinded(TIMES, "blind1"), ~frame_gaps.delivered(TIMES, "gap1"))
+    assert not frame_gaps.blinded(TIMES, "gap1").any()
+
+
+def test_a_blind_frame_is_noise_at_the_frames_level_without_doppler():
+    import estimator_synth as synth
+    hm = synth.scene_heatmap()
+    blind = frame_gaps.blind_frame(hm, np.random.default_rng(0))
+    assert blind.intensity.shape == hm.intensity.shape and blind.intensity.dtype == hm.intensity.dtype
+    assert np.median(blind.intensity) == pytest.approx(np.median(hm.intensity) * np.log(2), rel=0.1)
+    assert blind.intensity.max() < hm.intensity.max() and not blind.doppler_mps.any()
+
+
+@pytest.mark.parametrize("loss", ["lose5", "dropx", "gap", "blind"])
 def test_a_bad_loss_name_says_what_is_understood(loss):
-    with pytest.raises(ValueError, match="none, dropP .* or gapS"):
+    with pytest.raises(ValueError, match="none, dropP .*, gapS or blindS"):
         frame_gaps.delivered(TIMES, loss)

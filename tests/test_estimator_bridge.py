@@ -1,0 +1,125 @@
+"""A run of frames that see nothing, bridged (``odometry.bridge_s``, estimator/odometry.py;
+docs/estimator.md, "Frames lost").
+
+A radar blinded for a moment (covered, or a person right in front of it: no heatmap structure
+and no point cloud to fit a velocity to) used to register each frame against the blind one
+before it: the turn made while blind was held for ``hold_s`` and then lost.  Within ``bridge_s``
+the next frame that sees the scene is registered against the last one that did, across the run,
+like frames lost on the link.  Weak frames whose point cloud still gives a velocity are not
+bridged (at -15 dB a second look across them found false turns).
+"""
+
+from __future__ import annotations
+
+import math
+
+import estimator_synth as synth
+import numpy as np
+import pytest
+from estimator_synth import SCENE_WORLD, points_polar, scene_heatmap, static_cloud
+from radarodom.errors import ConfigError
+from radarodom.estimator.config import EstimatorConfig
+from radarodom.estimator.odometry import RadarOdometry
+from radarodom.estimator.quality import Flag
+
+DEG = math.radians(1.0)
+RATE = 20 * DEG  # rad/s
+
+
+def noise_heatmap(rng):
+    return synth.heatmap(np.zeros((0, 2)), noise=1.0, rng=rng)
+
+
+def blind_heatmap():
+    """Sees nothing inside the features' region (the range axis ends before it)."""
+    hm = synth.heatmap(SCENE_WORLD, 1.0, noise=1e-4)
+    return type(hm)(hm.intensity[:8], hm.static[:8], hm.doppler_mps[:8], hm.range_m[:8], hm.azimuth_rad)
+
+
+def no_cloud():
+    """No detections: no velocity."""
+    return points_polar(np.zeros(0), 0.0, (0.0, 0.0))
+
+
+def run(bridge_s: float, blind_frames: range, kind: str, n: int = 20, cloud_when_blind: bool = False):
+    """Turning in place at 20 deg/s for *n* frames at 10 Hz, blind during *blind_frames* (the
+    point cloud too, unless *cloud_when_blind*)."""
+    rng = np.random.default_rng(1)
+    odom = RadarOdometry(EstimatorConfig().with_(odometry={"bridge_s": bridge_s}))
+    states = []
+    for i in range(n):
+        t = 0.1 * i
+        cloud = static_cloud((0.0, 0.0), seed=i)
+        if i in blind_frames:
+            hm = noise_heatmap(rng) if kind == "noise" else blind_heatmap()
+            cloud = cloud if cloud_when_blind else no_cloud()
+        else:
+            hm = scene_heatmap((0.0, 0.0, RATE * t))
+        states.append(odom.step(t, cloud, hm))
+    return states
+
+
+@pytest.mark.parametrize("kind", ["noise", "blind"])
+def test_a_turn_made_while_blind_is_measured_across_the_run(kind):
+    blind = range(5, 13)  # 0.8 s, longer than hold_s
+    states = run(1.0, blind, kind)
+    assert [s.frame for s in states] == list(range(20))
+    for s in states[5:13]:
+        assert Flag.NO_STRUCTURE in s.flags or Flag.FEW_FEATURES in s.flags
+        assert Flag.VELOCITY_FAILED in s.flags
+    first = states[13]
+    assert first.ok, first.flags
+    assert first.yaw == pytest.approx(RATE * first.t, abs=1.0 * DEG)
+    assert states[-1].yaw == pytest.approx(RATE * states[-1].t, abs=1.0 * DEG)
+    # The increments add up to the yaw, over the run and across it.
+    assert sum(s.yaw_increment for s in states) == pytest.approx(states[-1].yaw, abs=1e-9)
+    for s in states:
+        assert all(math.isfinite(v) for v in (s.x, s.y, s.yaw, s.yaw_rate, s.yaw_increment))
+
+
+@pytest.mark.parametrize("kind", ["noise", "blind"])
+@pytest.mark.parametrize("bridge_s, cloud_when_blind", [(0.0, False), (1.0, True)], ids=["off", "cloud_seen"])
+def test_without_the_bridge_the_turn_made_blind_after_hold_s_is_lost(kind, bridge_s, cloud_when_blind):
+    # Off, or the frames' point clouds still fit a velocity (they saw the world): held for
+    # hold_s (0.5 s) of the 0.8 s, then nothing: some 6 degrees short ever after.
+    states = run(bridge_s, range(5, 13), kind, cloud_when_blind=cloud_when_blind)
+    assert RATE * states[-1].t - states[-1].yaw > 4 * DEG
+
+
+def test_while_blind_the_states_hold_the_last_motion_and_never_step_back():
+    states = run(1.0, range(5, 13), "noise")
+    yaws = [s.yaw for s in states[4:13]]
+    assert all(b >= a - 1e-12 for a, b in zip(yaws, yaws[1:]))
+    held = [s for s in states[5:13] if Flag.YAW_HELD in s.flags]
+    lost = [s for s in states[5:13] if Flag.MOTION_LOST in s.flags]
+    assert held and lost and held[-1].t < lost[0].t  # held for hold_s, then none
+    for s in lost:
+        assert s.yaw_rate == 0.0 and s.yaw_increment == 0.0
+
+
+def test_a_run_longer_than_the_bridge_starts_afresh():
+    # Blind for 1.5 s: beyond bridge_s the blind frame becomes the one registered against (as
+    # without the bridge), so the first frame after the run holds no structure, and the next
+    # ones are measured frame to frame again.
+    states = run(1.0, range(5, 20), "noise", n=26)
+    after = states[20:]
+    assert Flag.NO_STRUCTURE in after[0].flags
+    assert all(s.ok for s in after[1:])
+    for prev, s in zip(after[1:], after[2:]):
+        assert s.yaw - prev.yaw == pytest.approx(RATE * 0.1, abs=0.5 * DEG)
+
+
+@pytest.mark.parametrize("value", [-0.1, math.inf, math.nan])
+def test_the_bridge_must_be_a_finite_time(value):
+    with pytest.raises(ConfigError, match="bridge_s"):
+        EstimatorConfig().with_(odometry={"bridge_s": value})
+
+
+def test_a_standing_radar_blinded_stays_put():
+    odom = RadarOdometry(EstimatorConfig())
+    rng = np.random.default_rng(2)
+    states = [odom.step(0.1 * i, no_cloud() if 5 <= i < 17 else static_cloud((0.0, 0.0), seed=i),
+                        noise_heatmap(rng) if 5 <= i < 17 else scene_heatmap()) for i in range(22)]
+    assert states[17].ok, states[17].flags
+    for s in states:
+        assert abs(s.yaw) < 0.2 * DEG and abs(s.x) < 0.01 and abs(s.y) < 0.01
