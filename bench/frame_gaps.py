@@ -15,8 +15,10 @@ some of its frames, heatmap and point cloud alike, never delivered or seeing not
   its frame;
 - ``gapS``: every frame within S seconds after each 7 s mark from 5 s on (a link that stalls for
   S seconds every 7 s; a gap lands in straights and in turns alike);
-- ``blindS``: the same frames delivered, but their heatmap only noise (exponential, at the frame's
-  median) and their point cloud empty (the radar covered, or a person right in front of it).
+- ``blindS``: the same frames delivered, but their heatmap only noise (exponential, its mean the
+  frame's median) and their point cloud empty (the radar covered, or a person right in front of it).
+
+Gaps and blind runs start 5 s in and stop 5 s before the end.
 
 Prints, for each loss, the drift (% of the path) and the final heading error (degrees) over the
 cells, mean and worst; ``--json`` writes every cell's.
@@ -53,9 +55,10 @@ def delivered(times: np.ndarray, loss: str) -> np.ndarray:
         amount = float(loss[len(kind):]) if kind else None
     except ValueError:
         amount = None
-    if loss != "none" and amount is None:
-        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames), gapS or blindS (S seconds every "
-                         f"{GAP_EVERY_S:g} s)")
+    valid = amount is not None and (0 <= amount <= 100 if kind == "drop" else 0 < amount < GAP_EVERY_S)
+    if loss != "none" and not valid:
+        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames, 0-100), gapS or blindS (S seconds, "
+                         f"under {GAP_EVERY_S:g}, every {GAP_EVERY_S:g} s)")
     if kind == "drop":
         keep[1:] = np.random.default_rng(7).random(len(times) - 1) >= amount / 100.0
     elif kind == "gap":
@@ -78,7 +81,8 @@ def _in_gaps(times: np.ndarray, length: float) -> np.ndarray:
 
 
 def blind_frame(heatmap, rng: np.random.Generator):
-    """*heatmap* as a radar that sees nothing gives it: noise at its median, no Doppler."""
+    """*heatmap* as a radar that sees nothing gives it: exponential noise whose mean is its
+    median, no Doppler."""
     from radarodom.products import RangeAzimuth
     noise = (float(np.median(heatmap.intensity)) * rng.exponential(1.0, heatmap.intensity.shape)).astype(
         heatmap.intensity.dtype)
@@ -87,8 +91,13 @@ def blind_frame(heatmap, rng: np.random.Generator):
                         elevation)
 
 
-def run(cell: SimCell, loss: str, data: str) -> dict:
-    """The estimator on *cell*'s frames that *loss* delivers: drift and final heading error."""
+def run(cell: SimCell, losses: list[str], data: str) -> list[dict]:
+    """The estimator on *cell*'s frames under each of *losses*: drift and final heading error.
+    One worker a cell: its recording is made (or its DSP products cached) once, by it alone."""
+    return [_run(cell, loss, data) for loss in losses]
+
+
+def _run(cell: SimCell, loss: str, data: str) -> dict:
     import robustness_matrix
     import sequences
     from radarodom.estimator.evaluation import associate
@@ -119,17 +128,22 @@ def main(argv=None) -> int:
     ap.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4, 5])
     ap.add_argument("--losses", nargs="+", default=["none", "drop5", "gap1", "gap2", "blind1"])
-    ap.add_argument("--workers", type=int, default=os.cpu_count())
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"),
                     help="where the matrix's recordings are (or go): robustness_matrix.py's --data")
     ap.add_argument("--json", help="write every cell's result here")
     args = ap.parse_args(argv)
+    if args.workers < 1:
+        ap.error("--workers: at least 1")
     for loss in args.losses:
-        delivered(np.arange(2.0), loss)  # a bad name fails here, not in a worker
+        try:
+            delivered(np.arange(2.0), loss)  # a bad name fails here, not in a worker
+        except ValueError as exc:
+            ap.error(f"--losses: {exc}")
     cells = [SimCell(scene=scene, seed=seed) for scene in args.scenes for seed in args.seeds]
-    todo = [(cell, loss) for loss in args.losses for cell in cells]
     with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
-        results = list(pool.map(run, *zip(*todo), [args.data] * len(todo)))
+        results = [r for rows in pool.map(run, cells, [args.losses] * len(cells), [args.data] * len(cells))
+                   for r in rows]
     print(f"{len(cells)} cells; {platform.processor() or platform.machine()}, Python {platform.python_version()}")
     print("| loss | frames delivered | drift %, mean / worst | final heading error deg, mean abs / worst |")
     print("| --- | ---: | ---: | ---: |")

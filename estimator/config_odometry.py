@@ -140,10 +140,11 @@ class OdometryConfig(Settings):
     #: about this much over a few frames.
     held_yaw_rate_std_radps: float = math.radians(10.0)
     #: A platform's fastest turn, rad/s.  A long step (frames lost on a stalled link, or a run of
-    #: blind frames bridged, ``bridge_s``) is searched for its turn (by the scan guess) around
-    #: the last measured rate's turn, out to every turn this much faster or slower than that
-    #: rate would make over the step: the radar may have started, stopped or kept turning.
-    #: Within a short step the usual window (``icp.max_rotation_rad``) spans that already.
+    #: blind frames bridged, ``bridge_s``) is searched for its turn (by the scan guess or the
+    #: profiles' correlation) around the last measured rate's turn, out to every turn this much
+    #: faster or slower than that rate would make over the step: the radar may have started,
+    #: stopped or kept turning.  Within a short step the usual window (``icp.max_rotation_rad``)
+    #: spans that already.
     gap_yaw_rate_radps: float = math.radians(90.0)
     #: ... but at most this much beyond the usual window, rad: a longer search finds more false
     #: peaks than turns (docs/estimator.md, "Frames lost").

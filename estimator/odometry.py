@@ -15,7 +15,10 @@ the chord of that arc and turns by the ICP's rotation.  Poses are the body frame
 (REP-103) in the world frame (the body frame at the first heatmap frame).
 
 Nothing here returns NaN: a step that fails says so in ``flags`` and carries the
-last good motion forward for ``odometry.hold_s``, then reports no motion.
+last good motion forward for ``odometry.hold_s``, then reports no motion.  Frames lost
+are measured across like any step (searched wider, ``odometry.gap_yaw_rate_radps``); a
+run of frames that saw nothing is measured across when the radar sees again
+(``odometry.bridge_s``).
 """
 
 from __future__ import annotations
@@ -68,7 +71,8 @@ class OdometryState:
     twist_covariance: np.ndarray = field(default_factory=lambda: np.eye(3))
     flags: tuple[Flag, ...] = ()
     features: int = 0
-    #: The yaw increment of this step, rad, and what registration gave it.
+    #: The yaw increment since the previous state, rad, and what registration gave it (after a
+    #: bridged run, ``odometry.bridge_s``: the registration across the run).
     yaw_increment: float = 0.0
     registration: Registration | None = None
     velocity: VelocityEstimate | None = None
@@ -123,8 +127,9 @@ class RadarOdometry:
         if self.point_yaw is not None:
             self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
         self._held_rate_std = odo.held_yaw_rate_std_radps
-        # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*).
-        self._bridge_s = odo.bridge_s if self.point_yaw is None else 0.0
+        # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess
+        # without the rate's prediction would start the step across a run from no turn.
+        self._bridge_s = odo.bridge_s if self.point_yaw is None and self.yaw.guess.uses_rate else 0.0
         # The last frame whose step was measured, and the state there (``bridge_s``); and whether
         # every frame since saw nothing, not even a point cloud to fit a velocity to.
         self._anchor: tuple[KeptFrame, OdometryState] | None = None
@@ -199,15 +204,21 @@ class RadarOdometry:
         """The odometry of the step from *previous* to *current*: velocity at its middle (eq. 2),
         yaw from the registration of the rectified previous frame (eq. 3) filtered and
         corrected against the keyframe, then the pose integrated along the arc.  When the yaw
-        cannot be measured from *previous* and the frames since the last measured step saw
-        nothing (no heatmap structure, no point cloud's velocity) for at most ``bridge_s``, it is
-        measured across from that step's frame, and the pose moves on from the state there."""
+        cannot be measured from *previous*, the frames since the last measured step saw nothing
+        (no heatmap structure, no point cloud's velocity) and this one's point cloud fits a
+        velocity, within ``bridge_s`` of that step's frame, it is measured across from there and
+        the pose moves on from the state there: the state then carries that measurement's
+        flags, its yaw increment is the change since the latest state, its yaw rate the mean
+        over the run."""
         t = current.t
         flags: list[Flag] = []
         step = self._measure(previous, self._state, current, frame, flags)
         bridged = False
-        if step.observed is None and self._blind_since and self._anchor is not None \
-                and self._anchor[0] is not previous and t - self._anchor[0].t <= self._bridge_s:
+        # Only a frame that sees again, its point cloud too: its velocity is then the clouds', and
+        # a look that fails leaves nothing changed.
+        if step.observed is None and self._blind_since and Flag.VELOCITY_FAILED not in flags \
+                and self._anchor is not None and self._anchor[0] is not previous \
+                and t - self._anchor[0].t <= self._bridge_s:
             across_flags: list[Flag] = []
             across = self._measure(*self._anchor, current, frame, across_flags)
             if across.observed is not None:

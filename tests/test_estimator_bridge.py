@@ -123,3 +123,48 @@ def test_a_standing_radar_blinded_stays_put():
     assert states[17].ok, states[17].flags
     for s in states:
         assert abs(s.yaw) < 0.2 * DEG and abs(s.x) < 0.01 and abs(s.y) < 0.01
+
+
+def drive(blind: set[int], *, cloud_back: bool = True, n: int = 24, speed: float = 0.5, **odometry):
+    """Driving straight at *speed* m/s past the scene for *n* frames at 10 Hz, blind (heatmap and
+    cloud) at the frames in *blind*; the first frame after each run without a point cloud unless
+    *cloud_back*; *odometry*: settings."""
+    rng = np.random.default_rng(4)
+    odom = RadarOdometry(EstimatorConfig().with_(odometry=odometry))
+    states = []
+    for i in range(n):
+        t = 0.1 * i
+        back = i not in blind and (i - 1) in blind
+        cloud = no_cloud() if i in blind or (back and not cloud_back) else static_cloud((speed, 0.0), seed=i)
+        hm = noise_heatmap(rng) if i in blind else scene_heatmap((speed * t, 0.0, 0.0), velocity_xy=(speed, 0.0))
+        states.append(odom.step(t, cloud, hm))
+    return states
+
+
+def test_driving_blind_the_distance_comes_back_across_the_run():
+    # Held for hold_s, then no motion while blind: the distance of the rest of the run is what
+    # the step across it restores.
+    states = drive(set(range(5, 14)))
+    assert states[13].x < 0.5 * 1.25  # the run's states fell behind
+    first = states[14]
+    assert first.ok, first.flags
+    assert first.x == pytest.approx(0.5 * first.t, abs=0.03)
+    assert states[-1].x == pytest.approx(0.5 * states[-1].t, abs=0.05)
+    assert abs(states[-1].yaw) < 0.5 * DEG
+
+
+def test_a_first_frame_back_without_its_point_cloud_is_not_bridged():
+    # Its velocity would be none (no heatmap fallback either): the step across the run would move
+    # the pose back to the last measured frame's. Such a frame is measured from the one before
+    # it, as without the bridge.
+    states = drive(set(range(5, 14)), cloud_back=False, velocity_fallback="hold")
+    assert Flag.VELOCITY_FAILED in states[14].flags
+    assert states[14].x >= states[13].x - 1e-9
+
+
+def test_two_runs_one_seeing_frame_apart_are_each_bridged():
+    # The step across the first run makes its frame the one the second run is bridged from.
+    states = run(2.0, set(range(5, 10)) | set(range(11, 16)), "noise", n=22)
+    for i in (10, 16):
+        assert states[i].ok, (i, states[i].flags)
+        assert states[i].yaw == pytest.approx(RATE * states[i].t, abs=1.0 * DEG)

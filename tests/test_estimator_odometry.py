@@ -185,7 +185,7 @@ class TestConfig:
         assert cfg.icp.initial_guess == "zero"
         assert cfg.features.peaks_only is False and cfg.features.subbin is False
         assert cfg.features.dynamic_rejection_mps is None
-        assert cfg.odometry.velocity_fallback == "hold"
+        assert cfg.odometry.velocity_fallback == "hold" and cfg.odometry.bridge_s == 0.0
         assert cfg.velocity.elevation_projection in config_mod.PROJECTIONS
         assert cfg.features.k == 200
 
@@ -563,14 +563,14 @@ class TestFlags:
 
     @pytest.mark.parametrize("rate_before_dps, rate_after_dps, gap_s", [
         (30.0, 0.0, 1.0), (30.0, 0.0, 2.0),    # stopped turning as the link stalled
+        (45.0, 0.0, 0.5),                      # (22.5 degrees off the last rate's turn)
         (30.0, 30.0, 1.0), (30.0, 30.0, 2.0),  # kept turning
         (0.0, 30.0, 1.0), (0.0, 20.0, 2.0),    # started turning
-    ], ids=["stopped-1s", "stopped-2s", "kept-1s", "kept-2s", "started-1s", "started-2s"])
-    def test_a_gap_in_the_frames_longer_than_hold_s_finds_the_turn_made_in_it(self, rate_before_dps,
-                                                                               rate_after_dps, gap_s):
-        # No frames for longer than hold_s (a stalled link): the last rate stands in for hold_s
-        # only, so the step over the gap searches the turns the radar could have made in the
-        # rest of it, and finds the one it made.
+    ], ids=["stopped-1s", "stopped-2s", "stopped-0.5s", "kept-1s", "kept-2s", "started-1s", "started-2s"])
+    def test_a_gap_in_the_frames_finds_the_turn_made_in_it(self, rate_before_dps, rate_after_dps, gap_s):
+        # No frames for a while (a stalled link): the step over the gap searches around the last
+        # rate's turn out to every turn 90 deg/s faster or slower would make (gap_yaw_rate_radps),
+        # and finds the one made.
         odom = RadarOdometry(EstimatorConfig())
         before, after_rate = rate_before_dps * DEG, rate_after_dps * DEG
         turning = [odom.step(0.1 * i, static_cloud((0.0, 0.0)), scene_heatmap((0.0, 0.0, before * 0.1 * i)))
@@ -587,6 +587,13 @@ class TestFlags:
         assert all(finite_state(s) for s in after)
         if not after_rate:  # (turning, the scene leaves the field of view)
             assert after[-1].yaw == pytest.approx(0.5 * before, abs=1.5 * DEG)
+
+    @pytest.mark.parametrize("dt, widen_deg", [(0.1, 0.0), (1 / 6, 0.0), (0.2, 3.0), (0.5, 30.0), (1.0, 45.0),
+                                               (3.0, 45.0)])
+    def test_how_much_wider_a_long_step_is_searched(self, dt, widen_deg):
+        # 90 deg/s either way over the step, less the usual +/- 15 degrees, 45 degrees at most
+        # (docs/estimator.md, "Frames lost").
+        assert math.degrees(RadarOdometry(EstimatorConfig())._gap_doubt(dt)) == pytest.approx(widen_deg, abs=1e-9)
 
     @pytest.mark.parametrize("gap_s", [0.3, 5.0, 30.0])
     def test_standing_still_across_a_gap_stays_put(self, gap_s):

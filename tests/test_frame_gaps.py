@@ -52,7 +52,15 @@ def test_a_blind_frame_is_noise_at_the_frames_level_without_doppler():
     assert blind.intensity.max() < hm.intensity.max() and not blind.doppler_mps.any()
 
 
-@pytest.mark.parametrize("loss", ["lose5", "dropx", "gap", "blind"])
+@pytest.mark.parametrize("loss", ["lose5", "dropx", "gap", "blind", "drop150", "drop-5", "dropnan", "gap-1", "gap7"])
 def test_a_bad_loss_name_says_what_is_understood(loss):
     with pytest.raises(ValueError, match="none, dropP .*, gapS or blindS"):
         frame_gaps.delivered(TIMES, loss)
+
+
+def test_the_command_line_says_what_is_wrong(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        frame_gaps.main(["--losses", "drop150"])
+    assert exit_info.value.code == 2 and "--losses: loss 'drop150'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        frame_gaps.main(["--workers", "0"])
