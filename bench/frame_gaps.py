@@ -45,20 +45,28 @@ from matrix_cells import SimCell  # noqa: E402
 GAP_FROM_S, GAP_EVERY_S = 5.0, 7.0
 
 
+def parse_loss(loss: str) -> tuple[str, float]:
+    """*loss*'s kind ("none", "drop", "gap" or "blind") and amount (%, s; 0 for "none");
+    ValueError for anything else."""
+    if loss == "none":
+        return loss, 0.0
+    kind = next((k for k in ("drop", "gap", "blind") if loss.startswith(k)), "")
+    try:
+        amount = float(loss[len(kind):]) if kind else math.nan
+    except ValueError:
+        amount = math.nan
+    if not (0 <= amount <= 100 if kind == "drop" else 0 < amount < GAP_EVERY_S):
+        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames, 0-100), gapS or blindS (S seconds, "
+                         f"under {GAP_EVERY_S:g}, every {GAP_EVERY_S:g} s)")
+    return kind, amount
+
+
 def delivered(times: np.ndarray, loss: str) -> np.ndarray:
     """Which frames (at *times*, (n,) s) arrive under *loss* ("none", "dropP", "gapS", "blindS"):
     (n,) bool, the first frame always; "blindS" delivers all (:func:`blinded` says which see
     nothing)."""
+    kind, amount = parse_loss(loss)
     keep = np.ones(len(times), bool)
-    kind = next((k for k in ("drop", "gap", "blind") if loss.startswith(k)), None)
-    try:
-        amount = float(loss[len(kind):]) if kind else None
-    except ValueError:
-        amount = None
-    valid = amount is not None and (0 <= amount <= 100 if kind == "drop" else 0 < amount < GAP_EVERY_S)
-    if loss != "none" and not valid:
-        raise ValueError(f"loss {loss!r}: none, dropP (P % of frames, 0-100), gapS or blindS (S seconds, "
-                         f"under {GAP_EVERY_S:g}, every {GAP_EVERY_S:g} s)")
     if kind == "drop":
         keep[1:] = np.random.default_rng(7).random(len(times) - 1) >= amount / 100.0
     elif kind == "gap":
@@ -68,8 +76,8 @@ def delivered(times: np.ndarray, loss: str) -> np.ndarray:
 
 def blinded(times: np.ndarray, loss: str) -> np.ndarray:
     """Which frames see nothing under *loss* ("blindS"; none for the others): (n,) bool."""
-    delivered(times, loss)  # checks the name
-    return _in_gaps(times, float(loss[5:])) if loss.startswith("blind") else np.zeros(len(times), bool)
+    kind, amount = parse_loss(loss)
+    return _in_gaps(times, amount) if kind == "blind" else np.zeros(len(times), bool)
 
 
 def _in_gaps(times: np.ndarray, length: float) -> np.ndarray:
@@ -93,19 +101,21 @@ def blind_frame(heatmap, rng: np.random.Generator):
 
 def run(cell: SimCell, losses: list[str], data: str) -> list[dict]:
     """The estimator on *cell*'s frames under each of *losses*: drift and final heading error.
-    One worker a cell: its recording is made (or its DSP products cached) once, by it alone."""
-    return [_run(cell, loss, data) for loss in losses]
-
-
-def _run(cell: SimCell, loss: str, data: str) -> dict:
+    One worker a cell: its recording is made (or its DSP products cached) and read once, by it
+    alone."""
     import robustness_matrix
     import sequences
+    seq = sequences.load(robustness_matrix.record(cell, data), cell.name)
+    return [_run(cell, seq, loss) for loss in losses]
+
+
+def _run(cell: SimCell, seq, loss: str) -> dict:
+    import robustness_matrix
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.heading_metrics import heading_metrics
     from radarodom.estimator.odometry import RadarOdometry
     from radarodom.products import POINT_DTYPE
     from radarodom.tum import TumTrajectory
-    seq = sequences.load(robustness_matrix.record(cell, data), cell.name)
     odom = RadarOdometry(robustness_matrix.estimator_config(cell))
     frames = np.flatnonzero(delivered(seq.times, loss))
     blind = blinded(seq.times, loss)
@@ -137,7 +147,7 @@ def main(argv=None) -> int:
         ap.error("--workers: at least 1")
     for loss in args.losses:
         try:
-            delivered(np.arange(2.0), loss)  # a bad name fails here, not in a worker
+            parse_loss(loss)  # a bad name fails here, not in a worker
         except ValueError as exc:
             ap.error(f"--losses: {exc}")
     cells = [SimCell(scene=scene, seed=seed) for scene in args.scenes for seed in args.seeds]

@@ -74,7 +74,10 @@ class Features:
 
     def subset(self, keep: np.ndarray) -> "Features":
         """The points where *keep* (n,) bool, their weights normalised again (the kept weights
-        must not all be zero)."""
+        must not all be zero); all of them, as they are, when none would go or fewer than three
+        would stay (too few to register by)."""
+        if keep.all() or np.count_nonzero(keep) < 3:
+            return self
         height = None if self.height_m is None else self.height_m[keep]
         weight = self.weight[keep]
         return Features(self.range_m[keep], self.bearing_rad[keep], weight / weight.sum(), self.intensity[keep], height)
@@ -151,8 +154,7 @@ def extract(heatmap: PolarHeatmap, config: FeatureConfig,
         # noise), a feature's bearing is swung by any error of a step's translation: dropped
         # (docs/heading.md item 17).
         features = Features(rng, -az, weights, values, height)
-        inside = rng >= config.min_range_m
-        return features.subset(inside) if np.count_nonzero(inside) >= 3 and not inside.all() else features
+        return features.subset(rng >= config.min_range_m)
     return Features(rng, -az, weights, values)
 
 

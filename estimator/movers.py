@@ -145,8 +145,6 @@ class MoverTracks:
         for track in self.tracks:
             if track.unflagged > 0:
                 near |= np.hypot(*(points.xy - track.position).T) < MASK_M
-        if not near.any() or np.count_nonzero(~near) < 3:
-            return points
         return points.subset(~near)
 
     @staticmethod

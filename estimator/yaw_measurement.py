@@ -236,7 +236,7 @@ def far_in_moving_turn(points: Features, min_range_m: float, velocity: np.ndarra
     if not (MOVING_TURN_MPS < speed < math.inf and math.radians(MOVING_TURN_DPS) < rate < math.inf):
         return points
     far = points.range_m >= min_range_m
-    if np.count_nonzero(far) < 3 or far.all() or points.weight[far].sum() < (1.0 - NEAR_SHARE) * points.weight.sum():
+    if points.weight[far].sum() < (1.0 - NEAR_SHARE) * points.weight.sum():
         return points
     return points.subset(far)
 

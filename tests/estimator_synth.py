@@ -237,6 +237,14 @@ def scene_heatmap(pose=(0.0, 0.0, 0.0), world: np.ndarray | None = None, **kw) -
     return heatmap(world_to_body(world, pose), 1.0, noise=1e-4, **kw)
 
 
+def blind_heatmap() -> RangeAzimuth:
+    """A heatmap that sees nothing inside the region of interest (its range axis ends before
+    the minimum range of the features)."""
+    hm = heatmap(SCENE_WORLD, 1.0, noise=1e-4)
+    n = 8
+    return RangeAzimuth(hm.intensity[:n], hm.static[:n], hm.doppler_mps[:n], hm.range_m[:n], hm.azimuth_rad)
+
+
 def static_cloud(v, n: int = 40, seed: int = 0) -> np.ndarray:
     """A noise-free cloud of static points seen moving at body velocity *v*."""
     rng = np.random.default_rng(seed)

@@ -16,7 +16,7 @@ import math
 import estimator_synth as synth
 import numpy as np
 import pytest
-from estimator_synth import SCENE_WORLD, points_polar, scene_heatmap, static_cloud
+from estimator_synth import blind_heatmap, points_polar, scene_heatmap, static_cloud
 from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig
 from radarodom.estimator.odometry import RadarOdometry
@@ -28,12 +28,6 @@ RATE = 20 * DEG  # rad/s
 
 def noise_heatmap(rng):
     return synth.heatmap(np.zeros((0, 2)), noise=1.0, rng=rng)
-
-
-def blind_heatmap():
-    """Sees nothing inside the features' region (the range axis ends before it)."""
-    hm = synth.heatmap(SCENE_WORLD, 1.0, noise=1e-4)
-    return type(hm)(hm.intensity[:8], hm.static[:8], hm.doppler_mps[:8], hm.range_m[:8], hm.azimuth_rad)
 
 
 def no_cloud():

@@ -16,8 +16,8 @@ import math
 import estimator_synth as synth
 import numpy as np
 import pytest
-from estimator_synth import (AZIMUTH_RAD, RANGE_M, SCENE_WORLD, Trajectory, points_polar, scene_heatmap,
-                             static_cloud)
+from estimator_synth import (AZIMUTH_RAD, RANGE_M, SCENE_WORLD, Trajectory, blind_heatmap, points_polar,
+                             scene_heatmap, static_cloud)
 from radarodom.dsp.cfar import CfarParams
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.errors import ConfigError, TimeOrderError
@@ -211,14 +211,6 @@ class TestConfig:
 def empty_heatmap() -> RangeAzimuth:
     z = np.zeros((len(RANGE_M), len(AZIMUTH_RAD)), np.float32)
     return RangeAzimuth(z, z, np.full_like(z, np.nan), RANGE_M.copy(), AZIMUTH_RAD.copy())
-
-
-def blind_heatmap() -> RangeAzimuth:
-    """A heatmap that sees nothing inside the region of interest (its range axis ends before
-    the minimum range of the features)."""
-    hm = synth.heatmap(SCENE_WORLD, 1.0, noise=1e-4)
-    n = 8
-    return RangeAzimuth(hm.intensity[:n], hm.static[:n], hm.doppler_mps[:n], hm.range_m[:n], hm.azimuth_rad)
 
 
 def few_points_cloud() -> np.ndarray:
