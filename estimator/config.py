@@ -58,6 +58,14 @@ class VelocityConfig(Settings):
     #: one's noise) is refused for the consensus of the points a reachable velocity explains
     #: ("implausible" when they make none).
     max_accel_mps2: float | None = 5.0
+    #: A detection's bearing error, rad (0: an unweighted fit): the fit weighs each inlier by its
+    #: radial velocity's error, ``doppler_noise_mps`` and this times the slope of a static point's
+    #: radial velocity with bearing at the fitted velocity, in quadrature.  A bearing degrees off
+    #: (two reflectors merged in one beam, an extended return) then misleads the fit less where
+    #: the radial velocity changes fastest with bearing (docs/heading.md item 20).
+    bearing_noise_rad: float = math.radians(4.0)
+    #: The radial velocity's own error in those weights, m/s (uniform over the shipped cfg's 0.07 m/s bin).
+    doppler_noise_mps: float = 0.02
     #: Seed of the random generator (results are reproducible).
     seed: int = 0
 
@@ -69,6 +77,8 @@ class VelocityConfig(Settings):
         _check(0 < self.zero_velocity_ratio <= 1, "must be in (0, 1]", "zero_velocity_ratio")
         _check(0 < self.max_elevation_rad <= math.pi / 2, "must be in (0, pi/2]", "max_elevation_rad")
         _check(self.max_condition > 1, "must be above 1", "max_condition")
+        _check(0 <= self.bearing_noise_rad < math.pi / 2, "must be in [0, pi/2)", "bearing_noise_rad")
+        _check(self.doppler_noise_mps > 0, "must be positive", "doppler_noise_mps")
         _check(self.max_accel_mps2 is None or self.max_accel_mps2 > 0, "must be positive (or null: any)",
                "max_accel_mps2")
         check_choice(self.elevation_projection, PROJECTIONS, "elevation_projection")
@@ -338,7 +348,7 @@ class EstimatorConfig(Settings):
     @classmethod
     def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":
         """The paper's method (one of its variants), without the options beyond it."""
-        return cls(velocity=VelocityConfig(),
+        return cls(velocity=VelocityConfig(bearing_noise_rad=0.0),
                    features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None,
                                           elevation="ignore", doppler_elevation="off"),
                    icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero", neglect_aligned=True,
@@ -351,7 +361,9 @@ class EstimatorConfig(Settings):
         """The settings for TI's demo firmware's output (``tidemo://`` and its replays): the yaw
         from its few points on a local map and its static heatmap when slow (``point_yaw``), a
         velocity from as few as 3 points, standing still when half of them say so (a person
-        walking past a robot turning in place is a larger share of a handful of points)."""
+        walking past a robot turning in place is a larger share of a handful of points), fitted
+        unweighted (with 6-12 points on the chip's angle bins, those across the motion that
+        ``bearing_noise_rad`` weighs down fix most of the sideways speed: docs/tidemo.md)."""
         return cls().preset("tidemo")
 
     def preset(self, name: str | None) -> "EstimatorConfig":
@@ -375,7 +387,8 @@ class EstimatorConfig(Settings):
 
 
 #: What :meth:`EstimatorConfig.tidemo` changes, by section.
-TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5}, "point_yaw": {"use": True}}
+TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bearing_noise_rad": 0.0},
+                 "point_yaw": {"use": True}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).
 PRESETS = {"tidemo": TIDEMO_PRESET}

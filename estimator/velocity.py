@@ -7,7 +7,8 @@ frame (x forward, y left) with bearing b = -azimuth_TI and elevation el,
     -v_r / cos(el) = cos(b) vx + sin(b) vy,
 
 a line in (vx, vy) per point.  RANSAC over pairs of points finds the largest
-set that agrees (the static world), least squares on it refines the answer,
+set that agrees (the static world), least squares on it refines the answer
+(each point weighted by its radial velocity's error, its bearing's included),
 and its residuals give the covariance.  Moving objects are the outliers.
 """
 
@@ -235,7 +236,26 @@ def _fit(rows: np.ndarray, rhs: np.ndarray, inliers: np.ndarray,
     normal = rows.T @ rows
     if len(rows) < 2 or _condition(normal) > config.max_condition:
         return None
-    return _least_squares(rows, rhs, normal)
+    fit = _least_squares(rows, rhs, normal)
+    if config.bearing_noise_rad > 0.0:
+        fit = _weighted_by_bearing(rows, rhs, fit[0], config)
+    return fit
+
+
+def _weighted_by_bearing(rows: np.ndarray, rhs: np.ndarray, v: np.ndarray,
+                         config: VelocityConfig) -> tuple[np.ndarray, np.ndarray, float]:
+    """The least squares of :func:`_least_squares` again, each row weighted by the inverse of its
+    right-hand side's variance at the velocity *v* (2,) m/s: the Doppler's own and the bearing's
+    error times d(rhs)/d(bearing) = vy cos(b) - vx sin(b) (rows are (cos b, sin b)).  The weights
+    are scaled to a mean of one, so that the residual variance keeps its units and size."""
+    slope = rows[:, 0] * v[1] - rows[:, 1] * v[0]
+    weight = 1.0 / (config.doppler_noise_mps ** 2 + (slope * config.bearing_noise_rad) ** 2)
+    weight /= weight.mean()
+    weighted = rows * weight[:, None]
+    inverse = _inverse(weighted.T @ rows)
+    solution = inverse @ (weighted.T @ rhs)
+    residual = rhs - rows @ solution
+    return solution, inverse, float(weight @ (residual * residual)) / max(len(rhs) - 2, 1)
 
 
 def _well_conditioned(rows: np.ndarray, config: VelocityConfig) -> bool:

@@ -235,11 +235,16 @@ class TestVelocity:
         assert np.mean(errors < 0.05) >= 0.85, errors
         assert errors.max() < 0.1, errors
 
-    def test_paper_config_same_velocity(self, straight):
-        # The paper's settings change the yaw, not the velocity fit.
-        a, _, _ = run(straight, EstimatorConfig())
+    def test_paper_config_same_velocity_unweighted(self, straight):
+        # The paper's settings change the yaw and leave the velocity fit unweighted: that is all
+        # they change of it (docs/heading.md item 20).
+        a, _, _ = run(straight, EstimatorConfig().with_(velocity={"bearing_noise_rad": 0.0}))
         b, _, _ = run(straight, EstimatorConfig.paper())
         assert [(v.vx, v.vy, v.status) for v in a] == [(v.vx, v.vy, v.status) for v in b]
+        weighted, _, _ = run(straight, EstimatorConfig())
+        assert [v.status for v in weighted] == [v.status for v in b]
+        # The weights move each velocity within the fit's own noise (above: errors under 0.1 m/s).
+        assert max(math.hypot(v.vx - w.vx, v.vy - w.vy) for v, w in zip(weighted, b)) < 0.05
 
 
 # --------------------------------------------------------------------------- odometry

@@ -98,6 +98,8 @@ class TestConfig:
         ("velocity", "min_inlier_ratio", 1.5),
         ("velocity", "zero_velocity_ratio", 0.0),
         ("velocity", "max_elevation_rad", 2.0),
+        ("velocity", "bearing_noise_rad", -0.1),
+        ("velocity", "doppler_noise_mps", 0.0),
         ("velocity", "max_condition", 1.0),
         ("velocity", "max_accel_mps2", 0.0),
         ("velocity", "elevation_projection", "multiply"),
@@ -187,6 +189,7 @@ class TestConfig:
         assert cfg.features.dynamic_rejection_mps is None
         assert cfg.odometry.velocity_fallback == "hold" and cfg.odometry.bridge_s == 0.0
         assert cfg.velocity.elevation_projection in config_mod.PROJECTIONS
+        assert cfg.velocity.bearing_noise_rad == 0.0
         assert cfg.features.k == 200
 
     def test_paper_default_is_topk_sampling_mwicp(self):

@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from radarodom.dsp.processor import POINT_DTYPE
 from radarodom.estimator import velocity as vel
-from radarodom.estimator.config import VelocityConfig
+from radarodom.estimator.config import EstimatorConfig, VelocityConfig
 from radarodom.estimator.velocity import estimate_velocity
 
 #: The AWR1843's Doppler bin in the project's usual configuration, m/s.
@@ -298,6 +298,48 @@ def test_never_a_confident_wrong_answer(centre, width, n, vx, vy, seed):
         # little for the quantisation's systematic part).
         m2 = float(err @ np.linalg.inv(est.covariance + np.eye(2) * 1e-4) @ err)
         assert m2 < 36.0, (est, vx, vy)
+
+
+# --------------------------------------------------------------------------- bearing errors
+def _cloud_with_merged_returns(v):
+    """Points every 2 degrees over +/- 60 at velocity *v*, five of those beyond 40 degrees to the
+    right reporting their bearing 5 degrees further out (two returns merged in one beam)."""
+    bearing = np.radians(np.linspace(-60.0, 60.0, 61))
+    cloud = points_polar(bearing, 0.0, v)
+    off = np.flatnonzero(np.degrees(bearing) < -40.0)[::2]
+    cloud["azimuth"][off] += math.radians(5.0)  # TI azimuth: positive to the right
+    return cloud
+
+
+def test_bearing_errors_mislead_the_weighted_fit_less():
+    # A radar ahead of a wheeled base's axis in a moving turn: its sideways speed is its yaw rate.
+    v = (0.8, 0.24)
+    cloud = _cloud_with_merged_returns(v)
+    plain = estimate(cloud, VelocityConfig(bearing_noise_rad=0.0))
+    weighted = estimate(cloud)
+    assert plain.ok and weighted.ok and weighted.inliers == plain.inliers == len(cloud)
+    assert abs(plain.vy - v[1]) > 0.01  # the plain fit's sideways speed is 6 % off
+    assert abs(weighted.vy - v[1]) < 0.6 * abs(plain.vy - v[1])
+    assert abs(weighted.vx - v[0]) < abs(plain.vx - v[0])
+
+
+def test_the_paper_and_ti_demo_presets_fit_unweighted():
+    # The paper's fit is plain least squares; TI's demo's 6-12 points a frame on its angle bins need
+    # the points across the motion (docs/tidemo.md).
+    cloud = _cloud_with_merged_returns((0.8, 0.24))
+    plain = estimate(cloud, VelocityConfig(bearing_noise_rad=0.0))
+    for config in (EstimatorConfig.paper(), EstimatorConfig.tidemo()):
+        est = estimate(cloud, config.velocity)
+        assert (est.vx, est.vy) == (plain.vx, plain.vy)
+
+
+@pytest.mark.parametrize("noise_deg", [0.0, 1.0, 4.0, 10.0])
+def test_weights_do_not_bias_consistent_points(noise_deg):
+    v = (0.6, -0.35)
+    cloud = points_polar(np.radians(np.linspace(-70.0, 70.0, 50)), 0.0, v)
+    est = estimate(cloud, VelocityConfig(bearing_noise_rad=math.radians(noise_deg)))
+    assert est.ok
+    np.testing.assert_allclose(est.velocity, v, atol=1e-9)
 
 
 # --------------------------------------------------------------------------- covariance
