@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 from ..dsp.cfar import CfarParams
 from ..errors import ConfigError
@@ -58,11 +59,10 @@ class VelocityConfig(Settings):
     #: one's noise) is refused for the consensus of the points a reachable velocity explains
     #: ("implausible" when they make none).
     max_accel_mps2: float | None = 5.0
-    #: A detection's bearing error, rad (0: an unweighted fit): the fit weighs each inlier by its
-    #: radial velocity's error, ``doppler_noise_mps`` and this times the slope of a static point's
-    #: radial velocity with bearing at the fitted velocity, in quadrature.  A bearing degrees off
-    #: (two reflectors merged in one beam, an extended return) then misleads the fit less where
-    #: the radial velocity changes fastest with bearing (docs/heading.md item 20).
+    #: A detection's bearing error, rad (0: an unweighted fit): each inlier is weighted by its radial
+    #: velocity's error, ``doppler_noise_mps`` and this times its slope with bearing at the
+    #: unweighted fit's velocity, in quadrature: a bearing degrees off (two returns merged in a
+    #: beam) misleads the fit less where it matters most (docs/heading.md item 20).
     bearing_noise_rad: float = math.radians(4.0)
     #: The radial velocity's own error in those weights, m/s (uniform over the shipped cfg's 0.07 m/s bin).
     doppler_noise_mps: float = 0.02
@@ -84,16 +84,6 @@ class VelocityConfig(Settings):
         check_choice(self.elevation_projection, PROJECTIONS, "elevation_projection")
 
 
-def _default_heatmap_cfar() -> CfarParams:
-    return CfarParams(method="ca", guard=2, train=8, threshold_db=10.0)
-
-
-def _default_azimuth_cfar() -> CfarParams:
-    # The guard spans the beam's main lobe (64 bins over 8 elements: 8 bins a side), so the
-    # training cells see the sidelobes, which a sidelobe alone does not stand out from.
-    return CfarParams(method="ca", guard=7, train=4, threshold_db=6.0)
-
-
 @dataclass
 class FeatureConfig(Settings):
     """Heatmap features (paper III-B) and the options beyond the paper."""
@@ -109,9 +99,12 @@ class FeatureConfig(Settings):
     min_range_m: float = 0.5
     max_range_m: float | None = None
     max_azimuth_rad: float = math.radians(65.0)
-    #: CFAR of the "cfar" method, along range and along azimuth.
-    cfar: CfarParams = field(default_factory=_default_heatmap_cfar)
-    cfar_azimuth: CfarParams = field(default_factory=_default_azimuth_cfar)
+    #: CFAR of the "cfar" method, along range and along azimuth.  The azimuth guard spans the
+    #: beam's main lobe (64 bins over 8 elements: 8 bins a side), so the training cells see the
+    #: sidelobes, which a sidelobe alone does not stand out from.
+    cfar: CfarParams = field(default_factory=partial(CfarParams, method="ca", guard=2, train=8, threshold_db=10.0))
+    cfar_azimuth: CfarParams = field(default_factory=partial(CfarParams, method="ca", guard=7, train=4,
+                                                             threshold_db=6.0))
     #: Weights from the intensity: "linear" power, or "db" (10 log10, less dominated by
     #: a few strong reflectors); normalised to sum to one.
     weighting: str = "linear"
@@ -360,10 +353,9 @@ class EstimatorConfig(Settings):
     def tidemo(cls) -> "EstimatorConfig":
         """The settings for TI's demo firmware's output (``tidemo://`` and its replays): the yaw
         from its few points on a local map and its static heatmap when slow (``point_yaw``), a
-        velocity from as few as 3 points, standing still when half of them say so (a person
-        walking past a robot turning in place is a larger share of a handful of points), fitted
-        unweighted (with 6-12 points on the chip's angle bins, those across the motion that
-        ``bearing_noise_rad`` weighs down fix most of the sideways speed: docs/tidemo.md)."""
+        velocity from as few as 3 points, standing still when half of them say so (a person walking
+        past a robot turning in place is a larger share of a handful of points), fitted unweighted
+        (of 6-12 points on the chip's bins, those across the motion fix the sideways speed)."""
         return cls().preset("tidemo")
 
     def preset(self, name: str | None) -> "EstimatorConfig":

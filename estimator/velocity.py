@@ -247,7 +247,8 @@ def _weighted_by_bearing(rows: np.ndarray, rhs: np.ndarray, v: np.ndarray,
     """The least squares of :func:`_least_squares` again, each row weighted by the inverse of its
     right-hand side's variance at the velocity *v* (2,) m/s: the Doppler's own and the bearing's
     error times d(rhs)/d(bearing) = vy cos(b) - vx sin(b) (rows are (cos b, sin b)).  The weights
-    are scaled to a mean of one, so that the residual variance keeps its units and size."""
+    are scaled to a mean of one: the residual variance is then a point of average weight's, in
+    m^2/s^2, and the quantisation floor of :func:`estimate_velocity` applies to it."""
     slope = rows[:, 0] * v[1] - rows[:, 1] * v[0]
     weight = 1.0 / (config.doppler_noise_mps ** 2 + (slope * config.bearing_noise_rad) ** 2)
     weight /= weight.mean()

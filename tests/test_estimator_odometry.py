@@ -99,6 +99,7 @@ class TestConfig:
         ("velocity", "zero_velocity_ratio", 0.0),
         ("velocity", "max_elevation_rad", 2.0),
         ("velocity", "bearing_noise_rad", -0.1),
+        ("velocity", "bearing_noise_rad", 2.0),
         ("velocity", "doppler_noise_mps", 0.0),
         ("velocity", "max_condition", 1.0),
         ("velocity", "max_accel_mps2", 0.0),

@@ -333,6 +333,44 @@ def test_the_paper_and_ti_demo_presets_fit_unweighted():
         assert (est.vx, est.vy) == (plain.vx, plain.vy)
 
 
+def test_weighted_fit_is_weighted_least_squares():
+    # The weighted fit, and its covariance, against weighted least squares written out here (the
+    # noise above the covariance's floor, and within the inlier threshold).
+    rng = np.random.default_rng(21)
+    v = (0.8, 0.24)
+    cloud = points_polar(np.radians(rng.uniform(-60.0, 60.0, 40)), 0.0, v, noise_mps=0.05, rng=rng)
+    config = VelocityConfig(inlier_threshold_mps=0.12)
+    est = estimate(cloud, config)
+    assert est.ok and est.inliers == len(cloud)
+    rows, rhs = vel.design(cloud["azimuth"], cloud["elevation"], cloud["velocity"])
+    plain = np.linalg.lstsq(rows, rhs, rcond=None)[0]
+    slope = rows[:, 0] * plain[1] - rows[:, 1] * plain[0]  # d(rhs)/d(bearing)
+    w = 1.0 / (config.doppler_noise_mps ** 2 + (slope * config.bearing_noise_rad) ** 2)
+    w = w / w.mean()
+    normal = (rows * w[:, None]).T @ rows
+    solution = np.linalg.solve(normal, (rows * w[:, None]).T @ rhs)
+    residual = rhs - rows @ solution
+    sigma2 = float(w @ residual ** 2) / (len(rhs) - 2)
+    assert sigma2 > config.inlier_threshold_mps ** 2 / 12.0
+    np.testing.assert_allclose(est.velocity, solution, atol=1e-12)
+    np.testing.assert_allclose(est.covariance, sigma2 * np.linalg.inv(normal), rtol=1e-9)
+
+
+def test_weighted_covariance_matches_the_spread_under_bearing_errors():
+    rng = np.random.default_rng(22)
+    v = np.array([0.8, 0.0])
+    errors, reported = [], []
+    for _ in range(300):
+        cloud = points_polar(np.radians(rng.uniform(-60.0, 60.0, 60)), 0.0, tuple(v), noise_mps=0.02, rng=rng)
+        cloud["azimuth"] += np.radians(rng.normal(0.0, 4.0, len(cloud))).astype(np.float32)
+        est = estimate(cloud)
+        assert est.ok
+        errors.append(est.velocity - v)
+        reported.append(est.covariance)
+    ratio = np.diag(np.cov(np.array(errors).T)) / np.diag(np.mean(reported, axis=0))
+    assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+
+
 @pytest.mark.parametrize("noise_deg", [0.0, 1.0, 4.0, 10.0])
 def test_weights_do_not_bias_consistent_points(noise_deg):
     v = (0.6, -0.35)
