@@ -97,7 +97,6 @@ class _Measured:
     whether the Doppler's yaw rate was fused in."""
 
     base: OdometryState
-    dt: float
     velocity: StepVelocity
     registration: Registration | None
     observed: float | None
@@ -223,7 +222,8 @@ class RadarOdometry:
             across = self._measure(*self._anchor, current, frame, across_flags)
             if across.observed is not None:
                 step, flags, bridged = across, across_flags, True
-        last, dt, velocity = step.base, step.dt, step.velocity
+        last, velocity = step.base, step.velocity
+        dt = t - last.t
         v = velocity.velocity
         if step.observed is None:
             self.rate.restart()  # from the next measurement
@@ -269,7 +269,7 @@ class RadarOdometry:
             if doppler is not None:
                 var_registered = max(var_registered, self._yaw_noise_var)  # the filter's floor, before fusing
         observed, var_observed = fuse(registered, var_registered, doppler, dt)
-        return _Measured(base, dt, velocity, measured.registration, observed,
+        return _Measured(base, velocity, measured.registration, observed,
                          var_observed if observed is not None else measured.variance, doppler is not None)
 
     @property
