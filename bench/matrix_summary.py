@@ -52,11 +52,22 @@ def totals(results: list[dict]) -> dict:
     return {"cells": len(results), "yaw RMSE deg": f"{statistics.mean(r['yaw_rmse_deg'] for r in results):.2f}",
             "mean |straight bias| deg/frame": f"{statistics.mean(bias):.3f}",
             "straight bias <= 0.005": sum(b <= 0.005 for b in bias),
+            "each straight's heading error, RMS / worst deg/m": _straights(results),
             "moving turns within 2 %": _within(results, "moving_turn_ratio"),
             "turns in place within 2 %": _within(results, "inplace_turn_ratio"),
             "drift % mean": f"{statistics.mean(drift):.2f}", "drift % median": f"{statistics.median(drift):.2f}",
             "drift <= 2 %": sum(d <= 2.0 for d in drift), "drift % worst": f"{max(drift):.1f}",
             "|final heading| deg": f"{statistics.mean(abs(r['final_heading_error_deg']) for r in results):.1f}"}
+
+
+def _straights(results: list[dict]) -> str:
+    """The RMS over the cells' straight drives of their heading error per metre, and the
+    worst; "-" for results without them (runs before 2026-11-30)."""
+    rms = [r["straight_rms_deg_per_m"] for r in results if r.get("straight_rms_deg_per_m") is not None]
+    worst = [r["straight_max_deg_per_m"] for r in results if r.get("straight_max_deg_per_m") is not None]
+    if not rms:
+        return "-"
+    return f"{statistics.mean(x * x for x in rms) ** 0.5:.2f} / {max(worst):.2f}"
 
 
 def parts_table(results: list[dict]) -> list[str]:

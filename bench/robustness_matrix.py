@@ -282,6 +282,8 @@ def _f(v, fmt: str) -> str:
 
 COLUMNS = [("yaw RMSE deg", "yaw_rmse_deg", ".2f"), ("straight bias deg/m", "straight_bias_deg_per_m", "+.3f"),
            ("deg/min", "straight_bias_deg_per_min", "+.1f"), ("deg/frame", "straight_bias_deg_per_frame", "+.4f"),
+           ("each straight RMS deg/m", "straight_rms_deg_per_m", ".2f"),
+           ("worst straight deg/m", "straight_max_deg_per_m", ".2f"),
            ("moving-turn ratio", "moving_turn_ratio", ".3f"), ("in-place ratio", "inplace_turn_ratio", ".3f"),
            ("drift %", "drift_pct", ".2f"), ("final heading deg", "final_heading_error_deg", "+.1f"),
            ("path m", "path_m", ".1f"), ("frames", "frames", "d")]
@@ -289,7 +291,8 @@ COLUMNS = [("yaw RMSE deg", "yaw_rmse_deg", ".2f"), ("straight bias deg/m", "str
 
 def table(results: list[dict]) -> str:
     head = "| cell | " + " | ".join(c[0] for c in COLUMNS) + " |\n| --- |" + " ---: |" * len(COLUMNS) + "\n"
-    return head + "".join(f"| {r['name']} | " + " | ".join(_f(r[k], fmt) for _, k, fmt in COLUMNS) + " |\n"
+    # (.get: results cached before a column was added have none)
+    return head + "".join(f"| {r['name']} | " + " | ".join(_f(r.get(k), fmt) for _, k, fmt in COLUMNS) + " |\n"
                           for r in results)
 
 

@@ -8,6 +8,10 @@ or too small.  These metrics measure them separately, by segmenting the truth:
 - **straight-drive heading bias**: the yaw-increment error (estimate minus truth) summed
   over the frames where the truth drives straight (|yaw rate| below ``straight_rate_dps``, speed above
   ``moving_speed_mps``), per metre driven and per minute of such driving (and per frame);
+- **each straight's heading error** (deg/m): the same error summed over each run of straight
+  frames at least ``min_straight_m`` long, over its length: their RMS and the largest.  The
+  whole sequence's bias above is their weighted mean, in which a straight that turns left and
+  one that turns right cancel; a robot on either feels it;
 - **turn ratio**: estimated / true turned angle over the turns, a turn being a run of
   frames with |true yaw rate| above ``straight_rate_dps`` that turns at least
   ``min_turn_deg``; a turn whose median speed is below ``moving_speed_mps`` is a turn in
@@ -32,7 +36,7 @@ import numpy as np
 
 from .evaluation import se2_compose, se2_inverse, se2_relative
 
-__all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns"]
+__all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns", "straight_runs"]
 
 #: The parts :func:`drift_parts` reports, in order.
 DRIFT_PARTS = ("all", "straight", "after turn", "moving turn", "turn in place", "other", "translation")
@@ -52,6 +56,11 @@ class HeadingMetrics:
     straight_bias_deg_per_m: float
     straight_bias_deg_per_min: float
     straight_bias_deg_per_frame: float
+    #: Each straight drive of at least ``min_straight_m`` apart: how many, and their heading errors'
+    #: RMS and largest magnitude, deg/m.
+    straights: int
+    straight_rms_deg_per_m: float
+    straight_max_deg_per_m: float
     #: Turns while moving and in place: how many, true angle (deg, sum of magnitudes), ratio.
     moving_turns: int
     moving_turn_deg: float
@@ -96,6 +105,20 @@ def _straight(dt: np.ndarray, d_ref: np.ndarray, base: np.ndarray, straight_rate
     return (np.degrees(np.abs(d_ref)) / dt <= straight_rate_dps) & (speed > moving_speed_mps)
 
 
+def straight_runs(straight: np.ndarray, step_m: np.ndarray, err: np.ndarray,
+                  min_m: float) -> list[tuple[int, int, float, float]]:
+    """The runs of straight steps (*straight* (n-1,) bool) at least *min_m* long (*step_m*, m a
+    step) as (first step, end step (exclusive), length m, heading error rad): *err*'s sum over
+    the run (estimate minus truth, rad a step)."""
+    out = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], straight.astype(np.int8), [0]])))
+    for i, j in zip(edges[0::2], edges[1::2]):
+        length = float(step_m[i:j].sum())
+        if length >= min_m:
+            out.append((int(i), int(j), length, float(err[i:j].sum())))
+    return out
+
+
 def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: float = 2.0,
                   moving_speed_mps: float = 0.05, min_turn_deg: float = 10.0) -> list[tuple[int, int, bool]]:
     """The truth's turns as (first interval, end interval (exclusive), in place) over the
@@ -121,8 +144,10 @@ def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: floa
 
 
 def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
-                    min_turn_deg: float = 10.0, base_offset_m: float = 0.0) -> HeadingMetrics:
-    """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*).
+                    min_turn_deg: float = 10.0, min_straight_m: float = 1.0,
+                    base_offset_m: float = 0.0) -> HeadingMetrics:
+    """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*);
+    *min_straight_m*: the shortest straight measured apart.
     *base_offset_m*: the radar sits this far ahead of the rotation axis of the base that carries
     it: straight drives and turns in place are told by the base's motion (a radar ahead of the
     axis moves in a turn in place); the path and drift stay the radar's."""
@@ -137,6 +162,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
     s_m, s_s = float(step_m[straight].sum()), float(dt[straight].sum())
     s_yaw = math.degrees(float(err[straight].sum()))  # the truth turns ~0 there; its ramps' rest removed
     nan = float("nan")
+    runs = np.array([math.degrees(e) / m for _, _, m, e in straight_runs(straight, step_m, err, min_straight_m)])
 
     turns = segment_turns(times, base, straight_rate_dps=straight_rate_dps, moving_speed_mps=moving_speed_mps,
                           min_turn_deg=min_turn_deg)
@@ -162,6 +188,8 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
         straight_bias_deg_per_m=s_yaw / s_m if s_m > 0 else nan,
         straight_bias_deg_per_min=60.0 * s_yaw / s_s if s_s > 0 else nan,
         straight_bias_deg_per_frame=s_yaw / int(straight.sum()) if straight.any() else nan,
+        straights=len(runs), straight_rms_deg_per_m=float(np.sqrt(np.mean(runs ** 2))) if len(runs) else nan,
+        straight_max_deg_per_m=float(np.abs(runs).max()) if len(runs) else nan,
         moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
         inplace_turns=kinds[True][0], inplace_turn_deg=kinds[True][1], inplace_turn_ratio=kinds[True][2],
         path_m=path, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)

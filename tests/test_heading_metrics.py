@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from radarodom.driver.sim.trajectory import from_segments
-from radarodom.estimator.heading_metrics import DRIFT_PARTS, drift_parts, heading_metrics, segment_turns
+from radarodom.estimator.heading_metrics import DRIFT_PARTS, drift_parts, heading_metrics, segment_turns, straight_runs
 
 SEGMENTS = [{"pause": 1.0}, {"straight": 4.0, "speed": 1.0}, {"turn": 90, "radius": 1.0, "speed": 0.8},
             {"straight": 3.0, "speed": 0.5}, {"rotate": 180, "rate": 60}, {"straight": 3.0, "speed": 0.5},
@@ -79,6 +79,30 @@ def test_straight_bias_and_turn_ratios_are_measured_apart():
     assert m.drift_pct > 1.0
 
 
+def test_straights_that_turn_opposite_ways_are_measured_each_though_they_cancel_in_the_bias():
+    # The loop's four straights (4 m at 1 m/s, 3 m and 3 m at 0.5 m/s, 4 m at 1 m/s) turned by
+    # +0.02, -0.02, +0.01 and -0.01 degrees a frame: about 0.2, -0.4, 0.2 and -0.1 degrees a metre.
+    t, ref = truth()
+    steps = np.hypot(*np.diff(ref[:, :2], axis=0).T)
+    moving = (steps * 10.0 > 0.05) & (np.degrees(np.abs(np.diff(ref[:, 2]))) * 10.0 <= 2.0)
+    runs = straight_runs(moving, steps, np.zeros(len(steps)), 1.0)
+    assert [m for _, _, m, _ in runs] == pytest.approx([4.0, 3.0, 3.0, 4.0], abs=0.35)  # less the ramps
+    d_est = np.diff(ref[:, 2])
+    per_m = []
+    for (i, j, m, _), bias in zip(runs, (0.02, -0.02, 0.01, -0.01)):
+        d_est[i:j] += math.radians(bias)
+        per_m.append(bias * (j - i) / m)
+    est = ref.copy()
+    est[1:, 2] = ref[0, 2] + np.cumsum(d_est)
+    m = heading_metrics(t, ref, est)
+    assert m.straights == 4
+    assert per_m == pytest.approx([0.2, -0.4, 0.2, -0.1], rel=0.1)
+    assert abs(m.straight_bias_deg_per_m) < 0.03  # about -0.1 degree over 14 m
+    assert m.straight_max_deg_per_m == pytest.approx(abs(per_m[1]), rel=1e-9)
+    assert m.straight_rms_deg_per_m == pytest.approx(math.sqrt(np.mean(np.square(per_m))), rel=1e-9)
+    assert heading_metrics(t, ref, est, min_straight_m=3.5).straights == 2  # the 4 m ones
+
+
 def test_a_pure_yaw_increment_noise_gives_its_rmse():
     t, ref = truth()
     rng = np.random.default_rng(1)
@@ -93,6 +117,7 @@ def test_a_still_truth_has_no_straight_or_turn_numbers():
     ref = np.zeros((20, 3))
     m = heading_metrics(t, ref, ref)
     assert m.straight_frames == 0 and math.isnan(m.straight_bias_deg_per_m)
+    assert m.straights == 0 and math.isnan(m.straight_rms_deg_per_m) and math.isnan(m.straight_max_deg_per_m)
     assert math.isnan(m.moving_turn_ratio) and m.to_dict()["moving_turn_ratio"] is None
     with pytest.raises(ValueError):
         heading_metrics(t, ref, ref[:5])

@@ -108,6 +108,10 @@ def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
     again = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
     assert again["cached"] and again["yaw_rmse_deg"] == first["yaw_rmse_deg"]
     assert "coloradar_" in rm.table([again])
+    # a result cached before a column was added shows "-" there, as one without straights does
+    assert again["straights"] == 0 and again["straight_rms_deg_per_m"] is None
+    older = {k: v for k, v in again.items() if k not in ("straight_rms_deg_per_m", "straight_max_deg_per_m")}
+    assert rm.table([older]) == rm.table([again])
 
 
 def test_cluster_without_dask_says_what_to_install(tmp_path, monkeypatch):
@@ -150,6 +154,7 @@ def test_the_summary_gives_a_row_per_axis_and_the_goals_before_and_after():
     assert lines[3].startswith("| 1.5 m/s (1) |") and "9.0 / 9.0 -> 4.0 / 4.0" in lines[3]
     assert "cells 2 -> 2" in text and "drift <= 2 % 0 -> 1" in text and "straight bias <= 0.005 2 -> 2" in text
     assert "What makes the drift" not in text  # results without drift parts (before 2026-11-29)
+    assert "each straight's heading error, RMS / worst deg/m - -> -" in text  # nor straights (2026-11-30)
 
 
 def test_the_summary_says_what_makes_the_drift_per_row():
@@ -159,8 +164,11 @@ def test_the_summary_says_what_makes_the_drift_per_row():
         parts = dict.fromkeys(DRIFT_PARTS, 0.5) | {"turn in place": turn_in_place, "other": None}
         return {"name": name, "cell": {**dataclasses.asdict(rm.SimCell(scene="room")), **cell}, "yaw_rmse_deg": 0.3,
                 "straight_bias_deg_per_frame": 0.0, "moving_turn_ratio": 1.0, "inplace_turn_ratio": 1.0,
-                "drift_pct": 1.0, "final_heading_error_deg": 0.0, "drift_parts": parts}
+                "drift_pct": 1.0, "final_heading_error_deg": 0.0, "drift_parts": parts,
+                "straight_rms_deg_per_m": turn_in_place / 10, "straight_max_deg_per_m": turn_in_place / 5}
     text = matrix_summary.summary([[result("a", 1.0), result("b", 3.0, seed=1), result("c", 2.0, speed_mps=1.5)]])
+    # the RMS over the cells of 0.1, 0.3, 0.2 deg/m, and the worst straight of all
+    assert "each straight's heading error, RMS / worst deg/m 0.22 / 0.60" in text
     lines = text.split("What makes the drift")[1].splitlines()
     head = next(i for i, line in enumerate(lines) if line.startswith("| cells |"))
     assert lines[head] == "| cells | " + " | ".join(DRIFT_PARTS) + " |"
