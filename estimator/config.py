@@ -123,13 +123,15 @@ class FeatureConfig(Settings):
     #: the full map's cost.
     doppler_cells_per_feature: int = 4
     #: Beyond the paper: "use" the heatmap's elevation of each cell (when the array has a raised
-    #: row), placing a feature at its horizontal range r cos(el) and horizontal bearing, at its
-    #: height; "ignore" takes every cell as level with the radar.  The azimuth the array
-    #: measures is the sideways direction cosine, cos(el) sin(az): a reflector above or below
-    #: the radar turns by only cos(el) of the radar's turn on the heatmap's azimuth axis, so
-    #: level geometry under-measures turns near tall walls, floors and ceilings, and moves
-    #: elevated reflectors wrongly when features are rectified (docs/heading.md, item 2).
+    #: row), placing a feature at its horizontal range r cos(el) and bearing, at its height;
+    #: "ignore" takes every cell as level.  The array measures cos(el) sin(az): a reflector above
+    #: or below the radar turns by cos(el) of a turn on the azimuth axis, so level geometry
+    #: under-measures turns near tall walls, floors and ceilings (docs/heading.md, item 2).
     elevation: str = "use"
+    #: ... and how a translation moves such a feature: "slant" as a reflector level with the radar
+    #: at its slant range, keeping its elevation angle (a cell's elevation is noisy and mixes
+    #: heights: docs/heading.md item 21), or "horizontal" as a fixed reflector at its height.
+    parallax: str = "slant"
     #: Beyond the paper, for arrays without a raised row (2 TX): each cell's elevation from its
     #: dominant Doppler and the frame's own velocity, where the heatmap has none: "off", "turns"
     #: (only while the last measured yaw rate is above ``doppler_elevation_turn_radps``), or
@@ -156,6 +158,7 @@ class FeatureConfig(Settings):
         _check(self.doppler_cells_per_feature >= 1, "must be at least 1", "doppler_cells_per_feature")
         check_choice(self.weighting, ("linear", "db"), "weighting")
         check_choice(self.elevation, ("ignore", "use"), "elevation")
+        check_choice(self.parallax, ("slant", "horizontal"), "parallax")
         check_choice(self.doppler_elevation, DOPPLER_ELEVATIONS, "doppler_elevation")
         _check(self.doppler_elevation_min_mps > 0, "must be positive", "doppler_elevation_min_mps")
         _check(self.doppler_elevation_turn_radps >= 0, "must be >= 0", "doppler_elevation_turn_radps")

@@ -80,21 +80,53 @@ class Features:
             return self
         height = None if self.height_m is None else self.height_m[keep]
         weight = self.weight[keep]
-        return Features(self.range_m[keep], self.bearing_rad[keep], weight / weight.sum(), self.intensity[keep], height)
+        return type(self)(self.range_m[keep], self.bearing_rad[keep], weight / weight.sum(), self.intensity[keep],
+                          height)
 
     def turned(self, angle_rad: float) -> "Features":
         """The same points with bearings turned by *angle_rad* (counter-clockwise)."""
-        return Features(self.range_m, self.bearing_rad + angle_rad, self.weight, self.intensity, self.height_m)
+        return type(self)(self.range_m, self.bearing_rad + angle_rad, self.weight, self.intensity, self.height_m)
 
     def shifted(self, dxy: np.ndarray) -> "Features":
         """The same points seen from a sensor moved by *dxy* (2,), m: ``p - dxy`` (paper eq. 3);
-        their heights stay."""
+        their heights stay (fixed reflectors)."""
         xy = self.xy - np.asarray(dxy, dtype=float)[None, :]
-        out = Features.from_xy(xy, self.weight, self.intensity, self.height_m)
+        out = type(self).from_xy(xy, self.weight, self.intensity, self.height_m)
         # The positions are known: ICP would otherwise make them again from range and bearing.
         xy.flags.writeable = False
         out.__dict__["xy"] = xy
         return out
+
+
+class SlantFeatures(Features):
+    """Features moved by a translation as reflectors level with the radar at their slant range,
+    each keeping its elevation angle (``features.parallax`` "slant"): a heatmap cell's elevation
+    is the power-weighted mean of what it holds, noisy and mixed over heights, and its slant range
+    is what the radar measures; over the robustness matrix this moved cells better than fixed
+    reflectors at their estimated height (docs/heading.md item 21)."""
+
+    @functools.cached_property
+    def _level_xy(self) -> np.ndarray:
+        """Where each point would be level with the radar at its slant range, (n, 2) m: computed
+        once, as a frame's features are moved several times (the field, the scan, the keyframe)."""
+        slant = self.slant_m
+        return np.stack([slant * np.cos(self.bearing_rad), slant * np.sin(self.bearing_rad)], 1)
+
+    def shifted(self, dxy: np.ndarray) -> "Features":
+        if self.height_m is None:
+            return super().shifted(dxy)
+        level = self._level_xy - np.asarray(dxy, dtype=float)[None, :]
+        moved = np.hypot(level[:, 0], level[:, 1])
+        cos_el = self.cos_elevation
+        out = SlantFeatures(moved * cos_el, np.arctan2(level[:, 1], level[:, 0]), self.weight, self.intensity,
+                            moved * (self.height_m / np.maximum(self.slant_m, 1e-12)))
+        # Known already: the scores sample at each point's slant range and elevation.
+        out.__dict__["slant_m"], out.__dict__["cos_elevation"] = moved, cos_el
+        return out
+
+
+#: The features' class by ``features.parallax``.
+PARALLAX = {"horizontal": Features, "slant": SlantFeatures}
 
 
 def roi_mask(heatmap: PolarHeatmap, config: FeatureConfig) -> np.ndarray:
@@ -153,7 +185,7 @@ def extract(heatmap: PolarHeatmap, config: FeatureConfig,
         # Placed nearer than the region's range (the floor beneath the radar, a steep elevation's
         # noise), a feature's bearing is swung by any error of a step's translation: dropped
         # (docs/heading.md item 17).
-        features = Features(rng, -az, weights, values, height)
+        features = PARALLAX[config.parallax](rng, -az, weights, values, height)
         return features.subset(rng >= config.min_range_m)
     return Features(rng, -az, weights, values)
 

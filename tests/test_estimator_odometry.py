@@ -110,6 +110,7 @@ class TestConfig:
         ("features", "max_range_m", 0.1),
         ("features", "max_azimuth_rad", 0.0),
         ("features", "weighting", "log"),
+        ("features", "parallax", "height"),
         ("features", "dynamic_rejection_mps", 0.0),
         ("icp", "alpha", 0.0),
         ("icp", "beta", -1.0),
