@@ -1,7 +1,7 @@
 """Stage-by-stage heading diagnosis against the ground truth (issue 20).
 
     python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
-                                      [--baselines 1 2 4 8]
+                                      [--baselines 1 2 4 8] [--straights 6]
 
 For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
 or bench/robustness_matrix.py record), every step is classified by the truth (standing still,
@@ -25,6 +25,11 @@ that grows with the baseline comes from the motion; and, over moving turns and t
 the two-way registration's turn ratio at each baseline (what a keyframe that many frames back
 measures, given the true motion).
 
+``--straights K`` takes each straight drive apart (a loop's straights turn opposite ways and
+cancel in the bias): the estimate's heading error over it and the field search's with the true
+motion between frames K apart along it, in degrees a metre (docs/heading.md, "Each straight
+apart": the field has the straights' error too, so it is the registration's, not the chain's).
+
 Last, what makes the drift (``drift parts``,
 :func:`radarodom.estimator.heading_metrics.drift_parts`): the estimate's drift, and the drift that
 each kind of frame's yaw errors (straight, the first frames after a turn, moving turns, turns in
@@ -46,7 +51,7 @@ import sequences  # noqa: E402  (bench/ is not a package)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.evaluation import associate  # noqa: E402
-from radarodom.estimator.heading_metrics import drift_parts  # noqa: E402
+from radarodom.estimator.heading_metrics import drift_parts, straight_runs  # noqa: E402
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
@@ -152,6 +157,36 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
     return lines
 
 
+def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config: EstimatorConfig,
+              steps: int) -> list[str]:
+    """Each straight drive apart (heading_metrics.straight_runs): its length and the estimate's
+    heading error over it, and the field search's with the true motion between frames *steps*
+    apart along it (mean error a hop over the mean hop), both in degrees a metre."""
+    poses = truth(seq)
+    dt = np.diff(seq.times)
+    steps_m = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    d_ref = _wrap(np.diff(poses[:, 2]))
+    straight = (np.degrees(np.abs(d_ref)) / dt <= STRAIGHT_RATE_DPS) & (steps_m / dt > MOVING_MPS)
+    err = _wrap(_wrap(np.diff(estimated[:, 2])) - d_ref)
+    icp = config.icp
+    lines = []
+    for i, j, length, error in straight_runs(straight, steps_m, err, 1.0):
+        hops = []
+        for a in range(i, j + 1 - steps):  # frames i..j: the run's steps i..j-1
+            t, dyaw = step_motion(poses, a, a + steps)
+            fa, fb = kept[a].field, kept[a + steps].field
+            if fa is None or fb is None:
+                continue
+            r = field_rotation(fa.points, fb.points, fa.smoothed, fb.smoothed, t, -dyaw, icp.field_search_rad,
+                               icp.field_step_rad, icp.score_support == "common")
+            if r is not None:
+                hops.append((math.degrees(-r - dyaw), float(np.hypot(*t))))
+        field = f"{np.mean([h[0] for h in hops]) / np.mean([h[1] for h in hops]):+.2f}" if hops else "-"
+        lines.append(f"  straight from frame {i}, {length:.1f} m: estimate {math.degrees(error) / length:+.2f}, "
+                     f"field with the true motion ({steps} frames apart) {field} deg/m")
+    return lines
+
+
 def _ratio(pairs: np.ndarray) -> float:
     """Estimated over true turned angle of (estimated, true) increments (n, 2), each taken in
     its turn's direction (a loop's left and right turns would otherwise cancel)."""
@@ -182,6 +217,8 @@ def main(argv=None) -> int:
     parser.add_argument("sequences", nargs="+", metavar="SEQUENCE_DIR")
     parser.add_argument("--estimator-config", metavar="FILE.json", help="default: the defaults")
     parser.add_argument("--baselines", nargs="*", type=int, default=[], metavar="K")
+    parser.add_argument("--straights", type=int, default=None, metavar="K",
+                        help="each straight apart, the field's hops K frames long")
     args = parser.parse_args(argv)
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     for directory in args.sequences:
@@ -190,6 +227,8 @@ def main(argv=None) -> int:
         print("\n".join(report(seq.name, found)))
         if args.baselines:
             print("\n".join(baselines(seq, kept, config, args.baselines)))
+        if args.straights:
+            print("\n".join(straights(seq, kept, estimated, config, args.straights)))
         parts = drift_parts(seq.times, truth(seq), estimated)
         print("  drift parts (% of the path): " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items()))
     return 0
