@@ -51,7 +51,7 @@ import sequences  # noqa: E402  (bench/ is not a package)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.evaluation import associate  # noqa: E402
-from radarodom.estimator.heading_metrics import drift_parts, straight_runs  # noqa: E402
+from radarodom.estimator.heading_metrics import _straight, drift_parts, straight_runs  # noqa: E402
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
@@ -166,7 +166,7 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
     dt = np.diff(seq.times)
     steps_m = np.hypot(*np.diff(poses[:, :2], axis=0).T)
     d_ref = _wrap(np.diff(poses[:, 2]))
-    straight = (np.degrees(np.abs(d_ref)) / dt <= STRAIGHT_RATE_DPS) & (steps_m / dt > MOVING_MPS)
+    straight = _straight(dt, d_ref, poses, STRAIGHT_RATE_DPS, MOVING_MPS)
     err = _wrap(_wrap(np.diff(estimated[:, 2])) - d_ref)
     icp = config.icp
     lines = []
