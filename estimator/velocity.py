@@ -92,14 +92,16 @@ def design(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, velocity_mps: np.
     return rows, rhs
 
 
-def _least_squares(rows: np.ndarray, rhs: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def _least_squares(rows: np.ndarray, rhs: np.ndarray, normal: np.ndarray,
+                   weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Solution, inverse normal matrix and residual variance of rows @ v = rhs, given the
-    (well-conditioned) normal matrix rows^T rows."""
+    (well-conditioned) normal matrix rows^T rows; with *weight* (n,), weighted least squares,
+    *normal* then rows^T W rows and the variance the weighted residuals'."""
     inverse = _inverse(normal)
-    v = inverse @ (rows.T @ rhs)
+    v = inverse @ ((rows if weight is None else rows * weight[:, None]).T @ rhs)
     residual = rhs - rows @ v
-    sigma2 = float(residual @ residual) / max(len(rhs) - 2, 1)
-    return v, inverse, sigma2
+    squares = float(residual @ residual if weight is None else weight @ (residual * residual))
+    return v, inverse, squares / max(len(rhs) - 2, 1)
 
 
 def _condition(normal: np.ndarray) -> float:
@@ -244,7 +246,7 @@ def _fit(rows: np.ndarray, rhs: np.ndarray, inliers: np.ndarray,
 
 def _weighted_by_bearing(rows: np.ndarray, rhs: np.ndarray, v: np.ndarray,
                          config: VelocityConfig) -> tuple[np.ndarray, np.ndarray, float]:
-    """The least squares of :func:`_least_squares` again, each row weighted by the inverse of its
+    """:func:`_least_squares` again, each row weighted by the inverse of its
     right-hand side's variance at the velocity *v* (2,) m/s: the Doppler's own and the bearing's
     error times d(rhs)/d(bearing) = vy cos(b) - vx sin(b) (rows are (cos b, sin b)).  The weights
     are scaled to a mean of one: the residual variance is then a point of average weight's, in
@@ -252,11 +254,7 @@ def _weighted_by_bearing(rows: np.ndarray, rhs: np.ndarray, v: np.ndarray,
     slope = rows[:, 0] * v[1] - rows[:, 1] * v[0]
     weight = 1.0 / (config.doppler_noise_mps ** 2 + (slope * config.bearing_noise_rad) ** 2)
     weight /= weight.mean()
-    weighted = rows * weight[:, None]
-    inverse = _inverse(weighted.T @ rows)
-    solution = inverse @ (weighted.T @ rhs)
-    residual = rhs - rows @ solution
-    return solution, inverse, float(weight @ (residual * residual)) / max(len(rhs) - 2, 1)
+    return _least_squares(rows, rhs, (rows * weight[:, None]).T @ rows, weight)
 
 
 def _well_conditioned(rows: np.ndarray, config: VelocityConfig) -> bool:
