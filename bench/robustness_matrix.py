@@ -201,9 +201,9 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     if isinstance(cell, SimCell) and not keep_adc:
         drop_adc(_sequence_dir(cell, data))
     est_m, ref_m = associate(est, truth, 0.01)
-    offset = cell.mount_m if isinstance(cell, SimCell) else 0.0
-    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(), base_offset_m=offset)
-    parts = drift_parts(ref_m.times, ref_m.se2(), est_m.se2(), base_offset_m=offset)
+    mount = (cell.mount_m if isinstance(cell, SimCell) else 0.0, 0.0, 0.0)
+    metrics = heading_metrics(ref_m.times, ref_m.se2(), est_m.se2(), radar_on_base=mount)
+    parts = drift_parts(ref_m.times, ref_m.se2(), est_m.se2(), radar_on_base=mount)
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
               "drift_parts": {k: (v if math.isfinite(v) else None) for k, v in parts.items()},

@@ -86,14 +86,15 @@ def _trajectories(times, ref, est) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return times, ref, est
 
 
-def _base(ref: np.ndarray, offset_m: float) -> np.ndarray:
-    """The poses (n, 3) of the base whose rotation axis is *offset_m* behind the radar at *ref*."""
-    if offset_m == 0.0:
+def _base(ref: np.ndarray, radar_on_base) -> np.ndarray:
+    """The poses (n, 3) of the base that carries the radar at *ref* (n, 3), the radar sitting at
+    *radar_on_base* (3,): x, y (m) and yaw (rad) in the base's frame."""
+    mount = np.asarray(radar_on_base, dtype=float)
+    if mount.shape != (3,) or not np.all(np.isfinite(mount)):
+        raise ValueError(f"radar_on_base must be three finite numbers (x m, y m, yaw rad), got {radar_on_base!r}")
+    if not mount.any():
         return ref
-    out = ref.copy()
-    out[:, 0] -= offset_m * np.cos(ref[:, 2])
-    out[:, 1] -= offset_m * np.sin(ref[:, 2])
-    return out
+    return se2_compose(ref, se2_inverse(mount)[None, :])
 
 
 def _straight(dt: np.ndarray, d_ref: np.ndarray, base: np.ndarray, straight_rate_dps: float,
@@ -145,19 +146,20 @@ def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: floa
 
 def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
                     min_turn_deg: float = 10.0, min_straight_m: float = 1.0,
-                    base_offset_m: float = 0.0) -> HeadingMetrics:
+                    radar_on_base=(0.0, 0.0, 0.0)) -> HeadingMetrics:
     """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*);
     *min_straight_m*: the shortest straight measured apart.
-    *base_offset_m*: the radar sits this far ahead of the rotation axis of the base that carries
-    it: straight drives and turns in place are told by the base's motion (a radar ahead of the
-    axis moves in a turn in place); the path and drift stay the radar's."""
+    *radar_on_base*: where the radar sits on the base that carries it, (3,) x, y (m) and yaw (rad)
+    in the base's frame (e.g. 0.3 m ahead of a wheeled base's rotation axis): straight drives and
+    turns in place are told by the base's motion (a radar ahead of the axis moves in a turn in
+    place); the path and drift stay the radar's."""
     times, ref, est = _trajectories(times, ref, est)
     dt = np.diff(times)
     d_ref = _wrap(np.diff(ref[:, 2]))
     d_est = _wrap(np.diff(est[:, 2]))
     err = _wrap(d_est - d_ref)
     step_m = np.hypot(*np.diff(ref[:, :2], axis=0).T)
-    base = _base(ref, base_offset_m)
+    base = _base(ref, radar_on_base)
     straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     s_m, s_s = float(step_m[straight].sum()), float(dt[straight].sum())
     s_yaw = math.degrees(float(err[straight].sum()))  # the truth turns ~0 there; its ramps' rest removed
@@ -196,7 +198,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
 
 
 def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
-                min_turn_deg: float = 10.0, after_turn_frames: int = 3, base_offset_m: float = 0.0
+                min_turn_deg: float = 10.0, after_turn_frames: int = 3, radar_on_base=(0.0, 0.0, 0.0)
                 ) -> dict[str, float]:
     """Drift (% of the path, as :func:`heading_metrics`) that each kind of frame makes alone: the
     true path integrated again from its own steps, with the estimate's yaw increments on that
@@ -210,7 +212,7 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed
     dt = np.diff(times)
     d_ref = _wrap(np.diff(ref[:, 2]))
     err = _wrap(_wrap(np.diff(est[:, 2])) - d_ref)
-    base = _base(ref, base_offset_m)
+    base = _base(ref, radar_on_base)
     straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     kind = np.where(straight, "straight", "other").astype(object)
     for i, j, in_place in segment_turns(times, base, straight_rate_dps=straight_rate_dps,

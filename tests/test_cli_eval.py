@@ -4,6 +4,7 @@ as one line with exit status 2."""
 from __future__ import annotations
 
 import json
+import math
 import pathlib
 import subprocess
 import sys
@@ -11,9 +12,10 @@ import sys
 import numpy as np
 import pytest
 from conftest import console_command
-from test_evaluation import drive, write_tum
+from test_evaluation import drive, integrate, write_tum
 
-from radarodom.estimator.evaluation import evaluate
+from radarodom.estimator.evaluation import evaluate, se2_compose
+from radarodom.estimator.heading_metrics import heading_metrics
 from radarodom.tools import radar_eval
 from radarodom.tum import read_tum
 
@@ -54,8 +56,11 @@ def test_json_and_plots(run_files, tmp_path):
     proc = run_eval(est, gt, "--json", tmp_path / "eval.json", "--plot", tmp_path / "plots", "--delta-m", "2")
     assert proc.returncode == 0, proc.stderr
     data = json.loads((tmp_path / "eval.json").read_text())
-    expected = evaluate(read_tum(est), read_tum(gt), delta_m=2.0).to_dict()
-    assert data == json.loads(json.dumps(expected))
+    result = evaluate(read_tum(est), read_tum(gt), delta_m=2.0)
+    heading = data.pop("heading")
+    assert data == json.loads(json.dumps(result.to_dict()))
+    expected = heading_metrics(result.times, result.ref, result.est).to_dict()
+    assert {k: v for k, v in heading.items() if k != "drift_parts"} == json.loads(json.dumps(expected))
     assert data["rpe_per_distance"]["delta_m"] == 2.0 and "RPE per 2 m, rotation deg" in proc.stdout
     names = ["report.png", "trajectories.png", "yaw.png", "speed.png", "position_error.png", "yaw_error.png",
              "yaw_cumulative_error.png"]  # no flags.png without --flags
@@ -151,3 +156,92 @@ def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
     assert data["poses"]["matched"] == 3
     assert proc.stderr.count("\n") == 1 and "radar-eval: warning: the coordinates are too large" in proc.stderr
     assert "null in --json" in proc.stderr and "RuntimeWarning" not in proc.stderr
+
+
+# =========================================================================== issue 20: heading figures
+def _loop(rate_hz: float = 10.0):
+    """A base's loop as body-frame steps (n, 3) at *rate_hz*, and each step's kind: 4 m straight at
+    0.8 m/s, a 90 degree turn in place at 45 deg/s, 4 m straight, a 90 degree moving turn (0.8 m/s,
+    45 deg/s), 4 m straight."""
+    dt = 1.0 / rate_hz
+    straight = [((0.8 * dt, 0.0, math.radians(0.0)), "straight")] * 50
+    in_place = [((0.0, 0.0, math.radians(45.0) * dt), "in place")] * 20
+    moving = [((0.8 * dt, 0.0, math.radians(45.0) * dt), "moving")] * 20
+    steps = straight + in_place + straight + moving + straight
+    return np.array([s for s, _ in steps]), np.array([k for _, k in steps])
+
+
+def _with_errors(steps, kinds, *, straight_rad=0.0, in_place=1.0, moving=1.0):
+    out = steps.copy()
+    out[kinds == "straight", 2] += straight_rad
+    out[kinds == "in place", 2] *= in_place
+    out[kinds == "moving", 2] *= moving
+    return out
+
+
+def test_heading_figures_of_straights_and_turns(tmp_path):
+    """radar-eval prints (and --json writes) the heading figures of docs/heading.md: the straight
+    drives' heading bias, each kind of turn's measured share of the truth's, and the drift each
+    kind of frame's yaw errors make alone."""
+    steps, kinds = _loop()
+    t = 100.0 + np.arange(len(steps) + 1) / 10.0
+    est_steps = _with_errors(steps, kinds, straight_rad=math.radians(0.01), in_place=1.05, moving=0.97)
+    gt = write_tum(tmp_path / "gt.tum", t, integrate(steps))
+    est = write_tum(tmp_path / "est.tum", t, integrate(est_steps))
+    proc = run_eval(est, gt, "--json", tmp_path / "eval.json")
+    assert proc.returncode == 0, proc.stderr
+    h = _strict((tmp_path / "eval.json").read_text())["heading"]
+    # Straight: 150 frames of 0.08 m, each 0.01 degree off (the straight frames after a turn too).
+    assert h["straight_frames"] == 150 and h["straight_m"] == pytest.approx(12.0)
+    assert h["straight_bias_deg_per_frame"] == pytest.approx(0.01)
+    assert h["straight_bias_deg_per_m"] == pytest.approx(0.125)
+    assert h["straights"] == 3 and h["straight_max_deg_per_m"] == pytest.approx(0.125)
+    assert (h["inplace_turns"], h["moving_turns"]) == (1, 1)
+    assert h["inplace_turn_deg"] == pytest.approx(90.0) and h["inplace_turn_ratio"] == pytest.approx(1.05)
+    assert h["moving_turn_deg"] == pytest.approx(90.0) and h["moving_turn_ratio"] == pytest.approx(0.97)
+    parts = h["drift_parts"]
+    # (the TUM files round the positions: the translation is off by their last digit)
+    assert parts["other"] == pytest.approx(0.0, abs=1e-9) and parts["translation"] == pytest.approx(0.0, abs=1e-5)
+    assert parts["turn in place"] > parts["moving turn"] > 0.0 and parts["straight"] > 0.0
+    lines = proc.stdout.splitlines()
+    start = lines.index("heading (the truth drives straight where it turns under 2 deg/s and moves; "
+                        "a turn turns 10 deg or more):")
+    assert lines[start + 1:start + 6] == [
+        "  straight drives   12.00 m in 15.0 s, heading bias +0.125 deg/m = +6.00 deg/min = +0.0100 deg/frame",
+        "                    each of 3 straight(s) of 1 m or more: RMS 0.125, worst 0.125 deg/m",
+        "  moving turns      1, 90.0 deg in all, measured 0.970 of it",
+        "  turns in place    1, 90.0 deg in all, measured 1.050 of it",
+        "  drift parts, % of the path (each kind of frame's yaw errors alone, and the translation's):"]
+    assert lines[start + 6] == "                    " + ", ".join(
+        f"{name} {parts[name]:.2f}" for name in ("straight", "after turn", "moving turn", "turn in place", "other",
+                                                 "translation"))
+
+
+def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path):
+    """A radar 0.3 m ahead of its base's rotation axis moves on a circle in the base's turn in
+    place: without --mount that turn is a moving one (and its frames no straight drive), with it
+    a turn in place, as the base made it."""
+    steps, kinds = _loop()
+    base = integrate(steps)
+    radar = se2_compose(base, np.array([0.3, 0.0, 0.0])[None, :])
+    est_radar = se2_compose(integrate(_with_errors(steps, kinds, in_place=1.02)), np.array([0.3, 0.0, 0.0])[None, :])
+    t = 100.0 + np.arange(len(base)) / 10.0
+    gt, est = write_tum(tmp_path / "gt.tum", t, radar), write_tum(tmp_path / "est.tum", t, est_radar)
+    figures = {}
+    for mount in (None, "0.3,0,0.2,0"):
+        out = tmp_path / f"{mount}.json"
+        proc = run_eval(est, gt, "--json", out, *(("--mount", mount) if mount else ()))
+        assert proc.returncode == 0, proc.stderr
+        figures[mount] = _strict(out.read_text())["heading"]
+    assert (figures[None]["inplace_turns"], figures[None]["moving_turns"]) == (0, 2)
+    mounted = figures["0.3,0,0.2,0"]
+    assert (mounted["inplace_turns"], mounted["moving_turns"]) == (1, 1)
+    assert mounted["inplace_turn_ratio"] == pytest.approx(1.02) and mounted["moving_turn_ratio"] == pytest.approx(1.0)
+    assert mounted["drift_pct"] == figures[None]["drift_pct"]  # the path and drift stay the radar's
+
+
+def test_a_bad_mount_is_a_usage_error(run_files):
+    est, gt = run_files
+    proc = run_eval(est, gt, "--mount", "0.3,0")
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert "--mount: a mount is x,y,z,yaw_deg (four numbers: m, m, m, degrees), got '0.3,0'" in proc.stderr

@@ -16,7 +16,8 @@ import sys
 import traceback
 from typing import Callable, Sequence
 
-from ..errors import RadarodomError, quoted
+from ..errors import RadarodomError, UsageError, quoted
+from ..mount import Mount, parse_mount
 from ..plain_numbers import plain_float, plain_int
 from .status import StatusAwareHandler, StatusLine
 
@@ -83,6 +84,19 @@ port = int_in(0, 65535, what="a UDP port number")
 boresight_angle = float_in(0.0, 90.0, lo_open=True, unit="degrees")
 #: argparse type: a ROS 2 domain id (0..232, as ROS 2 allows).
 ros2_domain = int_in(0, 232, what="a ROS 2 domain id")
+
+
+def mount(text: str) -> Mount:
+    """argparse type: where the radar sits on the robot, ``x,y,z,yaw_deg`` (:func:`parse_mount`)."""
+    try:
+        return parse_mount(text)
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+#: Four numbers, not one: the numeric options' fuzz test (tests/test_fuzz_cli_options.py) leaves
+#: it to radarodom.mount's own tests.
+mount.not_a_number = True  # type: ignore[attr-defined]
 
 
 def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 from ..estimator.evaluation import EvaluationResult, Stats
+from ..estimator.heading_metrics import DRIFT_PARTS, HeadingMetrics
 from ..estimator.quality import Flag
 from .eval_flags import FlagTimeline
 
@@ -41,6 +42,35 @@ def format_table(r: EvaluationResult) -> str:
     lines.append(f"final drift (aligned at the first pose): {r.drift_m:.3f} m = {pct} % of the path, "
                  f"yaw {r.drift_yaw_deg:+.2f} deg")
     return "\n".join(lines)
+
+
+def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
+    """The heading figures (docs/heading.md): the truth told into straight drives and turns, the
+    estimate's heading error on each, and the drift each kind of frame's yaw errors make alone."""
+    def turns(count: int, true_deg: float, ratio: float) -> str:
+        if not count:
+            return "none"
+        return f"{count}, {true_deg:.1f} deg in all, measured {_num(ratio, '.3f')} of it"
+
+    if m.straight_frames:
+        straight = (f"{m.straight_m:.2f} m in {m.straight_s:.1f} s, heading bias "
+                    f"{_num(m.straight_bias_deg_per_m, '+.3f')} deg/m = {_num(m.straight_bias_deg_per_min, '+.2f')} "
+                    f"deg/min = {_num(m.straight_bias_deg_per_frame, '+.4f')} deg/frame")
+        if m.straights:
+            straight += (f"\n{'':<20}each of {m.straights} straight(s) of 1 m or more: RMS "
+                         f"{_num(m.straight_rms_deg_per_m, '.3f')}, "
+                         f"worst {_num(m.straight_max_deg_per_m, '.3f')} deg/m")
+    else:
+        straight = "none"
+    kinds = ", ".join(f"{name} {_num(parts[name], '.2f')}" for name in DRIFT_PARTS[1:])
+    return "\n".join([
+        "heading (the truth drives straight where it turns under 2 deg/s and moves; a turn turns 10 deg or more):",
+        f"  straight drives   {straight}",
+        f"  moving turns      {turns(m.moving_turns, m.moving_turn_deg, m.moving_turn_ratio)}",
+        f"  turns in place    {turns(m.inplace_turns, m.inplace_turn_deg, m.inplace_turn_ratio)}",
+        "  drift parts, % of the path (each kind of frame's yaw errors alone, and the translation's):",
+        f"{'':<20}{kinds}",
+    ])
 
 
 def _num(value: float, spec: str) -> str:

@@ -1,7 +1,7 @@
 """radar-eval: compare an estimated trajectory with ground truth.
 
     radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR [--name NAME] [--flags ODOM.jsonl]] [--json FILE]
-               [--delta-m M] [--max-diff S] [-v|-q]
+               [--delta-m M] [--max-diff S] [--mount X,Y,Z,YAW_DEG] [-v|-q]
 
 The ground truth is a TUM file, or the source URL the estimate was made from when that source
 knows the truth: ``coloradar://RUN_DIR?heatmap=...`` (the heatmap radar's poses from the run's
@@ -9,9 +9,12 @@ lidar ground truth and calib transforms) or ``replay://DIR`` (a recording's grou
 
 Prints a table of relative pose errors (per frame and per distance), the
 yaw-increment error, the absolute trajectory error after Umeyama alignment and
-the final drift; ``--json`` writes the same numbers, ``--plot`` PNGs (``report.png`` has them
-all), titled ``--name`` (default: the estimate's file name) and with the estimator's quality
-flags from ``--flags`` (its odometry messages, one JSON object per line).
+the final drift, then the heading figures of docs/heading.md (the straight drives' heading bias,
+the turns' measured share, the drift each kind of frame makes; straight drives and turns in
+place told by the motion of the base the radar sits on, ``--mount``); ``--json`` writes the
+same numbers, ``--plot`` PNGs (``report.png`` has them all), titled ``--name`` (default: the
+estimate's file name) and with the estimator's quality flags from ``--flags`` (its odometry
+messages, one JSON object per line).
 """
 
 from __future__ import annotations
@@ -27,11 +30,13 @@ import numpy as np
 
 from ..driver.recordings.capture_dir import write_json_atomically
 from ..errors import CaptureError, UsageError
+from ..mount import Mount
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
+from ..estimator.heading_metrics import drift_parts, heading_metrics
 from ..driver.sources import open_source
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
-from .eval_summary import format_table
+from .eval_summary import format_heading, format_table
 
 log = logging.getLogger("radarodom.tools.radar_eval")
 
@@ -60,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="path length of the per-distance RPE, m (default 1)")
     parser.add_argument("--max-diff", type=cli.positive_float, default=0.01, metavar="S",
                         help="largest time difference of two associated poses, s (default 0.01)")
+    parser.add_argument("--mount", type=cli.mount, default=Mount(), metavar="X,Y,Z,YAW_DEG",
+                        help="where the radar sits on the robot (as radar-capture's --mount): the heading figures "
+                             "tell straight drives and turns in place by the base's motion (a radar ahead of a "
+                             "wheeled base's axis moves in its turns in place; default: the radar is the base)")
     cli.add_verbosity(parser)
     return parser
 
@@ -80,9 +89,16 @@ def _main(args: argparse.Namespace) -> int:
     with np.errstate(over="ignore", invalid="ignore"):
         result = evaluate(estimate, reference,
                           delta_m=args.delta_m, max_diff=args.max_diff)
-        table = format_table(result)
+        on_base = (args.mount.x, args.mount.y, args.mount.yaw)
+        heading = heading_metrics(result.times, result.ref, result.est, radar_on_base=on_base)
+        parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
+        table = format_table(result) + "\n\n" + format_heading(heading, parts)
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
-        data = result.to_dict() if args.json else None
+        data = None
+        if args.json:
+            data = result.to_dict()
+            data["heading"] = {**heading.to_dict(),
+                               "drift_parts": {k: (v if math.isfinite(v) else None) for k, v in parts.items()}}
     if overflow:
         log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")

@@ -7,24 +7,13 @@ from __future__ import annotations
 import argparse
 
 from ..errors import UsageError
-from ..mount import Mount, parse_mount
-
-
-def _mount(text: str) -> Mount:
-    try:
-        return parse_mount(text)
-    except UsageError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-#: Four numbers, not one: the numeric options' fuzz test (tests/test_fuzz_cli_options.py) leaves
-#: it to radarodom.mount's own tests.
-_mount.not_a_number = True  # type: ignore[attr-defined]
+from ..mount import Mount
+from .cli import mount
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """--mount, --mcap, --odom-json."""
-    parser.add_argument("--mount", type=_mount, default=Mount(), metavar="X,Y,Z,YAW_DEG",
+    parser.add_argument("--mount", type=mount, default=Mount(), metavar="X,Y,Z,YAW_DEG",
                         help="where the radar sits on the robot: its position in base_link (m, REP-103: x ahead, "
                              "y left, z up) and its yaw (degrees, counter-clockwise); the ROS 2 outputs' "
                              "base_link -> radar transform (default: the radar is base_link)")
