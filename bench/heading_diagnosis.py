@@ -51,13 +51,12 @@ import sequences  # noqa: E402  (bench/ is not a package)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.evaluation import associate  # noqa: E402
-from radarodom.estimator.heading_metrics import _straight, drift_parts, straight_runs  # noqa: E402
+from radarodom.estimator.heading_metrics import (  # noqa: E402
+    MOVING_MPS, STRAIGHT_RATE_DPS, _straight, drift_parts, straight_runs)
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
 
-STRAIGHT_RATE_DPS = 2.0
-MOVING_MPS = 0.05
 STAGES = ("estimate", "field, true translation", "field, no translation")
 
 

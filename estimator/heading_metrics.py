@@ -40,6 +40,13 @@ __all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "s
 
 #: The parts :func:`drift_parts` reports, in order.
 DRIFT_PARTS = ("all", "straight", "after turn", "moving turn", "turn in place", "other", "translation")
+#: The defaults that tell the truth's motion apart: straight below this yaw rate (deg/s) while
+#: moving faster than MOVING_MPS (m/s); a turn turns at least MIN_TURN_DEG; a straight measured
+#: apart is at least MIN_STRAIGHT_M long.
+STRAIGHT_RATE_DPS = 2.0
+MOVING_MPS = 0.05
+MIN_TURN_DEG = 10.0
+MIN_STRAIGHT_M = 1.0
 
 
 def _wrap(a):
@@ -120,8 +127,9 @@ def straight_runs(straight: np.ndarray, step_m: np.ndarray, err: np.ndarray,
     return out
 
 
-def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: float = 2.0,
-                  moving_speed_mps: float = 0.05, min_turn_deg: float = 10.0) -> list[tuple[int, int, bool]]:
+def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: float = STRAIGHT_RATE_DPS,
+                  moving_speed_mps: float = MOVING_MPS, min_turn_deg: float = MIN_TURN_DEG
+                  ) -> list[tuple[int, int, bool]]:
     """The truth's turns as (first interval, end interval (exclusive), in place) over the
     n-1 frame intervals: runs of |yaw rate| > *straight_rate_dps* turning >= *min_turn_deg*."""
     dt = np.diff(times)
@@ -144,8 +152,9 @@ def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: floa
     return out
 
 
-def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
-                    min_turn_deg: float = 10.0, min_straight_m: float = 1.0,
+def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS,
+                    moving_speed_mps: float = MOVING_MPS, min_turn_deg: float = MIN_TURN_DEG,
+                    min_straight_m: float = MIN_STRAIGHT_M,
                     radar_on_base=(0.0, 0.0, 0.0)) -> HeadingMetrics:
     """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*);
     *min_straight_m*: the shortest straight measured apart.
@@ -197,8 +206,9 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = 2.0, moving_s
         path_m=path, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
 
 
-def drift_parts(times, ref, est, *, straight_rate_dps: float = 2.0, moving_speed_mps: float = 0.05,
-                min_turn_deg: float = 10.0, after_turn_frames: int = 3, radar_on_base=(0.0, 0.0, 0.0)
+def drift_parts(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS,
+                moving_speed_mps: float = MOVING_MPS, min_turn_deg: float = MIN_TURN_DEG,
+                after_turn_frames: int = 3, radar_on_base=(0.0, 0.0, 0.0)
                 ) -> dict[str, float]:
     """Drift (% of the path, as :func:`heading_metrics`) that each kind of frame makes alone: the
     true path integrated again from its own steps, with the estimate's yaw increments on that

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from ..estimator.evaluation import EvaluationResult, Stats
-from ..estimator.heading_metrics import DRIFT_PARTS, HeadingMetrics
+from ..estimator.heading_metrics import DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG, STRAIGHT_RATE_DPS, HeadingMetrics
 from ..estimator.quality import Flag
 from .eval_flags import FlagTimeline
 
@@ -45,8 +45,9 @@ def format_table(r: EvaluationResult) -> str:
 
 
 def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
-    """The heading figures (docs/heading.md): the truth told into straight drives and turns, the
-    estimate's heading error on each, and the drift each kind of frame's yaw errors make alone."""
+    """The heading figures (docs/heading.md) of :func:`heading_metrics` and :func:`drift_parts` at
+    their defaults: the truth told into straight drives and turns, the estimate's heading error on
+    each, and the drift each kind of frame's yaw errors make alone."""
     def turns(count: int, true_deg: float, ratio: float) -> str:
         if not count:
             return "none"
@@ -57,14 +58,15 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
                     f"{_num(m.straight_bias_deg_per_m, '+.3f')} deg/m = {_num(m.straight_bias_deg_per_min, '+.2f')} "
                     f"deg/min = {_num(m.straight_bias_deg_per_frame, '+.4f')} deg/frame")
         if m.straights:
-            straight += (f"\n{'':<20}each of {m.straights} straight(s) of 1 m or more: RMS "
+            straight += (f"\n{'':<20}each of {m.straights} straight(s) of {MIN_STRAIGHT_M:g} m or more: RMS "
                          f"{_num(m.straight_rms_deg_per_m, '.3f')}, "
                          f"worst {_num(m.straight_max_deg_per_m, '.3f')} deg/m")
     else:
         straight = "none"
     kinds = ", ".join(f"{name} {_num(parts[name], '.2f')}" for name in DRIFT_PARTS[1:])
     return "\n".join([
-        "heading (the truth drives straight where it turns under 2 deg/s and moves; a turn turns 10 deg or more):",
+        f"heading (the truth drives straight where it turns under {STRAIGHT_RATE_DPS:g} deg/s and moves; "
+        f"a turn turns {MIN_TURN_DEG:g} deg or more):",
         f"  straight drives   {straight}",
         f"  moving turns      {turns(m.moving_turns, m.moving_turn_deg, m.moving_turn_ratio)}",
         f"  turns in place    {turns(m.inplace_turns, m.inplace_turn_deg, m.inplace_turn_ratio)}",

@@ -14,13 +14,14 @@ from typing import Any
 import numpy as np
 
 from ..estimator.evaluation import EvaluationResult, Stats, path_steps
-from ..estimator.heading_metrics import segment_turns
+from ..estimator.heading_metrics import MIN_TURN_DEG, STRAIGHT_RATE_DPS, segment_turns
 from ..estimator.quality import Flag
 from .eval_flags import FlagTimeline
 
-#: The truth turns where its yaw rate exceeds this (deg/s), over at least TURN_MIN_DEG.
-TURN_RATE_DPS = 2.0
-TURN_MIN_DEG = 10.0
+#: The truth turns where its yaw rate exceeds this (deg/s), over at least TURN_MIN_DEG: as
+#: radar-eval's heading figures tell turns.
+TURN_RATE_DPS = STRAIGHT_RATE_DPS
+TURN_MIN_DEG = MIN_TURN_DEG
 #: Margin around the trajectories: this share of the larger extent, and at least PAD_MIN_M.
 PAD_SHARE = 0.04
 PAD_MIN_M = 0.25
