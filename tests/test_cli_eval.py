@@ -219,8 +219,7 @@ def test_heading_figures_of_straights_and_turns(tmp_path):
 
 def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path):
     """A radar 0.3 m ahead of its base's rotation axis moves on a circle in the base's turn in
-    place: without --mount that turn is a moving one (and its frames no straight drive), with it
-    a turn in place, as the base made it."""
+    place: without --mount that turn is a moving one, with it a turn in place, as the base made it."""
     steps, kinds = _loop()
     base = integrate(steps)
     radar = se2_compose(base, np.array([0.3, 0.0, 0.0])[None, :])

@@ -103,6 +103,41 @@ def test_straights_that_turn_opposite_ways_are_measured_each_though_they_cancel_
     assert heading_metrics(t, ref, est, min_straight_m=3.5).straights == 2  # the 4 m ones
 
 
+@pytest.mark.parametrize("mount", [(0.3, 0.0, 0.0), (0.2, -0.15, math.radians(90.0)), (-0.4, 0.1, math.radians(-30.0))])
+def test_a_mounted_radars_figures_are_told_by_its_base(mount):
+    """A radar on a base (*mount*: x, y, yaw in the base's frame) moves on circles in the base's
+    turn in place and sideways in its moving turns: given where it sits (``radar_on_base``), its
+    straight frames and turns are the base's, and so are the turn ratios (yaw alone); its path
+    and drift stay its own."""
+    t, base = truth()
+    est_base = estimate(t, base, bias_deg=0.02, moving_k=1.05, inplace_k=0.91)
+
+    def radar_of(poses):
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        return np.column_stack([poses[:, 0] + c * mount[0] - s * mount[1], poses[:, 1] + s * mount[0] + c * mount[1],
+                                poses[:, 2] + mount[2]])
+
+    radar, est_radar = radar_of(base), radar_of(est_base)
+    by_base = heading_metrics(t, base, est_base)
+    told = heading_metrics(t, radar, est_radar, radar_on_base=mount)
+    for name in ("straight_frames", "moving_turns", "inplace_turns"):
+        assert getattr(told, name) == getattr(by_base, name), name
+    for name in ("moving_turn_ratio", "inplace_turn_ratio", "straight_bias_deg_per_frame"):
+        assert getattr(told, name) == pytest.approx(getattr(by_base, name), abs=1e-9), name
+    assert told.path_m != pytest.approx(by_base.path_m)  # the radar's own path
+    untold = heading_metrics(t, radar, est_radar)
+    assert untold.inplace_turns == 0  # the radar itself moves through the base's turn in place
+    assert drift_parts(t, radar, est_radar, radar_on_base=mount)["turn in place"] > 0.5
+    assert drift_parts(t, radar, est_radar)["turn in place"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_mount_must_be_three_finite_numbers():
+    t, ref = truth()
+    for bad in ((0.3, 0.0), (0.3, float("nan"), 0.0)):
+        with pytest.raises(ValueError, match="radar_on_base must be three finite numbers"):
+            heading_metrics(t, ref, ref, radar_on_base=bad)
+
+
 def test_a_pure_yaw_increment_noise_gives_its_rmse():
     t, ref = truth()
     rng = np.random.default_rng(1)
