@@ -196,6 +196,7 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
             return {**json.load(fh), "cached": True}
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.heading_metrics import drift_parts, heading_metrics
+    from radarodom.strict_json import finite
     started = time.monotonic()
     est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings)
     if isinstance(cell, SimCell) and not keep_adc:
@@ -206,7 +207,7 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     parts = drift_parts(ref_m.times, ref_m.se2(), est_m.se2(), radar_on_base=mount)
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
-              "drift_parts": {k: (v if math.isfinite(v) else None) for k, v in parts.items()},
+              "drift_parts": finite(parts),
               "compute_s": time.monotonic() - started, "fingerprint": fp}
     os.makedirs(os.path.dirname(path), exist_ok=True)
     with open(path + ".tmp", "w", encoding="utf-8") as fh:

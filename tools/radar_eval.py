@@ -94,11 +94,8 @@ def _main(args: argparse.Namespace) -> int:
         parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
-        data = None
-        if args.json:
-            data = result.to_dict()
-            data["heading"] = {**heading.to_dict(),
-                               "drift_parts": {k: (v if math.isfinite(v) else None) for k, v in parts.items()}}
+        # (write_json_atomically writes standard JSON: an undefined figure becomes null)
+        data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts}} if args.json else None
     if overflow:
         log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
