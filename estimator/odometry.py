@@ -102,6 +102,9 @@ class _Measured:
     observed: float | None
     variance: float
     fused_doppler: bool
+    #: Whether the registration measured the yaw (not the Doppler alone): the keyframe's
+    #: registration needs the structure this one found.
+    registered: bool
 
 
 class RadarOdometry:
@@ -232,7 +235,9 @@ class RadarOdometry:
         else:
             dyaw, var_yaw = self.rate(step.observed, step.variance, dt, floored=step.fused_doppler)
             self._good_rate = (t, dyaw / dt)
-            if not bridged:  # (the keyframe is a frame of the run: a new one starts here)
+            # Not across a bridged run (the keyframe is a frame of the run: a new one starts here),
+            # nor where the Doppler alone measured: the keyframe registration would measure noise.
+            if not bridged and step.registered:
                 dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame)
         pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt)
         # Across a bridged run, the increment since the latest state (the run's held motion).
@@ -270,7 +275,8 @@ class RadarOdometry:
                 var_registered = max(var_registered, self._yaw_noise_var)  # the filter's floor, before fusing
         observed, var_observed = fuse(registered, var_registered, doppler, dt)
         return _Measured(base, velocity, measured.registration, observed,
-                         var_observed if observed is not None else measured.variance, doppler is not None)
+                         var_observed if observed is not None else measured.variance, doppler is not None,
+                         registered is not None)
 
     @property
     def _last_rate(self) -> float:

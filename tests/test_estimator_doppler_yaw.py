@@ -81,7 +81,18 @@ ARC = [(0.5, 0.0, 0.0), (1.0, 0.6, 0.0), (3.0, 0.6, math.radians(-30.0)), (1.0, 
 def test_the_doppler_alone_measures_the_turn_when_the_heatmap_holds_nothing(phases, mount):
     states, true_turn = _run(_wheeled(mount), phases, blank=True, mount=mount)
     assert all("no_structure" in s.flags for s in states[1:])  # the registration measured nothing
-    assert states[-1].yaw == pytest.approx(true_turn, rel=0.02)
+    # In a moving turn the fit's sideways speed runs 1-3 % long over these points' seeds (the
+    # mounted radar's moving turns, docs/heading.md): 2 % in place, 4 % moving.
+    assert states[-1].yaw == pytest.approx(true_turn, rel=0.02 if phases is SPIN else 0.04)
+
+
+@pytest.mark.parametrize("phases", [SPIN, ARC], ids=["in place", "moving"])
+def test_a_frame_the_doppler_alone_measured_is_not_corrected_against_the_keyframe(phases):
+    # The keyframe's registration against a heatmap of noise measures noise: the yaw is the
+    # Doppler's, as without keyframes, to the last bit.
+    with_keyframes, _ = _run(_wheeled(), phases, blank=True)
+    without, _ = _run(_wheeled(keyframe_distance_m=0.0), phases, blank=True)
+    assert [s.yaw for s in with_keyframes] == [s.yaw for s in without]
 
 
 def test_without_a_wheeled_base_the_doppler_says_nothing_of_the_yaw():
