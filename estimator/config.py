@@ -266,6 +266,13 @@ class IcpConfig(Settings):
     #: then cannot reach (it ends on the window's edge); the scan guess is independent of ICP.
     #: The window grows only when the two disagree.
     field_window: str = "icp_and_scan"
+    #: The field's points weighed by how like one reflector's their azimuth peak is: times floor +
+    #: (1 - floor) exp(-((q - 1) / width)^2), q the log power's curvature at the peak over the
+    #: frame's usual peak's.  Scatterers sharing a beam (walls, furniture) peak broader or sharper
+    #: than it, where their phases put them, not where fixed reflectors would move (docs/heading.md
+    #: item 22).  None: off.
+    field_shape_width: float | None = 0.3
+    field_shape_floor: float = 0.3
     #: The scan guess and the field search leave out cells whose dominant Doppler differs by
     #: more than this (m/s) from what a static reflector shows at the frame's velocity: their
     #: strongest cells skip them and their log heatmaps set them to the background (None: off).
@@ -320,6 +327,9 @@ class IcpConfig(Settings):
         _check(1 <= self.field_upsampling <= 16, "must be from 1 to 16", "field_upsampling")
         _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
+        _check(self.field_shape_width is None or 0 < self.field_shape_width < math.inf, "must be positive (None: off)",
+               "field_shape_width")
+        _check(0 <= self.field_shape_floor <= 1, "must be in [0, 1]", "field_shape_floor")
         check_choice(self.score_support, ("inside", "common"), "score_support")
         check_choice(self.scan_score_support, ("inside", "common"), "scan_score_support")
         check_choice(self.scan_structure, ("one_way", "two_way"), "scan_structure")

@@ -83,6 +83,13 @@ class Features:
         return type(self)(self.range_m[keep], self.bearing_rad[keep], weight / weight.sum(), self.intensity[keep],
                           height)
 
+    def reweighted(self, weight: np.ndarray) -> "Features":
+        """The same points weighed by *weight* (n,), normalised again (not all zero)."""
+        out = type(self)(self.range_m, self.bearing_rad, weight / weight.sum(), self.intensity, self.height_m)
+        # The same places: what was computed of them already holds (cached properties).
+        out.__dict__.update((k, v) for k, v in self.__dict__.items() if k in _PLACES)
+        return out
+
     def turned(self, angle_rad: float) -> "Features":
         """The same points with bearings turned by *angle_rad* (counter-clockwise)."""
         return type(self)(self.range_m, self.bearing_rad + angle_rad, self.weight, self.intensity, self.height_m)
@@ -96,6 +103,10 @@ class Features:
         xy.flags.writeable = False
         out.__dict__["xy"] = xy
         return out
+
+
+#: The cached properties of :class:`Features` that depend on the points' places only.
+_PLACES = ("slant_m", "cos_elevation", "xy", "_level_xy")
 
 
 class SlantFeatures(Features):

@@ -8,13 +8,14 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, partial
 from typing import Any
 
 import numpy as np
 
 from .config import EstimatorConfig
 from .features import Features, PolarHeatmap, azimuth_profile, extract, static_mask
+from .peak_shape import shape_weighted
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess, score_back)
 from .log_heatmap import LogHeatmap
@@ -179,10 +180,14 @@ class FieldSearch:
         self._search_rad = config.icp.field_search_rad
         self._step_rad = config.icp.field_step_rad
         self._common = config.icp.score_support == "common"
+        width = config.icp.field_shape_width
+        self._weigh = _as_they_are if width is None else partial(shape_weighted, width=width,
+                                                                  floor=config.icp.field_shape_floor)
 
     def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
         points = guide if self._views_are_scan_points else extract(frame.heatmap, self._scan_features)
-        return LikelihoodField(points, frame.log.smoothed(self._smoothing_bins, self._upsampling))
+        return LikelihoodField(self._weigh(points, frame.heatmap),
+                               frame.log.smoothed(self._smoothing_bins, self._upsampling))
 
     def refine(self, source: LikelihoodField | None, target: LikelihoodField | None, translation: np.ndarray,
                rotation: float, other: float | None = None, reach: float | None = None) -> float:
@@ -198,6 +203,11 @@ class FieldSearch:
         refined = field_rotation(source.points, target.points, source.smoothed, target.smoothed,
                                  translation, centre, reach, self._step_rad, self._common)
         return rotation if refined is None else refined
+
+
+def _as_they_are(points: Features, heatmap: PolarHeatmap) -> Features:
+    """``icp.field_shape_width`` None: the field's points weighed by their intensity alone."""
+    return points
 
 
 class NoFieldSearch:
