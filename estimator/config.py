@@ -266,11 +266,9 @@ class IcpConfig(Settings):
     #: then cannot reach (it ends on the window's edge); the scan guess is independent of ICP.
     #: The window grows only when the two disagree.
     field_window: str = "icp_and_scan"
-    #: The field's points weighed by how like one reflector's their azimuth peak is: times floor +
-    #: (1 - floor) exp(-((q - 1) / width)^2), q the log power's curvature at the peak over the
-    #: frame's usual peak's.  Scatterers sharing a beam (walls, furniture) peak broader or sharper
-    #: than it, where their phases put them, not where fixed reflectors would move (docs/heading.md
-    #: item 22).  None: off.
+    #: The field's points weighed by how like one reflector's their azimuth peak is, floor + (1 -
+    #: floor) exp(-((q - 1) / width)^2), q its curvature over the frame's usual peak's: scatterers
+    #: sharing a beam peak where their phases put them (docs/heading.md item 22).  None: off.
     field_shape_width: float | None = 0.3
     field_shape_floor: float = 0.3
     #: The scan guess and the field search leave out cells whose dominant Doppler differs by

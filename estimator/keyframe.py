@@ -67,12 +67,19 @@ class KeyframeCorrection:
         self._reach = None if start == "scan" else odo.keyframe_search_rad
         self.key: Keyframe | None = None
 
-    def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
+    def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame, *,
+                registered: bool = True) -> tuple[float, float]:
         """The step's yaw increment corrected by the registration of the keyframe to *current*,
         and its variance: unchanged when there is no keyframe or the measurement fails or
-        moves the prediction further than the search allows."""
+        moves the prediction further than the search allows, or when the step's own registration
+        measured nothing (not *registered*: the Doppler alone did, on a heatmap where the
+        keyframe's registration would measure noise); the keyframe's yaw variance grows by the
+        step's either way."""
         key = self.key
         if key is None:
+            return step.dyaw, step.var_yaw
+        if not registered:
+            key.yaw_var += step.var_yaw
             return step.dyaw, step.var_yaw
         cfg = self._config
         kx, ky, kyaw = key.pose
@@ -114,11 +121,15 @@ class KeyframeCorrection:
         key.yaw_var *= 1.0 - gain
         return step.dyaw + (corrected - predicted), (1.0 - gain) * step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float,
+               registered: bool = True) -> None:
         """Make *current* (at *pose*, its step turning at *rate* rad/s) the keyframe when the last
         one is far enough behind, or was taken in a turn that has ended, or when this frame's yaw
-        was not *measured* (the chain broke)."""
+        was not *measured* (the chain broke); not a frame whose yaw the Doppler alone measured
+        (not *registered*): the last keyframe stays until a frame with structure takes over."""
         key = self.key
+        if key is not None and measured and not registered:
+            return
         if key is not None and measured:
             kx, ky, kyaw = key.pose
             near = math.hypot(pose[0] - kx, pose[1] - ky) < self._distance_m and abs(pose[2] - kyaw) < self._angle_rad
@@ -133,8 +144,10 @@ class KeyframeCorrection:
 class NoKeyframes:
     """``keyframe_distance_m`` 0: the frame chain alone."""
 
-    def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
+    def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame, *,
+                registered: bool = True) -> tuple[float, float]:
         return step.dyaw, step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float,
+               registered: bool = True) -> None:
         pass

@@ -93,8 +93,8 @@ class OdometryState:
 @dataclass
 class _Measured:
     """One step's measurement from *base* (the state at the frame registered against): its
-    velocity, the registration, the yaw observed (None: not measured) and its variance, and
-    whether the Doppler's yaw rate was fused in."""
+    velocity, the registration, the yaw observed (None: not measured) and its variance,
+    whether the Doppler's yaw rate was fused in, and whether the registration measured."""
 
     base: OdometryState
     velocity: StepVelocity
@@ -103,7 +103,7 @@ class _Measured:
     variance: float
     fused_doppler: bool
     #: Whether the registration measured the yaw (not the Doppler alone): the keyframe's
-    #: registration needs the structure this one found.
+    #: registration needs the structure this one found, and a new keyframe has it.
     registered: bool
 
 
@@ -235,10 +235,9 @@ class RadarOdometry:
         else:
             dyaw, var_yaw = self.rate(step.observed, step.variance, dt, floored=step.fused_doppler)
             self._good_rate = (t, dyaw / dt)
-            # Not across a bridged run (the keyframe is a frame of the run: a new one starts here),
-            # nor where the Doppler alone measured: the keyframe registration would measure noise.
-            if not bridged and step.registered:
-                dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame)
+            if not bridged:  # (the keyframe is a frame of the run: a new one starts here)
+                dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame,
+                                                       registered=step.registered)
         pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt)
         # Across a bridged run, the increment since the latest state (the run's held motion).
         increment = dyaw if last is self._state else pose[2] - self._state.yaw
@@ -247,7 +246,7 @@ class RadarOdometry:
                               flags=tuple(flags), features=len(current.features), yaw_increment=float(increment),
                               registration=step.registration, velocity=velocity.estimate)
         self.keyframes.update(state.pose, current, measured=step.observed is not None and not bridged,
-                              rate=state.yaw_rate)
+                              rate=state.yaw_rate, registered=step.registered)
         if step.observed is not None:
             self._anchor, self._blind_since = (current, state), True
         else:

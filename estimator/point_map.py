@@ -65,9 +65,11 @@ class LocalMap:
         #: steps since it.
         self._reference: _Reference | None = None
 
-    def correct(self, step, current: KeptFrame, frame: CurrentFrame) -> tuple[float, float]:
+    def correct(self, step, current: KeptFrame, frame: CurrentFrame, *, registered: bool = True) -> tuple[float, float]:
         """The step's yaw increment (rad) and variance (rad^2) as the filter gave it, corrected
-        with ``correct_lag`` by the chain's yaw since the reference frame (module docstring)."""
+        with ``correct_lag`` by the chain's yaw since the reference frame (module docstring).
+        *registered* (whether the points' own turn was measured) is the keyframes' concern: the
+        map's chain holds no turn then."""
         ref = self._reference
         if ref is None or self.turn is None or self.pose is None:
             return step.dyaw, step.var_yaw
@@ -85,10 +87,11 @@ class LocalMap:
         ref.odometry_var *= 1.0 - gain
         return step.dyaw + correction, (1.0 - gain) * step.var_yaw
 
-    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float) -> None:
+    def update(self, pose: tuple[float, float, float], current: KeptFrame, *, measured: bool, rate: float,
+               registered: bool = True) -> None:
         """The odometry's *pose* of *current*: the map's chain moves by the step (turned by the
         measured turn, when there was one) and takes in the frame's static points (*rate*, the
-        step's yaw rate, is the keyframes' concern)."""
+        step's yaw rate, and *registered* are the keyframes' concern)."""
         if self.pose is None or self._odometry_pose is None:
             chained = pose
         else:

@@ -15,11 +15,11 @@ import numpy as np
 
 from .config import EstimatorConfig
 from .features import Features, PolarHeatmap, azimuth_profile, extract, static_mask
-from .peak_shape import shape_weighted
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess, score_back)
 from .log_heatmap import LogHeatmap
 from .movers import MoverTracks
+from .peak_shape import shape_weighted
 from .quality import Flag
 
 

@@ -17,7 +17,7 @@ import pytest
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig, FeatureConfig
-from radarodom.estimator.features import Features, SlantFeatures, extract
+from radarodom.estimator.features import Features, SlantFeatures, _top_k, extract, roi_mask
 from radarodom.estimator.peak_shape import cells_of, peak_curvature, shape_weighted
 from radarodom.estimator.yaw_measurement import CurrentFrame, YawMeasurement
 
@@ -41,17 +41,26 @@ def heatmap_of(rows: dict[int, np.ndarray], noise: float = 1e-6) -> RangeAzimuth
                         synth.RANGE_M.copy(), synth.AZIMUTH_RAD.copy())
 
 
-def test_each_feature_is_found_at_its_own_cell_with_or_without_elevation():
-    world = np.array([(2.0, 0.5), (3.5, -1.0), (5.0, 2.0), (1.5, -0.3), (6.0, 0.0)])
-    plain = synth.heatmap(world, np.array([1.0, 0.8, 0.6, 0.9, 0.5]), rng=np.random.default_rng(1))
-    rng = np.random.default_rng(2)
-    raised = dataclasses.replace(plain, elevation_rad=rng.uniform(-0.5, 0.5, plain.intensity.shape).astype(np.float32))
-    for hm, elevation in ((plain, "ignore"), (raised, "use")):
-        config = FeatureConfig(method="topk", k=60, peaks_only=False, subbin=False, elevation=elevation,
-                               min_range_m=0.0, max_azimuth_rad=math.radians(85.0))
+def test_each_feature_is_found_at_its_own_cell_unless_its_bearing_was_clipped():
+    world = np.array([(2.0, 0.5), (3.5, -1.0), (5.0, 2.0), (1.5, -0.3), (6.0, 0.0), (2.0, 2.4), (3.0, -3.0)])
+    plain = synth.heatmap(world, np.array([1.0, 0.8, 0.6, 0.9, 0.5, 0.7, 0.6]), rng=np.random.default_rng(1))
+    shape = plain.intensity.shape
+    noisy = np.random.default_rng(2).uniform(-0.5, 0.5, shape).astype(np.float32)
+    steep = np.full(shape, 0.9, np.float32)  # cos 0.62: a cell beyond 38 degrees has no level bearing
+    for elevation_rad in (None, noisy, steep):
+        hm = dataclasses.replace(plain, elevation_rad=elevation_rad)
+        config = FeatureConfig(method="topk", k=60, peaks_only=False, subbin=False,
+                               elevation="ignore" if elevation_rad is None else "use", min_range_m=0.0,
+                               max_azimuth_rad=math.radians(85.0))
         features = extract(hm, config)
-        rows, cols = cells_of(features, hm)
-        np.testing.assert_array_equal(hm.intensity[rows, cols], features.intensity)
+        ri, ai = _top_k(hm.intensity, roi_mask(hm, config) & (hm.intensity > 0), 60)  # extract's cells, in order
+        rows, cols, known = cells_of(features, hm)
+        cos_el = 1.0 if elevation_rad is None else np.cos(elevation_rad[ri, ai])
+        clipped = np.abs(np.sin(hm.azimuth_rad[ai])) >= cos_el - 1e-6
+        np.testing.assert_array_equal(known, ~clipped)
+        np.testing.assert_array_equal(rows[known], ri[known])
+        np.testing.assert_array_equal(cols[known], ai[known])
+        assert clipped.any() == (elevation_rad is steep)
 
 
 @pytest.mark.parametrize("offset", [0.0, 0.2, 0.5, 0.8])
@@ -71,7 +80,7 @@ def test_one_reflectors_peak_curves_as_the_beam_wherever_it_lies_and_its_flank_c
 def test_two_reflectors_sharing_a_beam_peak_unlike_one(phase, apart):
     # The beam's null-to-null width is 2 / 8 in sin(azimuth); these two lie *apart* of it apart.
     # Not every pair shows: two within a fifth of the beam (unless in antiphase), or in quadrature
-    # within half of it, peak as one does (within 12 %), and between them.
+    # within half of it, peak nearly as one does, and between them (docs/heading.md item 22).
     sine = SINES[40]
     pair = beam(sine) + beam(sine + apart * 0.25, np.exp(1j * phase))
     single = peak_curvature(heatmap_of({40: beam(sine)}).intensity, np.array([40]), np.array([40]))[0]
@@ -105,6 +114,22 @@ def test_the_cells_of_a_pair_sharing_a_beam_lose_weight_and_lone_reflectors_keep
     np.testing.assert_array_equal(weighed.bearing_rad, points.bearing_rad)
 
 
+def test_a_peak_that_cannot_be_read_counts_as_unlike_one():
+    lone = {r: beam(SINES[c] + 0.3 * BIN) for r, c in ((30, 20), (50, 28), (70, 36), (90, 44))}
+    hm = heatmap_of(lone)
+    cells = [(r, int(np.argmax(hm.intensity[r]))) for r in sorted(lone)]
+    hm.intensity[90, cells[-1][1] - 1] = np.nan  # beside the last one's peak
+    points = _points_at(hm, cells)
+    weighed = shape_weighted(points, hm, width=0.3, floor=0.3)
+    assert np.all(np.isfinite(weighed.weight)) and weighed.weight.sum() == pytest.approx(1.0)
+    assert weighed.weight[3] == pytest.approx(0.3 * weighed.weight[0], rel=0.02)
+    # A point at the radar has no cell: the floor too.
+    at_radar = SlantFeatures(np.append(points.range_m[:3], 0.0), np.append(points.bearing_rad[:3], 0.0),
+                             np.full(4, 0.25), np.ones(4))
+    assert shape_weighted(at_radar, heatmap_of(lone), 0.3, 0.3).weight[3] == pytest.approx(
+        0.3 * shape_weighted(at_radar, heatmap_of(lone), 0.3, 0.3).weight[0], rel=0.02)
+
+
 def test_too_few_points_or_peaks_are_left_as_they_are():
     hm = heatmap_of({40: beam(SINES[30]), 60: beam(SINES[35])})
     two = _points_at(hm, [(40, 30), (60, 35)])
@@ -112,6 +137,9 @@ def test_too_few_points_or_peaks_are_left_as_they_are():
     flat = heatmap_of({})  # noise alone, flat: no cell is a peak
     three = _points_at(flat, [(40, 30), (60, 35), (80, 20)])
     assert shape_weighted(three, flat, 0.3, 0.3) is three
+    narrow = dataclasses.replace(hm, intensity=hm.intensity[:, 30:32], azimuth_rad=hm.azimuth_rad[30:32])
+    few_bins = _points_at(narrow, [(40, 0), (60, 1), (80, 0)])
+    assert shape_weighted(few_bins, narrow, 0.3, 0.3) is few_bins
 
 
 def test_the_field_keeps_weighed_points_and_the_option_turns_it_off():
