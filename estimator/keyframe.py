@@ -128,9 +128,9 @@ class KeyframeCorrection:
         was not *measured* (the chain broke); not a frame whose yaw the Doppler alone measured
         (not *registered*): the last keyframe stays until a frame with structure takes over."""
         key = self.key
-        if key is not None and measured and not registered:
-            return
         if key is not None and measured:
+            if not registered:
+                return
             kx, ky, kyaw = key.pose
             near = math.hypot(pose[0] - kx, pose[1] - ky) < self._distance_m and abs(pose[2] - kyaw) < self._angle_rad
             turn_ended = key.in_turn and abs(rate) < self._turn_end_radps
