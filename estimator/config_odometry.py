@@ -35,7 +35,8 @@ class OdometryConfig(Settings):
     velocity_fallback: str = "heatmap"
     #: With the "heatmap" fallback: the number of strongest local-maximum cells it fits.  Most
     #: weak maxima carry noise's Doppler: with too many, the static world's share falls below
-    #: ``velocity.min_inlier_ratio`` and the fallback fails (docs/estimator.md, "Why the defaults").
+    #: ``velocity.min_inlier_ratio`` and the fit fails; it is then tried on the strongest half,
+    #: then a quarter (docs/estimator.md, "Why the defaults"; docs/heading.md, item 23).
     fallback_cells: int = 50
     #: Fewer heatmap features than this: no registration ("few_features").
     min_features: int = 10

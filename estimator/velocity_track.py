@@ -82,6 +82,11 @@ class HeatmapVelocity:
         # The last frame's estimate, kept apart from the point clouds': those may come from
         # another sensor, later.
         self._last: VelocityEstimate | None = None
+        # The strongest fallback_cells, then half and a quarter of them: in a weak scene most
+        # maxima are noise, whose Doppler agrees with nothing, and the static world's share of
+        # many cells falls below the fit's min_inlier_ratio where that of the strongest few does not.
+        cells = config.odometry.fallback_cells
+        self._cell_counts = tuple(dict.fromkeys(max(n, 2) for n in (cells, cells // 2, cells // 4)))
 
     def reset(self) -> None:
         """The point clouds gave the last step's velocity: the next fallback starts afresh."""
@@ -91,10 +96,13 @@ class HeatmapVelocity:
         """(velocity (2,) m/s, covariance (2, 2)) of the step from *t_prev* to *t*; None when
         the heatmap gives none."""
         cfg = self._config
-        points = heatmap_doppler_points(heatmap, cfg.features, cfg.odometry.fallback_cells)
-        if points is None:
-            return None
-        est = estimate_velocity(points, t, cfg.velocity, self._rng)
+        for cells in self._cell_counts:
+            points = heatmap_doppler_points(heatmap, cfg.features, cells)
+            if points is None:
+                return None
+            est = estimate_velocity(points, t, cfg.velocity, self._rng)
+            if est.ok:
+                break
         if not est.ok:
             self._last = None
             return None
