@@ -140,9 +140,13 @@ class FeatureConfig(Settings):
     #: docs/heading.md item 10).
     doppler_elevation: str = "turns"
     #: ... from a speed along the boresight (forward or back) of at least this, m/s; slower every
-    #: way (at rest, turning in place), each range bin keeps its elevation from the last frame
-    #: that moved, ...
+    #: way (at rest, turning in place), each range bin keeps its elevation from the frames that
+    #: moved, ...
     doppler_elevation_min_mps: float = 0.2
+    #: ... averaged over about this long of them, s (their weights fade as exp(-age / this), and
+    #: a frame counts as its speed squared: a Doppler bin is a smaller part of a faster speed).
+    #: One frame's cells are few and their Doppler a bin's centre (docs/heading.md item 24), ...
+    doppler_elevation_memory_s: float = 1.0
     #: ... for at most this long, s; ...
     doppler_elevation_rest_s: float = 5.0
     #: ... and with "turns", a turn rate above this, rad/s.
@@ -163,6 +167,7 @@ class FeatureConfig(Settings):
         _check(self.doppler_elevation_min_mps > 0, "must be positive", "doppler_elevation_min_mps")
         _check(self.doppler_elevation_turn_radps >= 0, "must be >= 0", "doppler_elevation_turn_radps")
         _check(self.doppler_elevation_rest_s >= 0, "must be >= 0 (0: not at rest)", "doppler_elevation_rest_s")
+        _check(self.doppler_elevation_memory_s > 0, "must be positive", "doppler_elevation_memory_s")
         _check(self.k >= 1, "must be at least 1", "k")
         _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")
         _check(self.max_range_m is None or self.max_range_m > self.min_range_m,

@@ -86,9 +86,30 @@ def test_at_rest_each_range_bin_keeps_the_elevation_it_had_when_the_radar_last_m
     assert part(_heatmap(elevation, sideways), 7.1, sideways, math.radians(20.0)).elevation_rad is None
 
 
+def test_at_rest_the_range_profile_is_the_moving_frames_average_weighed_by_speed():
+    # Braking into a turn in place, the last frames that move are the slowest, where a Doppler bin
+    # is a large part of the speed: their reading (here 20 degrees, for a floor at 10) counts as
+    # their speed squared against the faster frames before, which fade over
+    # doppler_elevation_memory_s (1 s).
+    config = EstimatorConfig().features
+    part = doppler_elevation_part(config)
+    fast, slow = np.array([0.8, 0.0]), np.array([0.25, 0.0])
+    part(_heatmap(np.full((len(RANGE), len(AZIMUTH)), 10.0), fast), 0.0, fast, 0.0)
+    part(_heatmap(np.full((len(RANGE), len(AZIMUTH)), 20.0), slow), 0.3, slow, 0.0)
+    standing = np.zeros(2)
+    at_rest = part(_heatmap(np.zeros((len(RANGE), len(AZIMUTH))), standing), 0.4, standing, math.radians(45.0))
+    w_fast, w_slow = 0.8**2 * math.exp(-0.3 / config.doppler_elevation_memory_s), 0.25**2
+    cos_el = (w_fast * math.cos(math.radians(10.0)) + w_slow * math.cos(math.radians(20.0))) / (w_fast + w_slow)
+    assert np.allclose(at_rest.elevation_rad, math.acos(cos_el), atol=1e-4)
+    assert 10.0 < np.degrees(at_rest.elevation_rad).mean() < 12.0
+
+
 def test_a_bad_setting_names_the_field():
     with pytest.raises(ConfigError) as info:
         EstimatorConfig.from_dict({"features": {"doppler_elevation": "sometimes"}})
     assert "doppler_elevation" in str(info.value)
     with pytest.raises(ConfigError):
         EstimatorConfig.from_dict({"features": {"doppler_elevation_min_mps": 0.0}})
+    with pytest.raises(ConfigError) as info:
+        EstimatorConfig.from_dict({"features": {"doppler_elevation_memory_s": 0.0}})
+    assert "doppler_elevation_memory_s" in str(info.value)
