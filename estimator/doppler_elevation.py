@@ -1,6 +1,6 @@
 """Beyond the paper, for arrays without a raised antenna row (2 TX on the xWR18xx): each heatmap
 cell's elevation from its dominant Doppler and the frame's own velocity
-(``features.doppler_elevation``), and at rest the elevation each range bin had when the radar
+(``features.doppler_elevation``), and at rest the elevation each range bin had while the radar
 last moved.
 
 A static reflector at elevation el on the azimuth axis u = cos(el) sin(az) (TI frame, positive to
@@ -12,16 +12,52 @@ Cells without a Doppler are taken as level.  A radar at rest (turning in place) 
 to tell elevation by, but it keeps its distance to everything around it: each range bin keeps
 the elevation of its cells, power-weighted, from the frames that moved (floors and ceilings are
 where they were), averaged over the last ``doppler_elevation_memory_s`` or so of them, for
-``doppler_elevation_rest_s``.
+``doppler_elevation_rest_s`` (a bin seen no later than that before is taken as level).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 from .config import FeatureConfig
+
+
+class _RangeProfile:
+    """Each range bin's cos(elevation) averaged over the moving frames, a frame's weight fading as
+    exp(-age / *memory_s*): the weighted sums and when each bin was last seen, (n_range,) each."""
+
+    def __init__(self, memory_s: float) -> None:
+        self._memory_s = memory_s
+        self.t = -math.inf  # the last moving frame's time, s
+        self._cos_sum = self._weight = self._seen_t = np.zeros(0)
+
+    def add(self, t: float, weight: float, cos_el: np.ndarray, seen: np.ndarray) -> None:
+        """A moving frame at *t* (s): its bins' *cos_el* (n_range,) where *seen*, weighing *weight*.
+        A heatmap of another range axis starts the profile afresh; a value that is not finite is
+        left out."""
+        seen = seen & np.isfinite(cos_el)
+        if not math.isfinite(weight) or not seen.any():
+            return
+        if cos_el.shape != self._weight.shape:
+            self._cos_sum, self._weight = np.zeros(cos_el.shape), np.zeros(cos_el.shape)
+            self._seen_t = np.full(cos_el.shape, -math.inf)
+        fade = math.exp(-max(t - self.t, 0.0) / self._memory_s) if math.isfinite(self.t) else 0.0
+        w = np.where(seen, weight, 0.0)
+        self._cos_sum = fade * self._cos_sum + w * np.where(seen, cos_el, 0.0)
+        self._weight = fade * self._weight + w
+        self._seen_t = np.where(seen, t, self._seen_t)
+        self.t = t
+
+    def cos_elevation(self, t: float, within_s: float, n_range: int) -> np.ndarray | None:
+        """Each bin's cos(elevation) at *t* (n_range,), 1 (level) for a bin not seen within
+        *within_s* before; None when no moving frame of this range axis was."""
+        if self._weight.shape != (n_range,) or t - self.t > within_s:
+            return None
+        recent = (self._weight > 0) & (t - self._seen_t <= within_s)
+        return np.divide(self._cos_sum, self._weight, out=np.ones(n_range), where=recent)
 
 
 class DopplerElevation:
@@ -31,11 +67,7 @@ class DopplerElevation:
         self._min_mps = config.doppler_elevation_min_mps
         self._turn_radps = config.doppler_elevation_turn_radps if config.doppler_elevation == "turns" else None
         self._rest_s = config.doppler_elevation_rest_s
-        self._memory_s = config.doppler_elevation_memory_s
-        #: The last moving frame's time (s) and, over the moving frames, each range bin's weighted
-        #: sum of cos(elevation) and of the weights, (n_range,) each (a bin none of whose cells
-        #: had a Doppler adds nothing).
-        self._profile: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._profile = _RangeProfile(config.doppler_elevation_memory_s)
 
     def __call__(self, heatmap, t: float, velocity: np.ndarray | None, yaw_rate_radps: float):
         """*heatmap* (taken at *t*, s) with ``elevation_rad`` (n_range, n_azimuth) rad: from its
@@ -56,12 +88,10 @@ class DopplerElevation:
         if abs(velocity[0]) < self._min_mps:
             # Too slow along the boresight to tell: at rest the moving frames' profile; sliding
             # sideways, nothing.
-            if (float(np.hypot(*velocity)) >= self._min_mps or self._profile is None
-                    or t - self._profile[0] > self._rest_s):
+            per_bin = self._profile.cos_elevation(t, self._rest_s, shape[0])
+            if float(np.hypot(*velocity)) >= self._min_mps or per_bin is None:
                 return heatmap
-            _, cos_sum, weight = self._profile
-            level = np.where(weight > 0, cos_sum / np.maximum(weight, 1e-30), 1.0)
-            rows = np.arccos(np.clip(level, 0.0, 1.0)).astype(np.float32)
+            rows = np.arccos(np.clip(per_bin, 0.0, 1.0)).astype(np.float32)
             return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], shape[1], axis=1))
         r, a = np.divmod(cells, shape[1])
         u = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)[a])
@@ -70,21 +100,16 @@ class DopplerElevation:
         power = np.asarray(heatmap.intensity).ravel()[cells].astype(float)
         total = np.bincount(r, power, minlength=shape[0])
         weighted = np.bincount(r, power * cos_el, minlength=shape[0])
-        self._remember(t, float(velocity[0]) ** 2, weighted / np.maximum(total, 1e-30), total > 0)
+        # A bin's Doppler error is a part of the speed that shrinks as the speed grows: a frame
+        # counts as its forward speed squared.
+        with np.errstate(invalid="ignore"):  # a power that is not finite: left out by add
+            per_bin = weighted / np.maximum(total, 1e-30)
+        self._profile.add(t, float(velocity[0]) ** 2, per_bin, total > 0)
         if self._turn_radps is not None and abs(yaw_rate_radps) < self._turn_radps:
             return heatmap
         elevation = np.zeros(shape, np.float32)
         elevation.ravel()[cells] = np.arccos(cos_el)
         return dataclasses.replace(heatmap, elevation_rad=elevation)
-
-    def _remember(self, t: float, weight: float, cos_el: np.ndarray, seen: np.ndarray) -> None:
-        """Add a moving frame's range profile *cos_el* (n_range,) where *seen*, weighing it by
-        *weight* and the profiles before by their fading age."""
-        shape = cos_el.shape
-        cos_sum, total = (np.zeros(shape), np.zeros(shape)) if self._profile is None else self._profile[1:]
-        fade = 0.0 if self._profile is None else np.exp(-(t - self._profile[0]) / self._memory_s)
-        w = np.where(seen, weight, 0.0)
-        self._profile = (t, fade * cos_sum + w * np.where(seen, cos_el, 0.0), fade * total + w)
 
 
 def doppler_elevation_part(config: FeatureConfig) -> DopplerElevation | None:

@@ -84,26 +84,29 @@ class HeatmapVelocity:
         self._last: VelocityEstimate | None = None
         # The strongest fallback_cells, then half and a quarter of them: in a weak scene most
         # maxima are noise, whose Doppler agrees with nothing, and the static world's share of
-        # many cells falls below the fit's min_inlier_ratio where that of the strongest few does not.
-        cells = config.odometry.fallback_cells
-        self._cell_counts = tuple(dict.fromkeys(max(n, 2) for n in (cells, cells // 2, cells // 4)))
+        # many cells falls below the fit's min_inlier_ratio where that of the strongest few does not
+        # (never fewer than the fit's min_points; within the velocities the platform can reach).
+        cells, fewest = config.odometry.fallback_cells, config.velocity.min_points
+        self._cell_counts = tuple(dict.fromkeys(max(n, fewest) for n in (cells, cells // 2, cells // 4)))
 
     def reset(self) -> None:
         """The point clouds gave the last step's velocity: the next fallback starts afresh."""
         self._last = None
 
-    def __call__(self, t_prev: float, t: float, heatmap: PolarHeatmap) -> tuple[np.ndarray, np.ndarray] | None:
+    def __call__(self, t_prev: float, t: float, heatmap: PolarHeatmap,
+                 expected: ReachableVelocity | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """(velocity (2,) m/s, covariance (2, 2)) of the step from *t_prev* to *t*; None when
-        the heatmap gives none."""
+        the heatmap gives none (or none within the *expected* velocities)."""
         cfg = self._config
+        est = None
         for cells in self._cell_counts:
             points = heatmap_doppler_points(heatmap, cfg.features, cells)
             if points is None:
                 return None
-            est = estimate_velocity(points, t, cfg.velocity, self._rng)
+            est = estimate_velocity(points, t, cfg.velocity, self._rng, expected)
             if est.ok:
                 break
-        if not est.ok:
+        if est is None or not est.ok:
             self._last = None
             return None
         before = self._last if self._last is not None and self._last.t == t_prev else None
@@ -164,7 +167,7 @@ class VelocityTrack:
             return StepVelocity(estimate, estimate.velocity, estimate.covariance)
         flags.append(Flag.VELOCITY_FAILED)
         if self._fallback is not None:
-            found = self._fallback(t_prev, t, heatmap)
+            found = self._fallback(t_prev, t, heatmap, self.reachable(t))
             if found is not None:
                 flags.append(Flag.VELOCITY_FROM_HEATMAP)
                 return StepVelocity(estimate, *found)

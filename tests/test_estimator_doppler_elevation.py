@@ -86,7 +86,7 @@ def test_at_rest_each_range_bin_keeps_the_elevation_it_had_when_the_radar_last_m
     assert part(_heatmap(elevation, sideways), 7.1, sideways, math.radians(20.0)).elevation_rad is None
 
 
-def test_at_rest_the_range_profile_is_the_moving_frames_average_weighed_by_speed():
+def test_at_rest_the_range_profile_is_the_moving_frames_average_weighted_by_speed():
     # Braking into a turn in place, the last frames that move are the slowest, where a Doppler bin
     # is a large part of the speed: their reading (here 20 degrees, for a floor at 10) counts as
     # their speed squared against the faster frames before, which fade over
@@ -102,6 +102,36 @@ def test_at_rest_the_range_profile_is_the_moving_frames_average_weighed_by_speed
     cos_el = (w_fast * math.cos(math.radians(10.0)) + w_slow * math.cos(math.radians(20.0))) / (w_fast + w_slow)
     assert np.allclose(at_rest.elevation_rad, math.acos(cos_el), atol=1e-4)
     assert 10.0 < np.degrees(at_rest.elevation_rad).mean() < 12.0
+
+
+def test_the_range_profile_forgets_bins_left_unseen_and_survives_odd_frames():
+    part = doppler_elevation_part(EstimatorConfig().features)  # doppler_elevation_rest_s 5 s
+    moving, standing = np.array([0.8, 0.0]), np.zeros(2)
+    floor = np.full((len(RANGE), len(AZIMUTH)), 10.0)
+    part(_heatmap(floor, moving), 0.0, moving, 0.0)
+    # Then 8 s of driving where the first range bin holds no Doppler: it is level at rest, the
+    # others keep their 10 degrees.
+    for i in range(1, 81):
+        frame = _heatmap(floor, moving)
+        frame.doppler_mps[0] = np.nan
+        part(frame, 0.1 * i, moving, 0.0)
+    # A frame whose power is not finite adds nothing to the profile.
+    broken = _heatmap(floor, moving)
+    broken.intensity[:] = np.inf
+    part(broken, 8.05, moving, 0.0)
+    at_rest = np.degrees(part(_heatmap(floor, standing), 8.1, standing, math.radians(45.0)).elevation_rad)
+    assert np.all(at_rest[0] == 0.0) and np.allclose(at_rest[1:], 10.0, atol=0.05)
+    # A heatmap of another range axis is not given the old profile at rest, and starts it afresh.
+    assert part(_first_bins(_heatmap(floor, standing), 5), 8.2, standing, math.radians(45.0)).elevation_rad is None
+    part(_first_bins(_heatmap(np.full_like(floor, 20.0), moving), 5), 8.3, moving, 0.0)
+    again = part(_first_bins(_heatmap(floor, standing), 5), 8.4, standing, math.radians(45.0))
+    assert np.allclose(np.degrees(again.elevation_rad), 20.0, atol=0.05)
+
+
+def _first_bins(heatmap: RangeAzimuth, n: int) -> RangeAzimuth:
+    """*heatmap*'s first *n* range bins."""
+    return RangeAzimuth(heatmap.intensity[:n], heatmap.static[:n], heatmap.doppler_mps[:n], heatmap.range_m[:n],
+                        heatmap.azimuth_rad)
 
 
 def test_a_bad_setting_names_the_field():
