@@ -226,7 +226,12 @@ class PointMaker:
         """Signed azimuth FFT bins of peaks *peak* of the FFTs *az*, between bins where
         DspConfig.azimuth_interpolation asks (n,)."""
         k = np.where(peak >= self.n_az // 2, peak - self.n_az, peak)
-        return k + self._azimuth_offsets(az, peak) if self._azimuth_table is not None else k.astype(float)
+        if self._azimuth_table is None:
+            return k.astype(float)
+        # The axis is cyclic: a peak in the last bin (-n/2, sin(azimuth) -1) whose offset points
+        # below it lies at the other end (a reflector some 80-90 degrees to the right), not beyond -1.
+        half = self.n_az / 2
+        return (k + self._azimuth_offsets(az, peak) + half) % self.n_az - half
 
     def _further_peaks(self, az, peak, elements, range_idx, doppler, snr_db, noise, neighbours) -> list[np.ndarray]:
         """Points of further reflectors in the detections' cells (:mod:`.azimuth_peaks`): up to

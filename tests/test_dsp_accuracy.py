@@ -612,6 +612,25 @@ def test_azimuth_between_fft_bins(shipped_cfg, grid_bin, offset):
     assert float(grid["x"] / grid["range"]) == pytest.approx(2 * round(grid_bin + offset) / proc.n_az, abs=1e-6)
 
 
+@pytest.mark.parametrize("side", [1, -1])
+@pytest.mark.parametrize("bins_from_edge", [0.2, 0.4])
+def test_azimuth_near_the_end_of_the_axis_keeps_its_side(shipped_cfg, side, bins_from_edge):
+    """A still point 80-90 degrees off (Wx = +/-(1 - 2 d / 64), d bins from the axis's end): the
+    azimuth FFT is cyclic, its bin n/2 both Wx = -1 and +1, so such a point's peak falls there from
+    either side, and its sub-bin offset says which.  It is found on its own side, within a quarter
+    of a step (the antenna's gain falls steeply there); it was put beyond Wx = -1 (at -90 degrees,
+    on the left) when it lay on the right."""
+    cfg = shipped_cfg
+    proc = FrameProcessor(cfg)
+    wx = side * (1.0 - 2 * bins_from_edge / proc.n_az)
+    r = 3.0
+    point = [r * math.sqrt(1 - wx * wx), -r * wx, 0.4]  # body frame: right is -y; at the sensor's height
+    scene = point_scene([point], STILL, snr_db=30.0)
+    f, cube = simulate(cfg, scene, frame=1)
+    q = strongest(proc.process(cube).points)
+    assert abs(float(q["x"] / q["range"]) - wx) <= 0.25 * 2 / proc.n_az, (q["x"] / q["range"], wx)
+
+
 @pytest.mark.parametrize("window", ["hann", "rect", "blackman"])
 @pytest.mark.parametrize("pad", [1, 2])
 def test_three_bin_response_inverts_a_tone(window, pad):
