@@ -12,7 +12,7 @@ Cells without a Doppler are taken as level.  A radar at rest (turning in place) 
 to tell elevation by, but it keeps its distance to everything around it: each range bin keeps
 the elevation of its cells, power-weighted, from the frames that moved (floors and ceilings are
 where they were), averaged over the last ``doppler_elevation_memory_s`` or so of them, for
-``doppler_elevation_rest_s`` (a bin seen no later than that before is taken as level).
+``doppler_elevation_rest_s`` (a bin not seen within that time is taken as level).
 """
 
 from __future__ import annotations
