@@ -78,8 +78,8 @@ class KeyframeCorrection:
         key = self.key
         if key is None:
             return step.dyaw, step.var_yaw
+        key.yaw_var += step.var_yaw
         if not registered:
-            key.yaw_var += step.var_yaw
             return step.dyaw, step.var_yaw
         cfg = self._config
         kx, ky, kyaw = key.pose
@@ -89,7 +89,6 @@ class KeyframeCorrection:
         c, s = math.cos(kyaw), math.sin(kyaw)
         t_rel = np.array([c * (x - kx) + s * (y - ky), -s * (x - kx) + c * (y - ky)])
         predicted = step.pose[2] + step.dyaw - kyaw
-        key.yaw_var += step.var_yaw
         initial, other = -predicted, None  # the search's start, and what its window spans
         if self._scan_start and key.frame.guide is not None:
             found = scan_guess(key.frame.guide.shifted(t_rel), frame.log, cfg.icp.scan_step_rad, self._search_rad,
