@@ -304,8 +304,9 @@ def _subbin(intensity: np.ndarray, ri: np.ndarray, ai: np.ndarray, range_m: np.n
 def heatmap_doppler_points(heatmap: PolarHeatmap, config: FeatureConfig, cells: int) -> np.ndarray | None:
     """The *cells* strongest local maxima of the heatmap in the region of interest whose
     dominant Doppler is known, as a point cloud for :func:`~.velocity.estimate_velocity`:
-    a structured array (n,) with fields azimuth (rad, TI frame), elevation (0: a range-azimuth
-    heatmap has none) and velocity (m/s, positive receding).  Local maxima only: a strong
+    a structured array (n,), in raster order, with fields azimuth (rad, TI frame), elevation (0:
+    a range-azimuth heatmap has none), velocity (m/s, positive receding) and intensity (the
+    heatmap's, linear; :func:`strongest_points` takes fewer of them).  Local maxima only: a strong
     reflector's sidelobes carry its Doppler and would outvote the rest.  None when the
     heatmap has no Doppler channel."""
     doppler = getattr(heatmap, "doppler_mps", None)
@@ -315,15 +316,25 @@ def heatmap_doppler_points(heatmap: PolarHeatmap, config: FeatureConfig, cells: 
     valid = roi_mask(heatmap, config) & (intensity > 0) & np.isfinite(doppler)
     valid &= intensity >= _neighbourhood_max(intensity)
     ri, ai = _top_k(intensity, valid, cells)
-    out = np.zeros(len(ri), dtype=[("azimuth", "f8"), ("elevation", "f8"), ("velocity", "f8")])
+    out = np.zeros(len(ri), dtype=[("azimuth", "f8"), ("elevation", "f8"), ("velocity", "f8"), ("intensity", "f8")])
     out["azimuth"] = heatmap.azimuth_rad[ai]
     out["velocity"] = doppler[ri, ai]
+    out["intensity"] = intensity[ri, ai]
     elevation = getattr(heatmap, "elevation_rad", None)
     if config.elevation == "use" and elevation is not None:
         el = np.nan_to_num(elevation[ri, ai].astype(float))
         _, out["azimuth"], _ = horizontal(heatmap.range_m[ri].astype(float), out["azimuth"], el)
         out["elevation"] = el
     return out
+
+
+def strongest_points(points: np.ndarray, cells: int) -> np.ndarray:
+    """The *cells* strongest of :func:`heatmap_doppler_points`' *points* (all when fewer), still
+    in raster order: the same cells as asking it for *cells* directly."""
+    if len(points) <= cells:
+        return points
+    strongest = np.argpartition(points["intensity"], len(points) - cells)[len(points) - cells:]
+    return points[np.sort(strongest)]
 
 
 def azimuth_profile(heatmap: PolarHeatmap, config: FeatureConfig, grid_rad: np.ndarray) -> np.ndarray:

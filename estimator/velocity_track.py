@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import TimeOrderError
 from .config import EstimatorConfig
-from .features import PolarHeatmap, heatmap_doppler_points
+from .features import PolarHeatmap, heatmap_doppler_points, strongest_points
 from .quality import Flag, may_hold
 from .velocity import ReachableVelocity, VelocityEstimate, estimate_velocity
 
@@ -98,15 +98,14 @@ class HeatmapVelocity:
         """(velocity (2,) m/s, covariance (2, 2)) of the step from *t_prev* to *t*; None when
         the heatmap gives none (or none within the *expected* velocities)."""
         cfg = self._config
-        est = None
+        candidates = heatmap_doppler_points(heatmap, cfg.features, self._cell_counts[0])
+        if candidates is None:
+            return None
         for cells in self._cell_counts:
-            points = heatmap_doppler_points(heatmap, cfg.features, cells)
-            if points is None:
-                return None
-            est = estimate_velocity(points, t, cfg.velocity, self._rng, expected)
+            est = estimate_velocity(strongest_points(candidates, cells), t, cfg.velocity, self._rng, expected)
             if est.ok:
                 break
-        if est is None or not est.ok:
+        if not est.ok:
             self._last = None
             return None
         before = self._last if self._last is not None and self._last.t == t_prev else None

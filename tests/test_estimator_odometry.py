@@ -35,7 +35,7 @@ from radarodom.estimator.config import (
     VelocityConfig,
 )
 from radarodom.estimator.odometry import OdometryState, RadarOdometry
-from radarodom.estimator.features import heatmap_doppler_points
+from radarodom.estimator.features import heatmap_doppler_points, strongest_points
 from radarodom.estimator.velocity import VelocityEstimate, estimate_velocity
 
 DEG = math.radians(1.0)
@@ -560,6 +560,12 @@ class TestFlags:
         for t in np.arange(4, 10) * 0.1:  # the 50 strongest alone give no velocity
             points = heatmap_doppler_points(heatmap_at(t), config.features, config.odometry.fallback_cells)
             assert not estimate_velocity(points, t, config.velocity, np.random.default_rng(0)).ok
+            # The retries take their fewer cells from these: the same cells, in the same order,
+            # as picking that many from the heatmap.
+            for cells in (25, 12):
+                fewer = heatmap_doppler_points(heatmap_at(t), config.features, cells)
+                assert len(fewer) == cells
+                np.testing.assert_array_equal(strongest_points(points, cells), fewer)
         self.assert_follows_the_braking(self.brake(config, heatmap_at))
 
     def test_heatmap_fallback_without_doppler_holds(self):
