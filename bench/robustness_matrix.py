@@ -287,7 +287,7 @@ COLUMNS = [("yaw RMSE deg", "yaw_rmse_deg", ".2f"), ("straight bias deg/m", "str
            ("worst straight deg/m", "straight_max_deg_per_m", ".2f"),
            ("moving-turn ratio", "moving_turn_ratio", ".3f"), ("in-place ratio", "inplace_turn_ratio", ".3f"),
            ("drift %", "drift_pct", ".2f"), ("final heading deg", "final_heading_error_deg", "+.1f"),
-           ("path m", "path_m", ".1f"), ("frames", "frames", "d")]
+           ("path m", "path_m", ".1f"), ("path ratio", "path_ratio", ".3f"), ("frames", "frames", "d")]
 
 
 def table(results: list[dict]) -> str:

@@ -18,6 +18,8 @@ or too small.  These metrics measure them separately, by segmenting the truth:
   place, else a moving turn; the two kinds are reported apart.  The ratio is the estimate's
   yaw change over the turn's frames (signed along the true turn) over the true angle;
 - **drift** (% of the path): final position error, the estimate aligned at the first pose;
+- **path ratio**: the estimate's path length over the truth's: a speed's scale error, which the
+  drift of a closed loop hardly shows (a loop scaled still closes);
 - **final heading error** (deg, signed, wrapped).
 
 :func:`drift_parts` says what makes the drift: the drift each kind of frame's yaw errors make
@@ -76,6 +78,7 @@ class HeadingMetrics:
     inplace_turn_deg: float
     inplace_turn_ratio: float
     path_m: float
+    path_ratio: float
     drift_pct: float
     final_heading_error_deg: float
 
@@ -190,6 +193,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         kinds[in_place] = (count, math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan)
 
     path = float(step_m.sum())
+    est_path = float(np.hypot(*np.diff(est[:, :2], axis=0).T).sum())
     aligned = se2_compose(se2_compose(ref[0], se2_inverse(est[0]))[None, :], est)
     drift = float(np.hypot(*(aligned[-1, :2] - ref[-1, :2])))
     final = math.degrees(float(_wrap(aligned[-1, 2] - ref[-1, 2])))
@@ -203,7 +207,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         straight_max_deg_per_m=float(np.abs(runs).max()) if len(runs) else nan,
         moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
         inplace_turns=kinds[True][0], inplace_turn_deg=kinds[True][1], inplace_turn_ratio=kinds[True][2],
-        path_m=path, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
+        path_m=path, path_ratio=est_path / path if path > 0 else nan, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
 
 
 def drift_parts(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS,

@@ -21,9 +21,9 @@ def truth(rate_hz=10.0):
     return t, np.column_stack([x, y, yaw])
 
 
-def estimate(t, ref, *, bias_deg=0.0, moving_k=1.0, inplace_k=1.0):
+def estimate(t, ref, *, bias_deg=0.0, moving_k=1.0, inplace_k=1.0, speed_k=1.0):
     """The truth's body-frame steps re-integrated with a changed yaw: each straight frame turned
-    by *bias_deg*, each turn scaled by its kind's factor."""
+    by *bias_deg*, each turn scaled by its kind's factor; each step's length by *speed_k*."""
     d_ref = np.diff(ref[:, 2])
     d_est = d_ref.copy()
     in_turn = np.zeros(len(d_ref), bool)
@@ -34,7 +34,7 @@ def estimate(t, ref, *, bias_deg=0.0, moving_k=1.0, inplace_k=1.0):
     d_est[~in_turn & (speed > 0.05)] += math.radians(bias_deg)
     c, s = np.cos(ref[:-1, 2]), np.sin(ref[:-1, 2])
     dx, dy = np.diff(ref[:, 0]), np.diff(ref[:, 1])
-    fwd, side = c * dx + s * dy, -s * dx + c * dy  # the step in the body frame
+    fwd, side = speed_k * (c * dx + s * dy), speed_k * (-s * dx + c * dy)  # the step in the body frame
     yaw = ref[0, 2] + np.concatenate([[0.0], np.cumsum(d_est)])
     c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
     x = ref[0, 0] + np.concatenate([[0.0], np.cumsum(c * fwd - s * side)])
@@ -60,6 +60,17 @@ def test_a_perfect_estimate_scores_zero_errors_and_unit_ratios():
     assert m.moving_turn_ratio == pytest.approx(1.0) and m.inplace_turn_ratio == pytest.approx(1.0)
     assert m.drift_pct == pytest.approx(0.0, abs=1e-9) and m.final_heading_error_deg == pytest.approx(0.0, abs=1e-9)
     assert m.path_m == pytest.approx(14 + math.pi * 0.5 * 2, rel=1e-3)
+    assert m.path_ratio == pytest.approx(1.0)
+
+
+def test_a_speed_scale_shows_in_the_path_ratio_not_in_a_closed_loops_drift():
+    # Every step 4 % short: the loop (out and back) shrinks but still closes on its start.
+    t, ref = truth()
+    m = heading_metrics(t, ref, estimate(t, ref, speed_k=0.96))
+    assert m.path_ratio == pytest.approx(0.96, abs=1e-9)
+    assert np.hypot(*(ref[-1, :2] - ref[0, :2])) < 0.01 * m.path_m
+    assert m.drift_pct < 0.1
+    assert m.yaw_rmse_deg == pytest.approx(0.0, abs=1e-9)
 
 
 def test_straight_bias_and_turn_ratios_are_measured_apart():
