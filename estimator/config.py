@@ -66,6 +66,13 @@ class VelocityConfig(Settings):
     bearing_noise_rad: float = math.radians(4.0)
     #: The radial velocity's own error in those weights, m/s (uniform over the shipped cfg's 0.07 m/s bin).
     doppler_noise_mps: float = 0.02
+    #: A cloud without elevation (no raised antenna row: every point's elevation 0) has its forward
+    #: velocity scaled by this quantile of its inliers' own forward speeds over the fit's, pooled
+    #: over ``level_edge_window_s`` of clouds moving at least ``level_edge_min_mps`` (the level
+    #: reflectors' edge: estimator/level_speed.py; None: the fit as if all were level, 2-5 % slow).
+    level_edge_quantile: float | None = 0.85
+    level_edge_window_s: float = 2.0
+    level_edge_min_mps: float = 0.2
     #: Seed of the random generator (results are reproducible).
     seed: int = 0
 
@@ -82,6 +89,10 @@ class VelocityConfig(Settings):
         _check(self.max_accel_mps2 is None or self.max_accel_mps2 > 0, "must be positive (or null: any)",
                "max_accel_mps2")
         check_choice(self.elevation_projection, PROJECTIONS, "elevation_projection")
+        _check(self.level_edge_quantile is None or 0 < self.level_edge_quantile < 1, "must be in (0, 1) (or null: off)",
+               "level_edge_quantile")
+        _check(self.level_edge_window_s > 0, "must be positive", "level_edge_window_s")
+        _check(self.level_edge_min_mps > 0, "must be positive", "level_edge_min_mps")
 
 
 @dataclass
@@ -356,7 +367,7 @@ class EstimatorConfig(Settings):
     @classmethod
     def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":
         """The paper's method (one of its variants), without the options beyond it."""
-        return cls(velocity=VelocityConfig(bearing_noise_rad=0.0),
+        return cls(velocity=VelocityConfig(bearing_noise_rad=0.0, level_edge_quantile=None),
                    features=FeatureConfig(method=method, peaks_only=False, subbin=False, dynamic_rejection_mps=None,
                                           elevation="ignore", doppler_elevation="off"),
                    icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero", neglect_aligned=True,
@@ -394,7 +405,8 @@ class EstimatorConfig(Settings):
 
 
 #: What :meth:`EstimatorConfig.tidemo` changes, by section.
-TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bearing_noise_rad": 0.0},
+TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bearing_noise_rad": 0.0,
+                              "level_edge_quantile": None},
                  "point_yaw": {"use": True}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).

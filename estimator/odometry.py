@@ -154,6 +154,8 @@ class RadarOdometry:
         start = time.perf_counter()
         _check_time(t, "point cloud")
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
+        if self.velocities.level_speed is not None:
+            est = self.velocities.level_speed(t, points, est)
         self.add_velocity(est)
         if self.point_yaw is not None:
             self.point_yaw.add_points(t, points, est)
@@ -185,7 +187,9 @@ class RadarOdometry:
         own = near is not None and (previous is None or abs(near.t - t) <= 0.5 * (t - previous.t))
         own_velocity = near.velocity if own else None
         if self.doppler_elevation is not None:
-            heatmap = self.doppler_elevation(heatmap, t, own_velocity, self._last_rate)
+            # Against the level fit's velocity a cell at the static points' mean elevation reads
+            # level: the cells' Doppler is too coarse for their own (docs/heading.md, item 26).
+            heatmap = self.doppler_elevation(heatmap, t, near.level_velocity if own else None, self._last_rate)
         frame = CurrentFrame(t, heatmap, self.config)
         dt = None if previous is None else t - previous.t
         current = self.yaw.keep(frame, own_velocity, turn_rad=0.0 if dt is None else self._last_rate * dt, dt=dt)

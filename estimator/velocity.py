@@ -61,6 +61,9 @@ class VelocityEstimate:
     status: VelocityStatus = FEW_POINTS
     #: Per input point: True for the inliers (the static world), (n,).
     inlier_mask: np.ndarray | None = field(default=None, repr=False)
+    #: What vx was scaled by for points whose elevation is not measured (:mod:`.level_speed`;
+    #: 1: as fitted).
+    level_scale: float = 1.0
 
     @property
     def ok(self) -> bool:
@@ -73,6 +76,11 @@ class VelocityEstimate:
     @property
     def velocity(self) -> np.ndarray:
         return np.array([self.vx, self.vy])
+
+    @property
+    def level_velocity(self) -> np.ndarray:
+        """The fit as if every point were level, (2,) m/s: :attr:`velocity` before ``level_scale``."""
+        return np.array([self.vx / self.level_scale, self.vy])
 
 
 def design(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, velocity_mps: np.ndarray,

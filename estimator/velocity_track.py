@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import TimeOrderError
 from .config import EstimatorConfig
 from .features import PolarHeatmap, heatmap_doppler_points, strongest_points
+from .level_speed import LevelSpeed, level_speed_part
 from .quality import Flag, may_hold
 from .velocity import ReachableVelocity, VelocityEstimate, estimate_velocity
 
@@ -74,9 +75,10 @@ class HeatmapVelocity:
     end, averaged with the velocity at its start (the step's mid-time, as eq. 2 for the point
     clouds: a robot slowing down is slower at the frame than at mid-step)."""
 
-    def __init__(self, config: EstimatorConfig, history: VelocityHistory) -> None:
+    def __init__(self, config: EstimatorConfig, history: VelocityHistory, level_speed: LevelSpeed | None) -> None:
         self._config = config
         self._history = history
+        self._level_speed = level_speed
         # Its own generator, so that the fallback leaves the point clouds' RANSAC draws as they were.
         self._rng = np.random.default_rng(config.velocity.seed + 1)
         # The last frame's estimate, kept apart from the point clouds': those may come from
@@ -102,8 +104,11 @@ class HeatmapVelocity:
         if candidates is None:
             return None
         for cells in self._cell_counts:
-            est = estimate_velocity(strongest_points(candidates, cells), t, cfg.velocity, self._rng, expected)
+            points = strongest_points(candidates, cells)
+            est = estimate_velocity(points, t, cfg.velocity, self._rng, expected)
             if est.ok:
+                if self._level_speed is not None:
+                    est = self._level_speed.scaled(points, est)
                 break
         if not est.ok:
             self._last = None
@@ -130,7 +135,10 @@ class VelocityTrack:
         self.history = VelocityHistory(odo.velocity_history)
         self._at_mid: Callable[[float], VelocityEstimate | None] = (
             self.history.nearest if odo.velocity_sync == "nearest" else self.history.interpolated)
-        self._fallback = HeatmapVelocity(config, self.history) if odo.velocity_fallback == "heatmap" else None
+        #: ``velocity.level_edge_quantile``: clouds without elevation, and the fallback's cells
+        self.level_speed = level_speed_part(config.velocity)
+        self._fallback = (HeatmapVelocity(config, self.history, self.level_speed)
+                          if odo.velocity_fallback == "heatmap" else None)
         self._last: VelocityEstimate | None = None  # the latest, good or not
         self._good_t: float | None = None  # the latest good one's time
         self._max_accel = config.velocity.max_accel_mps2

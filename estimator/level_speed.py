@@ -1,0 +1,85 @@
+"""Beyond the paper, for point clouds without elevation (an array without a raised antenna row:
+2 TX on the xWR18xx, or TI's demo run with such a cfg): the forward speed from the upper edge of
+the points' Doppler (``velocity.level_edge_quantile``).
+
+A static reflector at elevation el on the azimuth axis u = cos(el) sin(az) seen from a sensor
+moving at (vx, vy) has -v_r = vx sqrt(cos(el)^2 - u^2) + vy u (:mod:`.velocity`'s sign
+convention).  A cloud without elevation is fitted as if every point were level, so a point above
+or below the horizon reads less forward speed and the fit's vx is the points' mean of
+sqrt(cos(el)^2 - u^2) / cos(az) times the truth: 2-5 % low in rooms and corridors
+(docs/heading.md, "2-TX arrays").  Each inlier's own forward speed, (-v_r - vy u) / cos(az), is at
+most vx, reached by the level reflectors, and cos(el) is flattest at the horizon, so the points
+pile up just under vx: the ratios of those speeds to the fit's vx, pooled over the moving clouds
+of the last ``level_edge_window_s``, have that edge at a high quantile, by which the fit's vx is
+scaled.  A cloud that measures elevation passes unchanged.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+
+import numpy as np
+
+from .config import VelocityConfig
+from .velocity import OK, VelocityEstimate
+
+#: Only points within this of boresight give a ratio: the ratio's noise grows as 1 / cos(az).
+_MAX_AZIMUTH_RAD = math.radians(60.0)
+#: Fewer pooled ratios than this give no edge (the fit is left as it is): some five clouds' inliers.
+_MIN_RATIOS = 50
+
+
+class LevelSpeed:
+    """Scales each elevation-less cloud's forward velocity by the edge of the pooled ratios."""
+
+    def __init__(self, config: VelocityConfig) -> None:
+        self._quantile = config.level_edge_quantile
+        self._window_s = config.level_edge_window_s
+        self._min_mps = config.level_edge_min_mps
+        # A point's ratio is at most 1 / cos(el) of the fit's and the fit keeps points within
+        # max_elevation_rad: a larger edge is noise's or a moving crowd's.
+        self._max_scale = 1.0 / math.cos(config.max_elevation_rad)
+        self._pool: collections.deque[tuple[float, np.ndarray]] = collections.deque()
+        self.scale = 1.0  # the last edge used, for diagnosis
+
+    def __call__(self, t: float, points: np.ndarray, est: VelocityEstimate) -> VelocityEstimate:
+        """*est*, fitted to *points* at *t*, with vx scaled (:meth:`scaled`); its inliers' ratios
+        pooled first when it moves forward or backward at ``level_edge_min_mps`` or more."""
+        if not self._applies(points, est):
+            return est
+        if abs(est.vx) >= self._min_mps:
+            inliers = points[est.inlier_mask]
+            az = np.asarray(inliers["azimuth"], dtype=float)
+            near = np.abs(az) <= _MAX_AZIMUTH_RAD
+            az = az[near]
+            # The fit's bearing is -azimuth (TI frame): -v_r - vy sin(bearing) = -v_r + vy sin(az).
+            own = -np.asarray(inliers["velocity"][near], dtype=float) + est.vy * np.sin(az)
+            self._pool.append((t, own / (np.cos(az) * est.vx)))
+        while self._pool and t - self._pool[0][0] > self._window_s:
+            self._pool.popleft()
+        ratios = [r for _, r in self._pool]
+        if sum(len(r) for r in ratios) >= _MIN_RATIOS:
+            # Fewer (after a stop, say) keep the edge found last: the scene has hardly changed.
+            self.scale = float(np.clip(np.quantile(np.concatenate(ratios), self._quantile), 1.0, self._max_scale))
+        return self.scaled(points, est)
+
+    def scaled(self, points: np.ndarray, est: VelocityEstimate) -> VelocityEstimate:
+        """*est*, fitted to *points*, with vx and its variance scaled by the last edge found (none
+        before one is), when *points* carry no elevation; also for the heatmap's Doppler
+        fallback, which pools nothing (its cells are the heatmap's strongest, not the cloud's)."""
+        if self.scale == 1.0 or not self._applies(points, est):
+            return est
+        gain = np.diag([self.scale, 1.0])
+        return dataclasses.replace(est, vx=est.vx * self.scale, covariance=gain @ est.covariance @ gain,
+                                   level_scale=self.scale)
+
+    @staticmethod
+    def _applies(points: np.ndarray, est: VelocityEstimate) -> bool:
+        return est.status == OK and len(points) > 0 and not np.any(points["elevation"] != 0.0)
+
+
+def level_speed_part(config: VelocityConfig) -> LevelSpeed | None:
+    """The part for ``velocity.level_edge_quantile`` (None when it is off)."""
+    return None if config.level_edge_quantile is None else LevelSpeed(config)
