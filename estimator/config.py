@@ -381,7 +381,10 @@ class EstimatorConfig(Settings):
         from its few points on a local map and its static heatmap when slow (``point_yaw``), a
         velocity from as few as 3 points, standing still when half of them say so (a person walking
         past a robot turning in place is a larger share of a handful of points), fitted unweighted
-        (of 6-12 points on the chip's bins, those across the motion fix the sideways speed)."""
+        (of 6-12 points on the chip's bins, those across the motion fix the sideways speed), its
+        heatmap's cells not weighed by their peak's shape (docs/tidemo.md: the chip's static
+        heatmap is not the raw one those weights were measured on) and its speed not scaled to the
+        level reflectors' edge (its Doppler on the chip's bins: not measured there)."""
         return cls().preset("tidemo")
 
     def preset(self, name: str | None) -> "EstimatorConfig":
@@ -407,6 +410,7 @@ class EstimatorConfig(Settings):
 #: What :meth:`EstimatorConfig.tidemo` changes, by section.
 TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bearing_noise_rad": 0.0,
                               "level_edge_quantile": None},
+                 "icp": {"field_shape_width": None},
                  "point_yaw": {"use": True}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).

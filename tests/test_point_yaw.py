@@ -368,7 +368,10 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
     assert RadarOdometry(default).point_yaw is None
     assert (preset.velocity.min_points, preset.velocity.zero_velocity_ratio) == (3, 0.5)
     same = preset.to_dict()
-    for section in ("features", "icp", "odometry"):
+    # The chip's static heatmap is not the raw one the field's peak-shape weights were measured on.
+    assert preset.icp.field_shape_width is None and default.icp.field_shape_width is not None
+    assert same["icp"] == {**default.to_dict()["icp"], "field_shape_width": None}
+    for section in ("features", "odometry"):
         assert same[section] == default.to_dict()[section]
     assert EstimatorConfig.from_dict(same) == preset
 
