@@ -317,12 +317,15 @@ def _world(rng) -> np.ndarray:
 
 def _pointcloud(world, t, rng) -> np.ndarray:
     p = _in_sensor(world, t)
+    # Reflectors at heights within +/- 0.8 m, as the dataset's 3-TX clouds measure them (z); not
+    # drawn from rng, which the heatmaps share.
+    z = 0.8 * np.sin(3.1 * np.arange(len(p)))
     r = np.hypot(p[:, 0], p[:, 1])
     keep = (p[:, 0] > 0.3) & (r < 8) & (np.abs(np.arctan2(p[:, 1], p[:, 0])) < math.radians(70))
-    p, r = p[keep], r[keep]
+    p, r, z = p[keep], r[keep], z[keep]
     # The sensor moves at (SPEED, 0) in its own frame; a static point has v_r = -v . u.
-    doppler = -SPEED * p[:, 0] / r + rng.normal(0, 0.01, len(r))
-    return np.column_stack([p[:, 0], p[:, 1], np.zeros(len(r)), np.full(len(r), 20.0), doppler]).astype("<f4")
+    doppler = -SPEED * p[:, 0] / np.hypot(r, z) + rng.normal(0, 0.01, len(r))
+    return np.column_stack([p[:, 0], p[:, 1], z, np.full(len(r), 20.0), doppler]).astype("<f4")
 
 
 def _heatmap(world, t, azimuth_bins, rng) -> np.ndarray:
