@@ -68,11 +68,12 @@ class VelocityConfig(Settings):
     doppler_noise_mps: float = 0.02
     #: A cloud without elevation (no raised antenna row: every point's elevation 0) has its forward
     #: velocity scaled by this quantile of its inliers' own forward speeds over the fit's, pooled
-    #: over ``level_edge_window_s`` of clouds moving at least ``level_edge_min_mps`` (the level
+    #: over ``level_edge_window_s`` (s) of clouds moving forward or backward, more than sideways, at
+    #: ``level_edge_min_mps`` (m/s) or more, where the Doppler's noise is a small share (the level
     #: reflectors' edge: estimator/level_speed.py; None: the fit as if all were level, 2-5 % slow).
     level_edge_quantile: float | None = 0.85
     level_edge_window_s: float = 2.0
-    level_edge_min_mps: float = 0.2
+    level_edge_min_mps: float = 0.5
     #: Seed of the random generator (results are reproducible).
     seed: int = 0
 

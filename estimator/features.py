@@ -330,7 +330,8 @@ def heatmap_doppler_points(heatmap: PolarHeatmap, config: FeatureConfig, cells: 
 
 def strongest_points(points: np.ndarray, cells: int) -> np.ndarray:
     """The *cells* strongest of :func:`heatmap_doppler_points`' *points* (all when fewer), still
-    in raster order: the same cells as asking it for *cells* directly."""
+    in raster order: the same cells as asking it for *cells* directly (but for equal intensities
+    at the last place, either of which may be taken)."""
     if len(points) <= cells:
         return points
     strongest = np.argpartition(points["intensity"], len(points) - cells)[len(points) - cells:]

@@ -207,7 +207,8 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         straight_max_deg_per_m=float(np.abs(runs).max()) if len(runs) else nan,
         moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
         inplace_turns=kinds[True][0], inplace_turn_deg=kinds[True][1], inplace_turn_ratio=kinds[True][2],
-        path_m=path, path_ratio=est_path / path if path > 0 else nan, drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
+        path_m=path, path_ratio=est_path / path if path > 0 else nan,
+        drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
 
 
 def drift_parts(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS,

@@ -57,7 +57,8 @@ class VelocityHistory:
         f = (t - a.t) / (b.t - a.t) if b.t > a.t else 0.0
         return VelocityEstimate(t=t, vx=a.vx + f * (b.vx - a.vx), vy=a.vy + f * (b.vy - a.vy),
                                 covariance=(1 - f) * a.covariance + f * b.covariance,
-                                n_points=b.n_points, inliers=b.inliers, status=b.status)
+                                n_points=b.n_points, inliers=b.inliers, status=b.status,
+                                level_scale=a.level_scale + f * (b.level_scale - a.level_scale))
 
 
 @dataclass

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import estimator_synth as synth
 import numpy as np
 import pytest
 from radarodom.dsp.processor import POINT_DTYPE
@@ -19,7 +20,8 @@ from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig, VelocityConfig
 from radarodom.estimator.level_speed import LevelSpeed, level_speed_part
 from radarodom.estimator.odometry import RadarOdometry
-from radarodom.estimator.velocity import ZERO, estimate_velocity
+from radarodom.estimator.velocity import OK, ZERO, VelocityEstimate, estimate_velocity
+from radarodom.estimator.velocity_track import HeatmapVelocity, VelocityHistory
 
 
 def cloud(rng, vx, vy, n=30, max_elevation_deg=25.0, noise_mps=0.005, measured_elevation=False):
@@ -50,7 +52,7 @@ def drive(level, rng, vx, vy, frames=20, t0=0.0, **kw):
     return fits
 
 
-@pytest.mark.parametrize("vx, vy", [(0.8, 0.0), (0.8, 0.1), (1.5, 0.0), (-0.5, 0.05)])
+@pytest.mark.parametrize("vx, vy", [(0.8, 0.0), (0.8, 0.1), (1.5, 0.0), (-0.8, 0.05)])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_the_edge_gives_the_forward_speed_back(vx, vy, seed):
     fits = drive(LevelSpeed(VelocityConfig()), np.random.default_rng(seed), vx, vy)
@@ -93,6 +95,47 @@ def test_no_scale_before_enough_points_then_kept_through_a_stop():
     # Moving again: the first clouds are too few for an edge of their own and keep the last one.
     again = drive(level, rng, 0.8, 0.0, frames=1, t0=5.0)
     assert again[0][1].level_scale == scale
+
+
+def test_a_cloud_earlier_than_the_pool_pools_nothing():
+    level = LevelSpeed(VelocityConfig())
+    drive(level, np.random.default_rng(9), 0.8, 0.0, frames=10, t0=5.0)
+    scale = level.scale
+    drive(level, np.random.default_rng(10), 1.2, 0.0, frames=3, t0=1.0)  # the odometry refuses these
+    assert level.scale == scale
+
+
+@pytest.mark.parametrize("vx, vy", [(0.3, 0.8),   # sideways: its bearings' errors would be read as speed
+                                    (0.3, 0.0)])  # below level_edge_min_mps: its Doppler's noise would
+def test_sideways_or_slow_motion_pools_nothing(vx, vy):
+    level = LevelSpeed(VelocityConfig())
+    for raw, scaled in drive(level, np.random.default_rng(11), vx, vy, frames=20, noise_mps=0.02):
+        assert scaled is raw
+    assert level.scale == 1.0
+
+
+def test_the_heatmap_fallback_takes_the_clouds_edge():
+    # The heatmap's cells carry no elevation either: its Doppler fit is scaled by the edge the
+    # clouds found (on 2-TX straights it is 0.94-0.95 of the truth, docs/heading.md item 26).
+    config = EstimatorConfig()
+    level = LevelSpeed(config.velocity)
+    drive(level, np.random.default_rng(12), 0.8, 0.0)
+    assert level.scale > 1.02
+    heatmap = synth.scene_heatmap(velocity_xy=(0.8, 0.0))
+    plain = HeatmapVelocity(config, VelocityHistory(5), None)(0.9, 1.0, heatmap)
+    scaled = HeatmapVelocity(config, VelocityHistory(5), level)(0.9, 1.0, heatmap)
+    assert plain is not None and scaled is not None
+    assert scaled[0][0] == pytest.approx(plain[0][0] * level.scale)
+    assert scaled[0][1] == pytest.approx(plain[0][1])
+
+
+def test_an_interpolated_velocity_keeps_its_level_fit():
+    history = VelocityHistory(5)
+    for t, scale in ((1.0, 1.0), (1.1, 1.04)):
+        history.add(VelocityEstimate(t=t, vx=0.8 * scale, covariance=np.eye(2), status=OK, level_scale=scale))
+    mid = history.interpolated(1.05)
+    assert mid.level_scale == pytest.approx(1.02)
+    assert mid.level_velocity[0] == pytest.approx(mid.vx / 1.02)
 
 
 def test_the_odometry_scales_elevationless_clouds_and_the_paper_does_not():
