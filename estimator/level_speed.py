@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from .config import VelocityConfig
+from .config_velocity import VelocityConfig
 from .velocity import OK, VelocityEstimate
 
 #: Only points within this of boresight give a ratio: the ratio's noise grows as 1 / cos(az).

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .config import VelocityConfig
+from .config_velocity import VelocityConfig
 from .quality import TextEnum
 
 log = logging.getLogger(__name__)
