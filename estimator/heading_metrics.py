@@ -36,7 +36,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .evaluation import se2_compose, se2_inverse, se2_relative
+from .evaluation import path_steps, se2_compose, se2_inverse, se2_relative
 
 __all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns", "straight_runs"]
 
@@ -193,7 +193,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         kinds[in_place] = (count, math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan)
 
     path = float(step_m.sum())
-    est_path = float(np.hypot(*np.diff(est[:, :2], axis=0).T).sum())
+    est_path = float(path_steps(est[:, :2]).sum())
     aligned = se2_compose(se2_compose(ref[0], se2_inverse(est[0]))[None, :], est)
     drift = float(np.hypot(*(aligned[-1, :2] - ref[-1, :2])))
     final = math.degrees(float(_wrap(aligned[-1, 2] - ref[-1, 2])))

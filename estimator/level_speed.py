@@ -55,7 +55,7 @@ class LevelSpeed:
         if not self._applies(points, est):
             return est
         if self._pool and t < self._pool[-1][0]:
-            return self.scaled(points, est)
+            return self._scaled(est)
         if abs(est.vx) >= self._min_mps and abs(est.vx) >= abs(est.vy):
             inliers = points[est.inlier_mask]
             az = np.asarray(inliers["azimuth"], dtype=float)
@@ -70,13 +70,16 @@ class LevelSpeed:
         if sum(len(r) for r in ratios) >= _MIN_RATIOS:
             # Fewer (after a stop, say) keep the edge found last: the scene has hardly changed.
             self.scale = float(np.clip(np.quantile(np.concatenate(ratios), self._quantile), 1.0, _MAX_SCALE))
-        return self.scaled(points, est)
+        return self._scaled(est)
 
     def scaled(self, points: np.ndarray, est: VelocityEstimate) -> VelocityEstimate:
         """*est*, fitted to *points*, with vx and its variance scaled by the last edge found (none
         before one is), when *points* carry no elevation; also for the heatmap's Doppler
         fallback, which pools nothing (its cells are the heatmap's strongest, not the cloud's)."""
-        if self.scale == 1.0 or not self._applies(points, est):
+        return self._scaled(est) if self._applies(points, est) else est
+
+    def _scaled(self, est: VelocityEstimate) -> VelocityEstimate:
+        if self.scale == 1.0:
             return est
         gain = np.diag([self.scale, 1.0])
         return dataclasses.replace(est, vx=est.vx * self.scale, covariance=gain @ est.covariance @ gain,
