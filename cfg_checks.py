@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .cfg_physics import MAX_RF_FREQUENCY_HZ
+from .cfg_physics import MAX_RF_FREQUENCY_HZ, SYNTHESIZER_RANGES_GHZ
 from .errors import ConfigError
 
 if TYPE_CHECKING:
@@ -72,6 +72,12 @@ class ConfigChecks:
         if top_ghz * 1e9 > MAX_RF_FREQUENCY_HZ + 1e6:
             raise self._fail(f"the ramp reaches {top_ghz:.3f} GHz, above the xWR18xx's 81 GHz",
                              ln, "freqSlopeConst")
+        if not any(lo - 1e-3 <= p.start_freq_ghz and top_ghz <= hi + 1e-3 for lo, hi in SYNTHESIZER_RANGES_GHZ):
+            ranges = " or ".join(f"{lo:g}-{hi:g} GHz" for lo, hi in SYNTHESIZER_RANGES_GHZ)
+            raise self._fail(
+                f"the ramp sweeps {p.start_freq_ghz:g}-{top_ghz:.3f} GHz, across the synthesizer's two "
+                f"ranges ({ranges}: one chirp stays within one); start at 77 GHz or more, or end the "
+                f"ramp by 78 GHz", ln, "startFreq")
 
     def _validate_chirps_and_frame(self) -> None:
         channel = self._first["channelCfg"]

@@ -21,6 +21,9 @@ SPEED_OF_LIGHT = 299_792_458.0
 BYTES_PER_COMPLEX_SAMPLE = 4
 #: Highest RF frequency of the xWR18xx, Hz.
 MAX_RF_FREQUENCY_HZ = 81e9
+#: The RF ranges of the 77 GHz devices' two VCOs, GHz: a chirp's whole sweep lies within one of
+#: them (mmWaveLink rlProfileCfg_t, rampEndTime and pfVcoSelect).
+SYNTHESIZER_RANGES_GHZ = ((76.0, 78.0), (77.0, 81.0))
 #: ADC data bytes in a full DCA1000 data packet (protocol.md).
 DCA1000_PACKET_DATA_BYTES = 1456
 #: Measured DCA1000 Ethernet throughput, (packet delay us, Mbit/s): UG Table 19.

@@ -269,6 +269,22 @@ def test_ramp_above_81_ghz():
     expect_error(text, 8, "profileCfg", "freqSlopeConst", "83.840 GHz", "81 GHz")
 
 
+def test_ramp_across_the_two_synthesizer_ranges():
+    # 76 GHz + 96 MHz/us * 40 us = 79.84 GHz: below 77 GHz only VCO1 (76-78 GHz) runs, and it stops at 78
+    text = set_arg(PROFILE, START_FREQ, "76")
+    err = expect_error(text, 8, "profileCfg", "startFreq", "76-79.840 GHz", "76-78 GHz or 77-81 GHz")
+    assert "start at 77 GHz" in str(err)
+
+
+@pytest.mark.parametrize("start, slope", [("76", "48"), ("76.08", "48"), ("77", "96"), ("76.5", "10")])
+def test_ramp_within_one_synthesizer_range_is_accepted(start, slope):
+    # 76 + 48 * 40 / 1000 = 77.92 and 76.08 + 1.92 = 78.0 GHz (VCO1); 77 + 3.84 = 80.84 GHz (VCO2)
+    tokens = PROFILE.split()
+    tokens[START_FREQ + 1], tokens[SLOPE + 1] = start, slope
+    cfg = RadarConfig.from_text(edit(PROFILE, " ".join(tokens)), NAME)
+    assert cfg.start_frequency_hz == pytest.approx(float(start) * 1e9)
+
+
 def test_ramp_ending_at_81_ghz_is_accepted():
     # 77.16 + 96 * 40 / 1000 = 81.0 GHz exactly
     cfg = RadarConfig.from_text(set_arg(PROFILE, START_FREQ, "77.16"), NAME)
