@@ -244,3 +244,22 @@ def test_a_bad_mount_is_a_usage_error(run_files):
     proc = run_eval(est, gt, "--mount", "0.3,0")
     assert proc.returncode == 2 and proc.stdout == ""
     assert "--mount: a mount is x,y,z,yaw_deg (four numbers: m, m, m, degrees), got '0.3,0'" in proc.stderr
+
+
+def test_json_never_replaces_an_input_or_an_existing_file_unasked(run_files, tmp_path):
+    est, gt = run_files
+    truth = pathlib.Path(gt).read_bytes()
+    for argv in ([est, gt, "--json", gt], [est, gt, "--json", gt, "--overwrite"]):
+        proc = run_eval(*argv)
+        assert proc.returncode == 2 and "would write over the input GT.tum" in proc.stderr
+    assert pathlib.Path(gt).read_bytes() == truth
+    out = tmp_path / "eval.json"
+    out.write_text("mine")
+    proc = run_eval(est, gt, "--json", out)
+    assert proc.returncode == 2 and "already exists" in proc.stderr and proc.stdout == ""  # before the work
+    assert run_eval(est, gt, "--json", out, "--overwrite").returncode == 0
+    assert json.loads(out.read_text())["poses"]["matched"] == 200
+    proc = run_eval(est, gt, "--json", "/dev/null", "--overwrite")
+    assert proc.returncode == 2 and "not a regular file" in proc.stderr
+    proc = run_eval(est, gt, "--plot", gt)
+    assert proc.returncode == 2 and "is a file, not a directory" in proc.stderr

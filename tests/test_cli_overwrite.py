@@ -5,6 +5,8 @@ And --version on every program."""
 from __future__ import annotations
 
 import importlib
+import os
+import stat
 import json
 import re
 import tomllib
@@ -119,3 +121,43 @@ def test_radar_sim_out_is_replaced_with_overwrite(tmp_path, capsys):
     blocker.write_text("x")
     assert radar_sim.main(["calibration", "--duration", "0.2", "--out", str(blocker), "--overwrite"]) == 2
     assert "is a file" in capsys.readouterr().err and blocker.read_text() == "x"
+
+
+def test_two_outputs_naming_one_file_are_refused_before_anything_is_written(tmp_path, capsys):
+    out = tmp_path / "odom.tum"
+    rc, err = capture(capsys, "--odom-out", out, "--odom-json", out)
+    assert rc == 2 and "--odom-out and --odom-json both name" in err
+    assert not out.exists()  # a corrected retry is not refused by a leftover
+    assert capture(capsys, "--odom-out", out, "--odom-json", tmp_path / "odom.jsonl")[0] == 0
+
+
+def test_an_output_never_replaces_what_the_run_reads(tmp_path, capsys):
+    rec = tmp_path / "rec"
+    assert capture(capsys, "--record", rec, "--no-odom")[0] == 0
+    truth = (rec / "groundtruth.tum").read_bytes()
+    replay = ["--source", f"replay://{rec}?rate=max", "--no-publish", "-q"]
+    for argv in (["--odom-out", rec / "groundtruth.tum"], ["--record", rec]):
+        assert radar_capture.main([*replay, *map(str, argv), "--overwrite"]) == 2
+        assert "would write over the input --source" in capsys.readouterr().err
+    assert (rec / "groundtruth.tum").read_bytes() == truth
+    cfg = tmp_path / "radar.cfg"
+    cfg.write_bytes((rec / "radar.cfg").read_bytes())
+    rc, err = capture(capsys, "--cfg", cfg, "--odom-out", cfg, "--overwrite")
+    assert rc == 2 and "the input --cfg" in err and cfg.read_bytes() == (rec / "radar.cfg").read_bytes()
+    # New files beside a replayed recording, and heatmaps into it, are fine.
+    assert radar_capture.main([*replay, "--odom-out", str(rec / "odom.tum"), "--heatmap-out", str(rec)]) == 0
+    assert (rec / "odom.tum").exists() and (rec / "index.json").exists()
+
+
+def test_overwrite_replaces_only_a_regular_file(tmp_path, capsys):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    rc, err = capture(capsys, "--odom-out", fifo, "--overwrite")
+    assert rc == 2 and "is not a regular file" in err and stat.S_ISFIFO(os.lstat(fifo).st_mode)
+
+
+@pytest.mark.parametrize("option", ["--record", "--odom-out", "--cfg", "--estimator-config", "--source"])
+def test_an_empty_path_is_a_usage_error(tmp_path, capsys, option):
+    rc = radar_capture.main(["--source", URL, "--no-publish", "-q", option, ""])
+    assert rc == 2 and f"argument {option}: empty value" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

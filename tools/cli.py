@@ -119,9 +119,32 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
             raise CaptureExistsError(f"{path} already exists; choose a new file (or --overwrite)")
         if os.path.isdir(path):
             raise CaptureExistsError(f"{path} is a directory; --overwrite replaces only a file")
+        if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
+            raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):
         raise CaptureError(f"cannot create {path}: no directory {parent}")
+
+
+def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
+    """Refuse two outputs that name one path, or an output that names an input of the same run
+    or an existing file in an input directory (a recording's own files, which ``--overwrite``
+    would replace; new files beside them are fine); each (what, path), *what* an option's name."""
+    import os
+
+    from ..errors import UsageError
+
+    seen: dict[str, str] = {}
+    for what, path in outputs:
+        real = os.path.realpath(path)
+        if real in seen:
+            raise UsageError(f"{seen[real]} and {what} both name {path}: give each its own")
+        seen[real] = what
+        for source, given in inputs:
+            src = os.path.realpath(given)
+            if real == src or (os.path.isdir(src) and real.startswith(src + os.sep) and os.path.lexists(path)):
+                raise UsageError(f"{what} {path} would write over the input {source} {given}: "
+                                 "choose another path")
 
 
 def replace_output(path: str, kind: str = "file") -> None:
@@ -191,6 +214,17 @@ def setup_logging(prog: str, args: argparse.Namespace,
     return handler
 
 
+def _refuse_empty_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """An empty argument (``--record "$OUT"`` with OUT unset) is a usage error, not "no output":
+    no option or argument of radarodom's programs takes an empty string."""
+    for action in parser._actions:
+        value = getattr(args, action.dest, None) if action.dest != argparse.SUPPRESS else None
+        values = value if isinstance(value, list) else [value]
+        if any(isinstance(v, str) and not v.strip() for v in values):
+            name = "/".join(action.option_strings) or action.metavar or action.dest
+            parser.error(f"argument {name}: empty value (an unset shell variable?)")
+
+
 def run(
     main: Callable[[argparse.Namespace], int | None],
     parser: argparse.ArgumentParser,
@@ -201,6 +235,7 @@ def run(
     """Parse *argv*, run *main*, and turn what it raises into an exit code."""
     try:
         args = parser.parse_args(argv)
+        _refuse_empty_values(parser, args)
     except SystemExit as exc:  # argparse: --help (0) or a usage error (2)
         return int(exc.code or 0)
     prog = parser.prog

@@ -29,7 +29,7 @@ from typing import Iterator, Sequence
 
 from ..cfg import RadarConfig
 from ..driver.recordings.capture_dir import CaptureWriter
-from ..driver.sources import SCHEMES, Source, open_source
+from ..driver.sources import SCHEMES, Source, open_source, split_url
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
@@ -291,18 +291,33 @@ def _recording_sink(args: argparse.Namespace, source: Source):
                                      extra=source.recording_metadata()), source)
 
 
-def _outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
-    """(path, kind) of every output asked for; kind as :func:`cli.replace_output` takes it."""
-    outputs = [(args.record, "capture"), (args.heatmap_out, "heatmaps"), (args.points_out, "file"),
-               (None if args.no_odom else args.odom_out, "file")]
-    return [(path, kind) for path, kind in outputs if path] + ros_outputs.outputs(args) + view_option.outputs(args)
+def _outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:
+    """(path, kind, option) of every output asked for; kind as :func:`cli.replace_output` takes it."""
+    outputs = [(args.record, "capture", "--record"), (args.heatmap_out, "heatmaps", "--heatmap-out"),
+               (args.points_out, "file", "--points-out"),
+               (None if args.no_odom else args.odom_out, "file", "--odom-out")]
+    return [out for out in outputs if out[0]] + ros_outputs.outputs(args) + view_option.outputs(args)
+
+
+def _inputs(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """(option, path) of the files and directories the run reads: its cfg and settings, and a
+    recording or ColoRadar run it streams."""
+    inputs = [("--cfg", args.cfg), ("--estimator-config", args.estimator_config),
+              ("--zenoh-config", getattr(args, "zenoh_config", None))]
+    scheme, path, _ = split_url(args.source)
+    if scheme in ("replay", "coloradar") and path:
+        inputs.append(("--source", os.path.expanduser(path)))
+    return [(what, path) for what, path in inputs if path]
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
-    """Every file output is new (or, with --overwrite, replaceable): checked before anything
-    is created, so a refusal leaves nothing behind."""
+    """Every file output is new (or, with --overwrite, replaceable), and none is another output
+    or an input: checked before anything is created, so a refusal leaves nothing behind."""
     ros_outputs.check(args)
-    for path, kind in _outputs(args):
+    # Heatmaps may go beside a recording, the one written or the one replayed: their files'
+    # names are their own (NNNNNN_*.npy, index.json), and their writer refuses a heatmap run there.
+    cli.check_distinct([(option, path) for path, kind, option in _outputs(args) if kind != "heatmaps"], _inputs(args))
+    for path, kind, _ in _outputs(args):
         if kind == "capture" and not (args.overwrite and os.path.exists(path)):
             continue  # a capture directory is checked by its writer (which makes its parents)
         cli.check_new_path(path, is_dir=kind != "file", overwrite=args.overwrite)
@@ -337,7 +352,7 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
 def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine) -> str:
     """Stream the open *source* (its outputs checked) through the pipeline; the summary."""
     if args.overwrite:
-        for path, kind in _outputs(args):
+        for path, kind, _ in _outputs(args):
             cli.replace_output(path, kind)
     # Without --estimator-config, the settings the source's frames call for (tidemo://: its own).
     estimator = args.estimator if args.estimator_config else source_estimator(source, args.estimator)

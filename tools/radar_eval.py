@@ -1,6 +1,6 @@
 """radar-eval: compare an estimated trajectory with ground truth.
 
-    radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR [--name NAME] [--flags ODOM.jsonl]] [--json FILE]
+    radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR [--name NAME] [--flags ODOM.jsonl]] [--json FILE [--overwrite]]
                [--delta-m M] [--max-diff S] [--mount X,Y,Z,YAW_DEG] [-v|-q]
 
 The ground truth is a TUM file, or the source URL the estimate was made from when that source
@@ -33,7 +33,7 @@ from ..errors import CaptureError, UsageError
 from ..mount import Mount
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..estimator.heading_metrics import drift_parts, heading_metrics
-from ..driver.sources import open_source
+from ..driver.sources import open_source, split_url
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
 from .eval_summary import format_heading, format_table
@@ -60,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--flags", metavar="ODOM.jsonl",
                         help="the estimator's quality flags for the plots: its odometry messages, one JSON "
                              "object per line, as radar-echo --json odom prints them")
-    parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE")
+    parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE (a new file)")
+    cli.add_overwrite(parser)
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
                         help="path length of the per-distance RPE, m (default 1)")
     parser.add_argument("--max-diff", type=cli.positive_float, default=0.01, metavar="S",
@@ -81,6 +82,7 @@ def _main(args: argparse.Namespace) -> int:
     for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
         if not os.path.isfile(path):
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
+    _check_outputs(args)
     estimate = read_tum(args.estimate)
     reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
     flags = plots.read_odometry_flags(args.flags) if args.flags else None
@@ -113,6 +115,21 @@ def _main(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"plots: {', '.join(written)}")
     return 0
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """--json is a new file (or, with --overwrite, a file to replace) and not an input; --plot a
+    directory (made when it is not there): checked before the work."""
+    if args.json:
+        inputs = [("EST.tum", args.estimate), ("--flags", args.flags)]
+        if "://" not in args.reference:
+            inputs.append(("GT.tum", args.reference))
+        else:  # a recording or a run the ground truth is read from
+            inputs.append(("GT.tum|URL", os.path.expanduser(split_url(args.reference)[1])))
+        cli.check_distinct([("--json", args.json)], [(what, path) for what, path in inputs if path])
+        cli.check_new_path(args.json, overwrite=args.overwrite)
+    if args.plot and os.path.exists(args.plot) and not os.path.isdir(args.plot):
+        raise UsageError(f"--plot {args.plot} is a file, not a directory")
 
 
 def _source_groundtruth(url: str) -> TumTrajectory:

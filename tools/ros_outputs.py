@@ -38,9 +38,10 @@ def check(args: argparse.Namespace) -> None:
         _mcap()
 
 
-def outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
-    """(path, "file") of each output asked for, for radar-capture's new-file and --overwrite checks."""
-    return [(path, "file") for path in (args.mcap, args.odom_json) if path]
+def outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:
+    """(path, "file", option) of each output asked for, for radar-capture's new-file and --overwrite checks."""
+    return [(path, "file", option) for path, option in ((args.mcap, "--mcap"), (args.odom_json, "--odom-json"))
+            if path]
 
 
 def build_sinks(args: argparse.Namespace, source) -> list:

@@ -65,10 +65,11 @@ def add_view_argument(parser: argparse.ArgumentParser) -> None:
                              'own frames, never the pipeline\'s (needs pip install "radarodom[view]")')
 
 
-def outputs(args: argparse.Namespace) -> list[tuple[str, str]]:
-    """The .rrd file of ``--view save:``, for radar-capture's new-file and --overwrite checks."""
+def outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:
+    """The .rrd file of ``--view save:`` (path, "file", option), for radar-capture's new-file and
+    --overwrite checks."""
     target = args.view
-    return [(target.path, "file")] if target is not None and target.kind == "save" else []
+    return [(target.path, "file", "--view save:")] if target is not None and target.kind == "save" else []
 
 
 def build_sinks(args: argparse.Namespace, source) -> list:
