@@ -118,3 +118,16 @@ def test_radar_emulate_refuses_a_command_port_in_use_in_one_line():
     assert "Traceback" not in proc.stderr
     assert proc.stderr.splitlines() == [f"radar-emulate: error: --command-port {port}: in use on {BOARD_IP} by "
                                         f"another program (a radar-emulate still running?): choose another port"]
+
+
+@pytest.mark.parametrize("url, words", [
+    ("dca1000://999.1.1.1?cli=/dev/null", ("board address '999.1.1.1' is not an IPv4 address", "192.168.33.180")),
+    ("dca1000://192.168.33.180:4096?cli=/dev/null", ("'192.168.33.180:4096'", "board_port=")),
+    ("dca1000://?host=my-laptop&cli=/dev/null", ("host 'my-laptop' is not an IPv4 address",)),
+    ("dca1000://board.local", ("board address 'board.local'",)),  # said before a CLI port is looked for
+])
+def test_a_board_or_host_that_is_not_an_ipv4_address_is_a_usage_error(url, words):
+    proc = subprocess.run(console_command("radar-capture") + ["--source", url, "--no-publish", "--frames", "1"],
+                          capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert proc.stderr.startswith(f"radar-capture: error: {url}: ") and all(w in proc.stderr for w in words)

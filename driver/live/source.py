@@ -27,6 +27,7 @@ frame's bytes on the real board); lost packets are known from the stream's later
 from __future__ import annotations
 
 import collections
+import ipaddress
 import logging
 import time
 from typing import Iterator
@@ -37,7 +38,7 @@ from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
-from .dca1000_wire import AsyncStatus
+from .dca1000_wire import BOARD_IP, HOST_IP, AsyncStatus
 from .frame_ring import POLICIES, FrameRing
 from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
 
@@ -297,6 +298,8 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     stop_timeout = options.take("stop_timeout", positive_number, defaults.stop_timeout_s,
                                 "seconds to wait for RECORD_COMPLETED after RECORD_STOP")
     options.finish()
+    for what, address in (("board address", board), ("host", host)):
+        _check_ipv4(options.url, what, address)
     if cli is None:
         from .discovery import default_cli_port  # pyusb and sysfs only when needed
 
@@ -310,3 +313,14 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout,
                       cli_timeout_s=cli_timeout)
+
+
+def _check_ipv4(url: str, what: str, address: str) -> None:
+    """The DCA1000 speaks UDP over IPv4 to fixed addresses (its EEPROM's): a name or a port
+    here is a mistake, said before any board is looked for."""
+    try:
+        ipaddress.IPv4Address(address)
+    except ValueError:
+        hint = ("; give ports as config_port=, data_port=, board_port=" if ":" in address
+                else f" (the board's default: {BOARD_IP}, this host's: {HOST_IP})")
+        raise SourceError(f"{url}: {what} {address!r} is not an IPv4 address{hint}") from None
