@@ -17,10 +17,14 @@ from ..dsp.cfar import CfarParams
 from ..errors import ConfigError
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
-from .config_odometry import KEYFRAME_STARTS, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig  # noqa: F401  (re-exported)
+from .config_odometry import (  # noqa: F401  (re-exported)
+    KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig)
 from .config_velocity import PROJECTIONS, VelocityConfig  # noqa: F401  (re-exported)
 
 FEATURE_METHODS = ("topk", "raymax", "cfar")
+#: The widest smoothing of the likelihood field, bins (a sigma beyond it spreads a cell over
+#: more of the heatmap than its 64 azimuth bins hold).
+MAX_SMOOTHING_BINS = 64.0
 DOPPLER_ELEVATIONS = ("off", "turns", "always")
 INITIAL_GUESSES = ("zero", "constant_rate", "profile", "scan")
 REFINEMENTS = ("none", "field")
@@ -261,16 +265,17 @@ class IcpConfig(Settings):
         _check(self.iterations >= 1, "must be at least 1", "iterations")
         _check(self.tolerance_rad > 0, "must be positive", "tolerance_rad")
         _check(self.min_matches >= 1, "must be at least 1", "min_matches")
-        _check(self.max_rotation_rad > 0, "must be positive", "max_rotation_rad")
+        for name in ("max_rotation_rad", "field_search_rad"):
+            _check(0 < getattr(self, name) <= math.pi, "must be positive and at most pi (half a turn)", name)
         _check(self.scan_points >= 10, "must be at least 10", "scan_points")
-        _check(self.scan_step_rad > 0, "must be positive", "scan_step_rad")
+        for name in ("scan_step_rad", "field_step_rad"):
+            _check(getattr(self, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
         check_choice(self.weight, ("source", "product"), "weight")
         check_choice(self.initial_guess, INITIAL_GUESSES, "initial_guess")
         check_choice(self.refinement, REFINEMENTS, "refinement")
-        _check(self.field_search_rad > 0, "must be positive", "field_search_rad")
-        _check(self.field_smoothing_bins >= 0, "must be >= 0 (0: not smoothed)", "field_smoothing_bins")
+        _check(0 <= self.field_smoothing_bins <= MAX_SMOOTHING_BINS,
+               f"must be from 0 (not smoothed) to {MAX_SMOOTHING_BINS:g}", "field_smoothing_bins")
         _check(1 <= self.field_upsampling <= 16, "must be from 1 to 16", "field_upsampling")
-        _check(self.field_step_rad > 0, "must be positive", "field_step_rad")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
         _check(self.field_shape_width is None or 0 < self.field_shape_width < math.inf, "must be positive (None: off)",
                "field_shape_width")

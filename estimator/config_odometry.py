@@ -13,6 +13,10 @@ from ..settings import check_field as _check
 KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
 VELOCITY_FALLBACKS = ("hold", "heatmap")
 HEATMAP_USES = ("check", "fallback", "fuse")
+#: The finest grid step a rotation search takes, rad (0.006 degrees): with searches of at most
+#: half a turn, a grid of at most some 63 000 rotations (a finer step is a typo, and its grid
+#: would not fit in memory).
+MIN_SEARCH_STEP_RAD = 1e-4
 
 
 @dataclass
@@ -330,6 +334,9 @@ class PointYawConfig(Settings):
             _check(getattr(self, name) > 0, "must be positive", name)
         _check(self.check_steady_frames >= 0, "must be >= 0", "check_steady_frames")
         _check(self.check_steady_rad > 0, "must be positive", "check_steady_rad")
+        _check(self.search_rad <= math.pi, "must be at most pi (half a turn)", "search_rad")
+        for name in ("step_rad", "relocate_step_rad"):
+            _check(getattr(self, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")

@@ -80,3 +80,4 @@ class VelocityConfig(Settings):
                "level_edge_quantile")
         _check(self.level_edge_window_s > 0, "must be positive", "level_edge_window_s")
         _check(self.level_edge_min_mps > 0, "must be positive", "level_edge_min_mps")
+        _check(self.seed >= 0, "must be >= 0", "seed")

@@ -122,7 +122,16 @@ class TestConfig:
         ("icp", "weight", "target"),
         ("icp", "initial_guess", "imu"),
         ("icp", "max_rotation_rad", 0.0),
+        ("icp", "max_rotation_rad", 100.0),  # beyond half a turn: 82 degrees after four frames
+        ("icp", "field_search_rad", 4.0),
+        ("icp", "scan_step_rad", 1e-7),  # its grid took 24 GB
+        ("icp", "field_step_rad", 1e-300),
+        ("icp", "field_smoothing_bins", 1e300),  # scipy could not size its kernel
         ("icp", "field_window", "scan"),
+        ("velocity", "seed", -1),
+        ("point_yaw", "step_rad", 1e-300),
+        ("point_yaw", "relocate_step_rad", 1e-6),
+        ("point_yaw", "search_rad", 7.0),
         ("odometry", "yaw_manoeuvre_accel_std_radps2", 0.1),  # not above yaw_accel_std_radps2
         ("odometry", "hold_s", -0.1),
         ("odometry", "min_features", 1),
