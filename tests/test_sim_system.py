@@ -511,6 +511,30 @@ def test_bad_numbers_in_scene_raise_config_error(tmp_path, name):
     assert path in str(info.value)
 
 
+@pytest.mark.parametrize("text, words", [
+    ('colour = "red"\n' + _PAUSE, ("unknown key 'colour'", "a scene takes name, walls")),
+    ('[[objects]]\ntype = "corner_reflector"\nposition = [3, 0, 0.4]\nrcs_dbsn = 15\n' + _PAUSE,
+     ("unknown key 'rcs_dbsn' in a corner_reflector object", "takes type, position, rcs_dbsm")),
+    ('[[walls]]\npoints = [[0, 1], [2, 1]]\nheigth = 2\n' + _PAUSE, ("unknown key 'heigth' in walls",)),
+    ('[radar]\nsnr = 10\n' + _PAUSE, ("unknown key 'snr' in radar", "snr_db")),
+    ('[surfaces]\nmin = [0, 0]\nmax = [1, 1]\ncieling = 2\n' + _PAUSE, ("unknown key 'cieling' in surfaces",)),
+    ('[[movers]]\ntype = "person"\npath = [[0, 0], [1, 0]]\nsped = 1\n' + _PAUSE, ("unknown key 'sped' in movers",)),
+    ('[trajectory]\nhieght = 0.4\nsegments = [{ pause = 1 }]\n', ("unknown key 'hieght' in trajectory",)),
+    ('[trajectory]\nsegments = [{ straight = 1, sped = 0.5 }]\n', ("unknown key 'sped' in a straight segment",)),
+    ('[trajectory]\nsegments = [{ straight = 1e6, speed = 0.5 }]\n', ("last 2e+06 s", "3600 s", "loop=0")),
+    ('[trajectory]\nsegments = [{ rotate = 20, rate = 1e-300 }]\n', ("3600 s",)),
+    ('[[objects]]\ntype = "corner_reflector"\nposition = [3, 0, 0.4]\nrcs_dbsm = 1e300\n' + _PAUSE,
+     ("rcs_dbsm: must be from -60 to 60 dBsm",)),
+])
+def test_a_typo_or_an_extreme_in_a_scene_is_named_not_ignored(tmp_path, text, words):
+    # A misspelt key took its default silently; a trajectory of years or an RCS of 1e300 ran out
+    # of memory or overflowed (an internal error).
+    path = _write_scene(tmp_path, "scene", text)
+    with pytest.raises(ConfigError) as info:
+        load_scene(path)
+    assert path in str(info.value) and all(w in str(info.value) for w in words), str(info.value)
+
+
 def test_bad_json_scene_and_missing_file(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text("{not json", encoding="utf-8")

@@ -35,7 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError
-from .trajectory import Trajectory, from_spec, polyline
+from .trajectory import Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -215,14 +215,34 @@ def _num(d: dict, key: str, default: float, where: str, *, positive: bool = Fals
     return float(value)
 
 
+#: The keys of a scene file's tables, and of each kind of object.
+SCENE_KEYS = ("name", "walls", "objects", "movers", "surfaces", "trajectory", "radar", "multipath", "wall_reflection")
+WALL_KEYS = ("points", "height", "sigma0")
+SURFACE_KEYS = ("min", "max", "floor", "floor_sigma0", "ceiling", "ceiling_sigma0")
+RADAR_KEYS = ("snr_db", "noise_counts")
+MOVER_KEYS = ("type", "path", "speed", "rcs")
+OBJECT_KEYS = {"point": ("position", "rcs"), "corner_reflector": ("position", "rcs_dbsm"),
+               "box": ("center", "size", "yaw", "sigma0", "z", "edge_rcs", "occludes"),
+               "cylinder": ("center", "radius", "height", "sigma0", "occludes"),
+               "door": ("a", "b", "height", "recess", "sigma0", "frame_rcs")}
+#: A corner reflector's radar cross-section, dBsm: from a marble's to a ship's.
+RCS_DBSM_RANGE = (-60.0, 60.0)
+
+
 def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) -> Scatterers:
     kind = obj.get("type")
     w = f"{where} object {kind!r}"
+    if kind in OBJECT_KEYS:
+        check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
         return _points(_vec(_need(obj, "position", w), 3, w, "position"), _num(obj, "rcs", 1.0, w, positive=True),
                        rng, pointlike=True)
     if kind == "corner_reflector":
-        rcs = 10 ** (_num(obj, "rcs_dbsm", 15.0, w) / 10)
+        rcs_dbsm = _num(obj, "rcs_dbsm", 15.0, w)
+        if not RCS_DBSM_RANGE[0] <= rcs_dbsm <= RCS_DBSM_RANGE[1]:
+            raise ConfigError(f"must be from {RCS_DBSM_RANGE[0]:g} to {RCS_DBSM_RANGE[1]:g} dBsm, got {rcs_dbsm:g}",
+                              path=w, field="rcs_dbsm")
+        rcs = 10 ** (rcs_dbsm / 10)
         return _points(_vec(_need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
     if kind == "box":
         c = _vec(_need(obj, "center", w), 2, w, "center")
@@ -289,9 +309,13 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
             raise ConfigError(f"must be a list of tables ([[{key}]] in TOML)", path=where, field=key)
     if not isinstance(spec.get("surfaces", {}), dict) or not isinstance(spec.get("radar", {}), dict):
         raise ConfigError("surfaces and radar must be tables", path=where)
+    check_keys(spec, SCENE_KEYS, where, "")
+    check_keys(spec.get("surfaces", {}), SURFACE_KEYS, where, "surfaces")
+    check_keys(spec.get("radar", {}), RADAR_KEYS, where, "radar")
     for wall in spec.get("walls", []):
         if not isinstance(wall, dict):
             raise ConfigError(f"a wall must be a table, got {wall!r}", path=where, field="walls")
+        check_keys(wall, WALL_KEYS, where, "walls")
         pts = polyline(_need(wall, "points", where), where, "walls.points")
         height = _num(wall, "height", 2.7, where, positive=True)
         sigma0 = _num(wall, "sigma0", 0.1, where, positive=True)
@@ -318,6 +342,7 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         if not isinstance(m, dict) or m.get("type") != "person":
             kind = m.get("type") if isinstance(m, dict) else m
             raise ConfigError(f"unknown mover {kind!r}: use type = \"person\"", path=where, field="movers")
+        check_keys(m, MOVER_KEYS, where, "movers")
         path = polyline(_need(m, "path", where), where, "movers.path")
         if not np.hypot(*np.diff(path, axis=0).T).all():
             raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")

@@ -82,8 +82,28 @@ class Trajectory:
         return float(np.hypot(np.diff(self.x), np.diff(self.y)).sum())
 
 
+#: The longest trajectory a scene file gives, s: its poses are sampled every STEP_S (an hour is
+#: some 300 MB while it is built); a longer run repeats it (``sim://SCENE?loop=0``).
+MAX_DURATION_S = 3600.0
+#: The keys of each kind of segment.
+SEGMENT_KEYS = {"straight": ("straight", "speed"), "turn": ("turn", "radius", "speed"),
+                "rotate": ("rotate", "rate"), "pause": ("pause",)}
+#: The keys of a scene file's [trajectory] table.
+TRAJECTORY_KEYS = ("start", "mount", "height", "smoothing_s", "segments", "waypoints", "speed", "turn_rate")
+
+
 def _fail(message: str, where: str) -> ConfigError:
     return ConfigError(message, path=where, field="trajectory")
+
+
+def check_keys(table: dict, known: Sequence[str], where: str, what: str) -> None:
+    """Refuse a key of *table* not in *known* (a typo would silently take the default),
+    naming it, the table (*what*) and the keys it takes."""
+    unknown = [key for key in table if key not in known]
+    if unknown:
+        raise ConfigError(f"unknown key {unknown[0]!r}{f' in {what}' if what else ''}; "
+                          f"{f'{what} takes' if what else 'a scene takes'} {', '.join(known)}",
+                          path=where, field=f"{what}.{unknown[0]}" if what and " " not in what else unknown[0])
 
 
 def _number(seg: dict, key: str, where: str, default: float | None = None, positive: bool = False) -> float:
@@ -115,6 +135,9 @@ def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, 
     for seg in segments:
         if not isinstance(seg, dict):
             raise _fail(f"a segment must be a table, got {seg!r}", where)
+        kind = next((k for k in SEGMENT_KEYS if k in seg), None)
+        if kind is not None:
+            check_keys(seg, SEGMENT_KEYS[kind], where, f"a {kind} segment")
         if "straight" in seg:
             dist = _number(seg, "straight", where, positive=True)
             speed = _number(seg, "speed", where, 1.0, positive=True)
@@ -133,6 +156,10 @@ def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, 
             out.append((_number(seg, "pause", where, positive=True), 0.0, 0.0))
         else:
             raise _fail(f"unknown segment {seg!r}: use straight, turn, rotate or pause", where)
+    total = sum(duration for duration, _, _ in out)
+    if total > MAX_DURATION_S:
+        raise _fail(f"the segments last {total:.4g} s, more than the {MAX_DURATION_S:g} s a scene's trajectory "
+                    "may (a longer run repeats it: sim://SCENE?loop=0)", where)
     return out
 
 
@@ -199,6 +226,7 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
     """A trajectory from a scene file's ``[trajectory]`` table."""
     if not isinstance(spec, dict):
         raise _fail("must be a table", where)
+    check_keys(spec, TRAJECTORY_KEYS, where, "trajectory")
     start = _triple(spec, "start", where)
     mount = _triple(spec, "mount", where)
     height = _number(spec, "height", where, 0.4, positive=True)
