@@ -46,6 +46,8 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7448"
 ROS2_ROUTER_ENDPOINT = "tcp/localhost:7447"
 DEFAULT_ROS2_TOPIC = "/radar/odom"
 MODES = ("peer", "client")
+#: The largest Zenoh config file read, bytes (as the cfg and settings readers' limit).
+MAX_CONFIG_BYTES = 1 << 20
 #: Retry a connect endpoint after 0.1 s, doubling up to 1 s: a peer that comes
 #: up is joined within about a second.
 CONNECT_RETRY = "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}"
@@ -73,6 +75,12 @@ def _json5_where(path: str, reason: str) -> str:
     what = re.search(r"^\s*=\s*(.+)$", reason, re.MULTILINE)
     if where and what:
         return f"{path}:{where.group(1)}:{where.group(2)}: {what.group(1).strip()}"
+    # A value the config's schema refuses comes as the Rust error's debug form:
+    # Message { msg: "...", location: Some(Location { line: L, column: C }) }.
+    rust = re.search(r'msg: "((?:[^"\\]|\\.)*)", location: Some\(Location \{ line: (\d+), column: (\d+)', reason)
+    if rust:
+        message = rust.group(1).replace('\\"', '"').replace("`", "'")
+        return f"{path}:{rust.group(2)}:{rust.group(3)}: {message}"
     return f"{path}: {reason}"
 
 
@@ -181,6 +189,7 @@ class ZenohOptions:
         """The zenoh.Config: the config file (if any), then these options."""
         if self.config_file:
             path = os.fspath(self.config_file)
+            _check_config_file(path)
             try:
                 config = zenoh.Config.from_file(path)
             except zenoh.ZError as exc:
@@ -197,6 +206,18 @@ class ZenohOptions:
             if endpoints is not None:
                 _insert(config, f"{name}/endpoints", json.dumps(list(endpoints)))
         return config
+
+
+def _check_config_file(path: str) -> None:
+    """A config file zenoh can read whole: a regular file (zenoh reads /dev/zero for ever) of
+    at most :data:`MAX_CONFIG_BYTES`."""
+    if not os.path.isfile(path):
+        what = "not a regular file" if os.path.exists(path) else "no such file"
+        raise PublishConfigError(f"zenoh config {path}: {what}")
+    size = os.path.getsize(path)
+    if size > MAX_CONFIG_BYTES:
+        raise PublishConfigError(f"zenoh config {path}: {size} bytes, more than the {MAX_CONFIG_BYTES} "
+                                 "a config may be")
 
 
 def _check_key_prefix(prefix: Any) -> None:

@@ -399,8 +399,9 @@ def test_a_config_file_comes_first_and_options_override_it(tmp_path):
 
 @pytest.mark.parametrize("text, words", [
     ("{ mode: 'peer', listen: { endpoints: [ }", "zenoh config .*zenoh.json5"),
-    ("{ mode: 'banana' }", "banana"),
-    ("{ moed: 'peer' }", "moed"),
+    ("{ mode: 'banana' }", r"zenoh\.json5:1:9: unknown variant 'banana', expected one of 'router', 'peer'"),
+    ("{ moed: 'peer' }", r"zenoh\.json5:1:3: unknown field 'moed'"),
+    ('{ listen: { endpoints: "tcp/127.0.0.1:7001" } }', r"zenoh\.json5:1:\d+: invalid type: string"),
 ])
 def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
     path = tmp_path / "zenoh.json5"
@@ -409,8 +410,25 @@ def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
         ZenohOptions(config_file=path).to_config()
     assert info.value.exit_code == 2
     assert ".rs:" not in str(info.value)  # zenoh's source locations are left out
-    with pytest.raises(PublishConfigError, match="No such file"):
+    assert "Message {" not in str(info.value)  # nor the Rust error's debug form
+    with pytest.raises(PublishConfigError, match="no such file"):
         ZenohOptions(config_file=tmp_path / "missing.json5").to_config()
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda tmp_path: "/dev/zero", "/dev/zero: not a regular file"),  # zenoh read it for ever
+    (lambda tmp_path: tmp_path, "not a regular file"),
+    (lambda tmp_path: _big(tmp_path / "big.json5"), "more than the 1048576"),
+])
+def test_a_config_file_zenoh_cannot_read_whole_is_refused_first(tmp_path, make, words):
+    with pytest.raises(PublishConfigError, match=words) as info:
+        ZenohOptions(config_file=make(tmp_path)).to_config()
+    assert info.value.exit_code == 2
+
+
+def _big(path):
+    path.write_text("{ mode: 'peer' }" + " " * (1 << 20))
+    return path
 
 
 @pytest.mark.parametrize("options, words", [
