@@ -267,6 +267,7 @@ def one_of(*choices: str) -> Callable[[str], str]:
         if text not in choices:
             raise ValueError(text)
         return text
+    convert.words = True  # type: ignore[attr-defined]  # a word, not a number: the error says no more
     return convert
 
 
@@ -292,8 +293,9 @@ class UrlOptions:
             return convert(text)
         except (ValueError, TypeError):
             limit = getattr(convert, "limit", "")
+            how = "" if getattr(convert, "words", False) else ", written as a plain decimal number"
             raise SourceError(f"{self.url}: option {name}={quoted(text)}: expected {expect}"
-                              + (f" ({limit})" if limit else "") + ", written as a plain decimal number") from None
+                              + (f" ({limit})" if limit else "") + how) from None
 
     def finish(self) -> None:
         """Raise if the URL had options no backend took."""

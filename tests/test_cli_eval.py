@@ -227,7 +227,7 @@ def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path):
     t = 100.0 + np.arange(len(base)) / 10.0
     gt, est = write_tum(tmp_path / "gt.tum", t, radar), write_tum(tmp_path / "est.tum", t, est_radar)
     figures = {}
-    for mount in (None, "0.3,0,0.2,0"):
+    for mount in (None, "0.3,0,0.2,0", "-0.3,0,0.2,0"):
         out = tmp_path / f"{mount}.json"
         proc = run_eval(est, gt, "--json", out, *(("--mount", mount) if mount else ()))
         assert proc.returncode == 0, proc.stderr
@@ -237,6 +237,9 @@ def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path):
     assert (mounted["inplace_turns"], mounted["moving_turns"]) == (1, 1)
     assert mounted["inplace_turn_ratio"] == pytest.approx(1.02) and mounted["moving_turn_ratio"] == pytest.approx(1.0)
     assert mounted["drift_pct"] == figures[None]["drift_pct"]  # the path and drift stay the radar's
+    # Behind the axle: a negative x given as argparse would not take it (a value starting with a
+    # dash), read as the mount; the radar's turn is then a circle the other way round the axis.
+    assert figures["-0.3,0,0.2,0"]["inplace_turns"] == 0
 
 
 def test_a_bad_mount_is_a_usage_error(run_files):

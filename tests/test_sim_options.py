@@ -43,6 +43,12 @@ def test_url_options_take_plain_decimal_numbers_only(option):
         open_source(f"sim://corridor?{option}")
 
 
+def test_a_word_option_says_its_words_not_numbers():
+    with pytest.raises(SourceError) as info:
+        open_source("sim://corridor?fidelity=quick")
+    assert str(info.value).endswith("option fidelity='quick': expected exact or fast")
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.text(max_size=12))
 def test_any_url_option_text_is_taken_in_range_or_refused_naming_the_option(text):

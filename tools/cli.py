@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import re
 import sys
 import traceback
 from typing import Callable, Sequence
@@ -214,6 +215,23 @@ def setup_logging(prog: str, args: argparse.Namespace,
     return handler
 
 
+def _attach_negative_lists(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--mount -0.3,0,0,0`` as ``--mount=-0.3,0,0,0``: argparse takes a value starting with a
+    dash for an option unless it is a single negative number, and a radar behind the axle has a
+    negative x."""
+    lists = {name for action in parser._actions if action.type is mount for name in action.option_strings}
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in lists and i + 1 < len(argv) and re.fullmatch(r"-\.?\d[0-9.,eE+-]*", argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def _refuse_empty_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """An empty argument (``--record "$OUT"`` with OUT unset) is a usage error, not "no output":
     no option or argument of radarodom's programs takes an empty string."""
@@ -234,7 +252,7 @@ def run(
 ) -> int:
     """Parse *argv*, run *main*, and turn what it raises into an exit code."""
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_attach_negative_lists(parser, sys.argv[1:] if argv is None else list(argv)))
         _refuse_empty_values(parser, args)
     except SystemExit as exc:  # argparse: --help (0) or a usage error (2)
         return int(exc.code or 0)
