@@ -152,25 +152,35 @@ class Pipeline:
         stats = self.stats
         stats.reason = "end of source"
         try:
-            for frame in self.source:
-                if self._past_duration(frame):
-                    stats.reason = "duration limit"
-                    break
-                stats.count(frame.timestamp, frame.missing_bytes, frame.cut_bytes)
-                result = self.process(frame)
-                stats.rate.tick()
-                if on_frame is not None:
-                    on_frame(result, stats)
-                if self.max_frames is not None and stats.frames >= self.max_frames:
-                    stats.reason = "frame limit"
-                    break
-            if self.source.stop_requested:
-                stats.reason = "stopped"
-        finally:
+            self._stream(on_frame)
+        except BaseException:
             stats.elapsed_s = time.monotonic() - stats.started_monotonic
-            self._finish()
+            try:
+                self._finish()
+            except BaseException as close_failure:  # noqa: BLE001 (the first failure is the one to report)
+                log.warning("closing the outputs after that failed too: %s", close_failure)
+            raise
+        stats.elapsed_s = time.monotonic() - stats.started_monotonic
+        self._finish()
         log.debug("run ended (%s) after %d frames", stats.reason, stats.frames)
         return stats
+
+    def _stream(self, on_frame: Callable[[FrameResult, PipelineStats], None] | None) -> None:
+        stats = self.stats
+        for frame in self.source:
+            if self._past_duration(frame):
+                stats.reason = "duration limit"
+                break
+            stats.count(frame.timestamp, frame.missing_bytes, frame.cut_bytes)
+            result = self.process(frame)
+            stats.rate.tick()
+            if on_frame is not None:
+                on_frame(result, stats)
+            if self.max_frames is not None and stats.frames >= self.max_frames:
+                stats.reason = "frame limit"
+                break
+        if self.source.stop_requested:
+            stats.reason = "stopped"
 
     def _past_duration(self, frame: Frame) -> bool:
         first = self.stats.first_timestamp

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from conftest import SMALL_CFG, console_command, make_capture, private_zenoh
 
-from radarodom.cfg import RadarConfig
+from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.recordings.capture_dir import CaptureDirectory
 from radarodom.tools import radar_capture
 
@@ -709,3 +709,28 @@ def test_an_existing_output_is_refused_before_any_zenoh_session_opens(held_port,
                              "--listen", f"tcp/127.0.0.1:{held_port}"])
     err = capsys.readouterr().err
     assert rc == 2 and "already exists" in err and "zenoh" not in err.lower()
+
+
+def _file_size_limit(limit: int):
+    def apply() -> None:  # in the child: writes past the limit fail (EFBIG), as on a full disk
+        import resource
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    return apply
+
+
+def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_path):
+    out = tmp_path / "rec"
+    frame_bytes = RadarConfig.from_file(shipped_config_path()).frame_bytes
+    proc = subprocess.run(CAPTURE + ["--source", "sim://calibration?rate=max", "--frames", "20", "--no-publish",
+                                     "--record", str(out)], stdin=subprocess.DEVNULL, capture_output=True,
+                          text=True, timeout=120, preexec_fn=_file_size_limit(int(3.5 * frame_bytes)))
+    assert proc.returncode == 1
+    # The write's own failure is the one said (closing it failed too and had masked it).
+    assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 3 failed: File too large; "
+                                    "the 3 frames before it are kept")
+    meta = json.loads((out / "capture.json").read_text())
+    assert (meta["frame_count"], meta["closed"]) == (3, True)
+    assert (out / "adc_data.bin").stat().st_size == 3 * frame_bytes  # the cut frame's part taken back
+    assert not (out / "capture.json.tmp").exists()
+    assert CaptureDirectory(out).num_frames == 3

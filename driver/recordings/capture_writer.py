@@ -43,10 +43,15 @@ _INCOMPLETE_FLUSH_S = 0.25
 def write_json_atomically(path: str, obj: Any) -> None:
     """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
     tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(strict_json.dumps(obj, indent=1))
-        fh.write("\n")
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(strict_json.dumps(obj, indent=1))
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):  # a full disk: no empty .tmp left beside the file
+            os.remove(tmp)
+        raise
 
 
 _CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
@@ -175,7 +180,12 @@ class CaptureWriter:
             if pose is not None:
                 self._write_pose(timestamp, pose)
         except OSError as exc:
-            raise CaptureError(f"writing {self.directory} failed: {exc.strerror or exc}") from None
+            # The frame's part is cut off again: what is left holds whole frames, and a full
+            # disk gets the room back that closing the capture needs.
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._data_fd, self._frames * self.frame_bytes)
+            raise CaptureError(f"{self.directory}: writing frame {self._frames} failed: {exc.strerror or exc}; "
+                               f"the {self._frames} frames before it are kept") from None
         index = self._frames
         self._frames += 1
         if self._first_ts is None:
