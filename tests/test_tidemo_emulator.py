@@ -141,3 +141,17 @@ def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp
                        str(REPO / "configs" / "awr1843_raw.cfg")])
     assert shipped.wait(60) == 2
     assert "the UART cannot carry this cfg's frames" in shipped.output()[1]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--source", "sim://corridor", "--uart-drop", "0.5"],
+     "--uart-drop is a fault of the demo's UART data port: add --uart"),
+    (["--capture", "FILE"], "--capture FILE: not a directory (give the capture directory that holds it)"),
+])
+def test_radar_emulate_refuses_what_it_would_ignore(tmp_path, capsys, argv, words):
+    from radarodom.tools import radar_emulate
+
+    (tmp_path / "adc_data.bin").write_bytes(b"\0" * 16)
+    argv = [str(tmp_path / "adc_data.bin") if a == "FILE" else a for a in argv]
+    assert radar_emulate.main(argv) == 2
+    assert words.replace("FILE", str(tmp_path / "adc_data.bin")) in capsys.readouterr().err

@@ -234,6 +234,12 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     if args.no_odom and (args.odom_out or args.estimator_config):
         raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
                          "take --estimator-config")
+    if args.no_publish:
+        given = [option for option, value in (("--ros2", args.ros2), ("--connect", args.connect),
+                                              ("--listen", args.listen), ("--mode", args.mode),
+                                              ("--zenoh-config", args.zenoh_config)) if value]
+        if given:
+            raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     # Read the estimator's settings before any hardware is touched.
     args.estimator = _estimator_config(args)

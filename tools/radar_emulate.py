@@ -93,13 +93,21 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(args: argparse.Namespace) -> int:
     if args.capture:
         if not os.path.isdir(args.capture):
-            raise UsageError(f"--capture {args.capture}: no such directory")
+            what = "not a directory (give the capture directory that holds it)" if os.path.exists(args.capture) \
+                else "no such directory"
+            raise UsageError(f"--capture {args.capture}: {what}")
         url, cfg_path = f"replay://{args.capture}", args.cfg or os.path.join(args.capture, RADAR_CFG)
     else:
         url, cfg_path = args.source, args.cfg
     config = RadarConfig.from_file(cfg_path) if cfg_path else None
     if args.uart:
         return _serve_uart(url, cfg_path, config, args)
+    uart_faults = [option for option, value in (("--uart-garbage", args.uart_garbage),
+                                                ("--uart-truncate", args.uart_truncate),
+                                                ("--uart-drop", args.uart_drop)) if value]
+    if uart_faults:
+        raise UsageError(f"{uart_faults[0]} is a fault of the demo's UART data port: add --uart (the DCA1000's "
+                         "packet faults are --loss, --duplicate, --reorder, --truncate, --malformed, --foreign)")
     faults = Faults(loss=args.loss, duplicate=args.duplicate, reorder=args.reorder, truncate=args.truncate,
                     malformed=args.malformed, foreign=args.foreign, burst_flush=args.burst_flush)
     stop = threading.Event()
