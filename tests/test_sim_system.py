@@ -651,6 +651,27 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     assert not (tmp_path / "cap" / "adc_data.bin").exists()
 
 
+def test_radar_sim_stopped_by_sigterm_closes_what_it_recorded(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "cap"
+    proc = subprocess.Popen(console_command("radar-sim") + ["lab", "--out", str(out), "-q"], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (out / "timestamps.txt").exists() or not (out / "timestamps.txt").stat().st_size:
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGTERM)  # as a service manager or `kill` stops it
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    meta = json.loads((out / "capture.json").read_text())
+    frames = meta["frame_count"]
+    assert meta["closed"] is True and 0 < frames < 200
+    assert err == f"radar-sim: interrupted at frame {frames} of 200; the {frames} frames before it are kept in {out}\n"
+    assert CaptureDirectory(out).num_frames == frames
+
+
 def test_radar_capture_records_sim_frames(tmp_path):
     out = tmp_path / "rec"
     proc = _run("radar-capture", "--source", "sim://calibration?rate=max&duration=0.5", "--record", out)

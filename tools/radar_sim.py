@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 from typing import Sequence
@@ -66,15 +67,32 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
            + ("" if args.fidelity == "exact" else f"&fidelity={args.fidelity}"))
-    with CaptureWriter(args.out, cfg, source=url, extra=SimSource(sim).recording_metadata()) as writer:
-        for i in range(sim.num_frames):
-            f = sim.frame(i)
-            writer.write(f.raw, f.timestamp, 0, f.pose)
-            elapsed = time.monotonic() - start
-            eta = elapsed / (i + 1) * (sim.num_frames - i - 1)
-            status.update(f"{_bar(i + 1, sim.num_frames)} {i + 1}/{sim.num_frames} frames  "
-                          f"{f.num_paths} paths  elapsed {format_duration(elapsed)}  "
-                          f"left {format_duration(eta)}", force=(i + 1 == sim.num_frames))
+    # Ctrl-C and SIGTERM stop between frames, so that the recording closes on a whole frame.
+    stopped: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, _: stopped.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    written = 0
+    try:
+        with CaptureWriter(args.out, cfg, source=url, extra=SimSource(sim).recording_metadata()) as writer:
+            for i in range(sim.num_frames):
+                if stopped:
+                    break
+                f = sim.frame(i)
+                writer.write(f.raw, f.timestamp, 0, f.pose)
+                written = i + 1
+                elapsed = time.monotonic() - start
+                eta = elapsed / (i + 1) * (sim.num_frames - i - 1)
+                status.update(f"{_bar(i + 1, sim.num_frames)} {i + 1}/{sim.num_frames} frames  "
+                              f"{f.num_paths} paths  elapsed {format_duration(elapsed)}  "
+                              f"left {format_duration(eta)}", force=(i + 1 == sim.num_frames))
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if stopped and written < sim.num_frames:
+        status.clear()
+        kept = f"the {written} frames before it are kept in {args.out}" if written else "nothing was recorded"
+        print(f"radar-sim: interrupted at frame {written} of {sim.num_frames}; {kept}", file=sys.stderr)
+        return 130
     status.clear()
     print(f"radar-sim: {sim.num_frames} frames of {scene.name} ({sim.num_frames * sim.period:.1f} s, "
           f"seed {args.seed}) in {time.monotonic() - start:.1f} s -> {args.out}")
