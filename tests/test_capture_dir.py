@@ -792,3 +792,15 @@ def test_radar_capture_sigterm_closes_recording(tmp_path, small_cfg, warnings_lo
 # radar-capture --record into a directory that holds another capture: refused (exit 2, "already
 # holds a capture"), the capture's files untouched: test_cli_capture.py's
 # test_record_into_an_existing_capture_is_refused (its bytes and times, and the one error line).
+
+
+def test_a_closed_recordings_data_cut_short_is_said_so_not_blamed_on_its_timestamps(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 30)
+    with open(d / "adc_data.bin", "r+b") as fh:  # a copy that stopped part way
+        fh.truncate(3072 * 4 + 1000)
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    assert str(info.value) == (f"{d}: capture.json says the closed recording has 30 frames, adc_data.bin holds "
+                               "fewer (13288 bytes: 4 frames of 3072 bytes and 1000 bytes more): was it cut short "
+                               "(a copy that stopped part way)?")

@@ -244,6 +244,17 @@ def check_frame_bytes(directory: str, meta: dict[str, Any] | None, frame_bytes: 
             f"configuration (use the radar.cfg it was recorded with)")
 
 
+def check_data_length(directory: str, data_bytes: int, frame_bytes: int, meta: dict[str, Any] | None) -> None:
+    """A closed recording's adc_data.bin shorter than its frames: the data file was cut (a copy
+    that stopped part way), which is what to say, before its timestamps seem too many."""
+    if meta is not None and meta["closed"] and data_bytes < meta["frame_count"] * frame_bytes:
+        whole, tail = divmod(data_bytes, frame_bytes)
+        raise CaptureFormatError(
+            f"{directory}: capture.json says the closed recording has {meta['frame_count']} frames, adc_data.bin "
+            f"holds fewer ({data_bytes} bytes: {whole} frames of {frame_bytes} bytes"
+            + (f" and {tail} bytes more" if tail else "") + "): was it cut short (a copy that stopped part way)?")
+
+
 def frame_count(directory: str, data_bytes: int, frame_bytes: int, cfg_name: str,
                 meta: dict[str, Any] | None, stamps: np.ndarray | None) -> int:
     """How many frames of the data file to play: all its whole frames when the metadata (when

@@ -126,6 +126,7 @@ class CaptureDirectory:
             log.info("%s: no %s; assuming every frame complete", self.directory, METADATA)
         capture_check.check_frame_bytes(self.directory, meta, fb, cfg_name)
         self.metadata: dict[str, Any] = meta or {}
+        capture_check.check_data_length(self.directory, size, fb, meta)
         ts_path = os.path.join(self.directory, TIMESTAMPS)
         stamps = (capture_check.read_timestamps(ts_path, size // fb) if os.path.exists(ts_path) else None)
         whole = capture_check.frame_count(self.directory, size, fb, cfg_name, meta, stamps)
