@@ -161,3 +161,15 @@ def test_an_empty_path_is_a_usage_error(tmp_path, capsys, option):
     rc = radar_capture.main(["--source", URL, "--no-publish", "-q", option, ""])
     assert rc == 2 and f"argument {option}: empty value" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option", ["--record", "--heatmap-out", "radar-sim --out"])
+def test_a_file_where_a_directory_goes_is_a_usage_error(tmp_path, capsys, option):
+    blocker = tmp_path / "run.tum"
+    blocker.write_text("mine\n")
+    if option == "radar-sim --out":
+        rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", str(blocker), "-q"])
+        err = capsys.readouterr().err
+    else:
+        rc, err = capture(capsys, option, blocker)
+    assert rc == 2 and err.endswith(f"error: {blocker} is a file, not a directory\n") and blocker.read_text() == "mine\n"

@@ -112,9 +112,9 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
 
     from ..errors import CaptureError, CaptureExistsError
 
-    if is_dir and overwrite and os.path.exists(path) and not os.path.isdir(path):
-        raise CaptureExistsError(f"{path} is a file, not a directory; --overwrite replaces only a directory "
-                                 "radarodom wrote")
+    if is_dir and os.path.exists(path) and not os.path.isdir(path):
+        raise CaptureExistsError(f"{path} is a file, not a directory"
+                                 + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
     if not is_dir and os.path.lexists(path):
         if not overwrite:
             raise CaptureExistsError(f"{path} already exists; choose a new file (or --overwrite)")

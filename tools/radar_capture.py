@@ -324,8 +324,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
     # names are their own (NNNNNN_*.npy, index.json), and their writer refuses a heatmap run there.
     cli.check_distinct([(option, path) for path, kind, option in _outputs(args) if kind != "heatmaps"], _inputs(args))
     for path, kind, _ in _outputs(args):
-        if kind == "capture" and not (args.overwrite and os.path.exists(path)):
-            continue  # a capture directory is checked by its writer (which makes its parents)
+        if kind == "capture" and not os.path.exists(path):
+            continue  # a new capture directory is checked by its writer (which makes its parents)
         cli.check_new_path(path, is_dir=kind != "file", overwrite=args.overwrite)
 
 

@@ -60,9 +60,10 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     scene = load_scene(args.scene, seed=args.seed)
     board = load_board(args.board)
     sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board, fidelity=args.fidelity)
-    if args.overwrite and os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
-        cli.check_new_path(args.out, is_dir=True, overwrite=True)
-        cli.replace_output(args.out, "capture")
+    if os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
+        cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite)
+        if args.overwrite:
+            cli.replace_output(args.out, "capture")
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
