@@ -97,6 +97,25 @@ def test_start(capture, option, first):
     assert got[0].missing_bytes == (99 if first == 2 else 0)
 
 
+@pytest.mark.parametrize("option, words", [
+    ("start=6", "start=6 is past the recording's last frame (6 frames, numbered from 0)"),
+    ("start=1e3s", "start=1000s is past the recording's last frame, 0.25 s after its first"),
+])
+def test_a_start_past_the_end_says_where_the_end_is(capture, option, words):
+    d, _ = capture
+    with pytest.raises(SourceError) as info:
+        open_source(f"replay://{d}?rate=max&{option}")
+    assert str(info.value).endswith(words)
+
+
+def test_a_file_that_is_no_recording_is_said_to_be_so(capture):
+    d, _ = capture
+    with pytest.raises(ConfigError) as info:
+        open_source(f"replay://{d}/capture.json")
+    assert str(info.value).endswith("capture.json: not a recording (a capture directory, or TI's adc_data.bin or "
+                                    "*_Raw_<n>.bin files)")
+
+
 def test_frames_option(capture):
     d, frames = capture
     with open_source(f"replay://{d}?rate=max&frames=2") as src:

@@ -69,7 +69,8 @@ class ReplaySource(Source):
         self.rate = rate
         self.loop = loop
         if start >= store.num_frames:
-            raise SourceError(f"start frame {start} is past the recording's {store.num_frames} frames")
+            raise SourceError(f"start={start} is past the recording's last frame ({store.num_frames} frames, "
+                              f"numbered from 0)")
         self.first = start
         self.count = store.num_frames - start if frames is None else min(frames, store.num_frames - start)
         self.frames_played = 0
@@ -158,8 +159,10 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
         store = CaptureDirectory(path, config)
     else:
         if config is None:
-            raise ConfigError(f"{path} has no {RADAR_CFG}: give the radar configuration with --cfg",
-                              path=path)
+            what = (f"not a recording (a capture directory, or TI's {ADC_DATA} or *_Raw_<n>.bin files)"
+                    if os.path.isfile(path) and not path.endswith(".bin")
+                    else f"a recording without its {RADAR_CFG}: give the radar configuration with --cfg")
+            raise ConfigError(what, path=path)
         if reordered is None:  # TI's CLI recorder reorders by default, mmWave Studio never
             reordered = bool(_TI_SERIES.match(os.path.basename(path))) or os.path.isdir(path)
         store = TiRecording(path, config, reordered=reordered)
@@ -167,6 +170,10 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
     kind, value = start
     if kind == "seconds":
         first = int(np.searchsorted(store.timestamps - store.timestamps[0], value - 1e-9))
+        span = float(store.timestamps[-1] - store.timestamps[0]) if store.num_frames else 0.0
+        if first >= store.num_frames:
+            raise SourceError(f"{options.url}: start={value:g}s is past the recording's last frame, "
+                              f"{span:.2f} s after its first")
     else:
         first = int(value)
     return ReplaySource(store, rate=rate, loop=loop, start=first, frames=frames)
