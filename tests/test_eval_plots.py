@@ -225,6 +225,15 @@ def test_a_bad_flags_file_names_file_and_line(tmp_path, text, message):
         read_odometry_flags(path)
 
 
+def test_a_flags_files_cut_off_last_line_is_left_out_with_a_warning(tmp_path, caplog):
+    path = tmp_path / "odom.jsonl"
+    path.write_text(odom_line(10.0, 0) + odom_line(10.1, 1) + odom_line(10.2, 2)[:40])  # a killed --odom-json
+    with caplog.at_level("WARNING"):
+        timeline = read_odometry_flags(path)
+    np.testing.assert_allclose(timeline.times, [10.0, 10.1])
+    assert [r.getMessage() for r in caplog.records] == [f"{path}:3: ignoring a last line without end of line"]
+
+
 def test_a_flags_file_without_odometry_is_refused(tmp_path):
     path = tmp_path / "status.jsonl"
     path.write_text('{"schema":"radarodom/status","version":1}\n')

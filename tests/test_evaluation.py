@@ -119,10 +119,11 @@ def test_yaw_from_quaternions_also_when_tilted():
     ("# header\n\n0 0 0 0 0 0 0 1\n1 a 0 0 0 0 0 1\n", 4, "expected"),
     ("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n", 2, "not a finite number"),
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 0\n", 2, "the quaternion is zero"),
+    ("\x00\x01\xff\xfe\x10\n", 1, "binary data, not text"),  # adc_data.bin given as the ground truth
 ])
 def test_read_tum_names_file_and_line_of_a_bad_line(tmp_path, text, lineno, what):
     path = tmp_path / "bad.tum"
-    path.write_text(text)
+    path.write_bytes(text.encode("latin-1"))
     with pytest.raises(CaptureFormatError) as info:
         read_tum(path)
     assert str(info.value).startswith(f"{path}:{lineno}: {what}")

@@ -72,6 +72,9 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
             for lineno, line in enumerate(fh, start=1):
                 if not line.strip():
                     continue
+                if not line.endswith("\n"):  # as a TUM file's: a writer killed mid-line
+                    log.warning("%s:%d: ignoring a last line without end of line", path, lineno)
+                    break
                 try:
                     obj = json.loads(line)
                 except ValueError as exc:
