@@ -113,6 +113,12 @@ def test_calib_inside_the_run_given_or_absent(tmp_path):
     assert ColoRadarRun(bare, calib_dir=inside / "calib").waveform_config("cascade").num_tx == 3
     with pytest.raises(UsageError, match=re.escape(str(tmp_path / "nowhere"))):
         ColoRadarRun(bare, calib_dir=tmp_path / "nowhere")
+    # The run given as its own calibration (--calib RUN): the calibration's file is missing, not the run's.
+    with pytest.raises(CaptureFormatError) as exc:
+        ColoRadarRun(bare, calib_dir=bare).heatmap_config("cascade")
+    assert str(exc.value) == (f"{bare / 'cascade' / 'heatmap_cfg.txt'}: no such file: {bare}, the calibration "
+                              "folder given, is not a whole ColoRadar calib folder (cascade/, single_chip/, "
+                              "transforms/)")
 
 
 def test_the_adc_file_layout_is_tx_rx_chirp_sample_iq(default_run):

@@ -220,6 +220,15 @@ def test_a_missing_stream_is_named(tmp_path):
     assert "cascade/heatmaps" in one_error_line(proc)
 
 
+def test_the_datasets_folder_given_for_a_run_lists_its_runs(tmp_path):
+    for name in ("ec_hallways_run0", "aspen_run1"):
+        write_run(tmp_path, name, frames=3)
+    proc = _capture("--source", f"coloradar://{tmp_path}")
+    assert proc.returncode == 2
+    assert one_error_line(proc) == (f"radar-capture: error: coloradar://{tmp_path}: {tmp_path}: not a run but a "
+                                    "folder of runs (aspen_run1, ec_hallways_run0): give one run")
+
+
 def test_record_and_cfg_are_refused_where_there_are_no_raw_frames(tmp_path):
     run = write_run(tmp_path, "ec_hallways_run0", frames=3)
     proc, with_cfg = run_together(  # the two refusals, made at the same time

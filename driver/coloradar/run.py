@@ -120,6 +120,7 @@ class ColoRadarRun(RunStreams):
         # A directory that is not there is the caller's mistake (exit 2, as replay:// says).
         self.run_dir = _directory(run_dir, "run directory")
         self.name = os.path.basename(self.run_dir)
+        self._calib_given = calib_dir is not None
         if calib_dir is not None:
             calib_dir = _directory(calib_dir, "calibration directory")
             self.calib_dir: str | None = calib_dir
@@ -159,13 +160,19 @@ class ColoRadarRun(RunStreams):
             raise UsageError(f"unknown ColoRadar radar {sensor!r}; one of {', '.join(RADARS)}")
         return sensor
 
-    def calib_path(self, *parts: str) -> str:
-        """The path of calib/<parts...>; raises when the run has no calibration folder."""
+    def calib_path(self, *parts: str, required: bool = True) -> str:
+        """The path of calib/<parts...>; raises when the run has no calibration folder, or when
+        the file is *required* and not there."""
         if self.calib_dir is None:
             raise UsageError(f"{self.run_dir}: no calibration: neither "
                                f"{os.path.join(os.path.dirname(self.run_dir), 'calib')} nor "
                                f"{os.path.join(self.run_dir, 'calib')} exists (give calib_dir)")
-        return os.path.join(self.calib_dir, *parts)
+        path = os.path.join(self.calib_dir, *parts)
+        if required and not os.path.exists(path):  # the calibration's, not the run's: say whose
+            how = "the calibration folder given" if self._calib_given else "the calib/ found for the run"
+            raise CaptureFormatError(f"{path}: no such file: {self.calib_dir}, {how}, is not a whole ColoRadar "
+                                     "calib folder (cascade/, single_chip/, transforms/)")
+        return path
 
     def heatmap_config(self, sensor: str) -> HeatmapConfig:
         """The axes of *sensor*'s heatmaps (calib/<sensor>/heatmap_cfg.txt)."""
@@ -184,7 +191,7 @@ class ColoRadarRun(RunStreams):
         :class:`radarodom.calibration.RangeCoupling`, or None when the file is not there."""
         from .coupling import read_coupling
 
-        path = self.calib_path(sensor, "coupling_calib.txt")
+        path = self.calib_path(sensor, "coupling_calib.txt", required=False)
         if not os.path.exists(path):
             log.info("%s: missing: no coupling removed", path)
             return None

@@ -87,6 +87,10 @@ class ColoRadarSource(Source):
                    ADC_STREAM: uses_adc}
         for stream, wanted in streams.items():
             if wanted and not run.has(stream):
+                runs = _runs_inside(run.run_dir)
+                if runs:  # the dataset's folder given instead of one of its runs
+                    shown = ", ".join(runs[:5]) + (f" and {len(runs) - 5} more" if len(runs) > 5 else "")
+                    raise SourceError(f"{run.run_dir}: not a run but a folder of runs ({shown}): give one run")
                 raise SourceError(f"{run.run_dir}: the run has no {stream} "
                                   f"({os.path.join(run.run_dir, *stream.split('/'), 'timestamps.txt')} is missing)")
 
@@ -137,7 +141,7 @@ class ColoRadarSource(Source):
 
     def _adc_config(self) -> RadarConfig:
         wf = self.run.waveform_config("single_chip")
-        antenna_path = self.run.calib_path("single_chip", "antenna_cfg.txt")
+        antenna_path = self.run.calib_path("single_chip", "antenna_cfg.txt", required=False)
         if os.path.exists(antenna_path):
             tx_order = tx_order_from_antennas(read_antenna_config(antenna_path))
         else:
@@ -222,3 +226,15 @@ def open_coloradar(path: str, options: UrlOptions, config: RadarConfig | None) -
         return ColoRadarSource(run, velocity=velocity, heatmap=heatmap, rate=rate, start_s=start, config=config)
     except SourceError as exc:
         raise SourceError(f"{options.url}: {exc}") from None
+
+
+def _runs_inside(folder: str) -> list[str]:
+    """The names of the subfolders of *folder* that look like ColoRadar runs (a groundtruth/ or
+    a radar's recorded stream in them; not calib/), sorted."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return []
+    return [name for name in names
+            if any(os.path.isdir(os.path.join(folder, name, *part.split("/")))
+                   for part in ("groundtruth", "single_chip/pointclouds", "single_chip/heatmaps", "cascade/heatmaps"))]
