@@ -22,6 +22,7 @@ Split off :mod:`radarodom.publish`, which re-exports the names here.
 from __future__ import annotations
 
 import dataclasses
+import ipaddress
 import json
 import logging
 import os
@@ -92,9 +93,16 @@ def _check_endpoint(endpoint: Any, option: str) -> str:
     address = re.split(r"[?#]", address, maxsplit=1)[0]
     if protocol in _INET_PROTOCOLS:
         host, _, port = address.rpartition(":")
-        if not host or not port.isdigit() or int(port) > 65535:
+        if not host or not port.isascii() or not port.isdigit():
             raise PublishConfigError(f"{option}: {endpoint!r} needs HOST:PORT after {protocol}/, "
                                      f"e.g. {protocol}/192.168.1.10:7447")
+        if int(port) > 65535:
+            raise PublishConfigError(f"{option}: {endpoint!r}: port {port} is above 65535")
+        if re.fullmatch(r"[0-9.]+", host):  # dotted digits: an IPv4 address, or a typo of one
+            try:
+                ipaddress.IPv4Address(host)
+            except ValueError:
+                raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv4 address") from None
     return endpoint
 
 
