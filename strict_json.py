@@ -92,11 +92,22 @@ def nesting_depth(text: str) -> int:
     return deepest
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """An object whose keys are its own: a key given twice is refused (json takes the last one
+    silently, so a settings file's second "icp" section would hide its first)."""
+    obj = dict(pairs)
+    if len(obj) < len(pairs):
+        seen: set[str] = set()
+        twice = next(key for key, _ in pairs if key in seen or seen.add(key))
+        raise ValueError(f"the key {quoted(twice)} appears twice in one object")
+    return obj
+
+
 def loads(data: bytes | bytearray | memoryview | str, *, max_bytes: int, max_depth: int = MAX_DEPTH) -> Any:
     """The JSON value in *data* (UTF-8 bytes or text): at most *max_bytes* long and *max_depth*
     deep, every number finite, every integer at most :data:`MAX_INT_DIGITS` digits, every
-    string Unicode text (no lone surrogate).  Raises :class:`ValueError` saying which bound or
-    rule failed."""
+    string Unicode text (no lone surrogate), no key twice in an object.  Raises
+    :class:`ValueError` saying which bound or rule failed."""
     size = len(data)
     if size > max_bytes:
         raise ValueError(f"{size} bytes, more than the {max_bytes} allowed")
@@ -111,7 +122,8 @@ def loads(data: bytes | bytearray | memoryview | str, *, max_bytes: int, max_dep
     if depth > max_depth:
         raise ValueError(f"nested {depth} deep, more than the {max_depth} allowed")
     try:
-        value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float, parse_int=_plain_int)
+        value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float, parse_int=_plain_int,
+                           object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise ValueError(f"not JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
     if _SURROGATE_ESCAPE.search(text):

@@ -22,6 +22,8 @@ from radarodom import strict_json
     ("[1, 2", "not JSON"),
     (b"\xff\xfe", "not UTF-8"),
     ("x" * 2000, "2000 bytes"),
+    ('{"icp": {"a": 1}, "icp": {"b": 2}}', "the key 'icp' appears twice in one object"),  # json kept the last
+    ('[{"t": 1, "x": 2, "t": 3}]', "the key 't' appears twice"),
 ])
 def test_hostile_text_is_refused_with_the_reason(text, words):
     with pytest.raises(ValueError, match=words):
