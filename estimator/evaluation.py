@@ -340,16 +340,17 @@ def _warn_if_not_planar(traj: TumTrajectory) -> None:
 
 
 def evaluate(est: TumTrajectory, ref: TumTrajectory, *, delta_m: float = 1.0,
-             max_diff: float = 0.01) -> EvaluationResult:
+             max_diff: float = 0.01, warn_planar: bool = True) -> EvaluationResult:
     """Compare the estimate *est* with the reference *ref* (see the module text).
 
     *delta_m* is the path length (m) of the per-distance RPE; *max_diff* the
-    largest time difference (s) of two associated poses.
+    largest time difference (s) of two associated poses.  *warn_planar*: warn when either
+    trajectory leaves the plane (once is enough for several estimates of one ground truth).
     """
     if not (delta_m > 0 and math.isfinite(delta_m)):
         raise EvaluationError(f"delta_m must be a distance > 0 m, got {delta_m}")
     est_m, ref_m = associate(est, ref, max_diff)
-    for traj in (est_m, ref_m):
+    for traj in (est_m, ref_m) if warn_planar else ():
         _warn_if_not_planar(traj)
     p_ref, p_est = ref_m.se2(), est_m.se2()
     n = len(p_ref)
