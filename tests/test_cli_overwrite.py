@@ -94,7 +94,8 @@ def test_a_recording_is_replaced_only_when_radarodom_wrote_it(tmp_path, capsys):
     foreign.mkdir()
     (foreign / "adc_data.bin").write_bytes(b"\x01" * 64)
     rc, err = capture(capsys, "--record", foreign, "--no-odom", "--overwrite")
-    assert rc == 2 and "already holds a capture" in err
+    assert rc == 2 and "already holds a capture (adc_data.bin) not written by radarodom (no capture.json), " \
+        "which --overwrite leaves alone" in err
     assert (foreign / "adc_data.bin").read_bytes() == b"\x01" * 64 and len(list(foreign.iterdir())) == 1
 
 

@@ -516,3 +516,12 @@ def test_ti_recording_path_that_is_no_path_is_a_capture_error(small_cfg, path):
     from radarodom.errors import CaptureError
     with pytest.raises(CaptureError, match="path"):
         TiRecording(path, small_cfg)
+
+
+def test_a_directory_without_a_recording_is_said_to_hold_none(tmp_path, small_cfg):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(CaptureFormatError) as info:
+        open_source(f"replay://{empty}", small_cfg)
+    assert str(info.value) == (f"{empty}: holds no recording: neither a capture (adc_data.bin with capture.json) "
+                               "nor a TI recording (*_Raw_<n>.bin)")

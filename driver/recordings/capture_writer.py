@@ -121,8 +121,10 @@ class CaptureWriter:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
             if os.path.exists(os.path.join(self.directory, ADC_DATA)):
+                theirs = "" if os.path.exists(os.path.join(self.directory, METADATA)) else \
+                    " not written by radarodom (no capture.json), which --overwrite leaves alone"
                 if not _holds_no_frame(self.directory):
-                    raise CaptureExistsError(f"{self.directory} already holds a capture ({ADC_DATA}); "
+                    raise CaptureExistsError(f"{self.directory} already holds a capture ({ADC_DATA}){theirs}; "
                                              f"choose a new directory")
                 # A run that recorded nothing and was killed before it could clean up.
                 log.info("%s holds a capture of no frame; recording over it", self.directory)

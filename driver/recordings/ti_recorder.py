@@ -32,8 +32,10 @@ def series_files(path: str) -> list[str]:
         heads = sorted(f for f in os.listdir(path) if SERIES_PATTERN.match(f))
         prefixes = {SERIES_PATTERN.match(f)["prefix"] for f in heads}
         if len(prefixes) != 1:
-            found = ", ".join(sorted(prefixes)) or "none"
-            raise CaptureError(f"{path}: expected one *_Raw_<n>.bin series, found {found}")
+            if not prefixes:
+                raise CaptureFormatError(f"{path}: holds no recording: neither a capture (adc_data.bin with "
+                                         f"capture.json) nor a TI recording (*_Raw_<n>.bin)")
+            raise CaptureFormatError(f"{path}: expected one *_Raw_<n>.bin series, found {', '.join(sorted(prefixes))}")
         path = os.path.join(path, heads[0])
     if not os.path.isfile(path):
         raise CaptureError(f"{path}: no such file")
