@@ -64,6 +64,7 @@ def test_the_web_viewer_is_served_and_renders_the_view(tmp_path, small_cfg):
         out, err = proc.communicate(timeout=GUARD_S)
     assert proc.returncode == 0, err
     assert f"radar-capture: view: the web viewer: open http://{socket.gethostname()}:{port}/?url=" in err
+    assert "Warning" not in err, err  # the view's process started without runpy's RuntimeWarning
     assert "; stopped; " in out and "; view: " in out and " frames drawn, " in out
     if not shot.exists():
         pytest.skip("Chromium (apt-get install chromium) or ../shared/tools/browser_shot.py is absent: "

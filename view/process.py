@@ -12,8 +12,8 @@ so a file, which nothing outside holds up, is drawn in a thread (:class:`~.sink.
 The pipeline's thread pickles each frame it hands over (its tracks, point cloud and heatmap: about
 0.2 MB) and writes it to a socket without blocking; what the socket does not take at once is sent
 when the pipeline next asks whether the view is ready, and until it is gone no other frame is
-handed over (their drawing is dropped).  A child process reads and draws: ``python -m
-radarodom.view.process FD``, a fresh interpreter that inherits nothing of the radar's threads or
+handed over (their drawing is dropped).  A child process reads and draws: ``python -c ...
+FD`` running this module's ``_child``, a fresh interpreter that inherits nothing of the radar's threads or
 sockets but the one socket, and never imports the caller's main module (as multiprocessing's
 spawn does: a script without a ``__main__`` guard would start itself again).  At the end, a child
 still held up after the sink's close timeout is stopped, and the radar's process still ends.
@@ -61,6 +61,10 @@ _LENGTH = struct.Struct("<Q")
 _ERRORS = {"UsageError": UsageError, "CaptureError": CaptureError}
 
 
+#: The child's program: this module's :func:`_child` on the socket's descriptor.
+_CHILD_COMMAND = f"import sys; from {__name__} import _child; _child(int(sys.argv[1]))"
+
+
 def _message(obj: object) -> list[memoryview]:
     """*obj* as the parts to send: its head, its pickle and, out of band, the arrays' own memory
     (pickle protocol 5: a frame's 0.2 MB of arrays are not copied into the pickle, only into the
@@ -80,7 +84,9 @@ class ProcessDrawer:
                  config: RadarConfig | None = None, mount: Mount | None = None) -> None:
         mine, theirs = socket.socketpair()
         with theirs:
-            self._process = subprocess.Popen([sys.executable, "-m", __name__, str(theirs.fileno())],
+            # -c rather than -m: the package imports this module first, and runpy warns that it
+            # then runs a module already in sys.modules.
+            self._process = subprocess.Popen([sys.executable, "-c", _CHILD_COMMAND, str(theirs.fileno())],
                                              pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
         try:
             mine.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SOCKET_BUFFER)
@@ -258,7 +264,3 @@ def _reply(sock: socket.socket, message: tuple) -> None:
             sock.sendall(part)
     except OSError:
         pass  # the radar's process is gone
-
-
-if __name__ == "__main__":
-    _child(int(sys.argv[1]))
