@@ -157,3 +157,16 @@ def test_the_source_configures_the_radar_and_frames_what_its_data_port_sends():
     finally:
         radar.close()
         data.close()
+
+
+@pytest.mark.parametrize("url, words", [
+    ("tidemo:///nonexistent/tty", "no data port /nonexistent/tty"),
+    ("tidemo:///dev/null?cli=/nonexistent/cli", "no CLI port /nonexistent/cli"),
+])
+def test_a_port_path_that_is_not_there_is_named(url, words):
+    # Once the cfg passes: the port named, not "cannot tell the radar's CLI port".
+    from radarodom.errors import SourceError
+
+    with pytest.raises(SourceError) as info:
+        open_source(url, RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
+    assert str(info.value) == f"{url}: {words} (radar-devices lists what is connected)"

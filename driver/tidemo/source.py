@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import os
 import threading
 import time
 from typing import Iterator
@@ -41,7 +42,7 @@ from typing import Iterator
 import serial
 
 from ...cfg import RadarConfig, shipped_config_path
-from ...errors import DeviceError, DeviceTimeout, RadarodomError
+from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli
 from ..live.source import FrameClock
 from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number
@@ -276,6 +277,9 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     # The UART budget and the antenna layout are checked before any port is looked for or opened.
     check_uart_budget(cfg, DemoGeometry.from_config(cfg).layout(gui_selection(cfg)), baud, max_points)
+    for what, port in (("data port", path), ("CLI port", cli)):
+        if port and port.startswith("/") and not os.path.exists(port):  # a device path, not a pyserial URL
+            raise SourceError(f"{options.url}: no {what} {port} (radar-devices lists what is connected)")
     cli, data = demo_ports(cli, path or None)
     return TidemoSource(cfg, data, cli, baud=baud, max_points=max_points, policy=policy, buffers=buffers,
                         cli_timeout_s=cli_timeout, start_timeout_s=start_timeout)
