@@ -226,6 +226,12 @@ def _check_config_file(path: str) -> None:
     if size > MAX_CONFIG_BYTES:
         raise PublishConfigError(f"zenoh config {path}: {size} bytes, more than the {MAX_CONFIG_BYTES} "
                                  "a config may be")
+    if path.endswith((".json", ".json5")):  # zenoh takes a list, or nothing, for an empty config
+        with open(path, "rb") as fh:
+            text = fh.read().decode("utf-8", "replace")
+        body = re.sub(r"^(?:\s+|//[^\n]*(?:\n|$)|/\*.*?\*/)*", "", text, flags=re.DOTALL)
+        if not body.startswith("{"):
+            raise PublishConfigError(f"zenoh config {path}: not a JSON5 object ({{ mode: \"peer\", ... }})")
 
 
 def _check_key_prefix(prefix: Any) -> None:

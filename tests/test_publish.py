@@ -402,6 +402,8 @@ def test_a_config_file_comes_first_and_options_override_it(tmp_path):
     ("{ mode: 'banana' }", r"zenoh\.json5:1:9: unknown variant 'banana', expected one of 'router', 'peer'"),
     ("{ moed: 'peer' }", r"zenoh\.json5:1:3: unknown field 'moed'"),
     ('{ listen: { endpoints: "tcp/127.0.0.1:7001" } }', r"zenoh\.json5:1:\d+: invalid type: string"),
+    ("[]", r"zenoh\.json5: not a JSON5 object"),  # zenoh took it for an empty config
+    ("", r"zenoh\.json5: not a JSON5 object"),
 ])
 def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
     path = tmp_path / "zenoh.json5"
