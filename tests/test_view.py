@@ -12,6 +12,7 @@ from __future__ import annotations
 import collections
 import json
 import math
+import os
 import re
 import subprocess
 import sys
@@ -328,6 +329,17 @@ def test_an_existing_rrd_is_kept_unless_overwrite(capture, tmp_path, capsys):
                                 capsys)
     assert rc == 0, err
     assert len(rows(rrd)["/plots/time_ms"]) == 30
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc, where no file can be made")
+def test_an_rrd_that_cannot_be_made_is_one_error_line(capture):
+    proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source", capture, "--no-publish",
+                           "-q", "--view", "save:/proc/radarodom-view.rrd"], capture_output=True, text=True,
+                          timeout=GUARD_S, env={**os.environ, "RERUN_ANALYTICS": "0"})
+    assert proc.returncode == 1
+    # Rerun's own warning at exit, for a save it had failed, is not printed after it.
+    assert proc.stderr == "radar-capture: error: cannot write the view to /proc/radarodom-view.rrd: " \
+                          "No such file or directory\n"
 
 
 def test_without_rerun_the_view_says_which_extra_to_install(capture, tmp_path):

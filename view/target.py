@@ -126,6 +126,11 @@ def _connect(recording, target: ViewTarget, blueprint) -> str:
 
 
 def _save(recording, target: ViewTarget, blueprint) -> str:
+    try:  # before Rerun: a save it fails leaves a stream that prints its own warning at exit
+        with open(target.path, "ab"):
+            pass
+    except OSError as exc:
+        raise CaptureError(f"cannot write the view to {target.path}: {exc.strerror or exc}") from None
     try:
         recording.save(target.path, default_blueprint=blueprint)
     except RuntimeError as exc:
