@@ -158,7 +158,7 @@ class Pipeline:
             try:
                 self._finish()
             except BaseException as close_failure:  # noqa: BLE001 (the first failure is the one to report)
-                log.warning("closing the outputs after that failed too: %s", close_failure)
+                log.warning("%s (after the error that stopped the run)", close_failure)
             raise
         stats.elapsed_s = time.monotonic() - stats.started_monotonic
         self._finish()

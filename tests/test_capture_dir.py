@@ -627,7 +627,7 @@ def test_capture_of_no_frame_left_by_a_killed_run_is_recorded_over(tmp_path, sma
     frames = make_capture(d, small_cfg, 2)
     assert [bytes(CaptureDirectory(d).raw(i)) for i in range(2)] == frames
     os.close(left._data_fd)
-    left._ts.close()
+    os.close(left._ts_fd)
 
 
 # --------------------------------------------------------------- crash safety

@@ -27,7 +27,7 @@ from typing import Any, Sequence
 from ... import __version__, strict_json
 from ...cfg import RadarConfig
 from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, given_path
-from ...tum import TumWriter
+from ...tum import format_tum_line
 from ..sources import REPLAY_FORMAT_FILES
 from . import capture_check
 from .capture_check import ADC_DATA, FORMAT_NAME, FORMAT_VERSION, GROUNDTRUTH, METADATA, RADAR_CFG, TIMESTAMPS
@@ -76,6 +76,11 @@ def remove_capture_files(directory: str) -> None:
             os.remove(os.path.join(directory, name))
         except FileNotFoundError:
             pass
+
+
+def _new_file(path: str) -> int:
+    """A new file of the capture, opened for appending without buffering."""
+    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
 
 
 def _write_all(fd: int, data) -> None:
@@ -130,10 +135,12 @@ class CaptureWriter:
                 log.info("%s holds a capture of no frame; recording over it", self.directory)
                 remove_capture_files(self.directory)
             config.write(os.path.join(self.directory, RADAR_CFG))
-            self._data_fd = os.open(os.path.join(self.directory, ADC_DATA),
-                                    os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
-            self._ts = open(os.path.join(self.directory, TIMESTAMPS), "x", buffering=1, encoding="ascii")
-            self._gt: TumWriter | None = None
+            # Unbuffered, each file's length counted: a frame whose writing fails is taken back
+            # from all three, and nothing of it is left pending to be flushed at close.
+            self._data_fd = _new_file(os.path.join(self.directory, ADC_DATA))
+            self._ts_fd = _new_file(os.path.join(self.directory, TIMESTAMPS))
+            self._gt_fd: int | None = None
+            self._ts_bytes = self._gt_bytes = 0
         except OSError as exc:
             raise CaptureError(f"cannot create capture directory {self.directory}: "
                                f"{exc.strerror or exc}") from None
@@ -176,18 +183,27 @@ class CaptureWriter:
         n = memoryview(raw).nbytes
         if n != self.frame_bytes:
             raise CaptureFormatError(f"frame of {n} bytes, the configuration needs {self.frame_bytes}")
+        ts_line = f"{timestamp:.9f}\n".encode("ascii")
+        gt_line = None if pose is None else format_tum_line(timestamp, pose[:3], pose[3:]).encode("ascii")
         try:
             _write_all(self._data_fd, raw)
-            self._ts.write(f"{timestamp:.9f}\n")
-            if pose is not None:
-                self._write_pose(timestamp, pose)
+            _write_all(self._ts_fd, ts_line)
+            if gt_line is not None:
+                if self._gt_fd is None:
+                    self._gt_fd = _new_file(os.path.join(self.directory, GROUNDTRUTH))
+                _write_all(self._gt_fd, gt_line)
         except OSError as exc:
             # The frame's part is cut off again: what is left holds whole frames, and a full
             # disk gets the room back that closing the capture needs.
-            with contextlib.suppress(OSError):
-                os.ftruncate(self._data_fd, self._frames * self.frame_bytes)
+            for fd, length in ((self._data_fd, self._frames * self.frame_bytes), (self._ts_fd, self._ts_bytes),
+                               (self._gt_fd, self._gt_bytes)):
+                if fd is not None:
+                    with contextlib.suppress(OSError):
+                        os.ftruncate(fd, length)
             raise CaptureError(f"{self.directory}: writing frame {self._frames} failed: {exc.strerror or exc}; "
                                f"the {self._frames} frames before it are kept") from None
+        self._ts_bytes += len(ts_line)
+        self._gt_bytes += 0 if gt_line is None else len(gt_line)
         index = self._frames
         self._frames += 1
         if self._first_ts is None:
@@ -209,15 +225,15 @@ class CaptureWriter:
         else:
             due = self._interval
         if now - self._last_meta >= due:
-            self._write_metadata()
+            try:
+                self._write_metadata()
+            except OSError as exc:
+                raise CaptureError(f"{self.directory}: writing capture.json after frame {index} failed: "
+                                   f"{exc.strerror or exc}; the {self._frames} frames are kept") from None
 
     def _incomplete_unsaved(self) -> bool:
         return bool(self._incomplete) and self._incomplete[-1]["frame"] >= self._saved_frames
 
-    def _write_pose(self, timestamp: float, pose: Sequence[float]) -> None:
-        if self._gt is None:
-            self._gt = TumWriter(os.path.join(self.directory, GROUNDTRUTH))
-        self._gt.write_pose(timestamp, pose[:3], pose[3:])
 
     def metadata(self) -> dict[str, Any]:
         """What capture.json holds now."""
@@ -257,12 +273,11 @@ class CaptureWriter:
             return
         self._closed = True
         try:
-            os.close(self._data_fd)
-            self._ts.close()
-            if self._gt is not None:
-                self._gt.close()
+            for fd in (self._data_fd, self._ts_fd, self._gt_fd):
+                if fd is not None:
+                    os.close(fd)
             if self._frames:
-                self._write_metadata()
+                self._write_closing_metadata()
                 return
             remove_capture_files(self.directory)
             if self._made_directory:
@@ -275,5 +290,23 @@ class CaptureWriter:
     def __enter__(self) -> "CaptureWriter":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, value, tb) -> None:
+        if kind is None:
+            self.close()
+            return
+        try:  # the failure that stopped the recording is the one to report
+            self.close()
+        except CaptureError as exc:
+            log.warning("%s (after the error that stopped the recording)", exc)
+
+    def _write_closing_metadata(self) -> None:
+        """capture.json, closed; on a disk too full for its new copy, written over in place
+        (a closed capture.json is hardly longer than the open one it replaces)."""
+        try:
+            self._write_metadata()
+        except OSError:
+            path = os.path.join(self.directory, METADATA)
+            with open(path, "r+", encoding="utf-8") as fh:
+                fh.write(strict_json.dumps(self.metadata(), indent=1) + "\n")
+                fh.truncate()
+            log.warning("%s: the disk is full: capture.json was written over in place", self.directory)
