@@ -228,7 +228,7 @@ def _check_config_file(path: str) -> None:
                                  "a config may be")
     if path.endswith((".json", ".json5")):  # zenoh takes a list, or nothing, for an empty config
         with open(path, "rb") as fh:
-            text = fh.read().decode("utf-8", "replace")
+            text = fh.read().decode("utf-8-sig", "replace")  # a BOM, as zenoh takes it
         body = re.sub(r"^(?:\s+|//[^\n]*(?:\n|$)|/\*.*?\*/)*", "", text, flags=re.DOTALL)
         if not body.startswith("{"):
             raise PublishConfigError(f"zenoh config {path}: not a JSON5 object ({{ mode: \"peer\", ... }})")

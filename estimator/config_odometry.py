@@ -191,7 +191,8 @@ class OdometryConfig(Settings):
         _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")
         _check(self.keyframe_distance_m >= 0, "must be >= 0 (0: off)", "keyframe_distance_m")
         _check(self.keyframe_angle_rad > 0, "must be positive", "keyframe_angle_rad")
-        _check(self.keyframe_search_rad > 0, "must be positive", "keyframe_search_rad")
+        _check(0 < self.keyframe_search_rad <= math.pi, "must be positive and at most pi (half a turn)",
+               "keyframe_search_rad")
         _check(self.yaw_accel_std_radps2 > 0, "must be positive", "yaw_accel_std_radps2")
         _check(self.yaw_manoeuvre_accel_std_radps2 is None
                or self.yaw_manoeuvre_accel_std_radps2 > self.yaw_accel_std_radps2,
@@ -334,7 +335,8 @@ class PointYawConfig(Settings):
             _check(getattr(self, name) > 0, "must be positive", name)
         _check(self.check_steady_frames >= 0, "must be >= 0", "check_steady_frames")
         _check(self.check_steady_rad > 0, "must be positive", "check_steady_rad")
-        _check(self.search_rad <= math.pi, "must be at most pi (half a turn)", "search_rad")
+        for name in ("search_rad", "gap_widen_rad", "relocate_widen_rad"):
+            _check(getattr(self, name) <= math.pi, "must be at most pi (half a turn)", name)
         for name in ("step_rad", "relocate_step_rad"):
             _check(getattr(self, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")

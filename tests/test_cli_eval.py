@@ -266,3 +266,16 @@ def test_json_never_replaces_an_input_or_an_existing_file_unasked(run_files, tmp
     assert proc.returncode == 2 and "not a regular file" in proc.stderr
     proc = run_eval(est, gt, "--plot", gt)
     assert proc.returncode == 2 and "is a file, not a directory" in proc.stderr
+
+
+def test_json_beside_a_recording_given_as_the_ground_truth(tmp_path):
+    from radarodom.tools import radar_sim
+
+    rec = tmp_path / "rec"
+    assert radar_sim.main(["calibration", "--duration", "0.5", "--out", str(rec), "-q"]) == 0
+    est = rec / "odom.tum"
+    est.write_bytes((rec / "groundtruth.tum").read_bytes())
+    for extra in ([], ["--overwrite"]):  # written beside it, then replaced
+        assert run_eval(est, f"replay://{rec}", "--json", rec / "eval.json", *extra).returncode == 0
+    proc = run_eval(est, f"replay://{rec}", "--json", rec / "groundtruth.tum", "--overwrite")
+    assert proc.returncode == 2 and "would write over the input GT.tum|URL" in proc.stderr

@@ -145,9 +145,11 @@ def test_an_output_never_replaces_what_the_run_reads(tmp_path, capsys):
     cfg.write_bytes((rec / "radar.cfg").read_bytes())
     rc, err = capture(capsys, "--cfg", cfg, "--odom-out", cfg, "--overwrite")
     assert rc == 2 and "the input --cfg" in err and cfg.read_bytes() == (rec / "radar.cfg").read_bytes()
-    # New files beside a replayed recording, and heatmaps into it, are fine.
+    # New files beside a replayed recording, and heatmaps into it, are fine; and so is replacing
+    # them on a second run.
     assert radar_capture.main([*replay, "--odom-out", str(rec / "odom.tum"), "--heatmap-out", str(rec)]) == 0
     assert (rec / "odom.tum").exists() and (rec / "index.json").exists()
+    assert radar_capture.main([*replay, "--odom-out", str(rec / "odom.tum"), "--overwrite"]) == 0
 
 
 def test_overwrite_replaces_only_a_regular_file(tmp_path, capsys):
@@ -173,4 +175,13 @@ def test_a_file_where_a_directory_goes_is_a_usage_error(tmp_path, capsys, option
         err = capsys.readouterr().err
     else:
         rc, err = capture(capsys, option, blocker)
-    assert rc == 2 and err.endswith(f"error: {blocker} is a file, not a directory\n") and blocker.read_text() == "mine\n"
+    assert rc == 2 and err.endswith(f"error: {blocker} is a file, not a directory\n")
+    assert blocker.read_text() == "mine\n"
+
+
+def test_an_output_directory_is_made_with_its_parents(tmp_path, capsys):
+    rc, err = capture(capsys, "--heatmap-out", tmp_path / "a" / "b" / "maps", "--record", tmp_path / "c" / "rec",
+                      "--frames", "1")
+    assert rc == 0, err
+    assert (tmp_path / "a" / "b" / "maps" / "index.json").exists()
+    assert (tmp_path / "c" / "rec" / "capture.json").exists()

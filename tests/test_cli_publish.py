@@ -216,7 +216,8 @@ def test_radar_capture_keeps_every_frame_while_a_peer_floods_its_keys(recording)
     assert [m["frame"] for m in odom] == list(range(FRAMES))
 
 
-@pytest.mark.parametrize("option", [["--ros2"], ["--connect", "tcp/127.0.0.1:17999"], ["--zenoh-config", "z.json5"]])
+@pytest.mark.parametrize("option", [["--ros2"], ["--connect", "tcp/127.0.0.1:17999"], ["--zenoh-config", "z.json5"],
+                                    ["--key-prefix", "robot/radar"], ["--ros2-domain", "3"]])
 def test_a_publishing_option_with_no_publish_is_refused_not_ignored(recording, option):
     proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--no-publish", *option)
     assert proc.returncode == 2 and proc.stdout == ""

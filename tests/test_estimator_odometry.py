@@ -132,6 +132,9 @@ class TestConfig:
         ("point_yaw", "step_rad", 1e-300),
         ("point_yaw", "relocate_step_rad", 1e-6),
         ("point_yaw", "search_rad", 7.0),
+        ("point_yaw", "gap_widen_rad", 1e5),
+        ("point_yaw", "relocate_widen_rad", 1e300),
+        ("odometry", "keyframe_search_rad", 1e5),  # 16.6 GiB for its scan grid
         ("odometry", "yaw_manoeuvre_accel_std_radps2", 0.1),  # not above yaw_accel_std_radps2
         ("odometry", "hold_s", -0.1),
         ("odometry", "min_features", 1),

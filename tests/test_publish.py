@@ -417,6 +417,12 @@ def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
         ZenohOptions(config_file=tmp_path / "missing.json5").to_config()
 
 
+def test_a_config_file_with_a_bom_is_read(tmp_path):
+    path = tmp_path / "zenoh.json5"
+    path.write_bytes(b"\xef\xbb\xbf{ mode: 'peer' }")  # as some Windows editors save it
+    ZenohOptions(config_file=path).to_config()
+
+
 @pytest.mark.parametrize("make, words", [
     (lambda tmp_path: "/dev/zero", "/dev/zero: not a regular file"),  # zenoh read it for ever
     (lambda tmp_path: tmp_path, "not a regular file"),

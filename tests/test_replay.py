@@ -525,3 +525,6 @@ def test_a_directory_without_a_recording_is_said_to_hold_none(tmp_path, small_cf
         open_source(f"replay://{empty}", small_cfg)
     assert str(info.value) == (f"{empty}: holds no recording: neither a capture (adc_data.bin with capture.json) "
                                "nor a TI recording (*_Raw_<n>.bin)")
+    with pytest.raises(ConfigError) as info:  # without a cfg: not asked for one
+        open_source(f"replay://{empty}")
+    assert "holds no recording" in str(info.value) and "--cfg" not in str(info.value)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import re
 import sys
 import traceback
@@ -129,10 +130,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
 
 def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
     """Refuse two outputs that name one path, or an output that names an input of the same run
-    or an existing file in an input directory (a recording's own files, which ``--overwrite``
-    would replace; new files beside them are fine); each (what, path), *what* an option's name."""
-    import os
-
+    or one of the files of a recording or run given as an input directory (new files beside
+    them, or written there before, are fine); each (what, path), *what* an option's name."""
     from ..errors import UsageError
 
     seen: dict[str, str] = {}
@@ -143,9 +142,24 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
         seen[real] = what
         for source, given in inputs:
             src = os.path.realpath(given)
-            if real == src or (os.path.isdir(src) and real.startswith(src + os.sep) and os.path.lexists(path)):
+            if real == src or (os.path.isdir(src) and _recordings_own(src, real)):
                 raise UsageError(f"{what} {path} would write over the input {source} {given}: "
                                  "choose another path")
+
+
+def _recordings_own(directory: str, path: str) -> bool:
+    """Whether *path* is (or lies in) a file or folder the recording or run in *directory* came
+    with: a capture's or a TI recording's files, a ColoRadar run's stream folders."""
+    if not path.startswith(directory + os.sep):
+        return False
+    first = path[len(directory) + 1:].split(os.sep)[0]
+    from ..driver.coloradar.files import STREAMS
+    from ..driver.recordings.capture_writer import _CAPTURE_FILES
+    from ..driver.recordings.ti_recorder import SERIES_PATTERN
+    from ..driver.sources import REPLAY_FORMAT_FILES
+
+    return (first in _CAPTURE_FILES or first in REPLAY_FORMAT_FILES.values() or bool(SERIES_PATTERN.match(first))
+            or first in {stream.split("/")[0] for stream in STREAMS} or first == "calib")
 
 
 def replace_output(path: str, kind: str = "file") -> None:

@@ -235,9 +235,13 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
                          "take --estimator-config")
     if args.no_publish:
+        defaults = build_parser().parse_args([])
         given = [option for option, value in (("--ros2", args.ros2), ("--connect", args.connect),
                                               ("--listen", args.listen), ("--mode", args.mode),
                                               ("--zenoh-config", args.zenoh_config)) if value]
+        given += [option for option, dest in (("--key-prefix", "key_prefix"), ("--ros2-topic", "ros2_topic"),
+                                              ("--ros2-domain", "ros2_domain"))
+                  if getattr(args, dest) != getattr(defaults, dest)]
         if given:
             raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
@@ -324,8 +328,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
     # names are their own (NNNNNN_*.npy, index.json), and their writer refuses a heatmap run there.
     cli.check_distinct([(option, path) for path, kind, option in _outputs(args) if kind != "heatmaps"], _inputs(args))
     for path, kind, _ in _outputs(args):
-        if kind == "capture" and not os.path.exists(path):
-            continue  # a new capture directory is checked by its writer (which makes its parents)
+        if kind != "file" and not os.path.exists(path):
+            continue  # a new directory is checked by its writer (which makes its parents)
         cli.check_new_path(path, is_dir=kind != "file", overwrite=args.overwrite)
 
 

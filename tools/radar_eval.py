@@ -103,6 +103,8 @@ def _main(args: argparse.Namespace) -> int:
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
     print(table)
     if args.json:
+        if not args.overwrite and os.path.lexists(args.json):  # made while this ran (another run's)
+            raise CaptureError(f"{args.json} appeared while this ran; not replaced (the numbers are above)")
         try:
             write_json_atomically(args.json, data)  # standard JSON: null for an undefined figure
         except OSError as exc:

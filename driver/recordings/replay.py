@@ -159,9 +159,13 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
         store = CaptureDirectory(path, config)
     else:
         if config is None:
-            what = (f"not a recording (a capture directory, or TI's {ADC_DATA} or *_Raw_<n>.bin files)"
-                    if os.path.isfile(path) and not path.endswith(".bin")
-                    else f"a recording without its {RADAR_CFG}: give the radar configuration with --cfg")
+            if os.path.isdir(path) and not any(_TI_SERIES.match(name) for name in os.listdir(path)):
+                what = (f"holds no recording: neither a capture ({ADC_DATA} with capture.json) nor a TI "
+                        "recording (*_Raw_<n>.bin)")
+            elif os.path.isfile(path) and not path.endswith(".bin"):
+                what = f"not a recording (a capture directory, or TI's {ADC_DATA} or *_Raw_<n>.bin files)"
+            else:
+                what = f"a recording without its {RADAR_CFG}: give the radar configuration with --cfg"
             raise ConfigError(what, path=path)
         if reordered is None:  # TI's CLI recorder reorders by default, mmWave Studio never
             reordered = bool(_TI_SERIES.match(os.path.basename(path))) or os.path.isdir(path)
