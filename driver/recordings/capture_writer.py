@@ -141,10 +141,10 @@ class CaptureWriter:
             self._ts_fd = _new_file(os.path.join(self.directory, TIMESTAMPS))
             self._gt_fd: int | None = None
             self._ts_bytes = self._gt_bytes = 0
+            self._write_metadata()
         except OSError as exc:
             raise CaptureError(f"cannot create capture directory {self.directory}: "
                                f"{exc.strerror or exc}") from None
-        self._write_metadata()
 
     @property
     def frame_count(self) -> int:
