@@ -171,3 +171,12 @@ class PublishConfigError(PublishError):
     output asked for without its dependency."""
 
     exit_code = 2
+
+
+def add_note(exc: BaseException, note: str) -> None:
+    """``exc.add_note(note)``, on Python 3.10 too (its ``__notes__``, which 3.11 prints and the
+    programs print after the error's line): what failed after *exc*, such as closing outputs."""
+    if hasattr(exc, "add_note"):
+        exc.add_note(note)
+    else:  # pragma: no cover - Python 3.10
+        exc.__notes__ = [*getattr(exc, "__notes__", []), note]  # type: ignore[attr-defined]

@@ -26,7 +26,7 @@ from typing import Callable, Sequence
 from ..cfg import RadarConfig
 from ..driver.sources import ROLES, Frame, Source, open_source
 from ..dsp.config import DspConfig
-from ..errors import CaptureError
+from ..errors import CaptureError, add_note
 from ..estimator.config import EstimatorConfig
 from ..estimator.odometry import OdometryState, RadarOdometry
 from ..products import Products
@@ -153,12 +153,13 @@ class Pipeline:
         stats.reason = "end of source"
         try:
             self._stream(on_frame)
-        except BaseException:
+        except BaseException as failure:
             stats.elapsed_s = time.monotonic() - stats.started_monotonic
             try:
                 self._finish()
             except BaseException as close_failure:  # noqa: BLE001 (the first failure is the one to report)
-                log.warning("%s (after the error that stopped the run)", close_failure)
+                log.debug("closing the outputs failed too: %s", close_failure)
+                add_note(failure, f"then closing the outputs failed too: {close_failure}")
             raise
         stats.elapsed_s = time.monotonic() - stats.started_monotonic
         self._finish()

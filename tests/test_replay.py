@@ -489,6 +489,32 @@ def test_pipeline_closes_every_sink_when_one_fails_to_close(capture, tmp_path):
     assert [bytes(rec.raw(i)) for i in range(6)] == frames
 
 
+def test_the_failure_that_stopped_a_run_is_reported_and_a_later_close_failure_follows_it(capture, capsys):
+    from radarodom.errors import CaptureError
+    from radarodom.pipeline import Sink
+    from radarodom.tools import cli
+
+    class FullDisk(Sink):  # as a recording on a full disk: its write fails, then its close
+        def write(self, result, stats):
+            if result.frame.index == 2:
+                raise CaptureError("out: writing frame 2 failed: No space left on device")
+
+        def close(self, stats):
+            raise CaptureError("closing out failed: No space left on device")
+
+    d, _ = capture
+
+    def main(args):
+        with open_source(f"replay://{d}?rate=max") as src:
+            Pipeline(src, sinks=[FullDisk()]).run()
+
+    import argparse
+    assert cli.run(main, argparse.ArgumentParser(prog="prog"), []) == 1
+    assert capsys.readouterr().err.splitlines() == [
+        "prog: error: out: writing frame 2 failed: No space left on device",
+        "prog: warning: then closing the outputs failed too: closing out failed: No space left on device"]
+
+
 def test_pipeline_records_a_frame_before_its_processing_fails(capture, tmp_path):
     """The recording takes each frame before the DSP, the estimator and the other sinks (whatever
     the sinks' order): a frame whose processing raises is in the capture, closed."""

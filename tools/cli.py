@@ -279,6 +279,8 @@ def run(
         if handler is not None:
             handler.flush()
         print(f"{prog}: error: {exc}", file=sys.stderr)
+        for note in getattr(exc, "__notes__", ()):  # what failed after it (closing the outputs)
+            print(f"{prog}: warning: {note}", file=sys.stderr)
         if verbose:
             traceback.print_exc()
         return exc.exit_code
@@ -290,6 +292,8 @@ def run(
     except Exception as exc:  # a bug: say so in one line, details on request
         print(f"{prog}: internal error: {type(exc).__name__}: {exc}"
               + ("" if verbose else " (run with --verbose for the traceback)"), file=sys.stderr)
+        for note in getattr(exc, "__notes__", ()):
+            print(f"{prog}: warning: {note}", file=sys.stderr)
         if verbose:
             traceback.print_exc()
         return 1

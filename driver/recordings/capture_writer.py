@@ -26,7 +26,7 @@ from typing import Any, Sequence
 
 from ... import __version__, strict_json
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, given_path
+from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, add_note, given_path
 from ...tum import format_tum_line
 from ..sources import REPLAY_FORMAT_FILES
 from . import capture_check
@@ -297,7 +297,8 @@ class CaptureWriter:
         try:  # the failure that stopped the recording is the one to report
             self.close()
         except CaptureError as exc:
-            log.warning("%s (after the error that stopped the recording)", exc)
+            log.debug("closing the capture failed too: %s", exc)
+            add_note(value, f"then {exc}")
 
     def _write_closing_metadata(self) -> None:
         """capture.json, closed; on a disk too full for its new copy, written over in place
