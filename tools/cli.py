@@ -279,24 +279,29 @@ def run(
         if handler is not None:
             handler.flush()
         print(f"{prog}: error: {exc}", file=sys.stderr)
-        for note in getattr(exc, "__notes__", ()):  # what failed after it (closing the outputs)
-            print(f"{prog}: warning: {note}", file=sys.stderr)
+        _print_notes(prog, exc)
         if verbose:
             traceback.print_exc()
         return exc.exit_code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print(f"{prog}: interrupted", file=sys.stderr)
+        _print_notes(prog, exc)
         return 130
     except BrokenPipeError:
         return 1
     except Exception as exc:  # a bug: say so in one line, details on request
         print(f"{prog}: internal error: {type(exc).__name__}: {exc}"
               + ("" if verbose else " (run with --verbose for the traceback)"), file=sys.stderr)
-        for note in getattr(exc, "__notes__", ()):
-            print(f"{prog}: warning: {note}", file=sys.stderr)
+        _print_notes(prog, exc)
         if verbose:
             traceback.print_exc()
         return 1
+
+
+def _print_notes(prog: str, exc: BaseException) -> None:
+    """What failed after *exc* (closing the outputs: errors.add_note), a warning line each."""
+    for note in getattr(exc, "__notes__", ()):
+        print(f"{prog}: warning: {note}", file=sys.stderr)
 
 
 def run_with_status(
