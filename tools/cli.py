@@ -154,11 +154,10 @@ def _recordings_own(directory: str, path: str) -> bool:
         return False
     first = path[len(directory) + 1:].split(os.sep)[0]
     from ..driver.coloradar.files import STREAMS
-    from ..driver.recordings.capture_writer import _CAPTURE_FILES
+    from ..driver.recordings.capture_writer import RECORDING_FILES
     from ..driver.recordings.ti_recorder import SERIES_PATTERN
-    from ..driver.sources import REPLAY_FORMAT_FILES
 
-    return (first in _CAPTURE_FILES or first in REPLAY_FORMAT_FILES.values() or bool(SERIES_PATTERN.match(first))
+    return (first in RECORDING_FILES or bool(SERIES_PATTERN.match(first))
             or first in {stream.split("/")[0] for stream in STREAMS} or first == "calib")
 
 

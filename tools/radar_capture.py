@@ -35,7 +35,7 @@ from ..estimator.config import EstimatorConfig
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
 from . import cli, ros_outputs, view_option
 from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
-from .zenoh_args import add_zenoh_arguments
+from .zenoh_args import add_zenoh_arguments, options_given
 
 
 log = logging.getLogger("radarodom.tools.radar_capture")
@@ -234,16 +234,9 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     if args.no_odom and (args.odom_out or args.estimator_config):
         raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
                          "take --estimator-config")
-    if args.no_publish:
-        defaults = build_parser().parse_args([])
-        given = [option for option, value in (("--ros2", args.ros2), ("--connect", args.connect),
-                                              ("--listen", args.listen), ("--mode", args.mode),
-                                              ("--zenoh-config", args.zenoh_config)) if value]
-        given += [option for option, dest in (("--key-prefix", "key_prefix"), ("--ros2-topic", "ros2_topic"),
-                                              ("--ros2-domain", "ros2_domain"))
-                  if getattr(args, dest) != getattr(defaults, dest)]
-        if given:
-            raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
+    given = options_given(args) if args.no_publish else []
+    if given:
+        raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     # Read the estimator's settings before any hardware is touched.
     args.estimator = _estimator_config(args)

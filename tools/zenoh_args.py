@@ -44,3 +44,15 @@ def options_from_args(args: argparse.Namespace) -> ZenohOptions:
                         key_prefix=args.key_prefix, ros2=getattr(args, "ros2", False),
                         ros2_domain=getattr(args, "ros2_domain", 0),
                         ros2_topic=getattr(args, "ros2_topic", DEFAULT_ROS2_TOPIC))
+
+
+def options_given(args: argparse.Namespace) -> list[str]:
+    """The Zenoh options of :func:`add_zenoh_arguments` given a value of their own (for a run
+    that publishes nothing, which would ignore them)."""
+    given = [option for option, value in (("--ros2", getattr(args, "ros2", False)), ("--connect", args.connect),
+                                          ("--listen", args.listen), ("--mode", args.mode),
+                                          ("--zenoh-config", args.zenoh_config)) if value]
+    return given + [option for option, value, default in (
+        ("--key-prefix", args.key_prefix, DEFAULT_KEY_PREFIX),
+        ("--ros2-topic", getattr(args, "ros2_topic", DEFAULT_ROS2_TOPIC), DEFAULT_ROS2_TOPIC),
+        ("--ros2-domain", getattr(args, "ros2_domain", 0), 0)) if value != default]

@@ -39,6 +39,7 @@ from ...cfg import RadarConfig
 from ...errors import SourceError
 from ...rawframe import RawLayout
 from ...tum import TumTrajectory
+from .files import STREAMS
 from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
 from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
 from ..sources import Frame, Pacer, Source, UrlOptions, one_of, parse_rate
@@ -229,12 +230,11 @@ def open_coloradar(path: str, options: UrlOptions, config: RadarConfig | None) -
 
 
 def _runs_inside(folder: str) -> list[str]:
-    """The names of the subfolders of *folder* that look like ColoRadar runs (a groundtruth/ or
-    a radar's recorded stream in them; not calib/), sorted."""
+    """The names of the subfolders of *folder* that look like ColoRadar runs (one of a run's
+    streams in them; not calib/), sorted."""
     try:
         names = sorted(os.listdir(folder))
     except OSError:
         return []
     return [name for name in names
-            if any(os.path.isdir(os.path.join(folder, name, *part.split("/")))
-                   for part in ("groundtruth", "single_chip/pointclouds", "single_chip/heatmaps", "cascade/heatmaps"))]
+            if any(os.path.isdir(os.path.join(folder, name, *stream.split("/"))) for stream in STREAMS)]

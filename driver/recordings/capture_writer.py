@@ -40,13 +40,16 @@ _IMMEDIATE_INCOMPLETE_LIMIT = 1000
 _INCOMPLETE_FLUSH_S = 0.25
 
 
+def _json_text(obj: Any) -> str:
+    return strict_json.dumps(obj, indent=1) + "\n"
+
+
 def write_json_atomically(path: str, obj: Any) -> None:
     """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
     tmp = path + ".tmp"
     try:
         with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(strict_json.dumps(obj, indent=1))
-            fh.write("\n")
+            fh.write(_json_text(obj))
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):  # a full disk: no empty .tmp left beside the file
@@ -55,6 +58,8 @@ def write_json_atomically(path: str, obj: Any) -> None:
 
 
 _CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
+#: The files a recording radarodom writes consists of, a replay format's stream file among them.
+RECORDING_FILES = (*_CAPTURE_FILES, *REPLAY_FORMAT_FILES.values())
 
 
 def _holds_no_frame(directory: str) -> bool:
@@ -71,7 +76,7 @@ def _holds_no_frame(directory: str) -> bool:
 def remove_capture_files(directory: str) -> None:
     """Remove the files a capture consists of from *directory*, a replay format's stream file
     among them (nothing else in it)."""
-    for name in (*_CAPTURE_FILES, *REPLAY_FORMAT_FILES.values()):
+    for name in RECORDING_FILES:
         try:
             os.remove(os.path.join(directory, name))
         except FileNotFoundError:
@@ -308,6 +313,6 @@ class CaptureWriter:
         except OSError:
             path = os.path.join(self.directory, METADATA)
             with open(path, "r+", encoding="utf-8") as fh:
-                fh.write(strict_json.dumps(self.metadata(), indent=1) + "\n")
+                fh.write(_json_text(self.metadata()))
                 fh.truncate()
             log.warning("%s: the disk is full: capture.json was written over in place", self.directory)

@@ -19,6 +19,9 @@ from ...rawframe import RawLayout
 log = logging.getLogger(__name__)
 
 SERIES_PATTERN = re.compile(r"^(?P<prefix>.*_Raw_)(?P<n>\d+)\.bin$")
+#: What a directory holding neither kind of recording is told.
+NO_RECORDING = ("holds no recording: neither a capture (adc_data.bin with capture.json) nor a TI recording "
+                "(*_Raw_<n>.bin)")
 
 
 def series_files(path: str) -> list[str]:
@@ -33,8 +36,7 @@ def series_files(path: str) -> list[str]:
         prefixes = {SERIES_PATTERN.match(f)["prefix"] for f in heads}
         if len(prefixes) != 1:
             if not prefixes:
-                raise CaptureFormatError(f"{path}: holds no recording: neither a capture (adc_data.bin with "
-                                         f"capture.json) nor a TI recording (*_Raw_<n>.bin)")
+                raise CaptureFormatError(f"{path}: {NO_RECORDING}")
             raise CaptureFormatError(f"{path}: expected one *_Raw_<n>.bin series, found {', '.join(sorted(prefixes))}")
         path = os.path.join(path, heads[0])
     if not os.path.isfile(path):
