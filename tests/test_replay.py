@@ -3,6 +3,7 @@ and the capture loop (Pipeline.run without processing)."""
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 
@@ -554,3 +555,15 @@ def test_a_directory_without_a_recording_is_said_to_hold_none(tmp_path, small_cf
     with pytest.raises(ConfigError) as info:  # without a cfg: not asked for one
         open_source(f"replay://{empty}")
     assert "holds no recording" in str(info.value) and "--cfg" not in str(info.value)
+
+
+def test_a_start_in_seconds_on_a_recording_without_a_whole_frame_says_it_holds_none(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 1)
+    with open(d / "adc_data.bin", "r+b") as fh:
+        fh.truncate(100)  # a run killed within its first frame
+    (d / "timestamps.txt").write_text("")
+    meta = json.loads((d / "capture.json").read_text())
+    (d / "capture.json").write_text(json.dumps({**meta, "closed": False, "frame_count": 0}))
+    with pytest.raises(CaptureFormatError, match="holds no whole frame"):  # was an IndexError
+        open_source(f"replay://{d}?start=1s")

@@ -33,7 +33,7 @@ from ...plain_numbers import plain_float
 from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
 from ..sim.board import load_board
 from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
-from .ti_recorder import SERIES_PATTERN as _TI_SERIES, TiRecording
+from .ti_recorder import NO_RECORDING, SERIES_PATTERN as _TI_SERIES, TiRecording
 
 log = logging.getLogger(__name__)
 
@@ -160,8 +160,7 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
     else:
         if config is None:
             if os.path.isdir(path) and not any(_TI_SERIES.match(name) for name in os.listdir(path)):
-                what = (f"holds no recording: neither a capture ({ADC_DATA} with capture.json) nor a TI "
-                        "recording (*_Raw_<n>.bin)")
+                what = NO_RECORDING
             elif os.path.isfile(path) and not path.endswith(".bin"):
                 what = f"not a recording (a capture directory, or TI's {ADC_DATA} or *_Raw_<n>.bin files)"
             else:
@@ -172,12 +171,12 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
         store = TiRecording(path, config, reordered=reordered)
 
     kind, value = start
-    if kind == "seconds":
+    if kind == "seconds" and store.num_frames:
         first = int(np.searchsorted(store.timestamps - store.timestamps[0], value - 1e-9))
-        span = float(store.timestamps[-1] - store.timestamps[0]) if store.num_frames else 0.0
         if first >= store.num_frames:
+            span = float(store.timestamps[-1] - store.timestamps[0])
             raise SourceError(f"{options.url}: start={value:g}s is past the recording's last frame, "
                               f"{span:.2f} s after its first")
-    else:
+    else:  # a frame number (or a recording without a whole frame, which ReplaySource refuses)
         first = int(value)
     return ReplaySource(store, rate=rate, loop=loop, start=first, frames=frames)
