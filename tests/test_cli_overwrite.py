@@ -185,3 +185,47 @@ def test_an_output_directory_is_made_with_its_parents(tmp_path, capsys):
     assert rc == 0, err
     assert (tmp_path / "a" / "b" / "maps" / "index.json").exists()
     assert (tmp_path / "c" / "rec" / "capture.json").exists()
+
+
+def _overwrite_run(program: str, out, tmp_path, capsys) -> tuple[int, str]:
+    """Run *program* writing its one file output to *out* with --overwrite."""
+    from radarodom.tools import radar_calibrate, radar_cfg, radar_eval
+
+    if program == "radar-capture --odom-out":
+        return capture(capsys, "--odom-out", out, "--overwrite")
+    if program == "radar-cfg --copy":
+        rc = radar_cfg.main(["--copy", "awr1843_raw", str(out), "--overwrite"])
+    elif program == "radar-calibrate --write-cfg":
+        rc = radar_calibrate.main(["--source", "sim://calibration?rate=max", "--distance", "3", "--frames", "4",
+                                   "--write-cfg", str(out), "--overwrite"])
+    else:
+        truth = tmp_path / "gt.tum"
+        truth.write_text("0 0 0 0 0 0 0 1\n0.1 0.1 0 0 0 0 0 1\n0.2 0.2 0 0 0 0 0 1\n")
+        rc = radar_eval.main([str(truth), str(truth), "--json", str(out), "--overwrite", "-q"])
+    return rc, capsys.readouterr().err
+
+
+PROGRAMS = ["radar-capture --odom-out", "radar-cfg --copy", "radar-calibrate --write-cfg", "radar-eval --json"]
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_overwrite_replaces_a_link_not_the_file_it_names(tmp_path, capsys, program):
+    theirs = tmp_path / "elsewhere.txt"
+    theirs.write_text("the user's own\n")
+    out = tmp_path / "out"
+    out.symlink_to(theirs)
+    rc, err = _overwrite_run(program, out, tmp_path, capsys)
+    assert rc == 0, err
+    assert not out.is_symlink() and out.stat().st_size > 0
+    assert theirs.read_text() == "the user's own\n"
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "gt.tum") == ["elsewhere.txt", "out"]
+
+
+@pytest.mark.parametrize("program", PROGRAMS[1:])
+def test_a_file_output_that_cannot_be_written_is_one_line_and_keeps_the_old(tmp_path, capsys, program):
+    out = tmp_path / "out"
+    out.write_text("before\n")
+    (tmp_path / "out.tmp").mkdir()  # where the new copy is written first (root writes anywhere else)
+    rc, err = _overwrite_run(program, out, tmp_path, capsys)
+    assert rc == 1 and err.endswith(f"error: cannot write {out}: Is a directory\n") and err.count("\n") == 1, err
+    assert out.read_text() == "before\n"

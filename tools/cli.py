@@ -190,6 +190,19 @@ def replace_output(path: str, kind: str = "file") -> None:
         raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
 
 
+def write_output(path: str, text: str) -> None:
+    """Write a file output (checked by :func:`check_new_path`) whole or not at all: a symbolic
+    link in its place is replaced, as ``--overwrite`` replaces every output, never the file it
+    names; a failure is a :class:`CaptureError` naming the file."""
+    from ..driver.recordings.capture_writer import write_text_atomically
+    from ..errors import CaptureError
+
+    try:
+        write_text_atomically(path, text)
+    except OSError as exc:
+        raise CaptureError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
 def add_overwrite(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an existing output file, or an output directory radarodom wrote "

@@ -115,7 +115,7 @@ def _main(args: argparse.Namespace) -> int:
     result, used_cfg = _measure(args, cfg)
     line = result.calibration.cfg_line()
     if args.write_cfg:
-        used_cfg.replace(result.calibration.to_command()).write(args.write_cfg)
+        cli.write_output(args.write_cfg, used_cfg.replace(result.calibration.to_command()).to_text())
     if args.json:
         print(json_report(result))
         return 0

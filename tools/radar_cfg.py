@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-import shutil
 import sys
 import traceback
 from importlib import resources
@@ -101,12 +100,8 @@ def _copy(names: list[str], overwrite: bool) -> int:
     if os.path.isdir(dest):
         dest = os.path.join(dest, name)
     cli.check_new_path(dest, overwrite=overwrite)
-    try:
-        shutil.copyfile(shipped_config_path(name), dest)
-    except OSError as exc:
-        from ..errors import CaptureError
-
-        raise CaptureError(f"cannot write {dest}: {exc.strerror or exc}") from None
+    with open(shipped_config_path(name), encoding="utf-8", newline="") as fh:
+        cli.write_output(dest, fh.read())
     print(f"radar-cfg: copied {name} to {dest}")
     return 0
 

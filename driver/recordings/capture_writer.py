@@ -46,10 +46,16 @@ def _json_text(obj: Any) -> str:
 
 def write_json_atomically(path: str, obj: Any) -> None:
     """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
+    write_text_atomically(path, _json_text(obj))
+
+
+def write_text_atomically(path: str, text: str) -> None:
+    """Replace *path* with *text*: a reader (or a crash) never sees half a file, and a symbolic
+    link at *path* is replaced itself, the file it named left as it was."""
     tmp = path + ".tmp"
     try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(_json_text(obj))
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):  # a full disk: no empty .tmp left beside the file
