@@ -229,3 +229,24 @@ def test_a_file_output_that_cannot_be_written_is_one_line_and_keeps_the_old(tmp_
     rc, err = _overwrite_run(program, out, tmp_path, capsys)
     assert rc == 1 and err.endswith(f"error: cannot write {out}: Is a directory\n") and err.count("\n") == 1, err
     assert out.read_text() == "before\n"
+
+
+def test_file_outputs_may_go_into_the_directories_the_run_makes(tmp_path, capsys):
+    rec, maps = tmp_path / "out" / "rec", tmp_path / "out" / "maps"
+    rc, err = capture(capsys, "--record", rec, "--odom-out", rec / "odom.tum", "--heatmap-out", maps,
+                      "--points-out", maps / "points.csv")
+    assert rc == 0, err
+    assert (rec / "capture.json").exists() and len((rec / "odom.tum").read_text().splitlines()) >= 2
+    assert (maps / "index.json").exists() and (maps / "points.csv").exists()
+    rc, err = capture(capsys, "--record", rec, "--odom-out", rec / "odom.tum", "--overwrite")
+    assert rc == 0, err
+
+
+@pytest.mark.parametrize("directory, name", [("--record", "timestamps.txt"), ("--record", "adc_data.bin"),
+                                             ("--heatmap-out", "index.json"), ("--heatmap-out", "000003_static.npy")])
+def test_a_file_output_never_names_a_file_of_a_directory_output(tmp_path, capsys, directory, name):
+    out = tmp_path / "dir"
+    rc, err = capture(capsys, directory, out, "--odom-out", out / name)
+    assert rc == 2 and err.endswith(f"error: --odom-out {out / name} is a file {directory} writes: "
+                                    "choose another name\n")
+    assert not out.exists()

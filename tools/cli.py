@@ -161,15 +161,32 @@ def _recordings_own(directory: str, path: str) -> bool:
             or first in {stream.split("/")[0] for stream in STREAMS} or first == "calib")
 
 
+def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
+    """Refuse a file output that names a file a directory output of the same run writes (a
+    recording's ``timestamps.txt``, a heatmap directory's ``index.json``); each (path, kind,
+    option), *kind* as :func:`replace_output` takes it."""
+    for directory, kind, option in outputs:
+        if kind == "file":
+            continue
+        real_dir = os.path.realpath(directory)
+        for path, file_kind, file_option in outputs:
+            real = os.path.realpath(path)
+            if file_kind == "file" and (_recordings_own(real_dir, real) if kind == "capture" else
+                                        os.path.dirname(real) == real_dir and _heatmaps_own(os.path.basename(real))):
+                raise UsageError(f"{file_option} {path} is a file {option} writes: choose another name")
+
+
+def _heatmaps_own(name: str) -> bool:
+    """Whether *name* is one of the files radarodom writes in a heatmap directory."""
+    return name in ("index.json", "index.json.tmp") or bool(re.fullmatch(r"\d{6,}_(intensity|static|doppler)\.npy", name))
+
+
 def replace_output(path: str, kind: str = "file") -> None:
     """Remove an output ``--overwrite`` replaces (checked by :func:`check_new_path`): a file
     (*kind* "file"); of a capture directory radarodom wrote (its capture.json there; *kind*
     "capture") or a heatmap directory (its index.json; "heatmaps"), only the files radarodom
     writes there (a source's own stream file too: ``uart.bin``), so that anything else in it
     stays.  Nothing else is touched."""
-    import os
-    import re
-
     from ..driver.recordings.capture_dir import remove_capture_files
     from ..errors import CaptureError
 
@@ -183,8 +200,7 @@ def replace_output(path: str, kind: str = "file") -> None:
                 remove_capture_files(path)
             elif kind == "heatmaps" and "index.json" in names:
                 for name in names:
-                    if name in ("index.json", "index.json.tmp") or re.fullmatch(
-                            r"\d{6,}_(intensity|static|doppler)\.npy", name):
+                    if _heatmaps_own(name):
                         os.remove(os.path.join(path, name))
     except OSError as exc:
         raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
