@@ -37,12 +37,17 @@ def _stats(results: list[dict]) -> dict:
     drift = [r["drift_pct"] for r in results]
     return {"yaw": f"{statistics.mean(r['yaw_rmse_deg'] for r in results):.2f}",
             "bias": f"{statistics.mean(bias):.3f} / {max(bias):.3f}",
-            "moving": ratio_range("moving_turn_ratio"), "inplace": ratio_range("inplace_turn_ratio"),
+            "moving": ratio_range("moving_turn_ratio"), "each": ratio_range("moving_turn_worst_ratio"),
+            "inplace": ratio_range("inplace_turn_ratio"),
             "drift": f"{statistics.mean(drift):.1f} / {max(drift):.1f}"}
 
 
-def _within(results: list[dict], key: str) -> int:
-    return sum(r.get(key) is None or abs(r[key] - 1.0) <= 0.02 for r in results)
+def _within(results: list[dict], key: str) -> int | str:
+    """The cells whose *key* ratio is within 2 % of 1 (or undefined: no such turn); "-" for
+    results without it (each turn's own: runs before 2026-11-30)."""
+    if not all(key in r for r in results):
+        return "-"
+    return sum(r[key] is None or abs(r[key] - 1.0) <= 0.02 for r in results)
 
 
 def totals(results: list[dict]) -> dict:
@@ -54,6 +59,7 @@ def totals(results: list[dict]) -> dict:
             "straight bias <= 0.005": sum(b <= 0.005 for b in bias),
             "each straight's heading error, RMS / worst deg/m": _straights(results),
             "moving turns within 2 %": _within(results, "moving_turn_ratio"),
+            "each moving turn within 2 %": _within(results, "moving_turn_worst_ratio"),
             "turns in place within 2 %": _within(results, "inplace_turn_ratio"),
             "drift % mean": f"{statistics.mean(drift):.2f}", "drift % median": f"{statistics.median(drift):.2f}",
             "drift <= 2 %": sum(d <= 2.0 for d in drift), "drift % worst": f"{max(drift):.1f}",
@@ -96,12 +102,13 @@ def summary(runs: list[list[dict]]) -> str:
         for r in sorted(run, key=lambda r: r["name"]):
             rows.setdefault(row_of(r["cell"]), [[] for _ in runs])[i].append(r)
     joined = lambda values: " -> ".join(values)  # noqa: E731
-    lines = ["| cells | yaw RMSE deg | straight bias deg/frame, mean / max abs | moving-turn ratio | in-place ratio "
-             "| drift %, mean / max |", "| --- | ---: | ---: | ---: | ---: | ---: |"]
+    lines = ["| cells | yaw RMSE deg | straight bias deg/frame, mean / max abs | moving-turn ratio "
+             "| each moving turn, farthest from 1 | in-place ratio | drift %, mean / max |",
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for label, per_run in sorted(rows.items(), key=lambda item: not item[0].startswith("base")):
         stats = [_stats(results) for results in per_run]
         lines.append(f"| {label} ({len(per_run[0])}) | " + " | ".join(
-            joined([s[key] for s in stats]) for key in ("yaw", "bias", "moving", "inplace", "drift")) + " |")
+            joined([s[key] for s in stats]) for key in ("yaw", "bias", "moving", "each", "inplace", "drift")) + " |")
     all_totals = [totals(run) for run in runs]
     lines.append("")
     lines.append("; ".join(f"{key} {joined([str(t[key]) for t in all_totals])}" for key in all_totals[0]))

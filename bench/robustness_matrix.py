@@ -285,7 +285,9 @@ COLUMNS = [("yaw RMSE deg", "yaw_rmse_deg", ".2f"), ("straight bias deg/m", "str
            ("deg/min", "straight_bias_deg_per_min", "+.1f"), ("deg/frame", "straight_bias_deg_per_frame", "+.4f"),
            ("each straight RMS deg/m", "straight_rms_deg_per_m", ".2f"),
            ("worst straight deg/m", "straight_max_deg_per_m", ".2f"),
-           ("moving-turn ratio", "moving_turn_ratio", ".3f"), ("in-place ratio", "inplace_turn_ratio", ".3f"),
+           ("moving-turn ratio", "moving_turn_ratio", ".3f"),
+           ("each moving turn, farthest from 1", "moving_turn_worst_ratio", ".3f"),
+           ("in-place ratio", "inplace_turn_ratio", ".3f"),
            ("drift %", "drift_pct", ".2f"), ("final heading deg", "final_heading_error_deg", "+.1f"),
            ("path m", "path_m", ".1f"), ("path ratio", "path_ratio", ".3f"), ("frames", "frames", "d")]
 

@@ -16,7 +16,9 @@ or too small.  These metrics measure them separately, by segmenting the truth:
   frames with |true yaw rate| above ``straight_rate_dps`` that turns at least
   ``min_turn_deg``; a turn whose median speed is below ``moving_speed_mps`` is a turn in
   place, else a moving turn; the two kinds are reported apart.  The ratio is the estimate's
-  yaw change over the turn's frames (signed along the true turn) over the true angle;
+  yaw change over the turn's frames (signed along the true turn) over the true angle, over all
+  the turns of a kind together, and each turn's own: the one farthest from 1 (a left turn too
+  long and a right one too short cancel in the first; a robot feels both);
 - **drift** (% of the path): final position error, the estimate aligned at the first pose;
 - **path ratio**: the estimate's path length over the truth's: a speed's scale error, which the
   drift of a closed loop hardly shows (a loop scaled still closes);
@@ -77,6 +79,9 @@ class HeadingMetrics:
     inplace_turns: int
     inplace_turn_deg: float
     inplace_turn_ratio: float
+    #: Each turn's own ratio, the one farthest from 1, of each kind.
+    moving_turn_worst_ratio: float
+    inplace_turn_worst_ratio: float
     path_m: float
     path_ratio: float
     drift_pct: float
@@ -182,15 +187,18 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
                           min_turn_deg=min_turn_deg)
     kinds = {}
     for in_place in (False, True):
-        true_sum, est_sum, count = 0.0, 0.0, 0
+        true_sum, est_sum, count, worst = 0.0, 0.0, 0, nan
         for i, j, ip in turns:
             if ip != in_place:
                 continue
             true_angle = float(d_ref[i:j].sum())
+            along = math.copysign(1.0, true_angle) * float(d_est[i:j].sum())
             true_sum += abs(true_angle)
-            est_sum += math.copysign(1.0, true_angle) * float(d_est[i:j].sum())
+            est_sum += along
             count += 1
-        kinds[in_place] = (count, math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan)
+            ratio = along / abs(true_angle)
+            worst = ratio if not abs(worst - 1.0) >= abs(ratio - 1.0) else worst
+        kinds[in_place] = (count, math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan, worst)
 
     path = float(step_m.sum())
     est_path = float(path_steps(est[:, :2]).sum())
@@ -207,6 +215,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         straight_max_deg_per_m=float(np.abs(runs).max()) if len(runs) else nan,
         moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
         inplace_turns=kinds[True][0], inplace_turn_deg=kinds[True][1], inplace_turn_ratio=kinds[True][2],
+        moving_turn_worst_ratio=kinds[False][3], inplace_turn_worst_ratio=kinds[True][3],
         path_m=path, path_ratio=est_path / path if path > 0 else nan,
         drift_pct=100.0 * drift / path if path > 0 else nan, final_heading_error_deg=final)
 

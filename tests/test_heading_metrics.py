@@ -21,14 +21,15 @@ def truth(rate_hz=10.0):
     return t, np.column_stack([x, y, yaw])
 
 
-def estimate(t, ref, *, bias_deg=0.0, moving_k=1.0, inplace_k=1.0, speed_k=1.0):
+def estimate(t, ref, *, bias_deg=0.0, moving_k=1.0, inplace_k=1.0, speed_k=1.0, each_k=None):
     """The truth's body-frame steps re-integrated with a changed yaw: each straight frame turned
-    by *bias_deg*, each turn scaled by its kind's factor; each step's length by *speed_k*."""
+    by *bias_deg*, each turn scaled by its kind's factor (or by *each_k*'s, one per turn in
+    order); each step's length by *speed_k*."""
     d_ref = np.diff(ref[:, 2])
     d_est = d_ref.copy()
     in_turn = np.zeros(len(d_ref), bool)
-    for i, j, in_place in segment_turns(t, ref):
-        d_est[i:j] *= inplace_k if in_place else moving_k
+    for n, (i, j, in_place) in enumerate(segment_turns(t, ref)):
+        d_est[i:j] *= each_k[n] if each_k else inplace_k if in_place else moving_k
         in_turn[i:j] = True
     speed = np.hypot(*np.diff(ref[:, :2], axis=0).T) * 10.0
     d_est[~in_turn & (speed > 0.05)] += math.radians(bias_deg)
@@ -61,6 +62,19 @@ def test_a_perfect_estimate_scores_zero_errors_and_unit_ratios():
     assert m.drift_pct == pytest.approx(0.0, abs=1e-9) and m.final_heading_error_deg == pytest.approx(0.0, abs=1e-9)
     assert m.path_m == pytest.approx(14 + math.pi * 0.5 * 2, rel=1e-3)
     assert m.path_ratio == pytest.approx(1.0)
+
+
+def test_each_turns_own_ratio_shows_what_the_kinds_ratio_cancels():
+    # The left moving turn 4 % long, the right one 3 % short: 1.005 together, each off.
+    t, ref = truth()
+    m = heading_metrics(t, ref, estimate(t, ref, each_k=[1.04, 0.99, 0.97]))
+    assert m.moving_turn_ratio == pytest.approx(1.005, abs=1e-4)  # (the turns are 90 degrees to 0.5)
+    assert m.moving_turn_worst_ratio == pytest.approx(1.04, abs=1e-9)
+    assert m.inplace_turn_ratio == pytest.approx(0.99, abs=1e-9) and m.inplace_turn_worst_ratio == m.inplace_turn_ratio
+    m = heading_metrics(t, ref, estimate(t, ref, each_k=[1.01, 1.0, 0.97]))
+    assert m.moving_turn_worst_ratio == pytest.approx(0.97, abs=1e-9)
+    m = heading_metrics(t[:30], ref[:30], ref[:30].copy())  # no turn: undefined
+    assert math.isnan(m.moving_turn_worst_ratio) and m.to_dict()["inplace_turn_worst_ratio"] is None
 
 
 def test_a_speed_scale_shows_in_the_path_ratio_not_in_a_closed_loops_drift():

@@ -48,10 +48,11 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
     """The heading figures (docs/heading.md) of :func:`heading_metrics` and :func:`drift_parts` at
     their defaults: the truth told into straight drives and turns, the estimate's heading error on
     each, and the drift each kind of frame's yaw errors make alone."""
-    def turns(count: int, true_deg: float, ratio: float) -> str:
+    def turns(count: int, true_deg: float, ratio: float, worst: float) -> str:
         if not count:
             return "none"
-        return f"{count}, {true_deg:.1f} deg in all, measured {_num(ratio, '.3f')} of it"
+        text = f"{count}, {true_deg:.1f} deg in all, measured {_num(ratio, '.3f')} of it"
+        return text + (f"; each turn's own, farthest from 1: {_num(worst, '.3f')}" if count > 1 else "")
 
     if m.straight_frames:
         straight = (f"{m.straight_m:.2f} m in {m.straight_s:.1f} s, heading bias "
@@ -68,8 +69,10 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
         f"heading (the truth drives straight where it turns under {STRAIGHT_RATE_DPS:g} deg/s and moves; "
         f"a turn turns {MIN_TURN_DEG:g} deg or more):",
         f"  straight drives   {straight}",
-        f"  moving turns      {turns(m.moving_turns, m.moving_turn_deg, m.moving_turn_ratio)}",
-        f"  turns in place    {turns(m.inplace_turns, m.inplace_turn_deg, m.inplace_turn_ratio)}",
+        f"  moving turns      "
+        f"{turns(m.moving_turns, m.moving_turn_deg, m.moving_turn_ratio, m.moving_turn_worst_ratio)}",
+        f"  turns in place    "
+        f"{turns(m.inplace_turns, m.inplace_turn_deg, m.inplace_turn_ratio, m.inplace_turn_worst_ratio)}",
         "  drift parts, % of the path (each kind of frame's yaw errors alone, and the translation's):",
         f"{'':<20}{kinds}",
     ])
