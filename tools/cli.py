@@ -178,7 +178,8 @@ def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
 
 def _heatmaps_own(name: str) -> bool:
     """Whether *name* is one of the files radarodom writes in a heatmap directory."""
-    return name in ("index.json", "index.json.tmp") or bool(re.fullmatch(r"\d{6,}_(intensity|static|doppler)\.npy", name))
+    return (name in ("index.json", "index.json.tmp")
+            or re.fullmatch(r"\d{6,}_(intensity|static|doppler)\.npy", name) is not None)
 
 
 def replace_output(path: str, kind: str = "file") -> None:
