@@ -228,3 +228,15 @@ def test_drift_parts_refuse_trajectories_of_different_lengths():
     t, ref = truth()
     with pytest.raises(ValueError, match=r"\(n, 3\) SE\(2\) arrays"):
         drift_parts(t, ref, ref[:-1])
+
+
+def test_radar_eval_prints_each_turns_own_ratio_where_a_kind_has_several():
+    from radarodom.tools.eval_summary import format_heading
+
+    t, ref = truth()
+    est = estimate(t, ref, each_k=[1.04, 0.99, 0.97])
+    text = format_heading(heading_metrics(t, ref, est), drift_parts(t, ref, est))
+    moving = next(line for line in text.splitlines() if line.strip().startswith("moving turns"))
+    assert moving.endswith("measured 1.005 of it; each turn's own, farthest from 1: 1.040")
+    in_place = next(line for line in text.splitlines() if line.strip().startswith("turns in place"))
+    assert in_place.endswith("measured 0.990 of it")  # one turn: nothing more to say
