@@ -5,8 +5,8 @@
 
 For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
 or bench/robustness_matrix.py record), every step is classified by the truth (standing still,
-driving straight, a moving turn, a turn in place) and the yaw increment is compared with the
-truth at each stage:
+driving straight, a moving turn left or right, a turn in place) and the yaw increment is
+compared with the truth at each stage:
 
 - ``estimate``: the estimator's increment (after the yaw-rate filter and the keyframe);
 - ``field, true translation``: the likelihood-field search of the two frames (the estimator's
@@ -78,13 +78,18 @@ def step_motion(poses: np.ndarray, i: int, j: int) -> tuple[np.ndarray, float]:
     return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]), float(_wrap(poses[j, 2] - poses[i, 2]))
 
 
+#: The kinds of step, by the truth: a moving turn left and right apart (a bias that turns both the
+#: same way, as the straights' does, lengthens one and shortens the other).
+KINDS = ("still", "straight", "moving turn, left", "moving turn, right", "turn in place")
+
+
 def kind(translation: np.ndarray, dyaw: float, dt: float) -> str:
-    """still, straight, moving turn or turn in place, by the truth."""
+    """One of KINDS, by the truth."""
     turning = math.degrees(abs(dyaw)) / dt > STRAIGHT_RATE_DPS
     moving = float(np.hypot(*translation)) / dt > MOVING_MPS
     if not turning:
         return "straight" if moving else "still"
-    return "moving turn" if moving else "turn in place"
+    return ("moving turn, left" if dyaw > 0 else "moving turn, right") if moving else "turn in place"
 
 
 def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray]:
@@ -128,7 +133,7 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
     lines = []
     for k in steps:
         errors: dict[str, list] = {"forward": [], "backward": [], "two-way": []}
-        turns: dict[str, list] = {"moving turn": [], "turn in place": []}
+        turns: dict[str, list] = {name: [] for name in KINDS[2:]}
         for j in range(k, len(seq)):
             between = set(kinds[j - k + 1:j + 1])
             a, b = kept[j - k].field, kept[j].field
@@ -194,7 +199,7 @@ def _ratio(pairs: np.ndarray) -> float:
 
 def report(name: str, found: dict) -> list[str]:
     lines = [name]
-    for k in ("still", "straight", "moving turn", "turn in place"):
+    for k in KINDS:
         if k not in found:
             continue
         parts = []
@@ -207,7 +212,7 @@ def report(name: str, found: dict) -> list[str]:
                 parts.append(f"{stage}: bias {err.mean():+.4f} rms {math.sqrt(float(np.mean(err ** 2))):.3f}")
             else:
                 parts.append(f"{stage}: ratio {_ratio(pairs):.4f}")
-        lines.append(f"  {k:13s} n={len(found[k]['estimate']):4d} | " + " | ".join(parts))
+        lines.append(f"  {k:18s} n={len(found[k]['estimate']):4d} | " + " | ".join(parts))
     return lines
 
 
