@@ -59,6 +59,13 @@ HANDSHAKE_TIMEOUT_MS = 2000
 #: Protocols whose address is host:port.
 _INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 _ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
+
+
+def check_ros2_topic(topic: Any) -> str:
+    """*topic* if it is an absolute ROS name (``/radar/odom``); PublishConfigError otherwise."""
+    if not isinstance(topic, str) or not _ROS_TOPIC.fullmatch(topic):
+        raise PublishConfigError(f"ROS 2 topic must be an absolute ROS name like /radar/odom, got {topic!r}")
+    return topic
 #: The source location zenoh appends to its error messages.
 _RUST_LOCATION = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
 
@@ -141,9 +148,7 @@ class ZenohOptions:
         if isinstance(self.ros2_domain, bool) or not isinstance(self.ros2_domain, int) \
                 or not 0 <= self.ros2_domain <= 232:
             raise PublishConfigError(f"ROS 2 domain must be a whole number from 0 to 232, got {self.ros2_domain!r}")
-        if not isinstance(self.ros2_topic, str) or not _ROS_TOPIC.fullmatch(self.ros2_topic):
-            raise PublishConfigError(f"ROS 2 topic must be an absolute ROS name like /radar/odom, "
-                                     f"got {self.ros2_topic!r}")
+        check_ros2_topic(self.ros2_topic)
         if self.config_file is None and self.effective_mode == "client":
             if self.listen:
                 raise PublishConfigError("a Zenoh client does not listen: drop --listen, or use --mode peer")

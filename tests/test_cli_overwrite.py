@@ -250,3 +250,37 @@ def test_a_file_output_never_names_a_file_of_a_directory_output(tmp_path, capsys
     assert rc == 2 and err.endswith(f"error: --odom-out {out / name} is a file {directory} writes: "
                                     "choose another name\n")
     assert not out.exists()
+
+
+def test_an_output_file_in_a_directory_that_is_not_there_is_a_usage_error(tmp_path, capsys):
+    from radarodom.tools import radar_eval
+
+    rc, err = capture(capsys, "--odom-out", tmp_path / "nodir" / "odom.tum")
+    assert rc == 2 and err.endswith(f"error: cannot create {tmp_path / 'nodir' / 'odom.tum'}: "
+                                    f"no directory {tmp_path / 'nodir'}\n")
+    truth = tmp_path / "gt.tum"
+    truth.write_text("0 0 0 0 0 0 0 1\n0.1 0.1 0 0 0 0 0 1\n")
+    assert radar_eval.main([str(truth), str(truth), "--json", str(tmp_path / "nodir" / "e.json"), "-q"]) == 2
+    assert not (tmp_path / "nodir").exists()
+
+
+def test_radar_calibrate_never_writes_over_what_it_reads(tmp_path, capsys):
+    from radarodom.tools import radar_calibrate, radar_cfg
+
+    cfg = tmp_path / "board.cfg"
+    assert radar_cfg.main(["--copy", "awr1843_raw", str(cfg)]) == 0
+    before = cfg.read_bytes()
+    rec = tmp_path / "rec"
+    assert radar_sim.main(["calibration", "--duration", "0.5", "--out", str(rec), "-q"]) == 0
+    recorded = (rec / "radar.cfg").read_bytes()
+    capsys.readouterr()
+    for source, given, out, what in (("sim://calibration?rate=max", ["--cfg", str(cfg)], cfg, f"--cfg {cfg}"),
+                                     (f"replay://{rec}?rate=max", [], rec / "radar.cfg", f"--source {rec}")):
+        rc = radar_calibrate.main(["--source", source, "--distance", "3", "--frames", "3", *given,
+                                   "--write-cfg", str(out), "--overwrite"])
+        err = capsys.readouterr().err
+        assert rc == 2 and err.endswith(f"error: --write-cfg {out} would write over the input {what}: "
+                                        "choose another path\n"), err
+    assert cfg.read_bytes() == before and (rec / "radar.cfg").read_bytes() == recorded
+    assert radar_calibrate.main(["--source", f"replay://{rec}?rate=max", "--distance", "3", "--frames", "3",
+                                 "--write-cfg", str(rec / "measured.cfg")]) == 0  # beside it: fine

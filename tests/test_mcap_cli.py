@@ -81,6 +81,23 @@ def test_a_recording_converts_at_full_speed_with_the_mount_and_the_odometry_line
     assert len(topics(out)["/radar/odom"]) == 2 and len(lines.read_text().splitlines()) == 2
 
 
+def test_an_offline_conversion_names_the_odometry_topic(corridor, tmp_path):
+    # --ros2-topic names the bag's odometry topic with --no-publish too (it was refused as a
+    # publishing option); a topic that is not a ROS name is refused before anything is written.
+    out = tmp_path / "run.mcap"
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--ros2-topic", "/robot/radar_odom",
+                   "--frames", "3")
+    assert proc.returncode == 0, proc.stderr
+    got = topics(out)
+    assert len(got["/robot/radar_odom"]) == 3 and "/radar/odom" not in got
+    bad = tmp_path / "bad.mcap"
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", bad, "--ros2-topic", "radar odom")
+    assert proc.returncode == 2 and "argument --ros2-topic: ROS 2 topic must be an absolute ROS name" in proc.stderr
+    assert not bad.exists()
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--ros2-topic", "/robot/radar_odom")
+    assert proc.returncode == 2 and "--ros2-topic is about publishing over Zenoh" in proc.stderr  # no bag: no use
+
+
 def test_a_coloradar_run_converts(tmp_path):
     run = write_run(tmp_path, "ec_hallways_run0", frames=6)
     out = tmp_path / "run.mcap"

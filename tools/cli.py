@@ -111,7 +111,7 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
     writer, a directory that holds data radarodom did not write."""
     import os
 
-    from ..errors import CaptureError, CaptureExistsError
+    from ..errors import CaptureExistsError
 
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is a file, not a directory"
@@ -124,8 +124,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
         if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
             raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
     parent = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(parent):
-        raise CaptureError(f"cannot create {path}: no directory {parent}")
+    if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
+        raise UsageError(f"cannot create {path}: no directory {parent}")
 
 
 def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
@@ -145,6 +145,20 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
             if real == src or (os.path.isdir(src) and _recordings_own(src, real)):
                 raise UsageError(f"{what} {path} would write over the input {source} {given}: "
                                  "choose another path")
+
+
+def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None) -> list[tuple[str, str]]:
+    """(option, path) of what a run reads, for :func:`check_distinct`: the files given in
+    *options* ((option, path or None)) and the recording or ColoRadar run the *source* URL
+    streams (``replay://DIR``, ``coloradar://DIR``)."""
+    from ..driver.sources import split_url
+
+    inputs = list(options)
+    if source:
+        scheme, path, _ = split_url(source)
+        if scheme in ("replay", "coloradar") and path:
+            inputs.append(("--source", os.path.expanduser(path)))
+    return [(what, path) for what, path in inputs if path]
 
 
 def _recordings_own(directory: str, path: str) -> bool:

@@ -109,9 +109,11 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
 def _main(args: argparse.Namespace) -> int:
     if args.write_cfg:
         cli.check_new_path(args.write_cfg, overwrite=args.overwrite)
-    cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     source = args.source or _default_source()
     args.source = source
+    if args.write_cfg:  # never over what it reads: the cfg, the replayed recording's own files
+        cli.check_distinct([("--write-cfg", args.write_cfg)], cli.read_paths([("--cfg", args.cfg)], source))
+    cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     result, used_cfg = _measure(args, cfg)
     line = result.calibration.cfg_line()
     if args.write_cfg:

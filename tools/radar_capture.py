@@ -29,7 +29,7 @@ from typing import Iterator, Sequence
 
 from ..cfg import RadarConfig
 from ..driver.recordings.capture_dir import CaptureWriter
-from ..driver.sources import SCHEMES, Source, open_source, split_url
+from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
@@ -234,7 +234,9 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     if args.no_odom and (args.odom_out or args.estimator_config):
         raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
                          "take --estimator-config")
-    given = options_given(args) if args.no_publish else []
+    # --ros2-topic names the bag's odometry topic too: an offline conversion may take it.
+    given = [option for option in (options_given(args) if args.no_publish else [])
+             if not (option == "--ros2-topic" and args.mcap)]
     if given:
         raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
@@ -305,12 +307,8 @@ def _outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:
 def _inputs(args: argparse.Namespace) -> list[tuple[str, str]]:
     """(option, path) of the files and directories the run reads: its cfg and settings, and a
     recording or ColoRadar run it streams."""
-    inputs = [("--cfg", args.cfg), ("--estimator-config", args.estimator_config),
-              ("--zenoh-config", getattr(args, "zenoh_config", None))]
-    scheme, path, _ = split_url(args.source)
-    if scheme in ("replay", "coloradar") and path:
-        inputs.append(("--source", os.path.expanduser(path)))
-    return [(what, path) for what, path in inputs if path]
+    return cli.read_paths([("--cfg", args.cfg), ("--estimator-config", args.estimator_config),
+                           ("--zenoh-config", getattr(args, "zenoh_config", None))], args.source)
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
