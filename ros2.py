@@ -49,6 +49,11 @@ TF_STATIC_TOPIC = "/tf_static"
 HEATMAP_TOPIC = "/radar/heatmap"
 HEATMAP_AXES_TOPIC = "/radar/heatmap/axes"
 DIAGNOSTICS_TOPIC = "/diagnostics"
+#: The ground truth's topic in an MCAP bag (``radar-capture --mcap``; not published).
+GROUNDTRUTH_TOPIC = "/radar/groundtruth"
+#: Every topic radarodom writes but the odometry's, whose name the user chooses (``--ros2-topic``).
+OTHER_TOPICS = (POINTS_TOPIC, TF_TOPIC, TF_STATIC_TOPIC, HEATMAP_TOPIC, HEATMAP_AXES_TOPIC, DIAGNOSTICS_TOPIC,
+                GROUNDTRUTH_TOPIC)
 #: rmw_zenoh's QoS of a publisher token: reliable, volatile, keep last 10 (only the depth differs
 #: from rmw_zenoh's defaults, so only it is written) ...
 _ROS2_QOS = "::,10:,:,:,,"

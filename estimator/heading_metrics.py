@@ -187,7 +187,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
                           min_turn_deg=min_turn_deg)
     kinds = {}
     for in_place in (False, True):
-        true_sum, est_sum, count, worst = 0.0, 0.0, 0, nan
+        true_sum, est_sum, ratios = 0.0, 0.0, []
         for i, j, ip in turns:
             if ip != in_place:
                 continue
@@ -195,10 +195,10 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
             along = math.copysign(1.0, true_angle) * float(d_est[i:j].sum())
             true_sum += abs(true_angle)
             est_sum += along
-            count += 1
-            ratio = along / abs(true_angle)
-            worst = ratio if not abs(worst - 1.0) >= abs(ratio - 1.0) else worst
-        kinds[in_place] = (count, math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan, worst)
+            ratios.append(along / abs(true_angle))
+        # (undefined when one is, as the kind's ratio is)
+        worst = nan if not ratios or any(map(math.isnan, ratios)) else max(ratios, key=lambda r: abs(r - 1.0))
+        kinds[in_place] = (len(ratios), math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan, worst)
 
     path = float(step_m.sum())
     est_path = float(path_steps(est[:, :2]).sum())

@@ -28,15 +28,13 @@ from .. import ros2_messages as rm
 from ..driver.sources import Source
 from ..mount import Mount
 from ..publish import DEFAULT_ROS2_TOPIC
-from ..ros2 import (DIAGNOSTICS_TOPIC, HEATMAP_AXES_TOPIC, HEATMAP_TOPIC, POINTS_TOPIC, TF_STATIC_TOPIC, TF_TOPIC,
-                    ros2_typestore)
+from ..ros2 import (DIAGNOSTICS_TOPIC, GROUNDTRUTH_TOPIC, HEATMAP_AXES_TOPIC, HEATMAP_TOPIC, POINTS_TOPIC,
+                    TF_STATIC_TOPIC, TF_TOPIC, ros2_typestore)
 from ..ros2_bag import QOS_STATIC, BagWriter
 from ..ros2_frames import TruthInOdom
 from .sinks import FrameResult, Sink
 from .stats import PipelineStats
 from .zenoh_sink import status
-
-GROUNDTRUTH_TOPIC = "/radar/groundtruth"
 
 
 class McapSink(Sink):

@@ -187,12 +187,13 @@ def test_an_output_directory_is_made_with_its_parents(tmp_path, capsys):
     assert (tmp_path / "c" / "rec" / "capture.json").exists()
 
 
-def _overwrite_run(program: str, out, tmp_path, capsys) -> tuple[int, str]:
-    """Run *program* writing its one file output to *out* with --overwrite."""
+def _overwrite_run(program: str, out, tmp_path, capsys) -> tuple[int, str, str]:
+    """Run *program* writing its one file output to *out* with --overwrite: its exit code, stdout
+    and stderr."""
     from radarodom.tools import radar_calibrate, radar_cfg, radar_eval
 
     if program == "radar-capture --odom-out":
-        return capture(capsys, "--odom-out", out, "--overwrite")
+        rc = radar_capture.main(["--source", URL, "--no-publish", "-q", "--odom-out", str(out), "--overwrite"])
     if program == "radar-cfg --copy":
         rc = radar_cfg.main(["--copy", "awr1843_raw", str(out), "--overwrite"])
     elif program == "radar-calibrate --write-cfg":
@@ -202,7 +203,8 @@ def _overwrite_run(program: str, out, tmp_path, capsys) -> tuple[int, str]:
         truth = tmp_path / "gt.tum"
         truth.write_text("0 0 0 0 0 0 0 1\n0.1 0.1 0 0 0 0 0 1\n0.2 0.2 0 0 0 0 0 1\n")
         rc = radar_eval.main([str(truth), str(truth), "--json", str(out), "--overwrite", "-q"])
-    return rc, capsys.readouterr().err
+    captured = capsys.readouterr()
+    return rc, captured.out, captured.err
 
 
 PROGRAMS = ["radar-capture --odom-out", "radar-cfg --copy", "radar-calibrate --write-cfg", "radar-eval --json"]
@@ -214,7 +216,7 @@ def test_overwrite_replaces_a_link_not_the_file_it_names(tmp_path, capsys, progr
     theirs.write_text("the user's own\n")
     out = tmp_path / "out"
     out.symlink_to(theirs)
-    rc, err = _overwrite_run(program, out, tmp_path, capsys)
+    rc, stdout, err = _overwrite_run(program, out, tmp_path, capsys)
     assert rc == 0, err
     assert not out.is_symlink() and out.stat().st_size > 0
     assert theirs.read_text() == "the user's own\n"
@@ -222,13 +224,26 @@ def test_overwrite_replaces_a_link_not_the_file_it_names(tmp_path, capsys, progr
 
 
 @pytest.mark.parametrize("program", PROGRAMS[1:])
-def test_a_file_output_that_cannot_be_written_is_one_line_and_keeps_the_old(tmp_path, capsys, program):
+def test_a_file_output_is_written_beside_itself_under_a_name_of_its_own(tmp_path, capsys, program):
     out = tmp_path / "out"
     out.write_text("before\n")
-    (tmp_path / "out.tmp").mkdir()  # where the new copy is written first (root writes anywhere else)
-    rc, err = _overwrite_run(program, out, tmp_path, capsys)
-    assert rc == 1 and err.endswith(f"error: cannot write {out}: Is a directory\n") and err.count("\n") == 1, err
-    assert out.read_text() == "before\n"
+    out.chmod(0o640)
+    (tmp_path / "out.tmp").symlink_to(tmp_path / "victim")  # a name the new copy must not take
+    rc, stdout, err = _overwrite_run(program, out, tmp_path, capsys)
+    assert rc == 0, err
+    assert (out.stat().st_mode & 0o777) == 0o640 and out.read_text() != "before\n"  # replaced, its mode kept
+    assert not (tmp_path / "victim").exists() and (tmp_path / "out.tmp").is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "gt.tum") == ["out", "out.tmp"]
+
+
+@pytest.mark.parametrize("program", PROGRAMS[1:])
+def test_a_file_output_that_cannot_be_made_is_one_line(tmp_path, capsys, program):
+    out = "/proc/radarodom-test-output"  # a directory no file can be made in, for root too
+    rc, stdout, err = _overwrite_run(program, out, tmp_path, capsys)
+    assert rc == 1 and err.endswith(f"error: cannot write {out}: No such file or directory\n"), err
+    assert err.count("\n") == 1
+    if program == "radar-calibrate --write-cfg":  # the measurement is not lost with the file
+        assert stdout.startswith("compRangeBiasAndRxChanPhase ")
 
 
 def test_file_outputs_may_go_into_the_directories_the_run_makes(tmp_path, capsys):
@@ -274,13 +289,32 @@ def test_radar_calibrate_never_writes_over_what_it_reads(tmp_path, capsys):
     assert radar_sim.main(["calibration", "--duration", "0.5", "--out", str(rec), "-q"]) == 0
     recorded = (rec / "radar.cfg").read_bytes()
     capsys.readouterr()
-    for source, given, out, what in (("sim://calibration?rate=max", ["--cfg", str(cfg)], cfg, f"--cfg {cfg}"),
-                                     (f"replay://{rec}?rate=max", [], rec / "radar.cfg", f"--source {rec}")):
+    for source, given, out, what, extra in (
+            ("sim://calibration?rate=max", ["--cfg", str(cfg)], cfg, f"--cfg {cfg}", []),
+            ("sim://calibration?rate=max", ["--cfg", str(cfg)], cfg, f"--cfg {cfg}", ["--overwrite"]),
+            (f"replay://{rec}?rate=max", [], rec / "radar.cfg", f"--source {rec}", ["--overwrite"])):
         rc = radar_calibrate.main(["--source", source, "--distance", "3", "--frames", "3", *given,
-                                   "--write-cfg", str(out), "--overwrite"])
+                                   "--write-cfg", str(out), *extra])
         err = capsys.readouterr().err
         assert rc == 2 and err.endswith(f"error: --write-cfg {out} would write over the input {what}: "
                                         "choose another path\n"), err
     assert cfg.read_bytes() == before and (rec / "radar.cfg").read_bytes() == recorded
     assert radar_calibrate.main(["--source", f"replay://{rec}?rate=max", "--distance", "3", "--frames", "3",
                                  "--write-cfg", str(rec / "measured.cfg")]) == 0  # beside it: fine
+
+
+def test_a_file_output_never_names_a_directory_output(tmp_path, capsys):
+    rc, err = capture(capsys, "--heatmap-out", tmp_path / "hm", "--odom-out", tmp_path / "hm")
+    assert rc == 2 and "--odom-out and --heatmap-out both name" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_overwrite_leaves_every_output_when_the_recording_directory_is_not_radarodoms(tmp_path, capsys):
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "adc_data.bin").write_bytes(b"\x01" * 64)  # another tool's capture
+    old = tmp_path / "old.tum"
+    old.write_text("mine\n")
+    rc, err = capture(capsys, "--record", foreign, "--odom-out", old, "--overwrite")
+    assert rc == 2 and "already holds a capture (adc_data.bin) not written by radarodom" in err
+    assert old.read_text() == "mine\n" and sorted(p.name for p in foreign.iterdir()) == ["adc_data.bin"]

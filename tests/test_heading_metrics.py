@@ -73,6 +73,13 @@ def test_each_turns_own_ratio_shows_what_the_kinds_ratio_cancels():
     assert m.inplace_turn_ratio == pytest.approx(0.99, abs=1e-9) and m.inplace_turn_worst_ratio == m.inplace_turn_ratio
     m = heading_metrics(t, ref, estimate(t, ref, each_k=[1.01, 1.0, 0.97]))
     assert m.moving_turn_worst_ratio == pytest.approx(0.97, abs=1e-9)
+    m = heading_metrics(t, ref, estimate(t, ref, each_k=[0.95, 1.0, 1.01]))  # the first farthest
+    assert m.moving_turn_worst_ratio == pytest.approx(0.95, abs=1e-9)
+    est = estimate(t, ref, each_k=[1.5, 1.0, 1.01])
+    i, j, _ = segment_turns(t, ref)[2]
+    est[(i + j) // 2, 2] = np.nan  # a pose lost in the second moving turn: undefined, as the pooled ratio
+    m = heading_metrics(t, ref, est)
+    assert math.isnan(m.moving_turn_ratio) and math.isnan(m.moving_turn_worst_ratio)
     m = heading_metrics(t[:30], ref[:30], ref[:30].copy())  # no turn: undefined
     assert math.isnan(m.moving_turn_worst_ratio) and m.to_dict()["inplace_turn_worst_ratio"] is None
 

@@ -94,6 +94,8 @@ def test_an_offline_conversion_names_the_odometry_topic(corridor, tmp_path):
     proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", bad, "--ros2-topic", "radar odom")
     assert proc.returncode == 2 and "argument --ros2-topic: ROS 2 topic must be an absolute ROS name" in proc.stderr
     assert not bad.exists()
+    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", bad, "--ros2-topic", "/tf")
+    assert proc.returncode == 2 and "/tf is one of radarodom's other topics" in proc.stderr and not bad.exists()
     proc = capture("--source", f"replay://{corridor}?rate=max", "--ros2-topic", "/robot/radar_odom")
     assert proc.returncode == 2 and "--ros2-topic is about publishing over Zenoh" in proc.stderr  # no bag: no use
 

@@ -18,7 +18,7 @@ import sys
 import traceback
 from typing import Callable, Sequence
 
-from ..errors import RadarodomError, UsageError, quoted
+from ..errors import CaptureExistsError, RadarodomError, UsageError, quoted
 from ..mount import Mount, parse_mount
 from ..plain_numbers import plain_float, plain_int
 from .status import StatusAwareHandler, StatusLine
@@ -109,10 +109,6 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
     :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
     directory it wrote).  A directory in place of a file is still refused, and so is, by its
     writer, a directory that holds data radarodom did not write."""
-    import os
-
-    from ..errors import CaptureExistsError
-
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is a file, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
@@ -132,8 +128,6 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
     """Refuse two outputs that name one path, or an output that names an input of the same run
     or one of the files of a recording or run given as an input directory (new files beside
     them, or written there before, are fine); each (what, path), *what* an option's name."""
-    from ..errors import UsageError
-
     seen: dict[str, str] = {}
     for what, path in outputs:
         real = os.path.realpath(path)
@@ -147,17 +141,20 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
                                  "choose another path")
 
 
-def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None) -> list[tuple[str, str]]:
+def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None,
+               source_option: str = "--source") -> list[tuple[str, str]]:
     """(option, path) of what a run reads, for :func:`check_distinct`: the files given in
     *options* ((option, path or None)) and the recording or ColoRadar run the *source* URL
-    streams (``replay://DIR``, ``coloradar://DIR``)."""
+    streams (``replay://DIR``, ``coloradar://DIR``) or the scene file it simulates
+    (``sim://FILE``), named *source_option*."""
     from ..driver.sources import split_url
 
     inputs = list(options)
     if source:
         scheme, path, _ = split_url(source)
-        if scheme in ("replay", "coloradar") and path:
-            inputs.append(("--source", os.path.expanduser(path)))
+        path = os.path.expanduser(path or "")
+        if scheme in ("replay", "coloradar") and path or scheme == "sim" and os.path.isfile(path):
+            inputs.append((source_option, path))
     return [(what, path) for what, path in inputs if path]
 
 
@@ -185,9 +182,32 @@ def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
         real_dir = os.path.realpath(directory)
         for path, file_kind, file_option in outputs:
             real = os.path.realpath(path)
+            if file_kind == "file" and real == real_dir:
+                raise UsageError(f"{file_option} and {option} both name {path}: give each its own")
             if file_kind == "file" and (_recordings_own(real_dir, real) if kind == "capture" else
                                         os.path.dirname(real) == real_dir and _heatmaps_own(os.path.basename(real))):
                 raise UsageError(f"{file_option} {path} is a file {option} writes: choose another name")
+
+
+def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: bool) -> None:
+    """Each output new, or with *overwrite* replaceable (:func:`check_new_path`); each (path,
+    kind, option), *kind* as :func:`replace_output` takes it.  A file may go into a directory
+    output the run makes (its writer is opened after the directory's); a recording directory
+    holding data radarodom did not write is refused here, before ``--overwrite`` replaces the
+    other outputs (its writer would refuse it only then)."""
+    from ..driver.recordings.capture_writer import foreign_data
+
+    made = {os.path.realpath(path) for path, kind, _ in outputs if kind != "file" and not os.path.exists(path)}
+    for path, kind, _ in outputs:
+        if kind != "file" and not os.path.exists(path):
+            continue  # a new directory is checked by its writer (which makes its parents)
+        if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
+            continue
+        check_new_path(path, is_dir=kind != "file", overwrite=overwrite)
+        theirs = overwrite and kind == "capture" and os.path.isdir(path) and foreign_data(path)
+        if theirs:
+            raise CaptureExistsError(f"{path} already holds a capture ({theirs}) not written by radarodom "
+                                     "(no capture.json), which --overwrite leaves alone; choose a new directory")
 
 
 def _heatmaps_own(name: str) -> bool:
@@ -221,15 +241,18 @@ def replace_output(path: str, kind: str = "file") -> None:
         raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
 
 
-def write_output(path: str, text: str) -> None:
+def write_output(path: str, text: str, *, overwrite: bool) -> None:
     """Write a file output (checked by :func:`check_new_path`) whole or not at all: a symbolic
     link in its place is replaced, as ``--overwrite`` replaces every output, never the file it
-    names; a failure is a :class:`CaptureError` naming the file."""
+    names; without *overwrite* a file that appeared there while the program ran is left alone.
+    A failure is a :class:`CaptureError` naming the file."""
     from ..driver.recordings.capture_writer import write_text_atomically
     from ..errors import CaptureError
 
     try:
-        write_text_atomically(path, text)
+        write_text_atomically(path, text, replace=overwrite)
+    except FileExistsError:
+        raise CaptureError(f"{path} appeared while this ran; not replaced (without --overwrite)") from None
     except OSError as exc:
         raise CaptureError(f"cannot write {path}: {exc.strerror or exc}") from None
 

@@ -23,7 +23,7 @@ from typing import Sequence  # noqa: E402
 from .. import strict_json  # noqa: E402
 from ..cfg import RadarConfig  # noqa: E402
 from ..dsp.calibrate import MAX_APPARENT_AZIMUTH_DEG  # noqa: E402
-from ..errors import CalibrationError, UsageError  # noqa: E402
+from ..errors import CalibrationError, CaptureError, UsageError  # noqa: E402
 from . import cli  # noqa: E402
 
 log = logging.getLogger("radarodom.tools.radar_calibrate")
@@ -107,17 +107,20 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
 
 
 def _main(args: argparse.Namespace) -> int:
-    if args.write_cfg:
+    if args.write_cfg:  # never over what it reads (the cfg, the replayed recording's own files)
+        cli.check_distinct([("--write-cfg", args.write_cfg)], cli.read_paths([("--cfg", args.cfg)], args.source))
         cli.check_new_path(args.write_cfg, overwrite=args.overwrite)
-    source = args.source or _default_source()
-    args.source = source
-    if args.write_cfg:  # never over what it reads: the cfg, the replayed recording's own files
-        cli.check_distinct([("--write-cfg", args.write_cfg)], cli.read_paths([("--cfg", args.cfg)], source))
+    args.source = args.source or _default_source()  # the live radar or the simulator: no file read
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     result, used_cfg = _measure(args, cfg)
     line = result.calibration.cfg_line()
     if args.write_cfg:
-        cli.write_output(args.write_cfg, used_cfg.replace(result.calibration.to_command()).to_text())
+        try:
+            cli.write_output(args.write_cfg, used_cfg.replace(result.calibration.to_command()).to_text(),
+                             overwrite=args.overwrite)
+        except CaptureError:
+            print(json_report(result) if args.json else line)  # the measurement is not lost with the file
+            raise
     if args.json:
         print(json_report(result))
         return 0

@@ -320,14 +320,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     outputs = _outputs(args)
     cli.check_distinct([(option, path) for path, kind, option in outputs if kind != "heatmaps"], _inputs(args))
     cli.check_files_in_directories(outputs)
-    # A file may go into a directory this run makes (its writer is opened after the directory's).
-    made = {os.path.realpath(path) for path, kind, _ in outputs if kind != "file" and not os.path.exists(path)}
-    for path, kind, _ in outputs:
-        if kind != "file" and not os.path.exists(path):
-            continue  # a new directory is checked by its writer (which makes its parents)
-        if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
-            continue
-        cli.check_new_path(path, is_dir=kind != "file", overwrite=args.overwrite)
+    cli.check_new_outputs(outputs, overwrite=args.overwrite)
 
 
 def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:

@@ -101,7 +101,7 @@ def _copy(names: list[str], overwrite: bool) -> int:
         dest = os.path.join(dest, name)
     cli.check_new_path(dest, overwrite=overwrite)
     with open(shipped_config_path(name), encoding="utf-8", newline="") as fh:
-        cli.write_output(dest, fh.read())
+        cli.write_output(dest, fh.read(), overwrite=overwrite)
     print(f"radar-cfg: copied {name} to {dest}")
     return 0
 

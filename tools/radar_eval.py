@@ -28,12 +28,12 @@ from typing import Sequence
 
 import numpy as np
 
-from ..driver.recordings.capture_dir import write_json_atomically
-from ..errors import CaptureError, UsageError
+from ..driver.recordings.capture_writer import json_text
+from ..errors import UsageError
 from ..mount import Mount
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..estimator.heading_metrics import drift_parts, heading_metrics
-from ..driver.sources import open_source, split_url
+from ..driver.sources import open_source
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
 from .eval_summary import format_heading, format_table
@@ -96,19 +96,14 @@ def _main(args: argparse.Namespace) -> int:
         parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
-        # (write_json_atomically writes standard JSON: an undefined figure becomes null)
+        # (json_text writes standard JSON: an undefined figure becomes null)
         data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts}} if args.json else None
     if overflow:
         log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
     print(table)
     if args.json:
-        if not args.overwrite and os.path.lexists(args.json):  # made while this ran (another run's)
-            raise CaptureError(f"{args.json} appeared while this ran; not replaced (the numbers are above)")
-        try:
-            write_json_atomically(args.json, data)  # standard JSON: null for an undefined figure
-        except OSError as exc:
-            raise CaptureError(f"cannot write {args.json}: {exc.strerror or exc}") from None
+        cli.write_output(args.json, json_text(data), overwrite=args.overwrite)  # the numbers are above
     if args.plot:
         if flags is not None:
             flags = _on_the_evaluation_clock(flags, estimate, reference, result)
@@ -123,12 +118,11 @@ def _check_outputs(args: argparse.Namespace) -> None:
     """--json is a new file (or, with --overwrite, a file to replace) and not an input; --plot a
     directory (made when it is not there): checked before the work."""
     if args.json:
-        inputs = [("EST.tum", args.estimate), ("--flags", args.flags)]
-        if "://" not in args.reference:
-            inputs.append(("GT.tum", args.reference))
-        else:  # a recording or a run the ground truth is read from
-            inputs.append(("GT.tum|URL", os.path.expanduser(split_url(args.reference)[1])))
-        cli.check_distinct([("--json", args.json)], [(what, path) for what, path in inputs if path])
+        url = "://" in args.reference  # a recording or a run the ground truth is read from
+        inputs = cli.read_paths([("EST.tum", args.estimate), ("--flags", args.flags),
+                                 ("GT.tum", None if url else args.reference)],
+                                args.reference if url else None, source_option="GT.tum|URL")
+        cli.check_distinct([("--json", args.json)], inputs)
         cli.check_new_path(args.json, overwrite=args.overwrite)
     if args.plot and os.path.exists(args.plot) and not os.path.isdir(args.plot):
         raise UsageError(f"--plot {args.plot} is a file, not a directory")

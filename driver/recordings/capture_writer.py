@@ -18,9 +18,12 @@ is removed on close, and one left by a killed run is recorded over.
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import math
 import os
+import stat
+import tempfile
 import time
 from typing import Any, Sequence
 
@@ -40,27 +43,73 @@ _IMMEDIATE_INCOMPLETE_LIMIT = 1000
 _INCOMPLETE_FLUSH_S = 0.25
 
 
-def _json_text(obj: Any) -> str:
+def json_text(obj: Any) -> str:
+    """*obj* as the JSON radarodom writes: standard JSON (an undefined figure is null), indented."""
     return strict_json.dumps(obj, indent=1) + "\n"
 
 
 def write_json_atomically(path: str, obj: Any) -> None:
-    """Replace *path* with *obj* as JSON; a reader (or a crash) never sees half a file."""
-    write_text_atomically(path, _json_text(obj))
-
-
-def write_text_atomically(path: str, text: str) -> None:
-    """Replace *path* with *text*: a reader (or a crash) never sees half a file, and a symbolic
-    link at *path* is replaced itself, the file it named left as it was."""
+    """Replace *path*, a file of a directory radarodom writes (capture.json, index.json), with
+    *obj* as JSON through ``path.tmp``, a name its directory's owner knows: a reader (or a crash)
+    never sees half a file."""
     tmp = path + ".tmp"
     try:
-        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(json_text(obj))
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):  # a full disk: no empty .tmp left beside the file
             os.remove(tmp)
         raise
+
+
+def write_text_atomically(path: str, text: str, *, replace: bool = True) -> None:
+    """Write *text* to a user's output *path* whole or not at all, through a new file of its own
+    beside it (``.NAME.XXXXXXXX.tmp``, never another file's: made exclusively, links not followed),
+    renamed over *path*: a symbolic link at *path* is replaced itself, the file it named left as
+    it was; a file replaced keeps its permissions.  Unless *replace*, a file that appeared at
+    *path* meanwhile is not replaced (FileExistsError)."""
+    directory, name = os.path.split(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            os.fchmod(fh.fileno(), _mode_for(path))
+            fh.write(text)
+        if replace:
+            os.replace(tmp, path)
+        else:
+            _put_new(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):  # a full disk: no empty copy left beside the file
+            os.remove(tmp)
+        raise
+
+
+def _mode_for(path: str) -> int:
+    """The permissions of the regular file at *path* (not through a link), else a new file's."""
+    try:
+        st = os.lstat(path)
+        if stat.S_ISREG(st.st_mode):
+            return stat.S_IMODE(st.st_mode)
+    except FileNotFoundError:
+        pass
+    umask = os.umask(0o022)  # read by setting it back at once (no call reads it alone)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def _put_new(tmp: str, path: str) -> None:
+    """Move *tmp* to *path* only if nothing is there (FileExistsError otherwise)."""
+    try:
+        os.link(tmp, path)  # fails if *path* exists, whatever it is
+    except FileExistsError:
+        raise
+    except OSError:  # a file system without hard links: checked, then renamed
+        if os.path.lexists(path):
+            raise FileExistsError(errno.EEXIST, "File exists", path) from None
+        os.replace(tmp, path)
+        return
+    os.remove(tmp)
 
 
 _CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
@@ -87,6 +136,19 @@ def remove_capture_files(directory: str) -> None:
             os.remove(os.path.join(directory, name))
         except FileNotFoundError:
             pass
+
+
+def foreign_data(directory: str) -> str | None:
+    """The recorded data file in *directory* that radarodom did not write (a non-empty
+    ``adc_data.bin`` or replay stream with no ``capture.json`` beside it), which ``--overwrite``
+    leaves alone and a recording refuses; None when there is none."""
+    if os.path.exists(os.path.join(directory, METADATA)):
+        return None
+    for name in (ADC_DATA, *REPLAY_FORMAT_FILES.values()):
+        with contextlib.suppress(OSError):
+            if os.path.getsize(os.path.join(directory, name)):
+                return name
+    return None
 
 
 def _new_file(path: str) -> int:
@@ -319,6 +381,6 @@ class CaptureWriter:
         except OSError:
             path = os.path.join(self.directory, METADATA)
             with open(path, "r+", encoding="utf-8") as fh:
-                fh.write(_json_text(self.metadata()))
+                fh.write(json_text(self.metadata()))
                 fh.truncate()
             log.warning("%s: the disk is full: capture.json was written over in place", self.directory)
