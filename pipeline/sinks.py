@@ -24,6 +24,7 @@ The Zenoh publisher's sink is :class:`radarodom.pipeline.zenoh_sink.PublisherSin
 
 from __future__ import annotations
 
+import contextlib
 import os
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -119,6 +120,16 @@ class TumSink(Sink):
 
     def close(self, stats: PipelineStats) -> None:
         self._writer.close()
+        _remove_if_no_frame(self.path, stats)
+
+
+def _remove_if_no_frame(path: str, stats: PipelineStats | None) -> None:
+    """Take back an output file of a run that saw no frame (a source that failed to start, an
+    output after it that could not be opened): it holds nothing, and left there it would block
+    the same command's next run, as the recording's directory, removed then, would not."""
+    if stats is not None and stats.frames == 0:
+        with contextlib.suppress(OSError):
+            os.remove(path)
 
 
 def _new_text_file(path: str | os.PathLike):
@@ -145,6 +156,7 @@ class OdometryJsonSink(Sink):
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._fh.close()
+        _remove_if_no_frame(self.path, stats)
 
 
 POINT_COLUMNS = ("x", "y", "z", "range", "azimuth", "elevation", "velocity", "snr_db")
@@ -154,6 +166,7 @@ class PointsCsvSink(Sink):
     """Every point cloud as rows of a new CSV file (module docstring)."""
 
     def __init__(self, path: str | os.PathLike) -> None:
+        self.path = os.fspath(path)
         self._fh = _new_text_file(path)
         self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
         self._fh.flush()
@@ -171,6 +184,7 @@ class PointsCsvSink(Sink):
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._fh.close()
+        _remove_if_no_frame(self.path, stats)
 
 
 class HeatmapSink(Sink):

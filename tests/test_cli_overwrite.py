@@ -318,3 +318,19 @@ def test_overwrite_leaves_every_output_when_the_recording_directory_is_not_radar
     rc, err = capture(capsys, "--record", foreign, "--odom-out", old, "--overwrite")
     assert rc == 2 and "already holds a capture (adc_data.bin) not written by radarodom" in err
     assert old.read_text() == "mine\n" and sorted(p.name for p in foreign.iterdir()) == ["adc_data.bin"]
+
+
+def test_a_run_that_fails_before_its_first_frame_leaves_no_output_behind(tmp_path, capsys):
+    # The bag cannot be made after the other outputs opened: each is taken back, so the same
+    # command with the bag elsewhere runs (it found "already exists" before).
+    pytest.importorskip("rosbags.typesys")
+    pytest.importorskip("mcap.writer")
+    run = tmp_path / "out" / "run"
+    outputs = ["--record", run, "--odom-out", run / "odom.tum", "--points-out", tmp_path / "p.csv",
+               "--odom-json", tmp_path / "o.jsonl"]
+    rc, err = capture(capsys, *outputs, "--mcap", "/proc/radarodom-test.mcap")
+    assert rc == 1 and "cannot create /proc/radarodom-test.mcap" in err
+    assert list(tmp_path.iterdir()) == [tmp_path / "out"] and list((tmp_path / "out").iterdir()) == []
+    rc, err = capture(capsys, *outputs, "--mcap", tmp_path / "run.mcap")
+    assert rc == 0, err
+    assert len((run / "odom.tum").read_text().splitlines()) >= 2 and (tmp_path / "run.mcap").stat().st_size > 0

@@ -339,8 +339,8 @@ def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:
         sinks += ros_outputs.build_sinks(args, source)
         sinks += view_option.build_sinks(args, source)
     except BaseException:
-        for sink in sinks:
-            sink.close(PipelineStats())  # no frame yet: a capture directory is removed
+        for sink in reversed(sinks):  # the last opened first: a file in the recording's directory goes before it
+            sink.close(PipelineStats())  # no frame yet: a capture directory and the new files are removed
         raise
     if publisher is not None:
         from ..pipeline.zenoh_sink import PublisherSink

@@ -57,7 +57,9 @@ def build_sinks(args: argparse.Namespace, source) -> list:
 
             sinks.append(McapSink(args.mcap, source, mount=args.mount, odom_topic=args.ros2_topic))
     except BaseException:
+        from ..pipeline.stats import PipelineStats
+
         for sink in sinks:
-            sink.close(None)
+            sink.close(PipelineStats())  # no frame: the new files are removed
         raise
     return sinks
