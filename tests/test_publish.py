@@ -454,6 +454,7 @@ def _big(path):
     (dict(ros2_domain=233), "domain"),
     (dict(ros2_topic="radar/odom"), "absolute ROS name"),
     (dict(ros2_topic="/radar//odom"), "absolute ROS name"),
+    (dict(ros2_topic="/tf"), "/tf is one of radarodom's other topics"),
     (dict(mode="client"), "needs --connect"),
     (dict(mode="client", connect=["tcp/127.0.0.1:7447"], listen=["tcp/127.0.0.1:7448"]), "does not listen"),
 ])

@@ -61,17 +61,12 @@ def options_given(args: argparse.Namespace) -> list[str]:
 def _ros2_topic(text: str) -> str:
     """argparse type: an absolute ROS name (checked here too, as --mcap takes it without a publisher)."""
     from ..errors import PublishConfigError
-    from ..ros2 import OTHER_TOPICS
     from ..zenoh_session import check_ros2_topic
 
     try:
-        topic = check_ros2_topic(text)
+        return check_ros2_topic(text)
     except PublishConfigError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-    if topic in OTHER_TOPICS:
-        raise argparse.ArgumentTypeError(f"{topic} is one of radarodom's other topics "
-                                         f"({', '.join(OTHER_TOPICS)}): give the odometry its own")
-    return topic
 
 
 #: A name, not a number: the numeric options' fuzz test (tests/test_fuzz_cli_options.py) leaves it
