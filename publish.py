@@ -40,7 +40,7 @@ from . import messages, strict_json
 from .errors import PublishError
 from .mount import Mount
 from .products import RangeAzimuth
-from .ros2 import Ros2Node, ros2_typestore
+from .ros2 import Ros2Node, check_odometry_topic, ros2_typestore
 # The session's options and opening live in zenoh_session; every name stays importable from
 # here, as before the split.
 from .zenoh_session import (  # noqa: F401
@@ -97,6 +97,8 @@ class Publisher:
         #: Where the radar sits on the robot: the ROS 2 output's base_link -> radar.
         self.mount = mount
         # rosbags is checked before anything opens: a missing extra is an option error.
+        if options.ros2:
+            check_odometry_topic(options.ros2_topic)
         typestore = ros2_typestore() if options.ros2 else None
         self._session, self.options = open_session(options)
         # Closes the session once: on close(), or when the publisher is collected unclosed.

@@ -62,15 +62,9 @@ _ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
 
 
 def check_ros2_topic(topic: Any) -> str:
-    """*topic*, the odometry's, if it is an absolute ROS name (``/radar/odom``) and not one of
-    radarodom's other topics; PublishConfigError otherwise."""
-    from .ros2 import OTHER_TOPICS
-
+    """*topic* if it is an absolute ROS name (``/radar/odom``); PublishConfigError otherwise."""
     if not isinstance(topic, str) or not _ROS_TOPIC.fullmatch(topic):
         raise PublishConfigError(f"ROS 2 topic must be an absolute ROS name like /radar/odom, got {topic!r}")
-    if topic in OTHER_TOPICS:
-        raise PublishConfigError(f"{topic} is one of radarodom's other topics ({', '.join(OTHER_TOPICS)}): "
-                                 "give the odometry its own")
     return topic
 #: The source location zenoh appends to its error messages.
 _RUST_LOCATION = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")

@@ -29,7 +29,7 @@ from ..driver.sources import Source
 from ..mount import Mount
 from ..publish import DEFAULT_ROS2_TOPIC
 from ..ros2 import (DIAGNOSTICS_TOPIC, GROUNDTRUTH_TOPIC, HEATMAP_AXES_TOPIC, HEATMAP_TOPIC, POINTS_TOPIC,
-                    TF_STATIC_TOPIC, TF_TOPIC, ros2_typestore)
+                    TF_STATIC_TOPIC, TF_TOPIC, check_odometry_topic, ros2_typestore)
 from ..ros2_bag import QOS_STATIC, BagWriter
 from ..ros2_frames import TruthInOdom
 from .sinks import FrameResult, Sink
@@ -45,6 +45,7 @@ class McapSink(Sink):
 
     def __init__(self, path: str | os.PathLike, source: Source, *, mount: Mount = Mount(),
                  odom_topic: str = DEFAULT_ROS2_TOPIC, status_period_s: float = 1.0, typestore: Any = None) -> None:
+        check_odometry_topic(odom_topic)
         store = typestore if typestore is not None else ros2_typestore()
         self.types = store.types
         self.source = source

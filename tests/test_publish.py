@@ -454,7 +454,6 @@ def _big(path):
     (dict(ros2_domain=233), "domain"),
     (dict(ros2_topic="radar/odom"), "absolute ROS name"),
     (dict(ros2_topic="/radar//odom"), "absolute ROS name"),
-    (dict(ros2_topic="/tf"), "/tf is one of radarodom's other topics"),
     (dict(mode="client"), "needs --connect"),
     (dict(mode="client", connect=["tcp/127.0.0.1:7447"], listen=["tcp/127.0.0.1:7448"]), "does not listen"),
 ])
@@ -462,6 +461,22 @@ def test_bad_options_are_refused_with_exit_code_2(options, words):
     with pytest.raises(PublishConfigError, match=words) as info:
         ZenohOptions(**options)
     assert info.value.exit_code == 2
+
+
+def test_the_odometry_topic_is_never_another_radarodom_topic(tmp_path):
+    # Before any session or file opens: the odometry on /tf would be TF messages of another type.
+    pytest.importorskip("rosbags.typesys")
+    from radarodom.driver.sources import open_source
+    from radarodom.pipeline.mcap_sink import McapSink
+
+    for topic in ros2.OTHER_TOPICS:
+        with pytest.raises(PublishConfigError, match="one of radarodom's other topics") as info:
+            Publisher(ZenohOptions(ros2=True, ros2_topic=topic, listen=[free_endpoint()], connect=[]))
+        assert info.value.exit_code == 2
+    with open_source("sim://calibration?rate=max&duration=0.2") as source:
+        with pytest.raises(PublishConfigError, match="/tf is one of"):
+            McapSink(tmp_path / "x.mcap", source, odom_topic="/tf")
+    assert not (tmp_path / "x.mcap").exists()
 
 
 def test_a_client_without_its_router_fails_to_open_with_a_hint(endpoint):

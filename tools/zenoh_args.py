@@ -61,10 +61,11 @@ def options_given(args: argparse.Namespace) -> list[str]:
 def _ros2_topic(text: str) -> str:
     """argparse type: an absolute ROS name (checked here too, as --mcap takes it without a publisher)."""
     from ..errors import PublishConfigError
+    from ..ros2 import check_odometry_topic
     from ..zenoh_session import check_ros2_topic
 
     try:
-        return check_ros2_topic(text)
+        return check_odometry_topic(check_ros2_topic(text))
     except PublishConfigError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
