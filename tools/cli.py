@@ -10,13 +10,15 @@ only with ``--verbose``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import os
 import re
+import signal
 import sys
 import traceback
-from typing import Callable, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 from ..errors import CaptureExistsError, RadarodomError, UsageError, quoted
 from ..mount import Mount, parse_mount
@@ -362,6 +364,17 @@ def run(
         if verbose:
             traceback.print_exc()
         return 1
+
+
+@contextlib.contextmanager
+def on_stop_signals(handler: Callable[[int, Any], None]) -> Iterator[None]:
+    """*handler* for SIGINT (Ctrl-C) and SIGTERM while the block runs; the previous handlers after."""
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def _print_notes(prog: str, exc: BaseException) -> None:

@@ -21,7 +21,6 @@ import argparse  # noqa: E402  (after the BLAS setting)
 import contextlib
 import logging
 import math
-import signal
 import sys
 
 import numpy as np
@@ -118,12 +117,8 @@ def _stop_on_signals(pipeline: Pipeline) -> Iterator[None]:
             raise KeyboardInterrupt
         pipeline.stop()
 
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with cli.on_stop_signals(handler):
         yield
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def _status_fields(stats: PipelineStats, recording: bool, source: Source) -> list[Field]:

@@ -18,7 +18,6 @@ import argparse
 import errno
 import os
 import shlex
-import signal
 import sys
 import threading
 from typing import Sequence
@@ -111,8 +110,7 @@ def _main(args: argparse.Namespace) -> int:
     faults = Faults(loss=args.loss, duplicate=args.duplicate, reorder=args.reorder, truncate=args.truncate,
                     malformed=args.malformed, foreign=args.foreign, burst_flush=args.burst_flush)
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with cli.on_stop_signals(lambda *_: stop.set()):
         with _open_rig(url, args, config=config, faults=faults,
                        cli_faults=CliFaults(hang_on_start=args.hang_on_start),
                        rate="max" if args.max_rate else "paced", seed=args.seed) as rig:
@@ -134,9 +132,6 @@ def _main(args: argparse.Namespace) -> int:
                   f"({stats.dropped} dropped, {stats.duplicates} duplicated, {stats.reordered} reordered, "
                   f"{stats.truncated} truncated by the fault injector)"
                   + (f"; the tail of {held} more was held back (its recording had not ended)" if held else ""))
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
     return 0
 
 
@@ -152,8 +147,7 @@ def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args
         check_uart_budget(config, DemoGeometry.from_config(config).layout(gui_selection(config)), DEFAULT_BAUD, 64)
     faults = UartFaults(garbage=args.uart_garbage, truncate=args.uart_truncate, drop=args.uart_drop, seed=args.seed)
     stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with cli.on_stop_signals(lambda *_: stop.set()):
         with DemoUartRig(url, faults=faults, rate="max" if args.max_rate else "paced") as rig:
             command = ["radar-capture", "--source", rig.url()] + (["--cfg", cfg_path] if cfg_path else [])
             print(f"radar-emulate: radar CLI on {rig.cli_path}, demo data port on {rig.data_path}; streaming "
@@ -168,9 +162,6 @@ def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args
             print(f"radar-emulate: sent {s.packets} packets ({len(s.truncated)} cut short, {len(s.dropped)} with "
                   f"bytes lost, {len(s.garbage_before)} after line noise by the fault injector)"
                   + ("; the demo asserted: a packet outlasted the UART's time between frames" if s.asserted else ""))
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
     return 0
 
 

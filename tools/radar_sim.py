@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import time
 from typing import Sequence
@@ -70,10 +69,8 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
            + ("" if args.fidelity == "exact" else f"&fidelity={args.fidelity}"))
     # Ctrl-C and SIGTERM stop between frames, so that the recording closes on a whole frame.
     stopped: list[int] = []
-    previous = {sig: signal.signal(sig, lambda signum, _: stopped.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
     written = 0
-    try:
+    with cli.on_stop_signals(lambda signum, _: stopped.append(signum)):
         with CaptureWriter(args.out, cfg, source=url, extra=SimSource(sim).recording_metadata()) as writer:
             for i in range(sim.num_frames):
                 if stopped:
@@ -86,9 +83,6 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
                 status.update(f"{_bar(i + 1, sim.num_frames)} {i + 1}/{sim.num_frames} frames  "
                               f"{f.num_paths} paths  elapsed {format_duration(elapsed)}  "
                               f"left {format_duration(eta)}", force=(i + 1 == sim.num_frames))
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
     if stopped and written < sim.num_frames:
         status.clear()
         kept = f"the {written} frames before it are kept in {args.out}" if written else "nothing was recorded"
