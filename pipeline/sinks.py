@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -191,6 +192,16 @@ class HeatmapSink(Sink):
     """Every heatmap as .npy files in a new directory (module docstring)."""
 
     wants_heatmaps = full_heatmaps = True
+    #: Each frame's arrays, ``NNNNNN_<name>.npy``, and the directory's index.
+    FILES = ("intensity", "static", "doppler")
+    INDEX = "index.json"
+
+    @classmethod
+    def owns(cls, name: str) -> bool:
+        """Whether *name* is a file this writer makes in its directory (``--overwrite`` removes
+        those, and only those)."""
+        return (name in (cls.INDEX, cls.INDEX + ".tmp")
+                or re.fullmatch(rf"\d{{6,}}_({'|'.join(cls.FILES)})\.npy", name) is not None)
 
     def __init__(self, directory: str | os.PathLike) -> None:
         self.directory = os.fspath(directory)
@@ -198,10 +209,10 @@ class HeatmapSink(Sink):
             os.makedirs(self.directory, exist_ok=True)
         except OSError as exc:
             raise CaptureError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
-        if os.path.exists(os.path.join(self.directory, "index.json")):
+        if os.path.exists(os.path.join(self.directory, self.INDEX)):
             raise CaptureExistsError(f"{self.directory} already holds heatmaps; choose a new directory")
         self._index: dict = {"format": "radarodom-heatmaps", "format_version": 1,
-                             "files": ["intensity", "static", "doppler"], "frames": []}
+                             "files": list(self.FILES), "frames": []}
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
         if result.heatmap is not None:
@@ -211,7 +222,7 @@ class HeatmapSink(Sink):
         if "range_m" not in self._index:
             self._index["range_m"] = heatmap.range_m.tolist()
             self._index["azimuth_rad"] = heatmap.azimuth_rad.tolist()
-        for name in ("intensity", "static", "doppler"):
+        for name in self.FILES:
             arr = getattr(heatmap, name if name != "doppler" else "doppler_mps")
             np.save(os.path.join(self.directory, f"{frame:06d}_{name}.npy"), arr.astype(np.float32))
         self._index["frames"].append({"frame": frame, "t": t})
@@ -219,7 +230,7 @@ class HeatmapSink(Sink):
             self._write_index()
 
     def _write_index(self) -> None:
-        write_json_atomically(os.path.join(self.directory, "index.json"), self._index)
+        write_json_atomically(os.path.join(self.directory, self.INDEX), self._index)
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._write_index()

@@ -214,8 +214,9 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
 
 def _heatmaps_own(name: str) -> bool:
     """Whether *name* is one of the files radarodom writes in a heatmap directory."""
-    return (name in ("index.json", "index.json.tmp")
-            or re.fullmatch(r"\d{6,}_(intensity|static|doppler)\.npy", name) is not None)
+    from ..pipeline.sinks import HeatmapSink
+
+    return HeatmapSink.owns(name)
 
 
 def replace_output(path: str, kind: str = "file") -> None:
