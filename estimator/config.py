@@ -18,7 +18,7 @@ from ..errors import ConfigError
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
 from .config_odometry import (  # noqa: F401  (re-exported)
-    KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig)
+    KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig, check_search_steps)
 from .config_velocity import PROJECTIONS, VelocityConfig  # noqa: F401  (re-exported)
 
 FEATURE_METHODS = ("topk", "raymax", "cfar")
@@ -268,8 +268,7 @@ class IcpConfig(Settings):
         for name in ("max_rotation_rad", "field_search_rad"):
             _check(0 < getattr(self, name) <= math.pi, "must be positive and at most pi (half a turn)", name)
         _check(self.scan_points >= 10, "must be at least 10", "scan_points")
-        for name in ("scan_step_rad", "field_step_rad"):
-            _check(getattr(self, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
+        check_search_steps(self, ("scan_step_rad", "field_step_rad"))
         check_choice(self.weight, ("source", "product"), "weight")
         check_choice(self.initial_guess, INITIAL_GUESSES, "initial_guess")
         check_choice(self.refinement, REFINEMENTS, "refinement")

@@ -19,6 +19,12 @@ HEATMAP_USES = ("check", "fallback", "fuse")
 MIN_SEARCH_STEP_RAD = 1e-4
 
 
+def check_search_steps(settings: object, names: tuple[str, ...]) -> None:
+    """Each rotation search's grid step in *names* at least :data:`MIN_SEARCH_STEP_RAD`."""
+    for name in names:
+        _check(getattr(settings, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
+
+
 @dataclass
 class OdometryConfig(Settings):
     """Integration of velocity and yaw into a pose, and what happens when a step fails."""
@@ -337,8 +343,7 @@ class PointYawConfig(Settings):
         _check(self.check_steady_rad > 0, "must be positive", "check_steady_rad")
         for name in ("search_rad", "gap_widen_rad", "relocate_widen_rad"):
             _check(getattr(self, name) <= math.pi, "must be at most pi (half a turn)", name)
-        for name in ("step_rad", "relocate_step_rad"):
-            _check(getattr(self, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
+        check_search_steps(self, ("step_rad", "relocate_step_rad"))
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")
