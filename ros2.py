@@ -55,14 +55,6 @@ GROUNDTRUTH_TOPIC = "/radar/groundtruth"
 OTHER_TOPICS = (POINTS_TOPIC, TF_TOPIC, TF_STATIC_TOPIC, HEATMAP_TOPIC, HEATMAP_AXES_TOPIC, DIAGNOSTICS_TOPIC,
                 GROUNDTRUTH_TOPIC)
 
-
-def check_odometry_topic(topic: str) -> str:
-    """*topic* if it is not one of radarodom's other topics (PublishConfigError otherwise): the
-    odometry on /tf would be TF messages of another type."""
-    if topic in OTHER_TOPICS:
-        raise PublishConfigError(f"{topic} is one of radarodom's other topics ({', '.join(OTHER_TOPICS)}): "
-                                 "give the odometry its own")
-    return topic
 #: rmw_zenoh's QoS of a publisher token: reliable, volatile, keep last 10 (only the depth differs
 #: from rmw_zenoh's defaults, so only it is written) ...
 _ROS2_QOS = "::,10:,:,:,,"
@@ -73,6 +65,15 @@ _ROS2_QOS_STATIC = ":1:,1:,:,:,,"
 _STATIC_HEARTBEAT_S = 0.5
 
 ros2_stamp = ros2_messages.stamp
+
+
+def check_odometry_topic(topic: str) -> str:
+    """*topic* if it is not one of radarodom's other topics (PublishConfigError otherwise): the
+    odometry on /tf would be TF messages of another type."""
+    if topic in OTHER_TOPICS:
+        raise PublishConfigError(f"{topic} is one of radarodom's other topics ({', '.join(OTHER_TOPICS)}): "
+                                 "give the odometry its own")
+    return topic
 
 
 def ros2_odometry(state: OdometryState, typestore: Any, mount: Mount = Mount()) -> Any:

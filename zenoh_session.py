@@ -60,14 +60,15 @@ HANDSHAKE_TIMEOUT_MS = 2000
 _INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 _ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
 
+#: The source location zenoh appends to its error messages.
+_RUST_LOCATION = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
+
 
 def check_ros2_topic(topic: Any) -> str:
     """*topic* if it is an absolute ROS name (``/radar/odom``); PublishConfigError otherwise."""
     if not isinstance(topic, str) or not _ROS_TOPIC.fullmatch(topic):
         raise PublishConfigError(f"ROS 2 topic must be an absolute ROS name like /radar/odom, got {topic!r}")
     return topic
-#: The source location zenoh appends to its error messages.
-_RUST_LOCATION = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")
 
 
 def zenoh_reason(exc: BaseException) -> str:

@@ -20,7 +20,7 @@ import sys
 import traceback
 from typing import Any, Callable, Iterator, Sequence
 
-from ..errors import CaptureExistsError, RadarodomError, UsageError, quoted
+from ..errors import CaptureError, CaptureExistsError, RadarodomError, UsageError, quoted
 from ..mount import Mount, parse_mount
 from ..plain_numbers import plain_float, plain_int
 from .status import StatusAwareHandler, StatusLine
@@ -183,11 +183,13 @@ def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
             continue
         real_dir = os.path.realpath(directory)
         for path, file_kind, file_option in outputs:
+            if file_kind != "file":
+                continue
             real = os.path.realpath(path)
-            if file_kind == "file" and real == real_dir:
+            if real == real_dir:
                 raise UsageError(f"{file_option} and {option} both name {path}: give each its own")
-            if file_kind == "file" and (_recordings_own(real_dir, real) if kind == "capture" else
-                                        os.path.dirname(real) == real_dir and _heatmaps_own(os.path.basename(real))):
+            if (_recordings_own(real_dir, real) if kind == "capture" else
+                    os.path.dirname(real) == real_dir and _heatmaps_own(os.path.basename(real))):
                 raise UsageError(f"{file_option} {path} is a file {option} writes: choose another name")
 
 
@@ -226,7 +228,6 @@ def replace_output(path: str, kind: str = "file") -> None:
     writes there (a source's own stream file too: ``uart.bin``), so that anything else in it
     stays.  Nothing else is touched."""
     from ..driver.recordings.capture_dir import remove_capture_files
-    from ..errors import CaptureError
 
     try:
         if kind == "file":
@@ -250,7 +251,6 @@ def write_output(path: str, text: str, *, overwrite: bool) -> None:
     names; without *overwrite* a file that appeared there while the program ran is left alone.
     A failure is a :class:`CaptureError` naming the file."""
     from ..driver.recordings.capture_writer import write_text_atomically
-    from ..errors import CaptureError
 
     try:
         write_text_atomically(path, text, replace=overwrite)

@@ -307,7 +307,6 @@ class CaptureWriter:
     def _incomplete_unsaved(self) -> bool:
         return bool(self._incomplete) and self._incomplete[-1]["frame"] >= self._saved_frames
 
-
     def metadata(self) -> dict[str, Any]:
         """What capture.json holds now."""
         meta = {
