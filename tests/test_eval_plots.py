@@ -315,3 +315,22 @@ def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad, timeout=120)
     assert proc.returncode == 2 and proc.stderr.startswith(f"radar-eval: error: {bad}:2: not a JSON object")
     assert proc.stdout == "" and not (tmp_path / "p").exists()
+
+
+def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path):
+    """--json naming one of --plot's files, or an input lying where a plot goes, is refused
+    before the work: nothing is written, nothing read is replaced."""
+    out = tmp_path / "plots"
+    gt = sim_run.rec / "groundtruth.tum"
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", out, "--json", out / "yaw.png", timeout=120)
+    assert (proc.returncode, proc.stdout) == (2, "")
+    assert proc.stderr == (f"radar-eval: error: --json and --plot's yaw.png both name {out / 'yaw.png'}: "
+                           "give each its own\n")
+    assert not out.exists()
+    out.mkdir()
+    flags = out / "flags.png"  # an odometry log saved under a plot's name
+    shutil.copyfile(sim_run.flags, flags)
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", out, "--flags", flags, timeout=120)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"--plot's flags.png {flags} would write over the input --flags {flags}" in proc.stderr
+    assert flags.read_bytes() == sim_run.flags.read_bytes() and sorted(p.name for p in out.iterdir()) == ["flags.png"]

@@ -44,7 +44,14 @@ _SINGLE: dict[str, tuple[Panel, tuple[str, ...]]] = {
 _REPORT_TIME: tuple[Panel, ...] = (panels.yaw, panels.speed, panels.position_error, panels.yaw_error,
                                    panels.flags)
 
-__all__ = ["evaluation_figures", "plot_evaluation", "require_matplotlib", "FlagTimeline", "read_odometry_flags"]
+__all__ = ["evaluation_figures", "file_names", "plot_evaluation", "require_matplotlib", "FlagTimeline",
+           "read_odometry_flags"]
+
+
+def file_names(*, flags: bool) -> list[str]:
+    """The files :func:`plot_evaluation` writes, ``report.png`` first; ``flags.png`` only when
+    the flags are known (*flags*)."""
+    return [REPORT_PNG] + [f for f in _SINGLE if flags or f != FLAGS_PNG]
 
 
 def require_matplotlib() -> None:
@@ -133,7 +140,7 @@ def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, n
     except OSError as exc:
         raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
     written = []
-    for filename in [REPORT_PNG] + [f for f in figures if f != REPORT_PNG]:
+    for filename in file_names(flags=flags is not None):
         path = os.path.join(directory, filename)
         try:
             figures[filename].savefig(path)

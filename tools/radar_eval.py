@@ -115,17 +115,24 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
-    """--json is a new file (or, with --overwrite, a file to replace) and not an input; --plot a
-    directory (made when it is not there): checked before the work."""
-    if args.json:
-        url = "://" in args.reference  # a recording or a run the ground truth is read from
-        inputs = cli.read_paths([("EST.tum", args.estimate), ("--flags", args.flags),
-                                 ("GT.tum", None if url else args.reference)],
-                                args.reference if url else None, source_option="GT.tum|URL")
-        cli.check_distinct([("--json", args.json)], inputs)
-        cli.check_new_path(args.json, overwrite=args.overwrite)
+    """--json is a new file (or, with --overwrite, a file to replace); --plot a directory (made
+    when it is not there) whose plots replace those of the same names; neither writes over an
+    input or the other: checked before the work."""
     if args.plot and os.path.exists(args.plot) and not os.path.isdir(args.plot):
         raise UsageError(f"--plot {args.plot} is a file, not a directory")
+    outputs = [("--json", args.json)] if args.json else []
+    if args.plot:
+        outputs += [(f"--plot's {name}", os.path.join(args.plot, name))
+                    for name in plots.file_names(flags=bool(args.flags))]
+    if not outputs:
+        return
+    url = "://" in args.reference  # a recording or a run the ground truth is read from
+    inputs = cli.read_paths([("EST.tum", args.estimate), ("--flags", args.flags),
+                             ("GT.tum", None if url else args.reference)],
+                            args.reference if url else None, source_option="GT.tum|URL")
+    cli.check_distinct(outputs, inputs)
+    if args.json:
+        cli.check_new_path(args.json, overwrite=args.overwrite)
 
 
 def _source_groundtruth(url: str) -> TumTrajectory:
