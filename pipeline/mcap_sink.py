@@ -32,7 +32,7 @@ from ..ros2 import (DIAGNOSTICS_TOPIC, GROUNDTRUTH_TOPIC, HEATMAP_AXES_TOPIC, HE
                     TF_STATIC_TOPIC, TF_TOPIC, check_odometry_topic, ros2_typestore)
 from ..ros2_bag import QOS_STATIC, BagWriter
 from ..ros2_frames import TruthInOdom
-from .sinks import FrameResult, Sink
+from .sinks import FrameResult, Sink, remove_if_no_frame
 from .stats import PipelineStats
 from .zenoh_sink import status
 
@@ -52,6 +52,7 @@ class McapSink(Sink):
         self.mount = mount
         self.odom_topic = odom_topic
         self.period = status_period_s
+        self.path = os.fspath(path)
         self.bag = BagWriter(path, store)
         for topic, msg_type in ((odom_topic, rm.ODOMETRY), (TF_TOPIC, rm.TF), (POINTS_TOPIC, rm.POINTCLOUD2),
                                 (HEATMAP_TOPIC, rm.IMAGE), (HEATMAP_AXES_TOPIC, rm.AXES),
@@ -99,3 +100,4 @@ class McapSink(Sink):
                 self._write_status(stats, running=False)
         finally:
             self.bag.close()
+            remove_if_no_frame(self.path, stats)

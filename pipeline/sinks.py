@@ -121,10 +121,10 @@ class TumSink(Sink):
 
     def close(self, stats: PipelineStats) -> None:
         self._writer.close()
-        _remove_if_no_frame(self.path, stats)
+        remove_if_no_frame(self.path, stats)
 
 
-def _remove_if_no_frame(path: str, stats: PipelineStats | None) -> None:
+def remove_if_no_frame(path: str, stats: PipelineStats | None) -> None:
     """Take back an output file of a run that saw no frame (a source that failed to start, an
     output after it that could not be opened): it holds nothing, and left there it would block
     the same command's next run, as the recording's directory, removed then, would not."""
@@ -157,7 +157,7 @@ class OdometryJsonSink(Sink):
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._fh.close()
-        _remove_if_no_frame(self.path, stats)
+        remove_if_no_frame(self.path, stats)
 
 
 POINT_COLUMNS = ("x", "y", "z", "range", "azimuth", "elevation", "velocity", "snr_db")
@@ -185,7 +185,7 @@ class PointsCsvSink(Sink):
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._fh.close()
-        _remove_if_no_frame(self.path, stats)
+        remove_if_no_frame(self.path, stats)
 
 
 class HeatmapSink(Sink):

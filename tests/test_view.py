@@ -379,3 +379,27 @@ def test_the_radar_sits_on_its_mount_and_the_base_moves_as_ros2_gets_it(tmp_path
     truth = [r["Transform3D:translation"][0][:2] for r in found["/world/odom/groundtruth/pose"]]
     c, s = math.cos(mount.yaw), math.sin(mount.yaw)
     np.testing.assert_allclose(truth, [(0.1 * i * c, 0.1 * i * s) for i in range(30)], atol=1e-9)
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc, where no file can be made")
+def test_a_run_that_sees_no_frame_takes_back_its_bag_and_rrd(tmp_path, capsys):
+    """The view's file cannot be made after the bag was: the bag, empty, is taken back, so the
+    same command with the view elsewhere runs; and a view saved by a run that saw no frame goes
+    too (both would block the next run: 'already exists')."""
+    pytest.importorskip("rosbags.typesys")
+    pytest.importorskip("mcap.writer")
+    from radarodom.pipeline.stats import PipelineStats
+
+    bag, rrd = tmp_path / "run.mcap", tmp_path / "run.rrd"
+    argv = ["--source", "sim://corridor?rate=max&duration=0.3", "--no-publish", "-q", "--mcap", bag]
+    rc, _, err = capture_main(argv + ["--view", "save:/proc/radarodom-view.rrd"], capsys)
+    assert rc == 1 and "cannot write the view to /proc/radarodom-view.rrd" in err
+    assert list(tmp_path.iterdir()) == []
+    rc, _, err = capture_main(argv + ["--view", f"save:{rrd}"], capsys)
+    assert rc == 0, err
+    assert bag.stat().st_size > 0 and len(rows(rrd)["/plots/time_ms"]) == 3
+    empty = tmp_path / "empty.rrd"
+    sink = open_view(ViewTarget("save", path=str(empty)))
+    assert empty.exists()
+    sink.close(PipelineStats())
+    assert sink.finished and not empty.exists()

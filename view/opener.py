@@ -29,4 +29,4 @@ def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, c
     else:
         scene, where = open_scene(target, estimator=estimator, config=config, mount=mount)
         drawer = ThreadDrawer(scene, where)
-    return ViewSink(drawer, close_timeout_s=close_timeout_s)
+    return ViewSink(drawer, close_timeout_s=close_timeout_s, path=target.path if target.kind == "save" else None)

@@ -24,7 +24,7 @@ import threading
 import time
 from typing import TYPE_CHECKING, Protocol
 
-from ..pipeline.sinks import FrameResult, Sink
+from ..pipeline.sinks import FrameResult, Sink, remove_if_no_frame
 from .frames import FramePayload, Track, ViewHeatmap
 
 if TYPE_CHECKING:
@@ -60,7 +60,8 @@ class Drawer(Protocol):
 class ViewSink(Sink):
     """Hands each frame's results to *drawer* without ever waiting for it (module docstring).
 
-    *close_timeout_s*: how long :meth:`close` lets the drawer finish.  :attr:`offered` and
+    *close_timeout_s*: how long :meth:`close` lets the drawer finish; *path*: the file the drawer
+    saves to, if it does (taken back, as the run's other new files, when the run saw no frame).  :attr:`offered` and
     :attr:`dropped` count the frames as the run goes; once closed, :attr:`drawn` is what was
     drawn and ``offered = drawn + dropped`` (frames a failure or the timeout left undrawn count as
     dropped), and :attr:`summary` says so in a line.
@@ -68,8 +69,9 @@ class ViewSink(Sink):
 
     wants_heatmaps = True
 
-    def __init__(self, drawer: Drawer, *, close_timeout_s: float = 30.0) -> None:
+    def __init__(self, drawer: Drawer, *, close_timeout_s: float = 30.0, path: str | None = None) -> None:
         self.drawer = drawer
+        self.path = path
         self.close_timeout_s = close_timeout_s
         self.offered = self.dropped = self.drawn = 0
         #: What went wrong with the view, if anything (a drawing error, a viewer that stopped reading).
@@ -110,6 +112,8 @@ class ViewSink(Sink):
             log.warning("the view did not finish within %.0f s; what it had not drawn is lost", self.close_timeout_s)
         self.drawn = drawn or 0
         self.dropped = self.offered - self.drawn
+        if self.path is not None and self.finished:  # an unfinished drawer may still write it
+            remove_if_no_frame(self.path, stats)
 
     def _take_tracks(self) -> list[Track]:
         tracks = list(self._tracks)
