@@ -52,3 +52,39 @@ def test_a_run_without_point_clouds_is_refused(tmp_path):
     proc = subprocess.run(console_command("radar-coloradar") + [str(run)], capture_output=True, text=True, timeout=120)
     assert proc.returncode != 0
     assert "Traceback" not in proc.stderr and "pointclouds" in proc.stderr
+
+
+def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_path):
+    """--json is a new file (or --overwrite), never one of the run's files nor one --out writes;
+    --out is a directory; each refused with one line, exit 2, before the run is read."""
+    run = write_moving_run(tmp_path / "data")
+    stamps = run / "groundtruth" / "timestamps.txt"
+    before = stamps.read_bytes()
+    mine = tmp_path / "mine.json"
+    mine.write_text("keep\n")
+    (tmp_path / "f").write_text("")
+
+    def coloradar(*args):
+        return subprocess.run(console_command("radar-coloradar") + [str(run), *map(str, args)],
+                              capture_output=True, text=True, timeout=300)
+
+    for args, message in [
+            (["--json", mine], f"{mine} already exists; choose a new file (or --overwrite)"),
+            (["--json", stamps, "--overwrite"], f"--json {stamps} would write over the input RUN_DIR {run}"),
+            (["--out", tmp_path / "o", "--json", tmp_path / "o" / "wicp.tum"],
+             f"--out and --json both name {tmp_path / 'o' / 'wicp.tum'}: give each its own"),
+            (["--json", tmp_path / "nodir" / "x.json"], f"cannot create {tmp_path / 'nodir' / 'x.json'}: no directory"),
+            (["--out", tmp_path / "f"], f"--out {tmp_path / 'f'} is a file, not a directory")]:
+        proc = coloradar(*args)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1, (args, proc.stderr)
+        assert proc.stderr.startswith(f"radar-coloradar: error: {message}"), (args, proc.stderr)
+        assert proc.stdout == ""
+    assert mine.read_text() == "keep\n" and stamps.read_bytes() == before and not (tmp_path / "o").exists()
+    out = tmp_path / "o"
+    assert coloradar("--out", out, "--json", out / "n.json").returncode == 0
+    proc = coloradar("--out", out)
+    assert proc.returncode == 2 and f"{out / 'groundtruth.tum'} already exists" in proc.stderr
+    proc = coloradar("--out", out, "--json", out / "n.json", "--overwrite")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((out / "n.json").read_text())["run"] == "ec_hallways_run0"
+    assert len(read_tum(out / "wicp.tum")) == len(read_tum(out / "groundtruth.tum"))

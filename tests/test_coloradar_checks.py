@@ -30,6 +30,7 @@ def _error_line(capsys, prog: str) -> str:
 def _both_refuse(run: pathlib.Path, capsys, tmp_path, query: str = "", coloradar_args=()) -> str:
     """radar-capture on coloradar://RUN and radar-coloradar RUN: both exit 2 with the same
     message, and neither leaves an output file behind.  Returns the message."""
+    tmp_path.mkdir(exist_ok=True)  # (outputs in a missing directory are refused before the run is read)
     odom, out = tmp_path / "odom.tum", tmp_path / "tables"
     url = f"coloradar://{run}?rate=max" + (f"&{query}" if query else "")
     assert radar_capture.main(["--source", url, "--no-publish", "-q", "--odom-out", str(odom)]) == 2

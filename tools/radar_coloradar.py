@@ -1,7 +1,7 @@
 """radar-coloradar: the paper's two-radar pipeline on a ColoRadar run, and its two tables.
 
     radar-coloradar RUN_DIR [--calib DIR] [--heatmap cascade|single_chip|single_chip_adc]
-                    [--velocity single_chip|single_chip_adc] [--out DIR] [--json FILE]
+                    [--velocity single_chip|single_chip_adc] [--out DIR] [--json FILE] [--overwrite]
 
 Velocity from the single-chip radar's point clouds (about 10 Hz; ``--velocity
 single_chip_adc``: radarodom's DSP on its ADC frames), yaw from the heatmaps of
@@ -27,7 +27,7 @@ import numpy as np
 from .. import strict_json
 from ..driver.coloradar.run import ColoRadarRun
 from ..driver.coloradar.source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
-from ..errors import SourceError, UsageError
+from ..errors import CaptureError, SourceError, UsageError
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
@@ -145,19 +145,66 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="DIR",
                         help="write each variant's trajectory and the ground truth (heatmap radar's frame) as "
                              "TUM files here, for radar-eval")
-    parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON")
+    parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON (a new file)")
+    cli.add_overwrite(parser)
     cli.add_verbosity(parser)
     return parser
 
 
+def _tum_name(variant: str) -> str:
+    """The file --out writes a variant's trajectory to: "Sampling + wICP" -> sampling_wicp.tum."""
+    return variant.lower().replace(" + ", "_").replace(" ", "_") + ".tum"
+
+
+def _outputs(args: argparse.Namespace, names: Sequence[str]) -> list[tuple[str, str]]:
+    """(option, path) of every file the run writes; each new (or, with --overwrite, replaced),
+    none an input, checked before the work (a run takes minutes)."""
+    outputs = []
+    if args.out:
+        if os.path.exists(args.out) and not os.path.isdir(args.out):
+            raise UsageError(f"--out {args.out} is a file, not a directory")
+        outputs += [("--out", os.path.join(args.out, name)) for name in ["groundtruth.tum", *map(_tum_name, names)]]
+    if args.json:
+        outputs.append(("--json", args.json))
+    inputs = cli.read_paths([("--calib", args.calib)], f"coloradar://{args.run}", source_option="RUN_DIR")
+    cli.check_distinct(outputs, inputs)
+    directory = [(args.out, "directory", "--out")] if args.out else []
+    cli.check_new_outputs(directory + [(path, "file", option) for option, path in outputs], overwrite=args.overwrite)
+    return outputs
+
+
+def _make_out(directory: str | None) -> str | None:
+    """Make --out (and its parents) before the work; the directory made, if it was."""
+    if not directory or os.path.isdir(directory):
+        return None
+    try:
+        os.makedirs(directory)
+    except OSError as exc:
+        raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
+    return directory
+
+
 def _main(args: argparse.Namespace) -> int:
     run = ColoRadarRun(args.run, args.calib)
+    outputs = _outputs(args, list(variants()))
+    made = _make_out(args.out)
+    try:
+        return _run(args, run, outputs)
+    except BaseException:
+        if made and not os.listdir(made):  # a run that wrote nothing leaves nothing behind
+            os.rmdir(made)
+        raise
+
+
+def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, str]]) -> int:
     data = RunData(run, args.heatmap, args.velocity)
     if data.kept.sum() < 2:
         raise UsageError(f"{run.run_dir}: fewer than two {args.heatmap} heatmaps fall inside the ground truth")
+    if args.overwrite:
+        for _, path in outputs:
+            cli.replace_output(path)
     results = {}
     if args.out:
-        os.makedirs(args.out, exist_ok=True)
         with TumWriter(os.path.join(args.out, "groundtruth.tum")) as gt:
             for t, p, q in zip(data.groundtruth.times, data.groundtruth.positions, data.groundtruth.quaternions):
                 gt.write_pose(t, p, q)
@@ -168,15 +215,16 @@ def _main(args: argparse.Namespace) -> int:
                          "rpe_m": float(np.sqrt(np.mean(res.rpe_frame.translation_m ** 2))),
                          "drift_pct": res.drift_pct, "estimator_ms": 1e3 * float(np.median(compute))}
         if args.out:
-            with TumWriter(os.path.join(args.out, name.lower().replace(" + ", "_").replace(" ", "_") + ".tum")) as w:
+            with TumWriter(os.path.join(args.out, _tum_name(name))) as w:
                 for t, (x, y, yaw) in zip(est.times, est.se2()):
                     w.write(t, x, y, yaw)
     print(_tables(run.name, results))
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            # Standard JSON: a figure that cannot be computed (NaN) is written as null.
-            fh.write(strict_json.dumps({"run": run.name, "heatmap": args.heatmap, "velocity": args.velocity,
-                                        "results": results, "paper": _paper_numbers(run.name)}, indent=2))
+        # Standard JSON: a figure that cannot be computed (NaN) is written as null.
+        cli.write_output(args.json, strict_json.dumps({"run": run.name, "heatmap": args.heatmap,
+                                                       "velocity": args.velocity, "results": results,
+                                                       "paper": _paper_numbers(run.name)}, indent=2),
+                         overwrite=args.overwrite)
     return 0
 
 
