@@ -120,7 +120,7 @@ class Settings:
                 if issubclass(nested, Settings):
                     values[key] = nested.from_dict(value, prefix=f"{prefix}{key}.")
                 else:
-                    values[key] = nested.from_dict(value)
+                    values[key] = _nested_from_dict(nested, value, key)
             elif not isinstance(value, nested):
                 raise ConfigError(f"must be an object of {nested.__name__} settings, got {value!r}", field=key)
         try:
@@ -157,3 +157,15 @@ class Settings:
                 exc.path = os.fspath(path)
                 exc.args = (exc._render(),)
             raise
+
+
+def _nested_from_dict(nested: type, value: Mapping[str, Any], key: str) -> Any:
+    """A section of another type (a CFAR's parameters), its errors named by their path under
+    *key* (``cfar.guard``), as a nested :class:`Settings` section's are."""
+    try:
+        return nested.from_dict(value)
+    except ConfigError as exc:
+        exc.field = f"{key}.{exc.field}" if exc.field else key
+        exc.command = None
+        exc.args = (exc._render(),)
+        raise

@@ -122,6 +122,15 @@ class FeatureConfig(Settings):
         _check(self.dynamic_rejection_mps is None or self.dynamic_rejection_mps > 0,
                "must be positive (or null: off)", "dynamic_rejection_mps")
 
+    def check_heatmap_range(self, range_bins: int) -> None:
+        """Raise :class:`ConfigError` when the "cfar" method's range window does not fit a
+        heatmap of *range_bins* range cells (a source's, or the DSP's for a cfg: checked before
+        a run opens its outputs)."""
+        if self.method == "cfar" and range_bins < self.cfar.window:
+            raise ConfigError(f"a window of guard {self.cfar.guard} and train {self.cfar.train} spans "
+                              f"{self.cfar.window} range cells, more than the heatmap's {range_bins}: choose "
+                              "a smaller guard or train", field="features.cfar")
+
 
 @dataclass
 class IcpConfig(Settings):

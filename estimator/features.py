@@ -233,6 +233,7 @@ def _ray_max(intensity: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.n
 def _cfar(intensity: np.ndarray, valid: np.ndarray, config: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
     """Cells detected along range and along azimuth (each pass alone lets a strong
     reflector's range or angle sidelobes through on every neighbouring ray)."""
+    config.check_heatmap_range(intensity.shape[0])
     along_range, _ = cfar_1d(intensity, config.cfar, axis=0)
     if intensity.shape[1] >= config.cfar_azimuth.window:
         along_azimuth, _ = cfar_1d(intensity, config.cfar_azimuth, axis=1)

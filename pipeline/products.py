@@ -52,7 +52,10 @@ class FrameProducts:
         """Products for an estimator whose features are *features*: the Doppler of its
         ``doppler_cells`` strongest cells (``FeatureConfig.doppler_cells``), enough for its
         dynamic-object rejection and much cheaper than the full map's."""
-        return cls(config, dsp, doppler_cells=features.doppler_cells, coupling=coupling, calibrated=calibrated)
+        products = cls(config, dsp, doppler_cells=features.doppler_cells, coupling=coupling, calibrated=calibrated)
+        if products.processor is not None:
+            features.check_heatmap_range(products.processor.heatmap_range_bins)
+        return products
 
     def __call__(self, frame: Frame, *, heatmap: bool = True) -> Products:
         """The products of *frame*.  The DSP's heatmap is made only when *heatmap* is true (it
@@ -73,3 +76,12 @@ class FrameProducts:
                                    "configuration")
             hm = self.static_maps.range_azimuth(frame.static_antennas)
         return Products(points, hm)
+
+
+def check_features_fit(config: RadarConfig | None, features: FeatureConfig, dsp: DspConfig | None = None) -> None:
+    """Raise :class:`ConfigError` when *features* cannot run on the DSP's heatmaps of *config*
+    (None: a source without raw frames, whose heatmaps are checked as they come): what a
+    program checks before it replaces its outputs, as :meth:`FrameProducts.for_estimator`
+    does when a pipeline is built."""
+    if config is not None:
+        features.check_heatmap_range(FrameProcessor(config, dsp).heatmap_range_bins)

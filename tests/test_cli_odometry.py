@@ -304,6 +304,32 @@ def test_a_bad_value_in_a_section_is_named_by_its_path(sim_run, tmp_path):
     assert "icp.iterations" in one_error_line(proc)
 
 
+def test_settings_that_cannot_run_on_the_cfg_fail_before_overwrite_replaces_anything(sim_run, tmp_path):
+    """A CFAR window longer than the cfg's heatmap, found when the first frame came, had already
+    let --overwrite replace the recording; a nested CFAR field was named without its section;
+    a wheeled base on the axis from the file was taken (the flags refused it)."""
+    defaults = EstimatorConfig().to_dict()
+    record = tmp_path / "run"
+    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", record)
+    assert proc.returncode == 0, proc.stderr
+    before = {p.name: p.read_bytes() for p in record.iterdir()}
+    cases = [({"features": {**defaults["features"], "method": "cfar",
+                            "cfar": {**defaults["features"]["cfar"], "guard": 100}}},
+              "features.cfar: a window of guard 100 and train 8 spans 217 range cells, more than the heatmap's"),
+             ({"features": {"cfar": {**defaults["features"]["cfar"], "channels": 0}}},
+              "features.cfar.channels: must be at least 1, got 0"),
+             ({"odometry": {"base": "wheeled"}},
+              'odometry.base "wheeled" needs the radar off the base\'s rotation axis')]
+    for settings, message in cases:
+        path = tmp_path / "estimator.json"
+        path.write_text(json.dumps(settings))
+        proc = run_capture_cli("--source", replay_url(sim_run), "--record", record, "--overwrite",
+                               "--estimator-config", path)
+        assert proc.returncode == 2
+        assert one_error_line(proc).startswith(f"radar-capture: error: {path}: {message}"), proc.stderr
+        assert {p.name: p.read_bytes() for p in record.iterdir()} == before
+
+
 def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
     points, heatmaps = tmp_path / "points.csv", tmp_path / "heatmaps"
     proc = run_capture_cli("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,
@@ -321,7 +347,7 @@ def test_wheeled_needs_a_radar_off_the_rotation_axis():
         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60) for extra in extras))
     for proc in procs:  # the two refusals, made at the same time
         assert proc.returncode == 2
-        assert "--wheeled needs --mount" in one_error_line(proc)
+        assert "--wheeled needs the radar off the base's rotation axis" in one_error_line(proc)
 
 
 def test_a_mounted_radar_on_a_wheeled_base_measures_its_turn_in_place(tmp_path):
