@@ -525,6 +525,18 @@ def test_bad_numbers_in_scene_raise_config_error(tmp_path, name):
     ('[trajectory]\nsegments = [{ rotate = 20, rate = 1e-300 }]\n', ("3600 s",)),
     ('[[objects]]\ntype = "corner_reflector"\nposition = [3, 0, 0.4]\nrcs_dbsm = 1e300\n' + _PAUSE,
      ("rcs_dbsm: must be from -60 to 60 dBsm",)),
+    # A quoted "false" read as true; a negative size, an SNR that overflowed the signal (an
+    # internal error), min above max, a reflection above 1 were taken.
+    ('multipath = "false"\n' + _PAUSE, ("multipath: must be true or false, got 'false'",)),
+    ('[surfaces]\nmin = [0, 0]\nmax = [1, 1]\nfloor = "no"\n' + _PAUSE, ("surfaces.floor: must be true or false",)),
+    ('[surfaces]\nmin = [2, 0]\nmax = [1, 1]\n' + _PAUSE, ("surfaces.max: must be above surfaces.min",)),
+    ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [0.5, -0.4, 1]\n' + _PAUSE,
+     ("size: must be 3 positive numbers",)),
+    ('[[objects]]\ntype = "cylinder"\ncenter = [2, 0]\noccludes = 0\n' + _PAUSE, ("occludes: must be true or false",)),
+    ('[radar]\nsnr_db = 1e4\n' + _PAUSE, ("radar.snr_db: must be from -100 to 100 dB",)),
+    ('[radar]\nnoise_counts = 1e30\n' + _PAUSE, ("radar.noise_counts: must be from 0 to 32767 ADC counts",)),
+    ('wall_reflection = 5\n' + _PAUSE, ("wall_reflection: must be from 0 to 1",)),
+    ('name = 5\n' + _PAUSE, ("name: must be a string, got 5",)),
 ])
 def test_a_typo_or_an_extreme_in_a_scene_is_named_not_ignored(tmp_path, text, words):
     # A misspelt key took its default silently; a trajectory of years or an RCS of 1e300 ran out

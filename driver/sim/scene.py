@@ -35,6 +35,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError
+from .scene_values import (MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS, SNR_DB_RANGE,
+                           MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, flag, need, num, vec, within)
 from .trajectory import Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
@@ -190,66 +192,30 @@ class Scene:
 
 
 # ----------------------------------------------------------------- loading
-def _need(d: dict, key: str, where: str, kind=None):
-    if key not in d:
-        raise ConfigError(f"missing {key!r}", path=where, field=key)
-    return d[key]
-
-
-def _vec(value, n: int, where: str, what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        arr = None
-    if arr is None or arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ConfigError(f"must be {n} numbers, got {value!r}", path=where, field=what)
-    return arr
-
-
-def _num(d: dict, key: str, default: float, where: str, *, positive: bool = False) -> float:
-    value = d.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or (positive and value <= 0):
-        raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {value!r}",
-                          path=where, field=key)
-    return float(value)
-
-
-#: The keys of a scene file's tables, and of each kind of object.
-SCENE_KEYS = ("name", "walls", "objects", "movers", "surfaces", "trajectory", "radar", "multipath", "wall_reflection")
-WALL_KEYS = ("points", "height", "sigma0")
-SURFACE_KEYS = ("min", "max", "floor", "floor_sigma0", "ceiling", "ceiling_sigma0")
-RADAR_KEYS = ("snr_db", "noise_counts")
-MOVER_KEYS = ("type", "path", "speed", "rcs")
-OBJECT_KEYS = {"point": ("position", "rcs"), "corner_reflector": ("position", "rcs_dbsm"),
-               "box": ("center", "size", "yaw", "sigma0", "z", "edge_rcs", "occludes"),
-               "cylinder": ("center", "radius", "height", "sigma0", "occludes"),
-               "door": ("a", "b", "height", "recess", "sigma0", "frame_rcs")}
-#: A corner reflector's radar cross-section, dBsm: from a marble's to a ship's.
-RCS_DBSM_RANGE = (-60.0, 60.0)
-
-
 def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) -> Scatterers:
     kind = obj.get("type")
     w = f"{where} object {kind!r}"
     if kind in OBJECT_KEYS:
         check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
-        return _points(_vec(_need(obj, "position", w), 3, w, "position"), _num(obj, "rcs", 1.0, w, positive=True),
+        return _points(vec(need(obj, "position", w), 3, w, "position"), num(obj, "rcs", 1.0, w, positive=True),
                        rng, pointlike=True)
     if kind == "corner_reflector":
-        rcs_dbsm = _num(obj, "rcs_dbsm", 15.0, w)
+        rcs_dbsm = num(obj, "rcs_dbsm", 15.0, w)
         if not RCS_DBSM_RANGE[0] <= rcs_dbsm <= RCS_DBSM_RANGE[1]:
             raise ConfigError(f"must be from {RCS_DBSM_RANGE[0]:g} to {RCS_DBSM_RANGE[1]:g} dBsm, got {rcs_dbsm:g}",
                               path=w, field="rcs_dbsm")
         rcs = 10 ** (rcs_dbsm / 10)
-        return _points(_vec(_need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
+        return _points(vec(need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
     if kind == "box":
-        c = _vec(_need(obj, "center", w), 2, w, "center")
-        size = _vec(_need(obj, "size", w), 3, w, "size")
-        yaw = math.radians(_num(obj, "yaw", 0.0, w))
-        sigma0 = _num(obj, "sigma0", 0.3, w, positive=True)
-        z0 = _num(obj, "z", 0.0, w)
+        c = vec(need(obj, "center", w), 2, w, "center")
+        size = vec(need(obj, "size", w), 3, w, "size")
+        if not (size > 0).all():
+            raise ConfigError(f"must be 3 positive numbers (x, y and height, m), got {obj['size']!r}", path=w,
+                              field="size")
+        yaw = math.radians(num(obj, "yaw", 0.0, w))
+        sigma0 = num(obj, "sigma0", 0.3, w, positive=True)
+        z0 = num(obj, "z", 0.0, w)
         rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
         hx, hy = size[0] / 2, size[1] / 2
         corners = c + np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) @ rot.T
@@ -257,15 +223,15 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) ->
                                 spacing=0.1, row_spacing=0.25) for i in range(4)]
         # Corners and edges of furniture are the strong, compact returns.
         edges = _points(np.column_stack([corners, np.full(4, z0 + size[2])]),
-                        _num(obj, "edge_rcs", 0.2, w, positive=True), rng, pointlike=True)
-        if obj.get("occludes", False):
+                        num(obj, "edge_rcs", 0.2, w, positive=True), rng, pointlike=True)
+        if flag(obj, "occludes", False, w):
             walls_out.extend((corners[i], corners[(i + 1) % 4]) for i in range(4))
         return Scatterers.concat(faces + [edges])
     if kind == "cylinder":
-        c = _vec(_need(obj, "center", w), 2, w, "center")
-        radius = _num(obj, "radius", 0.2, w, positive=True)
-        height = _num(obj, "height", 2.7, w, positive=True)
-        sigma0 = _num(obj, "sigma0", 0.3, w, positive=True)
+        c = vec(need(obj, "center", w), 2, w, "center")
+        radius = num(obj, "radius", 0.2, w, positive=True)
+        height = num(obj, "height", 2.7, w, positive=True)
+        sigma0 = num(obj, "sigma0", 0.3, w, positive=True)
         n = max(8, math.ceil(2 * math.pi * radius / 0.08))
         ang = (np.arange(n) + rng.uniform(0, 1, n)) * 2 * math.pi / n
         rows = max(1, math.ceil(height / 0.3))
@@ -276,20 +242,20 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) ->
         area = 2 * math.pi * radius / n * height / rows
         s = _points(pos, sigma0 * area, rng, exponent=2.0)
         s.normal = normal
-        if obj.get("occludes", True):  # two crossed diameters hide what is behind
+        if flag(obj, "occludes", True, w):  # two crossed diameters hide what is behind
             walls_out.append((c - [radius, 0.0], c + [radius, 0.0]))
             walls_out.append((c - [0.0, radius], c + [0.0, radius]))
         return s
     if kind == "door":
-        a = _vec(_need(obj, "a", w), 2, w, "a")
-        b = _vec(_need(obj, "b", w), 2, w, "b")
-        height = _num(obj, "height", 2.1, w, positive=True)
-        recess = _num(obj, "recess", 0.1, w)
+        a = vec(need(obj, "a", w), 2, w, "a")
+        b = vec(need(obj, "b", w), 2, w, "b")
+        height = num(obj, "height", 2.1, w, positive=True)
+        recess = num(obj, "recess", 0.1, w)
         d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
         n = np.array([-d[1], d[0]])
-        leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, _num(obj, "sigma0", 0.2, w, positive=True),
+        leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, num(obj, "sigma0", 0.2, w, positive=True),
                               rng)
-        frame_rcs = _num(obj, "frame_rcs", 0.3, w, positive=True)
+        frame_rcs = num(obj, "frame_rcs", 0.3, w, positive=True)
         zs = np.arange(0.15, height, 0.3)
         posts = np.vstack([np.column_stack([np.full(len(zs), p[0]), np.full(len(zs), p[1]), zs]) for p in (a, b)])
         return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
@@ -316,9 +282,9 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         if not isinstance(wall, dict):
             raise ConfigError(f"a wall must be a table, got {wall!r}", path=where, field="walls")
         check_keys(wall, WALL_KEYS, where, "walls")
-        pts = polyline(_need(wall, "points", where), where, "walls.points")
-        height = _num(wall, "height", 2.7, where, positive=True)
-        sigma0 = _num(wall, "sigma0", 0.1, where, positive=True)
+        pts = polyline(need(wall, "points", where), where, "walls.points")
+        height = num(wall, "height", 2.7, where, positive=True)
+        sigma0 = num(wall, "sigma0", 0.1, where, positive=True)
         for a, b in zip(pts[:-1], pts[1:]):
             parts.append(sample_surface(a, b, 0.0, height, sigma0, rng))
             segments.append((a, b))
@@ -328,13 +294,16 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         parts.append(_object(obj, rng, where, segments))
     surfaces = spec.get("surfaces", {})
     if surfaces:
-        lo = _vec(_need(surfaces, "min", where), 2, where, "surfaces.min")
-        hi = _vec(_need(surfaces, "max", where), 2, where, "surfaces.max")
-        if surfaces.get("floor", True):
-            parts.append(sample_plane(lo, hi, 0.0, _num(surfaces, "floor_sigma0", 0.02, where, positive=True), rng))
+        lo = vec(need(surfaces, "min", where), 2, where, "surfaces.min")
+        hi = vec(need(surfaces, "max", where), 2, where, "surfaces.max")
+        if not (lo < hi).all():
+            raise ConfigError(f"must be above surfaces.min {surfaces['min']!r} in x and y, got {surfaces['max']!r}",
+                              path=where, field="surfaces.max")
+        if flag(surfaces, "floor", True, where, "surfaces.floor"):
+            parts.append(sample_plane(lo, hi, 0.0, num(surfaces, "floor_sigma0", 0.02, where, positive=True), rng))
         if "ceiling" in surfaces:
-            ceil = sample_plane(lo, hi, _num(surfaces, "ceiling", 2.7, where, positive=True),
-                                _num(surfaces, "ceiling_sigma0", 0.02, where, positive=True), rng)
+            ceil = sample_plane(lo, hi, num(surfaces, "ceiling", 2.7, where, positive=True),
+                                num(surfaces, "ceiling_sigma0", 0.02, where, positive=True), rng)
             ceil.normal[:, 2] = -1.0
             parts.append(ceil)
     movers = []
@@ -343,26 +312,31 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
             kind = m.get("type") if isinstance(m, dict) else m
             raise ConfigError(f"unknown mover {kind!r}: use type = \"person\"", path=where, field="movers")
         check_keys(m, MOVER_KEYS, where, "movers")
-        path = polyline(_need(m, "path", where), where, "movers.path")
+        path = polyline(need(m, "path", where), where, "movers.path")
         if not np.hypot(*np.diff(path, axis=0).T).all():
             raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")
-        movers.append(Person(path, _num(m, "speed", 1.2, where, positive=True), _num(m, "rcs", 0.5, where, positive=True),
+        movers.append(Person(path, num(m, "speed", 1.2, where, positive=True), num(m, "rcs", 0.5, where, positive=True),
                              float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
-    trajectory = from_spec(_need(spec, "trajectory", where), where)
+    trajectory = from_spec(need(spec, "trajectory", where), where)
     radar = spec.get("radar", {})
     wall_a = np.array([s[0] for s in segments], float).reshape(-1, 2)
     wall_b = np.array([s[1] for s in segments], float).reshape(-1, 2)
+    name = spec.get("name", os.path.basename(where))
+    if not isinstance(name, str):
+        raise ConfigError(f"must be a string, got {name!r}", path=where, field="name")
     return Scene(
-        name=str(spec.get("name", os.path.basename(where))),
+        name=name,
         trajectory=trajectory,
         static=Scatterers.concat(parts),
         wall_a=wall_a,
         wall_b=wall_b,
         movers=movers,
-        multipath=bool(spec.get("multipath", False)),
-        wall_reflection=_num(spec, "wall_reflection", 0.3, where),
-        snr_db=_num(radar, "snr_db", 0.0, where),
-        noise_counts=_num(radar, "noise_counts", 5.0, where, positive=True),
+        multipath=flag(spec, "multipath", False, where),
+        wall_reflection=within(num(spec, "wall_reflection", 0.3, where), 0.0, 1.0, where, "wall_reflection",
+                                " (an amplitude reflection coefficient)"),
+        snr_db=within(num(radar, "snr_db", 0.0, where), *SNR_DB_RANGE, where, "radar.snr_db", " dB"),
+        noise_counts=within(num(radar, "noise_counts", 5.0, where, positive=True), 0.0, MAX_NOISE_COUNTS, where,
+                             "radar.noise_counts", " ADC counts"),
         source=where,
     )
 

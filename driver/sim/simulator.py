@@ -292,6 +292,6 @@ class Simulator:
             scale = INT16_MAX / peak
             cube *= np.float32(scale)
             if not self._clip_warned:
-                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3f (lower snr_db)", i, scale)
+                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3f (lower the scene's radar.snr_db or noise_counts)", i, scale)
                 self._clip_warned = True
         return SimFrame(i, t0, self.layout.encode(cube), self.groundtruth(t0), len(amp), scale)

@@ -1,0 +1,69 @@
+"""A scene file's values checked as they are read: each a :class:`ConfigError` naming the scene
+file and the key when it is missing, of the wrong type or out of range; and the keys each of the
+file's tables takes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...errors import ConfigError
+
+
+def need(d: dict, key: str, where: str, kind=None):
+    if key not in d:
+        raise ConfigError(f"missing {key!r}", path=where, field=key)
+    return d[key]
+
+
+def vec(value, n: int, where: str, what: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"must be {n} numbers, got {value!r}", path=where, field=what)
+    return arr
+
+
+def num(d: dict, key: str, default: float, where: str, *, positive: bool = False) -> float:
+    value = d.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or (positive and value <= 0):
+        raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {value!r}",
+                          path=where, field=key)
+    return float(value)
+
+
+def flag(d: dict, key: str, default: bool, where: str, name: str | None = None) -> bool:
+    """A true/false key (a quoted "false" would read as true)."""
+    value = d.get(key, default)
+    if not isinstance(value, bool):
+        raise ConfigError(f"must be true or false, got {value!r}", path=where, field=name or key)
+    return value
+
+
+def within(value: float, lo: float, hi: float, where: str, key: str, unit: str = "") -> float:
+    if not lo <= value <= hi:
+        raise ConfigError(f"must be from {lo:g} to {hi:g}{unit}, got {value:g}", path=where, field=key)
+    return value
+
+
+#: A scene's SNR, dB: beyond it the simulated signal overflows (and far below, it is noise).
+SNR_DB_RANGE = (-100.0, 100.0)
+#: Thermal noise, ADC counts RMS: the 16-bit ADC's full scale at most.
+MAX_NOISE_COUNTS = 32767.0
+
+#: The keys of a scene file's tables, and of each kind of object.
+SCENE_KEYS = ("name", "walls", "objects", "movers", "surfaces", "trajectory", "radar", "multipath", "wall_reflection")
+WALL_KEYS = ("points", "height", "sigma0")
+SURFACE_KEYS = ("min", "max", "floor", "floor_sigma0", "ceiling", "ceiling_sigma0")
+RADAR_KEYS = ("snr_db", "noise_counts")
+MOVER_KEYS = ("type", "path", "speed", "rcs")
+OBJECT_KEYS = {"point": ("position", "rcs"), "corner_reflector": ("position", "rcs_dbsm"),
+               "box": ("center", "size", "yaw", "sigma0", "z", "edge_rcs", "occludes"),
+               "cylinder": ("center", "radius", "height", "sigma0", "occludes"),
+               "door": ("a", "b", "height", "recess", "sigma0", "frame_rcs")}
+#: A corner reflector's radar cross-section, dBsm: from a marble's to a ship's.
+RCS_DBSM_RANGE = (-60.0, 60.0)
