@@ -13,6 +13,11 @@ from .errors import ConfigError
 if TYPE_CHECKING:
     from .cfg_text import CfgLine, WarningSummary
 
+#: The fewest loops a frame and ADC samples a chirp radarodom's DSP takes: its Doppler FFT and
+#: CFAR, and its range FFT's peak interpolation, need that many bins.
+MIN_LOOPS = 4
+MIN_ADC_SAMPLES = 4
+
 #: Commands that must appear once, and describe the raw data layout.
 REQUIRED_COMMANDS = ("channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")
 
@@ -62,6 +67,9 @@ class ConfigChecks:
         p = ln.value
         if p.num_adc_samples % 2:
             raise self._fail("must be even: the LVDS stream carries samples in pairs", ln, "numAdcSamples")
+        if p.num_adc_samples < MIN_ADC_SAMPLES:
+            raise self._fail(f"must be at least {MIN_ADC_SAMPLES}: radarodom's DSP needs that many range bins, "
+                             f"got {p.num_adc_samples}", ln, "numAdcSamples")
         window_us = p.adc_start_time_us + p.num_adc_samples * 1000.0 / p.sample_rate_ksps
         if window_us > p.ramp_end_time_us + 1e-9:
             raise self._fail(
@@ -113,6 +121,9 @@ class ConfigChecks:
         if f.chirp_end_idx < f.chirp_start_idx:
             raise self._fail(f"chirpEndIndex {f.chirp_end_idx} is below chirpStartIndex "
                              f"{f.chirp_start_idx}", frame_ln, "chirpEndIndex")
+        if f.num_loops < MIN_LOOPS:
+            raise self._fail(f"must be at least {MIN_LOOPS}: radarodom's DSP needs that many Doppler bins "
+                             f"(its Doppler FFT and CFAR), got {f.num_loops}", frame_ln, "numLoops")
         for i in range(f.chirp_start_idx, f.chirp_end_idx + 1):
             if i not in owner:
                 raise self._fail(f"chirp {i} is not defined by any chirpCfg", frame_ln,

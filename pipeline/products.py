@@ -78,10 +78,9 @@ class FrameProducts:
         return Products(points, hm)
 
 
-def check_features_fit(config: RadarConfig | None, features: FeatureConfig, dsp: DspConfig | None = None) -> None:
-    """Raise :class:`ConfigError` when *features* cannot run on the DSP's heatmaps of *config*
-    (None: a source without raw frames, whose heatmaps are checked as they come): what a
-    program checks before it replaces its outputs, as :meth:`FrameProducts.for_estimator`
-    does when a pipeline is built."""
-    if config is not None:
-        features.check_heatmap_range(FrameProcessor(config, dsp).heatmap_range_bins)
+def heatmap_range_bins(config: RadarConfig | None, dsp: DspConfig | None = None) -> int | None:
+    """The range cells of the DSP's heatmaps of *config* (None: a source without raw frames,
+    whose heatmaps are its own): what a program checks the estimator's features against
+    (``FeatureConfig.check_heatmap_range``) before it replaces its outputs, as
+    :meth:`FrameProducts.for_estimator` does when a pipeline is built."""
+    return None if config is None else FrameProcessor(config, dsp).heatmap_range_bins

@@ -381,7 +381,7 @@ def test_not_a_capture_directory(tmp_path, small_cfg):
 def test_given_config_with_other_frames_is_refused(tmp_path, small_cfg):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 4)
-    half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"), "half.cfg")
+    half = RadarConfig.from_text(SMALL_CFG.replace("0 96 1 16 8000", "0 96 1 8 8000"), "half.cfg")
     with pytest.raises(CaptureFormatError) as info:
         CaptureDirectory(d, half)
     assert "half.cfg makes frames of 1536 bytes, capture.json says the recording's are 3072" in str(info.value)
@@ -392,7 +392,7 @@ def test_given_config_without_capture_json_overrides_recorded(tmp_path, small_cf
     frames = make_capture(d, small_cfg, 4)
     os.remove(d / "capture.json")
     os.remove(d / "timestamps.txt")
-    half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"), "half.cfg")
+    half = RadarConfig.from_text(SMALL_CFG.replace("0 96 1 16 8000", "0 96 1 8 8000"), "half.cfg")
     cap = CaptureDirectory(d, half)
     assert cap.config is half
     assert cap.num_frames == 8
@@ -544,7 +544,7 @@ def test_a_very_long_timestamp_line_is_refused(tmp_path, small_cfg):
 def test_edited_radar_cfg_with_other_frames_is_refused(tmp_path, small_cfg):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 30)
-    (d / "radar.cfg").write_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
+    (d / "radar.cfg").write_text(SMALL_CFG.replace("0 96 1 16 8000", "0 96 1 8 8000"))
     with pytest.raises(CaptureFormatError) as info:
         CaptureDirectory(d)
     message = str(info.value)

@@ -166,6 +166,18 @@ def test_out_of_range(prefix, index, value, field, words):
     expect_error(text, line_of(SMALL_CFG, prefix), command, field, *words)
 
 
+@pytest.mark.parametrize("prefix, index, value, field, words", [
+    (FRAME, 2, "3", "numLoops", ("must be at least 4", "Doppler bins", "got 3")),
+    (FRAME, 2, "1", "numLoops", ("must be at least 4",)),
+    (PROFILE, NUM_SAMPLES, "2", "numAdcSamples", ("must be at least 4", "range bins")),
+])
+def test_fewer_bins_than_the_dsp_takes(prefix, index, value, field, words):
+    # radar-cfg called such cfgs valid; the DSP then failed at the first frame with a message of
+    # its window's correlations (NaN) naming neither the file nor the field.
+    text = set_arg(prefix, index, value)
+    expect_error(text, line_of(SMALL_CFG, prefix), prefix.split()[0], field, *words)
+
+
 def test_out_of_range_comp_range_bias_value():
     bad = "compRangeBiasAndRxChanPhase 0.0 1 0 1 0 1.5 0 1 0 1 0 1 0 1 0 1 0 1 0 1 0 1 0 1 0"
     text = insert_before(SENSOR_START, bad)

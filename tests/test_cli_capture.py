@@ -419,7 +419,7 @@ def test_cli_missing_adc_data_says_so(src, tmp_path):
 
 def test_cli_edited_radar_cfg_is_refused(src, tmp_path):
     path, _ = src
-    (path / "radar.cfg").write_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
+    (path / "radar.cfg").write_text(SMALL_CFG.replace("0 96 1 16 8000", "0 96 1 8 8000"))
     out = tmp_path / "out"
     proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
     line = _refused_before_streaming(proc, out)

@@ -261,7 +261,7 @@ def test_given_config_overrides_recorded(capture, warnings_log):
     assert not got[0].layout.q_first
     np.testing.assert_array_equal(got[1].cube(), RawLayout(4, 3, 4, 16, q_first=False).decode(frames[1]))
     # a configuration with other frames contradicts capture.json
-    half = RadarConfig.from_text(SMALL_CFG.replace("frameCfg 0 2 4 0 50", "frameCfg 0 2 2 0 50"))
+    half = RadarConfig.from_text(SMALL_CFG.replace("0 96 1 16 8000", "0 96 1 8 8000"))
     with pytest.raises(CaptureFormatError, match="makes frames of 1536 bytes, capture.json says the "
                                                  "recording's are 3072"):
         open_source(f"replay://{d}?rate=max", half)
