@@ -27,6 +27,14 @@ def quoted(value: Any, limit: int = QUOTED_CHARS) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
+def quoted_json(value: Any, limit: int = QUOTED_CHARS) -> str:
+    """*value* read from a JSON file as an error message quotes it: :func:`quoted`, with JSON's
+    own spelling of ``null``, ``true`` and ``false`` (the file's words, not Python's)."""
+    if value is None or isinstance(value, bool):
+        return {None: "null", True: "true", False: "false"}[value]
+    return quoted(value, limit)
+
+
 def named_character(ch: str) -> str:
     """A character as an error message names it, whatever a terminal would make of it:
     ``U+00A0 (no-break space)``."""

@@ -16,7 +16,7 @@ import typing
 from typing import Any, Mapping, TypeVar
 
 from . import strict_json
-from .errors import ConfigError
+from .errors import ConfigError, quoted_json
 
 #: Largest settings file read (radarodom's own are a few KB).
 MAX_SETTINGS_BYTES = 1 << 20
@@ -70,7 +70,7 @@ def _checked(value: Any, hint: Any, name: str) -> Any:
     if not plain or len(plain) < len([k for k in allowed if k is not type(None)]):
         return value  # not a plain type (a nested section is checked by its own from_dict)
     wanted = " or ".join(_KINDS[k] for k in plain) + (" or null" if type(None) in allowed else "")
-    raise ConfigError(f"must be {wanted}, got {value!r}", field=name)
+    raise ConfigError(f"must be {wanted}, got {quoted_json(value)}", field=name)
 
 
 class Settings:

@@ -112,10 +112,10 @@ def loads(data: bytes | bytearray | memoryview | str, *, max_bytes: int, max_dep
     if size > max_bytes:
         raise ValueError(f"{size} bytes, more than the {max_bytes} allowed")
     if isinstance(data, str):
-        text = data
+        text = data.removeprefix("\ufeff")
     else:
-        try:
-            text = bytes(data).decode("utf-8")
+        try:  # a byte-order mark (Windows editors write one) is ignored, as RFC 8259 allows
+            text = bytes(data).decode("utf-8-sig")
         except UnicodeDecodeError as exc:
             raise ValueError(f"not UTF-8 (byte {exc.start})") from None
     depth = nesting_depth(text)

@@ -149,7 +149,7 @@ def read_tum(path: str | os.PathLike) -> TumTrajectory:
     rows: list[list[float]] = []
     lines: list[int] = []
     try:
-        with open(name, encoding="utf-8", errors="replace") as fh:
+        with open(name, encoding="utf-8-sig", errors="replace") as fh:  # a BOM (Notepad's) ignored
             for lineno, line in enumerate(fh, start=1):
                 text = line.strip()
                 if not text or text.startswith("#"):

@@ -804,3 +804,14 @@ def test_a_closed_recordings_data_cut_short_is_said_so_not_blamed_on_its_timesta
     assert str(info.value) == (f"{d}: capture.json says the closed recording has 30 frames, adc_data.bin holds "
                                "fewer (13288 bytes: 4 frames of 3072 bytes and 1000 bytes more): was it cut short "
                                "(a copy that stopped part way)?")
+
+
+def test_capture_json_is_read_with_a_bom_and_quoted_in_json_words(tmp_path, small_cfg):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 3)
+    text = (d / "capture.json").read_text()
+    (d / "capture.json").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert CaptureDirectory(d).num_frames == 3
+    (d / "capture.json").write_text(json.dumps({**json.loads(text), "frame_count": None}))
+    with pytest.raises(CaptureFormatError, match=r"frame_count: expected .*, got null$"):
+        CaptureDirectory(d)

@@ -363,3 +363,10 @@ def test_to_dict_is_standard_json_when_figures_are_undefined(tmp_path):
     d = json.loads(json.dumps(r.to_dict(), allow_nan=False))
     assert d["final_drift"]["percent_of_path"] is None and d["ate_m"]["n"] == 4
     assert d["rpe_per_distance"]["rotation_deg"]["rmse"] is None
+
+
+def test_a_tum_file_with_a_byte_order_mark_reads(tmp_path):
+    # Notepad writes one; the first line was refused, quoted with its '\ufeff'.
+    path = tmp_path / "bom.tum"
+    path.write_bytes(b"\xef\xbb\xbf0.0 0 0 0 0 0 0 1\n0.1 0.1 0 0 0 0 0 1\n")
+    assert read_tum(path).positions[:, 0].tolist() == [0.0, 0.1]

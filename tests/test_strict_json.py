@@ -92,3 +92,9 @@ def test_any_input_is_a_value_or_a_value_error(data):
 def test_whatever_is_written_reads_back(obj):
     text = strict_json.dumps(obj)
     assert strict_json.loads(text, max_bytes=10**6, max_depth=64) == strict_json.finite(obj)
+
+
+def test_a_byte_order_mark_is_ignored():
+    # Windows editors write one; json.loads said "Unexpected UTF-8 BOM (decode using utf-8-sig)".
+    assert strict_json.loads(b'\xef\xbb\xbf{"a": [1]}', max_bytes=100) == {"a": [1]}
+    assert strict_json.loads('\ufeff{"a": null}', max_bytes=100) == {"a": None}

@@ -166,7 +166,8 @@ class ColoRadarRun(RunStreams):
         if self.calib_dir is None:
             raise UsageError(f"{self.run_dir}: no calibration: neither "
                                f"{os.path.join(os.path.dirname(self.run_dir), 'calib')} nor "
-                               f"{os.path.join(self.run_dir, 'calib')} exists (give calib_dir)")
+                               f"{os.path.join(self.run_dir, 'calib')} exists (give it: --calib DIR, or "
+                               "calib= in a coloradar:// URL)")
         path = os.path.join(self.calib_dir, *parts)
         if required and not os.path.exists(path):  # the calibration's, not the run's: say whose
             how = "the calibration folder given" if self._calib_given else "the calib/ found for the run"

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ... import strict_json
-from ...errors import CaptureError, CaptureFormatError, named_character, quoted
+from ...errors import CaptureError, CaptureFormatError, named_character, quoted, quoted_json
 from ...plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
@@ -63,7 +63,7 @@ class _Checker:
         self.path = path
 
     def fail(self, field: str, expected: str, value: Any) -> CaptureFormatError:
-        return CaptureFormatError(f"{self.path}: {field}: expected {expected}, got {quoted(value)}")
+        return CaptureFormatError(f"{self.path}: {field}: expected {expected}, got {quoted_json(value)}")
 
     def int_field(self, meta: dict, key: str, low: int, high: int | None = None, *, name: str | None = None,
                   required: bool = True, default: int = 0) -> int:
