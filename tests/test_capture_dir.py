@@ -815,3 +815,23 @@ def test_capture_json_is_read_with_a_bom_and_quoted_in_json_words(tmp_path, smal
     (d / "capture.json").write_text(json.dumps({**json.loads(text), "frame_count": None}))
     with pytest.raises(CaptureFormatError, match=r"frame_count: expected .*, got null$"):
         CaptureDirectory(d)
+
+
+@pytest.mark.parametrize("name", ["radar.cfg", "capture.json", "timestamps.txt", "groundtruth.tum"])
+def test_a_directory_in_place_of_a_capture_file_is_named(tmp_path, small_cfg, name):
+    # Was "cannot read ...: Is a directory" (exit 1), or for radar.cfg a cfg error.
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 3)
+    (d / name).unlink(missing_ok=True)
+    (d / name).mkdir()
+    with pytest.raises(CaptureFormatError, match=f"{name}: is a directory: a capture's {name} is a file"):
+        CaptureDirectory(d)
+
+
+def test_an_empty_groundtruth_is_said(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 3)
+    (d / "groundtruth.tum").write_text("# t x y z qx qy qz qw\n")
+    cap = CaptureDirectory(d)
+    assert cap.pose(0) is None
+    assert any("groundtruth.tum holds no pose" in m for m in warning_messages(warnings_log))

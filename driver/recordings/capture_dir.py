@@ -103,6 +103,12 @@ class CaptureDirectory:
             what = "a directory" if os.path.isdir(data_path) else "not a regular file"
             raise CaptureFormatError(f"{data_path}: is {what}: a capture's {ADC_DATA} is the file of its "
                                      f"recorded frames")
+        for name in (RADAR_CFG, METADATA, TIMESTAMPS, GROUNDTRUTH):
+            part = os.path.join(self.directory, name)
+            if os.path.exists(part) and not os.path.isfile(part):
+                what = "a directory" if os.path.isdir(part) else "not a regular file"
+                raise CaptureFormatError(f"{part}: is {what}: a capture's {name} is a file; put the "
+                                         "recording's own back in its place")
         if config is None:
             if not os.path.exists(cfg_path):
                 raise ConfigError(f"missing {RADAR_CFG}: give the radar configuration with --cfg",
@@ -159,6 +165,9 @@ class CaptureDirectory:
         """Row of groundtruth.tum for each frame (by time), -1 where none."""
         rows = np.full(self.num_frames, -1)
         gt = self.groundtruth
+        if gt is not None and not len(gt.times):
+            log.warning("%s: %s holds no pose: the frames are played without a ground truth", self.directory,
+                        GROUNDTRUTH)
         if gt is None or not len(gt.times) or not self.num_frames:
             return rows
         order = np.argsort(gt.times, kind="stable")
