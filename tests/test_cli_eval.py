@@ -279,3 +279,20 @@ def test_json_beside_a_recording_given_as_the_ground_truth(tmp_path):
         assert run_eval(est, f"replay://{rec}", "--json", rec / "eval.json", *extra).returncode == 0
     proc = run_eval(est, f"replay://{rec}", "--json", rec / "groundtruth.tum", "--overwrite")
     assert proc.returncode == 2 and "would write over the input GT.tum|URL" in proc.stderr
+
+
+def test_a_simulated_stream_is_its_own_ground_truth(corridor_run, capsys):
+    """radar-eval EST.tum sim://... compares with the poses the simulator drives, without making
+    a frame: the same numbers as against the run's recording (it said "the source knows no
+    ground truth")."""
+    from conftest import CORRIDOR_URL
+
+    assert radar_eval.main([str(corridor_run.tum), CORRIDOR_URL, "--json", str(corridor_run.base / "sim.json")]) == 0
+    assert radar_eval.main([str(corridor_run.tum), str(corridor_run.rec / "groundtruth.tum"),
+                            "--json", str(corridor_run.base / "rec.json")]) == 0
+    capsys.readouterr()
+    sim = json.loads((corridor_run.base / "sim.json").read_text())
+    rec = json.loads((corridor_run.base / "rec.json").read_text())
+    assert sim["poses"]["matched"] == rec["poses"]["matched"] == 30
+    assert sim["yaw_increment_error_deg"] == pytest.approx(rec["yaw_increment_error_deg"], abs=1e-6)
+    assert sim["final_drift"] == pytest.approx(rec["final_drift"], abs=1e-6)

@@ -34,6 +34,7 @@ from typing import Iterator
 import numpy as np
 
 from ...cfg import RadarConfig, shipped_config_path
+from ...tum import TumTrajectory
 from ..sources import Frame, Pacer, Source, UrlOptions, at_least, one_of, parse_rate, positive_number
 from .board import load_board
 from .physics import FIDELITIES
@@ -71,6 +72,14 @@ class SimSource(Source):
                 yield Frame(index=passes * n + i, timestamp=f.timestamp + offset,
                             raw=np.frombuffer(f.raw, np.uint8), layout=self.sim.layout, pose=f.pose)
             passes += 1
+
+    def groundtruth(self) -> TumTrajectory:
+        """The true poses of one pass's frames, at their times: what ``radar-eval EST.tum
+        sim://...`` compares an estimate of the same stream with (a looped stream's later passes
+        repeat them a pass later)."""
+        times = np.array([self.sim.frame_time(i) for i in range(self.sim.num_frames)], float)
+        poses = np.array([self.sim.groundtruth(t) for t in times], float).reshape(-1, 7)
+        return TumTrajectory(times, poses[:, :3], poses[:, 3:], self.url or "sim://")
 
     def recording_metadata(self) -> dict:
         board = self.sim.board
