@@ -7,6 +7,7 @@ import math
 from urllib.parse import quote
 
 import pytest
+from conftest import warning_messages
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -61,3 +62,12 @@ def test_any_url_option_text_is_taken_in_range_or_refused_naming_the_option(text
         with src:
             value = float(text)
             assert 0 < value <= MAX_URL_NUMBER and src.sim.num_frames >= 1
+
+
+def test_a_duration_beyond_the_trajectory_is_said(warnings_log):
+    # The sensor silently stood at the trajectory's end for the rest (400 frames of a 32 s scene).
+    scene = load_scene("corridor")
+    Simulator(RadarConfig.from_file(shipped_config_path()), scene, duration_s=scene.trajectory.duration_s)
+    assert not warning_messages(warnings_log)
+    Simulator(RadarConfig.from_file(shipped_config_path()), scene, duration_s=scene.trajectory.duration_s + 5)
+    assert any("longer than scene corridor's trajectory" in m and "loop=N" in m for m in warning_messages(warnings_log))

@@ -151,6 +151,10 @@ class Simulator:
             raise UsageError(f"duration {float(span):g} s: expected more than 0 and at most "
                              f"{MAX_FRAMES * self.period:g} s ({MAX_FRAMES} frames of {self.period:g} s)")
         self.num_frames = max(1, math.ceil(frames - 1e-9))
+        if duration_s is not None and duration_s > scene.trajectory.duration_s + self.period:
+            log.warning("duration %g s is longer than scene %s's trajectory (%.1f s): the sensor stands at its end "
+                        "for the rest (a sim:// stream's loop=N repeats the trajectory instead)", duration_s, scene.name,
+                        scene.trajectory.duration_s)
         self.max_range_m = cfg.unambiguous_range_m
         amp_ref = scene.noise_counts * math.sqrt(2.0) * 10 ** (scene.snr_db / 20.0)
         #: ADC counts of a 1 m^2 target at 1 m on boresight.
