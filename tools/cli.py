@@ -124,6 +124,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
         raise UsageError(f"cannot create {path}: no directory {parent}")
+    if not os.path.lexists(path) and not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after
+        raise UsageError(f"cannot create {path}: the directory {parent} is not writable")
 
 
 def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
