@@ -156,6 +156,9 @@ def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
     assert data["poses"]["matched"] == 3
     assert proc.stderr.count("\n") == 1 and "radar-eval: warning: the coordinates are too large" in proc.stderr
     assert "null in --json" in proc.stderr and "RuntimeWarning" not in proc.stderr
+    # The table keeps its columns: a figure near the float limit in exponent form, not 309 digits.
+    rows = [ln for ln in proc.stdout.splitlines() if ln.startswith(("RPE per frame, translation m", "ATE"))]
+    assert rows and all(len(ln) == len("RPE per frame, translation m".ljust(32)) + 6 * 10 + 7 for ln in rows), rows
 
 
 # =========================================================================== issue 20: heading figures

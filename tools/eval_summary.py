@@ -13,9 +13,18 @@ from .eval_flags import FlagTimeline
 _COLUMNS = ("rmse", "mean", "median", "std", "min", "max")
 
 
+def _fit(value: float, spec: str) -> str:
+    """*value* as *spec* formats it, but a number of a million or more (coordinates near the
+    float limit) in exponent form, so that the table keeps its columns; NaN "-", infinity "inf"."""
+    if math.isnan(value):
+        return "-"
+    if math.isinf(value) or abs(value) >= 1e6:
+        return format(value, ".3g")
+    return format(value, spec)
+
+
 def _row(label: str, stats: Stats) -> str:
-    cells = "".join(f"{'-' if math.isnan(v) else format(v, '.4f'):>10}"
-                    for v in (getattr(stats, c) for c in _COLUMNS))
+    cells = "".join(f"{_fit(v, '.4f'):>10}" for v in (getattr(stats, c) for c in _COLUMNS))
     return f"{label:<32}{cells}{stats.n:>7}"
 
 
@@ -25,8 +34,8 @@ def format_table(r: EvaluationResult) -> str:
     lines = [
         f"{r.est_source} against {r.ref_source}",
         (f"  {r.matched} poses matched (estimate {r.est_poses}, ground truth {r.ref_poses}, within "
-         f"{r.max_diff_s:g} s) over {r.duration_s:.1f} s; path {r.ref_path_m:.2f} m "
-         f"(estimate {r.est_path_m:.2f} m)"),
+         f"{r.max_diff_s:g} s) over {_fit(r.duration_s, '.1f')} s; path {_fit(r.ref_path_m, '.2f')} m "
+         f"(estimate {_fit(r.est_path_m, '.2f')} m)"),
         "",
         f"{'':<32}" + "".join(f"{c:>10}" for c in _COLUMNS) + f"{'n':>7}",
         _row("RPE per frame, translation m", Stats.of(r.rpe_frame.translation_m)),
@@ -38,9 +47,8 @@ def format_table(r: EvaluationResult) -> str:
         _row("ATE (Umeyama-aligned) m", Stats.of(r.ate_m)),
         "",
     ]
-    pct = "-" if math.isnan(r.drift_pct) else f"{r.drift_pct:.2f}"
-    lines.append(f"final drift (aligned at the first pose): {r.drift_m:.3f} m = {pct} % of the path, "
-                 f"yaw {r.drift_yaw_deg:+.2f} deg")
+    lines.append(f"final drift (aligned at the first pose): {_fit(r.drift_m, '.3f')} m = "
+                 f"{_fit(r.drift_pct, '.2f')} % of the path, yaw {_fit(r.drift_yaw_deg, '+.2f')} deg")
     return "\n".join(lines)
 
 
