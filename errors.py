@@ -101,16 +101,30 @@ class ConfigError(RadarodomError):
         self.field = field
         super().__init__(self._render())
 
+    def located(self, *, path: str | os.PathLike | None = None, field: str | None = None,
+                command: str | None = ...) -> "ConfigError":
+        """This error, told where it is as it travels up: the file it came from (*path*, when
+        it names none yet), its field's full path (*field*), its command (None: none); returns
+        itself, its message rendered again."""
+        if path is not None and self.path is None:
+            self.path = os.fspath(path)
+        if field is not None:
+            self.field = field
+        if command is not ...:
+            self.command = command
+        self.args = (self._render(),)
+        return self
+
     def _render(self) -> str:
-        where = self.path or "<cfg>"
+        where = self.path or ("<cfg>" if self.line is not None else "")  # settings made in code have no file
         if self.line is not None:
             where += f":{self.line}"
-        parts = [where]
+        parts = [where] if where else []
         if self.command:
             parts.append(self.command)
         if self.field:
             parts.append(self.field)
-        return ": ".join(parts) + ": " + self.message
+        return ": ".join(parts + [self.message])
 
 
 class DeviceError(RadarodomError):

@@ -96,8 +96,7 @@ class Settings:
             return cls._from_dict(data, prefix)
         except ConfigError as exc:
             if prefix and exc.field and not exc.field.startswith(prefix):
-                exc.field = prefix + exc.field
-                exc.args = (exc._render(),)
+                raise exc.located(field=prefix + exc.field)
             raise
 
     @classmethod
@@ -153,10 +152,7 @@ class Settings:
         try:
             return cls.from_dict(data)
         except ConfigError as exc:
-            if exc.path is None:
-                exc.path = os.fspath(path)
-                exc.args = (exc._render(),)
-            raise
+            raise exc.located(path=path)
 
 
 def _nested_from_dict(nested: type, value: Mapping[str, Any], key: str) -> Any:
@@ -165,7 +161,4 @@ def _nested_from_dict(nested: type, value: Mapping[str, Any], key: str) -> Any:
     try:
         return nested.from_dict(value)
     except ConfigError as exc:
-        exc.field = f"{key}.{exc.field}" if exc.field else key
-        exc.command = None
-        exc.args = (exc._render(),)
-        raise
+        raise exc.located(field=f"{key}.{exc.field}" if exc.field else key, command=None)

@@ -143,9 +143,18 @@ class Source(abc.ABC):
     #: the board that made the frames: a simulation and its recordings know their board.  None:
     #: unknown (a real board), and then a line other than the identity is taken to fit.
     calibrated: bool | None = None
+    #: The range cells of the heatmaps the source's frames carry, where it ships its own and
+    #: knows them before the first frame (a ColoRadar run's); None: the DSP makes them from
+    #: ``config`` (when :attr:`heatmaps_from_raw`), or not known until the frames come.
+    heatmap_range_bins: int | None = None
 
     def __init__(self) -> None:
         self._stop_requested = False
+
+    @property
+    def heatmaps_from_raw(self) -> bool:
+        """Whether the frames' heatmaps are the DSP's, made from their raw samples by ``config``."""
+        return self.carries_raw
 
     @abc.abstractmethod
     def __iter__(self) -> Iterator[Frame]:

@@ -172,9 +172,8 @@ class FrameProcessor:
         # The CFAR's estimate to the mean noise power (an order statistic or a greatest-of sits
         # above it), so that snr_db and noise_db mean the same whatever the method.
         self._noise_factor = params.range_cfar.noise_factor
-        beat_range_m = np.arange(self.n_range) * cfg.range_resolution_m * ns / self.n_range
         #: Range of each range bin, m, (n_range,), the calibration's range bias taken off.
-        self.range_m = beat_range_m - self.calibration.range_bias_m
+        self.range_m = _range_axis(cfg, self.n_range, self.calibration.range_bias_m)
         #: Signed Doppler bin of each row of the centred spectrum, (n_doppler,).
         self.doppler_bins = np.arange(self.n_doppler) - self.n_doppler // 2
         #: Radial velocity of each row, m/s, (n_doppler,).
@@ -210,7 +209,7 @@ class FrameProcessor:
         self._range_ok = (self.range_m >= lo) & (self.range_m <= hi)
         #: Range bins the heatmaps span: from 0 to the last bin within the detection range
         #: (beyond it lie the IF filter's roll-off and the TX-RX leakage's negative-frequency side).
-        self.heatmap_range_bins = int(np.searchsorted(self.range_m, hi, side="right"))
+        self.heatmap_range_bins = _bins_to(self.range_m, hi)
         # A peak is the strongest within a resolution bin either side (one map cell unpadded).
         self._peak_reach = (cells_per_bin(self.n_doppler, loops), cells_per_bin(self.n_range, ns))
         #: The cfg's cfarFovCfg Doppler limits, with ti_like.
@@ -301,6 +300,29 @@ def _check_coupling(coupling: RangeCoupling, cfg: RadarConfig, n_range: int) -> 
         raise ConfigError(f"the coupling was measured behind a {len(coupling.window)}-point range FFT without zero "
                           f"padding; the cfg has {cfg.num_samples} samples and the DSP a {n_range}-point FFT "
                           "(leave DspConfig.range_fft_size unset)", path=where)
+
+
+def heatmap_range_bins(cfg: RadarConfig, params: DspConfig | None = None) -> int:
+    """The range bins the DSP's heatmaps of *cfg* span (:attr:`FrameProcessor.heatmap_range_bins`),
+    without building the processor: what a program checks the estimator's settings against
+    before it opens its outputs."""
+    params = params or DspConfig()
+    if params.ti_like:
+        params = ti_like_params(cfg, params)
+    bias = ChannelCalibration.from_config(cfg).range_bias_m if params.channel_calibration else 0.0
+    _, hi = _detection_range(cfg, params, bias)
+    return _bins_to(_range_axis(cfg, params.range_fft_size or cfg.cube_shape[3], bias), hi)
+
+
+def _range_axis(cfg: RadarConfig, n_range: int, range_bias_m: float) -> np.ndarray:
+    """Each range bin's range, m, (n_range,): the beat frequency's, less the range bias."""
+    return np.arange(n_range) * cfg.range_resolution_m * cfg.cube_shape[3] / n_range - range_bias_m
+
+
+def _bins_to(range_m: np.ndarray, hi: float) -> int:
+    """Bins from 0 to the last within *hi* m (beyond lie the IF filter's roll-off and the TX-RX
+    leakage's negative-frequency side)."""
+    return int(np.searchsorted(range_m, hi, side="right"))
 
 
 def _detection_range(cfg: RadarConfig, params: DspConfig, range_bias_m: float) -> tuple[float, float]:

@@ -30,7 +30,7 @@ from ..errors import CaptureError, add_note
 from ..estimator.config import EstimatorConfig
 from ..estimator.odometry import OdometryState, RadarOdometry
 from ..products import Products
-from .products import FrameProducts
+from .products import FrameProducts, check_features_fit
 from .sinks import CaptureSink, FrameResult, HeatmapSink, PointsCsvSink, Sink, TumSink
 from .stats import LatencyMeter, PipelineStats, RateMeter
 
@@ -109,6 +109,8 @@ class Pipeline:
         if self.feed is not None or self._result_sinks:
             features = (estimator or EstimatorConfig()).features
             full = any(s.full_heatmaps for s in self._result_sinks)
+            if self.feed is not None:  # settings that cannot run on these heatmaps fail now, not at a frame
+                check_features_fit(source, features, dsp)
             self.products = (FrameProducts(source.config, dsp, coupling=source.coupling, calibrated=source.calibrated)
                              if full else FrameProducts.for_estimator(source.config, features, dsp,
                                                                       coupling=source.coupling,

@@ -14,10 +14,10 @@ import numpy as np
 
 from ..calibration import RangeCoupling
 from ..cfg import RadarConfig
-from ..driver.sources import Frame
+from ..driver.sources import Frame, Source
 from ..dsp.config import DspConfig
 from ..dsp.heatmap import HeatmapMaker
-from ..dsp.processor import FrameProcessor
+from ..dsp.processor import FrameProcessor, heatmap_range_bins
 from ..dsp.static_heatmap import StaticHeatmapMaker
 from ..errors import CaptureError
 from ..estimator.config import FeatureConfig
@@ -52,10 +52,7 @@ class FrameProducts:
         """Products for an estimator whose features are *features*: the Doppler of its
         ``doppler_cells`` strongest cells (``FeatureConfig.doppler_cells``), enough for its
         dynamic-object rejection and much cheaper than the full map's."""
-        products = cls(config, dsp, doppler_cells=features.doppler_cells, coupling=coupling, calibrated=calibrated)
-        if products.processor is not None:
-            features.check_heatmap_range(products.processor.heatmap_range_bins)
-        return products
+        return cls(config, dsp, doppler_cells=features.doppler_cells, coupling=coupling, calibrated=calibrated)
 
     def __call__(self, frame: Frame, *, heatmap: bool = True) -> Products:
         """The products of *frame*.  The DSP's heatmap is made only when *heatmap* is true (it
@@ -78,9 +75,14 @@ class FrameProducts:
         return Products(points, hm)
 
 
-def heatmap_range_bins(config: RadarConfig | None, dsp: DspConfig | None = None) -> int | None:
-    """The range cells of the DSP's heatmaps of *config* (None: a source without raw frames,
-    whose heatmaps are its own): what a program checks the estimator's features against
-    (``FeatureConfig.check_heatmap_range``) before it replaces its outputs, as
-    :meth:`FrameProducts.for_estimator` does when a pipeline is built."""
-    return None if config is None else FrameProcessor(config, dsp).heatmap_range_bins
+def check_features_fit(source: Source, features: FeatureConfig, dsp: DspConfig | None = None) -> None:
+    """Raise :class:`ConfigError` (field ``features.cfar``) when *features* cannot run on the
+    heatmaps *source*'s frames will give: its own (``Source.heatmap_range_bins``) or the DSP's of
+    its cfg (``Source.heatmaps_from_raw``); nothing when they are not known before the frames
+    come (then the features' CFAR says so at the first).  What a pipeline checks when it is
+    built, and a program before it replaces its outputs."""
+    bins = source.heatmap_range_bins
+    if bins is None and source.heatmaps_from_raw and source.config is not None:
+        bins = heatmap_range_bins(source.config, dsp)
+    if bins is not None:
+        features.check_heatmap_range(bins)

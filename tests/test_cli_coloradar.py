@@ -79,6 +79,12 @@ def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_p
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1, (args, proc.stderr)
         assert proc.stderr.startswith(f"radar-coloradar: error: {message}"), (args, proc.stderr)
         assert proc.stdout == ""
+    # The calib/ found beside the run is read too: none of its files may be written over.
+    transform = next((tmp_path / "data" / "calib" / "transforms").iterdir())
+    kept = transform.read_bytes()
+    proc = coloradar("--json", transform, "--overwrite")
+    assert proc.returncode == 2 and "would write over the input the run's calibration" in proc.stderr
+    assert transform.read_bytes() == kept
     assert mine.read_text() == "keep\n" and stamps.read_bytes() == before and not (tmp_path / "o").exists()
     out = tmp_path / "o"
     assert coloradar("--out", out, "--json", out / "n.json").returncode == 0

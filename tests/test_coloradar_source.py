@@ -22,7 +22,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import CORRIDOR_URL, console_command, run_together
+from conftest import CORRIDOR_URL, SMALL_CFG, console_command, make_capture, run_together
 from coloradar_synth import TX_POSITIONS, write_moving_run, write_run, write_run_from_capture
 from test_cli_capture import one_error_line
 
@@ -31,7 +31,7 @@ from radarodom.driver.coloradar.run import ColoRadarRun, WaveformConfig
 from radarodom.driver.coloradar.waveform import (AntennaConfig, read_antenna_config, tx_order_from_antennas,
                                                  waveform_to_config)
 from radarodom.driver.sources import open_source
-from radarodom.errors import CaptureFormatError, SourceError
+from radarodom.errors import CaptureFormatError, ConfigError, SourceError
 from radarodom.tum import read_tum
 
 SIM_SECONDS = 3
@@ -250,7 +250,8 @@ def test_without_antenna_cfg_tis_order_is_assumed(tmp_path, caplog):
 def test_radar_eval_refuses_a_source_without_ground_truth(tmp_path):
     est = tmp_path / "est.tum"
     est.write_text("0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n")
-    proc = _eval(est, "sim://corridor")
+    make_capture(tmp_path / "real", RadarConfig.from_text(SMALL_CFG), 3)  # a real board's: no groundtruth.tum
+    proc = _eval(est, f"replay://{tmp_path / 'real'}")
     assert proc.returncode != 0 and "knows no ground truth" in proc.stderr and "Traceback" not in proc.stderr
 
 
@@ -341,3 +342,30 @@ def test_radar_coloradar_runs_the_tables_on_the_adc_frames(sim_pair, tmp_path):
     np.testing.assert_allclose(a.times, b.times)
     np.testing.assert_allclose(a.positions, b.positions, atol=1e-6)
     np.testing.assert_allclose(a.quaternions, b.quaternions, atol=1e-6)
+
+
+def test_the_features_are_checked_against_the_heatmaps_the_source_gives(moving_run, sim_pair):
+    """A run's own heatmaps (128 range cells here) are what the estimator's CFAR runs on, not what
+    the DSP would make of a cfg: a window that fits them runs, one longer is refused when the
+    pipeline is built, before any frame; the DSP's heatmaps count where the DSP makes them."""
+    from radarodom.estimator.config import EstimatorConfig
+    from radarodom.pipeline import Pipeline
+    from radarodom.pipeline.products import check_features_fit
+
+    base = EstimatorConfig().features.to_dict()
+    def features(guard):
+        return EstimatorConfig.from_dict({"features": {**base, "method": "cfar",
+                                                       "cfar": {**base["cfar"], "guard": guard}}})
+    with open_source(f"coloradar://{moving_run}?rate=max") as source:
+        assert source.heatmap_range_bins == 128 and not source.heatmaps_from_raw
+        check_features_fit(source, features(55).features)  # 2 * (55 + 8) + 1 = 127 cells
+        with pytest.raises(ConfigError, match=r"^features.cfar: a window of guard 56 and train 8 spans 129 range "
+                                              r"cells, more than the heatmap's 128"):
+            Pipeline(source, estimator=features(56))
+        stats = Pipeline(source, estimator=features(2), max_frames=12).run()
+        assert stats.frames == 12
+    _, _, adc_run = sim_pair
+    with open_source(f"coloradar://{adc_run}?velocity=single_chip_adc&heatmap=single_chip_adc") as source:
+        assert source.heatmap_range_bins is None and source.heatmaps_from_raw
+        with pytest.raises(ConfigError, match="more than the heatmap's 205"):
+            check_features_fit(source, features(100).features)

@@ -31,7 +31,7 @@ from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Source, open_source
 from ..errors import ConfigError, UsageError
 from ..estimator.config import EstimatorConfig
-from ..pipeline.products import heatmap_range_bins
+from ..pipeline.products import check_features_fit
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
 from . import cli, ros_outputs, view_option
 from .status import Field, StatusLine, fit_fields, format_duration, format_yaw, wrap_degrees
@@ -353,14 +353,11 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     """Stream the open *source* (its outputs checked) through the pipeline; the summary."""
     # Without --estimator-config, the settings the source's frames call for (tidemo://: its own).
     estimator = args.estimator if args.estimator_config else source_estimator(source, args.estimator)
-    bins = None if args.no_odom else heatmap_range_bins(source.config)
-    if bins is not None:  # settings that cannot run on this cfg's heatmaps fail before outputs are replaced
+    if not args.no_odom:  # settings that cannot run on the source's heatmaps fail before outputs are replaced
         try:
-            estimator.features.check_heatmap_range(bins)
+            check_features_fit(source, estimator.features)
         except ConfigError as exc:
-            exc.path = args.estimator_config or "the estimator's settings"
-            exc.args = (exc._render(),)
-            raise
+            raise exc.located(path=args.estimator_config or "the estimator's settings") from None
     if args.overwrite:
         for path, kind, _ in _outputs(args):
             cli.replace_output(path, kind)

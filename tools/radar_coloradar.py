@@ -20,6 +20,7 @@ import argparse
 import math
 import os
 import sys
+from urllib.parse import urlencode
 from typing import Sequence
 
 import numpy as np
@@ -166,7 +167,8 @@ def _outputs(args: argparse.Namespace, names: Sequence[str]) -> list[tuple[str, 
         outputs += [("--out", os.path.join(args.out, name)) for name in ["groundtruth.tum", *map(_tum_name, names)]]
     if args.json:
         outputs.append(("--json", args.json))
-    inputs = cli.read_paths([("--calib", args.calib)], f"coloradar://{args.run}", source_option="RUN_DIR")
+    url = f"coloradar://{args.run}" + (f"?{urlencode({'calib': args.calib})}" if args.calib else "")
+    inputs = cli.read_paths([], url, source_option="RUN_DIR")
     cli.check_distinct(outputs, inputs)
     directory = [(args.out, "directory", "--out")] if args.out else []
     cli.check_new_outputs(directory + [(path, "file", option) for option, path in outputs], overwrite=args.overwrite)

@@ -95,6 +95,15 @@ log = logging.getLogger(__name__)
 # A run
 
 
+def found_calibration(run_dir: str) -> str | None:
+    """The calibration folder of the run in *run_dir* when none is given: ``calib/`` beside the
+    run (the dataset's layout), else inside it; None when neither is there."""
+    run_dir = os.path.normpath(run_dir)
+    beside = os.path.join(os.path.dirname(run_dir), "calib")
+    inside = os.path.join(run_dir, "calib")
+    return next((d for d in (beside, inside) if os.path.isdir(d)), None)
+
+
 def _directory(path, what: str) -> str:
     """*path* made absolute; :class:`UsageError` when it is no directory."""
     if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
@@ -125,9 +134,7 @@ class ColoRadarRun(RunStreams):
             calib_dir = _directory(calib_dir, "calibration directory")
             self.calib_dir: str | None = calib_dir
         else:
-            beside = os.path.join(os.path.dirname(self.run_dir), "calib")
-            inside = os.path.join(self.run_dir, "calib")
-            self.calib_dir = next((d for d in (beside, inside) if os.path.isdir(d)), None)
+            self.calib_dir = found_calibration(self.run_dir)
             if self.calib_dir is None:
                 log.info("%s: no calib/ beside or inside the run", self.run_dir)
         self._times: dict[str, np.ndarray] = {}

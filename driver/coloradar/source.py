@@ -129,6 +129,8 @@ class ColoRadarSource(Source):
         elif config is not None:
             raise SourceError("a radar configuration applies to ADC frames: this stream uses none "
                               "(give velocity=single_chip_adc or heatmap=single_chip_adc)")
+        if heatmap != "single_chip_adc":  # the run's own heatmaps, whose axes its calib gives
+            self.heatmap_range_bins = run.heatmap_config(self.sensor).num_range_bins
         self._mount_offset = (run.mount_yaw("single_chip") - run.mount_yaw(self.sensor)
                               if velocity == "single_chip" and self.sensor != "single_chip" else 0.0)
         self._poses = self._truth()
@@ -161,6 +163,10 @@ class ColoRadarSource(Source):
             return None
         traj, kept = self.run.sensor_poses(self.sensor, np.array([e.t for e in self.events]))
         return traj, np.where(kept, np.cumsum(kept) - 1, -1)
+
+    @property
+    def heatmaps_from_raw(self) -> bool:
+        return self.heatmap == "single_chip_adc"
 
     def groundtruth(self) -> TumTrajectory | None:
         """The heatmap radar's poses at the times of the frames that give a pose (heatmap

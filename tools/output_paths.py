@@ -1,0 +1,189 @@
+"""The checks every program makes of the paths it writes, before the work: each output new (or,
+with ``--overwrite``, replaceable), none an input of the same run nor a file a recording, a
+ColoRadar run or its calibration holds, none another output's; and the writes themselves, whole
+or not at all.  Each refusal a :class:`UsageError` (exit 2) or :class:`CaptureError` naming the
+path and the option."""
+
+from __future__ import annotations
+
+import os
+from typing import Sequence
+
+from ..errors import CaptureError, CaptureExistsError, UsageError
+
+
+def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) -> None:
+    """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
+    created (no parent directory): radarodom never overwrites what a user has.
+
+    With *overwrite* (the programs' ``--overwrite``) an existing file is accepted, and
+    :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
+    directory it wrote).  A directory in place of a file is still refused, and so is, by its
+    writer, a directory that holds data radarodom did not write."""
+    if is_dir and os.path.exists(path) and not os.path.isdir(path):
+        raise CaptureExistsError(f"{path} is a file, not a directory"
+                                 + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
+    if not is_dir and os.path.lexists(path):
+        if not overwrite:
+            raise CaptureExistsError(f"{path} already exists; choose a new file (or --overwrite)")
+        if os.path.isdir(path):
+            raise CaptureExistsError(f"{path} is a directory; --overwrite replaces only a file")
+        if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
+            raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
+    parent = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
+        raise UsageError(f"cannot create {path}: no directory {parent}")
+    if not os.path.lexists(path) and not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after
+        raise UsageError(f"cannot create {path}: the directory {parent} is not writable")
+
+
+def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
+    """Refuse two outputs that name one path, or an output that names an input of the same run
+    or one of the files of a recording or run given as an input directory (new files beside
+    them, or written there before, are fine); each (what, path), *what* an option's name."""
+    seen: dict[str, str] = {}
+    for what, path in outputs:
+        real = os.path.realpath(path)
+        if real in seen:
+            raise UsageError(f"{seen[real]} and {what} both name {path}: give each its own")
+        seen[real] = what
+        for source, given in inputs:
+            src = os.path.realpath(given)
+            if real == src or (os.path.isdir(src) and (_recordings_own(src, real) or _calibrations_own(src, real))):
+                raise UsageError(f"{what} {path} would write over the input {source} {given}: "
+                                 "choose another path")
+
+
+def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None,
+               source_option: str = "--source") -> list[tuple[str, str]]:
+    """(option, path) of what a run reads, for :func:`check_distinct`: the files given in
+    *options* ((option, path or None)) and the recording or ColoRadar run the *source* URL
+    streams (``replay://DIR``, ``coloradar://DIR``) or the scene file it simulates
+    (``sim://FILE``), named *source_option*."""
+    from ..driver.sources import split_url
+
+    inputs = list(options)
+    if source:
+        scheme, path, query = split_url(source)
+        path = os.path.expanduser(path or "")
+        if scheme in ("replay", "coloradar") and path or scheme == "sim" and os.path.isfile(path):
+            inputs.append((source_option, path))
+        if scheme == "coloradar" and path:
+            inputs.append(("the run's calibration", _coloradar_calibration(path, query)))
+    return [(what, path) for what, path in inputs if path]
+
+
+def _coloradar_calibration(run: str, query: str) -> str | None:
+    """The calibration folder a ColoRadar run is read with: ``calib=``, else the one found."""
+    from urllib.parse import parse_qs
+
+    from ..driver.coloradar.run import found_calibration
+
+    given = parse_qs(query).get("calib")
+    return os.path.expanduser(given[-1]) if given else found_calibration(run)
+
+
+def _calibrations_own(directory: str, path: str) -> bool:
+    """Whether *path* lies in *directory*, a ColoRadar calibration folder (its transforms/):
+    every file of it is the dataset's."""
+    return path.startswith(directory + os.sep) and os.path.isdir(os.path.join(directory, "transforms"))
+
+
+def _recordings_own(directory: str, path: str) -> bool:
+    """Whether *path* is (or lies in) a file or folder the recording or run in *directory* came
+    with: a capture's or a TI recording's files, a ColoRadar run's stream folders."""
+    if not path.startswith(directory + os.sep):
+        return False
+    first = path[len(directory) + 1:].split(os.sep)[0]
+    from ..driver.coloradar.files import STREAMS
+    from ..driver.recordings.capture_writer import RECORDING_FILES
+    from ..driver.recordings.ti_recorder import SERIES_PATTERN
+
+    return (first in RECORDING_FILES or bool(SERIES_PATTERN.match(first))
+            or first in {stream.split("/")[0] for stream in STREAMS} or first == "calib")
+
+
+def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
+    """Refuse a file output that names a file a directory output of the same run writes (a
+    recording's ``timestamps.txt``, a heatmap directory's ``index.json``); each (path, kind,
+    option), *kind* as :func:`replace_output` takes it."""
+    for directory, kind, option in outputs:
+        if kind == "file":
+            continue
+        real_dir = os.path.realpath(directory)
+        for path, file_kind, file_option in outputs:
+            if file_kind != "file":
+                continue
+            real = os.path.realpath(path)
+            if real == real_dir:
+                raise UsageError(f"{file_option} and {option} both name {path}: give each its own")
+            if (_recordings_own(real_dir, real) if kind == "capture" else
+                    os.path.dirname(real) == real_dir and _heatmaps_own(os.path.basename(real))):
+                raise UsageError(f"{file_option} {path} is a file {option} writes: choose another name")
+
+
+def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: bool) -> None:
+    """Each output new, or with *overwrite* replaceable (:func:`check_new_path`); each (path,
+    kind, option), *kind* as :func:`replace_output` takes it.  A file may go into a directory
+    output the run makes (its writer is opened after the directory's); a recording directory
+    holding data radarodom did not write is refused here, before ``--overwrite`` replaces the
+    other outputs (its writer would refuse it only then)."""
+    from ..driver.recordings.capture_writer import foreign_data
+
+    made = {os.path.realpath(path) for path, kind, _ in outputs if kind != "file" and not os.path.exists(path)}
+    for path, kind, _ in outputs:
+        if kind != "file" and not os.path.exists(path):
+            continue  # a new directory is checked by its writer (which makes its parents)
+        if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
+            continue
+        check_new_path(path, is_dir=kind != "file", overwrite=overwrite)
+        theirs = overwrite and kind == "capture" and os.path.isdir(path) and foreign_data(path)
+        if theirs:
+            raise CaptureExistsError(f"{path} already holds a capture ({theirs}) not written by radarodom "
+                                     "(no capture.json), which --overwrite leaves alone; choose a new directory")
+
+
+def _heatmaps_own(name: str) -> bool:
+    """Whether *name* is one of the files radarodom writes in a heatmap directory."""
+    from ..pipeline.sinks import HeatmapSink
+
+    return HeatmapSink.owns(name)
+
+
+def replace_output(path: str, kind: str = "file") -> None:
+    """Remove an output ``--overwrite`` replaces (checked by :func:`check_new_path`): a file
+    (*kind* "file"); of a capture directory radarodom wrote (its capture.json there; *kind*
+    "capture") or a heatmap directory (its index.json; "heatmaps"), only the files radarodom
+    writes there (a source's own stream file too: ``uart.bin``), so that anything else in it
+    stays.  Nothing else is touched."""
+    from ..driver.recordings.capture_dir import remove_capture_files
+
+    try:
+        if kind == "file":
+            if os.path.lexists(path) and not os.path.isdir(path):
+                os.remove(path)
+        elif os.path.isdir(path):
+            names = os.listdir(path)
+            if kind == "capture" and "capture.json" in names:
+                remove_capture_files(path)
+            elif kind == "heatmaps" and "index.json" in names:
+                for name in names:
+                    if _heatmaps_own(name):
+                        os.remove(os.path.join(path, name))
+    except OSError as exc:
+        raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
+
+
+def write_output(path: str, text: str, *, overwrite: bool) -> None:
+    """Write a file output (checked by :func:`check_new_path`) whole or not at all: a symbolic
+    link in its place is replaced, as ``--overwrite`` replaces every output, never the file it
+    names; without *overwrite* a file that appeared there while the program ran is left alone.
+    A failure is a :class:`CaptureError` naming the file."""
+    from ..driver.recordings.capture_writer import write_text_atomically
+
+    try:
+        write_text_atomically(path, text, replace=overwrite)
+    except FileExistsError:
+        raise CaptureError(f"{path} appeared while this ran; not replaced (without --overwrite)") from None
+    except OSError as exc:
+        raise CaptureError(f"cannot write {path}: {exc.strerror or exc}") from None
