@@ -8,6 +8,8 @@ errors, 1 for failures at run time.
 
 from __future__ import annotations
 
+import json
+
 import os
 import unicodedata
 from typing import Any
@@ -30,9 +32,13 @@ def quoted(value: Any, limit: int = QUOTED_CHARS) -> str:
 def quoted_json(value: Any, limit: int = QUOTED_CHARS) -> str:
     """*value* read from a JSON file as an error message quotes it: :func:`quoted`, with JSON's
     own spelling of ``null``, ``true`` and ``false`` (the file's words, not Python's)."""
-    if value is None or isinstance(value, bool):
-        return {None: "null", True: "true", False: "false"}[value]
-    return quoted(value, limit)
+    if isinstance(value, str):
+        return quoted(value, limit)
+    try:
+        text = json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):  # not a JSON value after all
+        return quoted(value, limit)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 def named_character(ch: str) -> str:

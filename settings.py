@@ -121,7 +121,8 @@ class Settings:
                 else:
                     values[key] = _nested_from_dict(nested, value, key)
             elif not isinstance(value, nested):
-                raise ConfigError(f"must be an object of {nested.__name__} settings, got {value!r}", field=key)
+                raise ConfigError(f"must be an object of {nested.__name__} settings, got {quoted_json(value)}",
+                                  field=key)
         try:
             return cls(**values)
         except TypeError as exc:

@@ -86,6 +86,9 @@ def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_p
     assert proc.returncode == 2 and "would write over the input the run's calibration" in proc.stderr
     assert transform.read_bytes() == kept
     assert mine.read_text() == "keep\n" and stamps.read_bytes() == before and not (tmp_path / "o").exists()
+    # A run refused once --out is made (no single-chip heatmaps here) takes back what it made, parents too.
+    proc = coloradar("--heatmap", "single_chip", "--out", tmp_path / "a" / "b" / "c")
+    assert proc.returncode == 2 and not (tmp_path / "a").exists(), proc.stderr
     out = tmp_path / "o"
     assert coloradar("--out", out, "--json", out / "n.json").returncode == 0
     proc = coloradar("--out", out)

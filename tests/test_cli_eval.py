@@ -161,6 +161,19 @@ def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
     assert rows and all(len(ln) == len("RPE per frame, translation m".ljust(32)) + 6 * 10 + 7 for ln in rows), rows
 
 
+def test_the_table_keeps_its_columns_for_large_errors(tmp_path):
+    # 1e4-1e6 m figures took 11 characters in a 10-character column: the cells ran together.
+    t = np.arange(20) / 10.0
+    ref = np.column_stack([t, np.zeros(20), np.zeros(20)])
+    est = np.column_stack([t * 3e5, -t * 2e5, np.zeros(20)])
+    proc = run_eval(write_tum(tmp_path / "est.tum", t, est), write_tum(tmp_path / "gt.tum", t, ref))
+    assert proc.returncode == 0, proc.stderr
+    header = next(ln for ln in proc.stdout.splitlines() if ln.strip().startswith("rmse"))
+    rows = [ln for ln in proc.stdout.splitlines() if ln.startswith(("RPE", "yaw-increment", "ATE"))]
+    assert len(rows) == 7 and all(len(ln) == len(header) for ln in rows), rows
+    assert all(len(ln[32:-7].split()) == 6 for ln in rows), rows  # six cells apart on every row
+
+
 # =========================================================================== issue 20: heading figures
 def _loop(rate_hz: float = 10.0):
     """A base's loop as body-frame steps (n, 3) at *rate_hz*, and each step's kind: 4 m straight at

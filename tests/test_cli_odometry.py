@@ -330,6 +330,14 @@ def test_settings_that_cannot_run_on_the_cfg_fail_before_overwrite_replaces_anyt
         assert {p.name: p.read_bytes() for p in record.iterdir()} == before
 
 
+def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path):
+    # --wheeled without --mount replaced the file's mount_x_m with the axis, then refused it.
+    path = tmp_path / "mounted.json"
+    path.write_text(json.dumps({"odometry": {"mount_x_m": 0.3}}))
+    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path, "--wheeled")
+    assert proc.returncode == 0, proc.stderr
+
+
 def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
     points, heatmaps = tmp_path / "points.csv", tmp_path / "heatmaps"
     proc = run_capture_cli("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,

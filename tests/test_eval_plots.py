@@ -4,6 +4,7 @@ quality flags read from odometry messages; radar-eval --plot on a short simulate
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import struct
@@ -334,3 +335,22 @@ def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path):
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert f"--plot's flags.png {flags} would write over the input --flags {flags}" in proc.stderr
     assert flags.read_bytes() == sim_run.flags.read_bytes() and sorted(p.name for p in out.iterdir()) == ["flags.png"]
+
+
+def test_a_plot_directory_that_cannot_be_written_is_refused_before_the_work(sim_run, tmp_path, monkeypatch, capsys):
+    from radarodom.tools import radar_eval
+
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: os.fspath(path) != str(tmp_path)
+                        and real_access(path, mode, **kw))
+    assert radar_eval.main([str(sim_run.tum), str(sim_run.rec / "groundtruth.tum"), "--plot",
+                            str(tmp_path / "new" / "plots")]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err == (f"radar-eval: error: --plot {tmp_path / 'new' / 'plots'}: the directory {tmp_path} "
+                                 "is not writable\n")
+
+
+def test_a_flags_file_with_a_byte_order_mark_reads(tmp_path):
+    path = tmp_path / "flags.jsonl"
+    path.write_bytes(b"\xef\xbb\xbf" + (odom_line(1.0, 0) + odom_line(1.1, 1)).encode())
+    assert len(read_odometry_flags(path).times) == 2

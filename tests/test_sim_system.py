@@ -534,6 +534,7 @@ def test_bad_numbers_in_scene_raise_config_error(tmp_path, name):
      ("size: must be 3 positive numbers",)),
     ('[[objects]]\ntype = "cylinder"\ncenter = [2, 0]\noccludes = 0\n' + _PAUSE, ("occludes: must be true or false",)),
     ('[radar]\nsnr_db = 1e4\n' + _PAUSE, ("radar.snr_db: must be from -100 to 100 dB",)),
+    ('[radar]\nsnr_db = "10"\n' + _PAUSE, ("radar.snr_db: must be a number, got '10'",)),
     ('[radar]\nnoise_counts = 1e30\n' + _PAUSE, ("radar.noise_counts: must be from 0 to 32767 ADC counts",)),
     ('wall_reflection = 5\n' + _PAUSE, ("wall_reflection: must be from 0 to 1",)),
     ('name = 5\n' + _PAUSE, ("name: must be a string, got 5",)),
@@ -722,3 +723,11 @@ def test_radar_capture_reads_a_simulation_as_the_library_does(tmp_path, shipped_
     for i, pts in enumerate(expected):
         mine = rows[rows[:, 0] == i]
         np.testing.assert_allclose(np.sort(mine[:, 5]), np.sort(pts["range"]), atol=1e-4)  # the CSV has 0.1 mm
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_a_scene_file_with_a_byte_order_mark_loads(tmp_path, suffix):
+    text = _PAUSE if suffix == ".toml" else '{"trajectory": {"segments": [{"pause": 1}]}}'
+    path = tmp_path / f"bom{suffix}"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert load_scene(str(path)).trajectory.duration_s > 0

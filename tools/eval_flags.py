@@ -68,7 +68,7 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
     flags: list[tuple[str, ...]] = []
     skipped = 0
     try:
-        with open(path, encoding="utf-8") as fh:
+        with open(path, encoding="utf-8-sig") as fh:  # a BOM (a Windows editor's) ignored
             for lineno, line in enumerate(fh, start=1):
                 if not line.strip():
                     continue

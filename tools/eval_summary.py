@@ -14,13 +14,13 @@ _COLUMNS = ("rmse", "mean", "median", "std", "min", "max")
 
 
 def _fit(value: float, spec: str) -> str:
-    """*value* as *spec* formats it, but a number of a million or more (coordinates near the
-    float limit) in exponent form, so that the table keeps its columns; NaN "-", infinity "inf"."""
+    """*value* as *spec* formats it, but in exponent form when that would not fit a column of the
+    table (coordinates near the float limit), so that the table keeps its columns; NaN "-",
+    infinity "inf"."""
     if math.isnan(value):
         return "-"
-    if math.isinf(value) or abs(value) >= 1e6:
-        return format(value, ".3g")
-    return format(value, spec)
+    text = format(value, spec)
+    return format(value, ".3g") if math.isinf(value) or len(text) > 9 else text
 
 
 def _row(label: str, stats: Stats) -> str:

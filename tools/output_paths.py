@@ -33,8 +33,18 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
         raise UsageError(f"cannot create {path}: no directory {parent}")
-    if not os.path.lexists(path) and not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after
+    if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
         raise UsageError(f"cannot create {path}: the directory {parent} is not writable")
+
+
+def check_writable_directory(path: str, option: str) -> None:
+    """Refuse a directory output (made when missing, with its parents) that could not be written
+    into: itself, or the nearest directory above it that is there."""
+    there = os.path.abspath(path)
+    while not os.path.exists(there):
+        there = os.path.dirname(there)
+    if os.path.isdir(there) and not os.access(there, os.W_OK | os.X_OK):
+        raise UsageError(f"{option} {path}: the directory {there} is not writable")
 
 
 def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:

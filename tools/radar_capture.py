@@ -215,10 +215,11 @@ def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
     with --wheeled, a base that cannot slide sideways."""
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     mount = args.mount
-    odometry = {"mount_x_m": mount.x, "mount_y_m": mount.y, "mount_yaw_rad": mount.yaw}
+    # Only what the options say: --wheeled alone keeps the settings file's mount.
+    odometry = {} if mount.is_identity else {"mount_x_m": mount.x, "mount_y_m": mount.y, "mount_yaw_rad": mount.yaw}
     if args.wheeled:
         odometry["base"] = "wheeled"
-    if not mount.is_identity or args.wheeled:
+    if odometry:
         config = config.with_(odometry=odometry)
     odo = config.odometry
     if odo.base == "wheeled" and abs(odo.mount_x_m) < odo.min_lever_arm_m:

@@ -175,15 +175,19 @@ def _outputs(args: argparse.Namespace, names: Sequence[str]) -> list[tuple[str, 
     return outputs
 
 
-def _make_out(directory: str | None) -> str | None:
-    """Make --out (and its parents) before the work; the directory made, if it was."""
+def _make_out(directory: str | None) -> list[str]:
+    """Make --out (and its parents) before the work; the directories made, deepest first."""
     if not directory or os.path.isdir(directory):
-        return None
+        return []
+    made, there = [], os.path.abspath(directory)
+    while not os.path.exists(there):
+        made.append(there)
+        there = os.path.dirname(there)
     try:
         os.makedirs(directory)
     except OSError as exc:
         raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
-    return directory
+    return made
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -193,8 +197,10 @@ def _main(args: argparse.Namespace) -> int:
     try:
         return _run(args, run, outputs)
     except BaseException:
-        if made and not os.listdir(made):  # a run that wrote nothing leaves nothing behind
-            os.rmdir(made)
+        for folder in made:  # a run that wrote nothing leaves nothing behind
+            if os.listdir(folder):
+                break
+            os.rmdir(folder)
         raise
 
 

@@ -5,7 +5,8 @@
 
 The ground truth is a TUM file, or the source URL the estimate was made from when that source
 knows the truth: ``coloradar://RUN_DIR?heatmap=...`` (the heatmap radar's poses from the run's
-lidar ground truth and calib transforms) or ``replay://DIR`` (a recording's groundtruth.tum).
+lidar ground truth and calib transforms), ``replay://DIR`` (a recording's groundtruth.tum) or
+``sim://SCENE?seed=...&duration=...`` (the poses the simulator drives, no frame made).
 
 Prints a table of relative pose errors (per frame and per distance), the
 yaw-increment error, the absolute trajectory error after Umeyama alignment and
@@ -51,7 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("estimate", metavar="EST.tum", help="the estimated trajectory")
     parser.add_argument("reference", metavar="GT.tum|URL",
                         help="the ground truth: a TUM file, or the source URL the estimate came from "
-                             "(coloradar://RUN_DIR?heatmap=..., replay://DIR with a groundtruth.tum)")
+                             "(coloradar://RUN_DIR?heatmap=..., replay://DIR with a groundtruth.tum, "
+                             "sim://SCENE?seed=...&duration=... as the estimate's run had them)")
     parser.add_argument("--plot", metavar="DIR",
                         help="write PNG plots into DIR: report.png (all on one page) and one file per plot "
                              "(needs matplotlib)")
@@ -120,6 +122,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
     input or the other: checked before the work."""
     if args.plot and os.path.exists(args.plot) and not os.path.isdir(args.plot):
         raise UsageError(f"--plot {args.plot} is a file, not a directory")
+    if args.plot:
+        cli.check_writable_directory(args.plot, "--plot")
     outputs = [("--json", args.json)] if args.json else []
     if args.plot:
         outputs += [(f"--plot's {name}", os.path.join(args.plot, name))

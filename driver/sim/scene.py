@@ -283,8 +283,8 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
             raise ConfigError(f"a wall must be a table, got {wall!r}", path=where, field="walls")
         check_keys(wall, WALL_KEYS, where, "walls")
         pts = polyline(need(wall, "points", where), where, "walls.points")
-        height = num(wall, "height", 2.7, where, positive=True)
-        sigma0 = num(wall, "sigma0", 0.1, where, positive=True)
+        height = num(wall, "height", 2.7, where, positive=True, name="walls.height")
+        sigma0 = num(wall, "sigma0", 0.1, where, positive=True, name="walls.sigma0")
         for a, b in zip(pts[:-1], pts[1:]):
             parts.append(sample_surface(a, b, 0.0, height, sigma0, rng))
             segments.append((a, b))
@@ -300,10 +300,12 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
             raise ConfigError(f"must be above surfaces.min {surfaces['min']!r} in x and y, got {surfaces['max']!r}",
                               path=where, field="surfaces.max")
         if flag(surfaces, "floor", True, where, "surfaces.floor"):
-            parts.append(sample_plane(lo, hi, 0.0, num(surfaces, "floor_sigma0", 0.02, where, positive=True), rng))
+            floor_sigma0 = num(surfaces, "floor_sigma0", 0.02, where, positive=True, name="surfaces.floor_sigma0")
+            parts.append(sample_plane(lo, hi, 0.0, floor_sigma0, rng))
         if "ceiling" in surfaces:
-            ceil = sample_plane(lo, hi, num(surfaces, "ceiling", 2.7, where, positive=True),
-                                num(surfaces, "ceiling_sigma0", 0.02, where, positive=True), rng)
+            ceil = sample_plane(lo, hi, num(surfaces, "ceiling", 2.7, where, positive=True, name="surfaces.ceiling"),
+                                num(surfaces, "ceiling_sigma0", 0.02, where, positive=True,
+                                    name="surfaces.ceiling_sigma0"), rng)
             ceil.normal[:, 2] = -1.0
             parts.append(ceil)
     movers = []
@@ -315,7 +317,8 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         path = polyline(need(m, "path", where), where, "movers.path")
         if not np.hypot(*np.diff(path, axis=0).T).all():
             raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")
-        movers.append(Person(path, num(m, "speed", 1.2, where, positive=True), num(m, "rcs", 0.5, where, positive=True),
+        movers.append(Person(path, num(m, "speed", 1.2, where, positive=True, name="movers.speed"),
+                             num(m, "rcs", 0.5, where, positive=True, name="movers.rcs"),
                              float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
     trajectory = from_spec(need(spec, "trajectory", where), where)
     radar = spec.get("radar", {})
@@ -334,9 +337,10 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         multipath=flag(spec, "multipath", False, where),
         wall_reflection=within(num(spec, "wall_reflection", 0.3, where), 0.0, 1.0, where, "wall_reflection",
                                 " (an amplitude reflection coefficient)"),
-        snr_db=within(num(radar, "snr_db", 0.0, where), *SNR_DB_RANGE, where, "radar.snr_db", " dB"),
-        noise_counts=within(num(radar, "noise_counts", 5.0, where, positive=True), 0.0, MAX_NOISE_COUNTS, where,
-                             "radar.noise_counts", " ADC counts"),
+        snr_db=within(num(radar, "snr_db", 0.0, where, name="radar.snr_db"), *SNR_DB_RANGE, where, "radar.snr_db",
+                      " dB"),
+        noise_counts=within(num(radar, "noise_counts", 5.0, where, positive=True, name="radar.noise_counts"), 0.0,
+                            MAX_NOISE_COUNTS, where, "radar.noise_counts", " ADC counts"),
         source=where,
     )
 
@@ -354,10 +358,8 @@ def load_scene(name_or_path: str, *, seed: int = 0) -> Scene:
     try:
         with open(path, "rb") as fh:
             raw = fh.read()
-        if path.endswith(".json"):
-            spec = json.loads(raw.decode("utf-8"))
-        else:
-            spec = tomllib.loads(raw.decode("utf-8"))
+        text = raw.decode("utf-8-sig")  # a BOM (a Windows editor's) ignored
+        spec = json.loads(text) if path.endswith(".json") else tomllib.loads(text)
     except (UnicodeDecodeError, ValueError) as exc:  # TOMLDecodeError and JSONDecodeError are ValueErrors
         raise ConfigError(f"cannot parse: {exc}", path=path) from None
     return scene_from_dict(spec, seed=seed, where=path)

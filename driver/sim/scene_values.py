@@ -27,12 +27,13 @@ def vec(value, n: int, where: str, what: str) -> np.ndarray:
     return arr
 
 
-def num(d: dict, key: str, default: float, where: str, *, positive: bool = False) -> float:
+def num(d: dict, key: str, default: float, where: str, *, positive: bool = False, name: str | None = None) -> float:
+    """A number at *key* (*name*: its path in the file, when its table is not the top one)."""
     value = d.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
             or (positive and value <= 0):
         raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {value!r}",
-                          path=where, field=key)
+                          path=where, field=name or key)
     return float(value)
 
 

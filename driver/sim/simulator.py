@@ -153,8 +153,8 @@ class Simulator:
         self.num_frames = max(1, math.ceil(frames - 1e-9))
         if duration_s is not None and duration_s > scene.trajectory.duration_s + self.period:
             log.warning("duration %g s is longer than scene %s's trajectory (%.1f s): the sensor stands at its end "
-                        "for the rest (a sim:// stream's loop=N repeats the trajectory instead)", duration_s, scene.name,
-                        scene.trajectory.duration_s)
+                        "for the rest (shorten it, or loop a sim:// stream with loop=N)", duration_s,
+                        scene.name, scene.trajectory.duration_s)
         self.max_range_m = cfg.unambiguous_range_m
         amp_ref = scene.noise_counts * math.sqrt(2.0) * 10 ** (scene.snr_db / 20.0)
         #: ADC counts of a 1 m^2 target at 1 m on boresight.
@@ -296,6 +296,7 @@ class Simulator:
             scale = INT16_MAX / peak
             cube *= np.float32(scale)
             if not self._clip_warned:
-                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3f (lower the scene's radar.snr_db or noise_counts)", i, scale)
+                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3f (lower the scene's radar.snr_db or "
+                            "noise_counts)", i, scale)
                 self._clip_warned = True
         return SimFrame(i, t0, self.layout.encode(cube), self.groundtruth(t0), len(amp), scale)
