@@ -4,6 +4,7 @@ quality flags read from odometry messages; radar-eval --plot on a short simulate
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -354,3 +355,11 @@ def test_a_flags_file_with_a_byte_order_mark_reads(tmp_path):
     path = tmp_path / "flags.jsonl"
     path.write_bytes(b"\xef\xbb\xbf" + (odom_line(1.0, 0) + odom_line(1.1, 1)).encode())
     assert len(read_odometry_flags(path).times) == 2
+
+
+def test_the_json_may_go_into_the_plot_directory_the_run_makes(sim_run, tmp_path):
+    out = tmp_path / "new" / "eval"
+    proc = run_cli("radar-eval", sim_run.tum, sim_run.rec / "groundtruth.tum", "--plot", out, "--json", out / "n.json",
+                   timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((out / "n.json").read_text())["poses"]["matched"] == 30 and (out / "report.png").exists()

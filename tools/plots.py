@@ -129,16 +129,22 @@ def _report(new_figure: Callable[..., Any], data: panels.PlotData, name: str, li
     return fig
 
 
-def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, name: str,
-                    flags: FlagTimeline | None = None) -> list[str]:
-    """Write the evaluation's figures into *directory* (created if needed; PNGs of the same
-    names are replaced); returns their paths, ``report.png`` first."""
-    figures = evaluation_figures(result, name=name, flags=flags)
+def make_directory(directory: str | os.PathLike) -> str:
+    """*directory* (and its parents) made if it is not there; its path."""
     directory = os.fspath(directory)
     try:
         os.makedirs(directory, exist_ok=True)
     except OSError as exc:
         raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
+    return directory
+
+
+def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, name: str,
+                    flags: FlagTimeline | None = None) -> list[str]:
+    """Write the evaluation's figures into *directory* (created if needed; PNGs of the same
+    names are replaced); returns their paths, ``report.png`` first."""
+    figures = evaluation_figures(result, name=name, flags=flags)
+    directory = make_directory(directory)
     written = []
     for filename in file_names(flags=flags is not None):
         path = os.path.join(directory, filename)

@@ -105,6 +105,8 @@ def _main(args: argparse.Namespace) -> int:
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
     print(table)
     if args.json:
+        if args.plot:  # the --json file may be one of its files
+            plots.make_directory(args.plot)
         cli.write_output(args.json, json_text(data), overwrite=args.overwrite)  # the numbers are above
     if args.plot:
         if flags is not None:
@@ -135,8 +137,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
                              ("GT.tum", None if url else args.reference)],
                             args.reference if url else None, source_option="GT.tum|URL")
     cli.check_distinct(outputs, inputs)
-    if args.json:
-        cli.check_new_path(args.json, overwrite=args.overwrite)
+    if args.json:  # (it may go into a --plot directory the run makes)
+        plot = [(args.plot, "directory", "--plot")] if args.plot else []
+        cli.check_new_outputs(plot + [(args.json, "file", "--json")], overwrite=args.overwrite)
 
 
 def _source_groundtruth(url: str) -> TumTrajectory:
