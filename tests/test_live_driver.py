@@ -441,3 +441,23 @@ def test_cli_double_ctrl_c_while_sensor_start_hangs_leaves_a_usable_radar(small_
                 answer = f"no answer: {exc}"
         assert emu.stop() == 0
     assert answer in (Outcome.DONE, Outcome.IGNORED), answer
+
+
+def test_a_second_capture_on_the_same_ports_is_refused():
+    # With SO_REUSEADDR both bound: the second reset the board and each stop ended the other's stream.
+    from radarodom.driver.live.dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
+    from radarodom.driver.live.frame_ring import FrameRing
+    from radarodom.errors import DeviceError
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    settings = Dca1000Settings(host_ip="127.0.0.1", board_ip="127.0.0.1", config_port=port, data_port=port)
+    first = Dca1000Client(settings).open()
+    try:
+        with pytest.raises(DeviceError, match=f"127.0.0.1:{port}: .*Another program holds that port"):
+            Dca1000Client(settings).open()
+        with pytest.raises(DeviceError, match="Another program holds that port"):
+            Dca1000Receiver(settings, 1536, FrameRing(1536)).open()
+    finally:
+        first.close()

@@ -101,7 +101,6 @@ class Dca1000Client:
         s = self.settings
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.bind((s.host_ip, s.config_port))
         except OSError as exc:
             sock.close()
@@ -275,7 +274,6 @@ class Dca1000Receiver:
         s = self.settings
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, WANTED_RCVBUF)
             sock.bind((s.host_ip, s.data_port))
         except OSError as exc:
