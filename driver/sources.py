@@ -259,6 +259,17 @@ def positive_number(text: str) -> float:
 
 
 positive_number.limit = f"at most {MAX_URL_NUMBER:g}"  # type: ignore[attr-defined]
+
+
+def number_in(lo: float, hi: float) -> Callable[[str], float]:
+    """A ``UrlOptions.take`` converter: a plain decimal number from *lo* to *hi*."""
+    def convert(text: str) -> float:
+        value = plain_float(text)
+        if value is None or not lo <= value <= hi:
+            raise ValueError(text)
+        return value
+    convert.limit = f"from {lo:g} to {hi:g}"  # type: ignore[attr-defined]
+    return convert
 parse_rate.limit = positive_number.limit  # type: ignore[attr-defined]
 
 

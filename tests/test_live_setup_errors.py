@@ -125,6 +125,10 @@ def test_radar_emulate_refuses_a_command_port_in_use_in_one_line():
     ("dca1000://192.168.33.180:4096?cli=/dev/null", ("'192.168.33.180:4096'", "board_port=")),
     ("dca1000://?host=my-laptop&cli=/dev/null", ("host 'my-laptop' is not an IPv4 address",)),
     ("dca1000://board.local", ("board address 'board.local'",)),  # said before a CLI port is looked for
+    # An internal struct error, a stream thread that died, 71 TiB asked for:
+    ("dca1000://?cli=/dev/null&delay=600", ("option delay='600'", "from 5 to 500")),
+    ("dca1000://?cli=/dev/null&delay=3", ("option delay='3'", "from 5 to 500")),
+    ("dca1000://?cli=/dev/null&buffers=100000000", ("option buffers=100000000", "GiB of memory", "at most 2730")),
 ])
 def test_a_board_or_host_that_is_not_an_ipv4_address_is_a_usage_error(url, words):
     proc = subprocess.run(console_command("radar-capture") + ["--source", url, "--no-publish", "--frames", "1"],

@@ -10,8 +10,8 @@ import time
 from typing import Callable
 
 from ..live.dca1000_wire import (
-    AsyncStatus, CaptureMode, Command, EepromConfig, FormatMode, FpgaConfig, LogMode, LvdsMode, PacketConfig,
-    Request, Response, Status, TransferMode, WireError)
+    PACKET_DELAY_RANGE_US, AsyncStatus, CaptureMode, Command, EepromConfig, FormatMode, FpgaConfig, LogMode, LvdsMode,
+    PacketConfig, Request, Response, Status, TransferMode, WireError)
 from .dca1000_faults import StreamStats
 from .dca1000_streamer import _WAIT_SLICE_S
 
@@ -20,8 +20,6 @@ log = logging.getLogger(__name__)
 #: CONFIG_PACKET_DATA packet sizes the board accepts (DG: 48..1472).
 MIN_PACKET_SIZE = 48
 MAX_PACKET_SIZE = 1472
-#: Packet delays the DG documents, us; others are accepted with a warning.
-PACKET_DELAY_RANGE_US = (5.0, 500.0)
 #: Largest datagram the config socket reads (a request is at most 512 bytes).
 _RECV_BYTES = 65535
 #: The two response statuses a command gets.
@@ -152,7 +150,7 @@ class CommandPort:
                         "%d..%d", pkt.packet_size, MIN_PACKET_SIZE, MAX_PACKET_SIZE)
             return _FAILURE
         lo, hi = PACKET_DELAY_RANGE_US
-        if not lo <= pkt.delay_us <= hi:
+        if not lo <= pkt.delay_us <= hi:  # accepted with a warning, as the board takes them
             log.warning("fake DCA1000: packet delay %.3f us is outside the documented "
                         "%g..%g us", pkt.delay_us, lo, hi)
         with self._cond:

@@ -38,9 +38,9 @@ from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
-from .dca1000_wire import BOARD_IP, HOST_IP, AsyncStatus
+from .dca1000_wire import BOARD_IP, HOST_IP, PACKET_DELAY_RANGE_US, AsyncStatus
 from .frame_ring import POLICIES, FrameRing
-from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number, udp_port
+from ..sources import Frame, Source, UrlOptions, at_least, number_in, one_of, positive_number, udp_port
 
 log = logging.getLogger(__name__)
 
@@ -281,6 +281,10 @@ class LiveSource(Source):
             self._record_stopped = True
 
 
+#: The most memory the frames waiting for the pipeline may take (``buffers=`` times a frame).
+MAX_RING_BYTES = 2**31
+
+
 def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> LiveSource:
     defaults = Dca1000Settings()
     board = path.strip("/") or defaults.board_ip
@@ -289,7 +293,7 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     config_port = options.take("config_port", udp_port, defaults.config_port, "a UDP port")
     data_port = options.take("data_port", udp_port, defaults.data_port, "a UDP port")
     board_port = options.take("board_port", udp_port, defaults.board_port, "a UDP port")
-    delay = options.take("delay", positive_number, defaults.packet_delay_us, "packet delay in us")
+    delay = options.take("delay", number_in(*PACKET_DELAY_RANGE_US), defaults.packet_delay_us, "packet delay in us")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
     timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")
@@ -311,6 +315,10 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
                                data_port=data_port, packet_delay_us=delay, timeout_s=timeout,
                                stop_timeout_s=stop_timeout)
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
+    if buffers * cfg.frame_bytes > MAX_RING_BYTES:
+        raise SourceError(f"{options.url}: option buffers={buffers}: {buffers} frames of {cfg.frame_bytes} bytes "
+                          f"need {buffers * cfg.frame_bytes / 2**30:.1f} GiB of memory; at most "
+                          f"{MAX_RING_BYTES // cfg.frame_bytes} with this cfg")
     return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout,
                       cli_timeout_s=cli_timeout)
 
