@@ -156,6 +156,7 @@ class Pipeline:
         try:
             self._stream(on_frame)
         except BaseException as failure:
+            stats.reason = "stopped by an error"
             stats.elapsed_s = time.monotonic() - stats.started_monotonic
             try:
                 self._finish()

@@ -15,7 +15,7 @@ import re
 import time
 
 import pytest
-from conftest import warning_messages
+from conftest import SMALL_CFG, warning_messages
 from live_helpers import (
     URL_TIMEOUTS,
     Emulator,
@@ -23,6 +23,7 @@ from live_helpers import (
     assert_continuous,
     assert_frames_match,
     collect_until_stopped,
+    wait_until,
 )
 from radarodom.pipeline import CaptureSink, Pipeline
 from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
@@ -268,3 +269,32 @@ def test_board_sees_the_stop_sequence_once(small_capture, small_cfg):
             collect_until_stopped(src, 2)
         assert rig.board.commands.get(Command.RECORD_STOP) == 1
         assert rig.radar.received[-1] == "sensorStop" and rig.radar.received.count("sensorStart") == 1
+
+
+def test_cli_a_board_that_stops_mid_run_still_gets_its_summary(small_capture, small_cfg, tmp_path, capsys):
+    """The radar stops streaming mid-run (a reset, a cable): radar-capture prints what it kept and
+    lost, then the one error line, and the recording is closed."""
+    import threading
+
+    from radarodom.tools import radar_capture
+
+    directory, _ = small_capture
+    out = tmp_path / "rec"
+    (tmp_path / "small.cfg").write_text(SMALL_CFG)
+    with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
+        def radar_dies():
+            if wait_until(lambda: (out / "timestamps.txt").exists()
+                          and len((out / "timestamps.txt").read_text().splitlines()) >= 3, 30.0):
+                rig.board.lvds_stop()  # nothing else says so
+
+        killer = threading.Thread(target=radar_dies, daemon=True)
+        killer.start()
+        code = radar_capture.main(["--source", rig.url(**URL_TIMEOUTS), "--cfg", str(tmp_path / "small.cfg"),
+                                   "--no-publish", "--no-odom", "-q", "--record", str(out)])
+        killer.join(30.0)
+    stdout, stderr = capsys.readouterr()
+    assert code == 1 and "Was the radar reset, or its cable moved?" in stderr, stderr
+    rec = CaptureDirectory(out)
+    assert rec.metadata["closed"] is True and rec.num_frames >= 3
+    assert stdout.startswith(f"radar-capture: {rec.num_frames} frames (") and "; stopped by an error; recorded to" \
+        in stdout and "packets lost (sequence gaps)" in stdout, stdout

@@ -29,7 +29,7 @@ from typing import Iterator, Sequence
 from ..cfg import RadarConfig
 from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Source, open_source
-from ..errors import ConfigError, UsageError
+from ..errors import ConfigError, RadarodomError, UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline.products import check_features_fit
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
@@ -162,6 +162,19 @@ def _summary(stats: PipelineStats, record: str | None) -> str:
             f"{stats.reason}")
     if record:
         text += f"; recorded to {record}"
+    return text
+
+
+def _stream_summary(args: argparse.Namespace, source: Source, stats: PipelineStats) -> str:
+    """The frames, the odometry and what the stream lost (a live source's or a serial stream's
+    accounting)."""
+    live = source.describe()
+    text = _summary(stats, args.record) + _odometry_summary(stats, None if args.no_odom else args.odom_out)
+    if "frames_dropped" in live:
+        text += _live_summary(live, stats)
+    elif "discarded_bytes" in live:  # a serial stream (tidemo://, its replay): what the framer lost
+        text += (f"; {live['frames_skipped']} frame numbers skipped, {live['rejected_packets']} packets "
+                 f"rejected, {live['discarded_bytes']} bytes discarded")
     return text
 
 
@@ -371,15 +384,14 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     with _stop_on_signals(pipeline):
         try:
             stats = pipeline.run(on_frame)
+        except RadarodomError:
+            status.clear()
+            if pipeline.stats.frames:  # what was kept and lost, then the error (a board that died, a cable)
+                print(f"radar-capture: {_stream_summary(args, source, pipeline.stats)}")
+            raise
         finally:
             status.clear()
-    live = source.describe()
-    summary = _summary(stats, args.record) + _odometry_summary(stats, None if args.no_odom else args.odom_out)
-    if "frames_dropped" in live:
-        summary += _live_summary(live, stats)
-    elif "discarded_bytes" in live:  # a serial stream (tidemo://, its replay): what the framer lost
-        summary += (f"; {live['frames_skipped']} frame numbers skipped, {live['rejected_packets']} packets "
-                    f"rejected, {live['discarded_bytes']} bytes discarded")
+    summary = _stream_summary(args, source, stats)
     if publisher is not None:
         counts = publisher.counts
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
