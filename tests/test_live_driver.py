@@ -418,6 +418,24 @@ def test_cli_ctrl_c_while_sensor_start_hangs(small_capture, tmp_path):
         assert emu.stop() == 0
 
 
+def test_cli_sigterm_while_the_radar_is_set_up_is_handled_as_ctrl_c(small_capture, tmp_path):
+    """SIGTERM (a service manager's stop) before the stream runs killed radar-capture and
+    radar-calibrate at once, the radar left configured; now it is what a Ctrl-C is there: the
+    sensorStart wait runs out, the radar is reset through the DCA1000, and the program exits."""
+    import signal
+
+    directory, _ = small_capture
+    with Emulator("--capture", directory, "--hang-on-start", "-v") as emu:
+        capture = Process(emu.capture_argv("--frames", 1, url_extra="start_timeout=1.5"))
+        _wait_for_hung_start(emu, capture)
+        capture.proc.send_signal(signal.SIGTERM)
+        code = capture.wait(10)
+        capture.kill()
+        _, stderr = capture.output()
+        assert code == 1 and "sensorStart got no answer" in stderr and "RESET_AR_DEV" in stderr, stderr
+        assert "Traceback" not in stderr
+
+
 def test_cli_double_ctrl_c_while_sensor_start_hangs_leaves_a_usable_radar(small_capture, tmp_path):
     """Two Ctrl-C abort at once (exit 130, documented in radar_capture.py); the radar
     must still be left answering its CLI for the next session."""

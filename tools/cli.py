@@ -188,7 +188,12 @@ def run(
     setup_logging(prog, args, handler)
     verbose = getattr(args, "verbose", False)
     try:
-        return int(main(args) or 0)
+        with _sigterm_interrupts():
+            return int(main(args) or 0)
+    except _Terminated as exc:  # a service manager's stop: what Ctrl-C does (the radar stopped), then 143
+        print(f"{prog}: terminated", file=sys.stderr)
+        _print_notes(prog, exc)
+        return 128 + signal.SIGTERM
     except RadarodomError as exc:
         if handler is not None:
             handler.flush()
@@ -210,6 +215,29 @@ def run(
         if verbose:
             traceback.print_exc()
         return 1
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, so that its cleanup runs as for Ctrl-C."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise _Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """SIGTERM raises :class:`_Terminated` while the block runs (a program streaming installs
+    its own stop handler, :func:`on_stop_signals`, and this one is back after it)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:  # not the main thread (a program run from a test's or a notebook's thread)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @contextlib.contextmanager
