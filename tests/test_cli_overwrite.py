@@ -348,3 +348,6 @@ def test_an_output_in_a_read_only_directory_is_refused_before_the_work(tmp_path,
         rc, err = capture(capsys, "--odom-out", locked / name, *extra)
         assert rc == 2 and f"cannot create {locked / name}: the directory {locked} is not writable" in err
     assert (locked / "odom.tum").read_text() == "old\n"
+    rc, err = capture(capsys, "--record", locked / "run" / "rec")  # a new directory, made with its parents
+    assert rc == 2 and f"--record {locked / 'run' / 'rec'}: the directory {locked} is not writable" in err
+    assert sorted(p.name for p in locked.iterdir()) == ["odom.tum"]

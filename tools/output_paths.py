@@ -141,9 +141,10 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
     from ..driver.recordings.capture_writer import foreign_data
 
     made = {os.path.realpath(path) for path, kind, _ in outputs if kind != "file" and not os.path.exists(path)}
-    for path, kind, _ in outputs:
+    for path, kind, option in outputs:
         if kind != "file" and not os.path.exists(path):
-            continue  # a new directory is checked by its writer (which makes its parents)
+            check_writable_directory(path, option)  # the rest by its writer (which makes its parents)
+            continue
         if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
             continue
         check_new_path(path, is_dir=kind != "file", overwrite=overwrite)
