@@ -734,3 +734,15 @@ def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_pat
     assert (out / "adc_data.bin").stat().st_size == 3 * frame_bytes  # the cut frame's part taken back
     assert not (out / "capture.json.tmp").exists()
     assert CaptureDirectory(out).num_frames == 3
+
+
+def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usage():
+    from radarodom.tools import radar_echo
+
+    proc = run_capture_cli("--mount", "0,0,0")
+    assert proc.returncode == 2 and proc.stderr == ("radar-capture: error: argument --mount: a mount is x,y,z,yaw_deg "
+                                                    "(four numbers: m, m, m, degrees), got '0,0,0'\n"), proc.stderr
+    proc = run_capture_cli("--bogus")
+    assert proc.returncode == 2 and proc.stderr.startswith("usage: radar-capture")
+    assert proc.stderr.splitlines()[-1] == "radar-capture: error: unrecognized arguments: --bogus"
+    assert radar_echo.main(["--count", "0"]) == 2

@@ -179,6 +179,7 @@ def run(
     handler: logging.Handler | None = None,
 ) -> int:
     """Parse *argv*, run *main*, and turn what it raises into an exit code."""
+    parser.error = _option_error(parser)  # type: ignore[method-assign]
     try:
         args = parser.parse_args(_attach_negative_lists(parser, sys.argv[1:] if argv is None else list(argv)))
         _refuse_empty_values(parser, args)
@@ -215,6 +216,19 @@ def run(
         if verbose:
             traceback.print_exc()
         return 1
+
+
+def _option_error(parser: argparse.ArgumentParser) -> Callable[[str], None]:
+    """argparse's error, but one line for an option's bad value ("argument --mount: ..."): the
+    usage above it (a dozen lines) is for a command line of the wrong shape (a missing or an
+    unknown argument), where it helps."""
+    usage_error = parser.error
+
+    def error(message: str) -> None:
+        if not message.startswith("argument "):
+            usage_error(message)
+        parser.exit(2, f"{parser.prog}: error: {message}\n")
+    return error
 
 
 class _Terminated(KeyboardInterrupt):
