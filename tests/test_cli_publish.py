@@ -223,3 +223,13 @@ def test_a_publishing_option_with_no_publish_is_refused_not_ignored(recording, o
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr == (f"radar-capture: error: {option[0]} is about publishing over Zenoh, which --no-publish "
                            "turns off: drop one\n")
+
+
+@pytest.mark.parametrize("option, message", [
+    (["--ros2-topic", "/robot/odom"], "--ros2-topic names the ROS 2 odometry topic: add --ros2 (publish it) or --mcap "
+                                     "FILE (write it to a bag)"),
+    (["--ros2-domain", "3"], "--ros2-domain is the ROS 2 domain of --ros2's messages: add --ros2")])
+def test_a_ros2_option_without_ros2_is_refused_not_ignored(recording, option, message):
+    # It published the radarodom messages alone, the option silently unused.
+    proc = run_capture_cli("--source", f"replay://{recording}?rate=max", *option)
+    assert proc.returncode == 2 and proc.stdout == "" and proc.stderr == f"radar-capture: error: {message}\n"

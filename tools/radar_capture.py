@@ -253,6 +253,11 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
              if not (option == "--ros2-topic" and args.mcap)]
     if given:
         raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
+    if "--ros2-topic" in options_given(args) and not (args.ros2 or args.mcap):
+        raise UsageError("--ros2-topic names the ROS 2 odometry topic: add --ros2 (publish it) or --mcap FILE "
+                         "(write it to a bag)")
+    if "--ros2-domain" in options_given(args) and not args.ros2:
+        raise UsageError("--ros2-domain is the ROS 2 domain of --ros2's messages: add --ros2")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     # Read the estimator's settings before any hardware is touched.
     args.estimator = _estimator_config(args)
