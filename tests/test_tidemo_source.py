@@ -170,3 +170,13 @@ def test_a_port_path_that_is_not_there_is_named(url, words):
     with pytest.raises(SourceError) as info:
         open_source(url, RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
     assert str(info.value) == f"{url}: {words} (radar-devices lists what is connected)"
+
+
+def test_one_port_given_as_both_cli_and_data_is_refused(tmp_path):
+    # Swapped or doubled ports ended in "the radar did not answer 'sensorStop'" with no fix.
+    dev = tmp_path / "ttyACM0"
+    dev.write_text("")
+    link = tmp_path / "radar"
+    link.symlink_to(dev)
+    with pytest.raises(SourceError, match="the CLI port and the data port are both .*USB interface 0"):
+        open_source(f"tidemo://{dev}?cli={link}", RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))

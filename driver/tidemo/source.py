@@ -281,5 +281,9 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
         if port and port.startswith("/") and not os.path.exists(port):  # a device path, not a pyserial URL
             raise SourceError(f"{options.url}: no {what} {port} (radar-devices lists what is connected)")
     cli, data = demo_ports(cli, path or None)
+    same = cli == data if "://" in cli + data else os.path.realpath(cli) == os.path.realpath(data)
+    if same:
+        raise SourceError(f"{options.url}: the CLI port and the data port are both {data}: the board has two (the "
+                          "CLI on USB interface 0, the data on interface 3; radar-devices lists them)")
     return TidemoSource(cfg, data, cli, baud=baud, max_points=max_points, policy=policy, buffers=buffers,
                         cli_timeout_s=cli_timeout, start_timeout_s=start_timeout)
