@@ -137,8 +137,12 @@ class ChannelCalibrator:
         bins = np.flatnonzero((self.proc.range_m >= lo) & (self.proc.range_m <= hi))
         near, far = self.proc.detection_range_m  # beyond: the IF filter's roll-off
         if hi > far or lo < near:
-            raise UsageError(f"{lo:.2f} m to {hi:.2f} m is outside the range this cfg measures well "
-                             f"({near:g} m to {far:.2f} m): place the reflector within it")
+            fix = ("place the reflector within it" if not near <= self.distance_m <= far else
+                   f"narrow the search window (at most +/- {min(self.distance_m - near, far - self.distance_m):.2f} "
+                   "m here)")
+            raise UsageError(f"the reflector at {self.distance_m:g} m +/- {self.window_m:g} m (the search window) "
+                             f"spans {lo:.2f} m to {hi:.2f} m, outside the range this cfg measures well "
+                             f"({near:g} m to {far:.2f} m): {fix}")
         if len(bins) < 3:
             raise UsageError(f"the search window +/- {self.window_m:g} m holds {len(bins)} range bin(s) of "
                                    f"{step * 100:.1f} cm: widen it to at least {1.5 * step:.2f} m")

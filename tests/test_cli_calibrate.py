@@ -261,6 +261,11 @@ def test_library_refusals_say_which_limit():
     # The cfg's cfarFovCfg (10 m) is capped at the usable range, 80 % of the IF band (9.99 m).
     with pytest.raises(UsageError, match=r"outside the range this cfg measures well \(0.3 m to 9.99 m\)"):
         measure(cfg, [], 11.0)  # within the FFT, beyond the usable range: the IF filter's roll-off
+    # A reflector within the range whose window is not: the window is what to change.
+    with pytest.raises(UsageError, match=r"at 9.9 m \+/- 0.2 m .* narrow the search window \(at most \+/- 0.09 m"):
+        measure(cfg, [], 9.9)
+    with pytest.raises(UsageError, match=r"spans -2.00 m to 8.00 m, .*narrow the search window"):
+        measure(cfg, [], 3.0, window_m=5.0)
     proc = run("--source", "sim://calibration?rate=max", "--distance", 3, "--search-window", 0.01)
     assert proc.returncode == 2 and "widen it" in proc.stderr
 
