@@ -402,6 +402,8 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
                     f"{counts['heatmap']} heatmap and {counts['status']} status messages under "
                     f"{publisher.options.key_prefix}")
+    if args.mcap:
+        summary += f"; ROS 2 bag {args.mcap}"
     return summary + view_option.summary(args, pipeline.sinks)
 
 
