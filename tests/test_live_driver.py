@@ -403,6 +403,7 @@ def test_cli_ctrl_c_while_sensor_start_hangs(small_capture, tmp_path):
         _, stderr = capture.output()
         assert code == 1, stderr  # the wait ran out (SensorStartHung), the Ctrl-C did not abort it
         assert "sensorStart got no answer" in stderr and "RESET_AR_DEV" in stderr, stderr
+        assert "stopping once the source is up" in stderr, stderr  # said at the Ctrl-C, not after the wait
         assert "Traceback" not in stderr
         if out.exists():
             rec = CaptureDirectory(out)
