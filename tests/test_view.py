@@ -13,6 +13,7 @@ import collections
 import json
 import math
 import os
+import signal
 import re
 import subprocess
 import sys
@@ -403,3 +404,25 @@ def test_a_run_that_sees_no_frame_takes_back_its_bag_and_rrd(tmp_path, capsys):
     assert empty.exists()
     sink.close(PipelineStats())
     assert sink.finished and not empty.exists()
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs a POSIX file-size limit to make the write fail")
+def test_a_saved_view_that_could_not_be_written_fails_the_run(tmp_path):
+    """A .rrd whose writes fail (a full disk; here the process's file-size limit) is an output
+    lost: the run prints its summary, then one error line, and exits 1 (it exited 0, '20 frames
+    drawn')."""
+    import resource
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails instead of killing
+        resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, 200_000))
+
+    rrd = tmp_path / "v.rrd"
+    proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source",
+                           "sim://corridor?rate=max&duration=2", "--no-publish", "-q", "--view", f"save:{rrd}"],
+                          capture_output=True, text=True, timeout=GUARD_S, preexec_fn=small_files,
+                          env={**os.environ, "RERUN_ANALYTICS": "0"})
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stdout.startswith("radar-capture: 20 frames") and "view: 20 frames drawn" in proc.stdout
+    assert f"radar-capture: error: --view save:{rrd}: the file is incomplete" in proc.stderr
+    assert "Traceback" not in proc.stderr

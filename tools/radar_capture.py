@@ -29,7 +29,7 @@ from typing import Iterator, Sequence
 from ..cfg import RadarConfig
 from ..driver.recordings.capture_dir import CaptureWriter
 from ..driver.sources import SCHEMES, Source, open_source
-from ..errors import ConfigError, RadarodomError, UsageError
+from ..errors import CaptureError, ConfigError, RadarodomError, UsageError
 from ..estimator.config import EstimatorConfig
 from ..pipeline.products import check_features_fit
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
@@ -407,7 +407,12 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
                     f"{publisher.options.key_prefix}")
     if args.mcap:
         summary += f"; ROS 2 bag {args.mcap}"
-    return summary + view_option.summary(args, pipeline.sinks)
+    summary += view_option.summary(args, pipeline.sinks)
+    problem = view_option.saved_problem(args, pipeline.sinks)
+    if problem:
+        print(f"radar-capture: {summary}")
+        raise CaptureError(problem)
+    return summary
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -91,3 +91,17 @@ def summary(args: argparse.Namespace, sinks: list) -> str:
     from ..view import ViewSink
 
     return "".join(f"; view: {s.summary}" for s in sinks if isinstance(s, ViewSink))
+
+
+def saved_problem(args: argparse.Namespace, sinks: list) -> str | None:
+    """Why ``--view save:FILE.rrd`` is not the whole view (a write that failed, a drawing that
+    did not finish), or None: a file the run meant to keep is an output like the others, whose
+    loss fails the run (a viewer that went away does not)."""
+    if args.view is None or args.view.kind != "save":
+        return None
+    from ..view import ViewSink
+
+    for sink in sinks:
+        if isinstance(sink, ViewSink) and (sink.problem or not sink.finished):
+            return f"--view save:{args.view.path}: the file is incomplete ({sink.problem or 'the view did not finish'})"
+    return None

@@ -161,6 +161,8 @@ class Drawing:
             self.scene.close()
         except Exception as exc:  # noqa: BLE001 (what the radar recorded matters more than the view)
             log.warning("the view did not close cleanly: %s: %s", type(exc).__name__, exc)
+            if self.failure is None:  # (a file's writer that failed, a full disk, says so only here)
+                self.failure = f"the view did not close cleanly: {type(exc).__name__}: {exc}"
 
 
 class ThreadDrawer:
