@@ -14,6 +14,7 @@ import json
 import math
 import os
 import signal
+import socket
 import re
 import subprocess
 import sys
@@ -426,3 +427,13 @@ def test_a_saved_view_that_could_not_be_written_fails_the_run(tmp_path):
     assert proc.stdout.startswith("radar-capture: 20 frames") and "view: 20 frames drawn" in proc.stdout
     assert f"radar-capture: error: --view save:{rrd}: the file is incomplete" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_connect_to_where_no_viewer_listens_is_refused_before_the_run(capture, capsys):
+    # Rerun waited for it: 30 s at the end, the live radar's frames counted as dropped meanwhile.
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]  # closed again: nothing listens there
+    rc, out, err = capture_main(["--source", capture, "--no-publish", "--view", f"connect:127.0.0.1:{port}"], capsys)
+    assert rc == 2 and out == ""
+    assert f"no Rerun viewer answers at rerun+http://127.0.0.1:{port}/proxy" in err and "--view spawn" in err

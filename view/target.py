@@ -62,6 +62,10 @@ def grpc_url(address: str) -> str:
     return f"rerun+http://{host}:{int(port)}/proxy"
 
 
+#: How long a --view connect: viewer may take to accept a connection before the run starts, s.
+CONNECT_PROBE_S = 2.0
+
+
 def check(target: ViewTarget) -> None:
     """What can be known before Rerun starts: a display to spawn a viewer on, free ports."""
     if target.kind == "spawn" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
@@ -70,6 +74,21 @@ def check(target: ViewTarget) -> None:
                          "from a browser, or save the view (--view save:FILE.rrd)")
     if target.kind == "web":
         _check_free(target)
+    if target.kind == "connect":
+        _check_listening(grpc_url(target.address))
+
+
+def _check_listening(url: str) -> None:
+    """Rerun waits for a viewer that is not there (30 s at the end, the run's frames dropped
+    meanwhile): say so before anything starts."""
+    parts = urllib.parse.urlsplit(url)
+    host, port = parts.hostname, parts.port or (443 if parts.scheme.endswith("https") else 80)
+    try:
+        with socket.create_connection((host, port), timeout=CONNECT_PROBE_S):
+            pass
+    except OSError as exc:
+        raise UsageError(f"no Rerun viewer answers at {url} ({exc.strerror or exc}): start one there (rerun), "
+                         "or spawn one here (--view spawn), or save the view (--view save:FILE.rrd)") from None
 
 
 def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, config: RadarConfig | None = None,
