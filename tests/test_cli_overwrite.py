@@ -351,3 +351,16 @@ def test_an_output_in_a_read_only_directory_is_refused_before_the_work(tmp_path,
     rc, err = capture(capsys, "--record", locked / "run" / "rec")  # a new directory, made with its parents
     assert rc == 2 and f"--record {locked / 'run' / 'rec'}: the directory {locked} is not writable" in err
     assert sorted(p.name for p in locked.iterdir()) == ["odom.tum"]
+
+
+def test_a_ctrl_c_while_a_program_imports_is_one_line(monkeypatch, capsys):
+    # The programs' modules take tenths of a second to import (numpy, scipy): a Ctrl-C then ended
+    # in Python's traceback, before the program's own handling was in place.
+    from radarodom.tools import launch
+
+    def interrupted(name, *args, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib, "import_module", interrupted)
+    assert launch.radar_capture(["--version"]) == 130
+    assert capsys.readouterr().err == "radar-capture: interrupted\n"
