@@ -34,6 +34,7 @@ instability; 0 for a perfect measurement).
 from __future__ import annotations
 
 import math
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,8 @@ from ..cfg import RadarConfig
 from ..errors import CalibrationError, ConfigError, UsageError
 from .config import DspConfig
 from .points import invert_three_bins
+
+log = logging.getLogger(__name__)
 from .processor import FrameProcessor, three_bin_response
 
 #: The reflector's zero-Doppler cell over the noise, dB, at least (summed over the antennas,
@@ -58,6 +61,9 @@ ALONE_MARGIN_DB = 15.0
 MAX_RANK_ONE_RESIDUAL_DEG = 3.0
 #: The azimuth row's plane-wave direction, degrees from boresight, at most.
 MAX_APPARENT_AZIMUTH_DEG = 8.0
+#: A measured range this far from the distance given is more likely a distance measured wrong
+#: than a board's range bias (a few centimetres): said, not refused, m.
+LARGE_RANGE_BIAS_M = 0.10
 #: The reflector's range over the frames, max - min, in range bins, at most.
 MAX_RANGE_SPREAD_BINS = 0.5
 #: Another local maximum of the range profile this many bins or more from the reflector's peak
@@ -218,6 +224,10 @@ class ChannelCalibrator:
                 "boresight, at the antennas' height; if it is there, the board's own errors are that large: allow "
                 "them with --max-azimuth DEG")
         calibration = ChannelCalibration.from_response(response, measured - self.distance_m)
+        if abs(measured - self.distance_m) > LARGE_RANGE_BIAS_M:
+            log.warning("the reflector reads %.3f m, %.0f cm from the distance given (%g m): a board's range bias "
+                        "is a few centimetres; check the distance (to the reflector's corner, from the antennas)",
+                        measured, 100 * abs(measured - self.distance_m), self.distance_m)
         corrected = samples * calibration.for_array(self.cfg.virtual_array).ravel()[None, :]
         common = np.sum(corrected, axis=1, keepdims=True)
         residual = float(np.degrees(np.sqrt(np.mean(np.angle(corrected * np.conj(common)) ** 2))))

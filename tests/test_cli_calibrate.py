@@ -273,3 +273,12 @@ def test_library_refusals_say_which_limit():
 def test_no_source_and_no_radar_says_what_to_do():
     proc = run("--distance", 3)
     assert proc.returncode == 2 and "no radar found" in proc.stderr and "sim://calibration" in proc.stderr
+
+
+def test_a_distance_far_from_what_the_reflector_reads_is_said():
+    # 22 cm off was written as the board's range bias without a word (a few cm is a board's).
+    proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3.22, "--frames", 5)
+    assert proc.returncode == 0, proc.stderr
+    assert "from the distance given (3.22 m): a board's range bias is a few centimetres" in proc.stderr
+    proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--frames", 5)
+    assert proc.returncode == 0 and "range bias is a few centimetres" not in proc.stderr
