@@ -10,7 +10,7 @@ import pytest
 
 from radarodom.estimator.odometry import OdometryState
 from radarodom.pipeline import PipelineStats
-from radarodom.tools import radar_capture
+from radarodom.tools import capture_text
 from radarodom.tools.status import Field, StatusLine, fit_fields, format_yaw, terminal_columns, wrap_degrees
 
 
@@ -40,14 +40,14 @@ def _stats(yaw_deg: float = -450.0, flags=()) -> PipelineStats:
 @pytest.mark.parametrize("recording", [False, True])
 def test_the_line_fits_80_and_40_columns_keeping_the_pose(live, recording):
     stats, source = _stats(), _Source(live)
-    whole = radar_capture._status_text(stats, recording, source, None)
+    whole = capture_text.status_text(stats, recording, source, None)
     assert len(whole) > 80  # a log gets every field
     assert "elapsed 02:03.4" in whole and "latency 12/12 ms" in whole and "yaw -90.0 deg (turned -450)" in whole
     for width in (80, 40):
-        line = radar_capture._status_text(stats, recording, source, width)
+        line = capture_text.status_text(stats, recording, source, width)
         assert len(line) <= width - 1, (width, line)
         assert "x -12.35 y 104.50 m" in line and "yaw -90.0 deg" in line, line  # the pose stays
-    line80 = radar_capture._status_text(stats, recording, source, 80)
+    line80 = capture_text.status_text(stats, recording, source, 80)
     assert "frames 1234" in line80 and ("[rec]" in line80) == recording
     if live:  # the live radar's losses matter more than the rate
         assert "dropped 3" in line80 and "lost 12" in line80
@@ -56,13 +56,13 @@ def test_the_line_fits_80_and_40_columns_keeping_the_pose(live, recording):
 
 def test_a_bad_step_flag_is_kept_before_the_speed():
     stats = _stats(yaw_deg=10.0, flags=("velocity_held",))
-    line = radar_capture._status_text(stats, False, _Source(), 60)
+    line = capture_text.status_text(stats, False, _Source(), 60)
     assert "[velocity_held]" in line and len(line) <= 59
 
 
 def test_a_long_flag_list_is_shortened_and_the_frame_count_stays():
     stats = _stats(yaw_deg=10.0, flags=("velocity_held", "yaw_held", "few_features"))
-    line = radar_capture._status_text(stats, False, _Source(), 80)
+    line = capture_text.status_text(stats, False, _Source(), 80)
     assert line.startswith("frames 1234  ") and "[velocity_held,+2]" in line and len(line) <= 79
 
 
@@ -98,7 +98,7 @@ def test_yaw_text_shows_the_total_turned_only_when_it_differs():
 
 
 def test_the_summary_wraps_the_yaw_too():
-    text = radar_capture._odometry_summary(_stats(yaw_deg=270.0), None)
+    text = capture_text.odometry_summary(_stats(yaw_deg=270.0), None)
     assert "yaw -90.0 deg (turned 270)," in text
 
 
