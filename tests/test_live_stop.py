@@ -298,3 +298,21 @@ def test_cli_a_board_that_stops_mid_run_still_gets_its_summary(small_capture, sm
     assert rec.metadata["closed"] is True and rec.num_frames >= 3
     assert stdout.startswith(f"radar-capture: {rec.num_frames} frames (") and "; stopped by an error; recorded to" \
         in stdout and "packets lost (sequence gaps)" in stdout, stdout
+
+
+def test_frames_after_the_consumer_left_are_not_counted_as_dropped(small_capture, small_cfg):
+    """A consumer that leaves (a frame limit) while the board still sends: what arrives after is
+    not its, neither delivered nor counted (it was counted as dropped by slow processing while
+    the source stayed open, a slow view's close of 30 s giving 80 'dropped' in a 20-frame run)."""
+    directory, _ = small_capture
+    with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
+        with open_source(rig.url(**URL_TIMEOUTS), small_cfg) as src:
+            for k, _frame in enumerate(src):
+                if k == 2:
+                    break
+            left = src.describe()
+            packets_per_frame = -(-small_cfg.frame_bytes // MAX_DATA_BYTES)
+            assert wait_until(lambda: src.describe()["packets"] > left["packets"] + 12 * packets_per_frame, 30.0)
+            after = src.describe()
+    assert left["frames_dropped"] == after["frames_dropped"] == 0
+    assert after["frames_complete"] + after["frames_incomplete"] == 3

@@ -90,6 +90,8 @@ class LiveSource(Source):
         #: Frames handed to the consumer: whole, with zero-filled bytes, and those bytes
         #: (all of them; of them, lost on the way and cut at stop, each counted on its own).
         self._delivered = {"complete": 0, "incomplete": 0, "missing": 0, "lost": 0, "cut": 0}
+        #: The frames dropped when the consumer left (None: it has not): those after are not its.
+        self._dropped_when_left: int | None = None
         self._recording = False
         self._record_stopped = False
         self._radar_stopped = False
@@ -166,6 +168,9 @@ class LiveSource(Source):
                 yield self._frame(frame)
                 self.ring.release(held)
                 held = None
+        except GeneratorExit:  # the consumer left (a frame limit): what comes after is not its
+            self._dropped_when_left = self.ring.dropped_frames
+            raise
         finally:
             if held is not None:
                 self.ring.release(held)
@@ -236,7 +241,8 @@ class LiveSource(Source):
         return {
             "url": self.url, "fpga": str(self.fpga_version),
             "frames_complete": d["complete"], "frames_incomplete": d["incomplete"],
-            "frames_dropped": self.ring.dropped_frames,
+            "frames_dropped": (self.ring.dropped_frames if self._dropped_when_left is None
+                               else self._dropped_when_left),
             "missing_bytes": d["missing"], "lost_bytes": d["lost"], "cut_bytes": d["cut"],
             "packets": r.packets, "packets_lost": seq_gaps + a.tail_packets_lost, "seq_gaps": seq_gaps,
             "tail_packets_lost": a.tail_packets_lost,
