@@ -16,6 +16,8 @@ read the chunks without it).
 
 from __future__ import annotations
 
+import contextlib
+
 import logging
 import os
 from typing import Any
@@ -94,6 +96,7 @@ class BagWriter:
         #: Messages written per topic.
         self.counts: dict[str, int] = {}
         self.closed = False
+        self._failed = False  # a write failed (said then)
 
     def topic(self, name: str, msg_type: str, *, qos: str = QOS) -> None:
         """Declare *name* as a topic of *msg_type* (e.g. ``sensor_msgs/msg/PointCloud2``)."""
@@ -122,7 +125,14 @@ class BagWriter:
             self._writer.add_message(channel, log_time=time_ns, data=data, publish_time=time_ns,
                                      sequence=self.counts[topic])
         except OSError as exc:
-            raise CaptureError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+            raise self._write_failed(exc) from None
+
+    def _write_failed(self, exc: OSError) -> CaptureError:
+        """A write that failed (a full disk): what the file keeps."""
+        self._failed = True
+        return CaptureError(f"cannot write {self.path}: {exc.strerror or exc}; the chunks written before it are "
+                            "kept, without the summary and index a finished file ends with (a reader that streams "
+                            "the file, such as mcap's StreamReader, reads them)")
 
     def flush(self) -> None:
         """Hand what the writer wrote (whole chunks) to the operating system, so that a kill of
@@ -130,7 +140,7 @@ class BagWriter:
         try:
             self._file.flush()
         except OSError as exc:
-            raise CaptureError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+            raise self._write_failed(exc) from None
 
     def close(self) -> None:
         """Write the last chunk and the summary, and close the file; safe to call twice."""
@@ -140,7 +150,13 @@ class BagWriter:
         try:
             self._writer.finish()
         except OSError as exc:
-            raise CaptureError(f"cannot write {self.path}: {exc.strerror or exc}") from None
-        finally:
+            with contextlib.suppress(OSError):  # (its own flush fails the same way)
+                self._file.close()
+            if self._failed:  # said when the write failed: once is enough
+                return
+            raise self._write_failed(exc) from None
+        try:
             self._file.close()
+        except OSError as exc:
+            raise self._write_failed(exc) from None
         log.info("wrote %s: %d messages on %d topics", self.path, sum(self.counts.values()), len(self.counts))

@@ -168,3 +168,27 @@ def test_refusals_name_the_option(tmp_path, args, message):
     assert proc.returncode == 2, proc.stderr
     assert message in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "x.jsonl").exists()
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs a POSIX file-size limit to make the write fail")
+def test_a_bag_that_cannot_be_written_on_says_what_it_keeps(tmp_path):
+    # A full disk (here the process's file-size limit): the error said "cannot write" and no more.
+    import resource
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (900_000, 900_000))  # past the first chunks
+
+    out = tmp_path / "full.mcap"
+    proc = subprocess.run(CAPTURE + ["--source", "sim://corridor?rate=max&duration=6&fidelity=fast", "--mcap", str(out),
+                                     "--no-publish", "-q"], capture_output=True, text=True, timeout=300,
+                          preexec_fn=small_files)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert f"cannot write {out}: File too large; the chunks written before it are kept" in proc.stderr, proc.stderr
+    assert proc.stderr.count("cannot write") == 1, proc.stderr  # not again at the close
+    messages = 0
+    with open(out, "rb") as fh:
+        with pytest.raises(EndOfFile):
+            for record in StreamReader(fh, validate_crcs=True).records:
+                messages += isinstance(record, Message)
+    assert messages > 0
