@@ -9,7 +9,6 @@ errors, 1 for failures at run time.
 from __future__ import annotations
 
 import json
-
 import os
 import unicodedata
 from typing import Any

@@ -133,6 +133,8 @@ class Source(abc.ABC):
     carries_raw: bool = True
     #: True when :meth:`recorder` gives a sink of the source's own (tidemo://: its UART packets).
     records_itself: bool = False
+    #: True when the first frame waits for a radar to start (sensorStart: seconds).
+    starts_radar: bool = False
     #: The estimator settings this source's frames call for, by name (``EstimatorConfig.preset``:
     #: "tidemo" for TI's demo firmware's points and static heatmap); None: the defaults.
     estimator_preset: str | None = None
@@ -259,6 +261,7 @@ def positive_number(text: str) -> float:
 
 
 positive_number.limit = f"at most {MAX_URL_NUMBER:g}"  # type: ignore[attr-defined]
+parse_rate.limit = positive_number.limit  # type: ignore[attr-defined]
 
 
 def number_in(lo: float, hi: float) -> Callable[[str], float]:
@@ -270,7 +273,6 @@ def number_in(lo: float, hi: float) -> Callable[[str], float]:
         return value
     convert.limit = f"from {lo:g} to {hi:g}"  # type: ignore[attr-defined]
     return convert
-parse_rate.limit = positive_number.limit  # type: ignore[attr-defined]
 
 
 def udp_port(text: str) -> int:

@@ -45,9 +45,9 @@ from ..cfg import RadarConfig
 from ..errors import CalibrationError, ConfigError, UsageError
 from .config import DspConfig
 from .points import invert_three_bins
+from .processor import FrameProcessor, three_bin_response
 
 log = logging.getLogger(__name__)
-from .processor import FrameProcessor, three_bin_response
 
 #: The reflector's zero-Doppler cell over the noise, dB, at least (summed over the antennas,
 #: one frame): 25 dB leaves each antenna's phase within 2.3 degrees RMS in one frame.
@@ -143,9 +143,9 @@ class ChannelCalibrator:
         bins = np.flatnonzero((self.proc.range_m >= lo) & (self.proc.range_m <= hi))
         near, far = self.proc.detection_range_m  # beyond: the IF filter's roll-off
         if hi > far or lo < near:
-            fix = ("place the reflector within it" if not near <= self.distance_m <= far else
-                   f"narrow the search window (at most +/- {min(self.distance_m - near, far - self.distance_m):.2f} "
-                   "m here)")
+            room = min(self.distance_m - near, far - self.distance_m)  # the widest window that fits there
+            fix = (f"narrow the search window (at most +/- {room:.2f} m here)" if room >= 1.5 * step else
+                   f"place the reflector within it, at least {1.5 * step:.2f} m from its ends")
             raise UsageError(f"the reflector at {self.distance_m:g} m +/- {self.window_m:g} m (the search window) "
                              f"spans {lo:.2f} m to {hi:.2f} m, outside the range this cfg measures well "
                              f"({near:g} m to {far:.2f} m): {fix}")

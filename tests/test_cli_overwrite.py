@@ -351,6 +351,10 @@ def test_an_output_in_a_read_only_directory_is_refused_before_the_work(tmp_path,
     rc, err = capture(capsys, "--record", locked / "run" / "rec")  # a new directory, made with its parents
     assert rc == 2 and f"--record {locked / 'run' / 'rec'}: the directory {locked} is not writable" in err
     assert sorted(p.name for p in locked.iterdir()) == ["odom.tum"]
+    # An existing directory is written into, whatever is above it.
+    (locked / "existing").mkdir()
+    rc, err = capture(capsys, "--record", locked / "existing")
+    assert rc == 0, err
 
 
 def test_a_ctrl_c_while_a_program_imports_is_one_line(monkeypatch, capsys):

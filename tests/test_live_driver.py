@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import warning_messages
+from conftest import console_command, warning_messages
 from live_helpers import (
     BIG_CFG,
     URL_TIMEOUTS,
@@ -403,7 +403,7 @@ def test_cli_ctrl_c_while_sensor_start_hangs(small_capture, tmp_path):
         _, stderr = capture.output()
         assert code == 1, stderr  # the wait ran out (SensorStartHung), the Ctrl-C did not abort it
         assert "sensorStart got no answer" in stderr and "RESET_AR_DEV" in stderr, stderr
-        assert "stopping once the source is up" in stderr, stderr  # said at the Ctrl-C, not after the wait
+        assert "stopping once the radar has started" in stderr, stderr  # said at the Ctrl-C, not after the wait
         assert "Traceback" not in stderr
         if out.exists():
             rec = CaptureDirectory(out)
@@ -420,21 +420,25 @@ def test_cli_ctrl_c_while_sensor_start_hangs(small_capture, tmp_path):
 
 
 def test_cli_sigterm_while_the_radar_is_set_up_is_handled_as_ctrl_c(small_capture, tmp_path):
-    """SIGTERM (a service manager's stop) before the stream runs killed radar-capture and
-    radar-calibrate at once, the radar left configured; now it is what a Ctrl-C is there: the
-    sensorStart wait runs out, the radar is reset through the DCA1000, and the program exits."""
+    """SIGTERM (a service manager's stop) where a program has no stop handler of its own (here
+    radar-calibrate while sensorStart hangs) killed it at once, the radar left configured; now it
+    is a Ctrl-C there: the radar is reset through the DCA1000, 'terminated', status 143."""
     import signal
 
     directory, _ = small_capture
     with Emulator("--capture", directory, "--hang-on-start", "-v") as emu:
-        capture = Process(emu.capture_argv("--frames", 1, url_extra="start_timeout=1.5"))
-        _wait_for_hung_start(emu, capture)
-        capture.proc.send_signal(signal.SIGTERM)
-        code = capture.wait(10)
-        capture.kill()
-        _, stderr = capture.output()
-        assert code == 1 and "sensorStart got no answer" in stderr and "RESET_AR_DEV" in stderr, stderr
-        assert "Traceback" not in stderr
+        argv = list(emu.command)
+        url = argv[argv.index("--source") + 1] + "&start_timeout=30"
+        cfg = argv[argv.index("--cfg") + 1] if "--cfg" in argv else None
+        calibrate = Process([*console_command("radar-calibrate"), "--source", url, "--distance", "3",
+                             "--search-window", "1.2", *(["--cfg", cfg] if cfg else [])])
+        _wait_for_hung_start(emu, calibrate)
+        calibrate.proc.send_signal(signal.SIGTERM)
+        code = calibrate.wait(20)
+        calibrate.kill()
+        _, stderr = calibrate.output()
+        assert code == 143 and "radar-calibrate: terminated" in stderr, stderr
+        assert "interrupted during sensorStart" in stderr and "Traceback" not in stderr, stderr
 
 
 def test_cli_double_ctrl_c_while_sensor_start_hangs_leaves_a_usable_radar(small_capture, tmp_path):

@@ -30,6 +30,9 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
             raise CaptureExistsError(f"{path} is a directory; --overwrite replaces only a file")
         if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
             raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
+    if is_dir and os.path.isdir(path):  # an existing directory: written into, whatever is above it
+        check_writable_directory(path, "the output")
+        return
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
         raise UsageError(f"cannot create {path}: no directory {parent}")

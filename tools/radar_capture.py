@@ -116,9 +116,9 @@ def _stop_on_signals(pipeline: Pipeline) -> Iterator[None]:
         if received > 1:
             raise KeyboardInterrupt
         pipeline.stop()
-        if not pipeline.stats.frames:  # a radar being started answers first (seconds): say why nothing happens
-            log.warning("stopping once the source is up (a radar being started finishes that first); "
-                        "Ctrl-C again aborts now")
+        if not pipeline.stats.frames and pipeline.source.starts_radar:
+            # a radar being started answers sensorStart first (seconds): say why nothing happens yet
+            log.warning("stopping once the radar has started (it answers sensorStart first); Ctrl-C again aborts now")
 
     with cli.on_stop_signals(handler):
         yield

@@ -63,6 +63,8 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite)
         if args.overwrite:
             cli.replace_output(args.out, "capture")
+    else:
+        cli.check_writable_directory(args.out, "--out")
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")

@@ -3,16 +3,19 @@ the sink that hands it the pipeline's frames.  Rerun is imported when a view ope
 
 from __future__ import annotations
 
+import logging
 from typing import TYPE_CHECKING
 
 from .process import ProcessDrawer
 from .sink import ThreadDrawer, ViewSink
-from .target import ViewTarget, check, open_scene
+from .target import ViewTarget, check, open_scene, viewer_missing
 
 if TYPE_CHECKING:
     from ..cfg import RadarConfig
     from ..estimator.config import EstimatorConfig
     from ..mount import Mount
+
+log = logging.getLogger(__name__)
 
 
 def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, config: RadarConfig | None = None,
@@ -24,6 +27,10 @@ def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, c
     a thread (*process* forces either).  Raises UsageError for a target that cannot work here (no
     display, a port in use) and CaptureError for a file that cannot be written."""
     check(target)
+    missing = viewer_missing(target)
+    if missing:
+        log.warning("%s: the view's data waits for one (start it: rerun), and at the end the run waits up to %.0f s "
+                    "for it to take the rest", missing, close_timeout_s)
     if process if process is not None else target.kind != "save":
         drawer = ProcessDrawer(target, estimator=estimator, config=config, mount=mount)
     else:

@@ -7,6 +7,7 @@ import os
 import shutil
 import socket
 import sys
+import time
 import urllib.parse
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -62,7 +63,7 @@ def grpc_url(address: str) -> str:
     return f"rerun+http://{host}:{int(port)}/proxy"
 
 
-#: How long a --view connect: viewer may take to accept a connection before the run starts, s.
+#: How long a --view connect: viewer may take to accept a connection before the view says none does, s.
 CONNECT_PROBE_S = 2.0
 
 
@@ -74,21 +75,27 @@ def check(target: ViewTarget) -> None:
                          "from a browser, or save the view (--view save:FILE.rrd)")
     if target.kind == "web":
         _check_free(target)
-    if target.kind == "connect":
-        _check_listening(grpc_url(target.address))
 
 
-def _check_listening(url: str) -> None:
-    """Rerun waits for a viewer that is not there (30 s at the end, the run's frames dropped
-    meanwhile): say so before anything starts."""
+def viewer_missing(target: ViewTarget) -> str | None:
+    """For ``connect:``, why no viewer takes the view yet (nothing accepted a connection within
+    :data:`CONNECT_PROBE_S`, a viewer still starting given that long), or None.  Rerun keeps
+    the view's data for a viewer that comes later, and at the end waits for one: a program says
+    so when the view opens, rather than in silence at the end."""
+    if target.kind != "connect":
+        return None
+    url = grpc_url(target.address)
     parts = urllib.parse.urlsplit(url)
     host, port = parts.hostname, parts.port or (443 if parts.scheme.endswith("https") else 80)
-    try:
-        with socket.create_connection((host, port), timeout=CONNECT_PROBE_S):
-            pass
-    except OSError as exc:
-        raise UsageError(f"no Rerun viewer answers at {url} ({exc.strerror or exc}): start one there (rerun), "
-                         "or spawn one here (--view spawn), or save the view (--view save:FILE.rrd)") from None
+    deadline = time.monotonic() + CONNECT_PROBE_S
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=max(0.1, deadline - time.monotonic())):
+                return None
+        except OSError as exc:
+            if time.monotonic() >= deadline:
+                return f"no Rerun viewer answers at {url} ({exc.strerror or exc})"
+            time.sleep(0.1)
 
 
 def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, config: RadarConfig | None = None,

@@ -10,8 +10,9 @@ import time
 from typing import Callable
 
 from ..live.dca1000_wire import (
-    PACKET_DELAY_RANGE_US, AsyncStatus, CaptureMode, Command, EepromConfig, FormatMode, FpgaConfig, LogMode, LvdsMode,
-    PacketConfig, Request, Response, Status, TransferMode, WireError)
+    AsyncStatus, CaptureMode, Command, EepromConfig, FormatMode, FpgaConfig, LogMode, LvdsMode, PacketConfig,
+    Request, Response, Status, TransferMode, WireError)
+from ...cfg_physics import DCA1000_PACKET_DELAY_RANGE_US
 from .dca1000_faults import StreamStats
 from .dca1000_streamer import _WAIT_SLICE_S
 
@@ -149,10 +150,11 @@ class CommandPort:
             log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: packet size %d outside "
                         "%d..%d", pkt.packet_size, MIN_PACKET_SIZE, MAX_PACKET_SIZE)
             return _FAILURE
-        lo, hi = PACKET_DELAY_RANGE_US
-        if not lo <= pkt.delay_us <= hi:  # accepted with a warning, as the board takes them
-            log.warning("fake DCA1000: packet delay %.3f us is outside the documented "
-                        "%g..%g us", pkt.delay_us, lo, hi)
+        lo, hi = DCA1000_PACKET_DELAY_RANGE_US
+        if not lo <= pkt.delay_us <= hi:  # its pacing (and the link rate it reports) is not known there
+            log.warning("fake DCA1000: CONFIG_PACKET_DATA refused: packet delay %.3f us is outside the "
+                        "documented %g..%g us", pkt.delay_us, lo, hi)
+            return _FAILURE
         with self._cond:
             self._packet_config = pkt
         return _OK

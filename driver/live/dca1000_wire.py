@@ -144,8 +144,6 @@ EEPROM_CONFIG = struct.Struct("<4s4s6sHH")
 FPGA_DEFAULT_TIMER = 30
 #: One tick of the packet delay, ns.
 PACKET_DELAY_TICK_NS = 8
-#: Packet delays the DCA1000 user's guide documents, us.
-PACKET_DELAY_RANGE_US = (5.0, 500.0)
 #: UDP payload of a full data packet (CONFIG_PACKET_DATA's "packet size" in TI's CLI).
 DEFAULT_PACKET_SIZE = 1472
 

@@ -34,11 +34,12 @@ from typing import Iterator
 
 from ...calibration import uncalibrated_note
 from ...cfg import RadarConfig, shipped_config_path
+from ...cfg_physics import DCA1000_PACKET_DELAY_RANGE_US
 from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
-from .dca1000_wire import BOARD_IP, HOST_IP, PACKET_DELAY_RANGE_US, AsyncStatus
+from .dca1000_wire import BOARD_IP, HOST_IP, AsyncStatus
 from .frame_ring import POLICIES, FrameRing
 from ..sources import Frame, Source, UrlOptions, at_least, number_in, one_of, positive_number, udp_port
 
@@ -68,6 +69,8 @@ class FrameClock:
 
 
 class LiveSource(Source):
+    starts_radar = True
+
     def __init__(self, config: RadarConfig, settings: Dca1000Settings, cli_url: str, *,
                  policy: str = "latest", buffers: int = 8, start_timeout_s: float = 5.0,
                  cli_timeout_s: float = COMMAND_TIMEOUT_S) -> None:
@@ -299,7 +302,7 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     config_port = options.take("config_port", udp_port, defaults.config_port, "a UDP port")
     data_port = options.take("data_port", udp_port, defaults.data_port, "a UDP port")
     board_port = options.take("board_port", udp_port, defaults.board_port, "a UDP port")
-    delay = options.take("delay", number_in(*PACKET_DELAY_RANGE_US), defaults.packet_delay_us, "packet delay in us")
+    delay = options.take("delay", number_in(*DCA1000_PACKET_DELAY_RANGE_US), defaults.packet_delay_us, "packet delay in us")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
     timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")

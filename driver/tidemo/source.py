@@ -101,6 +101,7 @@ class TidemoSource(Source):
 
     carries_raw = False
     records_itself = True
+    starts_radar = True
     estimator_preset = "tidemo"
 
     def __init__(self, config: RadarConfig, data_url: str, cli_url: str, *, baud: int = DEFAULT_BAUD,
