@@ -119,7 +119,11 @@ def _endpoints(value: Any, option: str) -> tuple[str, ...] | None:
         return None
     if isinstance(value, str):
         value = (value,)
-    return tuple(_check_endpoint(e, option) for e in value)
+    endpoints = tuple(_check_endpoint(e, option) for e in value)
+    twice = next((e for i, e in enumerate(endpoints) if e in endpoints[:i]), None)
+    if twice is not None:  # (Zenoh found its own first listener there: "another program listens")
+        raise PublishConfigError(f"{option}: {twice} is given twice: give each endpoint once")
+    return endpoints
 
 
 @dataclass(frozen=True)

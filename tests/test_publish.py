@@ -397,6 +397,15 @@ def test_a_config_file_comes_first_and_options_override_it(tmp_path):
     assert overridden["listen/endpoints"] == ["tcp/127.0.0.1:7001"] and overridden["mode"] == "client"
 
 
+def test_an_endpoint_given_twice_is_refused():
+    # Zenoh found the first listener there and said "another program listens there".
+    with pytest.raises(PublishConfigError, match="listen: tcp/127.0.0.1:7001 is given twice") as info:
+        ZenohOptions(listen=["tcp/127.0.0.1:7001", "tcp/127.0.0.1:7001"])
+    assert info.value.exit_code == 2
+    with pytest.raises(PublishConfigError, match="connect: tcp/127.0.0.1:7002 is given twice"):
+        ZenohOptions(connect=["tcp/127.0.0.1:7002", "tcp/127.0.0.1:7002"])
+
+
 @pytest.mark.parametrize("text, words", [
     ("{ mode: 'peer', listen: { endpoints: [ }", "zenoh config .*zenoh.json5"),
     ("{ mode: 'banana' }", r"zenoh\.json5:1:9: unknown variant 'banana', expected one of 'router', 'peer'"),
