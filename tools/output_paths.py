@@ -31,7 +31,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
         if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
             raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
     if is_dir and os.path.isdir(path):  # an existing directory: written into, whatever is above it
-        check_writable_directory(path, "the output")
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise UsageError(f"cannot write into {path}: the directory is not writable")
         return
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
