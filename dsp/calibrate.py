@@ -248,11 +248,12 @@ class ChannelCalibrator:
     def _check_still(self, data: np.ndarray, power: np.ndarray, k: int, range_of) -> None:
         # Strongest Doppler row at the reflector's bin, frame by frame.
         rows = power[:, :, k].argmax(axis=1) - self._zero
-        if np.any(np.abs(rows) > 1):
-            speed = float(np.max(np.abs(rows))) * self.cfg.velocity_resolution_mps
+        moving = np.abs(rows) > 1
+        if np.any(moving):
+            # (once things move, a range bin's strongest Doppler may be anything's: the count, not a speed)
             raise CalibrationError(
-                f"the reflector at {range_of(k):.2f} m moves: {speed:.2f} m/s radial in some frames; keep the "
-                "reflector and the radar still while measuring")
+                f"the reflector at {range_of(k):.2f} m moves: its range bin's strongest return is off zero Doppler "
+                f"in {int(moving.sum())} of {len(rows)} frames; keep the reflector and the radar still while measuring")
         zero = power[:, self._zero]  # (frames, bins)
         peaks = zero.argmax(axis=1)
         spread = 0.0

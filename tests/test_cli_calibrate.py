@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 
 import numpy as np
@@ -187,6 +188,16 @@ def test_creeping_reflector_is_refused_by_its_range(tmp_path):
     proc = run("--source", url, "--distance", 2.97, "--frames", 10)
     assert proc.returncode == 1, proc.stdout
     assert "moves: its range changed by" in proc.stderr and "still" in proc.stderr
+
+
+def test_a_moving_reflector_is_refused_by_its_doppler_counted_in_frames(tmp_path):
+    # It said "2.26 m/s radial" (the Doppler axis's edge: once things move, a bin's strongest
+    # return may be anything's) for a reflector approached at 0.5 m/s.
+    url = f"sim://{scene_file(tmp_path, [reflector(3.0)], [{'straight': 1.5, 'speed': 0.5}])}?rate=max"
+    proc = run("--source", url, "--distance", 2.9, "--frames", 10)
+    assert proc.returncode == 1, proc.stdout
+    assert re.search(r"moves: its range bin's strongest return is off zero Doppler in \d+ of 10 frames", proc.stderr), \
+        proc.stderr
 
 
 def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path):
