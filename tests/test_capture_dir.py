@@ -835,3 +835,15 @@ def test_an_empty_groundtruth_is_said(tmp_path, small_cfg, warnings_log):
     cap = CaptureDirectory(d)
     assert cap.pose(0) is None
     assert any("groundtruth.tum holds no pose" in m for m in warning_messages(warnings_log))
+
+
+def test_capture_json_and_timestamps_that_disagree_on_the_first_frame_are_said(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 3)
+    assert not any("one was edited" in m for m in warning_messages(warnings_log))
+    meta = json.loads((d / "capture.json").read_text())
+    (d / "capture.json").write_text(json.dumps({**meta, "first_timestamp": meta["first_timestamp"] - 1.0}))
+    cap = CaptureDirectory(d)
+    assert cap.timestamps[0] == meta["first_timestamp"]  # played at timestamps.txt's times
+    assert any("capture.json says the first frame is at" in m and "one was edited" in m
+               for m in warning_messages(warnings_log))

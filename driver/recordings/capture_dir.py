@@ -138,6 +138,10 @@ class CaptureDirectory:
         whole = capture_check.frame_count(self.directory, size, fb, cfg_name, meta, stamps)
         self.timestamps = capture_check.timestamps_for(self.directory, stamps, whole, config.frame_period_s)
         self.num_frames = whole
+        first = self.metadata.get("first_timestamp")
+        if stamps is not None and len(stamps) and first is not None and abs(float(stamps[0]) - first) > 1e-6:
+            log.warning("%s: %s says the first frame is at %.6f s, %s at %.6f s: one was edited; the frames play "
+                        "at %s's times", self.directory, METADATA, first, TIMESTAMPS, float(stamps[0]), TIMESTAMPS)
         self._data = (np.memmap(data_path, dtype=np.uint8, mode="r", shape=(whole * fb,))
                       if whole else np.empty(0, np.uint8))
         listed = self.metadata.get("incomplete_frames", [])
