@@ -410,6 +410,12 @@ def test_lines_match_within_tolerance_whatever_their_common_phase():
     assert not exact.matches(ChannelCalibration.identity())
     with pytest.raises(ConfigError, match="12"):
         ChannelCalibration.from_description({"range_bias_m": 0.0, "coefficients": [[1, 0]] * 11})
+    # Values a cfg line cannot hold (a recording's capture.json edited): numpy's overflow warnings before.
+    for bad in ({"range_bias_m": 0.0, "coefficients": [[1e308, 1e308]] + [[1, 0]] * 11},
+                {"range_bias_m": 0.0, "coefficients": [[0, 0]] + [[1, 0]] * 11},
+                {"range_bias_m": float("inf"), "coefficients": [[1, 0]] * 12}):
+        with pytest.raises(ConfigError, match="within -1..1, none 0 \\+ 0j, and the bias finite"):
+            ChannelCalibration.from_description(bad)
 
 
 def test_a_bad_line_is_reported_at_its_place_in_the_cfg(tmp_path, shipped_cfg):
