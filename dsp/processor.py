@@ -130,9 +130,7 @@ class FrameProcessor:
 
     def __init__(self, cfg: RadarConfig, params: DspConfig | None = None, *,
                  coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> None:
-        params = params or DspConfig()
-        if params.ti_like:
-            params = ti_like_params(cfg, params)
+        params = _params_for(cfg, params)
         # The map CFAR runs on sums the power of every virtual antenna: thresholds
         # from a Pfa must be derived for that sum, not for one antenna.
         n_virtual = cfg.num_tx_slots * cfg.num_rx
@@ -155,8 +153,7 @@ class FrameProcessor:
                                  self.n_doppler, "Doppler"))
         #: The board's channel calibration in use (the cfg's compRangeBiasAndRxChanPhase, unless
         #: DspConfig.channel_calibration is off).
-        self.calibration = (ChannelCalibration.from_config(cfg) if params.channel_calibration
-                            else ChannelCalibration.identity())
+        self.calibration = _calibration_in_use(cfg, params)
         #: True when the array's paths are lined up: the calibration in use is known to fit the
         #: board (*calibrated*), or, unknown, is not the identity.  Further azimuth peaks in a cell
         #: are looked for on a calibrated array only: on an uncalibrated one, what a removed plane
@@ -306,12 +303,21 @@ def heatmap_range_bins(cfg: RadarConfig, params: DspConfig | None = None) -> int
     """The range bins the DSP's heatmaps of *cfg* span (:attr:`FrameProcessor.heatmap_range_bins`),
     without building the processor: what a program checks the estimator's settings against
     before it opens its outputs."""
-    params = params or DspConfig()
-    if params.ti_like:
-        params = ti_like_params(cfg, params)
-    bias = ChannelCalibration.from_config(cfg).range_bias_m if params.channel_calibration else 0.0
+    params = _params_for(cfg, params)
+    bias = _calibration_in_use(cfg, params).range_bias_m
     _, hi = _detection_range(cfg, params, bias)
     return _bins_to(_range_axis(cfg, params.range_fft_size or cfg.cube_shape[3], bias), hi)
+
+
+def _params_for(cfg: RadarConfig, params: DspConfig | None) -> DspConfig:
+    """The DSP's settings for *cfg*: *params* (default: ``DspConfig()``), TI's own with ``ti_like``."""
+    params = params or DspConfig()
+    return ti_like_params(cfg, params) if params.ti_like else params
+
+
+def _calibration_in_use(cfg: RadarConfig, params: DspConfig) -> ChannelCalibration:
+    """The cfg's compRangeBiasAndRxChanPhase, unless ``DspConfig.channel_calibration`` is off."""
+    return ChannelCalibration.from_config(cfg) if params.channel_calibration else ChannelCalibration.identity()
 
 
 def _range_axis(cfg: RadarConfig, n_range: int, range_bias_m: float) -> np.ndarray:
