@@ -41,12 +41,20 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
         raise UsageError(f"cannot create {path}: the directory {parent} is not writable")
 
 
+def missing_directories(path: str) -> list[str]:
+    """The directories ``os.makedirs(path)`` would make, deepest first (none when *path* is there)."""
+    missing, there = [], os.path.abspath(path)
+    while not os.path.exists(there):
+        missing.append(there)
+        there = os.path.dirname(there)
+    return missing
+
+
 def check_writable_directory(path: str, option: str) -> None:
     """Refuse a directory output (made when missing, with its parents) that could not be written
     into: itself, or the nearest directory above it that is there."""
-    there = os.path.abspath(path)
-    while not os.path.exists(there):
-        there = os.path.dirname(there)
+    missing = missing_directories(path)
+    there = os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
     if os.path.isdir(there) and not os.access(there, os.W_OK | os.X_OK):
         raise UsageError(f"{option} {path}: the directory {there} is not writable")
 

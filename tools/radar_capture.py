@@ -150,14 +150,15 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
                          "take --estimator-config")
     # --ros2-topic names the bag's odometry topic too: an offline conversion may take it.
-    given = [option for option in (options_given(args) if args.no_publish else [])
+    zenoh_given = options_given(args)
+    given = [option for option in (zenoh_given if args.no_publish else [])
              if not (option == "--ros2-topic" and args.mcap)]
     if given:
         raise UsageError(f"{given[0]} is about publishing over Zenoh, which --no-publish turns off: drop one")
-    if "--ros2-topic" in options_given(args) and not (args.ros2 or args.mcap):
+    if "--ros2-topic" in zenoh_given and not (args.ros2 or args.mcap):
         raise UsageError("--ros2-topic names the ROS 2 odometry topic: add --ros2 (publish it) or --mcap FILE "
                          "(write it to a bag)")
-    if "--ros2-domain" in options_given(args) and not args.ros2:
+    if "--ros2-domain" in zenoh_given and not args.ros2:
         raise UsageError("--ros2-domain is the ROS 2 domain of --ros2's messages: add --ros2")
     cfg = RadarConfig.from_file(args.cfg) if args.cfg else None
     # Read the estimator's settings before any hardware is touched.

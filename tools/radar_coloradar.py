@@ -179,10 +179,7 @@ def _make_out(directory: str | None) -> list[str]:
     """Make --out (and its parents) before the work; the directories made, deepest first."""
     if not directory or os.path.isdir(directory):
         return []
-    made, there = [], os.path.abspath(directory)
-    while not os.path.exists(there):
-        made.append(there)
-        there = os.path.dirname(there)
+    made = cli.missing_directories(directory)
     try:
         os.makedirs(directory)
     except OSError as exc:

@@ -302,7 +302,8 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     config_port = options.take("config_port", udp_port, defaults.config_port, "a UDP port")
     data_port = options.take("data_port", udp_port, defaults.data_port, "a UDP port")
     board_port = options.take("board_port", udp_port, defaults.board_port, "a UDP port")
-    delay = options.take("delay", number_in(*DCA1000_PACKET_DELAY_RANGE_US), defaults.packet_delay_us, "packet delay in us")
+    delay = options.take("delay", number_in(*DCA1000_PACKET_DELAY_RANGE_US), defaults.packet_delay_us,
+                         "packet delay in us")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
     timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")
