@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import os
 import types
 import typing
 from typing import Any, Mapping, TypeVar
 
 from . import strict_json
-from .errors import ConfigError, quoted_json
+from .errors import ConfigError, given_path, quoted, quoted_json
 
 #: Largest settings file read (radarodom's own are a few KB).
 MAX_SETTINGS_BYTES = 1 << 20
@@ -54,9 +55,10 @@ def _checked(value: Any, hint: Any, name: str) -> Any:
     for kind in allowed:
         if kind is bool and isinstance(value, bool):
             return value
-        if kind is int and isinstance(value, int) and not isinstance(value, bool):
-            return value
-        if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+        # numpy's integers and floats are numbers.Integral / numbers.Real (a value computed in numpy)
+        if kind is int and isinstance(value, numbers.Integral) and not isinstance(value, bool):
+            return int(value)
+        if kind is float and isinstance(value, numbers.Real) and not isinstance(value, bool):
             try:
                 number = float(value)
             except OverflowError:  # an int beyond any float
@@ -74,10 +76,27 @@ def _checked(value: Any, hint: Any, name: str) -> Any:
 
 
 class Settings:
-    """Mixin for dataclasses: JSON round trip with field-level errors."""
+    """Mixin for dataclasses: JSON round trip with field-level errors.  Each subclass's
+    ``__post_init__`` calls :meth:`check_types` first, so that settings built in Python are
+    checked as those read from JSON are."""
 
     #: What the settings are called in messages ("DSP", "estimator", ...).
     _what = "settings"
+
+    def check_types(self) -> None:
+        """:class:`ConfigError` naming the first field whose value is not of its declared type
+        (a nested section not of its settings class); ints given for numbers become floats."""
+        hints = typing.get_type_hints(type(self))
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            if not f.init:
+                continue
+            value = getattr(self, f.name)
+            nested = _nested_type(type(self), f.name)
+            if nested is None:
+                object.__setattr__(self, f.name, _checked(value, hints.get(f.name), f.name))
+            elif not isinstance(value, nested):
+                raise ConfigError(f"must be {nested.__name__} settings ({nested.__name__}.from_dict makes them "
+                                  f"from a dict), got {type(value).__name__} {quoted(value)}", field=f.name)
 
     def to_dict(self) -> dict[str, Any]:
         out = {}
@@ -106,6 +125,10 @@ class Settings:
                               field=prefix.rstrip(".") or None)
         known = {f.name for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
         unknown = set(data) - known
+        if any(not isinstance(key, str) for key in unknown):
+            raise ConfigError(f"{cls._what} settings are named by strings, got "
+                              + ", ".join(quoted(k) for k in unknown if not isinstance(k, str)),
+                              field=prefix.rstrip(".") or None)
         if unknown:
             raise ConfigError(f"unknown {cls._what} setting(s): "
                               + ", ".join(prefix + k for k in sorted(unknown)))
@@ -129,8 +152,14 @@ class Settings:
             raise ConfigError(f"bad {cls._what} settings: {exc}") from None
 
     def dump(self, path: str | os.PathLike) -> None:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(strict_json.dumps(self.to_dict(), indent=2) + "\n")
+        """These settings as a JSON file at *path* (written over); :class:`ConfigError` naming it
+        when it cannot be written."""
+        path = given_path(path, ConfigError, "settings file path")
+        try:
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(strict_json.dumps(self.to_dict(), indent=2) + "\n")
+        except OSError as exc:
+            raise ConfigError(f"cannot write {self._what} settings: {exc.strerror or exc}", path=path) from None
 
     @classmethod
     def load(cls: type[S], path: str | os.PathLike) -> S:

@@ -94,6 +94,14 @@ class TumTrajectory:
     lines: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        for name in ("times", "positions", "quaternions"):  # lists taken as the arrays they stand for
+            try:
+                object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=float))
+            except (TypeError, ValueError):
+                raise UsageError(f"a trajectory's {name} must be numbers, got {type(getattr(self, name)).__name__}") \
+                    from None
+        if self.times.ndim != 1:
+            raise UsageError(f"a trajectory's times must be (n,), got {self.times.shape}")
         n = len(self.times)
         if self.positions.shape != (n, 3) or self.quaternions.shape != (n, 4):
             raise UsageError(f"a trajectory of {n} times needs positions (n, 3) and quaternions (n, 4), "
@@ -104,7 +112,10 @@ class TumTrajectory:
     @classmethod
     def from_se2(cls, times, poses, *, source: str = "") -> "TumTrajectory":
         """Planar poses *poses* (n, 3): x, y (m), yaw (rad); z = 0, yaw-only quaternions."""
-        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        poses = np.asarray(poses, dtype=float)
+        if poses.shape != (3,) and (poses.ndim != 2 or poses.shape[1] != 3):
+            raise UsageError(f"planar poses must be (n, 3): x, y, yaw; got {poses.shape}")
+        poses = poses.reshape(-1, 3)
         positions = np.zeros((len(poses), 3))
         positions[:, :2] = poses[:, :2]
         return cls(np.asarray(times, dtype=float).reshape(-1), positions, yaw_quaternion(poses[:, 2]),

@@ -361,6 +361,11 @@ def open_source(url: str, config: RadarConfig | None = None) -> Source:
     """Open the frame source *url* names.  *config* overrides the radar
     configuration the source would otherwise use (required where the source
     carries none)."""
+    if not isinstance(url, str):
+        raise SourceError(f"a source URL is a str (scheme://...), got {type(url).__name__}")
+    if config is not None and not isinstance(config, RadarConfig):
+        raise SourceError(f"config: a RadarConfig (RadarConfig.from_file(path) reads one) or None, "
+                          f"got {type(config).__name__}")
     scheme, path, query = split_url(url)
     if scheme not in SCHEMES:
         raise SourceError(f"unknown source scheme {scheme!r} in {url!r}; supported: "

@@ -109,6 +109,7 @@ class DspConfig(Settings):
     workers: int = 1
 
     def __post_init__(self) -> None:
+        self.check_types()
         for name in ("azimuth_fft_size", "elevation_fft_size", "workers", "max_azimuth_peaks"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):

@@ -31,7 +31,7 @@ import scipy.fft
 
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
-from ..errors import ConfigError
+from ..errors import ConfigError, UsageError
 from .cfar import CfarParams, cfar_2d_ti
 from .cfar_peaks import above_skirts, cfar_peaks
 from .cfar_ti import fov_mask, params_from_ti
@@ -310,8 +310,21 @@ def heatmap_range_bins(cfg: RadarConfig, params: DspConfig | None = None) -> int
 
 
 def _params_for(cfg: RadarConfig, params: DspConfig | None) -> DspConfig:
-    """The DSP's settings for *cfg*: *params* (default: ``DspConfig()``), TI's own with ``ti_like``."""
-    params = params or DspConfig()
+    """The DSP's settings for *cfg*: *params* (default: ``DspConfig()``), TI's own with ``ti_like``;
+    :class:`UsageError` for settings of another kind, :class:`ConfigError` for FFTs shorter than the
+    cfg's chirps or loops (zero padding makes them longer, never shorter)."""
+    if params is None:
+        params = DspConfig()
+    elif not isinstance(params, DspConfig):
+        raise UsageError(f"the DSP's settings must be a DspConfig (DspConfig.from_dict makes one from a dict), "
+                         f"got {type(params).__name__}")
+    loops, _, _, samples = cfg.cube_shape
+    for name, least, what in (("range_fft_size", samples, "ADC samples a chirp (profileCfg)"),
+                              ("doppler_fft_size", loops, "loops a frame (frameCfg)")):
+        size = getattr(params, name)
+        if size is not None and size < least:
+            raise ConfigError(f"must be at least the cfg's {least} {what}, got {size} (leave it unset for no "
+                              "zero padding)", field=name)
     return ti_like_params(cfg, params) if params.ti_like else params
 
 

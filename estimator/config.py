@@ -10,6 +10,7 @@ with none of the options that go beyond it.  Units: metres, seconds, radians.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -104,6 +105,7 @@ class FeatureConfig(Settings):
         return self.doppler_cells_per_feature * self.k
 
     def __post_init__(self) -> None:
+        self.check_types()
         check_choice(self.method, FEATURE_METHODS, "method")
         _check(self.doppler_cells_per_feature >= 1, "must be at least 1", "doppler_cells_per_feature")
         check_choice(self.weighting, ("linear", "db"), "weighting")
@@ -268,6 +270,7 @@ class IcpConfig(Settings):
     field_fallback: bool = True
 
     def __post_init__(self) -> None:
+        self.check_types()
         _check(self.alpha > 0, "must be positive", "alpha")
         _check(self.beta > 0, "must be positive", "beta")
         _check(0 <= self.eps_min < self.eps_max, "need 0 <= eps_min < eps_max", "eps_min")
@@ -309,6 +312,9 @@ class EstimatorConfig(Settings):
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     point_yaw: PointYawConfig = field(default_factory=PointYawConfig)
 
+    def __post_init__(self) -> None:
+        self.check_types()
+
     @classmethod
     def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":
         """The paper's method (one of its variants), without the options beyond it."""
@@ -336,7 +342,7 @@ class EstimatorConfig(Settings):
         """These settings with the preset *name* of :data:`PRESETS` applied (None: unchanged)."""
         if name is None:
             return self
-        if name not in PRESETS:
+        if not isinstance(name, str) or name not in PRESETS:
             raise ConfigError(f"unknown estimator preset {name!r} (known: {', '.join(sorted(PRESETS))})")
         return self.with_(**PRESETS[name])
 
@@ -346,6 +352,9 @@ class EstimatorConfig(Settings):
         for name, changes in sections.items():
             if name not in data:
                 raise ConfigError(f"unknown estimator section {name!r}")
+            if not isinstance(changes, Mapping):
+                raise ConfigError(f"the changes to a section are a dict of its settings, got {type(changes).__name__}",
+                                  field=name)
             section = data[name].to_dict()
             section.update(changes)
             data[name] = section

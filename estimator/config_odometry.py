@@ -173,6 +173,7 @@ class OdometryConfig(Settings):
     unmeasured_yaw_std_rad: float = math.radians(5.0)
 
     def __post_init__(self) -> None:
+        self.check_types()
         _check(self.hold_s >= 0, "must be >= 0", "hold_s")
         for name in ("mount_x_m", "mount_y_m", "mount_yaw_rad"):
             _check(math.isfinite(getattr(self, name)), "must be a finite number", name)
@@ -324,6 +325,7 @@ class PointYawConfig(Settings):
     lag_frames: int = 10
 
     def __post_init__(self) -> None:
+        self.check_types()
         _check(self.map_frames >= 1, "must be at least 1", "map_frames")
         _check(self.lag_frames >= 1, "must be at least 1", "lag_frames")
         for name in ("bearing_noise_rad", "range_noise_m", "position_floor_m", "static_threshold_mps", "search_rad",

@@ -64,6 +64,7 @@ class VelocityConfig(Settings):
     seed: int = 0
 
     def __post_init__(self) -> None:
+        self.check_types()
         _check(self.min_points >= 2, "must be at least 2", "min_points")
         _check(self.ransac_iterations >= 1, "must be at least 1", "ransac_iterations")
         _check(self.inlier_threshold_mps > 0, "must be positive", "inlier_threshold_mps")

@@ -24,12 +24,13 @@ run of frames that saw nothing is measured across when the radar sees again
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import TimeOrderError
+from ..errors import TimeOrderError, UsageError
 from .config import EstimatorConfig
 from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse
@@ -113,6 +114,9 @@ class RadarOdometry:
     the yaw-rate filter and the keyframe correction."""
 
     def __init__(self, config: EstimatorConfig | None = None) -> None:
+        if config is not None and not isinstance(config, EstimatorConfig):
+            raise UsageError(f"the estimator's settings must be an EstimatorConfig (EstimatorConfig.from_dict makes "
+                             f"one from a dict) or None, got {type(config).__name__}")
         self.config = config or EstimatorConfig()
         odo = self.config.odometry
         self.rng = np.random.default_rng(self.config.velocity.seed)
@@ -153,6 +157,7 @@ class RadarOdometry:
         velocity) taken at *t* and keep it for the heatmap frames around it."""
         start = time.perf_counter()
         _check_time(t, "point cloud")
+        _check_points(points)
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:
             est = self.velocities.level_speed(t, points, est)
@@ -177,6 +182,7 @@ class RadarOdometry:
         """The odometry after the heatmap frame taken at *t* (s, after the previous frame's)."""
         start = time.perf_counter()
         _check_time(t, "heatmap")
+        _check_heatmap(heatmap)
         previous = self._previous
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "
@@ -313,8 +319,37 @@ class RadarOdometry:
 
 
 def _check_time(t: float, what: str) -> None:
+    if isinstance(t, bool) or not isinstance(t, numbers.Real):
+        raise UsageError(f"{what} at t={t!r}: a time is a number of seconds, got {type(t).__name__}")
     if not math.isfinite(t):
         raise TimeOrderError(f"{what} at t={t}: a time must be a finite number of seconds")
+
+
+#: What the velocity fit reads of each point (the DSP's POINT_DTYPE has them).
+_POINT_FIELDS = ("azimuth", "elevation", "velocity")
+
+
+def _check_points(points) -> None:
+    """:class:`UsageError` unless *points* is a point cloud: a (n,) structured array with the fields
+    the velocity fit reads."""
+    names = getattr(getattr(points, "dtype", None), "names", None) or ()
+    if not isinstance(points, np.ndarray) or points.ndim != 1 or any(f not in names for f in _POINT_FIELDS):
+        shape = f" {points.shape}" if isinstance(points, np.ndarray) else ""
+        raise UsageError(f"points: a (n,) structured array with fields {', '.join(_POINT_FIELDS)} "
+                         f"(radarodom.products.POINT_DTYPE), got {type(points).__name__}{shape}"
+                         + (f" with fields {', '.join(names)}" if names else ""))
+
+
+def _check_heatmap(heatmap) -> None:
+    """:class:`UsageError` unless *heatmap* has a non-empty (n_range, n_azimuth) intensity on its axes."""
+    try:
+        shape = np.shape(heatmap.intensity)
+        axes = (len(heatmap.range_m), len(heatmap.azimuth_rad))
+    except (AttributeError, TypeError):
+        raise UsageError("heatmap: a range-azimuth heatmap (radarodom.products.RangeAzimuth: intensity, "
+                         f"range_m, azimuth_rad), got {type(heatmap).__name__}") from None
+    if shape != axes or 0 in axes:
+        raise UsageError(f"heatmap: its intensity {shape} must be (range bins, azimuth bins) = {axes}, none empty")
 
 
 __all__ = ["RadarOdometry", "OdometryState", "Flag"]

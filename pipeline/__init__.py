@@ -20,13 +20,16 @@ pipeline, and render its statistics.
 from __future__ import annotations
 
 import logging
+import math
+import numbers
+import os
 import time
-from typing import Callable, Sequence
+from typing import Callable, Iterable, Sequence
 
 from ..cfg import RadarConfig
 from ..driver.sources import ROLES, Frame, Source, open_source
 from ..dsp.config import DspConfig
-from ..errors import CaptureError, add_note
+from ..errors import CaptureError, UsageError, add_note, quoted
 from ..estimator.config import EstimatorConfig
 from ..estimator.odometry import OdometryState, RadarOdometry
 from ..products import Products
@@ -96,13 +99,40 @@ class Pipeline:
                  sinks: Sequence[Sink] = (), max_frames: int | None = None, max_duration_s: float | None = None,
                  owns_source: bool = False) -> None:
         self.source = source
-        self.sinks = list(sinks)
-        self._raw_sinks = [s for s in self.sinks if s.takes_raw]
-        self._result_sinks = [s for s in self.sinks if not s.takes_raw]
-        self.max_frames, self.max_duration_s = max_frames, max_duration_s
         self.stats = PipelineStats()
         self._owns_source = owns_source
-        self._closed = False
+        self._closed = self._ran = False
+        self.sinks: list[Sink] = []
+        self._raw_sinks: list[Sink] = []
+        self._result_sinks: list[Sink] = []
+        try:
+            given = [sinks] if _is_sink(sinks) else _sink_list(sinks)
+            self.sinks = [s for s in given if _is_sink(s)]  # closed below if the rest fails
+            self._raw_sinks = [s for s in self.sinks if s.takes_raw]
+            self._result_sinks = [s for s in self.sinks if not s.takes_raw]
+            _check_sinks(sinks, given)
+            self._build(estimator, dsp, max_frames, max_duration_s)
+        except BaseException:
+            # Nothing ran: the sinks take back what they made (an empty file would block the next
+            # run), and a source opened for this pipeline is closed (a radar's ports freed).
+            self.close()
+            raise
+
+    def _build(self, estimator: EstimatorConfig | None, dsp: DspConfig | None, max_frames: int | None,
+               max_duration_s: float | None) -> None:
+        source = self.source
+        if isinstance(source, (str, bytes, os.PathLike)):
+            raise UsageError(f"source: a Source, got the {type(source).__name__} {quoted(source)} "
+                             "(Pipeline.from_url opens one from a URL)")
+        if not isinstance(source, Source):
+            raise UsageError(f"source: a Source (open_source(url) opens one), got {type(source).__name__}")
+        if estimator is not None and not isinstance(estimator, EstimatorConfig):
+            raise UsageError(f"estimator: an EstimatorConfig (EstimatorConfig.from_dict makes one from a dict) or "
+                             f"None, got {type(estimator).__name__}")
+        if dsp is not None and not isinstance(dsp, DspConfig):
+            raise UsageError(f"dsp: a DspConfig (DspConfig.from_dict makes one from a dict) or None, "
+                             f"got {type(dsp).__name__}")
+        self.max_frames, self.max_duration_s = _checked_limits(max_frames, max_duration_s)
         self.feed = None if estimator is None else OdometryFeed(RadarOdometry(estimator))
         # Nothing to compute for (recording alone): no DSP at all.
         self.products = None
@@ -123,14 +153,16 @@ class Pipeline:
 
     @classmethod
     def from_url(cls, url: str, config: RadarConfig | None = None, **kwargs) -> Pipeline:
-        """A pipeline on the source *url* opens (closed with the pipeline); *kwargs* as for the
-        constructor."""
+        """A pipeline on the source *url* opens (closed with the pipeline, or at once when the
+        pipeline cannot be built); *kwargs* as for the constructor."""
         return cls(open_source(url, config), owns_source=True, **kwargs)
 
     # ------------------------------------------------------------------ one frame
     def process(self, frame: Frame) -> FrameResult:
         """The frame, given to the sinks that take raw frames; its products and odometry, given
         to every other sink."""
+        if frame.role not in ROLES:  # a Source of the user's own
+            raise CaptureError(f"frame {frame.index}: role {frame.role!r} is not one of {', '.join(ROLES)}")
         for sink in self._raw_sinks:
             sink.write_raw(frame, self.stats)
         if self.products is None:
@@ -151,6 +183,10 @@ class Pipeline:
         """Stream the source through the pipeline until it ends, a limit is reached or
         :meth:`stop`; *on_frame* is called after each frame (a status display).  The sinks are
         closed before this returns or raises."""
+        if self._ran or self._closed:
+            raise UsageError("a Pipeline runs once, and this one has " + ("run" if self._ran else "been closed")
+                             + ": build a new one (its sinks and source are closed)")
+        self._ran = True
         stats = self.stats
         stats.reason = "end of source"
         try:
@@ -216,7 +252,7 @@ class Pipeline:
         try:
             self._finish()
         finally:
-            if self._owns_source:
+            if self._owns_source and isinstance(self.source, Source):
                 self.source.close()
 
     def __enter__(self) -> Pipeline:
@@ -224,6 +260,50 @@ class Pipeline:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _is_sink(obj) -> bool:
+    """Whether *obj* does what the pipeline asks of a sink: :class:`Sink`'s attributes and the
+    methods its :attr:`~Sink.takes_raw` calls for (a sink need not subclass it: the recorders in
+    driver/ do not)."""
+    if not hasattr(obj, "takes_raw") or not callable(getattr(obj, "close", None)):
+        return False
+    if obj.takes_raw:
+        return callable(getattr(obj, "write_raw", None))
+    return (callable(getattr(obj, "write", None)) and hasattr(obj, "wants_heatmaps")
+            and hasattr(obj, "full_heatmaps"))
+
+
+def _sink_list(sinks: Sequence[Sink]) -> list:
+    """*sinks* as a list, or :class:`UsageError` for anything not a list of them."""
+    if isinstance(sinks, (str, bytes)) or not isinstance(sinks, Iterable):
+        raise UsageError(f"sinks: a list of Sinks, got {type(sinks).__name__}")
+    return list(sinks)
+
+
+def _check_sinks(sinks, given: list) -> None:
+    """:class:`UsageError` for one sink given alone (*sinks*) or naming the first of the list
+    *given* that is no :class:`Sink`."""
+    if _is_sink(sinks):
+        raise UsageError(f"sinks: a list of Sinks, got one {type(sinks).__name__} (sinks=[...] gives a list)")
+    for i, sink in enumerate(given):
+        if not _is_sink(sink):
+            hint = " (TumSink(path) writes a TUM file)" if isinstance(sink, (str, os.PathLike)) else ""
+            raise UsageError(f"sinks[{i}]: a Sink, got {type(sink).__name__} {quoted(sink)}{hint}")
+
+
+def _checked_limits(max_frames, max_duration_s) -> tuple[int | None, float | None]:
+    """The run's limits, or :class:`UsageError` unless each is None, a whole number >= 1 (frames) and a
+    finite number > 0 (seconds)."""
+    if max_frames is not None and (isinstance(max_frames, bool) or not isinstance(max_frames, numbers.Integral)
+                                   or max_frames < 1):
+        raise UsageError(f"max_frames: a whole number of frames >= 1 or None, got {quoted(max_frames)}")
+    if max_duration_s is not None:
+        if (isinstance(max_duration_s, bool) or not isinstance(max_duration_s, numbers.Real)
+                or not math.isfinite(max_duration_s) or max_duration_s <= 0):
+            raise UsageError(f"max_duration_s: a number of seconds > 0 or None, got {quoted(max_duration_s)}")
+        max_duration_s = float(max_duration_s)
+    return None if max_frames is None else int(max_frames), max_duration_s
 
 
 __all__ = ["Pipeline", "source_estimator", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "CaptureSink", "TumSink",

@@ -35,7 +35,7 @@ import numpy as np
 from .. import messages
 from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
 from ..driver.sources import Frame, Source
-from ..errors import CaptureError, CaptureExistsError
+from ..errors import CaptureError, CaptureExistsError, given_path
 from ..estimator.odometry import OdometryState
 from ..products import RangeAzimuth
 from ..tum import TumWriter
@@ -111,7 +111,7 @@ class TumSink(Sink):
     """The odometry as a TUM trajectory file (a new file)."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        self.path = os.fspath(path)
+        self.path = given_path(path, CaptureError)
         self._writer = TumWriter(self.path)
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
@@ -147,7 +147,7 @@ class OdometryJsonSink(Sink):
     """The odometry as a new JSON-lines file (module docstring), flushed line by line."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        self.path = os.fspath(path)
+        self.path = given_path(path, CaptureError)
         self._fh = _new_text_file(path)
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
@@ -167,7 +167,7 @@ class PointsCsvSink(Sink):
     """Every point cloud as rows of a new CSV file (module docstring)."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        self.path = os.fspath(path)
+        self.path = given_path(path, CaptureError)
         self._fh = _new_text_file(path)
         self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
         self._fh.flush()
@@ -204,7 +204,7 @@ class HeatmapSink(Sink):
                 or re.fullmatch(rf"\d{{6,}}_({'|'.join(cls.FILES)})\.npy", name) is not None)
 
     def __init__(self, directory: str | os.PathLike) -> None:
-        self.directory = os.fspath(directory)
+        self.directory = given_path(directory, CaptureError, "directory path")
         try:
             os.makedirs(self.directory, exist_ok=True)
         except OSError as exc:

@@ -135,3 +135,17 @@ def test_a_board_or_host_that_is_not_an_ipv4_address_is_a_usage_error(url, words
                           capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1, proc.stderr
     assert proc.stderr.startswith(f"radar-capture: error: {url}: ") and all(w in proc.stderr for w in words)
+
+
+def test_a_host_address_with_no_route_to_the_board_is_one_line_naming_both_and_exits_1():
+    # Bound to loopback, this computer can send nothing to the board's 192.168.33.180: Linux
+    # refuses the datagram (EINVAL) before any packet leaves.
+    proc = subprocess.run([*console_command("radar-capture"), "--source",
+                           "dca1000://?host=127.0.0.1&cli=/dev/null&config_port=0&data_port=0", "--no-publish"],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, proc.stderr
+    errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("radar-capture: error: ")]
+    assert len(errors) == 1, proc.stderr
+    assert "cannot send SYSTEM_CONNECT to the DCA1000 at 192.168.33.180:4096 from 127.0.0.1" in errors[0], errors[0]
+    assert "dca1000://BOARD?host=ADDRESS" in errors[0]

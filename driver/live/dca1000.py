@@ -133,7 +133,13 @@ class Dca1000Client:
         s = self.settings
         request = Request(command, data).pack()
         for attempt in range(1, s.retries + 1):
-            self._sock.sendto(request, (s.board_ip, s.board_port))
+            try:
+                self._sock.sendto(request, (s.board_ip, s.board_port))
+            except OSError as exc:  # no route to the board from this host address (ENETUNREACH, EINVAL)
+                raise DeviceError(f"cannot send {command.name} to the DCA1000 at {s.board_ip}:{s.board_port} "
+                                  f"from {s.host_ip}: {exc.strerror or exc}; the board answers on its own network "
+                                  "(192.168.33.x by default): give this computer an address there and name it in the "
+                                  "URL (dca1000://BOARD?host=ADDRESS)") from None
             response = self._await(command, s.timeout_s)
             if response is not None:
                 if response.status != Status.SUCCESS and command != Command.READ_FPGA_VERSION:

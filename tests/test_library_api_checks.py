@@ -1,0 +1,226 @@
+"""A Python user's wrong arguments to the library's entry points: each is the package's own error
+naming the argument or setting and how to give it, raised before anything runs, and a pipeline
+that cannot be built leaves nothing behind (its sinks' files taken back, a source it opened
+closed)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from live_helpers import URL_TIMEOUTS, port_is_free
+from radarodom.cfg import RadarConfig
+from radarodom.driver.emulators.rig import HOST_IP, EmulatedRig
+from radarodom.driver.sources import open_source
+from radarodom.dsp.cfar_params import CfarParams
+from radarodom.dsp.config import DspConfig
+from radarodom.dsp.processor import FrameProcessor, heatmap_range_bins
+from radarodom.errors import CaptureError, ConfigError, EvaluationError, SourceError, UsageError
+from radarodom.estimator.config import EstimatorConfig, FeatureConfig, IcpConfig
+from radarodom.estimator.evaluation import evaluate
+from radarodom.estimator.odometry import RadarOdometry
+from radarodom.pipeline import HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, TumSink
+from radarodom.pipeline.sinks import OdometryJsonSink
+from radarodom.products import POINT_DTYPE, RangeAzimuth
+from radarodom.tum import TumTrajectory
+
+SIM = "sim://corridor?rate=max&duration=0.5"
+#: A CFAR window longer than any heatmap's range axis: refused when the pipeline is built.
+TOO_LONG_CFAR = EstimatorConfig(features=FeatureConfig(
+    method="cfar", cfar=CfarParams(method="ca", guard=100, train=100, threshold_db=10.0)))
+
+
+# ------------------------------------------------------------------ settings built in Python
+@pytest.mark.parametrize("make, field, words", [
+    (lambda: FeatureConfig(k="200"), "k", "must be an integer, got '200'"),
+    (lambda: FeatureConfig(k=2.5), "k", "must be an integer, got 2.5"),
+    (lambda: IcpConfig(iterations=2.5), "iterations", "must be an integer"),
+    (lambda: IcpConfig(alpha=math.inf), "alpha", "must be a finite number"),
+    (lambda: DspConfig(min_range_m="0.3"), "min_range_m", "must be a number, got '0.3'"),
+    (lambda: DspConfig(min_range_m=math.nan), "min_range_m", "must be a finite number"),
+    (lambda: EstimatorConfig(icp={"iterations": 3}), "icp", "must be IcpConfig settings (IcpConfig.from_dict"),
+    (lambda: EstimatorConfig(icp=None), "icp", "got NoneType None"),
+    (lambda: DspConfig(range_cfar={"method": "ca"}), "range_cfar", "must be CfarParams settings"),
+])
+def test_settings_built_in_python_are_checked_as_those_read_from_json(make, field, words):
+    with pytest.raises(ConfigError) as info:
+        make()
+    assert info.value.field == field
+    assert words in str(info.value), str(info.value)
+
+
+def test_numpy_numbers_are_taken_as_the_plain_ones_they_are():
+    features = FeatureConfig(k=np.int64(50), min_range_m=np.float32(0.75))
+    assert features.k == 50 and type(features.k) is int
+    assert type(features.min_range_m) is float
+    assert EstimatorConfig(features=features).to_dict()["features"]["k"] == 50
+
+
+def test_dsp_ffts_shorter_than_the_cfgs_chirps_or_loops_are_refused_by_name(shipped_cfg):
+    loops, _, _, samples = shipped_cfg.cube_shape
+    with pytest.raises(ConfigError) as info:
+        FrameProcessor(shipped_cfg, DspConfig(range_fft_size=samples // 2))
+    assert info.value.field == "range_fft_size"
+    assert f"at least the cfg's {samples} ADC samples" in str(info.value)
+    with pytest.raises(ConfigError) as info:
+        heatmap_range_bins(shipped_cfg, DspConfig(doppler_fft_size=loops - 1))
+    assert info.value.field == "doppler_fft_size" and f"cfg's {loops} loops" in str(info.value)
+    # Zero padding (longer FFTs) stays what it was.
+    assert FrameProcessor(shipped_cfg, DspConfig(range_fft_size=2 * samples)).n_range == 2 * samples
+
+
+@pytest.mark.parametrize("params", [{"min_range_m": 1.0}, {}, EstimatorConfig()])
+def test_the_dsp_takes_only_its_settings_class(shipped_cfg, params):
+    with pytest.raises(UsageError, match="must be a DspConfig .DspConfig.from_dict makes one"):
+        FrameProcessor(shipped_cfg, params)
+
+
+@pytest.mark.parametrize("config", [{"icp": {}}, {}, True])
+def test_the_estimator_takes_only_its_settings_class(config):
+    with pytest.raises(UsageError, match="must be an EstimatorConfig .EstimatorConfig.from_dict makes one"):
+        RadarOdometry(config)
+
+
+# ------------------------------------------------------------------ sources
+@pytest.mark.parametrize("url", [None, 123, b"sim://corridor"])
+def test_a_source_url_that_is_not_text_is_a_source_error(url):
+    with pytest.raises(SourceError, match="a source URL is a str"):
+        open_source(url)
+
+
+def test_a_cfg_path_given_for_the_cfg_says_how_to_read_it():
+    with pytest.raises(SourceError, match=r"RadarConfig.from_file\(path\) reads one"):
+        open_source("sim://corridor", "configs/awr1843_raw.cfg")
+
+
+# ------------------------------------------------------------------ the pipeline
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(estimator={"icp": {}}), "estimator: an EstimatorConfig (EstimatorConfig.from_dict"),
+    (dict(dsp={"min_range_m": 1.0}), "dsp: a DspConfig"),
+    (dict(max_frames=0), "max_frames: a whole number of frames >= 1"),
+    (dict(max_frames=-1), "max_frames"),
+    (dict(max_frames="3"), "max_frames"),
+    (dict(max_frames=2.0), "max_frames"),
+    (dict(max_duration_s=-1.0), "max_duration_s: a number of seconds > 0"),
+    (dict(max_duration_s=math.nan), "max_duration_s"),
+    (dict(max_duration_s="0.2"), "max_duration_s"),
+    (dict(sinks=["odom.tum"]), "sinks[0]: a Sink, got str 'odom.tum' (TumSink(path) writes a TUM file)"),
+    (dict(sinks=[None]), "sinks[0]: a Sink, got NoneType None"),
+    (dict(sinks=5), "sinks: a list of Sinks, got int"),
+])
+def test_wrong_pipeline_arguments_are_usage_errors_naming_them(kwargs, words):
+    with pytest.raises(UsageError) as info:
+        Pipeline.from_url(SIM, estimator=kwargs.pop("estimator", EstimatorConfig()), **kwargs)
+    assert words in str(info.value), str(info.value)
+
+
+def test_a_url_given_as_the_source_points_to_from_url():
+    with pytest.raises(UsageError, match=r"Pipeline.from_url opens one from a URL"):
+        Pipeline("sim://corridor")
+
+
+@pytest.mark.parametrize("build", [
+    lambda path: Pipeline.from_url(SIM, estimator=TOO_LONG_CFAR, sinks=[TumSink(path)]),
+    lambda path: Pipeline.from_url(SIM, estimator=EstimatorConfig(), sinks=[TumSink(path)], max_frames=0),
+    lambda path: Pipeline.from_url(SIM, sinks=TumSink(path)),
+    lambda path: Pipeline.from_url(SIM, sinks=[TumSink(path), "second.tum"]),
+])
+def test_a_pipeline_that_cannot_be_built_takes_back_its_sinks_files(tmp_path, build):
+    path = tmp_path / "odom.tum"
+    with pytest.raises((UsageError, ConfigError)):
+        build(path)
+    assert not path.exists(), "the empty TUM file would block the next run"
+    with Pipeline.from_url(SIM, estimator=EstimatorConfig(), sinks=[TumSink(path)], max_frames=3) as pipe:
+        assert pipe.run().frames == 3
+    assert len(path.read_text().splitlines()) == 3
+
+
+def test_a_pipeline_that_cannot_be_built_closes_the_radar_it_opened(tmp_path, small_cfg: RadarConfig):
+    with EmulatedRig("sim://corridor?rate=max", config=small_cfg) as rig:
+        source = open_source(rig.url(**URL_TIMEOUTS), small_cfg)  # held here: not freed by the collector
+        with pytest.raises(ConfigError, match="features.cfar"):
+            Pipeline(source, estimator=TOO_LONG_CFAR, owns_source=True)
+        assert port_is_free(HOST_IP, rig.data_port), "the DCA1000 data socket was left open"
+        assert not any(line.startswith("sensorStart") for line in rig.radar.received), rig.radar.received
+
+
+def test_a_pipeline_runs_once(tmp_path):
+    pipe = Pipeline.from_url(SIM, estimator=EstimatorConfig(), sinks=[TumSink(tmp_path / "odom.tum")], max_frames=2)
+    assert pipe.run().frames == 2
+    with pytest.raises(UsageError, match="a Pipeline runs once, and this one has run: build a new one"):
+        pipe.run()
+    pipe.close()
+    closed = Pipeline.from_url(SIM, max_frames=2)
+    closed.close()
+    with pytest.raises(UsageError, match="this one has been closed"):
+        closed.run()
+
+
+# ------------------------------------------------------------------ the estimator's inputs
+@pytest.mark.parametrize("call, words", [
+    (lambda o: o.add_points("0.1", np.zeros(3, POINT_DTYPE)), "a time is a number of seconds, got str"),
+    (lambda o: o.add_points(None, np.zeros(3, POINT_DTYPE)), "got NoneType"),
+    (lambda o: o.add_points(0.1, None), "points: a (n,) structured array with fields azimuth, elevation, velocity"),
+    (lambda o: o.add_points(0.1, np.zeros((3, 3))), "got ndarray (3, 3)"),
+    (lambda o: o.add_points(0.1, np.zeros((2, 3), POINT_DTYPE)), "got ndarray (2, 3)"),
+    (lambda o: o.add_heatmap(0.1, None), "heatmap: a range-azimuth heatmap"),
+    (lambda o: o.add_heatmap(0.1, RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 3)), np.arange(3.0),
+                                                np.zeros(3))), "its intensity (4, 3) must be (range bins, azimuth bins)"),
+])
+def test_the_estimators_inputs_are_checked_where_they_come_in(call, words):
+    with pytest.raises(UsageError) as info:
+        call(RadarOdometry())
+    assert words in str(info.value), str(info.value)
+
+
+# ------------------------------------------------------------------ trajectories and evaluation
+def _line(n: int = 3) -> TumTrajectory:
+    return TumTrajectory.from_se2(np.arange(n, dtype=float), [[i, 0.0, 0.0] for i in range(n)])
+
+
+def test_evaluation_takes_trajectories_and_says_how_to_read_a_file():
+    with pytest.raises(EvaluationError, match=r"est: a TumTrajectory \(radarodom.tum.read_tum reads a TUM file\)"):
+        evaluate("est.tum", _line())
+    for kwargs in ({"delta_m": "1"}, {"max_diff": None}):
+        with pytest.raises(EvaluationError, match="must be a"):
+            evaluate(_line(), _line(), **kwargs)
+
+
+def test_trajectories_take_lists_and_refuse_what_is_no_pose():
+    lists = TumTrajectory([0, 1], [[0, 0, 0], [1, 0, 0]], [[0, 0, 0, 1], [0, 0, 0, 1]])
+    assert lists.positions.dtype == float and len(lists) == 2
+    with pytest.raises(UsageError, match=r"planar poses must be \(n, 3\): x, y, yaw; got \(2, 2\)"):
+        TumTrajectory.from_se2([0, 1], [[0, 0], [1, 0]])
+    with pytest.raises(UsageError, match="positions must be numbers"):
+        TumTrajectory([0, 1], [[0, "a", 0], [1, 0, 0]], [[0, 0, 0, 1], [0, 0, 0, 1]])
+
+
+@pytest.mark.parametrize("make", [lambda: TumSink(None), lambda: PointsCsvSink(None), lambda: OdometryJsonSink(3),
+                                  lambda: HeatmapSink(None)])
+def test_an_output_without_a_path_says_so(make):
+    with pytest.raises(CaptureError, match="expected a (file|directory) path, got"):
+        make()
+
+
+# ------------------------------------------------------------------ settings helpers, statistics
+def test_settings_helpers_raise_config_errors(tmp_path):
+    with pytest.raises(ConfigError, match="cannot write DSP settings: No such file or directory"):
+        DspConfig().dump(tmp_path / "missing" / "dsp.json")
+    with pytest.raises(ConfigError, match="cannot write DSP settings"):
+        DspConfig().dump(tmp_path)
+    with pytest.raises(ConfigError, match="settings are named by strings, got 1"):
+        EstimatorConfig.from_dict({1: 2})
+    with pytest.raises(ConfigError, match="the changes to a section are a dict of its settings, got int"):
+        EstimatorConfig().with_(icp=5)
+    with pytest.raises(ConfigError, match="unknown estimator preset"):
+        EstimatorConfig().preset(["tidemo"])
+
+
+@pytest.mark.parametrize("q", [-10, 150, "50", float("nan")])
+def test_a_latency_percentile_outside_0_to_100_is_refused(q):
+    meter = LatencyMeter()
+    meter.add(0.01)
+    with pytest.raises(UsageError, match="a percentile is a number from 0 to 100"):
+        meter.percentiles_ms(q)
+    assert meter.percentiles_ms(0, 100) == (10.0, 10.0)
