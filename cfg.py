@@ -27,7 +27,7 @@ from .cfg_physics import (  # noqa: F401  (re-exported: radarodom.cfg is where u
     DCA1000_PACKET_DELAY_RANGE_US, DCA1000_THROUGHPUT_TABLE, MAX_RF_FREQUENCY_HZ, SPEED_OF_LIGHT,
     ConfigPhysics, dca1000_capacity_mbps)
 from .cfg_text import MAX_CFG_BYTES, CfgLine, WarningSummary, read_cfg_file, tokenize
-from .errors import ConfigError
+from .errors import ConfigError, given_path
 
 __all__ = ["RadarConfig", "CfgLine", "MAX_CFG_BYTES", "shipped_config_path", "dca1000_capacity_mbps"]
 
@@ -198,8 +198,13 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
         return "".join(str(ln) + "\n" for ln in self.lines)
 
     def write(self, path: str | os.PathLike) -> None:
-        with open(path, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(self.to_text())
+        """The cfg's text to *path* (written over); :class:`ConfigError` naming it when it cannot be."""
+        path = given_path(path, ConfigError, "cfg file path")
+        try:
+            with open(path, "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(self.to_text())
+        except OSError as exc:
+            raise ConfigError(f"cannot write the cfg: {exc.strerror or exc}", path=path) from None
 
     def replace(self, command: Any) -> "RadarConfig":
         """A new config with the typed *command* replacing the line of the same

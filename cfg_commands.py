@@ -23,6 +23,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Sequence
 
+from .errors import UsageError, quoted
 from .cfg_fields import (LEGACY_SUBFRAME, arg, config_error, convert, check_range, flag_arg,
                          format_fields, format_number, parse_fields, subframe_arg)
 
@@ -382,4 +383,5 @@ def cli_name(command: Any) -> str:
     for name, cls in TYPED_COMMANDS.items():
         if type(command) is cls:
             return name
-    raise TypeError(f"not a typed cfg command: {command!r}")
+    raise UsageError(f"not a typed cfg command: {quoted(command)} (a command is one of radarodom.cfg_commands' "
+                     f"classes, e.g. {next(iter(TYPED_COMMANDS.values())).__name__}; RadarConfig.from_text parses text)")

@@ -70,7 +70,14 @@ def _python_float(text: str) -> float | None:
 def format_tum_line(t: float, position: Sequence[float], quaternion: Sequence[float]) -> str:
     """One TUM line with its newline: *t* (s) to 9 decimals (nanoseconds, as the
     frame timestamps), the position (3,) m and quaternion (4,) xyzw to 9 digits."""
-    values = [float(v) for v in position] + [float(v) for v in quaternion]
+    try:
+        if isinstance(t, (str, bytes)):  # float() would parse "0": a caller's slip, not a time
+            raise TypeError
+        values = [float(v) for v in position] + [float(v) for v in quaternion]
+        t = float(t)
+    except (TypeError, ValueError):
+        raise UsageError(f"a TUM pose is numbers: t, a position (3) and a quaternion (4), got t={t!r}, "
+                         f"{position!r}, {quaternion!r}") from None
     if len(values) != 7:
         raise UsageError(f"a TUM pose is a position (3) and a quaternion (4), got {len(values)} numbers")
     if not all(math.isfinite(v) for v in values) or not math.isfinite(t):

@@ -23,7 +23,7 @@ from radarodom.estimator.odometry import RadarOdometry
 from radarodom.pipeline import HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, TumSink
 from radarodom.pipeline.sinks import OdometryJsonSink
 from radarodom.products import POINT_DTYPE, RangeAzimuth
-from radarodom.tum import TumTrajectory
+from radarodom.tum import TumTrajectory, TumWriter
 
 SIM = "sim://corridor?rate=max&duration=0.5"
 #: A CFAR window longer than any heatmap's range axis: refused when the pipeline is built.
@@ -224,3 +224,18 @@ def test_a_latency_percentile_outside_0_to_100_is_refused(q):
     with pytest.raises(UsageError, match="a percentile is a number from 0 to 100"):
         meter.percentiles_ms(q)
     assert meter.percentiles_ms(0, 100) == (10.0, 10.0)
+
+
+def test_cfg_and_tum_writers_refuse_what_they_cannot_write(tmp_path, shipped_cfg):
+    with pytest.raises(ConfigError, match="expected a cfg file path, got NoneType"):
+        shipped_cfg.write(None)
+    with pytest.raises(ConfigError, match="cannot write the cfg: No such file or directory"):
+        shipped_cfg.write(tmp_path / "missing" / "radar.cfg")
+    with pytest.raises(UsageError, match=r"not a typed cfg command: 'frameCfg 0 1 2' .*RadarConfig.from_text"):
+        shipped_cfg.replace("frameCfg 0 1 2")
+    with TumWriter(tmp_path / "odom.tum") as writer:
+        for args in (("0", 0.0, 0.0, 0.0), (0.0, [1.0, 2.0], 0.0, 0.0)):
+            with pytest.raises(UsageError, match="a TUM pose is numbers"):
+                writer.write(*args)
+        writer.write(0.0, 1.0, 2.0, 0.0)
+    assert (tmp_path / "odom.tum").read_text().startswith("0.000000000 1 2 0 ")
