@@ -734,6 +734,10 @@ def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_pat
     assert (out / "adc_data.bin").stat().st_size == 3 * frame_bytes  # the cut frame's part taken back
     assert not (out / "capture.json.tmp").exists()
     assert CaptureDirectory(out).num_frames == 3
+    # The summary before the error counts the frame whose write failed among those streamed, and
+    # says how many the recording holds.
+    summary = [ln for ln in proc.stdout.splitlines() if ln.startswith("radar-capture: 4 frames ")]
+    assert len(summary) == 1 and f"stopped by an error; recorded 3 of them to {out}" in summary[0], proc.stdout
 
 
 def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usage():

@@ -360,3 +360,10 @@ def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path)
     assert proc.returncode == 2 and "usage: radar-cfg" in proc.stderr
     proc = run_cfg("--list", SHIPPED)
     assert proc.returncode == 2 and "usage: radar-cfg" in proc.stderr
+
+
+def test_the_usage_says_copy_takes_at_most_one_dest(tmp_path):
+    usage = radar_cfg.build_parser().format_help()
+    assert "--copy NAME [DEST]" in usage and "[DEST ...]" not in usage, usage
+    proc = run_cfg("--copy", "awr1843_raw", tmp_path / "a", tmp_path / "b", cwd=tmp_path)
+    assert proc.returncode == 2 and "--copy takes NAME and at most one DEST" in proc.stderr, proc.stderr

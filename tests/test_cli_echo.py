@@ -299,3 +299,30 @@ def test_the_inbox_keeps_a_bounded_backlog_and_counts_what_it_drops():
     assert inbox.take_dropped() == {}
     inbox.receiver("status")(argparse.Namespace(key_expr="radar/awr1843/status", payload=big))
     assert inbox.get(0.1) == ("status", "radar/awr1843/status", None, messages.MAX_JSON_BYTES + 1)
+
+
+def test_the_no_peer_hint_is_given_only_when_nothing_came():
+    # Two listeners at once: one no peer ever reaches, one a peer reaches with malformed messages
+    # and leaves before the hint's time (5 s): only the first is told that no peer was reached.
+    alone, visited = free_endpoint(), free_endpoint()
+    procs = [subprocess.Popen(ECHO + ["--listen", endpoint, "odom"], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for endpoint in (alone, visited)]
+    try:
+        with peer(connect=[visited]) as session:
+            publisher = session.declare_publisher("radar/awr1843/odom")
+            deadline = time.monotonic() + 4
+            while time.monotonic() < deadline:
+                publisher.put(b'{"schema": "radarodom/odom", "version": 1}')
+                time.sleep(0.2)
+        time.sleep(radar_echo._QUIET_HINT_S + 2 - 4)
+        for proc in procs:
+            proc.send_signal(signal.SIGINT)
+        errs = [proc.communicate(timeout=30)[1] for proc in procs]
+    finally:
+        for proc in procs:
+            proc.kill()
+    assert [proc.returncode for proc in procs] == [0, 0], errs
+    assert "no Zenoh peer reached yet" in errs[0], errs[0]
+    assert "ignored a malformed message" in errs[1], errs[1]
+    assert "no Zenoh peer reached yet" not in errs[1], errs[1]

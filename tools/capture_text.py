@@ -47,20 +47,33 @@ def missing_text(stats: PipelineStats) -> str:
     return text + (": " + ", ".join(causes) if causes else "")
 
 
-def summary(stats: PipelineStats, record: str | None) -> str:
+def summary(stats: PipelineStats, record: str | None, recorded: int | None = None) -> str:
+    """The frames streamed and why the run ended; with *record*, where they were recorded, and how
+    many of them when that is fewer (*recorded*: a recording a failed write ended)."""
     text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({missing_text(stats)}) in "
             f"{stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, {stats.stream_duration_s:.2f} s of stream; "
             f"{stats.reason}")
     if record:
-        text += f"; recorded to {record}"
+        some = f" {recorded} of them" if recorded is not None and recorded != stats.frames else ""
+        text += f"; recorded{some} to {record}"
     return text
 
 
-def stream_summary(args: argparse.Namespace, source: Source, stats: PipelineStats) -> str:
+def recorded_frames(sinks) -> int | None:
+    """The frames the run's capture directory holds (None without one)."""
+    for sink in sinks:
+        count = getattr(getattr(sink, "writer", None), "frame_count", None)
+        if isinstance(count, int):
+            return count
+    return None
+
+
+def stream_summary(args: argparse.Namespace, source: Source, stats: PipelineStats, sinks=()) -> str:
     """The frames, the odometry and what the stream lost (a live source's or a serial stream's
-    accounting)."""
+    accounting); *sinks*: the run's, for the frames its recording holds."""
     live = source.describe()
-    text = summary(stats, args.record) + odometry_summary(stats, None if args.no_odom else args.odom_out)
+    text = (summary(stats, args.record, recorded_frames(sinks))
+            + odometry_summary(stats, None if args.no_odom else args.odom_out))
     if "frames_dropped" in live:
         text += live_summary(live, stats)
     elif "discarded_bytes" in live:  # a serial stream (tidemo://, its replay): what the framer lost

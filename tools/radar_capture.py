@@ -294,11 +294,11 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
         except RadarodomError:
             status.clear()
             if pipeline.stats.frames:  # what was kept and lost, then the error (a board that died, a cable)
-                print(f"radar-capture: {stream_summary(args, source, pipeline.stats)}")
+                print(f"radar-capture: {stream_summary(args, source, pipeline.stats, pipeline.sinks)}")
             raise
         finally:
             status.clear()
-    summary = stream_summary(args, source, stats)
+    summary = stream_summary(args, source, stats, pipeline.sinks)
     if publisher is not None:
         counts = publisher.counts
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "

@@ -47,9 +47,16 @@ class _Parser(argparse.ArgumentParser):
         return ns
 
 
+class _Formatter(argparse.HelpFormatter):
+    """--copy takes one or two values, which nargs cannot say ("+" would print NAME [DEST ...])."""
+
+    def _format_args(self, action, default_metavar):
+        return "NAME [DEST]" if action.dest == "copy" else super()._format_args(action, default_metavar)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
-        prog="radar-cfg",
+        prog="radar-cfg", formatter_class=_Formatter,
         description="Validate TI mmWave SDK 3.x cfgs for the xWR18xx and print their derived "
                     "quantities. Exit 2, with file:line, on an invalid cfg (with several files: the worst "
                     "exit status of them). --list and --copy give the cfgs radarodom ships.")

@@ -170,7 +170,7 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _print_loop(args: argparse.Namespace, session, inbox: _Inbox) -> int:
-    printed = 0
+    printed = received = 0
     started = time.monotonic()
     hinted = False
     while args.count is None or printed < args.count:
@@ -179,12 +179,14 @@ def _print_loop(args: argparse.Namespace, session, inbox: _Inbox) -> int:
         try:
             kind, key, payload, size = inbox.get(timeout=_POLL_S)
         except queue.Empty:
-            if not hinted and not printed and time.monotonic() - started > _QUIET_HINT_S:
+            # Only when nothing came at all: malformed messages came from a peer (gone since, perhaps).
+            if not hinted and not received and time.monotonic() - started > _QUIET_HINT_S:
                 hinted = True
                 if not list(session.info.peers_zid()) and not list(session.info.routers_zid()):
                     log.warning("no Zenoh peer reached yet: is radar-capture publishing on this machine? "
                                 "(otherwise give --connect with its endpoint)")
             continue
+        received += 1
         try:
             if payload is None:
                 raise MessageError(f"{size} bytes, more than the {_MAX_BYTES[kind]} a message may have "
