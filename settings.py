@@ -9,12 +9,15 @@ unknown keys and bad values raise :class:`ConfigError` naming the field.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import os
 import types
 import typing
 from typing import Any, Mapping, TypeVar
+
+import numpy as np
 
 from . import strict_json
 from .errors import ConfigError, given_path, quoted, quoted_json
@@ -25,9 +28,15 @@ MAX_SETTINGS_BYTES = 1 << 20
 S = TypeVar("S", bound="Settings")
 
 
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    """*cls*'s resolved type hints, once per class (every settings object built checks them)."""
+    return typing.get_type_hints(cls)
+
+
 def _nested_type(cls: type, name: str) -> type | None:
     """The field's class when it is itself loadable from a dict, else None."""
-    hint = typing.get_type_hints(cls).get(name)
+    hint = _hints(cls).get(name)
     return hint if isinstance(hint, type) and hasattr(hint, "from_dict") else None
 
 
@@ -46,15 +55,16 @@ def check_choice(value: Any, choices: tuple[str, ...], name: str) -> None:
 _KINDS = {bool: "a boolean", int: "an integer", float: "a number", str: "a string"}
 
 
-def _checked(value: Any, hint: Any, name: str) -> Any:
+def _checked(value: Any, hint: Any, name: str, quote=quoted_json) -> Any:
     """*value* if it has the type *hint* asks for (ints accepted as floats), else
-    :class:`ConfigError` naming the field.  Hints other than the plain ones pass."""
+    :class:`ConfigError` naming the field, the value spelled by *quote* (JSON's words for a file's
+    values, Python's for values given in Python).  Hints other than the plain ones pass."""
     allowed = typing.get_args(hint) if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
     if value is None and type(None) in allowed:
         return value
     for kind in allowed:
-        if kind is bool and isinstance(value, bool):
-            return value
+        if kind is bool and isinstance(value, (bool, np.bool_)):
+            return bool(value)
         # numpy's integers and floats are numbers.Integral / numbers.Real (a value computed in numpy)
         if kind is int and isinstance(value, numbers.Integral) and not isinstance(value, bool):
             return int(value)
@@ -64,7 +74,7 @@ def _checked(value: Any, hint: Any, name: str) -> Any:
             except OverflowError:  # an int beyond any float
                 number = math.inf
             if not math.isfinite(number):
-                raise ConfigError(f"must be a finite number, got {value!r:.40}", field=name)
+                raise ConfigError(f"must be a finite number, got {quote(value)}", field=name)
             return number
         if kind is str and isinstance(value, str):
             return value
@@ -72,7 +82,7 @@ def _checked(value: Any, hint: Any, name: str) -> Any:
     if not plain or len(plain) < len([k for k in allowed if k is not type(None)]):
         return value  # not a plain type (a nested section is checked by its own from_dict)
     wanted = " or ".join(_KINDS[k] for k in plain) + (" or null" if type(None) in allowed else "")
-    raise ConfigError(f"must be {wanted}, got {quoted_json(value)}", field=name)
+    raise ConfigError(f"must be {wanted}, got {quote(value)}", field=name)
 
 
 class Settings:
@@ -86,14 +96,14 @@ class Settings:
     def check_types(self) -> None:
         """:class:`ConfigError` naming the first field whose value is not of its declared type
         (a nested section not of its settings class); ints given for numbers become floats."""
-        hints = typing.get_type_hints(type(self))
+        hints = _hints(type(self))
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             if not f.init:
                 continue
             value = getattr(self, f.name)
             nested = _nested_type(type(self), f.name)
             if nested is None:
-                object.__setattr__(self, f.name, _checked(value, hints.get(f.name), f.name))
+                object.__setattr__(self, f.name, _checked(value, hints.get(f.name), f.name, quoted))
             elif not isinstance(value, nested):
                 raise ConfigError(f"must be {nested.__name__} settings ({nested.__name__}.from_dict makes them "
                                   f"from a dict), got {type(value).__name__} {quoted(value)}", field=f.name)
@@ -133,7 +143,7 @@ class Settings:
             raise ConfigError(f"unknown {cls._what} setting(s): "
                               + ", ".join(prefix + k for k in sorted(unknown)))
         values = dict(data)
-        hints = typing.get_type_hints(cls)
+        hints = _hints(cls)
         for key, value in data.items():
             nested = _nested_type(cls, key)
             if nested is None:

@@ -67,14 +67,19 @@ def _python_float(text: str) -> float | None:
         return None
 
 
+def _number(value) -> float:
+    """*value* as a float; TypeError for text (float() would parse "0": a caller's slip) and None."""
+    if isinstance(value, (str, bytes)) or value is None:
+        raise TypeError(value)
+    return float(value)
+
+
 def format_tum_line(t: float, position: Sequence[float], quaternion: Sequence[float]) -> str:
     """One TUM line with its newline: *t* (s) to 9 decimals (nanoseconds, as the
     frame timestamps), the position (3,) m and quaternion (4,) xyzw to 9 digits."""
     try:
-        if isinstance(t, (str, bytes)):  # float() would parse "0": a caller's slip, not a time
-            raise TypeError
-        values = [float(v) for v in position] + [float(v) for v in quaternion]
-        t = float(t)
+        values = [_number(v) for v in position] + [_number(v) for v in quaternion]
+        t = _number(t)
     except (TypeError, ValueError):
         raise UsageError(f"a TUM pose is numbers: t, a position (3) and a quaternion (4), got t={t!r}, "
                          f"{position!r}, {quaternion!r}") from None

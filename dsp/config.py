@@ -36,9 +36,10 @@ def _default_doppler_cfar() -> CfarParams:
 class DspConfig(Settings):
     _what = "DSP"
 
-    #: Windows before the range and Doppler FFTs (scipy.signal.get_window names, or "rect").
-    range_window: str = "hann"
-    doppler_window: str = "hann"
+    #: Windows before the range and Doppler FFTs (scipy.signal.get_window names, or "rect"; from
+    #: Python also its (name, parameter) tuples, e.g. ("kaiser", 8.0)).
+    range_window: str | tuple = "hann"
+    doppler_window: str | tuple = "hann"
     #: FFT sizes; None: the number of samples / loops (no zero padding).
     range_fft_size: int | None = None
     doppler_fft_size: int | None = None

@@ -112,10 +112,10 @@ class Pipeline:
             self._result_sinks = [s for s in self.sinks if not s.takes_raw]
             _check_sinks(sinks, given)
             self._build(estimator, dsp, max_frames, max_duration_s)
-        except BaseException:
+        except BaseException as failure:
             # Nothing ran: the sinks take back what they made (an empty file would block the next
             # run), and a source opened for this pipeline is closed (a radar's ports freed).
-            self.close()
+            _close_after(failure, self.close)
             raise
 
     def _build(self, estimator: EstimatorConfig | None, dsp: DspConfig | None, max_frames: int | None,
@@ -138,7 +138,7 @@ class Pipeline:
         self.products = None
         if self.feed is not None or self._result_sinks:
             features = (estimator or EstimatorConfig()).features
-            full = any(s.full_heatmaps for s in self._result_sinks)
+            full = any(getattr(s, "full_heatmaps", False) for s in self._result_sinks)
             if self.feed is not None:  # settings that cannot run on these heatmaps fail now, not at a frame
                 check_features_fit(source, features, dsp)
             self.products = (FrameProducts(source.config, dsp, coupling=source.coupling, calibrated=source.calibrated)
@@ -147,26 +147,31 @@ class Pipeline:
                                                                       calibrated=source.calibrated))
         # A heatmap is made when the estimator or a sink takes it; a velocity-only frame's only
         # for a sink that wants every heatmap.
-        wanted = self.feed is not None or any(s.wants_heatmaps for s in self._result_sinks)
+        wanted = self.feed is not None or any(getattr(s, "wants_heatmaps", False) for s in self._result_sinks)
         self._heatmap_for = {role: wanted for role in ROLES}
-        self._heatmap_for["velocity"] = any(s.full_heatmaps for s in self._result_sinks)
+        self._heatmap_for["velocity"] = any(getattr(s, "full_heatmaps", False) for s in self._result_sinks)
 
     @classmethod
     def from_url(cls, url: str, config: RadarConfig | None = None, **kwargs) -> Pipeline:
         """A pipeline on the source *url* opens (closed with the pipeline, or at once when the
         pipeline cannot be built); *kwargs* as for the constructor."""
-        return cls(open_source(url, config), owns_source=True, **kwargs)
+        source = open_source(url, config)
+        try:
+            return cls(source, owns_source=True, **kwargs)
+        except TypeError as failure:  # a keyword the constructor does not take: __init__ never ran
+            _close_after(failure, source.close)
+            raise
 
     # ------------------------------------------------------------------ one frame
     def process(self, frame: Frame) -> FrameResult:
         """The frame, given to the sinks that take raw frames; its products and odometry, given
         to every other sink."""
-        if frame.role not in ROLES:  # a Source of the user's own
-            raise CaptureError(f"frame {frame.index}: role {frame.role!r} is not one of {', '.join(ROLES)}")
         for sink in self._raw_sinks:
             sink.write_raw(frame, self.stats)
         if self.products is None:
             return FrameResult(frame, None, None, None)
+        if frame.role not in ROLES:  # a Source of the user's own (a recording alone takes any)
+            raise CaptureError(f"frame {frame.index}: role {frame.role!r} is not one of {', '.join(ROLES)}")
         products = self.products(frame, heatmap=self._heatmap_for[frame.role])
         state = None if self.feed is None else self.feed(frame, products)
         if state is not None:
@@ -194,11 +199,7 @@ class Pipeline:
         except BaseException as failure:
             stats.reason = "stopped by an error"
             stats.elapsed_s = time.monotonic() - stats.started_monotonic
-            try:
-                self._finish()
-            except BaseException as close_failure:  # noqa: BLE001 (the first failure is the one to report)
-                log.debug("closing the outputs failed too: %s", close_failure)
-                add_note(failure, f"then closing the outputs failed too: {close_failure}")
+            _close_after(failure, self._finish)
             raise
         stats.elapsed_s = time.monotonic() - stats.started_monotonic
         self._finish()
@@ -268,10 +269,16 @@ def _is_sink(obj) -> bool:
     driver/ do not)."""
     if not hasattr(obj, "takes_raw") or not callable(getattr(obj, "close", None)):
         return False
-    if obj.takes_raw:
-        return callable(getattr(obj, "write_raw", None))
-    return (callable(getattr(obj, "write", None)) and hasattr(obj, "wants_heatmaps")
-            and hasattr(obj, "full_heatmaps"))
+    return callable(getattr(obj, "write_raw" if obj.takes_raw else "write", None))
+
+
+def _close_after(failure: BaseException, close: Callable[[], None]) -> None:
+    """*close*, after *failure*: a failure of its own is noted on *failure*, which stays the one raised."""
+    try:
+        close()
+    except BaseException as close_failure:  # noqa: BLE001 (the first failure is the one to report)
+        log.debug("closing the outputs failed too: %s", close_failure)
+        add_note(failure, f"then closing the outputs failed too: {close_failure}")
 
 
 def _sink_list(sinks: Sequence[Sink]) -> list:
@@ -288,7 +295,8 @@ def _check_sinks(sinks, given: list) -> None:
         raise UsageError(f"sinks: a list of Sinks, got one {type(sinks).__name__} (sinks=[...] gives a list)")
     for i, sink in enumerate(given):
         if not _is_sink(sink):
-            hint = " (TumSink(path) writes a TUM file)" if isinstance(sink, (str, os.PathLike)) else ""
+            hint = " (a sink is made from a path: TumSink(path), PointsCsvSink(path), ...)" \
+                if isinstance(sink, (str, os.PathLike)) else ""
             raise UsageError(f"sinks[{i}]: a Sink, got {type(sink).__name__} {quoted(sink)}{hint}")
 
 

@@ -5,6 +5,7 @@ closed)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 from live_helpers import URL_TIMEOUTS, port_is_free
 from radarodom.cfg import RadarConfig
 from radarodom.driver.emulators.rig import HOST_IP, EmulatedRig
-from radarodom.driver.sources import open_source
+from radarodom.driver.sources import Source, open_source
 from radarodom.dsp.cfar_params import CfarParams
 from radarodom.dsp.config import DspConfig
 from radarodom.dsp.processor import FrameProcessor, heatmap_range_bins
@@ -20,7 +21,7 @@ from radarodom.errors import CaptureError, ConfigError, EvaluationError, SourceE
 from radarodom.estimator.config import EstimatorConfig, FeatureConfig, IcpConfig
 from radarodom.estimator.evaluation import evaluate
 from radarodom.estimator.odometry import RadarOdometry
-from radarodom.pipeline import HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, TumSink
+from radarodom.pipeline import HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, Sink, TumSink
 from radarodom.pipeline.sinks import OdometryJsonSink
 from radarodom.products import POINT_DTYPE, RangeAzimuth
 from radarodom.tum import TumTrajectory, TumWriter
@@ -41,6 +42,7 @@ TOO_LONG_CFAR = EstimatorConfig(features=FeatureConfig(
     (lambda: DspConfig(min_range_m=math.nan), "min_range_m", "must be a finite number"),
     (lambda: EstimatorConfig(icp={"iterations": 3}), "icp", "must be IcpConfig settings (IcpConfig.from_dict"),
     (lambda: EstimatorConfig(icp=None), "icp", "got NoneType None"),
+    (lambda: IcpConfig(initial_guess=None), "initial_guess", "must be a string, got None"),
     (lambda: DspConfig(range_cfar={"method": "ca"}), "range_cfar", "must be CfarParams settings"),
 ])
 def test_settings_built_in_python_are_checked_as_those_read_from_json(make, field, words):
@@ -105,7 +107,7 @@ def test_a_cfg_path_given_for_the_cfg_says_how_to_read_it():
     (dict(max_duration_s=-1.0), "max_duration_s: a number of seconds > 0"),
     (dict(max_duration_s=math.nan), "max_duration_s"),
     (dict(max_duration_s="0.2"), "max_duration_s"),
-    (dict(sinks=["odom.tum"]), "sinks[0]: a Sink, got str 'odom.tum' (TumSink(path) writes a TUM file)"),
+    (dict(sinks=["odom.tum"]), "sinks[0]: a Sink, got str 'odom.tum' (a sink is made from a path: TumSink(path)"),
     (dict(sinks=[None]), "sinks[0]: a Sink, got NoneType None"),
     (dict(sinks=5), "sinks: a list of Sinks, got int"),
 ])
@@ -239,3 +241,90 @@ def test_cfg_and_tum_writers_refuse_what_they_cannot_write(tmp_path, shipped_cfg
                 writer.write(*args)
         writer.write(0.0, 1.0, 2.0, 0.0)
     assert (tmp_path / "odom.tum").read_text().startswith("0.000000000 1 2 0 ")
+
+
+# ------------------------------------------------------------------ from the review of these checks
+class _FailingClose(Sink):
+    """A sink of the user's own whose close fails (a disk gone)."""
+
+    def write(self, result, stats) -> None:
+        pass
+
+    def close(self, stats) -> None:
+        raise OSError("the disk went away")
+
+
+def test_a_close_that_fails_after_a_bad_argument_leaves_the_arguments_error_raised():
+    with pytest.raises(UsageError, match="max_frames") as info:
+        Pipeline.from_url(SIM, sinks=[_FailingClose()], max_frames=0)
+    assert any("then closing the outputs failed too: the disk went away" in note
+               for note in getattr(info.value, "__notes__", [])), info.value
+
+
+def test_numpy_booleans_and_scipy_window_tuples_are_taken():
+    assert IcpConfig(sampling=np.True_).sampling is True
+    assert DspConfig(range_window=("kaiser", 8.0)).range_window == ("kaiser", 8.0)
+
+
+class _DuckSink:
+    """A result sink that does not subclass Sink and says nothing of heatmaps."""
+
+    takes_raw = False
+
+    def __init__(self) -> None:
+        self.frames = 0
+
+    def write(self, result, stats) -> None:
+        self.frames += 1
+
+    def close(self, stats) -> None:
+        pass
+
+
+class _DuckRecorder:
+    takes_raw = True
+
+    def __init__(self) -> None:
+        self.roles: list[str] = []
+
+    def write_raw(self, frame, stats) -> None:
+        self.roles.append(frame.role)
+
+    def close(self, stats) -> None:
+        pass
+
+
+def test_sinks_need_not_subclass_sink():
+    duck = _DuckSink()
+    with Pipeline.from_url(SIM, estimator=EstimatorConfig(), sinks=[duck], max_frames=3) as pipe:
+        pipe.run()
+    assert duck.frames == 3
+
+
+class _Frames(Source):
+    """A Source of the user's own: frames already in memory."""
+
+    def __init__(self, frames, config) -> None:
+        super().__init__()
+        self.frames, self.config = frames, config
+
+    def __iter__(self):
+        return iter(self.frames)
+
+
+def test_a_recording_alone_takes_frames_of_any_role(small_cfg):
+    with open_source("sim://corridor?rate=max", small_cfg) as source:
+        frames = [dataclasses.replace(frame, role="raw") for frame, _ in zip(source, range(3))]
+    recorder = _DuckRecorder()
+    Pipeline(_Frames(frames, small_cfg), sinks=[recorder]).run()
+    assert recorder.roles == ["raw"] * 3
+    with pytest.raises(CaptureError, match="frame 0: role 'raw' is not one of"):
+        Pipeline(_Frames(frames, small_cfg), estimator=EstimatorConfig()).run()
+
+
+def test_a_keyword_the_pipeline_does_not_take_closes_the_radar_from_url_opened(small_cfg):
+    with EmulatedRig("sim://corridor?rate=max", config=small_cfg) as rig:
+        with pytest.raises(TypeError, match="sink"):
+            Pipeline.from_url(rig.url(**URL_TIMEOUTS), small_cfg, sink=[])
+        # The traceback (held by pytest) keeps the source alive: the port is free only if it was closed.
+        assert port_is_free(HOST_IP, rig.data_port), "the DCA1000 data socket was left open"

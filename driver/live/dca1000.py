@@ -41,7 +41,7 @@ from .dca1000_wire import (
 )
 from .frame_assembler import DEFAULT_REORDER_PACKETS, FrameAssembler
 from .frame_ring import FrameRing
-from .host_network import bind_problem
+from .host_network import bind_problem, send_problem
 from .stream_gaps import SeqGaps
 
 log = logging.getLogger(__name__)
@@ -135,11 +135,8 @@ class Dca1000Client:
         for attempt in range(1, s.retries + 1):
             try:
                 self._sock.sendto(request, (s.board_ip, s.board_port))
-            except OSError as exc:  # no route to the board from this host address (ENETUNREACH, EINVAL)
-                raise DeviceError(f"cannot send {command.name} to the DCA1000 at {s.board_ip}:{s.board_port} "
-                                  f"from {s.host_ip}: {exc.strerror or exc}; the board answers on its own network "
-                                  "(192.168.33.x by default): give this computer an address there and name it in the "
-                                  "URL (dca1000://BOARD?host=ADDRESS)") from None
+            except OSError as exc:
+                raise DeviceError(send_problem(exc, command.name, (s.board_ip, s.board_port), s.host_ip)) from None
             response = self._await(command, s.timeout_s)
             if response is not None:
                 if response.status != Status.SUCCESS and command != Command.READ_FPGA_VERSION:

@@ -40,3 +40,17 @@ def bind_problem(exc: OSError, ip: str, port: int, what: str) -> str:
     if exc.errno == errno.EACCES:
         return f"{base}. Ports below 1024 need root: use the board's default ports (4096, 4098)"
     return f"{base}. Does this host have the address {ip} (ip addr), and is no other capture program running?"
+
+
+#: sendto's errors when this host address has no route to the board's.
+_NO_ROUTE = (errno.EINVAL, errno.ENETUNREACH, errno.EHOSTUNREACH, errno.EADDRNOTAVAIL)
+
+
+def send_problem(exc: OSError, what: str, board: tuple[str, int], host_ip: str) -> str:
+    """What a failed send of *what* to the board at *board* from *host_ip* means, and the fix where
+    it is the address."""
+    text = f"cannot send {what} to the DCA1000 at {board[0]}:{board[1]} from {host_ip}: {exc.strerror or exc}"
+    if exc.errno in _NO_ROUTE:
+        text += ("; the board answers on its own network (192.168.33.x by default): give this computer an address "
+                 "there and name it in the URL (dca1000://BOARD?host=ADDRESS)")
+    return text
