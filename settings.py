@@ -81,7 +81,8 @@ def _checked(value: Any, hint: Any, name: str, quote=quoted_json) -> Any:
     plain = [k for k in allowed if k in _KINDS]
     if not plain or len(plain) < len([k for k in allowed if k is not type(None)]):
         return value  # not a plain type (a nested section is checked by its own from_dict)
-    wanted = " or ".join(_KINDS[k] for k in plain) + (" or null" if type(None) in allowed else "")
+    none = " or null" if quote is quoted_json else " or None"
+    wanted = " or ".join(_KINDS[k] for k in plain) + (none if type(None) in allowed else "")
     raise ConfigError(f"must be {wanted}, got {quote(value)}", field=name)
 
 

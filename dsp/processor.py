@@ -311,8 +311,8 @@ def heatmap_range_bins(cfg: RadarConfig, params: DspConfig | None = None) -> int
 
 def _params_for(cfg: RadarConfig, params: DspConfig | None) -> DspConfig:
     """The DSP's settings for *cfg*: *params* (default: ``DspConfig()``), TI's own with ``ti_like``;
-    :class:`UsageError` for settings of another kind, :class:`ConfigError` for FFTs shorter than the
-    cfg's chirps or loops (zero padding makes them longer, never shorter)."""
+    :class:`UsageError` for settings of another kind, :class:`ConfigError` for a range FFT shorter than
+    the cfg's ADC samples a chirp or a Doppler FFT shorter than its loops (zero padding lengthens)."""
     if params is None:
         params = DspConfig()
     elif not isinstance(params, DspConfig):
