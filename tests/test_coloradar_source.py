@@ -204,6 +204,8 @@ def test_point_clouds_are_turned_into_the_heatmap_radars_frame(tmp_path):
     ("heatmap=lidar", "option heatmap='lidar': expected cascade|single_chip|single_chip_adc"),
     ("speed=2", "unknown option(s) speed"),
     ("start=99s", "start=99s is past"),
+    ("start=1_0", "option start='1_0'"),  # float() would read 10 s
+    ("start=\u0663", "option start="),  # an Arabic-Indic three
 ])
 def test_bad_urls_give_one_error_line(tmp_path, query, message):
     run = write_run(tmp_path, "ec_hallways_run0", frames=3)

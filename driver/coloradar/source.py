@@ -42,6 +42,7 @@ from ...tum import TumTrajectory
 from .files import STREAMS
 from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
 from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
+from ...plain_numbers import plain_float
 from ..sources import Frame, Pacer, Source, UrlOptions, one_of, parse_rate
 
 log = logging.getLogger(__name__)
@@ -213,8 +214,8 @@ class ColoRadarSource(Source):
 
 
 def _seconds(text: str) -> float:
-    value = float(text[:-1] if text.endswith("s") else text)
-    if not 0 <= value < math.inf:
+    value = plain_float(text[:-1] if text.endswith("s") else text)  # float() would take "1_0" as 10
+    if value is None or not 0 <= value < math.inf:
         raise ValueError(text)
     return value
 
