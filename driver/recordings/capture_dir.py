@@ -111,7 +111,8 @@ class CaptureDirectory:
                                          "recording's own back in its place")
         if config is None:
             if not os.path.exists(cfg_path):
-                raise ConfigError(f"missing {RADAR_CFG}: give the radar configuration with --cfg",
+                raise ConfigError(f"missing {RADAR_CFG}: give the radar configuration with --cfg "
+                                  "(open_source(url, config) in Python)",
                                   path=self.directory)
             config = RadarConfig.from_file(cfg_path)
         elif os.path.exists(cfg_path):

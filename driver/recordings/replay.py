@@ -164,7 +164,8 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
             elif os.path.isfile(path) and not path.endswith(".bin"):
                 what = f"not a recording (a capture directory, or TI's {ADC_DATA} or *_Raw_<n>.bin files)"
             else:
-                what = f"a recording without its {RADAR_CFG}: give the radar configuration with --cfg"
+                what = (f"a recording without its {RADAR_CFG}: give the radar configuration with --cfg "
+                        "(open_source(url, config) in Python)")
             raise ConfigError(what, path=path)
         if reordered is None:  # TI's CLI recorder reorders by default, mmWave Studio never
             reordered = bool(_TI_SERIES.match(os.path.basename(path))) or os.path.isdir(path)

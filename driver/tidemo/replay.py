@@ -166,7 +166,8 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
     if not os.path.isfile(data):
         raise SourceError(f"{options.url}: {data}: no such file")
     if config is None:
-        raise ConfigError(f"{data} holds the demo's UART stream: give the cfg the radar ran with --cfg", path=data)
+        raise ConfigError(f"{data} holds the demo's UART stream: give the cfg the radar ran with --cfg "
+                          "(open_source(url, config) in Python)", path=data)
     stamps = os.path.join(directory, TIMESTAMPS)
     return TidemoReplaySource(data, config, timestamps=stamps if os.path.isfile(stamps) else None, rate=rate,
                               loop=loop, frames=frames)
