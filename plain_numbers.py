@@ -3,12 +3,15 @@
 One syntax for every number radarodom reads from text: cfg fields, command-line options, source
 URL options, timestamps.txt and the other text files.  Python's ``int()`` and ``float()`` also
 take ``1_0``, non-ASCII digits, surrounding spaces, ``nan`` and ``inf``, which no cfg, option or
-writer of these files means.
+writer of these files means.  And the one test of a number given in Python (an API's argument, a
+setting built in code): :func:`is_number`, :func:`is_whole_number`, a bool being neither.
 """
 
 from __future__ import annotations
 
+import numbers
 import re
+from typing import Any
 
 #: A whole number: decimal digits with an optional sign.
 INT_TEXT = re.compile(r"[+-]?[0-9]+\Z")
@@ -32,3 +35,12 @@ def plain_float(text: str) -> float | None:
     infinite (``1e999``)."""
     return float(text) if FLOAT_TEXT.match(text) else None
 
+
+def is_number(value: Any) -> bool:
+    """Whether *value*, given in Python, is a number: any real (numpy's too), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def is_whole_number(value: Any) -> bool:
+    """Whether *value*, given in Python, is a whole number: any integral (numpy's too), not a bool."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)

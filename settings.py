@@ -11,7 +11,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import numbers
 import os
 import types
 import typing
@@ -21,6 +20,7 @@ import numpy as np
 
 from . import strict_json
 from .errors import ConfigError, given_path, quoted, quoted_json
+from .plain_numbers import is_number, is_whole_number
 
 #: Largest settings file read (radarodom's own are a few KB).
 MAX_SETTINGS_BYTES = 1 << 20
@@ -65,10 +65,10 @@ def _checked(value: Any, hint: Any, name: str, quote=quoted_json) -> Any:
     for kind in allowed:
         if kind is bool and isinstance(value, (bool, np.bool_)):
             return bool(value)
-        # numpy's integers and floats are numbers.Integral / numbers.Real (a value computed in numpy)
-        if kind is int and isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        # numpy's integers and floats count (a value computed in numpy)
+        if kind is int and is_whole_number(value):
             return int(value)
-        if kind is float and isinstance(value, numbers.Real) and not isinstance(value, bool):
+        if kind is float and is_number(value):
             try:
                 number = float(value)
             except OverflowError:  # an int beyond any float

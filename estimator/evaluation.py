@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import logging
 import math
-import numbers
 import os
 from dataclasses import dataclass
 from itertools import pairwise
@@ -35,6 +34,7 @@ import numpy as np
 
 from .. import strict_json
 from ..errors import EvaluationError
+from ..plain_numbers import is_number
 from ..tum import TumTrajectory
 from .angles import wrap
 
@@ -149,10 +149,6 @@ def _check_increasing(traj: TumTrajectory) -> None:
                               f"pose's {traj.times[i - 1]:.9f} s; timestamps must increase")
 
 
-def _is_number(value) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 def _check_trajectory(name: str, traj) -> None:
     """:class:`EvaluationError` unless *traj* is a trajectory (a path is read by ``read_tum``)."""
     if not isinstance(traj, TumTrajectory):
@@ -172,7 +168,7 @@ def associate(est: TumTrajectory, ref: TumTrajectory, max_diff: float = 0.01
     Raises :class:`EvaluationError`, naming both files' time spans, when fewer
     than two poses match.
     """
-    if not (_is_number(max_diff) and max_diff >= 0 and math.isfinite(max_diff)):
+    if not (is_number(max_diff) and max_diff >= 0 and math.isfinite(max_diff)):
         raise EvaluationError(f"max_diff must be a time >= 0 s, got {max_diff!r}")
     for name, traj in (("est", est), ("ref", ref)):
         _check_trajectory(name, traj)
@@ -362,7 +358,7 @@ def evaluate(est: TumTrajectory, ref: TumTrajectory, *, delta_m: float = 1.0,
     largest time difference (s) of two associated poses.  *warn_planar*: warn when either
     trajectory leaves the plane (once is enough for several estimates of one ground truth).
     """
-    if not (_is_number(delta_m) and delta_m > 0 and math.isfinite(delta_m)):
+    if not (is_number(delta_m) and delta_m > 0 and math.isfinite(delta_m)):
         raise EvaluationError(f"delta_m must be a distance > 0 m, got {delta_m!r}")
     est_m, ref_m = associate(est, ref, max_diff)
     for traj in (est_m, ref_m) if warn_planar else ():

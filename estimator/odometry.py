@@ -24,13 +24,13 @@ run of frames that saw nothing is measured across when the radar sees again
 from __future__ import annotations
 
 import math
-import numbers
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import TimeOrderError, UsageError
+from ..plain_numbers import is_number
 from .config import EstimatorConfig
 from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse
@@ -319,7 +319,7 @@ class RadarOdometry:
 
 
 def _check_time(t: float, what: str) -> None:
-    if isinstance(t, bool) or not isinstance(t, numbers.Real):
+    if not is_number(t):
         raise UsageError(f"{what} at t={t!r}: a time is a number of seconds, got {type(t).__name__}")
     if not math.isfinite(t):
         raise TimeOrderError(f"{what} at t={t}: a time must be a finite number of seconds")

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import logging
 import math
-import numbers
 import os
 import time
 from typing import Callable, Iterable, Sequence
@@ -32,6 +31,7 @@ from ..dsp.config import DspConfig
 from ..errors import CaptureError, UsageError, add_note, quoted
 from ..estimator.config import EstimatorConfig
 from ..estimator.odometry import OdometryState, RadarOdometry
+from ..plain_numbers import is_number, is_whole_number
 from ..products import Products
 from .products import FrameProducts, check_features_fit
 from .sinks import CaptureSink, FrameResult, HeatmapSink, PointsCsvSink, Sink, TumSink
@@ -303,12 +303,10 @@ def _check_sinks(sinks, given: list) -> None:
 def _checked_limits(max_frames, max_duration_s) -> tuple[int | None, float | None]:
     """The run's limits, or :class:`UsageError` unless each is None, a whole number >= 1 (frames) and a
     finite number > 0 (seconds)."""
-    if max_frames is not None and (isinstance(max_frames, bool) or not isinstance(max_frames, numbers.Integral)
-                                   or max_frames < 1):
+    if max_frames is not None and (not is_whole_number(max_frames) or max_frames < 1):
         raise UsageError(f"max_frames: a whole number of frames >= 1 or None, got {quoted(max_frames)}")
     if max_duration_s is not None:
-        if (isinstance(max_duration_s, bool) or not isinstance(max_duration_s, numbers.Real)
-                or not math.isfinite(max_duration_s) or max_duration_s <= 0):
+        if not is_number(max_duration_s) or not math.isfinite(max_duration_s) or max_duration_s <= 0:
             raise UsageError(f"max_duration_s: a number of seconds > 0 or None, got {quoted(max_duration_s)}")
         max_duration_s = float(max_duration_s)
     return None if max_frames is None else int(max_frames), max_duration_s

@@ -4,11 +4,11 @@ time, the frame rate, end-to-end latency, the estimator's time per frame and its
 from __future__ import annotations
 
 import collections
-import numbers
 import time
 from dataclasses import dataclass, field
 
 from ..errors import UsageError
+from ..plain_numbers import is_number
 from ..estimator.odometry import OdometryState
 
 
@@ -47,7 +47,7 @@ class LatencyMeter:
     def percentiles_ms(self, *qs: float) -> tuple[float, ...]:
         """The *qs* percentiles (0-100) of the recent latencies, ms; NaN when there are none."""
         for q in qs:
-            if isinstance(q, bool) or not isinstance(q, numbers.Real) or not 0 <= q <= 100:
+            if not is_number(q) or not 0 <= q <= 100:
                 raise UsageError(f"a percentile is a number from 0 to 100, got {q!r}")
         if not self._values:
             return tuple(float("nan") for _ in qs)
