@@ -115,10 +115,13 @@ class OdometryConfig(Settings):
     #: radar mounted ahead of or behind its rotation axis moves sideways at yaw rate times
     #: ``mount_x_m``: each step's Doppler velocity then measures the yaw rate, fused with the
     #: heatmap registration (inverse-variance weighted) before the yaw-rate filter, and stands
-    #: in for it when the registration fails.  "any": the velocity says nothing of the yaw.
+    #: in for it when the registration fails.  On the axis the velocity's sideways part is set
+    #: to that product instead of the fit's (nothing on the axis).  "any": the base may slide
+    #: (mecanum, legged, hand-held), and the velocity is the fit's.
     base: str = "any"
     #: With ``base`` "wheeled": a lever arm shorter than this (m) makes the yaw rate too noisy
-    #: to use (its noise is the sideways velocity's over the lever arm) ...
+    #: to use (its noise is the sideways velocity's over the lever arm): the radar counts as on
+    #: the axis ...
     min_lever_arm_m: float = 0.05
     #: ... and the Doppler yaw rate counts as at least this noise, rad/s (the velocity fit's
     #: covariance comes from its residuals, which do not see a bias of the fit).

@@ -33,7 +33,7 @@ from ..errors import TimeOrderError, UsageError
 from ..plain_numbers import is_number
 from .config import EstimatorConfig
 from .doppler_elevation import doppler_elevation_part
-from .doppler_yaw import doppler_yaw_part, fuse
+from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
@@ -124,6 +124,7 @@ class RadarOdometry:
         self.yaw = YawMeasurement(self.config, _PROFILE_STEP)
         self.rate = yaw_rate_part(odo)
         self.doppler_yaw = doppler_yaw_part(odo)
+        self.no_side_slip = no_side_slip_part(odo)
         self.doppler_elevation = doppler_elevation_part(self.config.features)
         self._yaw_noise_var = odo.yaw_noise_rad ** 2
         self.keyframes = KeyframeCorrection(self.config, self.yaw) if odo.keyframe_distance_m > 0 else NoKeyframes()
@@ -161,7 +162,7 @@ class RadarOdometry:
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:
             est = self.velocities.level_speed(t, points, est)
-        self.add_velocity(est)
+        est = self._keep_velocity(est)
         if self.point_yaw is not None:
             self.point_yaw.add_points(t, points, est)
         self._velocity_s += time.perf_counter() - start
@@ -170,7 +171,14 @@ class RadarOdometry:
     def add_velocity(self, est: VelocityEstimate) -> None:
         """Use a velocity from elsewhere (or from :meth:`add_points`)."""
         _check_time(est.t, "velocity")
+        self._keep_velocity(est)
+
+    def _keep_velocity(self, est: VelocityEstimate) -> VelocityEstimate:
+        """*est* as kept for the steps: a wheeled base's on its axis without sideways slip."""
+        if self.no_side_slip is not None:
+            est = self.no_side_slip(est, self._last_rate)
         self.velocities.add(est)
+        return est
 
     # ------------------------------------------------------------------ heatmap stream
     def step(self, t: float, points: np.ndarray, heatmap: PolarHeatmap) -> OdometryState:

@@ -89,8 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones, "
                              "or those the source's frames call for: tidemo:// EstimatorConfig.tidemo())")
     parser.add_argument("--wheeled", action="store_true",
-                        help="the robot's base cannot slide sideways: with --mount off its rotation axis, the "
-                             "radar's Doppler measures the yaw rate in turns (docs/estimator.md)")
+                        help="the robot's base cannot slide sideways (differential drive, car-like): with --mount "
+                             "off its rotation axis the radar's Doppler measures the yaw rate in turns, on the axis "
+                             "the radar's velocity is taken to have no sideways part (docs/estimator.md)")
     ros_outputs.add_arguments(parser)
     view_option.add_view_argument(parser)
     cli.add_overwrite(parser)
@@ -126,7 +127,8 @@ def _stop_on_signals(pipeline: Pipeline) -> Iterator[None]:
 
 def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
     """--estimator-config's settings (or the defaults) with --mount's place of the radar and,
-    with --wheeled, a base that cannot slide sideways."""
+    with --wheeled, a base that cannot slide sideways (off its rotation axis the radar's Doppler
+    then measures the yaw rate; on it, the radar does not slide)."""
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     mount = args.mount
     # Only what the options say: --wheeled alone keeps the settings file's mount.
@@ -135,12 +137,6 @@ def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
         odometry["base"] = "wheeled"
     if odometry:
         config = config.with_(odometry=odometry)
-    odo = config.odometry
-    if odo.base == "wheeled" and abs(odo.mount_x_m) < odo.min_lever_arm_m:
-        # (the library then leaves the Doppler yaw rate out; a user asking for it is told why)
-        asked = "--wheeled" if args.wheeled else f"{args.estimator_config}: odometry.base \"wheeled\""
-        raise UsageError(f"{asked} needs the radar off the base's rotation axis, at least {odo.min_lever_arm_m:g} m "
-                         "ahead or behind (--mount X,Y,Z,YAW): on the axis its Doppler sees no yaw rate")
     return config
 
 
