@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import CaptureFormatError
+from .errors import CaptureFormatError, UsageError, quoted
 
 if TYPE_CHECKING:  # pragma: no cover
     from .cfg import RadarConfig
@@ -88,11 +88,11 @@ class RawLayout:
             raise CaptureFormatError(
                 f"{nbytes} bytes is not a whole number of {self.frame_bytes}-byte frames")
         k = nbytes // self.frame_bytes
+        if out is not None:
+            _check_out(out, k, self.shape)
         shape = self.shape if (k == 1 and (out is None or out.ndim == 4)) else (k, *self.shape)
         if out is None:
             out = np.empty(shape, np.complex64)
-        elif out.shape != shape or out.dtype != np.complex64:
-            raise ValueError(f"out must be complex64 shaped {shape}, is {out.dtype} {out.shape}")
         rec = np.frombuffer(buf, dtype=self._record)
         i_part, q_part = (rec["second"], rec["first"]) if self.q_first else (rec["first"], rec["second"])
         out.real[...] = i_part.reshape(shape)
@@ -119,3 +119,21 @@ class RawLayout:
         rec["first"] = first.reshape(rec["first"].shape)
         rec["second"] = second.reshape(rec["second"].shape)
         return rec.tobytes()
+
+
+def _check_out(out, frames: int, shape: tuple[int, ...]) -> None:
+    """:class:`UsageError` unless *out* is a writable complex64 array for *frames* frames of
+    *shape*: numpy's own errors for a list, a wrong dtype or a read-only array name no argument."""
+    shapes = [(frames, *shape)] if frames > 1 else [shape, (1, *shape)]
+    wanted = " or ".join(str(s) for s in shapes)
+    frames_text = f"{frames} frames" if frames > 1 else "one frame"
+    if not isinstance(out, np.ndarray):
+        got = f"{type(out).__name__} {quoted(out)}"
+    elif out.dtype != np.complex64 or out.shape not in shapes:
+        got = f"{out.dtype} shaped {out.shape}"
+    elif not out.flags.writeable:
+        got = "a read-only array"
+    else:
+        return
+    raise UsageError(f"out: a writable complex64 array shaped {wanted} ({frames_text}), or None for a new one; "
+                     f"got {got}")

@@ -25,6 +25,8 @@ import numpy as np
 import scipy.fft
 import scipy.ndimage
 
+from ..errors import UsageError, quoted
+from ..plain_numbers import is_whole_number
 from ..products import RangeAzimuth, RangeAzimuthElevation
 from .processor import FrameProcessor
 
@@ -43,7 +45,10 @@ class HeatmapMaker:
         """*doppler_cells*: None gives every cell its dominant Doppler (a full
         Doppler x azimuth spectrum per range bin); a number N gives it to the N
         strongest cells only (NaN elsewhere) and takes the intensities from each
-        range bin's spatial covariance, several times faster."""
+        range bin's spatial covariance, several times faster.  A bad argument is a
+        :class:`UsageError` naming it, before any work."""
+        static_bins, elevation_bins, doppler_cells = _checked_arguments(processor, static_bins, elevation_bins,
+                                                                        doppler_cells)
         self.proc = processor
         self.static_bins = static_bins
         self.doppler_cells = doppler_cells
@@ -236,6 +241,27 @@ class HeatmapMaker:
         return RangeAzimuthElevation(intensity.reshape(shape).astype(np.float32),
                                      static.reshape(shape).astype(np.float32),
                                      self.range_m, self.azimuth_rad, self.elevation_rad)
+
+
+def _checked_arguments(processor, static_bins, elevation_bins, doppler_cells) -> tuple[int, int | None, int | None]:
+    """HeatmapMaker's arguments as ints, or :class:`UsageError` naming the first wrong one: numpy's
+    errors from deep inside the first frame (a str or 0 cells) say neither which nor why."""
+    if not isinstance(processor, FrameProcessor):
+        raise UsageError(f"HeatmapMaker: processor must be a FrameProcessor (FrameProcessor(cfg) makes one), "
+                         f"got {type(processor).__name__} {quoted(processor)}")
+    # The static rows reach static_bins either side of zero Doppler, within the Doppler axis.
+    most = (processor.n_doppler - 1) // 2
+    if not (is_whole_number(static_bins) and 0 <= static_bins <= most):
+        raise UsageError(f"HeatmapMaker: static_bins must be a whole number of Doppler bins each side of zero "
+                         f"Doppler, from 0 to {most}, got {quoted(static_bins)}")
+    if elevation_bins is not None and not (is_whole_number(elevation_bins) and elevation_bins >= 1):
+        raise UsageError(f"HeatmapMaker: elevation_bins must be a whole number >= 1, or None for the DSP's "
+                         f"elevation_fft_size, got {quoted(elevation_bins)}")
+    if doppler_cells is not None and not (is_whole_number(doppler_cells) and doppler_cells >= 1):
+        raise UsageError(f"HeatmapMaker: doppler_cells must be a whole number >= 1 (the strongest cells given "
+                         f"their Doppler), or None for every cell's, got {quoted(doppler_cells)}")
+    return (int(static_bins), None if elevation_bins is None else int(elevation_bins),
+            None if doppler_cells is None else int(doppler_cells))
 
 
 def _elevation(cross: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.dsp.heatmap import HeatmapMaker
 from radarodom.dsp.processor import FrameProcessor
+from radarodom.errors import UsageError
 
 
 @pytest.fixture(scope="module")
@@ -141,3 +142,38 @@ def test_a_two_tx_array_gives_no_elevation():
     spectrum = np.zeros((proc.n_doppler, 2, 4, proc.n_range), np.complex64)
     for cells in (None, 50):
         assert HeatmapMaker(proc, doppler_cells=cells).range_azimuth(spectrum).elevation_rad is None
+
+
+@pytest.mark.parametrize("argument, value, wanted", [
+    ("doppler_cells", 0, "a whole number >= 1 (the strongest cells given their Doppler), or None for every cell's, "
+                         "got 0"),
+    ("doppler_cells", "5", "got '5'"),
+    ("doppler_cells", 2.5, "got 2.5"),
+    ("doppler_cells", True, "got True"),
+    ("static_bins", -1, "a whole number of Doppler bins each side of zero Doppler, from 0 to 31, got -1"),
+    ("static_bins", 32, "from 0 to 31, got 32"),
+    ("static_bins", "2", "got '2'"),
+    ("elevation_bins", 0, "a whole number >= 1, or None for the DSP's elevation_fft_size, got 0"),
+    ("elevation_bins", "x", "got 'x'"),
+])
+def test_bad_arguments_are_refused_naming_them(spectrum_and_processor, argument, value, wanted):
+    """Once numpy's ValueError or TypeError from inside the first frame (a str, or no cells: a
+    matmul's core dimension); now the package's error, when the maker is built."""
+    _, proc = spectrum_and_processor
+    with pytest.raises(UsageError) as info:
+        HeatmapMaker(proc, **{argument: value})
+    assert str(info.value).startswith(f"HeatmapMaker: {argument} must be "), str(info.value)
+    assert str(info.value).endswith(wanted), str(info.value)
+
+
+def test_numpy_whole_numbers_are_arguments_too(spectrum_and_processor):
+    spectrum, proc = spectrum_and_processor
+    maker = HeatmapMaker(proc, static_bins=np.int64(1), doppler_cells=np.int32(50))
+    assert maker.doppler_cells == 50 and type(maker.doppler_cells) is int
+    assert (~np.isnan(maker.range_azimuth(spectrum).doppler_mps)).sum() == 50
+
+
+def test_a_processor_is_required():
+    with pytest.raises(UsageError, match=r"^HeatmapMaker: processor must be a FrameProcessor \(FrameProcessor\(cfg\) "
+                                         r"makes one\), got str 'configs/awr1843_raw.cfg'$"):
+        HeatmapMaker("configs/awr1843_raw.cfg")

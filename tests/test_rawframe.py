@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 
 from radarodom.driver.live.dca1000_wire import DataPacket
 from radarodom.driver.recordings.pcap import read_udp
-from radarodom.errors import CaptureError, CaptureFormatError
+from radarodom.errors import CaptureError, CaptureFormatError, UsageError
 from radarodom.rawframe import RawLayout
 
 # A tiny cube: 2 loops, 2 TX slots, 2 RX, 4 samples, every I and Q distinct.
@@ -147,12 +147,22 @@ def test_decode_fills_out_in_place():
 
 
 def test_decode_rejects_bad_out():
+    """The package's error naming the argument, what it got and what it takes (once a bare
+    ValueError, and an AttributeError for a list)."""
     layout = _layout("lvds_q_first")
     raw = _hand_bytes("lvds_q_first")
-    with pytest.raises(ValueError):
-        layout.decode(raw, np.zeros(layout.shape, np.complex128))
-    with pytest.raises(ValueError):
+    one = f"{layout.shape} or {(1, *layout.shape)} (one frame), or None for a new one; got "
+    read_only = np.zeros(layout.shape, np.complex64)
+    read_only.flags.writeable = False
+    for out, got in ((np.zeros(layout.shape, np.complex128), f"complex128 shaped {layout.shape}"),
+                     ([0j] * 4, "list [0j, 0j, 0j, 0j]"), (read_only, "a read-only array")):
+        with pytest.raises(UsageError) as info:
+            layout.decode(raw, out)
+        assert str(info.value) == f"out: a writable complex64 array shaped {one}{got}"
+    with pytest.raises(UsageError) as info:
         layout.decode(raw + raw, np.zeros(layout.shape, np.complex64))
+    assert str(info.value) == (f"out: a writable complex64 array shaped {(2, *layout.shape)} (2 frames), or None for "
+                               f"a new one; got complex64 shaped {layout.shape}")
 
 
 @pytest.mark.parametrize("nbytes", [0, 4, 127, 129, 256 + 8])

@@ -15,7 +15,7 @@ from conftest import SMALL_CFG, make_capture, random_frames, warning_messages
 from radarodom.cfg import RadarConfig
 from radarodom.driver.recordings.capture_dir import CaptureDirectory, CaptureWriter
 from radarodom.driver.sources import SCHEMES, open_source
-from radarodom.errors import CaptureFormatError, ConfigError, SourceError
+from radarodom.errors import CaptureFormatError, ConfigError, SourceError, UsageError
 from radarodom.pipeline import CaptureSink, Pipeline
 from radarodom.rawframe import RawLayout
 
@@ -56,6 +56,22 @@ def test_replay_yields_recorded_frames(capture, small_cfg):
         out = np.zeros(layout.shape, np.complex64)
         assert f.cube(out) is out
         np.testing.assert_array_equal(out, cube)
+
+
+def test_frame_cube_refuses_a_wrong_out_naming_it(capture):
+    """Frame.cube(out=...) of the wrong shape, dtype or kind: the package's UsageError saying what
+    out must be and what it got (once numpy's ValueError, or AttributeError for a list)."""
+    d, _ = capture
+    with open_source(f"replay://{d}?rate=max") as src:
+        frame = next(iter(src))
+    wanted = ("out: a writable complex64 array shaped (4, 3, 4, 16) or (1, 4, 3, 4, 16) (one frame), "
+              "or None for a new one")
+    for out, got in ((np.zeros((4, 3, 4, 16), np.complex128), "complex128 shaped (4, 3, 4, 16)"),
+                     (np.zeros((4, 3, 4, 8), np.complex64), "complex64 shaped (4, 3, 4, 8)"),
+                     ([], "list []")):
+        with pytest.raises(UsageError) as info:
+            frame.cube(out)
+        assert str(info.value) == f"{wanted}; got {got}"
 
 
 def test_loop_twice(capture):
