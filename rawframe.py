@@ -137,3 +137,16 @@ def _check_out(out, frames: int, shape: tuple[int, ...]) -> None:
         return
     raise UsageError(f"out: a writable complex64 array shaped {wanted} ({frames_text}), or None for a new one; "
                      f"got {got}")
+
+
+def unusable_samples(cube: np.ndarray) -> str:
+    """Why the DSP's power of *cube*'s frame is not finite, in the cube's terms: which samples are
+    not, or how large they are."""
+    bad = ~np.isfinite(cube)
+    if bad.any():
+        loop, slot, rx, sample = (int(i) for i in np.unravel_index(np.argmax(bad), cube.shape))
+        return (f"the frame's ADC samples hold {int(bad.sum())} NaN or infinite value(s) of {cube.size} (the first "
+                f"at loop {loop}, TX slot {slot}, RX {rx}, sample {sample}); the DSP takes finite I + jQ samples, "
+                "as a radar's bytes decode to (Frame.cube())")
+    return (f"the frame's ADC samples reach {float(np.abs(cube).max()):.3g}, too large for the DSP's float32 "
+            "power (a radar's 16-bit samples reach 32768); scale the cube down")

@@ -32,6 +32,7 @@ import scipy.fft
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
 from ..errors import ConfigError, UsageError
+from ..rawframe import unusable_samples
 from .cfar import CfarParams, cfar_2d_ti
 from .cfar_peaks import above_skirts, cfar_peaks
 from .cfar_ti import fov_mask, params_from_ti
@@ -247,11 +248,22 @@ class FrameProcessor:
         return self._power
 
     def process(self, cube: np.ndarray) -> FrameResult:
-        """A raw cube, complex (loops, tx_slots, rx, samples), to detections."""
+        """A raw cube, complex (loops, tx_slots, rx, samples), to detections.  A cube that is no
+        numeric array, or whose samples hold NaN or infinite values or are too large for the
+        float32 power, is a :class:`UsageError` saying so."""
+        if not isinstance(cube, np.ndarray) or cube.dtype.kind not in "iufc":
+            got = f"{cube.dtype} array" if isinstance(cube, np.ndarray) else type(cube).__name__
+            raise UsageError(f"FrameProcessor.process: cube must be a complex array shaped {self.cfg.cube_shape} "
+                             f"(Frame.cube() gives one), got {got}")
         if cube.shape != self.cfg.cube_shape:
             raise ConfigError(f"cube shaped {cube.shape}, the cfg gives {self.cfg.cube_shape}")
-        spectrum = self.doppler_fft(self.range_fft(cube))
-        power = self.power(spectrum)
+        # A NaN or inf sample (inf x a window's zero) or an overflowing power makes numpy warn in
+        # the middle of the arithmetic; the power's one check below says it in the cube's terms.
+        with np.errstate(invalid="ignore", over="ignore"):
+            spectrum = self.doppler_fft(self.range_fft(cube))
+            power = self.power(spectrum)
+        if not np.isfinite(power).all():
+            raise UsageError(f"FrameProcessor.process: {unusable_samples(cube)}")
         if self.params.peak_grouping:
             det = cfar_peaks(power, self.params.range_cfar, self.params.doppler_cfar, range_bins=self._range_ok,
                              reach=self._peak_reach)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -70,6 +71,41 @@ def test_dsp_ffts_shorter_than_the_cfgs_chirps_or_loops_are_refused_by_name(ship
     assert info.value.field == "doppler_fft_size" and f"cfg's {loops} loops" in str(info.value)
     # Zero padding (longer FFTs) stays what it was.
     assert FrameProcessor(shipped_cfg, DspConfig(range_fft_size=2 * samples)).n_range == 2 * samples
+
+
+@pytest.mark.parametrize("bad, words", [
+    (np.inf, "hold 1 NaN or infinite value(s) of 196608 (the first at loop 0, TX slot 0, RX 0, sample 5)"),
+    (complex(0, np.nan), "hold 1 NaN or infinite value(s) of 196608 (the first at loop 0, TX slot 0, RX 0, sample 5)"),
+    (None, "reach 1e+20, too large for the DSP's float32 power (a radar's 16-bit samples reach 32768); "
+           "scale the cube down"),
+])
+def test_a_cube_the_dsp_cannot_take_is_said_in_its_terms_without_numpys_warnings(shipped_cfg, bad, words):
+    """Once numpy's RuntimeWarnings (invalid value in multiply, overflow in square) and then
+    "power_rd holds NaN or infinite values", an array the caller never saw."""
+    proc = FrameProcessor(shipped_cfg)
+    cube = np.ones(shipped_cfg.cube_shape, np.complex64)
+    if bad is None:
+        cube[:] = 1e20
+    else:
+        cube[0, 0, 0, 5] = bad  # loop 0: where the Doppler window is zero (inf x 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a warning would be raised instead of the package's error
+        with pytest.raises(UsageError) as info:
+            proc.process(cube)
+    assert str(info.value).startswith("FrameProcessor.process: the frame's ADC samples "), str(info.value)
+    assert words in str(info.value) and "power_rd" not in str(info.value), str(info.value)
+    # The next frame's points are a fresh processor's: no NaN left behind in its buffers.
+    good = np.ones(shipped_cfg.cube_shape, np.complex64)
+    np.testing.assert_array_equal(proc.process(good).points, FrameProcessor(shipped_cfg).process(good).points)
+
+
+@pytest.mark.parametrize("cube, got", [([[1j]], "got list"), ("cube.npy", "got str"),
+                                       (np.zeros((64, 3, 4, 256), "U1"), "got <U1 array")])
+def test_a_cube_that_is_no_numeric_array_is_refused(shipped_cfg, cube, got):
+    with pytest.raises(UsageError) as info:
+        FrameProcessor(shipped_cfg).process(cube)
+    assert str(info.value) == (f"FrameProcessor.process: cube must be a complex array shaped {shipped_cfg.cube_shape} "
+                               f"(Frame.cube() gives one), {got}")
 
 
 @pytest.mark.parametrize("params", [{"min_range_m": 1.0}, {}, EstimatorConfig()])
