@@ -7,6 +7,7 @@ runs); a few call ``radarodom.tools.radar_cfg.main`` in-process with capsys.
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 
@@ -360,6 +361,38 @@ def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path)
     assert proc.returncode == 2 and "usage: radar-cfg" in proc.stderr
     proc = run_cfg("--list", SHIPPED)
     assert proc.returncode == 2 and "usage: radar-cfg" in proc.stderr
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc, where no file can be made")
+def test_copy_to_a_directory_that_takes_no_files_says_what_where_why_and_the_fix(tmp_path):
+    """Once only the kernel's "cannot write /proc/awr1843_raw.cfg: No such file or directory"."""
+    proc = run_cfg("--copy", "awr1843_raw", "/proc")
+    assert proc.returncode == 1 and proc.stdout == ""
+    assert proc.stderr == ("radar-cfg: error: cannot write the copy of awr1843_raw.cfg to /proc/awr1843_raw.cfg: the "
+                           "directory /proc takes no new files (the system says: No such file or directory); choose "
+                           "a writable destination\n")
+
+
+def test_copy_under_a_file_or_into_a_read_only_directory_is_refused_before_writing(tmp_path, capsys, monkeypatch):
+    afile = tmp_path / "afile"
+    afile.write_text("mine\n")
+    for dest in (afile / "x.cfg", afile / "sub" / "x.cfg"):  # once "no directory .../afile/sub"
+        assert radar_cfg.main(["--copy", "awr1843_raw", str(dest)]) == 2
+        assert capsys.readouterr().err == (f"radar-cfg: error: cannot write the copy of awr1843_raw.cfg to {dest}: "
+                                           f"{afile} is a file, not a directory; choose a writable destination\n")
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o555)
+    # Root writes anywhere, so the directory is read-only as os.access tells it (the check asks it).
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: os.fspath(path) != str(locked)
+                        and real_access(path, mode, **kw))
+    assert radar_cfg.main(["--copy", "awr1843_raw", str(locked)]) == 2
+    assert capsys.readouterr().err == (f"radar-cfg: error: cannot write the copy of awr1843_raw.cfg to "
+                                       f"{locked / 'awr1843_raw.cfg'}: the directory {locked} is not writable; "
+                                       "choose a writable destination\n")
+    locked.chmod(0o755)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "locked"] and not any(locked.iterdir())
 
 
 def test_the_usage_says_copy_takes_at_most_one_dest(tmp_path):

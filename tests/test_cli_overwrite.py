@@ -240,7 +240,9 @@ def test_a_file_output_is_written_beside_itself_under_a_name_of_its_own(tmp_path
 def test_a_file_output_that_cannot_be_made_is_one_line(tmp_path, capsys, program):
     out = "/proc/radarodom-test-output"  # a directory no file can be made in, for root too
     rc, stdout, err = _overwrite_run(program, out, tmp_path, capsys)
-    assert rc == 1 and err.endswith(f"error: cannot write {out}: No such file or directory\n"), err
+    what = "the copy of awr1843_raw.cfg to " if program == "radar-cfg --copy" else ""
+    assert rc == 1 and err.endswith(f"error: cannot write {what}{out}: the directory /proc takes no new files (the "
+                                    "system says: No such file or directory); choose a writable destination\n"), err
     assert err.count("\n") == 1
     if program == "radar-calibrate --write-cfg":  # the measurement is not lost with the file
         assert stdout.startswith("compRangeBiasAndRxChanPhase ")
@@ -346,7 +348,8 @@ def test_an_output_in_a_read_only_directory_is_refused_before_the_work(tmp_path,
                         and real_access(path, mode, **kw))
     for name, extra in (("new.tum", []), ("odom.tum", ["--overwrite"])):  # a replacement is a new file too
         rc, err = capture(capsys, "--odom-out", locked / name, *extra)
-        assert rc == 2 and f"cannot create {locked / name}: the directory {locked} is not writable" in err
+        assert rc == 2 and err.endswith(f"cannot create {locked / name}: the directory {locked} is not writable; "
+                                        "choose a writable destination\n"), err
     assert (locked / "odom.tum").read_text() == "old\n"
     rc, err = capture(capsys, "--record", locked / "run" / "rec")  # a new directory, made with its parents
     assert rc == 2 and f"--record {locked / 'run' / 'rec'}: the directory {locked} is not writable" in err

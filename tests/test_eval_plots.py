@@ -348,7 +348,7 @@ def test_a_plot_directory_that_cannot_be_written_is_refused_before_the_work(sim_
                             str(tmp_path / "new" / "plots")]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err == (f"radar-eval: error: --plot {tmp_path / 'new' / 'plots'}: the directory {tmp_path} "
-                                 "is not writable\n")
+                                 "is not writable; choose a writable destination\n")
 
 
 def test_a_flags_file_with_a_byte_order_mark_reads(tmp_path):

@@ -6,20 +6,27 @@ path and the option."""
 
 from __future__ import annotations
 
+import errno
 import os
 from typing import Sequence
 
 from ..errors import CaptureError, CaptureExistsError, UsageError
 
 
-def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) -> None:
+#: The fix for an output that cannot be written where it was asked.
+CHOOSE_WRITABLE = "choose a writable destination"
+
+
+def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None) -> None:
     """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
     created (no parent directory): radarodom never overwrites what a user has.
 
     With *overwrite* (the programs' ``--overwrite``) an existing file is accepted, and
     :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
     directory it wrote).  A directory in place of a file is still refused, and so is, by its
-    writer, a directory that holds data radarodom did not write."""
+    writer, a directory that holds data radarodom did not write.  *what*: what is written there,
+    for the message ("cannot write the copy of NAME to PATH")."""
+    target = f"write {what} to {path}" if what else f"create {path}"
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is a file, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
@@ -32,13 +39,18 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False) 
             raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
     if is_dir and os.path.isdir(path):  # an existing directory: written into, whatever is above it
         if not os.access(path, os.W_OK | os.X_OK):
-            raise UsageError(f"cannot write into {path}: the directory is not writable")
+            raise UsageError(f"cannot write into {path}: the directory is not writable; {CHOOSE_WRITABLE}")
         return
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
-        raise UsageError(f"cannot create {path}: no directory {parent}")
+        above = parent
+        while not os.path.lexists(above):
+            above = os.path.dirname(above)
+        if not os.path.isdir(above):  # "no directory a/b" would hide that a is a file
+            raise UsageError(f"cannot {target}: {above} is a file, not a directory; {CHOOSE_WRITABLE}")
+        raise UsageError(f"cannot {target}: no directory {parent}")
     if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
-        raise UsageError(f"cannot create {path}: the directory {parent} is not writable")
+        raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
 
 
 def missing_directories(path: str) -> list[str]:
@@ -56,7 +68,7 @@ def check_writable_directory(path: str, option: str) -> None:
     missing = missing_directories(path)
     there = os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
     if os.path.isdir(there) and not os.access(there, os.W_OK | os.X_OK):
-        raise UsageError(f"{option} {path}: the directory {there} is not writable")
+        raise UsageError(f"{option} {path}: the directory {there} is not writable; {CHOOSE_WRITABLE}")
 
 
 def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
@@ -197,11 +209,12 @@ def replace_output(path: str, kind: str = "file") -> None:
         raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
 
 
-def write_output(path: str, text: str, *, overwrite: bool) -> None:
+def write_output(path: str, text: str, *, overwrite: bool, what: str | None = None) -> None:
     """Write a file output (checked by :func:`check_new_path`) whole or not at all: a symbolic
     link in its place is replaced, as ``--overwrite`` replaces every output, never the file it
     names; without *overwrite* a file that appeared there while the program ran is left alone.
-    A failure is a :class:`CaptureError` naming the file."""
+    A failure is a :class:`CaptureError` naming the file (and *what* was written to it), why
+    and what to do."""
     from ..driver.recordings.capture_writer import write_text_atomically
 
     try:
@@ -209,4 +222,22 @@ def write_output(path: str, text: str, *, overwrite: bool) -> None:
     except FileExistsError:
         raise CaptureError(f"{path} appeared while this ran; not replaced (without --overwrite)") from None
     except OSError as exc:
-        raise CaptureError(f"cannot write {path}: {exc.strerror or exc}") from None
+        written = f"{what} to {path}" if what else path
+        raise CaptureError(f"cannot write {written}: {why_not_written(exc, path)}") from None
+
+
+def why_not_written(exc: OSError, path: str) -> str:
+    """Why the file *path* could not be written (*exc*), in the user's terms, and the fix: the
+    kernel's words alone ("No such file or directory" for a new file in /proc, whose directory
+    is there) name neither the directory nor what to do."""
+    said = exc.strerror or str(exc)
+    parent = os.path.dirname(os.path.abspath(path))
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+        return f"{said}; free some space, or choose another disk"
+    if exc.errno == errno.EROFS:
+        return f"the directory {parent} is on a read-only file system ({said}); {CHOOSE_WRITABLE}"
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return f"no permission to make a file in the directory {parent} ({said}); {CHOOSE_WRITABLE}"
+    if exc.errno == errno.ENOENT and os.path.isdir(parent):  # /proc, /sys: the kernel's, no storage
+        return f"the directory {parent} takes no new files (the system says: {said}); {CHOOSE_WRITABLE}"
+    return f"{said}; {CHOOSE_WRITABLE}"

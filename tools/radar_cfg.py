@@ -106,9 +106,10 @@ def _copy(names: list[str], overwrite: bool) -> int:
     dest = names[1] if len(names) > 1 else name
     if os.path.isdir(dest):
         dest = os.path.join(dest, name)
-    cli.check_new_path(dest, overwrite=overwrite)
+    what = f"the copy of {name}"
+    cli.check_new_path(dest, overwrite=overwrite, what=what)
     with open(shipped_config_path(name), encoding="utf-8", newline="") as fh:
-        cli.write_output(dest, fh.read(), overwrite=overwrite)
+        cli.write_output(dest, fh.read(), overwrite=overwrite, what=what)
     print(f"radar-cfg: copied {name} to {dest}")
     return 0
 
