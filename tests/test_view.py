@@ -446,3 +446,124 @@ def test_connect_to_where_no_viewer_listens_says_so_when_the_view_opens(caplog):
                    and "waits up to 1 s" in m for m in said), said
     finally:
         sink.close(PipelineStats())
+
+
+# ------------------------------------------------------------------ connect: to what is no viewer
+class _Closer:
+    """A plain TCP listener on a free loopback port that accepts each connection and closes it."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen()
+        self.port = self.sock.getsockname()[1]
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:  # closed: the test is over
+                return
+            conn.close()
+
+
+def test_connect_to_a_listener_that_is_no_viewer_says_so_in_one_line_and_draws_nothing(capture):
+    """Rerun printed its own ANSI-coloured ERROR lines (its gRPC client's: 'Write messages call
+    failed', 'Failed to flush sink') and the summary said '30 frames drawn'."""
+    closer = _Closer()
+    url = f"rerun+http://127.0.0.1:{closer.port}/proxy"
+    try:
+        env = {key: value for key, value in os.environ.items() if key != "RUST_LOG"}
+        proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source", capture,
+                               "--no-publish", "--view", f"connect:127.0.0.1:{closer.port}"], capture_output=True,
+                              text=True, timeout=GUARD_S, env={**env, "RERUN_ANALYTICS": "0"})
+    finally:
+        closer.sock.close()
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert "\x1b" not in proc.stderr and "ERROR" not in proc.stderr, proc.stderr
+    assert lines[0].startswith(f"radar-capture: warning: what answers at {url} is not a Rerun viewer: it broke the "
+                               "connection (gRPC connection severed"), lines
+    assert lines[0].endswith(f"); the view is not drawn: start a Rerun viewer there (rerun --port {closer.port}) "
+                             "or give a viewer's address"), lines
+    assert lines[1:] == [f"radar-capture: view: nothing ({url} is not a Rerun viewer)"], lines
+    summary = proc.stdout.strip().splitlines()[-1]
+    assert f"view: 0 frames drawn, 30 dropped (what answers at {url} is not a Rerun viewer: " in summary, summary
+
+
+def test_connect_to_a_web_server_is_no_viewer_either(capture, caplog):
+    import http.server
+
+    class Quiet(http.server.BaseHTTPRequestHandler):
+        def log_message(self, *args) -> None:
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Quiet)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    port = server.server_address[1]
+    caplog.set_level(logging.WARNING, logger="radarodom")
+    try:
+        view = open_view(ViewTarget("connect", address=f"127.0.0.1:{port}"), close_timeout_s=10.0)
+        with Pipeline.from_url(capture, sinks=[view]) as pipe:
+            pipe.run()
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert view.where == f"nothing (rerun+http://127.0.0.1:{port}/proxy is not a Rerun viewer)"
+    assert view.drawn == 0 and view.dropped == 30 and view.finished
+    assert view.problem.startswith(f"what answers at rerun+http://127.0.0.1:{port}/proxy is not a Rerun viewer")
+    said = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(said) == 1 and said[0].startswith(view.problem) and "the view is not drawn" in said[0], said
+
+
+@pytest.fixture
+def rerun_server():
+    """A Rerun gRPC server in a process of its own (what a viewer listens with): its port and process."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    script = (f"import sys, time, rerun as rr; rec = rr.RecordingStream('server'); rec.serve_grpc(grpc_port={port}); "
+              "print('serving', flush=True); time.sleep(600)")
+    server = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True,
+                              env={**os.environ, "RERUN_ANALYTICS": "0"})
+    try:
+        assert server.stdout.readline() == "serving\n"
+        yield port, server
+    finally:
+        server.kill()
+        server.wait(GUARD_S)
+
+
+def test_connect_to_a_rerun_server_draws_every_frame(capture, rerun_server, caplog):
+    """What the check of a connect: target takes for a viewer: a Rerun gRPC server is one."""
+    port, _ = rerun_server
+    caplog.set_level(logging.WARNING, logger="radarodom")
+    view = open_view(ViewTarget("connect", address=f"127.0.0.1:{port}"), close_timeout_s=30.0)
+    with Pipeline.from_url(capture, sinks=[view]) as pipe:
+        pipe.run()
+    assert view.where == f"the Rerun viewer at rerun+http://127.0.0.1:{port}/proxy"
+    assert view.drawn + view.dropped == 30 and view.drawn > 0 and view.problem is None
+    assert not [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+def test_a_viewer_lost_during_the_run_is_said_in_the_summary(capture, rerun_server):
+    """A viewer that goes away (closed) while the run draws: the view's last flush fails, and the
+    summary says so (the close's error was not passed on from the view's process: '30 frames
+    drawn, 0 dropped' and nothing else)."""
+    port, server = rerun_server
+    view = open_view(ViewTarget("connect", address=f"127.0.0.1:{port}"), close_timeout_s=10.0)
+
+    def on_frame(result, stats):
+        if result.frame.index == 10:
+            server.kill()
+            server.wait(GUARD_S)
+
+    with Pipeline.from_url(capture, sinks=[view]) as pipe:
+        pipe.run(on_frame)
+    assert view.problem is not None, view.summary
+    # Rerun says no more than that the last flush failed: which frames reached the viewer is unknown.
+    assert view.problem.startswith(f"the view's data did not all reach rerun+http://127.0.0.1:{port}/proxy ("), \
+        view.problem
+    assert view.problem.endswith("): the frames drawn after the viewer went away, or all if none came, were not seen")
+    assert view.summary.endswith(f"({view.problem})")

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from .process import ProcessDrawer
 from .sink import ThreadDrawer, ViewSink
-from .target import ViewTarget, check, open_scene, viewer_missing
+from .target import ViewTarget, check, open_scene, viewer_hint, viewer_missing
 
 if TYPE_CHECKING:
     from ..cfg import RadarConfig
@@ -36,4 +36,6 @@ def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, c
     else:
         scene, where = open_scene(target, estimator=estimator, config=config, mount=mount)
         drawer = ThreadDrawer(scene, where)
+    if drawer.unreachable:
+        log.warning("%s; the view is not drawn: %s", drawer.unreachable, viewer_hint(target))
     return ViewSink(drawer, close_timeout_s=close_timeout_s, path=target.path if target.kind == "save" else None)

@@ -20,8 +20,10 @@ still held up after the sink's close timeout is stopped, and the radar's process
 
 Messages are pickles (protocol 5, the arrays out of band), each after a head saying the lengths.
 To the child: ``(target, estimator, config, mount)`` once, then ``("draw", tracks, frame_or_None, dropped,
-offered)`` and ``("end",)``; from it: ``("ready", where)`` or ``("error", kind, message)`` once,
-then ``("done", drawn, problem)`` and ``("closed",)``.
+offered)`` and ``("end",)``; from it: ``("ready", where, unreachable)`` (*unreachable*: why the
+view reaches no viewer, if it found so: :attr:`.scene.Scene.unreachable`) or ``("error", kind,
+message)`` once, then ``("done", drawn, problem)`` and ``("closed", problem)`` (*problem* then
+also what closing the view raised: a viewer's connection lost).
 """
 
 from __future__ import annotations
@@ -59,6 +61,10 @@ SOCKET_BUFFER = 1 << 20
 _HEADER = struct.Struct("<QI")
 _LENGTH = struct.Struct("<Q")
 _ERRORS = {"UsageError": UsageError, "CaptureError": CaptureError}
+#: Rerun's log filter in a ``connect:`` view's process, unless RUST_LOG is set: without its gRPC
+#: client's ERROR lines (ANSI-coloured, every flush tick, for a viewer missing, lost or that is
+#: none), which the view says in a line of its own (when it opens, in the run's summary).
+CONNECT_RUST_LOG = "warn,re_grpc_client=off,re_sdk::recording_stream=off"
 
 
 #: The child's program: this module's :func:`_child` on the socket's descriptor.
@@ -86,8 +92,11 @@ class ProcessDrawer:
         with theirs:
             # -c rather than -m: the package imports this module first, and runpy warns that it
             # then runs a module already in sys.modules.
+            env = None
+            if target.kind == "connect" and "RUST_LOG" not in os.environ:
+                env = {**os.environ, "RUST_LOG": CONNECT_RUST_LOG}
             self._process = subprocess.Popen([sys.executable, "-c", _CHILD_COMMAND, str(theirs.fileno())],
-                                             pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
+                                             pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL, env=env)
         try:
             mine.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SOCKET_BUFFER)
         except OSError:
@@ -108,6 +117,7 @@ class ProcessDrawer:
                                      "its error is above)")
             raise _ERRORS.get(reply[1], RadarodomError)(reply[2])
         self.where: str = reply[1]
+        self.unreachable: str | None = reply[2]
 
     # ------------------------------------------------------------------ the pipeline's thread
     def ready(self) -> bool:
@@ -146,9 +156,12 @@ class ProcessDrawer:
             return None, None if status is None else f"the view's process ended early (exit status {status})"
         # Rerun's last flush: a viewer that stopped reading holds it up for good.
         problem = done[2]
-        if self._receive(deadline) is None:
+        closed = self._receive(deadline)
+        if closed is None:
             problem = problem or f"the viewer did not take the view's last data within {timeout_s:.0f} s"
             log.warning("%s; the view's process was stopped", problem)
+        else:
+            problem = problem or closed[1]
         self._stop()
         return done[1], problem
 
@@ -212,7 +225,7 @@ def _child(fd: int) -> None:
     if hasattr(os, "SCHED_BATCH"):
         os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
     from .sink import Drawing
-    from .target import open_scene
+    from .target import lost_viewer, open_scene
 
     sock = socket.socket(fileno=fd)
     sock.setblocking(True)
@@ -225,7 +238,7 @@ def _child(fd: int) -> None:
     except Exception as exc:  # noqa: BLE001 (said to the parent, which raises it)
         _reply(sock, ("error", "RadarodomError", f"the view could not open: {type(exc).__name__}: {exc}"))
         return
-    _reply(sock, ("ready", where))
+    _reply(sock, ("ready", where, scene.unreachable))
     drawing = Drawing(scene)
     while True:
         try:
@@ -236,8 +249,8 @@ def _child(fd: int) -> None:
             break
         drawing.draw(*message[1:])
     _reply(sock, ("done", drawing.drawn, drawing.failure))
-    drawing.close()
-    _reply(sock, ("closed",))
+    drawing.close(lost_viewer(target))
+    _reply(sock, ("closed", drawing.failure))
 
 
 def _read_message(sock: socket.socket):

@@ -95,6 +95,9 @@ class Scene:
         # The last drawn odometry frame's features: (estimator frame, radar pose, xy (n, 2)).
         self._previous: tuple[int, tuple[float, float, float], np.ndarray] | None = None
         self._noted, self._next_note = 0, 0.0
+        #: Why the view reaches no viewer, found when it opened (``connect:`` to something that is
+        #: not one: :func:`.target.not_a_viewer`); None: it may.  Nothing is drawn then.
+        self.unreachable: str | None = None
         self._static()
 
     def _static(self) -> None:

@@ -22,7 +22,7 @@ import logging
 import queue
 import threading
 import time
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Callable, Protocol
 
 from ..pipeline.sinks import FrameResult, Sink, remove_if_no_frame
 from .frames import FramePayload, Track, ViewHeatmap
@@ -44,6 +44,9 @@ class Drawer(Protocol):
 
     #: Where the view goes, for the user (one line).
     where: str
+    #: Why the view reaches no viewer, found when it opened (:attr:`.scene.Scene.unreachable`): it
+    #: then draws nothing, every frame counted as dropped; None: it may.
+    unreachable: str | None
 
     def ready(self) -> bool:
         """Whether another frame can be handed over now."""
@@ -140,7 +143,7 @@ class Drawing:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.drawn = 0
-        self.failure: str | None = None
+        self.failure: str | None = scene.unreachable
 
     def draw(self, tracks: list[Track], frame: FramePayload | None, dropped: int, offered: int) -> None:
         if self.failure is not None:
@@ -156,13 +159,16 @@ class Drawing:
             self.failure = f"the view failed: {type(exc).__name__}: {exc}"
             log.warning("%s; it stopped drawing", self.failure)
 
-    def close(self) -> None:
+    def close(self, lost: Callable[[Exception], str] | None = None) -> None:
+        """Close the scene; what that raises is the failure (unless one came before), said as
+        *lost* says it when given (a viewer's connection lost: :func:`.target.lost_viewer`)."""
         try:
             self.scene.close()
         except Exception as exc:  # noqa: BLE001 (what the radar recorded matters more than the view)
-            log.warning("the view did not close cleanly: %s: %s", type(exc).__name__, exc)
+            said = f"the view did not close cleanly: {type(exc).__name__}: {exc}" if lost is None else lost(exc)
+            log.warning("%s", said)
             if self.failure is None:  # (a file's writer that failed, a full disk, says so only here)
-                self.failure = f"the view did not close cleanly: {type(exc).__name__}: {exc}"
+                self.failure = said
 
 
 class ThreadDrawer:
@@ -171,6 +177,7 @@ class ThreadDrawer:
 
     def __init__(self, scene: Scene, where: str = "a recording of this process", *, queue_frames: int = 4) -> None:
         self.where = where
+        self.unreachable = scene.unreachable
         self.drawing = Drawing(scene)
         self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
         self._thread = threading.Thread(target=self._work, name="radarodom-view", daemon=True)

@@ -77,17 +77,17 @@ def check(target: ViewTarget) -> None:
         _check_free(target)
 
 
-def viewer_missing(target: ViewTarget) -> str | None:
+def viewer_missing(target: ViewTarget, wait_s: float = CONNECT_PROBE_S) -> str | None:
     """For ``connect:``, why no viewer takes the view yet (nothing accepted a connection within
-    :data:`CONNECT_PROBE_S`, a viewer still starting given that long), or None.  Rerun keeps
-    the view's data for a viewer that comes later, and at the end waits for one: a program says
-    so when the view opens, rather than in silence at the end."""
+    *wait_s*, a viewer still starting given that long), or None.  Rerun keeps the view's data
+    for a viewer that comes later, and at the end waits for one: a program says so when the view
+    opens, rather than in silence at the end."""
     if target.kind != "connect":
         return None
     url = grpc_url(target.address)
     parts = urllib.parse.urlsplit(url)
     host, port = parts.hostname, parts.port or (443 if parts.scheme.endswith("https") else 80)
-    deadline = time.monotonic() + CONNECT_PROBE_S
+    deadline = time.monotonic() + wait_s
     while True:
         try:
             with socket.create_connection((host, port), timeout=max(0.1, deadline - time.monotonic())):
@@ -114,7 +114,53 @@ def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, 
     where = _OPENERS[target.kind](recording, target, layout())
     scene = Scene(recording, estimator=estimator, config=config, mount=mount)
     scene.note(f"radarodom's view, sent to {where}", static=True)
+    if target.kind == "connect":
+        scene.unreachable = not_a_viewer(recording, target)
+        if scene.unreachable:
+            where = f"nothing ({grpc_url(target.address)} is not a Rerun viewer)"
     return scene, where
+
+
+def not_a_viewer(recording, target: ViewTarget) -> str | None:
+    """Why what accepts connections at a ``connect:`` target's address is no Rerun viewer, or None
+    (a viewer; nothing there yet, whose data waits for one; no answer in time, which the close's
+    timeout judges).  Rerun's gRPC client only logs that what it reached broke the connection (a
+    web server, any other program on the port), in ANSI-coloured lines every flush tick, and the
+    view counted its frames as drawn: the flush of the view's first data raises it at once.  The
+    recording is then disconnected (nothing more is sent, nor logged by Rerun)."""
+    if viewer_missing(target, wait_s=0.0):
+        return None
+    started = time.monotonic()
+    try:
+        recording.flush(timeout_sec=CONNECT_PROBE_S)
+    except RuntimeError as exc:
+        if time.monotonic() - started >= 0.9 * CONNECT_PROBE_S:
+            return None  # slow, not refused
+        recording.disconnect()
+        url = grpc_url(target.address)
+        said = str(exc).removesuffix(f", uri: {url}")  # the URL is said once (Rerun's error ends with it)
+        return f"what answers at {url} is not a Rerun viewer: it broke the connection ({said})"
+    return None
+
+
+def lost_viewer(target: ViewTarget):
+    """How a ``connect:`` view says that its last flush failed, a function of Rerun's error: a
+    viewer went away during the run (or never came), and Rerun, which only logs a lost connection,
+    gives no way to tell which frames it took.  None for the other targets."""
+    if target.kind != "connect":
+        return None
+    url = grpc_url(target.address)
+
+    def said(exc: Exception) -> str:
+        return (f"the view's data did not all reach {url} ({str(exc).removesuffix(f', uri: {url}')}): the frames "
+                "drawn after the viewer went away, or all if none came, were not seen")
+    return said
+
+
+def viewer_hint(target: ViewTarget) -> str:
+    """What to do about a ``connect:`` target that is not a Rerun viewer."""
+    port = urllib.parse.urlsplit(grpc_url(target.address)).port
+    return f"start a Rerun viewer there (rerun --port {port}) or give a viewer's address"
 
 
 def _spawn(recording, target: ViewTarget, blueprint) -> str:
