@@ -8,6 +8,7 @@ it is known (Board.calibration), and a calibrated imperfect board must look like
 from __future__ import annotations
 
 import math
+from importlib import resources
 
 import numpy as np
 import pytest
@@ -393,6 +394,27 @@ def test_sources_say_whether_the_line_fits_their_board(tmp_path, shipped_cfg):
         assert not FrameProcessor(src.config, calibrated=src.calibrated).array_calibrated  # the identity line
     with open_source(f"replay://{tmp_path / 'real'}", line_cfg) as src:
         assert FrameProcessor(src.config, calibrated=src.calibrated).array_calibrated  # a measured line
+
+
+def test_a_recordings_board_is_read_from_its_calibration_or_a_builtin_name_only(tmp_path, shipped_cfg):
+    """A recording made before the board's calibration was kept names its board: a built-in one
+    is known; a name that is a board file's path is not read (a recording's metadata once made
+    replay:// read any file it named, and tried /etc/passwd as TOML)."""
+    board = load_board("uncalibrated")
+    line_cfg = calibrated(shipped_cfg, board.calibration())
+    mine = tmp_path / "mine.toml"
+    mine.write_text(resources.files("radarodom.driver.sim").joinpath("boards", "uncalibrated.toml").read_text())
+    sim = Simulator(shipped_cfg, load_scene("calibration"), board=board, duration_s=0.2)
+    for name, named in (("builtin", "uncalibrated"), ("file", str(mine))):
+        extra = {"simulator": {"board": named}}
+        with CaptureWriter(tmp_path / name, shipped_cfg, source="test", extra=extra) as writer:
+            for i in range(sim.num_frames):
+                f = sim.frame(i)
+                writer.write(f.raw, f.timestamp, 0, f.pose)
+    with open_source(f"replay://{tmp_path / 'builtin'}", line_cfg) as src:
+        assert src.calibrated is True
+    with open_source(f"replay://{tmp_path / 'file'}", line_cfg) as src:
+        assert src.calibrated is None
 
 
 def test_lines_match_within_tolerance_whatever_their_common_phase():

@@ -460,6 +460,38 @@ BAD_METADATA = {
     "start-time-negative": (lambda d: _meta_with(d, start_time_unix=-1), "start_time_unix: expected a number"),
     "dropped-frames-negative": (lambda d: _meta_with(d, dropped_frames=-3), "dropped_frames: expected an integer"),
     "not-utf8": (lambda d: b"\xff\xfe{}", "not UTF-8"),
+    # simulator: a replay took any value for any field without a word (a board's calibration it
+    # could not read was an info line, and the board taken as unknown).
+    "simulator-a-list": (lambda d: _meta_with(d, simulator=[1]), "simulator: expected an object {scene, seed, board, "
+                                                                 "board_calibration}, got [1]"),
+    "simulator-seed-a-string": (lambda d: _meta_with(d, simulator={"seed": "x"}),
+                                "simulator.seed: expected an integer >= 0, got 'x'"),
+    "simulator-seed-negative": (lambda d: _meta_with(d, simulator={"seed": -1}),
+                                "simulator.seed: expected an integer >= 0, got -1"),
+    "simulator-seed-a-float": (lambda d: _meta_with(d, simulator={"seed": 1.5}), "simulator.seed: expected an integer"),
+    "simulator-scene-a-number": (lambda d: _meta_with(d, simulator={"scene": 5}),
+                                 "simulator.scene: expected a string, got 5"),
+    "simulator-board-null": (lambda d: _meta_with(d, simulator={"board": None}),
+                             "simulator.board: expected a string, got null"),
+    "board-calibration-a-string": (lambda d: _meta_with(d, simulator={"board_calibration": "x"}),
+                                   "simulator.board_calibration: expected an object {range_bias_m, coefficients}"),
+    "board-calibration-without-bias": (lambda d: _meta_with(d, simulator={"board_calibration": {"coefficients": []}}),
+                                       "simulator.board_calibration.range_bias_m: missing (a required field)"),
+    "board-calibration-bias-true": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": True, "coefficients": [[1, 0]] * 12}}),
+        "simulator.board_calibration.range_bias_m: expected a number of metres, got true"),
+    "board-calibration-three-pairs": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": 0, "coefficients": [[1, 0]] * 3}}),
+        "simulator.board_calibration.coefficients: expected a list of 12 [re, im] pairs"),
+    "board-calibration-pair-of-strings": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": 0, "coefficients": [[1, 0]] * 11 + [["1", "0"]]}}),
+        'simulator.board_calibration.coefficients[11]: expected [re, im]: two numbers within -1..1, not both 0, '
+        'got ["1", "0"]'),
+    "board-calibration-beyond-one": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": 0, "coefficients": [[1, 0]] + [[0, 2]] * 11}}),
+        "simulator.board_calibration.coefficients[1]: expected [re, im]: two numbers within -1..1"),
+    "board-calibration-zero": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": 0, "coefficients": [[0, 0]] * 12}}), "coefficients[0]: expected [re, im]"),
 }
 
 
@@ -493,6 +525,11 @@ def test_unknown_capture_json_fields_are_kept(tmp_path, small_cfg):
     make_capture(d, small_cfg, 2)
     _set_meta_text(d, _meta_with(d, operator="me", note={"a": [1, 2]}))
     assert CaptureDirectory(d).metadata["note"] == {"a": [1, 2]}
+    # The simulator's fields too, and a simulator that says nothing.
+    for sim in ({}, {"scene": "lab", "seed": 3, "fidelity": "fast", "board_calibration": {
+            "range_bias_m": 0.0, "coefficients": [[1.0, 0.0]] * 12, "identity": True}}):
+        _set_meta_text(d, _meta_with(d, simulator=sim))
+        assert CaptureDirectory(d).metadata["simulator"] == sim
 
 
 BAD_TIMESTAMPS = {

@@ -371,7 +371,8 @@ def _refused_before_streaming(proc, out) -> str:
 
 
 @pytest.mark.parametrize("case", ["missing-bytes-absurd", "missing-bytes-negative", "frame-nan",
-                                  "incomplete-frames-a-number", "nested", "frame-count-past-the-data"])
+                                  "incomplete-frames-a-number", "nested", "frame-count-past-the-data",
+                                  "simulator-seed-a-string"])
 def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
     path, _ = src
     m = meta(path)
@@ -381,6 +382,8 @@ def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
         text = json.dumps(m).replace('"frame": 3', '"frame": NaN')
     elif case == "frame-count-past-the-data":
         text = json.dumps({**m, "frame_count": 100})
+    elif case == "simulator-seed-a-string":
+        text = json.dumps({**m, "simulator": {"scene": "lab", "seed": "x"}})
     else:
         missing = {"missing-bytes-absurd": 99999999999, "missing-bytes-negative": -5}.get(case)
         text = json.dumps({**m, "incomplete_frames": 5 if missing is None else
@@ -391,6 +394,8 @@ def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
     line = _refused_before_streaming(proc, out)
     assert str(path) in line and "capture.json" in line, line
     assert "bytes lost" not in line and "99999999994" not in line
+    if case == "simulator-seed-a-string":
+        assert line.endswith("capture.json: simulator.seed: expected an integer >= 0, got 'x'"), line
 
 
 @pytest.mark.parametrize("bad", ["nan", "inf", "0_5", "1e300", "1000.0"])

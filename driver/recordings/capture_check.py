@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ... import strict_json
+from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ...errors import CaptureError, CaptureFormatError, named_character, quoted, quoted_json
 from ...plain_numbers import plain_float
 
@@ -79,6 +80,36 @@ class _Checker:
         return value
 
 
+def _check_simulator(ck: _Checker, sim: Any) -> None:
+    """capture.json's ``simulator`` object (what a ``sim://`` recording keeps: driver/sim/source.py),
+    each field it has of its type (others kept and ignored): a replay reads the board's
+    calibration from it, and took any value for any field without a word."""
+    if not isinstance(sim, dict):
+        raise ck.fail("simulator", "an object {scene, seed, board, board_calibration}", sim)
+    for key in ("scene", "board"):
+        if key in sim and not isinstance(sim[key], str):
+            raise ck.fail(f"simulator.{key}", "a string", sim[key])
+    ck.int_field(sim, "seed", 0, required=False, name="simulator.seed")
+    if "board_calibration" not in sim:
+        return
+    where, cal = "simulator.board_calibration", sim["board_calibration"]
+    if not isinstance(cal, dict):
+        raise ck.fail(where, "an object {range_bias_m, coefficients}", cal)
+    for key in ("range_bias_m", "coefficients"):
+        if key not in cal:
+            raise CaptureFormatError(f"{ck.path}: {where}.{key}: missing (a required field)")
+    if not _is_number(cal["range_bias_m"]):
+        raise ck.fail(f"{where}.range_bias_m", "a number of metres", cal["range_bias_m"])
+    pairs, count = cal["coefficients"], NUM_TX_ANTENNAS * NUM_RX_ANTENNAS
+    if not isinstance(pairs, list) or len(pairs) != count:
+        raise ck.fail(f"{where}.coefficients", f"a list of {count} [re, im] pairs (TX1 RX1 to TX3 RX4)", pairs)
+    for k, pair in enumerate(pairs):
+        # The cfg line's own rule (compRangeBiasAndRxChanPhase): each part within -1..1, not both 0.
+        if not (isinstance(pair, list) and len(pair) == 2 and all(_is_number(x) and abs(x) <= 1 for x in pair)
+                and any(x != 0 for x in pair)):
+            raise ck.fail(f"{where}.coefficients[{k}]", "[re, im]: two numbers within -1..1, not both 0", pair)
+
+
 def check_metadata(meta: Any, path: str) -> dict[str, Any]:
     """*meta* (capture.json's parsed contents) when it follows the schema, else
     :class:`CaptureFormatError` naming *path*, the field and what was expected."""
@@ -113,8 +144,8 @@ def check_metadata(meta: Any, path: str) -> dict[str, Any]:
         if value is not None and not (_is_number(value) and abs(value) <= TIMESTAMP_LIMIT_S):
             raise ck.fail(key, f"null or a number of seconds within +-{TIMESTAMP_LIMIT_S:g}", value)
     ck.int_field(meta, "dropped_frames", 0, required=False)
-    if "simulator" in meta and not isinstance(meta["simulator"], dict):
-        raise ck.fail("simulator", "an object", meta["simulator"])
+    if "simulator" in meta:
+        _check_simulator(ck, meta["simulator"])
 
     entries = meta.get("incomplete_frames", [])
     if not isinstance(entries, list):

@@ -33,7 +33,14 @@ ignored):
     start_time_unix    number, optional: 0 to 1e10 (s)
     first_timestamp, last_timestamp   null or a number within +-1e10 (s), optional
     dropped_frames     integer >= 0, optional: frames a live stream dropped (not recorded)
-    simulator          object, optional: the simulated scene, seed and board
+    simulator          object, optional: the simulated scene, seed and board (a sim://
+                       recording's; other fields kept and ignored):
+        scene, board       strings, optional (a board not built in is taken as unknown
+                           without board_calibration: never read from a file)
+        seed               integer >= 0, optional
+        board_calibration  object, optional: range_bias_m (a number, m) and coefficients
+                           (12 [re, im] pairs, TX1 RX1 to TX3 RX4, each part within -1..1,
+                           not both 0), the board's exact compRangeBiasAndRxChanPhase
 
 Agreement: a closed capture holds exactly frame_count frames in adc_data.bin (no byte more)
 and as many timestamp lines.  A capture that was not closed (its process died) plays its

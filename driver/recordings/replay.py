@@ -28,10 +28,10 @@ import numpy as np
 
 from ...calibration import ChannelCalibration
 from ...cfg import RadarConfig
-from ...errors import CaptureFormatError, ConfigError, SourceError
+from ...errors import CaptureFormatError, ConfigError, SourceError, quoted
 from ...plain_numbers import plain_float
 from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
-from ..sim.board import load_board
+from ..sim.board import BUILTIN_BOARDS, load_board
 from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .ti_recorder import NO_RECORDING, SERIES_PATTERN as _TI_SERIES, TiRecording
 
@@ -113,7 +113,8 @@ class ReplaySource(Source):
 
 def _board_fits(metadata: dict, config: RadarConfig) -> bool | None:
     """Whether *config*'s channel calibration fits the simulated board a recording was made on
-    (its metadata names it); None for a real board's recording, or a board it cannot tell."""
+    (its metadata, checked by :func:`.capture_check.check_metadata`, names it); None for a real
+    board's recording, or a board it cannot tell."""
     sim = metadata.get("simulator")
     if not isinstance(sim, dict):
         return None
@@ -121,7 +122,10 @@ def _board_fits(metadata: dict, config: RadarConfig) -> bool | None:
         if "board_calibration" in sim:
             truth = ChannelCalibration.from_description(sim["board_calibration"])
         else:  # recorded before the board's calibration was kept: a built-in board by its name
-            truth = load_board(str(sim.get("board", "ideal"))).calibration()
+            board = sim.get("board", "ideal")
+            if board not in BUILTIN_BOARDS:  # a board file's name, never a path a recording may make us read
+                raise ConfigError(f"{quoted(board)} is no built-in board ({', '.join(BUILTIN_BOARDS)})")
+            truth = load_board(board).calibration()
         return ChannelCalibration.from_config(config).matches(truth)
     except ConfigError as exc:
         log.info("the simulated board of the recording is unknown (%s): its channel calibration is taken "
