@@ -15,18 +15,24 @@ On the axis (a lever arm shorter than ``min_lever_arm_m``) the sideways velocity
 the yaw rate, but it is known: yaw rate times the lever arm, nothing on the axis.  The fit's
 sideways component is then replaced by it (:class:`NoSideSlip`): an array without elevation
 (2-TX) leans its fit sideways with elevated returns, which the translation would integrate
-(docs/heading.md, "2-TX arrays").  Chosen once from the config.
+(docs/heading.md, item 27).  Which way is sideways is learnt from the velocity's mean direction
+on straight drives: a mount's yaw a degree off would put more sideways speed into every frame
+than the lean removed.  Chosen once from the config.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
+from collections import deque
 
 import numpy as np
 
 from .config import OdometryConfig
 from .velocity import VelocityEstimate
+
+log = logging.getLogger(__name__)
 
 
 class DopplerYawRate:
@@ -65,23 +71,79 @@ def fuse(dyaw: float | None, var_yaw: float, doppler: tuple[float, float] | None
 
 class NoSideSlip:
     """A velocity estimate (radar axes, m/s) of a radar on or near a wheeled base's rotation axis
-    with its component along the base's sideways axis made yaw rate x ``mount_x_m``, and no
-    variance there; the forward component and its variance kept."""
+    with its component along the base's sideways axis made yaw rate x ``mount_x_m``; the forward
+    component and its variance kept.  The base's axes are learnt: once ``no_slip_learn_frames``
+    frames drove straight, the forward axis is the median direction of their velocities (relative
+    to ``mount_yaw_rad``'s; a median, since a fit leans for a few seconds at a time, where the
+    structure passing by is above or below the radar), and until then an estimate passes as
+    measured."""
 
     def __init__(self, config: OdometryConfig) -> None:
-        c, s = math.cos(config.mount_yaw_rad), math.sin(config.mount_yaw_rad)
-        # The base's forward and sideways axes in the radar's axes.
-        self._forward, self._side = np.array([c, -s]), np.array([s, c])
+        self._given_yaw = config.mount_yaw_rad
+        self._given_axes = _base_axes(config.mount_yaw_rad)
         self._lever_m = config.mount_x_m
-        self._keep = np.outer(self._forward, self._forward)
+        self._learn_frames = config.no_slip_learn_frames
+        self._straight_radps = config.no_slip_straight_radps
+        self._min_speed = config.no_slip_min_speed_mps
+        self._angle_std = config.no_slip_angle_std_rad
+        self._angles: deque[float] = deque(maxlen=_LEARN_MAX_FRAMES)
+        self._offset: float | None = None if self._learn_frames else 0.0
+
+    @property
+    def offset_rad(self) -> float | None:
+        """How far the radar's velocity points from ``mount_yaw_rad``'s forward axis on the straight
+        frames so far (rad, towards the base's left), once learnt (0 with ``no_slip_learn_frames``
+        0: the mount's yaw as given); None before."""
+        return self._offset
 
     def __call__(self, est: VelocityEstimate, yaw_rate: float) -> VelocityEstimate:
         """*est* with no sideways slip at *yaw_rate* (rad/s; the last measured)."""
         if not est.ok:
             return est
-        v = (self._forward @ est.velocity) * self._forward + yaw_rate * self._lever_m * self._side
-        covariance = self._keep @ est.covariance @ self._keep
+        v, side_speed = est.velocity, yaw_rate * self._lever_m
+        forward, side = self._given_axes
+        along = float(forward @ v)
+        if abs(yaw_rate) < self._straight_radps and abs(along) > self._min_speed:
+            self._learn(math.atan((float(side @ v) - side_speed) / along))
+        offset = self.offset_rad
+        if offset is None:
+            return est
+        forward, side = _base_axes(self._given_yaw - offset)
+        along = float(forward @ v)
+        v = along * forward + side_speed * side
+        side_std = max(self._angle_std * abs(along), _MIN_SIDE_STD_MPS)
+        keep = np.outer(forward, forward)
+        covariance = keep @ est.covariance @ keep + side_std ** 2 * np.outer(side, side)
         return dataclasses.replace(est, vx=float(v[0]), vy=float(v[1]), covariance=covariance)
+
+    def _learn(self, angle: float) -> None:
+        if not self._learn_frames:
+            return
+        self._angles.append(angle)
+        if len(self._angles) < self._learn_frames:
+            return
+        first = self._offset is None
+        self._offset = float(np.median(self._angles))
+        if first and abs(self._offset) > _WARN_OFFSET_RAD:
+            log.warning("on straight drives the radar's velocity points %.1f degrees %s of the base's forward axis "
+                        "as a mount yaw of %.1f degrees places it: the radar is likely yawed %.1f degrees on the "
+                        "base (--mount's YAW_DEG, odometry.mount_yaw_rad); the odometry follows the velocity",
+                        math.degrees(abs(self._offset)), "left" if self._offset > 0 else "right",
+                        math.degrees(self._given_yaw), round(math.degrees(self._given_yaw - self._offset), 1) + 0.0)
+
+
+def _base_axes(mount_yaw: float) -> tuple[np.ndarray, np.ndarray]:
+    """The base's forward and sideways (left) axes, in the axes of a radar yawed *mount_yaw* on it."""
+    c, s = math.cos(mount_yaw), math.sin(mount_yaw)
+    return np.array([c, -s]), np.array([s, c])
+
+
+#: A variance a consumer can invert, m/s.
+_MIN_SIDE_STD_MPS = 0.001
+#: The straight frames the axis is learnt from, at most: the last 5 minutes of them at 10 Hz.
+_LEARN_MAX_FRAMES = 3000
+#: A learnt axis further than this from the mount's (rad) is a mount the user should correct.
+_WARN_OFFSET_RAD = math.radians(3.0)
 
 
 def doppler_yaw_part(config: OdometryConfig) -> DopplerYawRate | None:

@@ -120,11 +120,11 @@ class RadarOdometry:
         self.config = config or EstimatorConfig()
         odo = self.config.odometry
         self.rng = np.random.default_rng(self.config.velocity.seed)
-        self.velocities = VelocityTrack(self.config)
+        self.no_side_slip = no_side_slip_part(odo)
+        self.velocities = VelocityTrack(self.config, None if self.no_side_slip is None else self._without_slip)
         self.yaw = YawMeasurement(self.config, _PROFILE_STEP)
         self.rate = yaw_rate_part(odo)
         self.doppler_yaw = doppler_yaw_part(odo)
-        self.no_side_slip = no_side_slip_part(odo)
         self.doppler_elevation = doppler_elevation_part(self.config.features)
         self._yaw_noise_var = odo.yaw_noise_rad ** 2
         self.keyframes = KeyframeCorrection(self.config, self.yaw) if odo.keyframe_distance_m > 0 else NoKeyframes()
@@ -155,30 +155,29 @@ class RadarOdometry:
     # ------------------------------------------------------------------ velocity stream
     def add_points(self, t: float, points: np.ndarray) -> VelocityEstimate:
         """Estimate the velocity from one point cloud (TI frame fields azimuth, elevation,
-        velocity) taken at *t* and keep it for the heatmap frames around it."""
+        velocity) taken at *t* and keep it for the heatmap frames around it; the estimate kept
+        (a wheeled base's on its axis without sideways slip: ``odometry.base``)."""
         start = time.perf_counter()
         _check_time(t, "point cloud")
         _check_points(points)
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:
             est = self.velocities.level_speed(t, points, est)
-        est = self._keep_velocity(est)
+        est = self.velocities.add(est)
         if self.point_yaw is not None:
             self.point_yaw.add_points(t, points, est)
         self._velocity_s += time.perf_counter() - start
         return est
 
     def add_velocity(self, est: VelocityEstimate) -> None:
-        """Use a velocity from elsewhere (or from :meth:`add_points`)."""
+        """Use a velocity from elsewhere (or from :meth:`add_points`); a wheeled base's on its
+        axis loses its sideways part as the point clouds' do."""
         _check_time(est.t, "velocity")
-        self._keep_velocity(est)
-
-    def _keep_velocity(self, est: VelocityEstimate) -> VelocityEstimate:
-        """*est* as kept for the steps: a wheeled base's on its axis without sideways slip."""
-        if self.no_side_slip is not None:
-            est = self.no_side_slip(est, self._last_rate)
         self.velocities.add(est)
-        return est
+
+    def _without_slip(self, est: VelocityEstimate) -> VelocityEstimate:
+        """*est* without sideways slip at the last measured yaw rate (``no_side_slip``)."""
+        return self.no_side_slip(est, self._last_rate)
 
     # ------------------------------------------------------------------ heatmap stream
     def step(self, t: float, points: np.ndarray, heatmap: PolarHeatmap) -> OdometryState:

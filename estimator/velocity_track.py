@@ -76,8 +76,10 @@ class HeatmapVelocity:
     end, averaged with the velocity at its start (the step's mid-time, as eq. 2 for the point
     clouds: a robot slowing down is slower at the frame than at mid-step)."""
 
-    def __init__(self, config: EstimatorConfig, history: VelocityHistory, level_speed: LevelSpeed | None) -> None:
+    def __init__(self, config: EstimatorConfig, history: VelocityHistory, level_speed: LevelSpeed | None,
+                 constrain: Callable[[VelocityEstimate], VelocityEstimate] | None = None) -> None:
         self._config = config
+        self._constrain = constrain or _as_measured
         self._history = history
         self._level_speed = level_speed
         # Its own generator, so that the fallback leaves the point clouds' RANSAC draws as they were.
@@ -110,6 +112,7 @@ class HeatmapVelocity:
             if est.ok:
                 if self._level_speed is not None:
                     est = self._level_speed.scaled(points, est)
+                est = self._constrain(est)
                 break
         if not est.ok:
             self._last = None
@@ -127,9 +130,12 @@ class HeatmapVelocity:
 
 
 class VelocityTrack:
-    """Velocity estimates as they come (:meth:`add`) and each step's velocity (:meth:`for_step`)."""
+    """Velocity estimates as they come (:meth:`add`) and each step's velocity (:meth:`for_step`);
+    *constrain* is what every estimate kept goes through first, the heatmap fallback's too (a
+    wheeled base's on its axis: no sideways slip)."""
 
-    def __init__(self, config: EstimatorConfig) -> None:
+    def __init__(self, config: EstimatorConfig,
+                 constrain: Callable[[VelocityEstimate], VelocityEstimate] | None = None) -> None:
         odo = config.odometry
         self._hold_s = odo.hold_s
         self._held_factor = odo.held_velocity_variance_factor
@@ -138,17 +144,21 @@ class VelocityTrack:
             self.history.nearest if odo.velocity_sync == "nearest" else self.history.interpolated)
         #: ``velocity.level_edge_quantile``: clouds without elevation, and the fallback's cells
         self.level_speed = level_speed_part(config.velocity)
-        self._fallback = (HeatmapVelocity(config, self.history, self.level_speed)
+        self._constrain = constrain or _as_measured
+        self._fallback = (HeatmapVelocity(config, self.history, self.level_speed, self._constrain)
                           if odo.velocity_fallback == "heatmap" else None)
         self._last: VelocityEstimate | None = None  # the latest, good or not
         self._good_t: float | None = None  # the latest good one's time
         self._max_accel = config.velocity.max_accel_mps2
 
-    def add(self, est: VelocityEstimate) -> None:
+    def add(self, est: VelocityEstimate) -> VelocityEstimate:
+        """Keep *est* (constrained); the estimate kept."""
+        est = self._constrain(est)
         self._last = est
         if est.ok:
             self.history.add(est)
             self._good_t = est.t
+        return est
 
     def reachable(self, t: float) -> ReachableVelocity | None:
         """The velocities the platform can have at *t* after the last good one (``max_accel_mps2``
@@ -184,3 +194,7 @@ class VelocityTrack:
         if may_hold(self._good_t, t, self._hold_s, Flag.VELOCITY_HELD, flags) and estimate is not None:
             return StepVelocity(estimate, estimate.velocity, estimate.covariance * self._held_factor)
         return StepVelocity(estimate, np.zeros(2), np.eye(2))
+
+
+def _as_measured(est: VelocityEstimate) -> VelocityEstimate:
+    return est

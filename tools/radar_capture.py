@@ -89,9 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="estimator settings (JSON, as EstimatorConfig.dump writes; default: the built-in ones, "
                              "or those the source's frames call for: tidemo:// EstimatorConfig.tidemo())")
     parser.add_argument("--wheeled", action="store_true",
-                        help="the robot's base cannot slide sideways (differential drive, car-like): with --mount "
-                             "off its rotation axis the radar's Doppler measures the yaw rate in turns, on the axis "
-                             "the radar's velocity is taken to have no sideways part (docs/estimator.md)")
+                        help="the robot's base cannot slide or skid sideways (differential drive, car-like; not "
+                             "mecanum or skid-steered): with --mount off its rotation axis the radar's Doppler "
+                             "measures the yaw rate in turns, on the axis the radar's velocity is taken to have no "
+                             "sideways part, along the forward axis learnt from straight drives (docs/cli.md)")
     ros_outputs.add_arguments(parser)
     view_option.add_view_argument(parser)
     cli.add_overwrite(parser)
@@ -142,9 +143,10 @@ def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
 
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
-    if args.no_odom and (args.odom_out or args.estimator_config):
-        raise UsageError("--no-odom turns the estimator off: it cannot also write --odom-out or "
-                         "take --estimator-config")
+    estimator_options = [option for option, given in (("--odom-out", args.odom_out), ("--estimator-config",
+                         args.estimator_config), ("--wheeled", args.wheeled)) if given]
+    if args.no_odom and estimator_options:
+        raise UsageError(f"--no-odom turns the estimator off: it cannot also take {estimator_options[0]}")
     # --ros2-topic names the bag's odometry topic too: an offline conversion may take it.
     zenoh_given = options_given(args)
     given = [option for option in (zenoh_given if args.no_publish else [])
