@@ -102,12 +102,12 @@ class RawLayout:
     def encode(self, cube: np.ndarray) -> bytes:
         """Bytes of one or more frames (inverse of :meth:`decode`).
 
-        *cube* holds integer-valued I + jQ shaped like :meth:`decode` returns;
-        values are rounded to int16 and must fit without clipping.
+        *cube* is a numeric array (integer, float or complex: not bool, object or text) holding
+        integer-valued I + jQ shaped like :meth:`decode` returns, one frame or a frames axis of at
+        least one; anything else is a :class:`UsageError` saying what it got.  Values are rounded
+        to int16 and must fit without clipping.
         """
-        cube = np.asarray(cube)
-        if cube.shape[-4:] != self.shape:
-            raise ValueError(f"cube shape {cube.shape} does not end with {self.shape}")
+        _check_cube(cube, self.shape)
         i_part, q_part = np.rint(cube.real), np.rint(cube.imag)
         if not (np.isfinite(i_part).all() and np.isfinite(q_part).all()):
             raise CaptureFormatError("the cube holds NaN or infinite samples")
@@ -127,16 +127,33 @@ def _check_out(out, frames: int, shape: tuple[int, ...]) -> None:
     shapes = [(frames, *shape)] if frames > 1 else [shape, (1, *shape)]
     wanted = " or ".join(str(s) for s in shapes)
     frames_text = f"{frames} frames" if frames > 1 else "one frame"
-    if not isinstance(out, np.ndarray):
-        got = f"{type(out).__name__} {quoted(out)}"
-    elif out.dtype != np.complex64 or out.shape not in shapes:
-        got = f"{out.dtype} shaped {out.shape}"
+    if not isinstance(out, np.ndarray) or out.dtype != np.complex64 or out.shape not in shapes:
+        got = _described(out)
     elif not out.flags.writeable:
         got = "a read-only array"
     else:
         return
     raise UsageError(f"out: a writable complex64 array shaped {wanted} ({frames_text}), or None for a new one; "
                      f"got {got}")
+
+
+def _check_cube(cube, shape: tuple[int, ...]) -> None:
+    """:class:`UsageError` unless *cube* is a numeric array of one frame of *shape* or of a frames
+    axis of at least one: numpy's asarray took anything (a bool or str array, a list, None) and
+    failed later with a ValueError or a ufunc's TypeError that named no argument."""
+    if (isinstance(cube, np.ndarray) and cube.dtype.kind in "iufc"
+            and (cube.shape == shape or (cube.ndim == len(shape) + 1 and cube.shape[1:] == shape
+                                         and cube.shape[0] >= 1))):
+        return
+    raise UsageError(f"cube: a numeric (integer, float or complex) array shaped {shape} (one frame) or "
+                     f"(frames, {', '.join(map(str, shape))}) (frames >= 1); got {_described(cube)}")
+
+
+def _described(value) -> str:
+    """What an array argument got, as the checks above say it: its dtype and shape, or its type and value."""
+    if isinstance(value, np.ndarray):
+        return f"{value.dtype} shaped {value.shape}"
+    return f"{type(value).__name__} {quoted(value)}"
 
 
 def unusable_samples(cube: np.ndarray) -> str:

@@ -224,10 +224,29 @@ def test_encode_rejects_nan():
         layout.encode(cube)
 
 
-def test_encode_rejects_wrong_shape():
+def test_encode_rejects_bad_cube():
+    """The package's error naming the argument, what it got and what it takes (once a bare
+    ValueError for a wrong shape, numpy's TypeError for an object or str array, and nothing at all
+    for a bool array or a (1, 2, ...) cube, taken as two frames)."""
     layout = RawLayout(1, 2, 2, 4)
-    with pytest.raises(ValueError):
-        layout.encode(np.zeros((1, 2, 4, 2), complex))
+    wanted = ("cube: a numeric (integer, float or complex) array shaped (1, 2, 2, 4) (one frame) or "
+              "(frames, 1, 2, 2, 4) (frames >= 1); got ")
+    for cube, got in ((np.zeros((1, 2, 4, 2), complex), "complex128 shaped (1, 2, 4, 2)"),
+                      (np.zeros((2, 4)), "float64 shaped (2, 4)"),
+                      (np.zeros((0, *layout.shape), np.complex64), "complex64 shaped (0, 1, 2, 2, 4)"),
+                      (np.zeros((1, 2, *layout.shape), np.complex64), "complex64 shaped (1, 2, 1, 2, 2, 4)"),
+                      (np.zeros(layout.shape, bool), "bool shaped (1, 2, 2, 4)"),
+                      (np.zeros(layout.shape, object), "object shaped (1, 2, 2, 4)"),
+                      (np.zeros(layout.shape, "U1"), "<U1 shaped (1, 2, 2, 4)"),
+                      ([[0j] * 4] * 2, "list [[0j, 0j, 0j, 0j], [0j, 0j, 0j, 0j]]"),
+                      (None, "NoneType None")):
+        with pytest.raises(UsageError) as info:
+            layout.encode(cube)
+        assert str(info.value) == wanted + got
+    # every numeric kind is taken, one frame or several
+    for dtype in (np.int16, np.int64, np.uint8, np.float32, np.complex128):
+        assert layout.encode(np.ones(layout.shape, dtype)) == layout.encode(np.ones(layout.shape, np.complex64))
+    assert len(layout.encode(np.zeros((3, *layout.shape), np.complex64))) == 3 * layout.frame_bytes
 
 
 def test_from_config_shipped(shipped_cfg):
