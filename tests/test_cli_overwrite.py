@@ -274,7 +274,8 @@ def test_an_output_file_in_a_directory_that_is_not_there_is_a_usage_error(tmp_pa
 
     rc, err = capture(capsys, "--odom-out", tmp_path / "nodir" / "odom.tum")
     assert rc == 2 and err.endswith(f"error: cannot create {tmp_path / 'nodir' / 'odom.tum'}: "
-                                    f"no directory {tmp_path / 'nodir'}\n")
+                                    f"no directory {tmp_path / 'nodir'}; make it first (mkdir -p {tmp_path / 'nodir'}) "
+                                    "or choose a writable destination\n")
     truth = tmp_path / "gt.tum"
     truth.write_text("0 0 0 0 0 0 0 1\n0.1 0.1 0 0 0 0 0 1\n")
     assert radar_eval.main([str(truth), str(truth), "--json", str(tmp_path / "nodir" / "e.json"), "-q"]) == 2

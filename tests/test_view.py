@@ -29,6 +29,7 @@ from conftest import make_capture
 rr = pytest.importorskip("rerun", reason='the view needs rerun-sdk (pip install "radarodom[view]")')
 from rerun.chunk import RrdReader  # noqa: E402
 
+from radarodom.errors import CaptureError  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.pipeline import Pipeline, TumSink  # noqa: E402
 from radarodom.tum import read_tum  # noqa: E402
@@ -340,9 +341,40 @@ def test_an_rrd_that_cannot_be_made_is_one_error_line(capture):
                            "-q", "--view", "save:/proc/radarodom-view.rrd"], capture_output=True, text=True,
                           timeout=GUARD_S, env={**os.environ, "RERUN_ANALYTICS": "0"})
     assert proc.returncode == 1
-    # Rerun's own warning at exit, for a save it had failed, is not printed after it.
-    assert proc.stderr == "radar-capture: error: cannot write the view to /proc/radarodom-view.rrd: " \
-                          "No such file or directory\n"
+    # Rerun's own warning at exit, for a save it had failed, is not printed after it; the kernel's
+    # words alone ('No such file or directory') named neither the directory nor the fix.
+    assert proc.stderr == ("radar-capture: error: cannot write the view to /proc/radarodom-view.rrd: the directory "
+                           "/proc takes no new files (the system says: No such file or directory); choose a writable "
+                           "destination\n")
+
+
+def test_an_rrd_where_no_file_can_be_made_is_refused_before_any_frame(capture, tmp_path, capsys, monkeypatch):
+    """What, where, why and the fix, once, before the first frame; each said only 'cannot create
+    PATH: ...' without the view (or, for /sys, only the kernel's 'Permission denied')."""
+    afile, locked = tmp_path / "afile", tmp_path / "locked"
+    afile.write_text("mine\n")
+    locked.mkdir()
+    cases = [(tmp_path / "nodir" / "v.rrd", 2, f"no directory {tmp_path / 'nodir'}; make it first (mkdir -p "
+              f"{tmp_path / 'nodir'}) or choose a writable destination"),
+             (afile / "v.rrd", 2, f"{afile} is a file, not a directory; choose a writable destination"),
+             (afile / "sub" / "v.rrd", 2, f"{afile} is a file, not a directory; choose a writable destination"),
+             (locked / "v.rrd", 2, f"the directory {locked} is not writable; choose a writable destination")]
+    if os.path.isdir("/sys/kernel"):  # a directory that refuses new files with EACCES, for root too
+        cases.append(("/sys/radarodom-view.rrd", 1, "no permission to make a file in the directory /sys "
+                      "(Permission denied); choose a writable destination"))
+    # Root writes anywhere, so the directory is read-only as os.access tells it (the check asks it).
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: os.fspath(path) != str(locked)
+                        and real_access(path, mode, **kw))
+    for rrd, code, why in cases:
+        rc, out, err = capture_main(["--source", capture, "--no-publish", "--view", f"save:{rrd}"], capsys)
+        assert (rc, out, err) == (code, "", f"radar-capture: error: cannot write the view to {rrd}: {why}\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "locked", "src"] and not any(locked.iterdir())
+    # The library's view, not checked before, says the same when it opens, in its own process too.
+    for (rrd, _, why), process in ((cases[0], False), (cases[2], True)):
+        with pytest.raises(CaptureError) as info:
+            open_view(ViewTarget("save", path=str(rrd)), process=process)
+        assert str(info.value) == f"cannot write the view to {rrd}: {why}"
 
 
 def test_without_rerun_the_view_says_which_extra_to_install(capture, tmp_path):

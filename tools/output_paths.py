@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import errno
 import os
-from typing import Sequence
+from typing import Mapping, Sequence
 
 from ..errors import CaptureError, CaptureExistsError, UsageError
 
@@ -43,14 +43,21 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
         return
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
-        above = parent
-        while not os.path.lexists(above):
-            above = os.path.dirname(above)
-        if not os.path.isdir(above):  # "no directory a/b" would hide that a is a file
-            raise UsageError(f"cannot {target}: {above} is a file, not a directory; {CHOOSE_WRITABLE}")
-        raise UsageError(f"cannot {target}: no directory {parent}")
+        raise UsageError(f"cannot {target}: {no_directory(parent)}")
     if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
         raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
+
+
+def no_directory(parent: str) -> str:
+    """Why no file can be made in *parent*, a directory that is not there, and the fix: the nearest
+    path above it that is there is a file ("no directory a/b" would hide that a is a file), or
+    the directory is missing (a path mistyped, or a directory not made yet)."""
+    above = parent
+    while not os.path.lexists(above):
+        above = os.path.dirname(above)
+    if not os.path.isdir(above):
+        return f"{above} is a file, not a directory; {CHOOSE_WRITABLE}"
+    return f"no directory {parent}; make it first (mkdir -p {parent}) or {CHOOSE_WRITABLE}"
 
 
 def missing_directories(path: str) -> list[str]:
@@ -156,9 +163,11 @@ def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
                 raise UsageError(f"{file_option} {path} is a file {option} writes: choose another name")
 
 
-def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: bool) -> None:
+def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: bool,
+                      what: Mapping[str, str] | None = None) -> None:
     """Each output new, or with *overwrite* replaceable (:func:`check_new_path`); each (path,
-    kind, option), *kind* as :func:`replace_output` takes it.  A file may go into a directory
+    kind, option), *kind* as :func:`replace_output` takes it; *what*: what an option writes, by
+    option, for its messages ("cannot write the view to PATH").  A file may go into a directory
     output the run makes (its writer is opened after the directory's); a recording directory
     holding data radarodom did not write is refused here, before ``--overwrite`` replaces the
     other outputs (its writer would refuse it only then)."""
@@ -171,7 +180,7 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
             continue
         if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
             continue
-        check_new_path(path, is_dir=kind != "file", overwrite=overwrite)
+        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option))
         theirs = overwrite and kind == "capture" and os.path.isdir(path) and foreign_data(path)
         if theirs:
             raise CaptureExistsError(f"{path} already holds a capture ({theirs}) not written by radarodom "
@@ -240,4 +249,6 @@ def why_not_written(exc: OSError, path: str) -> str:
         return f"no permission to make a file in the directory {parent} ({said}); {CHOOSE_WRITABLE}"
     if exc.errno == errno.ENOENT and os.path.isdir(parent):  # /proc, /sys: the kernel's, no storage
         return f"the directory {parent} takes no new files (the system says: {said}); {CHOOSE_WRITABLE}"
+    if exc.errno in (errno.ENOENT, errno.ENOTDIR) and not os.path.isdir(parent):  # a path not checked before
+        return no_directory(parent)
     return f"{said}; {CHOOSE_WRITABLE}"

@@ -239,7 +239,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     outputs = _outputs(args)
     cli.check_distinct([(option, path) for path, kind, option in outputs if kind != "heatmaps"], _inputs(args))
     cli.check_files_in_directories(outputs)
-    cli.check_new_outputs(outputs, overwrite=args.overwrite)
+    cli.check_new_outputs(outputs, overwrite=args.overwrite, what=view_option.WHAT)
 
 
 def _sinks(args: argparse.Namespace, source: Source, publisher) -> list:

@@ -65,6 +65,10 @@ def add_view_argument(parser: argparse.ArgumentParser) -> None:
                              'own frames, never the pipeline\'s (needs pip install "radarodom[view]")')
 
 
+#: What ``--view save:`` writes, for radar-capture's output checks' messages (as the view's own, when it opens).
+WHAT = {"--view save:": "the view"}
+
+
 def outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:
     """The .rrd file of ``--view save:`` (path, "file", option), for radar-capture's new-file and
     --overwrite checks."""

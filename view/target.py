@@ -198,11 +198,13 @@ def _connect(recording, target: ViewTarget, blueprint) -> str:
 
 
 def _save(recording, target: ViewTarget, blueprint) -> str:
+    from ..tools.output_paths import why_not_written
+
     try:  # before Rerun: a save it fails leaves a stream that prints its own warning at exit
         with open(target.path, "ab"):
             pass
-    except OSError as exc:
-        raise CaptureError(f"cannot write the view to {target.path}: {exc.strerror or exc}") from None
+    except OSError as exc:  # the kernel's words alone name neither the directory nor the fix
+        raise CaptureError(f"cannot write the view to {target.path}: {why_not_written(exc, target.path)}") from None
     try:
         recording.save(target.path, default_blueprint=blueprint)
     except RuntimeError as exc:
