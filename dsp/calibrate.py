@@ -43,6 +43,7 @@ from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
 from ..errors import CalibrationError, ConfigError, UsageError
+from ..rawframe import unusable_samples
 from .config import DspConfig
 from .points import invert_three_bins
 from .processor import FrameProcessor, three_bin_response
@@ -163,9 +164,18 @@ class ChannelCalibrator:
                                          fix="measure with a Hann or Blackman range window")
 
     def add(self, cube: np.ndarray) -> None:
-        """One frame's raw cube, complex (loops, tx_slots, rx, samples)."""
-        spectrum = self.proc.doppler_fft(self.proc.range_fft(cube))
-        self._frames.append(spectrum[:, :, :, self._bins].copy())
+        """One frame's raw cube, complex (loops, tx_slots, rx, samples).  A cube whose samples hold
+        NaN or infinite values, or are too large for the float32 power, is a :class:`UsageError`
+        saying so (as :meth:`FrameProcessor.process` says it); the frame is not taken."""
+        # A NaN or inf sample spreads over every range bin of its antenna: kept, it made result()
+        # blame the set-up ("no reflector peak ... at the window's edge"), after numpy's warnings.
+        with np.errstate(invalid="ignore", over="ignore"):
+            kept = self.proc.doppler_fft(self.proc.range_fft(cube))[:, :, :, self._bins]
+            finite = np.isfinite((kept.real ** 2 + kept.imag ** 2).sum())
+        if not finite:
+            raise UsageError(f"ChannelCalibrator.add (frame {self.frames + 1} of the measurement): "
+                             f"{unusable_samples(cube)}")
+        self._frames.append(kept.copy())
 
     @property
     def frames(self) -> int:

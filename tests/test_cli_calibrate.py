@@ -281,6 +281,41 @@ def test_library_refusals_say_which_limit():
     assert proc.returncode == 2 and "widen it" in proc.stderr
 
 
+def test_a_cube_the_dsp_cannot_take_is_refused_by_add_and_the_rest_measured():
+    """NaN, inf or samples too large for the float32 power, in the words FrameProcessor.process
+    uses (rawframe.unusable_samples), with no numpy warning.  Once taken without a word: the NaN
+    and inf frames then made result() blame the set-up ('no reflector peak within 3 m +/- 0.2 m:
+    the strongest return there is at the window's edge'), inf after numpy's RuntimeWarning.
+    Only the library meets them: every source's cubes decode from 16-bit samples."""
+    import warnings
+
+    from radarodom.dsp.calibrate import ChannelCalibrator
+
+    cfg = RadarConfig.from_file(shipped_config_path())
+    sim = Simulator(cfg, load_scene("calibration"), seed=3, board=load_board("uncalibrated"))
+    cubes = [sim.layout.decode(sim.frame(i).raw) for i in range(4)]
+    expected = measure(cfg, cubes, 3.0).calibration.coefficients
+    nan_words = ("the frame's ADC samples hold 1 NaN or infinite value(s) of 196608 (the first at loop 5, TX slot 1, "
+                 "RX 2, sample 100); the DSP takes finite I + jQ samples, as a radar's bytes decode to (Frame.cube())")
+    for value, words in ((np.nan, nan_words), (complex(0, np.inf), nan_words), (-np.inf, nan_words),
+                         (1e30, "the frame's ADC samples reach 1e+30, too large for the DSP's float32 power (a "
+                                "radar's 16-bit samples reach 32768); scale the cube down")):
+        calibrator = ChannelCalibrator(cfg, 3.0)
+        bad = cubes[1].copy()
+        bad[5, 1, 2, 100] = value
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            calibrator.add(cubes[0])
+            with pytest.raises(UsageError) as info:
+                calibrator.add(bad)
+            assert str(info.value) == f"ChannelCalibrator.add (frame 2 of the measurement): {words}"
+            for cube in cubes[1:]:  # the refused frame is not taken: the others measure as alone
+                calibrator.add(cube)
+            result = calibrator.result()
+        assert result.frames == 4
+        np.testing.assert_allclose(result.calibration.coefficients, expected, atol=1e-6)
+
+
 def test_no_source_and_no_radar_says_what_to_do():
     proc = run("--distance", 3)
     assert proc.returncode == 2 and "no radar found" in proc.stderr and "sim://calibration" in proc.stderr
