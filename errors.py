@@ -8,6 +8,7 @@ errors, 1 for failures at run time.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import unicodedata
@@ -61,6 +62,41 @@ def given_path(path: Any, error: type[RadarodomError], what: str = "file path") 
     if "\0" in text:
         raise error(f"a path cannot contain a NUL character: {quoted(text)}")
     return text
+
+
+#: The fix for an output that cannot be written where it was asked.
+CHOOSE_WRITABLE = "choose a writable destination"
+
+
+def no_directory(parent: str) -> str:
+    """Why no file can be made in *parent*, a directory that is not there, and the fix: the nearest
+    path above it that is there is a file ("no directory a/b" would hide that a is a file), or
+    the directory is missing (a path mistyped, or a directory not made yet)."""
+    above = parent
+    while not os.path.lexists(above):
+        above = os.path.dirname(above)
+    if not os.path.isdir(above):
+        return f"{above} is a file, not a directory; {CHOOSE_WRITABLE}"
+    return f"no directory {parent}; make it first (mkdir -p {parent}) or {CHOOSE_WRITABLE}"
+
+
+def why_not_written(exc: OSError, path: str) -> str:
+    """Why the file *path* could not be written (*exc*), in the user's terms, and the fix: the
+    kernel's words alone ("No such file or directory" for a new file in /proc, whose directory
+    is there) name neither the directory nor what to do."""
+    said = exc.strerror or str(exc)
+    parent = os.path.dirname(os.path.abspath(path))
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+        return f"{said}; free some space, or choose another disk"
+    if exc.errno == errno.EROFS:
+        return f"the directory {parent} is on a read-only file system ({said}); {CHOOSE_WRITABLE}"
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return f"no permission to make a file in the directory {parent} ({said}); {CHOOSE_WRITABLE}"
+    if exc.errno == errno.ENOENT and os.path.isdir(parent):  # /proc, /sys: the kernel's, no storage
+        return f"the directory {parent} takes no new files (the system says: {said}); {CHOOSE_WRITABLE}"
+    if exc.errno in (errno.ENOENT, errno.ENOTDIR) and not os.path.isdir(parent):  # a path not checked before
+        return no_directory(parent)
+    return f"{said}; {CHOOSE_WRITABLE}"
 
 
 class RadarodomError(Exception):

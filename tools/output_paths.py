@@ -6,15 +6,11 @@ path and the option."""
 
 from __future__ import annotations
 
-import errno
 import os
 from typing import Mapping, Sequence
 
-from ..errors import CaptureError, CaptureExistsError, UsageError
-
-
-#: The fix for an output that cannot be written where it was asked.
-CHOOSE_WRITABLE = "choose a writable destination"
+# The explanations live with the errors, for the library's writers too (the view's .rrd).
+from ..errors import CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageError, no_directory, why_not_written
 
 
 def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None) -> None:
@@ -46,18 +42,6 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
         raise UsageError(f"cannot {target}: {no_directory(parent)}")
     if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
         raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
-
-
-def no_directory(parent: str) -> str:
-    """Why no file can be made in *parent*, a directory that is not there, and the fix: the nearest
-    path above it that is there is a file ("no directory a/b" would hide that a is a file), or
-    the directory is missing (a path mistyped, or a directory not made yet)."""
-    above = parent
-    while not os.path.lexists(above):
-        above = os.path.dirname(above)
-    if not os.path.isdir(above):
-        return f"{above} is a file, not a directory; {CHOOSE_WRITABLE}"
-    return f"no directory {parent}; make it first (mkdir -p {parent}) or {CHOOSE_WRITABLE}"
 
 
 def missing_directories(path: str) -> list[str]:
@@ -233,22 +217,3 @@ def write_output(path: str, text: str, *, overwrite: bool, what: str | None = No
     except OSError as exc:
         written = f"{what} to {path}" if what else path
         raise CaptureError(f"cannot write {written}: {why_not_written(exc, path)}") from None
-
-
-def why_not_written(exc: OSError, path: str) -> str:
-    """Why the file *path* could not be written (*exc*), in the user's terms, and the fix: the
-    kernel's words alone ("No such file or directory" for a new file in /proc, whose directory
-    is there) name neither the directory nor what to do."""
-    said = exc.strerror or str(exc)
-    parent = os.path.dirname(os.path.abspath(path))
-    if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-        return f"{said}; free some space, or choose another disk"
-    if exc.errno == errno.EROFS:
-        return f"the directory {parent} is on a read-only file system ({said}); {CHOOSE_WRITABLE}"
-    if exc.errno in (errno.EACCES, errno.EPERM):
-        return f"no permission to make a file in the directory {parent} ({said}); {CHOOSE_WRITABLE}"
-    if exc.errno == errno.ENOENT and os.path.isdir(parent):  # /proc, /sys: the kernel's, no storage
-        return f"the directory {parent} takes no new files (the system says: {said}); {CHOOSE_WRITABLE}"
-    if exc.errno in (errno.ENOENT, errno.ENOTDIR) and not os.path.isdir(parent):  # a path not checked before
-        return no_directory(parent)
-    return f"{said}; {CHOOSE_WRITABLE}"

@@ -12,7 +12,7 @@ import urllib.parse
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from ..errors import CaptureError, UsageError
+from ..errors import CaptureError, UsageError, why_not_written
 
 if TYPE_CHECKING:
     from ..cfg import RadarConfig
@@ -198,8 +198,6 @@ def _connect(recording, target: ViewTarget, blueprint) -> str:
 
 
 def _save(recording, target: ViewTarget, blueprint) -> str:
-    from ..tools.output_paths import why_not_written
-
     try:  # before Rerun: a save it fails leaves a stream that prints its own warning at exit
         with open(target.path, "ab"):
             pass
