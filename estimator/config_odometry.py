@@ -131,19 +131,20 @@ class OdometryConfig(Settings):
     #: tenth of a degree is 2 mm/s sideways at 1 m/s: 0.4 deg/s over a 0.3 m lever arm) would
     #: turn the heading steadily; there the registration and the keyframes keep it.
     doppler_yaw_min_rate_radps: float = math.radians(10.0)
-    #: With ``base`` "wheeled" and the radar on the axis: the base's forward axis is where the
-    #: radar's Doppler velocity points over the frames driving straight (their median), not where
-    #: ``mount_yaw_rad`` says (a mount's yaw is seldom known to a degree, and one degree is 14 mm/s
-    #: sideways at 0.8 m/s, more than the sideways error the constraint removes); until this many
-    #: such frames the velocity is the fit's.  0: the mount's yaw as given, from the first frame.
-    no_slip_learn_frames: int = 20
+    #: With ``base`` "wheeled": the base's forward axis is where the radar's Doppler velocity points
+    #: over the frames driving straight (their median, less the lever arm's sideways speed), not
+    #: where ``mount_yaw_rad`` says (a mount's yaw is seldom known to a degree, and one degree is
+    #: 14 mm/s sideways at 0.8 m/s: more than the lean the radar on the axis removes, 2.7 deg/s of
+    #: Doppler yaw rate over a 0.3 m lever arm); until this many such frames the velocity is the
+    #: fit's and the Doppler measures no yaw rate.  0: the mount's yaw as given, from the first frame.
+    axis_learn_frames: int = 20
     #: ... frames driving straight: the last yaw rate below this, rad/s ...
-    no_slip_straight_radps: float = math.radians(3.0)
+    axis_straight_radps: float = math.radians(3.0)
     #: ... and the forward speed above this, m/s (slower, the Doppler's noise is a large share).
-    no_slip_min_speed_mps: float = 0.3
-    #: ... the sideways part is then given this standard deviation times the forward speed, rad
-    #: (what is left of the axis's error, a little skid), 1 mm/s at least: a consumer of the
-    #: twist's covariance (robot_localization, a factor graph) can invert it.
+    axis_min_speed_mps: float = 0.3
+    #: With the radar on the axis, the velocity's sideways part is given this standard deviation
+    #: times the forward speed, rad (what is left of the axis's error, a little skid), 1 mm/s at
+    #: least: a consumer of the twist's covariance (robot_localization, a factor graph) can invert it.
     no_slip_angle_std_rad: float = math.radians(1.0)
 
     #: The two models' switch probabilities per frame: from the steady model to the manoeuvre
@@ -198,9 +199,9 @@ class OdometryConfig(Settings):
         _check(self.min_lever_arm_m > 0, "must be positive", "min_lever_arm_m")
         _check(self.doppler_yaw_rate_noise_radps > 0, "must be positive", "doppler_yaw_rate_noise_radps")
         _check(self.doppler_yaw_min_rate_radps >= 0, "must be >= 0", "doppler_yaw_min_rate_radps")
-        _check(self.no_slip_learn_frames >= 0, "must be >= 0 (0: the mount's yaw as given)", "no_slip_learn_frames")
-        _check(self.no_slip_straight_radps > 0, "must be positive", "no_slip_straight_radps")
-        _check(self.no_slip_min_speed_mps > 0, "must be positive", "no_slip_min_speed_mps")
+        _check(self.axis_learn_frames >= 0, "must be >= 0 (0: the mount's yaw as given)", "axis_learn_frames")
+        _check(self.axis_straight_radps > 0, "must be positive", "axis_straight_radps")
+        _check(self.axis_min_speed_mps > 0, "must be positive", "axis_min_speed_mps")
         _check(0 < self.no_slip_angle_std_rad < math.pi / 2, "must be in (0, pi/2)", "no_slip_angle_std_rad")
         _check(0 <= self.yaw_manoeuvre_start_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_start_prob")
         _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")

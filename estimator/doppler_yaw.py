@@ -15,9 +15,12 @@ On the axis (a lever arm shorter than ``min_lever_arm_m``) the sideways velocity
 the yaw rate, but it is known: yaw rate times the lever arm, nothing on the axis.  The fit's
 sideways component is then replaced by it (:class:`NoSideSlip`): an array without elevation
 (2-TX) leans its fit sideways with elevated returns, which the translation would integrate
-(docs/heading.md, item 27).  Which way is sideways is learnt from the velocity's mean direction
-on straight drives: a mount's yaw a degree off would put more sideways speed into every frame
-than the lean removed.  Chosen once from the config.
+(docs/heading.md, item 27).
+
+Either way, which way is sideways is learnt from the velocity's direction on straight drives
+(:class:`BaseAxes`), not taken from the mount's yaw: a degree off would put more sideways speed
+into every frame than the lean removed, and a false yaw rate into every turn.  Chosen once from
+the config.
 """
 
 from __future__ import annotations
@@ -37,22 +40,30 @@ log = logging.getLogger(__name__)
 
 class DopplerYawRate:
     """The yaw rate (rad/s) and its variance from the radar's velocity (2,) m/s and its
-    covariance (2, 2), for a radar mounted ``mount_x_m`` ahead of a wheeled base's axis."""
+    covariance (2, 2), for a radar mounted ``mount_x_m`` ahead of a wheeled base's axis, along
+    the base's axes as learnt (:class:`BaseAxes`)."""
 
     def __init__(self, config: OdometryConfig) -> None:
-        c, s = math.cos(config.mount_yaw_rad), math.sin(config.mount_yaw_rad)
-        # The base's sideways axis in the radar's axes, over the lever arm: w = row . v_radar.
-        self._row = np.array([s, c]) / config.mount_x_m
+        self.axes = BaseAxes(config)
+        self._lever_m = config.mount_x_m
         self._min_var = config.doppler_yaw_rate_noise_radps ** 2
         self._min_rate = config.doppler_yaw_min_rate_radps
 
-    def __call__(self, velocity: np.ndarray, covariance: np.ndarray, registered: bool) -> tuple[float, float] | None:
+    def __call__(self, velocity: np.ndarray, covariance: np.ndarray, registered: bool,
+                 last_rate: float = 0.0) -> tuple[float, float] | None:
         """(rate rad/s, variance (rad/s)^2); None below ``doppler_yaw_min_rate_radps`` when the
-        step's yaw was *registered* (else it is the only measurement there is)."""
-        rate = float(self._row @ velocity)
+        step's yaw was *registered* (else it is the only measurement there is), and None until
+        the base's axes are learnt (*last_rate*, rad/s: the last measured, which tells the
+        straight drives they are learnt from)."""
+        self.axes.learn(velocity, last_rate)
+        axes = self.axes.axes
+        if axes is None:
+            return None
+        row = axes[1] / self._lever_m  # w = the base's sideways speed over the lever arm
+        rate = float(row @ velocity)
         if registered and abs(rate) < self._min_rate:
             return None
-        var = float(self._row @ covariance @ self._row) if np.all(np.isfinite(covariance)) else math.inf
+        var = float(row @ covariance @ row) if np.all(np.isfinite(covariance)) else math.inf
         return rate, max(var, self._min_var)
 
 
@@ -72,58 +83,73 @@ def fuse(dyaw: float | None, var_yaw: float, doppler: tuple[float, float] | None
 class NoSideSlip:
     """A velocity estimate (radar axes, m/s) of a radar on or near a wheeled base's rotation axis
     with its component along the base's sideways axis made yaw rate x ``mount_x_m``; the forward
-    component and its variance kept.  The base's axes are learnt: once ``no_slip_learn_frames``
-    frames drove straight, the forward axis is the median direction of their velocities (relative
-    to ``mount_yaw_rad``'s; a median, since a fit leans for a few seconds at a time, where the
-    structure passing by is above or below the radar), and until then an estimate passes as
-    measured."""
+    component and its variance kept; an estimate passes as measured until the base's axes are
+    learnt (:class:`BaseAxes`)."""
 
     def __init__(self, config: OdometryConfig) -> None:
-        self._given_yaw = config.mount_yaw_rad
-        self._given_axes = _base_axes(config.mount_yaw_rad)
+        self.axes = BaseAxes(config)
         self._lever_m = config.mount_x_m
-        self._learn_frames = config.no_slip_learn_frames
-        self._straight_radps = config.no_slip_straight_radps
-        self._min_speed = config.no_slip_min_speed_mps
         self._angle_std = config.no_slip_angle_std_rad
-        self._angles: deque[float] = deque(maxlen=_LEARN_MAX_FRAMES)
-        self._offset: float | None = None if self._learn_frames else 0.0
-
-    @property
-    def offset_rad(self) -> float | None:
-        """How far the radar's velocity points from ``mount_yaw_rad``'s forward axis on the straight
-        frames so far (rad, towards the base's left), once learnt (0 with ``no_slip_learn_frames``
-        0: the mount's yaw as given); None before."""
-        return self._offset
 
     def __call__(self, est: VelocityEstimate, yaw_rate: float) -> VelocityEstimate:
         """*est* with no sideways slip at *yaw_rate* (rad/s; the last measured)."""
         if not est.ok:
             return est
-        v, side_speed = est.velocity, yaw_rate * self._lever_m
-        forward, side = self._given_axes
-        along = float(forward @ v)
-        if abs(yaw_rate) < self._straight_radps and abs(along) > self._min_speed:
-            self._learn(math.atan((float(side @ v) - side_speed) / along))
-        offset = self.offset_rad
-        if offset is None:
+        self.axes.learn(est.velocity, yaw_rate)
+        axes = self.axes.axes
+        if axes is None:
             return est
-        forward, side = _base_axes(self._given_yaw - offset)
-        along = float(forward @ v)
-        v = along * forward + side_speed * side
+        forward, side = axes
+        along = float(forward @ est.velocity)
+        v = along * forward + yaw_rate * self._lever_m * side
         side_std = max(self._angle_std * abs(along), _MIN_SIDE_STD_MPS)
         keep = np.outer(forward, forward)
         covariance = keep @ est.covariance @ keep + side_std ** 2 * np.outer(side, side)
         return dataclasses.replace(est, vx=float(v[0]), vy=float(v[1]), covariance=covariance)
 
-    def _learn(self, angle: float) -> None:
-        if not self._learn_frames:
+
+class BaseAxes:
+    """A wheeled base's forward and left axes in the radar's axes, learnt: once
+    ``axis_learn_frames`` frames drove straight, the forward axis is the median direction of their
+    velocities less the lever arm's sideways speed (relative to ``mount_yaw_rad``'s; a median,
+    since a fit leans for a few seconds at a time, where the structure passing by is above or
+    below the radar).  A mount's yaw is seldom known to a degree, and one degree is 14 mm/s
+    sideways at 0.8 m/s: as much as the lean a radar on the axis removes, and 2.7 deg/s of yaw
+    rate over a 0.3 m lever arm."""
+
+    def __init__(self, config: OdometryConfig) -> None:
+        self._given_yaw = config.mount_yaw_rad
+        self._given = _base_axes(config.mount_yaw_rad)
+        self._lever_m = config.mount_x_m
+        self._learn_frames = config.axis_learn_frames
+        self._straight_radps = config.axis_straight_radps
+        self._min_speed = config.axis_min_speed_mps
+        self._angles: deque[float] = deque(maxlen=_LEARN_MAX_FRAMES)
+        self._offset: float | None = None if self._learn_frames else 0.0
+        self.axes: tuple[np.ndarray, np.ndarray] | None = None if self._learn_frames else self._given
+
+    @property
+    def offset_rad(self) -> float | None:
+        """How far the radar's velocity points from ``mount_yaw_rad``'s forward axis on the straight
+        frames so far (rad, towards the base's left), once learnt (0 with ``axis_learn_frames``
+        0: the mount's yaw as given); None before."""
+        return self._offset
+
+    def learn(self, velocity: np.ndarray, yaw_rate: float) -> None:
+        """Learn from the radar's *velocity* (2,) m/s when *yaw_rate* (rad/s, the last measured)
+        says the base drives straight."""
+        if not self._learn_frames or abs(yaw_rate) >= self._straight_radps:
             return
-        self._angles.append(angle)
+        forward, side = self._given
+        along = float(forward @ velocity)
+        if not abs(along) > self._min_speed:
+            return
+        self._angles.append(math.atan((float(side @ velocity) - yaw_rate * self._lever_m) / along))
         if len(self._angles) < self._learn_frames:
             return
         first = self._offset is None
         self._offset = float(np.median(self._angles))
+        self.axes = _base_axes(self._given_yaw - self._offset)
         if first and abs(self._offset) > _WARN_OFFSET_RAD:
             log.warning("on straight drives the radar's velocity points %.1f degrees %s of the base's forward axis "
                         "as a mount yaw of %.1f degrees places it: the radar is likely yawed %.1f degrees on the "

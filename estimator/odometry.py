@@ -286,7 +286,7 @@ class RadarOdometry:
         var_registered = measured.variance
         doppler = None
         if self.doppler_yaw is not None and not {Flag.VELOCITY_HELD, Flag.MOTION_LOST} & set(flags):
-            doppler = self.doppler_yaw(v, velocity.covariance, registered is not None)
+            doppler = self.doppler_yaw(v, velocity.covariance, registered is not None, rate)
             if doppler is not None:
                 var_registered = max(var_registered, self._yaw_noise_var)  # the filter's floor, before fusing
         observed, var_observed = fuse(registered, var_registered, doppler, dt)

@@ -350,8 +350,8 @@ def test_a_radar_on_a_wheeled_bases_axis_does_not_slide_sideways(tmp_path):
     rate there) takes the velocity along the base's forward axis, once learnt from the straight
     frames (5 here), from the settings file as from the flag."""
     learn, wheeled = tmp_path / "learn.json", tmp_path / "wheeled.json"
-    learn.write_text(json.dumps({"odometry": {"no_slip_learn_frames": 5}}))
-    wheeled.write_text(json.dumps({"odometry": {"base": "wheeled", "no_slip_learn_frames": 5}}))
+    learn.write_text(json.dumps({"odometry": {"axis_learn_frames": 5}}))
+    wheeled.write_text(json.dumps({"odometry": {"base": "wheeled", "axis_learn_frames": 5}}))
     outputs = {name: tmp_path / f"{name}.jsonl" for name in ("flag", "file", "any")}
     extras = {"flag": ["--wheeled", "--estimator-config", learn], "file": ["--estimator-config", wheeled],
               "any": ["--estimator-config", learn]}

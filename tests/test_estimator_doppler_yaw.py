@@ -65,9 +65,10 @@ def _run(config, phases, *, blank=False, mount=(LEVER, 0.0, 0.0), seed=3):
 
 def _wheeled(mount=(LEVER, 0.0, 0.0), **odometry):
     # These phases change speed in a step (0 -> 0.6 m/s between two frames, which no platform
-    # does): the velocity's acceleration check (velocity.max_accel_mps2) would refuse it.
+    # does): the velocity's acceleration check (velocity.max_accel_mps2) would refuse it.  They
+    # turn before they drive straight: the mount's yaw as given (axis_learn_frames 0), unless said.
     return EstimatorConfig().with_(odometry={"base": "wheeled", "mount_x_m": mount[0], "mount_y_m": mount[1],
-                                             "mount_yaw_rad": mount[2], **odometry},
+                                             "mount_yaw_rad": mount[2], "axis_learn_frames": 0, **odometry},
                                    velocity={"max_accel_mps2": None})
 
 
@@ -147,7 +148,7 @@ def test_no_sideways_slip_keeps_the_forward_part_along_the_bases_axes():
     # The mount's yaw as given (no learning): 30 degrees, 3 cm ahead of the axis, turning at
     # 0.5 rad/s: the base's forward axis in the radar's is (cos 30, -sin 30), its left (sin 30, cos 30).
     forward, left = np.array([math.sqrt(3) / 2, -0.5]), np.array([0.5, math.sqrt(3) / 2])
-    part = _slip(mount_x_m=0.03, mount_yaw_rad=math.radians(30.0), no_slip_learn_frames=0)
+    part = _slip(mount_x_m=0.03, mount_yaw_rad=math.radians(30.0), axis_learn_frames=0)
     out = part(_est(0.5, 0.05), yaw_rate=0.5)
     along = forward @ np.array([0.5, 0.05])
     np.testing.assert_allclose(out.velocity, along * forward + 0.5 * 0.03 * left, atol=1e-12)
@@ -155,23 +156,24 @@ def test_no_sideways_slip_keeps_the_forward_part_along_the_bases_axes():
     expected = (forward @ np.diag([1e-4, 4e-4]) @ forward) * np.outer(forward, forward) + side_var * np.outer(left, left)
     np.testing.assert_allclose(out.covariance, expected, atol=1e-15)
     # Standing: the sideways variance's floor, 1 mm/s, so that the covariance can be inverted.
-    assert np.linalg.det(_slip(no_slip_learn_frames=0)(_est(0.0, 0.0), 0.0).covariance) > 0
+    assert np.linalg.det(_slip(axis_learn_frames=0)(_est(0.0, 0.0), 0.0).covariance) > 0
     failed = VelocityEstimate(t=1.0, vx=0.5, vy=0.05, status=FEW_POINTS)
-    assert _slip(no_slip_learn_frames=0)(failed, 0.0) is failed  # not measured: nothing to constrain
+    assert _slip(axis_learn_frames=0)(failed, 0.0) is failed  # not measured: nothing to constrain
 
 
 def test_the_bases_forward_axis_is_learnt_from_the_straight_drives(caplog):
     # The mount said 4 degrees to the left; the radar looks straight ahead along the base.
-    part = _slip(mount_yaw_rad=math.radians(4.0), no_slip_learn_frames=20)
+    part = _slip(mount_yaw_rad=math.radians(4.0), axis_learn_frames=20)
+    assert part.axes.offset_rad is None
     with caplog.at_level("WARNING", logger="radarodom.estimator.doppler_yaw"):
         # A turn and a creep teach nothing; nineteen straight frames pass as measured.
         assert part(_est(0.6, 0.1), yaw_rate=0.5).vy == 0.1
         assert part(_est(0.2, 0.01), yaw_rate=0.0).vy == 0.01
         for k in range(19):
             assert part(_est(0.6, 0.0, t=k), yaw_rate=0.0).vy == 0.0
-            assert part.offset_rad is None
+            assert part.axes.offset_rad is None
         out = part(_est(0.6, 0.0, t=19), yaw_rate=0.0)
-    assert part.offset_rad == pytest.approx(math.radians(4.0))
+    assert part.axes.offset_rad == pytest.approx(math.radians(4.0))
     assert out.velocity == pytest.approx([0.6, 0.0], abs=1e-12)
     assert "4.0 degrees left of the base's forward axis as a mount yaw of 4.0 degrees places it: the radar " \
         "is likely yawed 0.0 degrees on the base" in caplog.text
@@ -185,7 +187,7 @@ def test_the_bases_forward_axis_is_learnt_from_the_straight_drives(caplog):
 def test_the_heatmaps_doppler_standing_in_for_the_clouds_does_not_slide_either():
     # No point cloud's velocity: the step's comes from the heatmap's Doppler (velocity_fallback),
     # which passes through the same constraint as the clouds' (here the mount's axis as given).
-    part = _slip(no_slip_learn_frames=0)
+    part = _slip(axis_learn_frames=0)
     track = VelocityTrack(EstimatorConfig(), lambda est: part(est, 0.0))
     flags = []
     step = track.for_step(0.9, 1.0, synth.scene_heatmap(velocity_xy=(0.8, 0.05)), flags)
@@ -195,6 +197,20 @@ def test_the_heatmaps_doppler_standing_in_for_the_clouds_does_not_slide_either()
     assert free.velocity[1] > 0.02  # without it, the sideways part its fit found
 
 
+@pytest.mark.parametrize("learn", [20, 0], ids=["learnt", "as given"])
+def test_a_mounts_yaw_given_wrongly_is_learnt_before_the_doppler_measures_turns(learn):
+    # The radar 0.3 m ahead looks straight along the base, the mount says 5 degrees to the left:
+    # 0.6 m/s x sin(5 degrees) over the lever arm would read as 10 deg/s of turn. Three seconds
+    # straight (learning), then a moving turn over a heatmap that holds nothing (the Doppler alone).
+    phases = [(0.5, 0.0, 0.0), (3.0, 0.6, 0.0), (3.0, 0.6, math.radians(-30.0)), (0.5, 0.6, 0.0)]
+    config = _wheeled(axis_learn_frames=learn, mount_yaw_rad=math.radians(5.0))
+    states, true_turn = _run(config, phases, blank=True)
+    if learn:
+        assert states[-1].yaw == pytest.approx(true_turn, rel=0.04)
+    else:
+        assert abs(states[-1].yaw - true_turn) > 0.15 * abs(true_turn)
+
+
 def test_fused_with_the_registration_the_turn_is_measured():
     states, true_turn = _run(_wheeled(), SPIN)
     assert states[-1].yaw == pytest.approx(true_turn, rel=0.02)
@@ -202,7 +218,7 @@ def test_fused_with_the_registration_the_turn_is_measured():
 
 
 def test_the_yaw_rate_is_the_sideways_velocity_over_the_lever_arm_and_fusion_weights_by_variance():
-    part = DopplerYawRate(EstimatorConfig().odometry.__class__(base="wheeled", mount_x_m=0.5,
+    part = DopplerYawRate(EstimatorConfig().odometry.__class__(base="wheeled", mount_x_m=0.5, axis_learn_frames=0,
                                                                doppler_yaw_rate_noise_radps=1e-3))
     rate, var = part(np.array([0.3, 0.2]), np.diag([1e-4, 4e-4]), True)
     assert rate == pytest.approx(0.4) and var == pytest.approx(4e-4 / 0.25)
