@@ -164,17 +164,19 @@ class ChannelCalibrator:
                                          fix="measure with a Hann or Blackman range window")
 
     def add(self, cube: np.ndarray) -> None:
-        """One frame's raw cube, complex (loops, tx_slots, rx, samples).  A cube whose samples hold
-        NaN or infinite values, or are too large for the float32 power, is a :class:`UsageError`
-        saying so (as :meth:`FrameProcessor.process` says it); the frame is not taken."""
+        """One frame's raw cube, complex (loops, tx_slots, rx, samples).  A cube that is no numeric
+        array, is shaped otherwise, or whose samples hold NaN or infinite values or are too large
+        for the float32 power, is refused saying so (as :meth:`FrameProcessor.process` says it);
+        the frame is not taken."""
+        who = f"ChannelCalibrator.add (frame {self.frames + 1} of the measurement)"
+        self.proc.check_cube(cube, who)
         # A NaN or inf sample spreads over every range bin of its antenna: kept, it made result()
         # blame the set-up ("no reflector peak ... at the window's edge"), after numpy's warnings.
         with np.errstate(invalid="ignore", over="ignore"):
             kept = self.proc.doppler_fft(self.proc.range_fft(cube))[:, :, :, self._bins]
             finite = np.isfinite((kept.real ** 2 + kept.imag ** 2).sum())
         if not finite:
-            raise UsageError(f"ChannelCalibrator.add (frame {self.frames + 1} of the measurement): "
-                             f"{unusable_samples(cube)}")
+            raise UsageError(f"{who}: {unusable_samples(cube)}")
         self._frames.append(kept.copy())
 
     @property

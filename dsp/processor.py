@@ -247,16 +247,21 @@ class FrameProcessor:
         np.sum(p, axis=(1, 2), out=self._power)
         return self._power
 
+    def check_cube(self, cube: np.ndarray, who: str) -> None:
+        """A :class:`UsageError` (from *who*) for a cube that is no numeric array, a
+        :class:`ConfigError` for one not shaped as the cfg's (loops, tx_slots, rx, samples)."""
+        if not isinstance(cube, np.ndarray) or cube.dtype.kind not in "iufc":
+            got = f"{cube.dtype} array" if isinstance(cube, np.ndarray) else type(cube).__name__
+            raise UsageError(f"{who}: cube must be a complex array shaped {self.cfg.cube_shape} "
+                             f"(Frame.cube() gives one), got {got}")
+        if cube.shape != self.cfg.cube_shape:
+            raise ConfigError(f"{who}: cube shaped {cube.shape}, the cfg gives {self.cfg.cube_shape}")
+
     def process(self, cube: np.ndarray) -> FrameResult:
         """A raw cube, complex (loops, tx_slots, rx, samples), to detections.  A cube that is no
         numeric array, or whose samples hold NaN or infinite values or are too large for the
         float32 power, is a :class:`UsageError` saying so."""
-        if not isinstance(cube, np.ndarray) or cube.dtype.kind not in "iufc":
-            got = f"{cube.dtype} array" if isinstance(cube, np.ndarray) else type(cube).__name__
-            raise UsageError(f"FrameProcessor.process: cube must be a complex array shaped {self.cfg.cube_shape} "
-                             f"(Frame.cube() gives one), got {got}")
-        if cube.shape != self.cfg.cube_shape:
-            raise ConfigError(f"cube shaped {cube.shape}, the cfg gives {self.cfg.cube_shape}")
+        self.check_cube(cube, "FrameProcessor.process")
         # A NaN or inf sample (inf x a window's zero) or an overflowing power makes numpy warn in
         # the middle of the arithmetic; the power's one check below says it in the cube's terms.
         with np.errstate(invalid="ignore", over="ignore"):

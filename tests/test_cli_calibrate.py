@@ -314,6 +314,15 @@ def test_a_cube_the_dsp_cannot_take_is_refused_by_add_and_the_rest_measured():
             result = calibrator.result()
         assert result.frames == 4
         np.testing.assert_allclose(result.calibration.coefficients, expected, atol=1e-6)
+    # Nor a cube of another shape or no numbers (numpy's broadcasting or type errors before).
+    calibrator = ChannelCalibrator(cfg, 3.0)
+    with pytest.raises(ConfigError, match=r"^ChannelCalibrator.add \(frame 1 of the measurement\): cube shaped "
+                       r"\(64, 3, 4, 255\), the cfg gives \(64, 3, 4, 256\)$"):
+        calibrator.add(cubes[0][..., :255])
+    with pytest.raises(UsageError, match=r"^ChannelCalibrator.add \(frame 1 of the measurement\): cube must be a "
+                       r"complex array shaped \(64, 3, 4, 256\) \(Frame.cube\(\) gives one\), got list$"):
+        calibrator.add([1, 2])
+    assert calibrator.frames == 0
 
 
 def test_no_source_and_no_radar_says_what_to_do():
