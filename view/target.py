@@ -138,8 +138,7 @@ def not_a_viewer(recording, target: ViewTarget) -> str | None:
             return None  # slow, not refused
         recording.disconnect()
         url = grpc_url(target.address)
-        said = str(exc).removesuffix(f", uri: {url}")  # the URL is said once (Rerun's error ends with it)
-        return f"what answers at {url} is not a Rerun viewer: it broke the connection ({said})"
+        return f"what answers at {url} is not a Rerun viewer: it broke the connection ({_rerun_said(exc, url)})"
     return None
 
 
@@ -152,9 +151,14 @@ def lost_viewer(target: ViewTarget):
     url = grpc_url(target.address)
 
     def said(exc: Exception) -> str:
-        return (f"the view's data did not all reach {url} ({str(exc).removesuffix(f', uri: {url}')}): the frames "
+        return (f"the view's data did not all reach {url} ({_rerun_said(exc, url)}): the frames "
                 "drawn after the viewer went away, or all if none came, were not seen")
     return said
+
+
+def _rerun_said(exc: Exception, url: str) -> str:
+    """Rerun's error *exc* about *url* without the URL it ends with (the message says it once)."""
+    return str(exc).removesuffix(f", uri: {url}")
 
 
 def viewer_hint(target: ViewTarget) -> str:
