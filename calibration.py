@@ -101,8 +101,8 @@ class ChannelCalibration:
         if pairs.shape != (NUM_TX_ANTENNAS * NUM_RX_ANTENNAS, 2):
             raise ConfigError(f"12 [re, im] coefficients expected, got shape {pairs.shape}",
                               command="compRangeBiasAndRxChanPhase")
-        # The cfg line's own rule (each part within -1..1), and a path that passes something.
-        if not (np.all(np.abs(pairs) <= 1.0) and np.all(np.any(pairs != 0.0, axis=1)) and math.isfinite(bias)):
+        # The cfg line's own rule (each part within -1..1, not both 0), and a finite bias.
+        if not (np.all(cc.coefficient_ok(pairs[:, 0], pairs[:, 1])) and math.isfinite(bias)):
             raise ConfigError("the coefficients' parts must be within -1..1, none 0 + 0j, and the bias finite",
                               command="compRangeBiasAndRxChanPhase")
         return cls(bias, (pairs[:, 0] + 1j * pairs[:, 1]).reshape(NUM_TX_ANTENNAS, NUM_RX_ANTENNAS))

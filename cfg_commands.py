@@ -29,7 +29,7 @@ from .cfg_fields import (LEGACY_SUBFRAME, arg, config_error, convert, check_rang
 
 __all__ = ["LEGACY_SUBFRAME", "TYPED_COMMANDS", "CHECKED_COMMANDS", "VERBATIM_COMMANDS",
            "UNCHECKED_COMMANDS", "UNSUPPORTED_COMMANDS", "parse_args", "format_args", "format_number",
-           "cli_name"]
+           "cli_name", "COEFFICIENT_PART_LIMIT", "coefficient_ok", "coefficient_part_ok"]
 
 
 @dataclass(frozen=True)
@@ -188,6 +188,19 @@ class ExtendedMaxVelocity:
 
 #: Virtual antennas whose phase compRangeBiasAndRxChanPhase corrects (3 TX x 4 RX).
 NUM_COMP_VIRTUAL_ANTENNAS = 12
+#: Each part of a compRangeBiasAndRxChanPhase coefficient is within -1..1 (the firmware's Q15).
+COEFFICIENT_PART_LIMIT = 1.0
+
+
+def coefficient_part_ok(x):
+    """Whether *x* may be a part (Re or Im) of a coefficient: within -1..1; elementwise for arrays."""
+    return abs(x) <= COEFFICIENT_PART_LIMIT
+
+
+def coefficient_ok(re, im):
+    """Whether re + im j may be a coefficient of the line: each part within -1..1, not both 0 (the antenna
+    off); a bool, or one per element of arrays.  The parser takes each part's range from the limit."""
+    return coefficient_part_ok(re) & coefficient_part_ok(im) & ((re != 0) | (im != 0))
 
 
 @dataclass(frozen=True)
@@ -195,7 +208,8 @@ class CompRangeBiasAndRxChanPhase:
     range_bias_m: float = arg("rangeBias", unit="m", lo=-10.0, hi=10.0)
     #: One complex correction per virtual antenna, TX-major (TX1 RX0..3, TX2 ..., TX3 ...),
     #: given on the CLI as Re Im pairs in [-1, 1].
-    rx_chan_phase: tuple[complex, ...] = arg("virtual antenna Re/Im pairs", lo=-1.0, hi=1.0)
+    rx_chan_phase: tuple[complex, ...] = arg("virtual antenna Re/Im pairs", lo=-COEFFICIENT_PART_LIMIT,
+                                             hi=COEFFICIENT_PART_LIMIT)
 
 
 #: CLI name -> typed command class.

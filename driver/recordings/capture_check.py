@@ -23,6 +23,7 @@ import numpy as np
 
 from ... import strict_json
 from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
+from ...cfg_commands import coefficient_ok, coefficient_part_ok
 from ...errors import CaptureError, CaptureFormatError, named_character, quoted, quoted_json
 from ...plain_numbers import plain_float
 
@@ -104,9 +105,10 @@ def _check_simulator(ck: _Checker, sim: Any) -> None:
     if not isinstance(pairs, list) or len(pairs) != count:
         raise ck.fail(f"{where}.coefficients", f"a list of {count} [re, im] pairs (TX1 RX1 to TX3 RX4)", pairs)
     for k, pair in enumerate(pairs):
-        # The cfg line's own rule (compRangeBiasAndRxChanPhase): each part within -1..1, not both 0.
-        if not (isinstance(pair, list) and len(pair) == 2 and all(_is_number(x) and abs(x) <= 1 for x in pair)
-                and any(x != 0 for x in pair)):
+        # The cfg line's own rule (compRangeBiasAndRxChanPhase: cfg_commands.coefficient_ok), on two JSON
+        # numbers; each part's range is asked as it is met, before the next part's type is.
+        if not (isinstance(pair, list) and len(pair) == 2
+                and all(_is_number(x) and coefficient_part_ok(x) for x in pair) and coefficient_ok(*pair)):
             raise ck.fail(f"{where}.coefficients[{k}]", "[re, im]: two numbers within -1..1, not both 0", pair)
 
 
