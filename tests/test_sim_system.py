@@ -664,6 +664,44 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     assert not (tmp_path / "cap" / "adc_data.bin").exists()
 
 
+@pytest.mark.parametrize("text, words", [
+    # An object's type that is a list or a table was "internal error: TypeError: unhashable type";
+    # sizes that overflowed the sampling were OverflowError or ValueError, and a floor of 100 km a
+    # MemoryError for a 608 GiB array.
+    ('[[objects]]\ntype = []\nposition = [1, 1, 1]\n' + _PAUSE,
+     ("objects.type: unknown object type []: use point, corner_reflector",)),
+    ('[[objects]]\ntype = { a = 1 }\n' + _PAUSE, ('objects.type: unknown object type {"a": 1}',)),
+    ('[[objects]]\nposition = [1, 1, 1]\n' + _PAUSE, ("objects.type: missing 'type': use point",)),
+    ('[[walls]]\npoints = [[0, 0], [1e308, 0]]\n' + _PAUSE,
+     ("a wall's segment 1e+308 m long and 2.7 m high would take the scene past the 4000000 scatterers",
+      "are its sizes in metres?")),
+    ('[[walls]]\npoints = [[-1e308, 0], [1e308, 0]]\n' + _PAUSE, ("a wall's segment inf m long",)),
+    ('[surfaces]\nmin = [0, 0]\nmax = [1e5, 1e5]\n' + _PAUSE, ("the floor 100000 m x 100000 m would take",)),
+    ('[surfaces]\nmin = [-1e308, 0]\nmax = [1e308, 1]\nfloor = false\nceiling = 3\n' + _PAUSE,
+     ("the ceiling inf m x 1 m",)),
+    ('[[objects]]\ntype = "cylinder"\ncenter = [2, 0]\nradius = 1e300\n' + _PAUSE,
+     ("a cylinder of radius 1e+300 m and 2.7 m high would take",)),
+    ('[[objects]]\ntype = "door"\na = [1, 0]\nb = [1, 0]\nheight = 1e300\n' + _PAUSE,
+     ("a door 1e+300 m high would take",)),
+    ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [1e30, 1, 1]\n' + _PAUSE, ("a box's face 1e+30 m long",)),
+    # Each wall alone fits; together they would not.
+    ('[[walls]]\npoints = [[0, 0], [3000, 0]]\nheight = 20\n' * 3 + _PAUSE, ("a wall's segment 3000 m long",)),
+])
+def test_radar_sim_refuses_an_object_of_no_type_or_a_scene_too_large(tmp_path, text, words):
+    path = _write_scene(tmp_path, "scene", text)
+    proc = _run("radar-sim", path, "--out", tmp_path / "cap")
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}: "), proc.stderr
+    assert all(w in lines[0] for w in words), lines[0]
+    assert not (tmp_path / "cap").exists()
+
+
+def test_a_scene_may_be_large_within_the_limit():
+    scene = scene_from_dict({"surfaces": {"min": [0, 0], "max": [300, 300]}, "trajectory": {"segments": STILL}})
+    assert 700_000 < scene.num_static < 4_000_000
+
+
 def test_radar_sim_stopped_by_sigterm_closes_what_it_recorded(tmp_path):
     import signal
     import time

@@ -34,9 +34,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ...errors import ConfigError
-from .scene_values import (MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS, SNR_DB_RANGE,
-                           MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, flag, need, num, vec, within)
+from ...errors import ConfigError, quoted_json
+from .scene_values import (MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS,
+                           SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num, vec,
+                           within)
 from .trajectory import Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
@@ -82,14 +83,17 @@ def _points(pos, rcs, rng, *, normal=None, exponent=0.0, pointlike=False) -> Sca
 
 
 def sample_surface(a, b, z0: float, z1: float, sigma0: float, rng: np.random.Generator, *,
-                   spacing: float = 0.1, row_spacing: float = 0.35, exponent: float = 2.0) -> Scatterers:
-    """Scatterers on the vertical rectangle above the floor segment a-b, z0..z1."""
+                   spacing: float = 0.1, row_spacing: float = 0.35, exponent: float = 2.0,
+                   what: str = "a surface", room: int = MAX_SCATTERERS) -> Scatterers:
+    """Scatterers on the vertical rectangle above the floor segment a-b, z0..z1 (at most about
+    *room* of them, else ConfigError naming *what*)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
-    length = float(np.hypot(*(b - a)))
+    with np.errstate(over="ignore"):  # a length beyond 1e308 is inf, and refused by cells
+        length = float(np.hypot(*(b - a)))
     if length < 1e-6 or z1 <= z0:
         return Scatterers.empty()
-    n_along = max(1, math.ceil(length / spacing))
-    n_rows = max(1, math.ceil((z1 - z0) / row_spacing))
+    n_along, n_rows = cells(length / spacing, (z1 - z0) / row_spacing,
+                            f"{what} {length:g} m long and {z1 - z0:g} m high", room)
     s = (np.arange(n_along) + rng.uniform(0.1, 0.9, (n_rows, n_along))) / n_along
     z = z0 + (np.arange(n_rows)[:, None] + rng.uniform(0.1, 0.9, (n_rows, n_along))) * (z1 - z0) / n_rows
     xy = a + s.reshape(-1, 1) * (b - a)
@@ -100,12 +104,14 @@ def sample_surface(a, b, z0: float, z1: float, sigma0: float, rng: np.random.Gen
     return _points(pos, sigma0 * area, rng, normal=normal, exponent=exponent)
 
 
-def sample_plane(lo, hi, z: float, sigma0: float, rng: np.random.Generator, *,
-                 spacing: float = 0.35, exponent: float = 1.0) -> Scatterers:
-    """Scatterers on the horizontal rectangle lo..hi (x, y) at height z (floor, ceiling)."""
+def sample_plane(lo, hi, z: float, sigma0: float, rng: np.random.Generator, *, spacing: float = 0.35,
+                 exponent: float = 1.0, what: str = "a surface", room: int = MAX_SCATTERERS) -> Scatterers:
+    """Scatterers on the horizontal rectangle lo..hi (x, y) at height z (floor, ceiling; at most
+    about *room* of them, else ConfigError naming *what*)."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    nx = max(1, math.ceil((hi[0] - lo[0]) / spacing))
-    ny = max(1, math.ceil((hi[1] - lo[1]) / spacing))
+    with np.errstate(over="ignore"):  # a size beyond 1e308 is inf, and refused by cells
+        dx, dy = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    nx, ny = cells(dx / spacing, dy / spacing, f"{what} {dx:g} m x {dy:g} m", room)
     gx = (np.arange(nx)[:, None] + rng.uniform(0.1, 0.9, (nx, ny))) * (hi[0] - lo[0]) / nx + lo[0]
     gy = (np.arange(ny)[None, :] + rng.uniform(0.1, 0.9, (nx, ny))) * (hi[1] - lo[1]) / ny + lo[1]
     pos = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)])
@@ -192,11 +198,14 @@ class Scene:
 
 
 # ----------------------------------------------------------------- loading
-def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) -> Scatterers:
+def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, room: int) -> Scatterers:
     kind = obj.get("type")
+    if not isinstance(kind, str) or kind not in OBJECT_KEYS:  # a list or table is no type either
+        said = "missing 'type'" if kind is None else f"unknown object type {quoted_json(kind)}"
+        raise ConfigError(f"{said}: use point, corner_reflector, box, cylinder or door", path=where,
+                          field="objects.type")
     w = f"{where} object {kind!r}"
-    if kind in OBJECT_KEYS:
-        check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
+    check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
         return _points(vec(need(obj, "position", w), 3, w, "position"), num(obj, "rcs", 1.0, w, positive=True),
                        rng, pointlike=True)
@@ -220,7 +229,8 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) ->
         hx, hy = size[0] / 2, size[1] / 2
         corners = c + np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) @ rot.T
         faces = [sample_surface(corners[i], corners[(i + 1) % 4], z0, z0 + size[2], sigma0, rng,
-                                spacing=0.1, row_spacing=0.25) for i in range(4)]
+                                spacing=0.1, row_spacing=0.25, what="a box's face", room=room // 4)
+                 for i in range(4)]
         # Corners and edges of furniture are the strong, compact returns.
         edges = _points(np.column_stack([corners, np.full(4, z0 + size[2])]),
                         num(obj, "edge_rcs", 0.2, w, positive=True), rng, pointlike=True)
@@ -232,9 +242,10 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) ->
         radius = num(obj, "radius", 0.2, w, positive=True)
         height = num(obj, "height", 2.7, w, positive=True)
         sigma0 = num(obj, "sigma0", 0.3, w, positive=True)
-        n = max(8, math.ceil(2 * math.pi * radius / 0.08))
+        n, rows = cells(2 * math.pi * radius / 0.08, height / 0.3,
+                        f"a cylinder of radius {radius:g} m and {height:g} m high", room)
+        n = max(8, n)
         ang = (np.arange(n) + rng.uniform(0, 1, n)) * 2 * math.pi / n
-        rows = max(1, math.ceil(height / 0.3))
         z = (np.arange(rows)[:, None] + rng.uniform(0.1, 0.9, (rows, n))) * height / rows
         pos = np.column_stack([np.tile(c[0] + radius * np.cos(ang), rows),
                                np.tile(c[1] + radius * np.sin(ang), rows), z.ravel()])
@@ -246,38 +257,33 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list) ->
             walls_out.append((c - [radius, 0.0], c + [radius, 0.0]))
             walls_out.append((c - [0.0, radius], c + [0.0, radius]))
         return s
-    if kind == "door":
-        a = vec(need(obj, "a", w), 2, w, "a")
-        b = vec(need(obj, "b", w), 2, w, "b")
-        height = num(obj, "height", 2.1, w, positive=True)
-        recess = num(obj, "recess", 0.1, w)
-        d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
-        n = np.array([-d[1], d[0]])
-        leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, num(obj, "sigma0", 0.2, w, positive=True),
-                              rng)
-        frame_rcs = num(obj, "frame_rcs", 0.3, w, positive=True)
-        zs = np.arange(0.15, height, 0.3)
-        posts = np.vstack([np.column_stack([np.full(len(zs), p[0]), np.full(len(zs), p[1]), zs]) for p in (a, b)])
-        return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
-    raise ConfigError(f"unknown object type {kind!r}: use point, corner_reflector, box, cylinder or door",
-                      path=where, field="type")
+    # a door, the one type left
+    a = vec(need(obj, "a", w), 2, w, "a")
+    b = vec(need(obj, "b", w), 2, w, "b")
+    height = num(obj, "height", 2.1, w, positive=True)
+    recess = num(obj, "recess", 0.1, w)
+    d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
+    n = np.array([-d[1], d[0]])
+    cells(height / 0.3, 2, f"a door {height:g} m high", room)  # its posts
+    leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, num(obj, "sigma0", 0.2, w, positive=True),
+                          rng, what="a door", room=room)
+    frame_rcs = num(obj, "frame_rcs", 0.3, w, positive=True)
+    zs = np.arange(0.15, height, 0.3)
+    posts = np.vstack([np.column_stack([np.full(len(zs), p[0]), np.full(len(zs), p[1]), zs]) for p in (a, b)])
+    return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
 
 
-def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene>") -> Scene:
-    """Build a scene from its parsed TOML/JSON table."""
-    if not isinstance(spec, dict):
-        raise ConfigError("a scene must be a table", path=where)
-    rng = np.random.default_rng([seed, 0x5CE9E])
+def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, segments: list) -> list[Scatterers]:
+    """The scatterers of a scene's walls, objects and surfaces (their occluding segments into
+    *segments*), at most about :data:`MAX_SCATTERERS` in all."""
     parts: list[Scatterers] = []
-    segments: list[tuple] = []
-    for key in ("walls", "objects", "movers"):
-        if not isinstance(spec.get(key, []), list):
-            raise ConfigError(f"must be a list of tables ([[{key}]] in TOML)", path=where, field=key)
-    if not isinstance(spec.get("surfaces", {}), dict) or not isinstance(spec.get("radar", {}), dict):
-        raise ConfigError("surfaces and radar must be tables", path=where)
-    check_keys(spec, SCENE_KEYS, where, "")
-    check_keys(spec.get("surfaces", {}), SURFACE_KEYS, where, "surfaces")
-    check_keys(spec.get("radar", {}), RADAR_KEYS, where, "radar")
+    counted = [0, 0]  # how many of the parts are counted, and their scatterers
+
+    def room() -> int:  # how many more scatterers the scene may hold
+        counted[1] += sum(len(part.rcs) for part in parts[counted[0]:])
+        counted[0] = len(parts)
+        return MAX_SCATTERERS - counted[1]
+
     for wall in spec.get("walls", []):
         if not isinstance(wall, dict):
             raise ConfigError(f"a wall must be a table, got {wall!r}", path=where, field="walls")
@@ -286,12 +292,12 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         height = num(wall, "height", 2.7, where, positive=True, name="walls.height")
         sigma0 = num(wall, "sigma0", 0.1, where, positive=True, name="walls.sigma0")
         for a, b in zip(pts[:-1], pts[1:]):
-            parts.append(sample_surface(a, b, 0.0, height, sigma0, rng))
+            parts.append(sample_surface(a, b, 0.0, height, sigma0, rng, what="a wall's segment", room=room()))
             segments.append((a, b))
     for obj in spec.get("objects", []):
         if not isinstance(obj, dict):
             raise ConfigError(f"an object must be a table, got {obj!r}", path=where, field="objects")
-        parts.append(_object(obj, rng, where, segments))
+        parts.append(_object(obj, rng, where, segments, room()))
     surfaces = spec.get("surfaces", {})
     if surfaces:
         lo = vec(need(surfaces, "min", where), 2, where, "surfaces.min")
@@ -301,13 +307,34 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
                               path=where, field="surfaces.max")
         if flag(surfaces, "floor", True, where, "surfaces.floor"):
             floor_sigma0 = num(surfaces, "floor_sigma0", 0.02, where, positive=True, name="surfaces.floor_sigma0")
-            parts.append(sample_plane(lo, hi, 0.0, floor_sigma0, rng))
+            parts.append(sample_plane(lo, hi, 0.0, floor_sigma0, rng, what="the floor", room=room()))
         if "ceiling" in surfaces:
             ceil = sample_plane(lo, hi, num(surfaces, "ceiling", 2.7, where, positive=True, name="surfaces.ceiling"),
                                 num(surfaces, "ceiling_sigma0", 0.02, where, positive=True,
-                                    name="surfaces.ceiling_sigma0"), rng)
+                                    name="surfaces.ceiling_sigma0"), rng, what="the ceiling", room=room())
             ceil.normal[:, 2] = -1.0
             parts.append(ceil)
+    return parts
+
+
+def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene>") -> Scene:
+    """Build a scene from its parsed TOML/JSON table."""
+    if not isinstance(spec, dict):
+        raise ConfigError("a scene must be a table", path=where)
+    rng = np.random.default_rng([seed, 0x5CE9E])
+    segments: list[tuple] = []
+    for key in ("walls", "objects", "movers"):
+        if not isinstance(spec.get(key, []), list):
+            raise ConfigError(f"must be a list of tables ([[{key}]] in TOML)", path=where, field=key)
+    if not isinstance(spec.get("surfaces", {}), dict) or not isinstance(spec.get("radar", {}), dict):
+        raise ConfigError("surfaces and radar must be tables", path=where)
+    check_keys(spec, SCENE_KEYS, where, "")
+    check_keys(spec.get("surfaces", {}), SURFACE_KEYS, where, "surfaces")
+    check_keys(spec.get("radar", {}), RADAR_KEYS, where, "radar")
+    try:
+        parts = _static_parts(spec, rng, where, segments)
+    except ConfigError as exc:  # too many scatterers (scene_values.cells) is told where here
+        raise exc.located(path=where) from None
     movers = []
     for m in spec.get("movers", []):
         if not isinstance(m, dict) or m.get("type") != "person":

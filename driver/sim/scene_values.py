@@ -51,6 +51,24 @@ def within(value: float, lo: float, hi: float, where: str, key: str, unit: str =
     return value
 
 
+#: The most scatterers a scene holds: its walls, objects and surfaces are sampled every 0.1 to
+#: 0.35 m (the built-in scenes hold about 5000 to 10000); a size of kilometres is a unit mistaken,
+#: and a square kilometre of floor (8 million) would take gigabytes.
+MAX_SCATTERERS = 4_000_000
+
+
+def cells(along: float, across: float, what: str, room: int) -> tuple[int, int]:
+    """How many sampling cells a surface takes each way (*along*, *across*: its sizes over the
+    spacings), each at least 1; :class:`ConfigError` when that would take the scene past
+    :data:`MAX_SCATTERERS` (*room*: how many it has left), or a size overflowed to infinity.  The
+    error names neither file nor key: :func:`scene.scene_from_dict` tells it where."""
+    if not max(along, 1.0) * max(across, 1.0) <= room:  # NaN and inf too
+        raise ConfigError(f"{what} would take the scene past the {MAX_SCATTERERS} scatterers it may hold "
+                          "(surfaces are sampled every 0.1 to 0.35 m; the built-in scenes hold about 10000): "
+                          "are its sizes in metres?")
+    return max(1, math.ceil(along)), max(1, math.ceil(across))
+
+
 #: A scene's SNR, dB: beyond it the simulated signal overflows (and far below, it is noise).
 SNR_DB_RANGE = (-100.0, 100.0)
 #: Thermal noise, ADC counts RMS: the 16-bit ADC's full scale at most.
