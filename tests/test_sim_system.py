@@ -686,20 +686,35 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [1e30, 1, 1]\n' + _PAUSE, ("a box's face 1e+30 m long",)),
     # Each wall alone fits; together they would not.
     ('[[walls]]\npoints = [[0, 0], [3000, 0]]\nheight = 20\n' * 3 + _PAUSE, ("a wall's segment 3000 m long",)),
+    # An RCS of 1e100 overflowed the signal: "radar-sim: error: the cube holds NaN or infinite
+    # samples" after numpy's RuntimeWarning, naming neither file nor key; a ramp of 1e300 s was an
+    # internal ValueError.
+    ('[[objects]]\ntype = "point"\nposition = [2, 0, 0.4]\nrcs = 1e100\n' + _PAUSE,
+     ("object 'point': rcs: must be from 0 to 1e+06 (a ship's 60 dBsm; more overflows the simulated signal), "
+      "got 1e+100",)),
+    ('[[walls]]\npoints = [[1, -5], [1, 5]]\nsigma0 = 1e300\n' + _PAUSE, ("walls.sigma0: must be from 0 to 1e+06",)),
+    ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nrcs = 1e7\n' + _PAUSE, ("movers.rcs: must be from 0",)),
+    ('[trajectory]\nsmoothing_s = 1e300\nsegments = [{ pause = 1 }]\n',
+     ("trajectory: smoothing_s must be at most 10 s (the speed and turn-rate ramps), got 1e+300",)),
 ])
-def test_radar_sim_refuses_an_object_of_no_type_or_a_scene_too_large(tmp_path, text, words):
+def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
     path = _write_scene(tmp_path, "scene", text)
     proc = _run("radar-sim", path, "--out", tmp_path / "cap")
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}: "), proc.stderr
+    assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
     assert all(w in lines[0] for w in words), lines[0]
     assert not (tmp_path / "cap").exists()
 
 
-def test_a_scene_may_be_large_within_the_limit():
+def test_a_scene_may_be_large_and_strong_within_the_limits(shipped_cfg):
     scene = scene_from_dict({"surfaces": {"min": [0, 0], "max": [300, 300]}, "trajectory": {"segments": STILL}})
     assert 700_000 < scene.num_static < 4_000_000
+    strong = scene_from_dict({"radar": {"snr_db": 100.0},
+                              "objects": [{"type": "point", "position": [0.5, 0.0, 0.4], "rcs": 1e6}],
+                              "trajectory": {"segments": STILL, "smoothing_s": 10.0}})
+    frame = Simulator(shipped_cfg, strong, seed=1).frame(0)
+    assert 0 < frame.scale < 1  # scaled to fit the ADC, not NaN
 
 
 def test_radar_sim_stopped_by_sigterm_closes_what_it_recorded(tmp_path):

@@ -36,8 +36,8 @@ import numpy as np
 
 from ...errors import ConfigError, quoted_json
 from .scene_values import (MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS,
-                           SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num, vec,
-                           within)
+                           SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
+                           cross_section, vec, within)
 from .trajectory import Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
@@ -207,7 +207,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     w = f"{where} object {kind!r}"
     check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
-        return _points(vec(need(obj, "position", w), 3, w, "position"), num(obj, "rcs", 1.0, w, positive=True),
+        return _points(vec(need(obj, "position", w), 3, w, "position"), cross_section(obj, "rcs", 1.0, w),
                        rng, pointlike=True)
     if kind == "corner_reflector":
         rcs_dbsm = num(obj, "rcs_dbsm", 15.0, w)
@@ -223,7 +223,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
             raise ConfigError(f"must be 3 positive numbers (x, y and height, m), got {obj['size']!r}", path=w,
                               field="size")
         yaw = math.radians(num(obj, "yaw", 0.0, w))
-        sigma0 = num(obj, "sigma0", 0.3, w, positive=True)
+        sigma0 = cross_section(obj, "sigma0", 0.3, w)
         z0 = num(obj, "z", 0.0, w)
         rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
         hx, hy = size[0] / 2, size[1] / 2
@@ -233,7 +233,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
                  for i in range(4)]
         # Corners and edges of furniture are the strong, compact returns.
         edges = _points(np.column_stack([corners, np.full(4, z0 + size[2])]),
-                        num(obj, "edge_rcs", 0.2, w, positive=True), rng, pointlike=True)
+                        cross_section(obj, "edge_rcs", 0.2, w), rng, pointlike=True)
         if flag(obj, "occludes", False, w):
             walls_out.extend((corners[i], corners[(i + 1) % 4]) for i in range(4))
         return Scatterers.concat(faces + [edges])
@@ -241,7 +241,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
         c = vec(need(obj, "center", w), 2, w, "center")
         radius = num(obj, "radius", 0.2, w, positive=True)
         height = num(obj, "height", 2.7, w, positive=True)
-        sigma0 = num(obj, "sigma0", 0.3, w, positive=True)
+        sigma0 = cross_section(obj, "sigma0", 0.3, w)
         n, rows = cells(2 * math.pi * radius / 0.08, height / 0.3,
                         f"a cylinder of radius {radius:g} m and {height:g} m high", room)
         n = max(8, n)
@@ -265,9 +265,9 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
     n = np.array([-d[1], d[0]])
     cells(height / 0.3, 2, f"a door {height:g} m high", room)  # its posts
-    leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, num(obj, "sigma0", 0.2, w, positive=True),
+    leaf = sample_surface(a - recess * n, b - recess * n, 0.0, height, cross_section(obj, "sigma0", 0.2, w),
                           rng, what="a door", room=room)
-    frame_rcs = num(obj, "frame_rcs", 0.3, w, positive=True)
+    frame_rcs = cross_section(obj, "frame_rcs", 0.3, w)
     zs = np.arange(0.15, height, 0.3)
     posts = np.vstack([np.column_stack([np.full(len(zs), p[0]), np.full(len(zs), p[1]), zs]) for p in (a, b)])
     return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
@@ -290,7 +290,7 @@ def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, se
         check_keys(wall, WALL_KEYS, where, "walls")
         pts = polyline(need(wall, "points", where), where, "walls.points")
         height = num(wall, "height", 2.7, where, positive=True, name="walls.height")
-        sigma0 = num(wall, "sigma0", 0.1, where, positive=True, name="walls.sigma0")
+        sigma0 = cross_section(wall, "sigma0", 0.1, where, name="walls.sigma0")
         for a, b in zip(pts[:-1], pts[1:]):
             parts.append(sample_surface(a, b, 0.0, height, sigma0, rng, what="a wall's segment", room=room()))
             segments.append((a, b))
@@ -306,11 +306,11 @@ def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, se
             raise ConfigError(f"must be above surfaces.min {surfaces['min']!r} in x and y, got {surfaces['max']!r}",
                               path=where, field="surfaces.max")
         if flag(surfaces, "floor", True, where, "surfaces.floor"):
-            floor_sigma0 = num(surfaces, "floor_sigma0", 0.02, where, positive=True, name="surfaces.floor_sigma0")
+            floor_sigma0 = cross_section(surfaces, "floor_sigma0", 0.02, where, name="surfaces.floor_sigma0")
             parts.append(sample_plane(lo, hi, 0.0, floor_sigma0, rng, what="the floor", room=room()))
         if "ceiling" in surfaces:
             ceil = sample_plane(lo, hi, num(surfaces, "ceiling", 2.7, where, positive=True, name="surfaces.ceiling"),
-                                num(surfaces, "ceiling_sigma0", 0.02, where, positive=True,
+                                cross_section(surfaces, "ceiling_sigma0", 0.02, where,
                                     name="surfaces.ceiling_sigma0"), rng, what="the ceiling", room=room())
             ceil.normal[:, 2] = -1.0
             parts.append(ceil)
@@ -345,7 +345,7 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         if not np.hypot(*np.diff(path, axis=0).T).all():
             raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")
         movers.append(Person(path, num(m, "speed", 1.2, where, positive=True, name="movers.speed"),
-                             num(m, "rcs", 0.5, where, positive=True, name="movers.rcs"),
+                             cross_section(m, "rcs", 0.5, where, name="movers.rcs"),
                              float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
     trajectory = from_spec(need(spec, "trajectory", where), where)
     radar = spec.get("radar", {})

@@ -37,6 +37,13 @@ def num(d: dict, key: str, default: float, where: str, *, positive: bool = False
     return float(value)
 
 
+def cross_section(d: dict, key: str, default: float, where: str, name: str | None = None) -> float:
+    """A radar cross-section (m^2) or a surface's backscatter (m^2 per m^2) at *key*: positive and
+    at most :data:`MAX_RCS_M2`."""
+    return within(num(d, key, default, where, positive=True, name=name), 0.0, MAX_RCS_M2, where, name or key,
+                  " (a ship's 60 dBsm; more overflows the simulated signal)")
+
+
 def flag(d: dict, key: str, default: bool, where: str, name: str | None = None) -> bool:
     """A true/false key (a quoted "false" would read as true)."""
     value = d.get(key, default)
@@ -86,3 +93,6 @@ OBJECT_KEYS = {"point": ("position", "rcs"), "corner_reflector": ("position", "r
                "door": ("a", "b", "height", "recess", "sigma0", "frame_rcs")}
 #: A corner reflector's radar cross-section, dBsm: from a marble's to a ship's.
 RCS_DBSM_RANGE = (-60.0, 60.0)
+#: The largest radar cross-section (a point's, an edge's, a person's, m^2) or backscatter (sigma0, m^2
+#: per m^2) a scene gives: a ship's, as RCS_DBSM_RANGE (1e100 overflowed the simulated signal to NaN).
+MAX_RCS_M2 = 10 ** (RCS_DBSM_RANGE[1] / 10)

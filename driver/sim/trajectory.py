@@ -85,6 +85,9 @@ class Trajectory:
 #: The longest trajectory a scene file gives, s: its poses are sampled every STEP_S (an hour is
 #: some 300 MB while it is built); a longer run repeats it (``sim://SCENE?loop=0``).
 MAX_DURATION_S = 3600.0
+#: The longest speed and turn-rate ramp, s (smoothing_s; 0.3 s in the built-in scenes): its moving
+#: average is STEP_S wide per sample (1e300 s was an internal error, an hour's ramp a long wait).
+MAX_SMOOTHING_S = 10.0
 #: The keys of each kind of segment.
 SEGMENT_KEYS = {"straight": ("straight", "speed"), "turn": ("turn", "radius", "speed"),
                 "rotate": ("rotate", "rate"), "pause": ("pause",)}
@@ -231,6 +234,9 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
     mount = _triple(spec, "mount", where)
     height = _number(spec, "height", where, 0.4, positive=True)
     smoothing = _number(spec, "smoothing_s", where, 0.3, positive=True)
+    if smoothing > MAX_SMOOTHING_S:
+        raise _fail(f"smoothing_s must be at most {MAX_SMOOTHING_S:g} s (the speed and turn-rate ramps), "
+                    f"got {smoothing:g}", where)
     if "waypoints" in spec:
         if "segments" in spec:
             raise _fail("give either segments or waypoints, not both", where)
