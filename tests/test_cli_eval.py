@@ -161,6 +161,21 @@ def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
     assert rows and all(len(ln) == len("RPE per frame, translation m".ljust(32)) + 6 * 10 + 7 for ln in rows), rows
 
 
+def test_plots_of_coordinates_that_overflow_are_refused_before_any_output(tmp_path):
+    # matplotlib cannot scale an axis that overflows: "radar-eval: internal error: ValueError:
+    # 'box_aspect' and 'fig_aspect' must be positive" after the table and the --json file.
+    pytest.importorskip("matplotlib")
+    t = 1000.0 + np.arange(3) / 10.0
+    ref = np.array([[-1e308, 0.0, 0.0], [1e308, 0.0, 0.0], [-1e308, 0.0, 0.0]])
+    est, gt = write_tum(tmp_path / "est.tum", t, ref[::-1]), write_tum(tmp_path / "gt.tum", t, ref)
+    proc = run_eval(est, gt, "--plot", tmp_path / "plots", "--json", tmp_path / "eval.json")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == ("radar-eval: error: --plot: the coordinates are too large to draw: lengths overflow (are "
+                           "the files in metres?); without --plot the table shows what can be computed\n")
+    assert proc.stdout == "" and not (tmp_path / "eval.json").exists()
+    assert not list((tmp_path / "plots").glob("*.png"))
+
+
 def test_the_table_keeps_its_columns_for_large_errors(tmp_path):
     # 1e4-1e6 m figures took 11 characters in a 10-character column: the cells ran together.
     t = np.arange(20) / 10.0

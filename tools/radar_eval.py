@@ -100,6 +100,9 @@ def _main(args: argparse.Namespace) -> int:
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
         # (json_text writes standard JSON: an undefined figure becomes null)
         data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts}} if args.json else None
+    if overflow and args.plot:  # matplotlib cannot scale an axis of inf (an internal error)
+        raise UsageError("--plot: the coordinates are too large to draw: lengths overflow (are the files in "
+                         "metres?); without --plot the table shows what can be computed")
     if overflow:
         log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
