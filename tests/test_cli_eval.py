@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import pathlib
 import subprocess
 import sys
@@ -174,6 +175,22 @@ def test_plots_of_coordinates_that_overflow_are_refused_before_any_output(tmp_pa
                            "the files in metres?); without --plot the table shows what can be computed\n")
     assert proc.stdout == "" and not (tmp_path / "eval.json").exists()
     assert not list((tmp_path / "plots").glob("*.png"))
+
+
+def test_a_plot_directory_the_system_will_not_make_says_why_and_the_fix(tmp_path):
+    # It was "cannot create /proc/plots: No such file or directory": neither the directory that
+    # refused nor what to do.
+    pytest.importorskip("matplotlib")
+    if not os.path.isdir("/proc/self"):
+        pytest.skip("no /proc")
+    t = np.arange(5) / 10.0
+    ref = np.column_stack([t, np.zeros(5), np.zeros(5)])
+    est, gt = write_tum(tmp_path / "est.tum", t, ref), write_tum(tmp_path / "gt.tum", t, ref)
+    proc = run_eval(est, gt, "--plot", "/proc/plots", "-q")
+    assert proc.returncode == 1
+    assert proc.stderr == ("radar-eval: error: cannot create the plot directory /proc/plots: the directory /proc "
+                           "takes no new files (the system says: No such file or directory); choose a writable "
+                           "destination\n")
 
 
 def test_the_table_keeps_its_columns_for_large_errors(tmp_path):

@@ -14,7 +14,7 @@ import logging
 import os
 from typing import Any, Callable
 
-from ..errors import CaptureError, UsageError
+from ..errors import CaptureError, UsageError, why_not_written
 from ..estimator.evaluation import EvaluationResult
 from . import plot_panels as panels
 from .eval_flags import FlagTimeline, read_odometry_flags
@@ -135,7 +135,7 @@ def make_directory(directory: str | os.PathLike) -> str:
     try:
         os.makedirs(directory, exist_ok=True)
     except OSError as exc:
-        raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
+        raise CaptureError(f"cannot create the plot directory {directory}: {why_not_written(exc, directory)}") from None
     return directory
 
 
@@ -151,7 +151,7 @@ def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, n
         try:
             figures[filename].savefig(path)
         except OSError as exc:
-            raise CaptureError(f"cannot write {path}: {exc.strerror or exc}") from None
+            raise CaptureError(f"cannot write {path}: {why_not_written(exc, path)}") from None
         log.debug("wrote %s", path)
         written.append(path)
     return written
