@@ -593,6 +593,14 @@ def test_sim_source_bad_options(url):
         open_source(url)
 
 
+def test_radar_capture_refuses_an_empty_board_naming_the_url():
+    # It was "radar-capture: error: no such board: ..." (ConfigError of the path ''): no URL, no option.
+    proc = _run("radar-capture", "--source", "sim://calibration?board=", "--no-publish", "--frames", "1")
+    assert proc.returncode == 2
+    assert proc.stderr == ("radar-capture: error: sim://calibration?board=: option board='': expected ideal, "
+                           "uncalibrated or a board .toml file\n")
+
+
 def test_sim_source_scene_file(tmp_path, small_cfg):
     path = tmp_path / "mine.toml"
     path.write_text(USER_SCENE_TOML, encoding="utf-8")

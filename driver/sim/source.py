@@ -98,12 +98,22 @@ def pass_duration_s(sim: Simulator) -> float:
     return sim.num_frames * sim.period
 
 
+def _board_name(text: str) -> str:
+    """``board=``'s value: a name or a file, not empty (``board=`` named no file, and no URL)."""
+    if not text.strip():
+        raise ValueError("no board named")
+    return text
+
+
+_board_name.words = True  # type: ignore[attr-defined]  # a word, not a number
+
+
 def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimSource:
     seed = options.take("seed", at_least(0), 0, "an integer >= 0")
     rate = options.take("rate", parse_rate, 1.0, "a speed factor > 0 or max")
     duration = options.take("duration", positive_number, None, "seconds > 0")
     fidelity = options.take("fidelity", one_of(*FIDELITIES), None, " or ".join(FIDELITIES))
-    board = options.take("board", str, "ideal", "ideal, uncalibrated or a board .toml file")
+    board = options.take("board", _board_name, "ideal", "ideal, uncalibrated or a board .toml file")
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     options.finish()
     if fidelity is None:
