@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 import subprocess
 import sys
 from importlib import resources
@@ -599,6 +600,21 @@ def test_radar_capture_refuses_an_empty_board_naming_the_url():
     assert proc.returncode == 2
     assert proc.stderr == ("radar-capture: error: sim://calibration?board=: option board='': expected ideal, "
                            "uncalibrated or a board .toml file\n")
+
+
+@pytest.mark.parametrize("argv", [("radar-sim", "calibration", "--duration", "0.2", "--out"),
+                                  ("radar-capture", "--source", "sim://calibration?rate=max", "--no-publish",
+                                   "--frames", "1", "--record")])
+def test_a_capture_directory_the_system_will_not_make_says_why_and_the_fix(argv):
+    # It was "cannot create capture directory /proc/x: No such file or directory": not which
+    # directory refused, nor what to do.
+    if not os.path.isdir("/proc/self"):
+        pytest.skip("no /proc")
+    proc = _run(*argv, "/proc/radarodom-test-capture")
+    assert proc.returncode == 1
+    assert proc.stderr.endswith(f"{argv[0]}: error: cannot create capture directory /proc/radarodom-test-capture: the "
+                                "directory /proc takes no new files (the system says: No such file or directory); "
+                                "choose a writable destination\n"), proc.stderr
 
 
 def test_sim_source_scene_file(tmp_path, small_cfg):

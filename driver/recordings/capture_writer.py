@@ -29,7 +29,8 @@ from typing import Any, Sequence
 
 from ... import __version__, strict_json
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureExistsError, CaptureFormatError, add_note, given_path
+from ...errors import (CaptureError, CaptureExistsError, CaptureFormatError, add_note, given_path,
+                       why_not_written)
 from ...tum import format_tum_line
 from ..sources import REPLAY_FORMAT_FILES
 from . import capture_check
@@ -215,9 +216,10 @@ class CaptureWriter:
             self._gt_fd: int | None = None
             self._ts_bytes = self._gt_bytes = 0
             self._write_metadata()
-        except OSError as exc:
+        except OSError as exc:  # the directory, or a file in it (exc.filename): why, and the fix
+            failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
             raise CaptureError(f"cannot create capture directory {self.directory}: "
-                               f"{exc.strerror or exc}") from None
+                               f"{why_not_written(exc, failed)}") from None
 
     @property
     def frame_count(self) -> int:
