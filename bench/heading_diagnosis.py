@@ -2,6 +2,7 @@
 
     python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
                                       [--baselines 1 2 4 8] [--straights 6]
+                                      [--turned-translation 0 0.1 -0.1]
 
 For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
 or bench/robustness_matrix.py record), every step is classified by the truth (standing still,
@@ -29,6 +30,11 @@ measures, given the true motion).
 cancel in the bias): the estimate's heading error over it and the field search's with the true
 motion between frames K apart along it, in degrees a metre (docs/heading.md, "Each straight
 apart": the field has the straights' error too, so it is the registration's, not the chain's).
+
+``--turned-translation DEG [DEG ...]`` gives, on straight drives, the field search of
+consecutive frames given the true translation turned by each DEG (positive: to the left): how
+much a straight's bias moves with the direction of the translation the registration is given,
+the Doppler velocity's direction error's share in it (docs/heading.md, item 27).
 
 Last, what makes the drift (``drift parts``,
 :func:`radarodom.estimator.heading_metrics.drift_parts`): the estimate's drift, and the drift that
@@ -191,6 +197,29 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
     return lines
 
 
+def turned_translation(seq: sequences.Sequence, kept: list, config: EstimatorConfig,
+                       angles_deg: list[float]) -> str:
+    """The field search of consecutive straight-drive frames given the true translation turned
+    by each of *angles_deg* (degrees, counter-clockwise): its mean error, degrees a frame."""
+    poses = truth(seq)
+    icp = config.icp
+    errors: dict[float, list] = {a: [] for a in angles_deg}
+    for j in range(1, len(seq)):
+        t, dyaw = step_motion(poses, j - 1, j)
+        a, b = kept[j - 1].field, kept[j].field
+        if kind(t, dyaw, seq.times[j] - seq.times[j - 1]) != "straight" or a is None or b is None:
+            continue
+        for angle in angles_deg:
+            c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+            turned = np.array([c * t[0] - s * t[1], s * t[0] + c * t[1]])
+            r = field_rotation(a.points, b.points, a.smoothed, b.smoothed, turned, -dyaw, icp.field_search_rad,
+                               icp.field_step_rad, icp.score_support == "common")
+            if r is not None:
+                errors[angle].append(math.degrees(-r - dyaw))
+    return "  straight, field with the true translation turned by: " + ", ".join(
+        f"{a:+g} deg {np.mean(v):+.4f}" for a, v in errors.items() if v) + " deg a frame"
+
+
 def _ratio(pairs: np.ndarray) -> float:
     """Estimated over true turned angle of (estimated, true) increments (n, 2), each taken in
     its turn's direction (a loop's left and right turns would otherwise cancel)."""
@@ -223,6 +252,8 @@ def main(argv=None) -> int:
     parser.add_argument("--baselines", nargs="*", type=int, default=[], metavar="K")
     parser.add_argument("--straights", type=int, default=None, metavar="K",
                         help="each straight apart, the field's hops K frames long")
+    parser.add_argument("--turned-translation", nargs="+", type=float, default=None, metavar="DEG",
+                        help="straight drives: the field given the true translation turned by each DEG")
     args = parser.parse_args(argv)
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     for directory in args.sequences:
@@ -233,6 +264,8 @@ def main(argv=None) -> int:
             print("\n".join(baselines(seq, kept, config, args.baselines)))
         if args.straights:
             print("\n".join(straights(seq, kept, estimated, config, args.straights)))
+        if args.turned_translation:
+            print(turned_translation(seq, kept, config, args.turned_translation))
         parts = drift_parts(seq.times, truth(seq), estimated)
         print("  drift parts (% of the path): " + ", ".join(f"{k} {v:.2f}" for k, v in parts.items()))
     return 0
