@@ -99,10 +99,17 @@ def umeyama_se2(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     onto *dst* (n, 2) in least squares (Umeyama 1991), as a pose (3,) x, y, yaw.
 
     All points at one place (a rotation on the spot) leave the rotation
-    undetermined: then only the translation is fitted.
+    undetermined: then only the translation is fitted; so it is where the positions are too
+    large for their spread to be computed (it overflows: the SVD of an infinite matrix fails).
     """
-    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
-    cov = (dst - mu_d).T @ (src - mu_s) / len(src)
+    with np.errstate(over="ignore", invalid="ignore"):
+        mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+        cov = (dst - mu_d).T @ (src - mu_s) / len(src)
+    if not np.isfinite(cov).all():
+        log.info("the positions are too large to align by rotation (their spread overflows): ATE aligned by "
+                 "translation only")
+        with np.errstate(over="ignore", invalid="ignore"):
+            return np.array([*(mu_d - mu_s), 0.0])
     u, d, vt = np.linalg.svd(cov)
     if d[0] <= 1e-12:
         log.info("the estimate's positions do not move: ATE aligned by translation only")

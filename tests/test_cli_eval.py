@@ -344,3 +344,20 @@ def test_a_simulated_stream_is_its_own_ground_truth(corridor_run, capsys):
     assert sim["poses"]["matched"] == rec["poses"]["matched"] == 30
     assert sim["yaw_increment_error_deg"] == pytest.approx(rec["yaw_increment_error_deg"], abs=1e-6)
     assert sim["final_drift"] == pytest.approx(rec["final_drift"], abs=1e-6)
+
+
+def test_an_estimate_whose_spread_overflows_is_aligned_by_translation_not_an_internal_error(tmp_path):
+    # Positions of +/-1.7e308 made the alignment's covariance infinite and numpy's SVD failed:
+    # "radar-eval: internal error: LinAlgError: SVD did not converge".
+    t = 1000.0 + np.arange(20) / 10.0
+    ref = np.column_stack([t - 1000.0, np.zeros(20), np.zeros(20)])
+    est = np.column_stack([np.where(np.arange(20) % 3, 1.7e308, -1.7e308), t - 1000.0, np.zeros(20)])
+    for i, (a, b) in enumerate(((est, ref), (ref, est))):
+        pa, pb = write_tum(tmp_path / f"a{i}.tum", t, a), write_tum(tmp_path / f"b{i}.tum", t, b)
+        proc = run_eval(pa, pb, "--json", tmp_path / "eval.json", "--overwrite")
+        assert proc.returncode == 0, proc.stderr
+        assert "internal error" not in proc.stderr and "RuntimeWarning" not in proc.stderr
+        assert "radar-eval: warning: the coordinates are too large to compute with" in proc.stderr
+        assert _strict((tmp_path / "eval.json").read_text())["poses"]["matched"] == 20
+        ate = [ln for ln in proc.stdout.splitlines() if ln.startswith("ATE")]
+        assert ate and "inf" in ate[0]
