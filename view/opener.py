@@ -32,7 +32,7 @@ def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, c
         log.warning("%s: the view's data waits for one (start it: rerun), and at the end the run waits up to %.0f s "
                     "for it to take the rest", missing, close_timeout_s)
     if process if process is not None else target.kind != "save":
-        drawer = ProcessDrawer(target, estimator=estimator, config=config, mount=mount)
+        drawer = ProcessDrawer(target, estimator=estimator, config=config, mount=mount, missing=missing)
     else:
         scene, where = open_scene(target, estimator=estimator, config=config, mount=mount)
         drawer = ThreadDrawer(scene, where)

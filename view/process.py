@@ -22,8 +22,9 @@ Messages are pickles (protocol 5, the arrays out of band), each after a head say
 To the child: ``(target, estimator, config, mount)`` once, then ``("draw", tracks, frame_or_None, dropped,
 offered)`` and ``("end",)``; from it: ``("ready", where, unreachable)`` (*unreachable*: why the
 view reaches no viewer, if it found so: :attr:`.scene.Scene.unreachable`) or ``("error", kind,
-message)`` once, then ``("done", drawn, problem)`` and ``("closed", problem)`` (*problem* then
-also what closing the view raised: a viewer's connection lost).
+message)`` once, then ``("done", drawn, problem)`` and ``("closed", problem, never_connected)``
+(*problem* then also what closing the view raised: a viewer's connection lost; *never_connected*:
+Rerun said it never reached a viewer, so that none of the frames drawn was sent to one).
 """
 
 from __future__ import annotations
@@ -87,7 +88,9 @@ class ProcessDrawer:
     what opening the target raised there (UsageError, CaptureError) or RadarodomError."""
 
     def __init__(self, target: ViewTarget, *, estimator: EstimatorConfig | None = None,
-                 config: RadarConfig | None = None, mount: Mount | None = None) -> None:
+                 config: RadarConfig | None = None, mount: Mount | None = None, missing: str | None = None) -> None:
+        #: Why no viewer answered when the view opened (``connect:``: :func:`.target.viewer_missing`), or None.
+        self._target, self._missing = target, missing
         mine, theirs = socket.socketpair()
         with theirs:
             # -c rather than -m: the package imports this module first, and runpy warns that it
@@ -154,16 +157,23 @@ class ProcessDrawer:
             status = self._process.poll()
             self._stop()
             return None, None if status is None else f"the view's process ended early (exit status {status})"
-        # Rerun's last flush: a viewer that stopped reading holds it up for good.
-        problem = done[2]
+        # Rerun's last flush: a viewer that stopped reading holds it up for good, and so may none
+        # (Rerun keeps trying to connect, for a viewer that starts late: docs/view.md).
+        drawn, problem = done[1], done[2]
         closed = self._receive(deadline)
         if closed is None:
+            if problem is None and self._missing is not None:
+                from .target import reached_no_viewer
+
+                problem = reached_no_viewer(self._target)
+                drawn = 0 if problem else drawn  # drawn into Rerun, sent to no viewer
             problem = problem or f"the viewer did not take the view's last data within {timeout_s:.0f} s"
             log.warning("%s; the view's process was stopped", problem)
         else:
             problem = problem or closed[1]
+            drawn = 0 if closed[2] else drawn  # Rerun never connected to a viewer
         self._stop()
-        return done[1], problem
+        return drawn, problem
 
     def _send_all(self, message: list[memoryview], deadline: float) -> bool:
         """What is pending, then *message*, waiting until *deadline* at most."""
@@ -225,7 +235,7 @@ def _child(fd: int) -> None:
     if hasattr(os, "SCHED_BATCH"):
         os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
     from .sink import Drawing
-    from .target import lost_viewer, open_scene
+    from .target import lost_viewer, never_connected, open_scene
 
     sock = socket.socket(fileno=fd)
     sock.setblocking(True)
@@ -250,7 +260,7 @@ def _child(fd: int) -> None:
         drawing.draw(*message[1:])
     _reply(sock, ("done", drawing.drawn, drawing.failure))
     drawing.close(lost_viewer(target))
-    _reply(sock, ("closed", drawing.failure))
+    _reply(sock, ("closed", drawing.failure, never_connected(drawing.close_error)))
 
 
 def _read_message(sock: socket.socket):

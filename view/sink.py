@@ -66,8 +66,8 @@ class ViewSink(Sink):
     *close_timeout_s*: how long :meth:`close` lets the drawer finish; *path*: the file the drawer
     saves to, if it does (taken back, as the run's other new files, when the run saw no frame).  :attr:`offered` and
     :attr:`dropped` count the frames as the run goes; once closed, :attr:`drawn` is what was
-    drawn and ``offered = drawn + dropped`` (frames a failure or the timeout left undrawn count as
-    dropped), and :attr:`summary` says so in a line.
+    drawn and ``offered = drawn + dropped`` (frames a failure or the timeout left undrawn, or that
+    reached no viewer, count as dropped), and :attr:`summary` says so in a line.
     """
 
     wants_heatmaps = True
@@ -144,6 +144,8 @@ class Drawing:
         self.scene = scene
         self.drawn = 0
         self.failure: str | None = scene.unreachable
+        #: What closing the scene raised (Rerun's error of the last flush), if anything.
+        self.close_error: Exception | None = None
 
     def draw(self, tracks: list[Track], frame: FramePayload | None, dropped: int, offered: int) -> None:
         if self.failure is not None:
@@ -165,6 +167,7 @@ class Drawing:
         try:
             self.scene.close()
         except Exception as exc:  # noqa: BLE001 (what the radar recorded matters more than the view)
+            self.close_error = exc
             said = f"the view did not close cleanly: {type(exc).__name__}: {exc}" if lost is None else lost(exc)
             log.warning("%s", said)
             if self.failure is None:  # (a file's writer that failed, a full disk, says so only here)

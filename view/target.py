@@ -66,6 +66,12 @@ def grpc_url(address: str) -> str:
 #: How long a --view connect: viewer may take to accept a connection before the view says none does, s.
 CONNECT_PROBE_S = 2.0
 
+#: How a ``connect:`` view's summary ends when no viewer got its frames (they count as dropped).
+SENT_TO_NONE = "the frames were sent to no viewer"
+#: How Rerun (0.41) begins the error of a flush that gave up while its gRPC client was still
+#: trying to connect, as it had since the view opened: it never reached a viewer.
+_NEVER_CONNECTED = "gRPC has been unable to connect"
+
 
 def check(target: ViewTarget) -> None:
     """What can be known before Rerun starts: a display to spawn a viewer on, free ports."""
@@ -79,13 +85,38 @@ def check(target: ViewTarget) -> None:
 
 def viewer_missing(target: ViewTarget, wait_s: float = CONNECT_PROBE_S) -> str | None:
     """For ``connect:``, why no viewer takes the view yet (nothing accepted a connection within
-    *wait_s*, a viewer still starting given that long), or None.  Rerun keeps the view's data
-    for a viewer that comes later, and at the end waits for one: a program says so when the view
-    opens, rather than in silence at the end."""
+    *wait_s*, a viewer still starting given that long), or None.  Rerun keeps the view's data and
+    keeps trying to connect, for a viewer that comes later (docs/view.md says how far that goes),
+    and at the end waits for one: a program says so when the view opens, rather than in silence
+    at the end."""
     if target.kind != "connect":
         return None
-    url = grpc_url(target.address)
-    parts = urllib.parse.urlsplit(url)
+    why = _no_answer(target, wait_s)
+    return None if why is None else f"no Rerun viewer answers at {grpc_url(target.address)} ({why})"
+
+
+def reached_no_viewer(target: ViewTarget) -> str | None:
+    """For a ``connect:`` view that found no viewer when it opened (:func:`viewer_missing`) and
+    whose last data nothing took by the close's timeout: that its frames reached no viewer, when
+    nothing answers at its address still (a TCP connection's attempt), or None (something answers:
+    a viewer that came and stopped reading).  A viewer that came during the run and went away
+    makes Rerun's last flush fail instead (:func:`lost_viewer`): it does not wait."""
+    why = _no_answer(target, 0.0)
+    if why is None:
+        return None
+    return (f"no Rerun viewer answered at {grpc_url(target.address)} when the view opened nor when it closed "
+            f"({why}); {SENT_TO_NONE}")
+
+
+def never_connected(exc: Exception | None) -> bool:
+    """Whether Rerun's error *exc* (of the view's last flush) says that it never connected to a viewer."""
+    return exc is not None and str(exc).startswith(_NEVER_CONNECTED)
+
+
+def _no_answer(target: ViewTarget, wait_s: float) -> str | None:
+    """Why nothing accepted a TCP connection at a ``connect:`` target's address within *wait_s*
+    (the system's words), or None."""
+    parts = urllib.parse.urlsplit(grpc_url(target.address))
     host, port = parts.hostname, parts.port or (443 if parts.scheme.endswith("https") else 80)
     deadline = time.monotonic() + wait_s
     while True:
@@ -94,7 +125,7 @@ def viewer_missing(target: ViewTarget, wait_s: float = CONNECT_PROBE_S) -> str |
                 return None
         except OSError as exc:
             if time.monotonic() >= deadline:
-                return f"no Rerun viewer answers at {url} ({exc.strerror or exc})"
+                return str(exc.strerror or exc)
             time.sleep(0.1)
 
 
@@ -145,12 +176,16 @@ def not_a_viewer(recording, target: ViewTarget) -> str | None:
 def lost_viewer(target: ViewTarget):
     """How a ``connect:`` view says that its last flush failed, a function of Rerun's error: a
     viewer went away during the run (or never came), and Rerun, which only logs a lost connection,
-    gives no way to tell which frames it took.  None for the other targets."""
+    gives no way to tell which frames it took; unless Rerun says it never connected
+    (:func:`never_connected`).  None for the other targets."""
     if target.kind != "connect":
         return None
     url = grpc_url(target.address)
 
     def said(exc: Exception) -> str:
+        if never_connected(exc):
+            return (f"no Rerun viewer answered at {url}: Rerun never connected to it ({_rerun_said(exc, url)}); "
+                    f"{SENT_TO_NONE}")
         return (f"the view's data did not all reach {url} ({_rerun_said(exc, url)}): the frames "
                 "drawn after the viewer went away, or all if none came, were not seen")
     return said
