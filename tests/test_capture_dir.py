@@ -458,6 +458,13 @@ BAD_METADATA = {
     "source-a-number": (lambda d: _meta_with(d, source=5), "source: expected a string"),
     "first-timestamp-huge": (lambda d: _meta_with(d, first_timestamp=1e300), "first_timestamp: expected null or"),
     "start-time-negative": (lambda d: _meta_with(d, start_time_unix=-1), "start_time_unix: expected a number"),
+    # An integer beyond any float: "OverflowError: int too large to convert to float" escaped.
+    "start-time-400-digits": (lambda d: _meta_with(d, start_time_unix=10 ** 400), "start_time_unix: expected a number"),
+    "first-timestamp-400-digits": (lambda d: _meta_with(d, first_timestamp=10 ** 400),
+                                   "first_timestamp: expected null or"),
+    "board-calibration-bias-400-digits": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": 10 ** 400, "coefficients": [[1, 0]] * 12}}),
+        "simulator.board_calibration.range_bias_m: expected a number of metres, got 1000"),
     "dropped-frames-negative": (lambda d: _meta_with(d, dropped_frames=-3), "dropped_frames: expected an integer"),
     "not-utf8": (lambda d: b"\xff\xfe{}", "not UTF-8"),
     # simulator: a replay took any value for any field without a word (a board's calibration it
