@@ -13,19 +13,18 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import partial
+from typing import Any
 
 from ..dsp.cfar import CfarParams
 from ..errors import ConfigError
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
+from .config_limits import CFAR, FEATURES, ICP, MAX_SMOOTHING_BINS, check_limits  # noqa: F401  (re-exported)
 from .config_odometry import (  # noqa: F401  (re-exported)
-    KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig, check_search_steps)
+    KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig)
 from .config_velocity import PROJECTIONS, VelocityConfig  # noqa: F401  (re-exported)
 
 FEATURE_METHODS = ("topk", "raymax", "cfar")
-#: The widest smoothing of the likelihood field, bins (a sigma beyond it spreads a cell over
-#: more of the heatmap than its 64 azimuth bins hold).
-MAX_SMOOTHING_BINS = 64.0
 DOPPLER_ELEVATIONS = ("off", "turns", "always")
 INITIAL_GUESSES = ("zero", "constant_rate", "profile", "scan")
 REFINEMENTS = ("none", "field")
@@ -107,23 +106,25 @@ class FeatureConfig(Settings):
 
     def __post_init__(self) -> None:
         self.check_types()
+        check_limits(self, FEATURES)
+        for name in ("cfar", "cfar_azimuth"):
+            check_limits(vars(getattr(self, name)), CFAR, f"{name}.")
         check_choice(self.method, FEATURE_METHODS, "method")
-        _check(self.doppler_cells_per_feature >= 1, "must be at least 1", "doppler_cells_per_feature")
         check_choice(self.weighting, ("linear", "db"), "weighting")
         check_choice(self.elevation, ("ignore", "use"), "elevation")
         check_choice(self.parallax, ("slant", "horizontal"), "parallax")
         check_choice(self.doppler_elevation, DOPPLER_ELEVATIONS, "doppler_elevation")
-        _check(self.doppler_elevation_min_mps > 0, "must be positive", "doppler_elevation_min_mps")
-        _check(self.doppler_elevation_turn_radps >= 0, "must be >= 0", "doppler_elevation_turn_radps")
-        _check(self.doppler_elevation_rest_s >= 0, "must be >= 0 (0: not at rest)", "doppler_elevation_rest_s")
-        _check(self.doppler_elevation_memory_s > 0, "must be positive", "doppler_elevation_memory_s")
-        _check(self.k >= 1, "must be at least 1", "k")
-        _check(self.min_range_m >= 0, "must be >= 0", "min_range_m")
         _check(self.max_range_m is None or self.max_range_m > self.min_range_m,
                "must be above min_range_m", "max_range_m")
-        _check(0 < self.max_azimuth_rad <= math.pi / 2, "must be in (0, pi/2]", "max_azimuth_rad")
-        _check(self.dynamic_rejection_mps is None or self.dynamic_rejection_mps > 0,
-               "must be positive (or null: off)", "dynamic_rejection_mps")
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any], prefix: str) -> "FeatureConfig":
+        # A CFAR section's threshold is checked before its parameters compute with it: 1e30 dB
+        # overflows 10^(dB/10) as they are made (the rest is checked once they are).
+        for name in ("cfar", "cfar_azimuth"):
+            if isinstance(data, Mapping) and isinstance(data.get(name), Mapping):
+                check_limits(data[name], {"threshold_db": CFAR["threshold_db"]}, f"{name}.")
+        return super()._from_dict(data, prefix)
 
     def check_heatmap_range(self, range_bins: int) -> None:
         """Raise :class:`ConfigError` when the "cfar" method's range window does not fit a
@@ -272,35 +273,15 @@ class IcpConfig(Settings):
 
     def __post_init__(self) -> None:
         self.check_types()
-        _check(self.alpha > 0, "must be positive", "alpha")
-        _check(self.beta > 0, "must be positive", "beta")
-        _check(0 <= self.eps_min < self.eps_max, "need 0 <= eps_min < eps_max", "eps_min")
-        _check(self.iterations >= 1, "must be at least 1", "iterations")
-        _check(self.tolerance_rad > 0, "must be positive", "tolerance_rad")
-        _check(self.min_matches >= 1, "must be at least 1", "min_matches")
-        for name in ("max_rotation_rad", "field_search_rad"):
-            _check(0 < getattr(self, name) <= math.pi, "must be positive and at most pi (half a turn)", name)
-        _check(self.scan_points >= 10, "must be at least 10", "scan_points")
-        check_search_steps(self, ("scan_step_rad", "field_step_rad"))
+        check_limits(self, ICP)
+        _check(self.eps_min < self.eps_max, "need 0 <= eps_min < eps_max", "eps_min")
         check_choice(self.weight, ("source", "product"), "weight")
         check_choice(self.initial_guess, INITIAL_GUESSES, "initial_guess")
         check_choice(self.refinement, REFINEMENTS, "refinement")
-        _check(0 <= self.field_smoothing_bins <= MAX_SMOOTHING_BINS,
-               f"must be from 0 (not smoothed) to {MAX_SMOOTHING_BINS:g}", "field_smoothing_bins")
-        _check(1 <= self.field_upsampling <= 16, "must be from 1 to 16", "field_upsampling")
         check_choice(self.field_window, FIELD_WINDOWS, "field_window")
-        _check(self.field_shape_width is None or 0 < self.field_shape_width < math.inf, "must be positive (None: off)",
-               "field_shape_width")
-        _check(0 <= self.field_shape_floor <= 1, "must be in [0, 1]", "field_shape_floor")
         check_choice(self.score_support, ("inside", "common"), "score_support")
         check_choice(self.scan_score_support, ("inside", "common"), "scan_score_support")
         check_choice(self.scan_structure, ("one_way", "two_way"), "scan_structure")
-        _check(self.scan_score_fraction is None or 0 < self.scan_score_fraction <= 1, "must be in (0, 1] or null",
-               "scan_score_fraction")
-        _check(self.reject_moving_mps is None or self.reject_moving_mps > 0, "must be positive (None: off)",
-               "reject_moving_mps")
-        _check(self.moving_turn_min_range_m is None or 0 < self.moving_turn_min_range_m < math.inf,
-               "must be positive and finite (null: off)", "moving_turn_min_range_m")
 
 
 @dataclass

@@ -9,20 +9,11 @@ from dataclasses import dataclass
 
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
+from .config_limits import MIN_SEARCH_STEP_RAD, ODOMETRY, POINT_YAW, check_limits  # noqa: F401  (re-exported)
 
 KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
 VELOCITY_FALLBACKS = ("hold", "heatmap")
 HEATMAP_USES = ("check", "fallback", "fuse")
-#: The finest grid step a rotation search takes, rad (0.006 degrees): with searches of at most
-#: half a turn, a grid of at most some 63 000 rotations (a finer step is a typo, and its grid
-#: would not fit in memory).
-MIN_SEARCH_STEP_RAD = 1e-4
-
-
-def check_search_steps(settings: object, names: tuple[str, ...]) -> None:
-    """Each rotation search's grid step in *names* at least :data:`MIN_SEARCH_STEP_RAD`."""
-    for name in names:
-        _check(getattr(settings, name) >= MIN_SEARCH_STEP_RAD, f"must be at least {MIN_SEARCH_STEP_RAD:g} rad", name)
 
 
 @dataclass
@@ -192,49 +183,15 @@ class OdometryConfig(Settings):
 
     def __post_init__(self) -> None:
         self.check_types()
-        _check(self.hold_s >= 0, "must be >= 0", "hold_s")
-        for name in ("mount_x_m", "mount_y_m", "mount_yaw_rad"):
-            _check(math.isfinite(getattr(self, name)), "must be a finite number", name)
+        check_limits(self, ODOMETRY)
         check_choice(self.base, ("any", "wheeled"), "base")
-        _check(self.min_lever_arm_m > 0, "must be positive", "min_lever_arm_m")
-        _check(self.doppler_yaw_rate_noise_radps > 0, "must be positive", "doppler_yaw_rate_noise_radps")
-        _check(self.doppler_yaw_min_rate_radps >= 0, "must be >= 0", "doppler_yaw_min_rate_radps")
-        _check(self.axis_learn_frames >= 0, "must be >= 0 (0: the mount's yaw as given)", "axis_learn_frames")
-        _check(self.axis_straight_radps > 0, "must be positive", "axis_straight_radps")
-        _check(self.axis_min_speed_mps > 0, "must be positive", "axis_min_speed_mps")
-        _check(0 < self.no_slip_angle_std_rad < math.pi / 2, "must be in (0, pi/2)", "no_slip_angle_std_rad")
-        _check(0 <= self.yaw_manoeuvre_start_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_start_prob")
-        _check(0 <= self.yaw_manoeuvre_end_prob < 1, "must be in [0, 1)", "yaw_manoeuvre_end_prob")
-        _check(self.velocity_history >= 2, "must be at least 2", "velocity_history")
-        _check(self.held_velocity_variance_factor >= 1, "must be at least 1", "held_velocity_variance_factor")
-        _check(self.held_velocity_yaw_check is None
-               or (math.isfinite(self.held_velocity_yaw_check) and self.held_velocity_yaw_check > 0),
-               "must be positive and finite (null: off)", "held_velocity_yaw_check")
-        _check(self.held_yaw_rate_std_radps > 0, "must be positive", "held_yaw_rate_std_radps")
-        _check(math.isfinite(self.gap_yaw_rate_radps) and self.gap_yaw_rate_radps >= 0,
-               "must be >= 0 and finite (0: search no wider after a gap)", "gap_yaw_rate_radps")
-        _check(0 <= self.gap_search_rad <= math.pi, "must be in [0, pi]", "gap_search_rad")
-        _check(math.isfinite(self.bridge_s) and self.bridge_s >= 0, "must be >= 0 and finite (0: off)", "bridge_s")
-        _check(self.unmeasured_yaw_std_rad > 0, "must be positive", "unmeasured_yaw_std_rad")
-        _check(self.min_features >= 2, "must be at least 2", "min_features")
-        _check(self.yaw_noise_rad > 0, "must be positive", "yaw_noise_rad")
-        _check(self.keyframe_distance_m >= 0, "must be >= 0 (0: off)", "keyframe_distance_m")
-        _check(self.keyframe_angle_rad > 0, "must be positive", "keyframe_angle_rad")
-        _check(0 < self.keyframe_search_rad <= math.pi, "must be positive and at most pi (half a turn)",
-               "keyframe_search_rad")
-        _check(self.yaw_accel_std_radps2 > 0, "must be positive", "yaw_accel_std_radps2")
         _check(self.yaw_manoeuvre_accel_std_radps2 is None
                or self.yaw_manoeuvre_accel_std_radps2 > self.yaw_accel_std_radps2,
                "must be above yaw_accel_std_radps2 (or null: one model)", "yaw_manoeuvre_accel_std_radps2")
         check_choice(self.velocity_sync, ("interpolate", "nearest"), "velocity_sync")
         check_choice(self.rectification, ("velocity", "chord"), "rectification")
         check_choice(self.velocity_fallback, VELOCITY_FALLBACKS, "velocity_fallback")
-        _check(self.fallback_cells >= 2, "must be at least 2", "fallback_cells")
         check_choice(self.keyframe_start, KEYFRAME_STARTS, "keyframe_start")
-        _check(self.keyframe_noise_rad is None or self.keyframe_noise_rad > 0,
-               "must be positive (or null: yaw_noise_rad)", "keyframe_noise_rad")
-        _check(self.keyframe_turn_renew_radps is None or self.keyframe_turn_renew_radps > 0,
-               "must be positive (or null: off)", "keyframe_turn_renew_radps")
 
 
 @dataclass
@@ -348,29 +305,7 @@ class PointYawConfig(Settings):
 
     def __post_init__(self) -> None:
         self.check_types()
-        _check(self.map_frames >= 1, "must be at least 1", "map_frames")
-        _check(self.lag_frames >= 1, "must be at least 1", "lag_frames")
-        for name in ("bearing_noise_rad", "range_noise_m", "position_floor_m", "static_threshold_mps", "search_rad",
-                     "step_rad", "prior_rad", "outlier_sigmas", "min_noise_rad", "heatmap_noise_rad",
-                     "agreement_sigmas", "check_sigmas"):
-            _check(getattr(self, name) > 0, "must be positive", name)
-        _check(self.min_points >= 1, "must be at least 1", "min_points")
-        _check(self.min_map_points >= 1, "must be at least 1", "min_map_points")
-        _check(self.gap_widen_rad >= 0, "must be >= 0", "gap_widen_rad")
-        _check(self.gap_widen_frames >= 0, "must be >= 0", "gap_widen_frames")
-        _check(self.relocate_cells >= 0, "must be >= 0 (0: never)", "relocate_cells")
-        _check(self.relocate_gap_frames >= 1, "must be at least 1", "relocate_gap_frames")
-        _check(self.relocate_widen_rad >= 0, "must be >= 0", "relocate_widen_rad")
-        for name in ("relocate_prior_rad", "relocate_step_rad", "gap_turn_std_rad", "gap_correction_max_rad"):
-            _check(getattr(self, name) > 0, "must be positive", name)
-        _check(self.check_steady_frames >= 0, "must be >= 0", "check_steady_frames")
-        _check(self.check_steady_rad > 0, "must be positive", "check_steady_rad")
-        for name in ("search_rad", "gap_widen_rad", "relocate_widen_rad"):
-            _check(getattr(self, name) <= math.pi, "must be at most pi (half a turn)", name)
-        check_search_steps(self, ("step_rad", "relocate_step_rad"))
+        check_limits(self, POINT_YAW)
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
-        _check(self.slow_mps >= 0, "must be >= 0", "slow_mps")
         check_choice(self.heatmap_use, HEATMAP_USES, "heatmap_use")
-        _check(self.heatmap_max_accel_radps2 is None or self.heatmap_max_accel_radps2 > 0,
-               "must be positive (or null: no check)", "heatmap_max_accel_radps2")

@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass
 
 from ..settings import Settings, check_choice
-from ..settings import check_field as _check
+from .config_limits import VELOCITY, check_limits
 
 PROJECTIONS = ("divide", "paper", "none")
 
@@ -65,20 +65,5 @@ class VelocityConfig(Settings):
 
     def __post_init__(self) -> None:
         self.check_types()
-        _check(self.min_points >= 2, "must be at least 2", "min_points")
-        _check(self.ransac_iterations >= 1, "must be at least 1", "ransac_iterations")
-        _check(self.inlier_threshold_mps > 0, "must be positive", "inlier_threshold_mps")
-        _check(0 < self.min_inlier_ratio <= 1, "must be in (0, 1]", "min_inlier_ratio")
-        _check(0 < self.zero_velocity_ratio <= 1, "must be in (0, 1]", "zero_velocity_ratio")
-        _check(0 < self.max_elevation_rad <= math.pi / 2, "must be in (0, pi/2]", "max_elevation_rad")
-        _check(self.max_condition > 1, "must be above 1", "max_condition")
-        _check(0 <= self.bearing_noise_rad < math.pi / 2, "must be in [0, pi/2)", "bearing_noise_rad")
-        _check(self.doppler_noise_mps > 0, "must be positive", "doppler_noise_mps")
-        _check(self.max_accel_mps2 is None or self.max_accel_mps2 > 0, "must be positive (or null: any)",
-               "max_accel_mps2")
+        check_limits(self, VELOCITY)
         check_choice(self.elevation_projection, PROJECTIONS, "elevation_projection")
-        _check(self.level_edge_quantile is None or 0 < self.level_edge_quantile < 1, "must be in (0, 1) (or null: off)",
-               "level_edge_quantile")
-        _check(self.level_edge_window_s > 0, "must be positive", "level_edge_window_s")
-        _check(self.level_edge_min_mps > 0, "must be positive", "level_edge_min_mps")
-        _check(self.seed >= 0, "must be >= 0", "seed")

@@ -266,7 +266,7 @@ BAD_CONFIGS = {
     "wrong-type": ('{"features": {"k": "many"}}', ["k:", "'many'", "integer"]),
     "wrong-type-section": ('{"features": 5}', ["features:", "5"]),
     "wrong-type-bool": ('{"icp": {"two_way": "yes"}}', ["two_way:", "'yes'", "boolean"]),
-    "bad-value": ('{"icp": {"iterations": 0}}', ["iterations:", "at least 1"]),
+    "bad-value": ('{"icp": {"iterations": 0}}', ["icp.iterations:", "must be in [1, 1000], got 0"]),
     "bad-choice": ('{"features": {"method": "sift"}}', ["method:", "sift", "topk"]),
 }
 
