@@ -58,4 +58,7 @@ def parse_mount(text: str) -> Mount:
     x, y, z, yaw_deg = values
     if max(abs(x), abs(y), abs(z)) > 100.0:
         raise UsageError(f"mount {text!r}: a radar more than 100 m from its base's origin is no mounting")
+    if abs(yaw_deg) > 360.0:
+        raise UsageError(f"mount {text!r}: a yaw of {yaw_deg:g} degrees is more than a whole turn: give it "
+                         f"within -180..180 degrees ({math.remainder(yaw_deg, 360.0) + 0.0:g} here)")
     return Mount(x, y, z, math.radians(yaw_deg))

@@ -751,6 +751,11 @@ def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usag
     proc = run_capture_cli("--mount", "0,0,0")
     assert proc.returncode == 2 and proc.stderr == ("radar-capture: error: argument --mount: a mount is x,y,z,yaw_deg "
                                                     "(four numbers: m, m, m, degrees), got '0,0,0'\n"), proc.stderr
+    # A yaw beyond a whole turn was refused by the estimator's settings, naming odometry.mount_yaw_rad.
+    proc = run_capture_cli("--mount", "0.3,0,0,400", "--wheeled")
+    assert proc.returncode == 2 and proc.stderr == ("radar-capture: error: argument --mount: mount '0.3,0,0,400': a yaw "
+                                                    "of 400 degrees is more than a whole turn: give it within -180..180 "
+                                                    "degrees (40 here)\n"), proc.stderr
     proc = run_capture_cli("--bogus")
     assert proc.returncode == 2 and proc.stderr.startswith("usage: radar-capture")
     assert proc.stderr.splitlines()[-1] == "radar-capture: error: unrecognized arguments: --bogus"
