@@ -9,6 +9,7 @@ seconds, radians."""
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Mapping
@@ -49,8 +50,10 @@ class Limit:
         return above and (value < self.high if self.high_open else value <= self.high)
 
 
-def _table(ranges: dict[str, str]) -> dict[str, Limit]:
-    return {name: Limit(text) for name, text in ranges.items()}
+@functools.cache
+def limit(text: str) -> Limit:
+    """The range *text* spells (a table's entry), parsed once, when a section is first checked."""
+    return Limit(text)
 
 
 COUNT = "[1, 1e6]"
@@ -68,30 +71,30 @@ STEP = f"[{MIN_SEARCH_STEP_RAD:g}, pi] rad"
 PRIOR = STEP
 SIGMAS = "(0, 100] standard deviations"
 
-VELOCITY = _table({
+VELOCITY = {
     "min_points": "[2, 1e6]", "ransac_iterations": "[1, 1e4]", "inlier_threshold_mps": SPEED,
     "min_inlier_ratio": "(0, 1]", "zero_velocity_threshold_mps": "[0, 100] m/s", "zero_velocity_ratio": "(0, 1]",
     "max_elevation_rad": "(0, pi/2] rad", "max_condition": "(1, 1e12]",
     "max_accel_mps2": "(0, 1000] m/s^2 (or null: any)", "bearing_noise_rad": "[0, pi/2) rad",
     "doppler_noise_mps": "[1e-6, 100] m/s", "level_edge_quantile": "(0, 1) (or null: off)",
     "level_edge_window_s": "(0, 60] s", "level_edge_min_mps": SPEED, "seed": f"[0, {2 ** 64 - 1}]",
-})
+}
 
-FEATURES = _table({
+FEATURES = {
     "k": COUNT, "min_range_m": "[0, 1000] m", "max_range_m": "(0, 1000] m (or null: no limit)",
     "max_azimuth_rad": "(0, pi/2] rad", "dynamic_rejection_mps": "(0, 100] m/s (or null: off)",
     "doppler_cells_per_feature": "[1, 1000]", "doppler_elevation_min_mps": SPEED,
     "doppler_elevation_memory_s": "(0, 3600] s", "doppler_elevation_rest_s": "[0, 3600] s (0: not at rest)",
     "doppler_elevation_turn_radps": "[0, 100] rad/s",
-})
+}
 
 #: The numbers of a CFAR section (``features.cfar``, ``features.cfar_azimuth``) the CFAR's own
 #: checks leave unbounded; checked before its parameters compute with them (10^(dB/10)).
-CFAR = _table({
+CFAR = {
     "guard": "[0, 10000] cells", "train": "[1, 10000] cells", "threshold_db": "[0, 200] dB", "channels": COUNT,
-})
+}
 
-ICP = _table({
+ICP = {
     "alpha": "(0, 1e8] 1/m^2", "beta": "(0, 1e8] 1/rad^2", "eps_min": "[0, 1e8)", "eps_max": "(0, 1e8]",
     "iterations": "[1, 1000]", "tolerance_rad": ANGLE, "min_matches": COUNT, "max_rotation_rad": ANGLE,
     "scan_points": "[10, 1e5]", "scan_step_rad": STEP, "min_scan_score": "[-100, 100] (natural log units)",
@@ -99,9 +102,9 @@ ICP = _table({
     "field_smoothing_bins": f"[0, {MAX_SMOOTHING_BINS:g}] bins (0: not smoothed)", "field_upsampling": "[1, 16]",
     "field_step_rad": STEP, "field_shape_width": "[1e-3, 1000] (or null: off)", "field_shape_floor": "[0, 1]",
     "reject_moving_mps": "(0, 100] m/s (or null: off)", "moving_turn_min_range_m": "(0, 1000] m (or null: off)",
-})
+}
 
-ODOMETRY = _table({
+ODOMETRY = {
     "hold_s": "[0, 3600] s", "fallback_cells": "[2, 1e6]", "min_features": "[2, 1e6]", "yaw_noise_rad": NOISE,
     "yaw_accel_std_radps2": "(0, 1000] rad/s^2",
     "yaw_manoeuvre_accel_std_radps2": "(0, 1000] rad/s^2 (or null: one model)",
@@ -116,9 +119,9 @@ ODOMETRY = _table({
     "held_velocity_yaw_check": "(0, 100] (or null: off)", "held_yaw_rate_std_radps": RATE_NOISE,
     "gap_yaw_rate_radps": "[0, 100] rad/s (0: search no wider after a gap)", "gap_search_rad": WIDENING,
     "bridge_s": "[0, 3600] s (0: off)", "unmeasured_yaw_std_rad": NOISE,
-})
+}
 
-POINT_YAW = _table({
+POINT_YAW = {
     "map_frames": "[1, 10000]", "bearing_noise_rad": NOISE, "range_noise_m": "[1e-6, 10] m",
     "position_floor_m": "[1e-6, 10] m", "static_threshold_mps": SPEED, "min_points": COUNT, "min_map_points": COUNT,
     # the step below the search (each at least the finest step), and below half a turn
@@ -131,18 +134,18 @@ POINT_YAW = _table({
     "slow_mps": "[0, 100] m/s", "heatmap_noise_rad": NOISE, "agreement_sigmas": SIGMAS, "check_sigmas": SIGMAS,
     "check_steady_frames": "[0, 1e6] (0: always taken)", "check_steady_rad": ANGLE,
     "heatmap_max_accel_radps2": "(0, 1000] rad/s^2 (or null: always believed)", "lag_frames": COUNT,
-})
+}
 
 
 def _spelled(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else quoted(value)
 
 
-def check_limits(values: object, limits: Mapping[str, Limit], prefix: str = "") -> None:
+def check_limits(values: object, limits: Mapping[str, str], prefix: str = "") -> None:
     """:class:`ConfigError` naming the first field of *limits* (its name after *prefix*) whose
     number in *values* (settings, or a mapping of a section not yet made) is outside its range;
     None (a setting switched off) and what is no number (the types' own checks say so) pass."""
-    for name, limit in limits.items():
+    for name, text in limits.items():
         value = values.get(name) if isinstance(values, Mapping) else getattr(values, name)
-        if is_number(value) and not limit.admits(value):
-            raise ConfigError(f"must be in {limit.text}, got {_spelled(value)}", field=prefix + name)
+        if is_number(value) and not limit(text).admits(value):
+            raise ConfigError(f"must be in {text}, got {_spelled(value)}", field=prefix + name)

@@ -95,7 +95,8 @@ FIELDS = _fields()
 
 def _limit(path: str) -> config_limits.Limit | None:
     parts = path.split(".")
-    return config_limits.CFAR.get(parts[-1]) if len(parts) == 3 else SECTIONS[parts[0]].get(parts[-1])
+    text = config_limits.CFAR.get(parts[-1]) if len(parts) == 3 else SECTIONS[parts[0]].get(parts[-1])
+    return None if text is None else config_limits.limit(text)
 
 
 def _settings(path: str, value) -> dict:
