@@ -18,6 +18,8 @@ from .cfar_pfa import log_pfa_go, log_pfa_os, log_pfa_so, noise_factor, solve_al
 METHODS = ("ca", "cago", "caso", "os")
 
 _COMMAND = "CfarParams"
+#: The highest threshold a CFAR takes, dB; its power ratio, 10^(dB/10), overflows past 3083 dB.
+MAX_THRESHOLD_DB = 200.0
 
 
 def _fail(message: str, fld: str | None = None) -> ConfigError:
@@ -106,6 +108,9 @@ class CfarParams:
         if thr is not None and thr < 0:
             raise _fail(f"must be >= 0 dB (a threshold below the noise estimate), got {thr:g}",
                         "threshold_db")
+        if thr is not None and thr > MAX_THRESHOLD_DB:
+            raise _fail(f"must be at most {MAX_THRESHOLD_DB:g} dB (a power ratio of 1e20, more than any radar's "
+                        f"dynamic range), got {thr:g}", "threshold_db")
         if pfa is not None and not 0.0 < pfa < 1.0:
             raise _fail(f"must be in (0, 1), got {pfa:g}", "pfa")
         set_(self, "threshold_db", thr)

@@ -592,3 +592,14 @@ def test_range_skirt_of_a_strong_target_is_dropped():
     kept = above_skirts(power, det, 40.0, rp.guard + rp.train)
     kept_cells = {c for c, k in zip(zip(det.doppler_idx.tolist(), det.range_idx.tolist()), kept) if k}
     assert (8, 45) not in kept_cells and {(8, 40), (20, 60), (20, 65)} <= kept_cells
+
+
+@pytest.mark.parametrize("threshold_db", [200.5, 1e30, 1e308])
+def test_a_threshold_beyond_any_dynamic_range_is_refused_naming_the_field(threshold_db):
+    # 1e30 dB overflowed computing its power ratio: "OverflowError: (34, 'Numerical result out of range')".
+    from radarodom.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"threshold_db.*must be at most 200 dB") as info:
+        CfarParams("ca", GUARD, TRAIN, threshold_db=threshold_db)
+    assert f"got {threshold_db:g}" in str(info.value)
+    assert CfarParams("ca", GUARD, TRAIN, threshold_db=200.0).scale == pytest.approx(1e20)
