@@ -218,7 +218,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
         return _points(vec(need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
     if kind == "box":
         c = vec(need(obj, "center", w), 2, w, "center")
-        size = vec(need(obj, "size", w), 3, w, "size")
+        size = vec(need(obj, "size", w), 3, w, "size", place=False)
         if not (size > 0).all():
             raise ConfigError(f"must be 3 positive numbers (x, y and height, m), got {obj['size']!r}", path=w,
                               field="size")

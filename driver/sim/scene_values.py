@@ -17,14 +17,30 @@ def need(d: dict, key: str, where: str, kind=None):
     return d[key]
 
 
-def vec(value, n: int, where: str, what: str) -> np.ndarray:
+#: The farthest a scene's point may lie from its origin, m: beyond it a scene is no room or site
+#: (and past float32's 3e38 the simulator's arithmetic overflows).
+MAX_COORDINATE_M = 1e6
+
+
+def vec(value, n: int, where: str, what: str, *, place: bool = True) -> np.ndarray:
+    """*n* finite numbers; a *place*'s within :data:`MAX_COORDINATE_M` (a size is bounded by the
+    scatterers it makes: :func:`cells`)."""
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         arr = None
     if arr is None or arr.shape != (n,) or not np.all(np.isfinite(arr)):
         raise ConfigError(f"must be {n} numbers, got {value!r}", path=where, field=what)
+    if place:
+        check_coordinates(arr, value, where, what)
     return arr
+
+
+def check_coordinates(arr: np.ndarray, value, where: str, what: str) -> None:
+    """ConfigError unless every number of *arr* (read from *value*) is within :data:`MAX_COORDINATE_M`."""
+    if arr.size and float(np.abs(arr).max()) > MAX_COORDINATE_M:
+        raise ConfigError(f"a coordinate beyond {MAX_COORDINATE_M:g} m (a scene is metres across, not thousands of "
+                          f"km): got {value!r}"[:240], path=where, field=what)
 
 
 def num(d: dict, key: str, default: float, where: str, *, positive: bool = False, name: str | None = None) -> float:

@@ -33,6 +33,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError
+from .scene_values import check_coordinates
 
 #: Integration step of the pose table, s.
 STEP_S = 1e-3
@@ -129,6 +130,7 @@ def polyline(value: Any, where: str, what: str) -> np.ndarray:
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
         raise ConfigError(f"must be two or more [x, y] points of numbers, got {value!r}"[:200],
                           path=where, field=what)
+    check_coordinates(pts, value, where, what)
     return pts
 
 
