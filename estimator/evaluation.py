@@ -105,10 +105,9 @@ def umeyama_se2(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     with np.errstate(over="ignore", invalid="ignore"):
         mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
         cov = (dst - mu_d).T @ (src - mu_s) / len(src)
-    if not np.isfinite(cov).all():
-        log.info("the positions are too large to align by rotation (their spread overflows): ATE aligned by "
-                 "translation only")
-        with np.errstate(over="ignore", invalid="ignore"):
+        if not np.isfinite(cov).all():
+            log.info("the positions are too large to align by rotation (their spread overflows): ATE aligned by "
+                     "translation only")
             return np.array([*(mu_d - mu_s), 0.0])
     u, d, vt = np.linalg.svd(cov)
     if d[0] <= 1e-12:
