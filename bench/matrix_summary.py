@@ -2,7 +2,8 @@
 design (the base cells, then each value changed), means and ranges over its cells, and the whole
 matrix against issue 20's goals; given two runs, each figure as BEFORE -> AFTER. Then, per row,
 what makes the drift (the cells' drift parts, means: the drift each kind of frame's yaw errors
-make alone, and the translation's; heading_metrics.drift_parts), of the last run.
+make alone, and the translation's; heading_metrics.drift_parts), and how the reported pose
+covariance covers the errors (estimator/consistency.py), of the last run.
 
     python bench/matrix_summary.py [BEFORE/robustness.json] AFTER/robustness.json
 
@@ -94,6 +95,32 @@ def parts_table(results: list[dict]) -> list[str]:
     return lines
 
 
+def covariance_table(results: list[dict]) -> list[str]:
+    """Per row of the star, how the reported pose covariance covers the errors (each frame's error
+    since the start over its standard deviation: RMS, and the share within two; the final heading's
+    standard deviation against its error, RMS over the cells); none when the results have none
+    (runs before 2026-12-01)."""
+    rows: dict[str, list[dict]] = {}
+    for r in sorted(results, key=lambda r: r["name"]):
+        if r.get("covariance"):
+            rows.setdefault(row_of(r["cell"]), []).append(r)
+    if not rows:
+        return []
+    lines = ["| cells | heading error / sd, RMS | within 2 sd | final heading sd / error RMS, deg "
+             "| position error / sd, RMS | within 2 sd |", "| --- | ---: | ---: | ---: | ---: | ---: |"]
+    everything = [r for cells in rows.values() for r in cells]
+    for label, cells in [*sorted(rows.items(), key=lambda item: not item[0].startswith("base")), ("all", everything)]:
+        def mean(part: str, key: str) -> str:
+            values = [r["covariance"][part][key] for r in cells
+                      if r["covariance"].get(part) and r["covariance"][part][key] is not None]
+            return f"{statistics.mean(values):.2f}" if values else "-"
+        sd = statistics.mean(r["covariance"]["final_yaw_sigma_deg"] for r in cells)
+        err = statistics.mean(r["covariance"]["final_yaw_error_deg"] ** 2 for r in cells) ** 0.5
+        lines.append(f"| {label} ({len(cells)}) | {mean('yaw', 'z_rms')} | {mean('yaw', 'within_2sigma')} "
+                     f"| {sd:.1f} / {err:.1f} | {mean('position', 'z_rms')} | {mean('position', 'within_2sigma')} |")
+    return lines
+
+
 def summary(runs: list[list[dict]]) -> str:
     names = set.intersection(*({r["name"] for r in run} for run in runs))
     runs = [[r for r in run if r["name"] in names] for run in runs]
@@ -116,6 +143,10 @@ def summary(runs: list[list[dict]]) -> str:
     if parts:
         lines += ["", "What makes the drift (% of the path, means; each kind of frame's yaw errors alone, "
                       "and the translation's):", ""] + parts
+    covariance = covariance_table(runs[-1])
+    if covariance:
+        lines += ["", "The reported pose covariance against the errors (estimator/consistency.py; means over "
+                      "the cells):", ""] + covariance
     return "\n".join(lines)
 
 

@@ -160,12 +160,14 @@ def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
     seq = sequences.load(record(cell, data), cell.name)
     odom = RadarOdometry(estimator_config(cell, settings))
     poses = np.zeros((len(seq), 3))
+    covariances = np.zeros((len(seq), 3, 3))
     flagged = 0
     for i in range(len(seq)):
         st = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
         poses[i] = st.x, st.y, st.yaw
+        covariances[i] = st.pose_covariance
         flagged += not st.ok
-    return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged
+    return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged, covariances
 
 
 def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None):
@@ -183,7 +185,7 @@ def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = 
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     with open_source(cell.url) as source:
         truth = source.groundtruth()
-    return read_tum(out), truth, None
+    return read_tum(out), truth, None, None
 
 
 def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_adc: bool = False) -> dict:
@@ -198,7 +200,8 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     from radarodom.estimator.heading_metrics import drift_parts, heading_metrics
     from radarodom.strict_json import finite
     started = time.monotonic()
-    est, truth, flagged = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(cell, data, settings)
+    est, truth, flagged, covariances = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(
+        cell, data, settings)
     if isinstance(cell, SimCell) and not keep_adc:
         drop_adc(_sequence_dir(cell, data))
     est_m, ref_m = associate(est, truth, 0.01)
@@ -207,13 +210,25 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     parts = drift_parts(ref_m.times, ref_m.se2(), est_m.se2(), radar_on_base=mount)
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
-              "drift_parts": finite(parts),
+              "drift_parts": finite(parts), "covariance": _consistency(est, est_m, ref_m, covariances, mount),
               "compute_s": time.monotonic() - started, "fingerprint": fp}
     os.makedirs(os.path.dirname(path), exist_ok=True)
     with open(path + ".tmp", "w", encoding="utf-8") as fh:
         json.dump(result, fh, indent=1)
     os.replace(path + ".tmp", path)
     return {**result, "cached": False}
+
+
+def _consistency(est, est_m, ref_m, covariances, mount) -> dict | None:
+    """The reported pose covariance against the errors (estimator/consistency.py), over the frames
+    associated with the truth; the position's only with the radar on the base's axis (the truth
+    is the base's)."""
+    if covariances is None:
+        return None
+    from radarodom.estimator.consistency import covariance_consistency
+    from radarodom.strict_json import finite
+    frames = np.searchsorted(est.times, est_m.times)
+    return finite(covariance_consistency(ref_m.se2(), est_m.se2(), covariances[frames], position=mount[0] == 0.0))
 
 
 # ------------------------------------------------------------------ the matrix

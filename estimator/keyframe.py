@@ -46,6 +46,9 @@ class KeyframeCorrection:
     """Corrects each measured yaw increment against the keyframe (:meth:`correct`) and takes a
     new keyframe when the last is far enough behind or its turn has ended (:meth:`update`)."""
 
+    #: A measured step's noise is corrected against the keyframe: it does not add up in the heading.
+    bounds_noise = True
+
     def __init__(self, config: EstimatorConfig, yaw: YawMeasurement) -> None:
         odo = config.odometry
         self._config = config
@@ -142,6 +145,9 @@ class KeyframeCorrection:
 
 class NoKeyframes:
     """``keyframe_distance_m`` 0: the frame chain alone."""
+
+    #: Each frame's yaw noise stays in the chain's heading.
+    bounds_noise = False
 
     def correct(self, step: ChainStep, current: KeptFrame, frame: CurrentFrame, *,
                 registered: bool = True) -> tuple[float, float]:

@@ -19,11 +19,13 @@ def chord(yaw: float, dyaw: float, v: np.ndarray, dt: float) -> tuple[np.ndarray
 
 
 def integrate(pose: tuple[float, float, float], pose_covariance: np.ndarray, v: np.ndarray, v_cov: np.ndarray,
-              dyaw: float, var_yaw: float, dt: float) -> tuple[tuple[float, float, float], np.ndarray, np.ndarray]:
+              dyaw: float, var_yaw: float, dt: float,
+              pose_var_yaw: float | None = None) -> tuple[tuple[float, float, float], np.ndarray, np.ndarray]:
     """The pose (x, y m, yaw rad) after a step of body velocity *v* (2,) m/s of covariance
     *v_cov* (2, 2) and yaw increment *dyaw* rad of variance *var_yaw* rad^2 over *dt* s; its
-    covariance (3, 3) propagated through the step's Jacobians; and the step's twist covariance
-    (3, 3) of (vx, vy, yaw rate)."""
+    covariance (3, 3) propagated through the step's Jacobians, the step adding *pose_var_yaw*
+    rad^2 to its yaw (None: *var_yaw*); and the step's twist covariance (3, 3) of (vx, vy, yaw
+    rate)."""
     x0, y0, yaw0 = pose
     step, turn = chord(yaw0, dyaw, v, dt)
     x, y = x0 + step[0], y0 + step[1]
@@ -35,5 +37,9 @@ def integrate(pose: tuple[float, float, float], pose_covariance: np.ndarray, v: 
     twist = np.zeros((3, 3))
     twist[:2, :2] = v_cov
     twist[2, 2] = var_yaw / (dt * dt)
-    covariance = f @ pose_covariance @ f.T + g @ twist @ g.T
+    added = twist
+    if pose_var_yaw is not None:
+        added = twist.copy()
+        added[2, 2] = pose_var_yaw / (dt * dt)
+    covariance = f @ pose_covariance @ f.T + g @ added @ g.T
     return (float(x), float(y), float(yaw0 + dyaw)), covariance, twist

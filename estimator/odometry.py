@@ -134,6 +134,7 @@ class RadarOdometry:
         if self.point_yaw is not None:
             self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
         self._held_rate_std = odo.held_yaw_rate_std_radps
+        self._walk_var_m, self._walk_var_rad = odo.yaw_walk_per_sqrt_m ** 2, odo.yaw_walk_per_sqrt_rad ** 2
         # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess
         # without the rate's prediction would start the step across a run from no turn.
         self._bridge_s = odo.bridge_s if self.point_yaw is None and self.yaw.guess.uses_rate else 0.0
@@ -255,7 +256,13 @@ class RadarOdometry:
             if not bridged:  # (the keyframe is a frame of the run: a new one starts here)
                 dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame,
                                                        registered=step.registered)
-        pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt)
+        # Where the keyframes bound each frame's noise, what stays in the heading is each straight's
+        # and each turn's error (docs/heading.md, item 28).
+        walk = self._walk_var_m * float(np.hypot(v[0], v[1])) * dt + self._walk_var_rad * abs(dyaw)
+        if step.observed is None or bridged or not self.keyframes.bounds_noise:
+            walk += var_yaw
+        pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt,
+                                          pose_var_yaw=walk)
         # Across a bridged run, the increment since the latest state (the run's held motion).
         increment = dyaw if last is self._state else pose[2] - self._state.yaw
         state = OdometryState(t=t, frame=index, x=pose[0], y=pose[1], yaw=pose[2], vx=float(v[0]), vy=float(v[1]),

@@ -14,6 +14,7 @@ import math
 import numpy as np
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.dsp.processor import POINT_DTYPE
+from radarodom.estimator.odometry import RadarOdometry
 
 #: The AWR1843 heatmap axes: 64 azimuth bins at sin(az) = 2k/64, 256 range bins of 5 cm.
 N_AZ = 64
@@ -249,3 +250,26 @@ def static_cloud(v, n: int = 40, seed: int = 0) -> np.ndarray:
     """A noise-free cloud of static points seen moving at body velocity *v*."""
     rng = np.random.default_rng(seed)
     return points_polar(np.radians(rng.uniform(-60, 60, n)), 0.0, v, range_m=rng.uniform(1, 10, n))
+
+
+def run_sequence(config, trajectory: Trajectory, *, seed: int = 2, rate_hz: float = 10.0,
+                 start_pose=(0.0, 0.0, 0.0)):
+    """Feed a synthetic sequence through RadarOdometry.step; returns states and true poses
+    relative to the first frame."""
+    world, amp = scene(trajectory, 40, seed=seed)
+    x0, y0, yaw0 = start_pose
+    # Move the whole world so that the trajectory starts at start_pose in it.
+    world_moved = world @ rot(yaw0).T + [x0, y0]
+    rng = np.random.default_rng(seed + 100)
+    odom = RadarOdometry(config)
+    states, truths = [], []
+    n = round(trajectory.duration * rate_hz) + 1
+    for i in range(n):
+        t = i / rate_hz
+        px, py, pyaw = trajectory.pose(t)
+        wx, wy = rot(yaw0) @ [px, py] + [x0, y0]
+        vx, vy, _ = trajectory.twist(t)
+        cloud, hm = frame(world_moved, amp, (wx, wy, pyaw + yaw0), (vx, vy), rng)
+        states.append(odom.step(t, cloud, hm))
+        truths.append((px, py, pyaw))
+    return states, truths

@@ -17,7 +17,7 @@ import estimator_synth as synth
 import numpy as np
 import pytest
 from estimator_synth import (AZIMUTH_RAD, RANGE_M, SCENE_WORLD, Trajectory, blind_heatmap, points_polar,
-                             scene_heatmap, static_cloud)
+                             run_sequence, scene_heatmap, static_cloud)
 from radarodom.dsp.cfar import CfarParams
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.errors import ConfigError, TimeOrderError
@@ -248,29 +248,6 @@ TRAJECTORY_CONFIG = EstimatorConfig.paper().with_(
     icp={"initial_guess": "constant_rate"})
 
 STRAIGHT_ARC_TURN = Trajectory([(3.0, 1.0, 0.0), (3.0, 1.0, 20 * DEG), (3.0, 0.0, 30 * DEG)])
-
-
-def run_sequence(config: EstimatorConfig, trajectory: Trajectory, *, seed: int = 2, rate_hz: float = 10.0,
-                 start_pose=(0.0, 0.0, 0.0)):
-    """Feed a synthetic sequence through RadarOdometry.step; returns states and true poses
-    relative to the first frame."""
-    world, amp = synth.scene(trajectory, 40, seed=seed)
-    x0, y0, yaw0 = start_pose
-    # Move the whole world so that the trajectory starts at start_pose in it.
-    world_moved = world @ synth.rot(yaw0).T + [x0, y0]
-    rng = np.random.default_rng(seed + 100)
-    odom = RadarOdometry(config)
-    states, truths = [], []
-    n = round(trajectory.duration * rate_hz) + 1
-    for i in range(n):
-        t = i / rate_hz
-        px, py, pyaw = trajectory.pose(t)
-        wx, wy = synth.rot(yaw0) @ [px, py] + [x0, y0]
-        vx, vy, _ = trajectory.twist(t)
-        cloud, hm = synth.frame(world_moved, amp, (wx, wy, pyaw + yaw0), (vx, vy), rng)
-        states.append(odom.step(t, cloud, hm))
-        truths.append((px, py, pyaw))
-    return states, truths
 
 
 # =========================================================================== odometry

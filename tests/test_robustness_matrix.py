@@ -105,6 +105,7 @@ def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
     assert first["path_m"] > 1.0 and first["moving_turns"] >= 1  # the synthetic run drives a left arc
     assert first["yaw_rmse_deg"] < 2.0 and first["moving_turn_ratio"] == pytest.approx(1.0, abs=0.2)
     assert first["drift_parts"]["all"] == pytest.approx(first["drift_pct"])  # and what made it, by kind of frame
+    assert first["covariance"] is None  # a TUM file holds no covariance
     again = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
     assert again["cached"] and again["yaw_rmse_deg"] == first["yaw_rmse_deg"]
     assert "coloradar_" in rm.table([again])
@@ -174,6 +175,25 @@ def test_the_summary_says_what_makes_the_drift_per_row():
     assert lines[head] == "| cells | " + " | ".join(DRIFT_PARTS) + " |"
     assert lines[head + 2] == "| base (shipped cfg, scene SNR, 0.8 m/s, 45 deg/s) (2) | 0.50 | 0.50 | 0.50 | 0.50 | 2.00 | - | 0.50 |"
     assert lines[head + 3] == "| 1.5 m/s (1) | 0.50 | 0.50 | 0.50 | 0.50 | 2.00 | - | 0.50 |"
+
+
+def test_the_summary_says_how_the_covariance_covers_the_errors():
+    import matrix_summary
+    def result(name, z, final_sd, final_error, position=True, **cell):
+        cov = {"yaw": {"z_rms": z, "within_1sigma": 0.7, "within_2sigma": 0.8 + z / 5},
+               "position": {"z_rms": 2 * z, "within_1sigma": 0.5, "within_2sigma": 0.8} if position else None,
+               "final_yaw_error_deg": final_error, "final_yaw_sigma_deg": final_sd}
+        return {"name": name, "cell": {**dataclasses.asdict(rm.SimCell(scene="room")), **cell}, "yaw_rmse_deg": 0.3,
+                "straight_bias_deg_per_frame": 0.0, "moving_turn_ratio": 1.0, "inplace_turn_ratio": 1.0,
+                "drift_pct": 1.0, "final_heading_error_deg": 0.0, "covariance": cov}
+    older = {**result("d", 1.0, 1.0, 1.0, seed=2), "covariance": None}  # a cached result from before 2026-12-01
+    text = matrix_summary.summary([[result("a", 0.5, 4.0, 3.0), result("b", 1.0, 6.0, -4.0, seed=1),
+                                    result("c", 0.8, 5.0, 0.0, position=False, mount_m=0.3), older]])
+    lines = text.split("The reported pose covariance")[1].splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("| cells |"))
+    assert lines[head + 2] == "| base (shipped cfg, scene SNR, 0.8 m/s, 45 deg/s) (2) | 0.75 | 0.95 | 5.0 / 3.5 | 1.50 | 0.80 |"
+    assert lines[head + 3] == "| radar 0.3 m ahead, wheeled (1) | 0.80 | 0.96 | 5.0 / 0.0 | - | - |"
+    assert lines[head + 4].startswith("| all (3) | 0.77 | 0.95 | 5.0 / 2.9 | 1.50 | 0.80 |")
 
 
 @pytest.mark.parametrize("scene", sorted(rm.LAYOUT))
