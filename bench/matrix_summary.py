@@ -98,8 +98,8 @@ def parts_table(results: list[dict]) -> list[str]:
 def covariance_table(results: list[dict]) -> list[str]:
     """Per row of the star, how the reported pose covariance covers the errors (each frame's error
     since the start over its standard deviation: RMS, and the share within two; the final heading's
-    standard deviation against its error, RMS over the cells); none when the results have none
-    (runs before 2026-12-01)."""
+    standard deviation against its error, RMS over the cells), and the twist's yaw rate (each step's);
+    none when the results have none (runs before 2026-12-01)."""
     rows: dict[str, list[dict]] = {}
     for r in sorted(results, key=lambda r: r["name"]):
         if r.get("covariance"):
@@ -107,7 +107,8 @@ def covariance_table(results: list[dict]) -> list[str]:
     if not rows:
         return []
     lines = ["| cells | heading error / sd, RMS | within 2 sd | final heading sd / error RMS, deg "
-             "| position error / sd, RMS | within 2 sd |", "| --- | ---: | ---: | ---: | ---: | ---: |"]
+             "| position error / sd, RMS | within 2 sd | yaw rate error / sd, RMS | within 2 sd |",
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     everything = [r for cells in rows.values() for r in cells]
     for label, cells in [*sorted(rows.items(), key=lambda item: not item[0].startswith("base")), ("all", everything)]:
         def mean(part: str, key: str) -> str:
@@ -117,7 +118,8 @@ def covariance_table(results: list[dict]) -> list[str]:
         sd = statistics.mean(r["covariance"]["final_yaw_sigma_deg"] for r in cells)
         err = statistics.mean(r["covariance"]["final_yaw_error_deg"] ** 2 for r in cells) ** 0.5
         lines.append(f"| {label} ({len(cells)}) | {mean('yaw', 'z_rms')} | {mean('yaw', 'within_2sigma')} "
-                     f"| {sd:.1f} / {err:.1f} | {mean('position', 'z_rms')} | {mean('position', 'within_2sigma')} |")
+                     f"| {sd:.1f} / {err:.1f} | {mean('position', 'z_rms')} | {mean('position', 'within_2sigma')} "
+                     f"| {mean('yaw_rate', 'z_rms')} | {mean('yaw_rate', 'within_2sigma')} |")
     return lines
 
 

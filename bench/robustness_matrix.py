@@ -160,12 +160,12 @@ def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
     seq = sequences.load(record(cell, data), cell.name)
     odom = RadarOdometry(estimator_config(cell, settings))
     poses = np.zeros((len(seq), 3))
-    covariances = np.zeros((len(seq), 3, 3))
+    covariances = np.zeros((len(seq), 2, 3, 3))
     flagged = 0
     for i in range(len(seq)):
         st = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
         poses[i] = st.x, st.y, st.yaw
-        covariances[i] = st.pose_covariance
+        covariances[i] = st.pose_covariance, st.twist_covariance
         flagged += not st.ok
     return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged, covariances
 
@@ -220,15 +220,20 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
 
 
 def _consistency(est, est_m, ref_m, covariances, mount) -> dict | None:
-    """The reported pose covariance against the errors (estimator/consistency.py), over the frames
-    associated with the truth; the position's only with the radar on the base's axis (the truth
-    is the base's)."""
+    """The reported pose covariance (and the twist's yaw rate) against the errors
+    (estimator/consistency.py), over the frames associated with the truth; the position's only with
+    the radar on the base's axis (the truth is the base's). *covariances*: (n, 2, 3, 3) each
+    frame's pose and twist covariances."""
     if covariances is None:
         return None
     from radarodom.estimator.consistency import covariance_consistency
     from radarodom.strict_json import finite
     frames = np.searchsorted(est.times, est_m.times)
-    return finite(covariance_consistency(ref_m.se2(), est_m.se2(), covariances[frames], position=mount[0] == 0.0))
+    # The twist's yaw rate is each state's step from the one before: only where every frame matched.
+    every = len(frames) == len(est.times)
+    return finite(covariance_consistency(ref_m.se2(), est_m.se2(), covariances[frames, 0], position=mount[0] == 0.0,
+                                         twist_covariance=covariances[frames, 1] if every else None,
+                                         times=est_m.times if every else None))
 
 
 # ------------------------------------------------------------------ the matrix

@@ -28,21 +28,29 @@ def _summary(z: np.ndarray) -> dict:
 
 
 def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_covariance: np.ndarray, *,
-                           position: bool = True) -> dict:
+                           position: bool = True, twist_covariance: np.ndarray | None = None,
+                           times: np.ndarray | None = None) -> dict:
     """The heading's (and, with *position*, the position's) error over the reported standard
-    deviation, frame by frame.
+    deviation, frame by frame; with *twist_covariance* and *times*, the yaw rate's too.
 
     *reference*, *estimate*: (n, 3) x, y m and yaw rad of the same frames (associated), each in its
     own world; the reference is put in the estimate's by their first poses.  *pose_covariance*:
-    (n, 3, 3) the estimate's, over (x, y, yaw).  Returns ``yaw`` and ``position`` (None without
-    *position*), each {"z_rms", "within_1sigma", "within_2sigma"} over the frames with a variance,
-    and ``final_yaw_error_deg`` and ``final_yaw_sigma_deg`` (the last frame's)."""
+    (n, 3, 3) the estimate's, over (x, y, yaw).  *twist_covariance*: (n, 3, 3) over (vx, vy, yaw
+    rate), each frame's of its step from the frame before (consecutive states), *times* (n,) s.
+    Returns ``yaw``, ``position`` (None without *position*) and ``yaw_rate`` (None without the
+    twist's), each {"z_rms", "within_1sigma", "within_2sigma"} over the frames with a variance, and
+    ``final_yaw_error_deg`` and ``final_yaw_sigma_deg`` (the last frame's)."""
     reference, estimate = np.asarray(reference, float), np.asarray(estimate, float)
     cov = np.asarray(pose_covariance, float)
     n = len(reference)
-    if reference.shape != (n, 3) or estimate.shape != (n, 3) or cov.shape != (n, 3, 3) or n < 2:
+    twist = None if twist_covariance is None else np.asarray(twist_covariance, float)
+    stamps = None if times is None else np.asarray(times, float)
+    if (reference.shape != (n, 3) or estimate.shape != (n, 3) or cov.shape != (n, 3, 3) or n < 2
+            or (twist is None) != (stamps is None)
+            or (twist is not None and (twist.shape != (n, 3, 3) or stamps.shape != (n,)))):
+        shapes = [a.shape for a in (reference, estimate, cov, twist, stamps) if a is not None]
         raise EvaluationError(f"covariance_consistency: need n >= 2 poses (n, 3) and covariances (n, 3, 3) of the "
-                             f"same frames, got {reference.shape}, {estimate.shape}, {cov.shape}")
+                              f"same frames (a twist's with their times (n,)), got shapes {shapes}")
     turn = estimate[0, 2] - reference[0, 2]
     c, s = math.cos(turn), math.sin(turn)
     d = reference[:, :2] - reference[0, :2]
@@ -53,4 +61,8 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
            "final_yaw_sigma_deg": math.degrees(math.sqrt(max(float(cov[-1, 2, 2]), 0.0)))}
     if position:
         out["position"] = _summary(_normalised(np.hypot(*(estimate[:, :2] - placed).T), cov[:, 0, 0] + cov[:, 1, 1]))
+    out["yaw_rate"] = None
+    if twist is not None:
+        step_error = np.angle(np.exp(1j * (np.diff(estimate[:, 2]) - np.diff(reference[:, 2]))))
+        out["yaw_rate"] = _summary(_normalised(step_error, twist[1:, 2, 2] * np.diff(stamps) ** 2))
     return out

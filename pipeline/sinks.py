@@ -10,7 +10,7 @@ processing fails.  A new output is a new sink, not an edit of the loop.
 - :class:`TumSink`: the odometry, one TUM line per heatmap frame.
 - :class:`OdometryJsonSink`: the odometry as JSON lines: each line exactly the odometry message
   radarodom publishes (``radarodom/odom`` v1, :mod:`radarodom.messages`), what
-  ``radar-echo --json odom`` prints and ``radar-eval --flags`` reads.
+  ``radar-echo --json odom`` prints and ``radar-eval --odom`` reads.
 - :class:`PointsCsvSink`: point clouds as CSV: ``frame, t, x, y, z, range, azimuth, elevation,
   velocity, snr_db`` (TI sensor frame, m, rad, m/s, dB), one row per point, rows of a frame
   together, flushed frame by frame.

@@ -155,9 +155,10 @@ CORRIDOR_URL = "sim://corridor?rate=max&duration=3"
 @pytest.fixture(scope="session")
 def corridor_run(tmp_path_factory):
     """radar-capture streaming :data:`CORRIDOR_URL` (publishing on a free loopback port of its
-    own), recording it (``--record``) and writing its odometry (``--odom-out``), once for the
-    session: the same run was made by test_cli_odometry, test_eval_plots, test_cli_publish and
-    test_coloradar_source each.  Namespace of base (the run's folder), rec, tum, proc (the
+    own), recording it (``--record``) and writing its odometry (``--odom-out``; its messages,
+    ``--odom-json``), once for the session: the same run was made by test_cli_odometry,
+    test_eval_plots, test_cli_publish and test_coloradar_source each.  Namespace of base (the
+    run's folder), rec, tum, odom (the messages' file), proc (the
     CompletedProcess) and seconds.  The recording and the trajectory are read, never changed:
     a test that edits the recording works on a copy (``shutil.copytree``)."""
     import subprocess
@@ -165,13 +166,13 @@ def corridor_run(tmp_path_factory):
     from types import SimpleNamespace
 
     base = tmp_path_factory.mktemp("corridor_run")
-    rec, tum = base / "rec", base / "live.tum"
+    rec, tum, odom = base / "rec", base / "live.tum", base / "live.jsonl"
     start = time.monotonic()
     proc = subprocess.run(console_command("radar-capture") + private_zenoh(["--source", CORRIDOR_URL, "--record", rec,
-                                                                            "--odom-out", tum]),
+                                                                            "--odom-out", tum, "--odom-json", odom]),
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    return SimpleNamespace(base=base, rec=rec, tum=tum, proc=proc, seconds=time.monotonic() - start)
+    return SimpleNamespace(base=base, rec=rec, tum=tum, odom=odom, proc=proc, seconds=time.monotonic() - start)
 
 
 @pytest.fixture

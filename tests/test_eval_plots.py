@@ -107,8 +107,8 @@ def test_without_flags_the_figures_say_how_to_get_them(s_bends):
     figures = plots.evaluation_figures(s_bends, name="x")
     assert "flags.png" not in figures
     text = all_text(figures["report.png"])
-    assert "quality flags: not given (radar-eval --flags ODOM.jsonl)" in text
-    assert "not given: radar-eval --flags ODOM.jsonl" in text
+    assert "quality flags: not given (radar-eval --odom ODOM.jsonl)" in text
+    assert "not given: radar-eval --odom ODOM.jsonl" in text
 
 
 def test_trajectory_axes_are_equal_and_tight_with_start_and_end_marked(s_bends):
@@ -305,13 +305,26 @@ def test_radar_eval_plot_figures_match_what_it_printed(sim_run):
 
 def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     gt = sim_run.rec / "groundtruth.tum"
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--name", "x", timeout=120)
+    assert (proc.returncode, proc.stderr) == (2, "radar-eval: error: --name is for the plots: add --plot DIR\n")
+    # Without --plot the messages' covariances are still checked (these hand-written ones report none).
     proc = run_cli("radar-eval", sim_run.tum, gt, "--flags", sim_run.flags, timeout=120)
-    assert (proc.returncode, proc.stderr) == (2, "radar-eval: error: --flags is for the plots: add --plot DIR\n")
+    assert proc.returncode == 0 and "  heading           no variance reported" in proc.stdout
     late = tmp_path / "late.jsonl"
     late.write_text(odom_line(5000.0, 0) + odom_line(5000.1, 1))
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", late, timeout=120)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
-    assert f"radar-eval: error: {late}: its 2 odometry messages (t 5000.000 .. 5000.100 s) fall outside" in proc.stderr
+    # (its covariances are checked first: the messages' poses match none of the truth's)
+    assert f"radar-eval: error: only 0 pose(s) of {late} (2 poses, t 5000.000 .. 5000.100 s)" in proc.stderr
+    # Messages that match the truth but not the evaluated stretch of the estimate: no flags to plot.
+    early = tmp_path / "early.tum"
+    early.write_text("".join(sim_run.tum.read_text().splitlines(keepends=True)[:10]))
+    later = tmp_path / "later.jsonl"
+    later.write_text("".join(sim_run.flags.read_text().splitlines(keepends=True)[20:]))
+    proc = run_cli("radar-eval", early, gt, "--plot", tmp_path / "p", "--flags", later, timeout=120)
+    assert proc.returncode == 2, proc.stderr  # (after a warning: the first second stands still, no RPE per metre)
+    assert proc.stderr.splitlines()[-1].startswith(f"radar-eval: error: {later}: its 10 odometry messages (t 2.000 "
+                                                   ".. 2.900 s) fall outside the evaluated poses (t 0.000 .. 0.900 s)")
     bad = tmp_path / "bad.jsonl"
     bad.write_text(odom_line(1.0, 0) + "oops\n")
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad, timeout=120)
@@ -332,9 +345,9 @@ def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path):
     out.mkdir()
     flags = out / "flags.png"  # an odometry log saved under a plot's name
     shutil.copyfile(sim_run.flags, flags)
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", out, "--flags", flags, timeout=120)
+    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", out, "--odom", flags, timeout=120)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
-    assert f"--plot's flags.png {flags} would write over the input --flags {flags}" in proc.stderr
+    assert f"--plot's flags.png {flags} would write over the input --odom {flags}" in proc.stderr
     assert flags.read_bytes() == sim_run.flags.read_bytes() and sorted(p.name for p in out.iterdir()) == ["flags.png"]
 
 

@@ -121,6 +121,11 @@ def test_consistency_of_the_synthetic_loop(loop):
     assert got["yaw"]["within_2sigma"] == 1.0 and 0.1 < got["yaw"]["z_rms"] < 1.5
     assert 0.1 < got["position"]["z_rms"] < 1.5
     assert got["final_yaw_sigma_deg"] == pytest.approx(math.degrees(math.sqrt(states[-1].pose_covariance[2, 2])))
+    assert got["yaw_rate"] is None
+    with_twist = covariance_consistency(np.array(truths), est, np.array([s.pose_covariance for s in states]),
+                                        twist_covariance=np.array([s.twist_covariance for s in states]),
+                                        times=np.array([s.t for s in states]))
+    assert with_twist["yaw"] == got["yaw"] and 0.1 < with_twist["yaw_rate"]["z_rms"] < 1.5
     assert got["final_yaw_error_deg"] == pytest.approx(math.degrees(states[-1].yaw - truths[-1][2]), abs=1e-9)
 
 
@@ -142,5 +147,13 @@ def test_consistency_puts_the_truth_in_the_estimates_world_and_counts_the_frames
     assert got["position"]["z_rms"] == pytest.approx(math.sqrt(1 / 3)) and got["position"]["within_1sigma"] == 1.0
     assert got["final_yaw_error_deg"] == pytest.approx(3.0) and got["final_yaw_sigma_deg"] == pytest.approx(1.0)
     assert covariance_consistency(truth, est, cov, position=False)["position"] is None
+    # The yaw rate: each step's turn error (0.5, -2, 4.5 degrees) over its rate's sd (1 deg/s) times 0.4 s.
+    twist = np.zeros((4, 3, 3))
+    twist[:, 2, 2] = DEG ** 2
+    rate = covariance_consistency(truth, est, cov, twist_covariance=twist, times=np.arange(4) * 0.4)["yaw_rate"]
+    assert rate["z_rms"] == pytest.approx(math.sqrt((1.25 ** 2 + 5 ** 2 + 11.25 ** 2) / 3))
+    assert rate["within_1sigma"] == 0.0 and rate["within_2sigma"] == pytest.approx(1 / 3)
     with pytest.raises(EvaluationError, match="same frames"):
         covariance_consistency(truth, est[:3], cov)
+    with pytest.raises(EvaluationError, match="their times"):
+        covariance_consistency(truth, est, cov, twist_covariance=twist)

@@ -1,6 +1,7 @@
-"""The estimator's quality flags over a run, read from its odometry messages.
+"""The estimator's quality flags over a run, and its poses' covariances, read from its odometry
+messages.
 
-A TUM file holds poses only.  The flags come from the odometry v1 messages
+A TUM file holds poses only.  The flags and the covariances come from the odometry v1 messages
 (:mod:`radarodom.messages`, schema ``radarodom/odom``) written one JSON object per line:
 what ``radar-echo --json odom`` prints while ``radar-capture`` publishes (its ``key`` field
 is ignored).  Objects of another schema (``radar-echo --json odom status`` interleaves status
@@ -9,6 +10,7 @@ messages) are skipped; every odometry object is checked as a subscriber checks i
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -26,11 +28,16 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class FlagTimeline:
     """The flags of each odometry step: ``times`` (k,) s, increasing, and ``flags`` (k,)
-    tuples of flag names (empty: a good step); ``source`` names the file."""
+    tuples of flag names (empty: a good step); ``source`` names the file.  Read from a file, also
+    each message's ``poses`` (k, 3) x, y m and yaw rad and its ``pose_covariance`` and
+    ``twist_covariance`` (k, 3, 3)."""
 
     times: np.ndarray
     flags: tuple[tuple[str, ...], ...]
     source: str = ""
+    poses: np.ndarray | None = None
+    pose_covariance: np.ndarray | None = None
+    twist_covariance: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.times)
@@ -48,12 +55,14 @@ class FlagTimeline:
 
     def since(self, t0: float) -> "FlagTimeline":
         """The same steps with times counted from *t0* (s)."""
-        return FlagTimeline(self.times - t0, self.flags, self.source)
+        return dataclasses.replace(self, times=self.times - t0)
 
     def within(self, start: float, end: float) -> "FlagTimeline":
         """The steps with start <= t <= end."""
         keep = np.flatnonzero((self.times >= start) & (self.times <= end))
-        return FlagTimeline(self.times[keep], tuple(self.flags[i] for i in keep), self.source)
+        rows = {name: None if getattr(self, name) is None else getattr(self, name)[keep]
+                for name in ("poses", "pose_covariance", "twist_covariance")}
+        return FlagTimeline(self.times[keep], tuple(self.flags[i] for i in keep), self.source, **rows)
 
 
 def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
@@ -66,6 +75,8 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
     path = os.fspath(path)
     times: list[float] = []
     flags: list[tuple[str, ...]] = []
+    poses: list[tuple[float, float, float]] = []
+    covariances: list[tuple[list, list]] = []
     skipped = 0
     try:
         with open(path, encoding="utf-8-sig") as fh:  # a BOM (a Windows editor's) ignored
@@ -93,6 +104,8 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
                                              f"message's {times[-1]:.9f} s; one run's messages, in order, are needed")
                 times.append(float(m["t"]))
                 flags.append(tuple(m["flags"]))
+                poses.append((m["x"], m["y"], m["yaw"]))
+                covariances.append((m["pose_covariance"], m["twist_covariance"]))
     except FileNotFoundError:
         raise UsageError(f"{path}: no such file") from None
     except IsADirectoryError:
@@ -106,4 +119,6 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
                          f"radar-echo --json odom > FILE while radar-capture publishes")
     if skipped:
         log.info("%s: %d lines of other messages skipped", path, skipped)
-    return FlagTimeline(np.asarray(times), tuple(flags), path)
+    cov = np.asarray(covariances, float).reshape(len(times), 2, 3, 3)
+    return FlagTimeline(np.asarray(times), tuple(flags), path, poses=np.asarray(poses, float),
+                        pose_covariance=cov[:, 0], twist_covariance=cov[:, 1])

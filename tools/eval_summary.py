@@ -86,6 +86,25 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
     ])
 
 
+def format_covariance(c: dict, source: str, used: int, total: int) -> str:
+    """The lines radar-eval prints for the reported covariances against the truth
+    (``covariance_consistency``'s dict *c*, over *used* of the *total* messages of *source*)."""
+    def line(label: str, part: dict | None, why: str, more: str = "") -> str:
+        if part is None or part["z_rms"] is None:
+            return f"  {label:<18}{why}"
+        return (f"  {label:<18}RMS {part['z_rms']:.2f}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
+                f"within 2 sd {100 * part['within_2sigma']:.0f} %{more}")
+    return "\n".join([
+        f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched; each error over its "
+        "standard deviation,",
+        "  a normal one within 1 sd in 68 % of the frames, 2 sd in 95 %; RMS below 1: the covariance is wide):",
+        line("heading", c["yaw"], "no variance reported",
+             f"; after the run: error {c['final_yaw_error_deg']:+.2f} deg, sd {c['final_yaw_sigma_deg']:.2f} deg"),
+        line("position", c["position"], "not compared: the radar sits off the base's axis (--mount)"),
+        line("yaw rate", c["yaw_rate"], "not compared: not every message matched a pose of the truth", " (each step's)"),
+    ])
+
+
 def _num(value: float, spec: str) -> str:
     return "-" if not math.isfinite(value) else format(value, spec)
 
@@ -110,7 +129,7 @@ def summary_lines(r: EvaluationResult, flags: FlagTimeline | None = None) -> lis
         f"{_num(Stats.of(rpe_f.rotation_deg).rmse, '.3f')} deg (RMSE)",
     ]
     if flags is None:
-        lines.append("quality flags: not given (radar-eval --flags ODOM.jsonl)")
+        lines.append("quality flags: not given (radar-eval --odom ODOM.jsonl)")
     else:
         # "ok" as the odometry message has it: no flag but first_frame.
         not_ok = sum(bool(set(f) - {Flag.FIRST_FRAME}) for f in flags.flags)

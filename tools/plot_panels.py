@@ -231,7 +231,7 @@ def flags(ax: Any, d: PlotData) -> None:
     """One row per flag that occurs, a bar over each run of steps that carry it."""
     _time_axis(ax, d, "", "Estimator quality flags")
     if d.flags is None:
-        ax.text(0.5, 0.5, "not given: radar-eval --flags ODOM.jsonl", transform=ax.transAxes,
+        ax.text(0.5, 0.5, "not given: radar-eval --odom ODOM.jsonl", transform=ax.transAxes,
                 ha="center", va="center", color="0.4")
         ax.set_yticks([])
         return

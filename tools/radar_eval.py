@@ -1,6 +1,6 @@
 """radar-eval: compare an estimated trajectory with ground truth.
 
-    radar-eval EST.tum GT.tum|SOURCE_URL [--plot DIR [--name NAME] [--flags ODOM.jsonl]] [--json FILE [--overwrite]]
+    radar-eval EST.tum GT.tum|SOURCE_URL [--odom ODOM.jsonl] [--plot DIR [--name NAME]] [--json FILE [--overwrite]]
                [--delta-m M] [--max-diff S] [--mount X,Y,Z,YAW_DEG] [-v|-q]
 
 The ground truth is a TUM file, or the source URL the estimate was made from when that source
@@ -12,10 +12,12 @@ Prints a table of relative pose errors (per frame and per distance), the
 yaw-increment error, the absolute trajectory error after Umeyama alignment and
 the final drift, then the heading figures of docs/heading.md (the straight drives' heading bias,
 the turns' measured share, the drift each kind of frame makes; straight drives and turns in
-place told by the motion of the base the radar sits on, ``--mount``); ``--json`` writes the
-same numbers, ``--plot`` PNGs (``report.png`` has them all), titled ``--name`` (default: the
-estimate's file name) and with the estimator's quality flags from ``--flags`` (its odometry
-messages, one JSON object per line).
+place told by the motion of the base the radar sits on, ``--mount``); with ``--odom`` (the
+estimator's odometry messages, one JSON object per line, as ``radar-capture --odom-json`` writes
+them; ``--flags`` is the same option) how their reported covariances cover the errors
+(estimator/consistency.py). ``--json`` writes the same numbers, ``--plot`` PNGs (``report.png`` has
+them all), titled ``--name`` (default: the estimate's file name) and with the messages' quality
+flags.
 """
 
 from __future__ import annotations
@@ -32,12 +34,13 @@ import numpy as np
 from ..driver.recordings.capture_writer import json_text
 from ..errors import UsageError
 from ..mount import Mount
+from ..estimator.consistency import covariance_consistency
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..estimator.heading_metrics import drift_parts, heading_metrics
 from ..driver.sources import open_source
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
-from .eval_summary import format_heading, format_table
+from .eval_summary import format_covariance, format_heading, format_table
 
 log = logging.getLogger("radarodom.tools.radar_eval")
 
@@ -59,9 +62,10 @@ def build_parser() -> argparse.ArgumentParser:
                              "(needs matplotlib)")
     parser.add_argument("--name", metavar="NAME",
                         help="the run's name on the plots (default: the estimate's file name without .tum)")
-    parser.add_argument("--flags", metavar="ODOM.jsonl",
-                        help="the estimator's quality flags for the plots: its odometry messages, one JSON "
-                             "object per line, as radar-echo --json odom prints them")
+    parser.add_argument("--odom", "--flags", dest="odom", metavar="ODOM.jsonl",
+                        help="the estimator's odometry messages, one JSON object per line (radar-capture --odom-json, "
+                             "radar-echo --json odom): their covariances checked against the ground truth, and "
+                             "their quality flags on the plots")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE (a new file)")
     cli.add_overwrite(parser)
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
@@ -79,15 +83,15 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(args: argparse.Namespace) -> int:
     if args.plot:
         plots.require_matplotlib()  # before the work, not after it
-    elif args.flags or args.name:
-        raise UsageError(f"{'--flags' if args.flags else '--name'} is for the plots: add --plot DIR")
+    elif args.name:
+        raise UsageError("--name is for the plots: add --plot DIR")
     for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
         if not os.path.isfile(path):
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
     _check_outputs(args)
     estimate = read_tum(args.estimate)
     reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
-    flags = plots.read_odometry_flags(args.flags) if args.flags else None
+    flags = plots.read_odometry_flags(args.odom) if args.odom else None
     # Coordinates near the float limit make lengths overflow: one warning below, not numpy's
     # one per operation.
     with np.errstate(over="ignore", invalid="ignore"):
@@ -97,9 +101,13 @@ def _main(args: argparse.Namespace) -> int:
         heading = heading_metrics(result.times, result.ref, result.est, radar_on_base=on_base)
         parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
+        covariance = None if flags is None else _covariance(flags, reference, args)
+        if covariance is not None:
+            table += "\n\n" + format_covariance(covariance[0], flags.source, covariance[1], len(flags))
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
         # (json_text writes standard JSON: an undefined figure becomes null)
-        data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts}} if args.json else None
+        data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts},
+                **({} if covariance is None else {"covariance": covariance[0]})} if args.json else None
     if overflow and args.plot:  # matplotlib cannot scale an axis of inf (an internal error)
         raise UsageError("--plot: the coordinates are too large to draw: lengths overflow (are the files in "
                          "metres?); without --plot the table shows what can be computed")
@@ -132,17 +140,32 @@ def _check_outputs(args: argparse.Namespace) -> None:
     outputs = [("--json", args.json)] if args.json else []
     if args.plot:
         outputs += [(f"--plot's {name}", os.path.join(args.plot, name))
-                    for name in plots.file_names(flags=bool(args.flags))]
+                    for name in plots.file_names(flags=bool(args.odom))]
     if not outputs:
         return
     url = "://" in args.reference  # a recording or a run the ground truth is read from
-    inputs = cli.read_paths([("EST.tum", args.estimate), ("--flags", args.flags),
+    inputs = cli.read_paths([("EST.tum", args.estimate), ("--odom", args.odom),
                              ("GT.tum", None if url else args.reference)],
                             args.reference if url else None, source_option="GT.tum|URL")
     cli.check_distinct(outputs, inputs)
     if args.json:  # (it may go into a --plot directory the run makes)
         plot = [(args.plot, "directory", "--plot")] if args.plot else []
         cli.check_new_outputs(plot + [(args.json, "file", "--json")], overwrite=args.overwrite)
+
+
+def _covariance(odom: plots.FlagTimeline, reference: TumTrajectory, args: argparse.Namespace) -> tuple[dict, int]:
+    """How the odometry messages' covariances cover their errors against *reference*, over the
+    messages matched to it in time, and how many matched.  The position only for a radar on the
+    base's axis (the truth is the base's); the yaw rate only when every message matched (each
+    one's twist is of its step from the one before)."""
+    est = TumTrajectory.from_se2(odom.times, odom.poses, source=odom.source)
+    est_m, ref_m = associate(est, reference, args.max_diff)
+    frames = np.searchsorted(odom.times, est_m.times)
+    every = len(frames) == len(odom)
+    on_axis = args.mount.x == 0.0 and args.mount.y == 0.0
+    return covariance_consistency(ref_m.se2(), est_m.se2(), odom.pose_covariance[frames], position=on_axis,
+                                  twist_covariance=odom.twist_covariance[frames] if every else None,
+                                  times=est_m.times if every else None), len(frames)
 
 
 def _source_groundtruth(url: str) -> TumTrajectory:
