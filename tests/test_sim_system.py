@@ -724,6 +724,18 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nrcs = 1e7\n' + _PAUSE, ("movers.rcs: must be from 0",)),
     ('[trajectory]\nsmoothing_s = 1e300\nsegments = [{ pause = 1 }]\n',
      ("trajectory: smoothing_s must be at most 10 s (the speed and turn-rate ramps), got 1e+300",)),
+    # A segment so fast that it lasts less than the simulator's 1 ms step moved nothing: alone, the
+    # trajectory was "no motion and no time"; among others, silently left out.
+    ('[trajectory]\nsegments = [{ straight = 2, speed = 1e300 }]\n',
+     ("trajectory: speed must be at most 100 m/s (a robot's or a car's), got 1e+300",)),
+    ('[trajectory]\nsegments = [{ pause = 1 }, { turn = 90, radius = 1e-9, speed = 1 }]\n',
+     ("trajectory: a turn at 1 m/s on a radius of 1e-09 m turns at 5.73e+10 deg/s, more than 3600",
+      "a larger radius or a rotate segment")),
+    ('[trajectory]\nsegments = [{ rotate = 90, rate = 1e300 }]\n', ("trajectory: rate must be at most 3600 deg/s",)),
+    ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nturn_rate = 1e9\n', ("trajectory: turn_rate must be at most 3600",)),
+    ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nspeed = 101\n', ("trajectory: speed must be at most 100 m/s",)),
+    ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nspeed = 1e300\n' + _PAUSE,
+     ("movers.speed: must be from 0 to 100 m/s (a person walks at 1-2), got 1e+300",)),
 ])
 def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
     path = _write_scene(tmp_path, "scene", text)
@@ -733,6 +745,14 @@ def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
     assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
     assert all(w in lines[0] for w in words), lines[0]
     assert not (tmp_path / "cap").exists()
+
+
+def test_a_trajectory_may_drive_and_turn_up_to_the_limits():
+    fast = scene_from_dict({"trajectory": {"segments": [{"straight": 10.0, "speed": 100.0},
+                                                        {"turn": 90, "radius": 0.1, "speed": 6.0},
+                                                        {"rotate": 360, "rate": 3600.0}]}}).trajectory
+    assert fast.length_m == pytest.approx(10.0 + 0.1 * math.pi / 2, rel=1e-3)
+    assert math.degrees(fast.pose(fast.duration_s)[2] - fast.pose(0.0)[2]) == pytest.approx(450.0, abs=1.0)
 
 
 def test_a_scene_may_be_large_and_strong_within_the_limits(shipped_cfg):

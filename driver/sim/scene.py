@@ -38,7 +38,7 @@ from ...errors import ConfigError, quoted_json
 from .scene_values import (MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS,
                            SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
                            cross_section, vec, within)
-from .trajectory import Trajectory, check_keys, from_spec, polyline
+from .trajectory import MAX_SPEED_MPS, Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -344,7 +344,9 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         path = polyline(need(m, "path", where), where, "movers.path")
         if not np.hypot(*np.diff(path, axis=0).T).all():
             raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")
-        movers.append(Person(path, num(m, "speed", 1.2, where, positive=True, name="movers.speed"),
+        speed = within(num(m, "speed", 1.2, where, positive=True, name="movers.speed"), 0.0, MAX_SPEED_MPS, where,
+                       "movers.speed", " m/s (a person walks at 1-2)")
+        movers.append(Person(path, speed,
                              cross_section(m, "rcs", 0.5, where, name="movers.rcs"),
                              float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
     trajectory = from_spec(need(spec, "trajectory", where), where)

@@ -89,6 +89,10 @@ MAX_DURATION_S = 3600.0
 #: The longest speed and turn-rate ramp, s (smoothing_s; 0.3 s in the built-in scenes): its moving
 #: average is STEP_S wide per sample (1e300 s was an internal error, an hour's ramp a long wait).
 MAX_SMOOTHING_S = 10.0
+#: The fastest a trajectory drives, m/s, and turns, deg/s: a robot's or a car's.  Faster, a segment
+#: lasts less than a step and moved nothing (a speed of 1e300 was "no motion and no time").
+MAX_SPEED_MPS = 100.0
+MAX_TURN_RATE_DPS = 3600.0
 #: The keys of each kind of segment.
 SEGMENT_KEYS = {"straight": ("straight", "speed"), "turn": ("turn", "radius", "speed"),
                 "rotate": ("rotate", "rate"), "pause": ("pause",)}
@@ -110,7 +114,9 @@ def check_keys(table: dict, known: Sequence[str], where: str, what: str) -> None
                           path=where, field=f"{what}.{unknown[0]}" if what and " " not in what else unknown[0])
 
 
-def _number(seg: dict, key: str, where: str, default: float | None = None, positive: bool = False) -> float:
+def _number(seg: dict, key: str, where: str, default: float | None = None, positive: bool = False,
+            maximum: tuple[float, str] | None = None) -> float:
+    """*seg*'s number *key*; *maximum*: (the largest, its unit and why)."""
     value = seg.get(key, default)
     if value is None:
         raise _fail(f"{seg!r} needs {key!r}", where)
@@ -118,7 +124,14 @@ def _number(seg: dict, key: str, where: str, default: float | None = None, posit
         raise _fail(f"{key} must be a number, got {value!r}", where)
     if positive and value <= 0:
         raise _fail(f"{key} must be above 0, got {value!r}", where)
+    if maximum is not None and value > maximum[0]:
+        raise _fail(f"{key} must be at most {maximum[0]:g} {maximum[1]}, got {value:g}", where)
     return float(value)
+
+
+#: _number's maxima of a speed and of a turn's rate.
+_SPEED = (MAX_SPEED_MPS, "m/s (a robot's or a car's)")
+_RATE = (MAX_TURN_RATE_DPS, "deg/s (ten turns a second)")
 
 
 def polyline(value: Any, where: str, what: str) -> np.ndarray:
@@ -145,17 +158,21 @@ def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, 
             check_keys(seg, SEGMENT_KEYS[kind], where, f"a {kind} segment")
         if "straight" in seg:
             dist = _number(seg, "straight", where, positive=True)
-            speed = _number(seg, "speed", where, 1.0, positive=True)
+            speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
             out.append((dist / speed, speed, 0.0))
         elif "turn" in seg:
             angle = math.radians(_number(seg, "turn", where))
             radius = _number(seg, "radius", where, 1.0, positive=True)
-            speed = _number(seg, "speed", where, 1.0, positive=True)
+            speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
             rate = speed / radius
+            if math.degrees(rate) > MAX_TURN_RATE_DPS:
+                raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at {math.degrees(rate):.4g} "
+                            f"deg/s, more than {MAX_TURN_RATE_DPS:g} (ten turns a second): a larger radius or a "
+                            "rotate segment", where)
             out.append((abs(angle) / rate, speed, math.copysign(rate, angle)))
         elif "rotate" in seg:
             angle = math.radians(_number(seg, "rotate", where))
-            rate = math.radians(_number(seg, "rate", where, 45.0, positive=True))
+            rate = math.radians(_number(seg, "rate", where, 45.0, positive=True, maximum=_RATE))
             out.append((abs(angle) / rate, 0.0, math.copysign(rate, angle)))
         elif "pause" in seg:
             out.append((_number(seg, "pause", where, positive=True), 0.0, 0.0))
@@ -243,8 +260,9 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
         if "segments" in spec:
             raise _fail("give either segments or waypoints, not both", where)
         segments = waypoint_segments(spec["waypoints"], start_yaw_deg=start[2],
-                                     speed=_number(spec, "speed", where, 1.0, positive=True),
-                                     turn_rate_deg=_number(spec, "turn_rate", where, 45.0, positive=True),
+                                     speed=_number(spec, "speed", where, 1.0, positive=True, maximum=_SPEED),
+                                     turn_rate_deg=_number(spec, "turn_rate", where, 45.0, positive=True,
+                                                           maximum=_RATE),
                                      where=where)
     else:
         segments = spec.get("segments")
