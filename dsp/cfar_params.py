@@ -105,12 +105,10 @@ class CfarParams:
             raise _fail("give exactly one of threshold_db and pfa"
                         + (" (both given)" if thr is not None else " (neither given)"),
                         "threshold_db" if thr is not None else "pfa")
-        if thr is not None and thr < 0:
-            raise _fail(f"must be >= 0 dB (a threshold below the noise estimate), got {thr:g}",
-                        "threshold_db")
-        if thr is not None and thr > MAX_THRESHOLD_DB:
-            raise _fail(f"must be at most {MAX_THRESHOLD_DB:g} dB (a power ratio of 1e20, more than any radar's "
-                        f"dynamic range), got {thr:g}", "threshold_db")
+        if thr is not None and not 0.0 <= thr <= MAX_THRESHOLD_DB:
+            # (below 0 the threshold is under the noise estimate; above 200 dB, a power ratio of 1e20,
+            # beyond any radar's dynamic range: 1e30 dB overflowed the ratio)
+            raise _fail(f"must be in [0, {MAX_THRESHOLD_DB:g}] dB, got {thr:g}", "threshold_db")
         if pfa is not None and not 0.0 < pfa < 1.0:
             raise _fail(f"must be in (0, 1), got {pfa:g}", "pfa")
         set_(self, "threshold_db", thr)

@@ -13,7 +13,6 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
 
 from ..dsp.cfar import CfarParams
 from ..errors import ConfigError
@@ -116,15 +115,6 @@ class FeatureConfig(Settings):
         check_choice(self.doppler_elevation, DOPPLER_ELEVATIONS, "doppler_elevation")
         _check(self.max_range_m is None or self.max_range_m > self.min_range_m,
                "must be above min_range_m", "max_range_m")
-
-    @classmethod
-    def _from_dict(cls, data: Mapping[str, Any], prefix: str) -> "FeatureConfig":
-        # A CFAR section's threshold is checked before its parameters compute with it: 1e30 dB
-        # overflows 10^(dB/10) as they are made (the rest is checked once they are).
-        for name in ("cfar", "cfar_azimuth"):
-            if isinstance(data, Mapping) and isinstance(data.get(name), Mapping):
-                check_limits(data[name], {"threshold_db": CFAR["threshold_db"]}, f"{name}.")
-        return super()._from_dict(data, prefix)
 
     def check_heatmap_range(self, range_bins: int) -> None:
         """Raise :class:`ConfigError` when the "cfar" method's range window does not fit a
