@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 
 from .errors import UsageError
-from .plain_numbers import plain_float
+from .plain_numbers import beyond_text, plain_float
 
 __all__ = ["Mount", "parse_mount"]
 
@@ -59,6 +59,6 @@ def parse_mount(text: str) -> Mount:
     if max(abs(x), abs(y), abs(z)) > 100.0:
         raise UsageError(f"mount {text!r}: a radar more than 100 m from its base's origin is no mounting")
     if abs(yaw_deg) > 360.0:
-        raise UsageError(f"mount {text!r}: a yaw of {yaw_deg:g} degrees is more than a whole turn: give it "
-                         f"within -180..180 degrees ({math.remainder(yaw_deg, 360.0) + 0.0:g} here)")
+        raise UsageError(f"mount {text!r}: a yaw of {beyond_text(yaw_deg, 360.0, -360.0)} degrees is more than a "
+                         f"whole turn: give it within -180..180 degrees ({math.remainder(yaw_deg, 360.0) + 0.0:g} here)")
     return Mount(x, y, z, math.radians(yaw_deg))

@@ -44,3 +44,10 @@ def is_number(value: Any) -> bool:
 def is_whole_number(value: Any) -> bool:
     """Whether *value*, given in Python, is a whole number: any integral (numpy's too), not a bool."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def beyond_text(value: float, *bounds: float) -> str:
+    """*value* as a message about the *bounds* it broke shows it: short (``%g``) unless that would
+    round it onto one of them (100.00000000001 shown as 100 would not be beyond 100)."""
+    short = f"{value:g}"
+    return repr(value) if float(short) != value and float(short) in bounds else short

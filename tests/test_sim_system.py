@@ -729,13 +729,32 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[trajectory]\nsegments = [{ straight = 2, speed = 1e300 }]\n',
      ("trajectory: speed must be at most 100 m/s (a robot's or a car's), got 1e+300",)),
     ('[trajectory]\nsegments = [{ pause = 1 }, { turn = 90, radius = 1e-9, speed = 1 }]\n',
-     ("trajectory: a turn at 1 m/s on a radius of 1e-09 m turns at 5.73e+10 deg/s, more than 3600",
+     ("trajectory: a turn at 1 m/s on a radius of 1e-09 m turns at 5.72958e+10 deg/s, more than 3600",
       "a larger radius or a rotate segment")),
     ('[trajectory]\nsegments = [{ rotate = 90, rate = 1e300 }]\n', ("trajectory: rate must be at most 3600 deg/s",)),
     ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nturn_rate = 1e9\n', ("trajectory: turn_rate must be at most 3600",)),
     ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nspeed = 101\n', ("trajectory: speed must be at most 100 m/s",)),
     ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nspeed = 1e300\n' + _PAUSE,
      ("movers.speed: must be from 0 to 100 m/s (a person walks at 1-2), got 1e+300",)),
+    ('[trajectory]\nsegments = [{ straight = 2, speed = 100.00000000001 }]\n', ("got 100.00000000001",)),
+    # Found by a helper's hunt (2026-12-01): each was "internal error" (RecursionError,
+    # OverflowError, ZeroDivisionError) or numpy's RuntimeWarnings with a run of nonsense.
+    ("x = " + "[" * 5000 + "]" * 5000 + "\n",
+     ("cannot parse: nested more deeply than Python's TOML reader can follow",)),
+    ('[trajectory]\nsegments = [{ straight = 2, speed = 1' + "0" * 400 + ' }]\n',
+     ("trajectory: speed must be a number, got 1000", "(401 characters)")),
+    ('[trajectory]\nstart = [0, 0, 1' + "0" * 400 + ']\nsegments = [{ pause = 1 }]\n',
+     ("trajectory: start must be [x, y, yaw_deg]",)),
+    ('[[walls]]\npoints = [[0, 0], [1' + "0" * 400 + ', 0]]\n' + _PAUSE, ("walls.points: must be two or more",)),
+    ('[radar]\nsnr_db = 1' + "0" * 400 + '\n' + _PAUSE, ("snr_db: must be a number, got 1000",)),
+    ('[trajectory]\nsegments = [{ rotate = 90, rate = 5e-324 }, { pause = 1 }]\n', ("the segments last inf s",)),
+    ('[trajectory]\nsegments = [{ turn = 90, radius = 10, speed = 5e-324 }]\n', ("the segments last inf s",)),
+    ('[trajectory]\nheight = 1e20\nsegments = [{ pause = 1 }]\n', ("trajectory: height must be at most 1e+06 m",)),
+    ('[surfaces]\nmin = [0, 0]\nmax = [2, 2]\nceiling = 1e308\n' + _PAUSE,
+     ("surfaces.ceiling: must be from 0 to 1e+06 m, got 1e+308",)),
+    ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [1, 1, 1]\nz = 1e308\n' + _PAUSE,
+     ("z: must be from -1e+06 to 1e+06 m, got 1e+308",)),
+    ('[trajectory]\nwaypoints = [[1, 0.8], [1, 0.8], [1, 0.8]]\n', ("no segments (waypoints make none",)),
 ])
 def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
     path = _write_scene(tmp_path, "scene", text)
@@ -745,6 +764,32 @@ def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
     assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
     assert all(w in lines[0] for w in words), lines[0]
     assert not (tmp_path / "cap").exists()
+
+
+@pytest.mark.parametrize("text, words", [
+    ('{"name": "a", "name": "b", "trajectory": {"segments": [{"pause": 1}]}}',
+     ("cannot parse: the key 'name' appears twice in one object",)),
+    ('{"x": ' + "[" * 3000 + "]" * 3000 + "}", ("cannot parse: nested 3001 deep, more than the 32 allowed",)),
+    ('{"trajectory": {"segments": [{"straight": 2, "speed": 1' + "0" * 400 + '}]}}',
+     ("trajectory: speed must be a number",)),
+])
+def test_radar_sim_refuses_a_json_scene_it_cannot_read(tmp_path, text, words):
+    path = tmp_path / "scene.json"
+    path.write_text(text)
+    proc = _run("radar-sim", path, "--out", tmp_path / "cap")
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
+    assert all(w in lines[0] for w in words), lines[0]
+
+
+def test_segments_shorter_than_a_step_keep_their_distance_and_turn():
+    # Each of these lasts under the simulator's 1 ms step; they were left out, so 360 of the first
+    # turned nothing and 2000 of the second drove nowhere.
+    turns = scene_from_dict({"trajectory": {"segments": [{"rotate": 1.0, "rate": 3600.0}] * 360}}).trajectory
+    assert math.degrees(turns.yaw[-1] - turns.yaw[0]) == pytest.approx(360.0, abs=1e-6)
+    steps = scene_from_dict({"trajectory": {"segments": [{"straight": 0.0004}] * 2000}}).trajectory
+    assert steps.length_m == pytest.approx(0.8, rel=1e-3)
 
 
 def test_a_trajectory_may_drive_and_turn_up_to_the_limits():

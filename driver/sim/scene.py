@@ -24,7 +24,6 @@ and a seed always give the same scatterers.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -35,9 +34,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError, quoted_json
-from .scene_values import (MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS,
+from .scene_values import (MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS,
                            SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
-                           cross_section, vec, within)
+                           cross_section, read_scene_file, vec, within)
 from .trajectory import MAX_SPEED_MPS, Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
@@ -224,7 +223,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
                               field="size")
         yaw = math.radians(num(obj, "yaw", 0.0, w))
         sigma0 = cross_section(obj, "sigma0", 0.3, w)
-        z0 = num(obj, "z", 0.0, w)
+        z0 = within(num(obj, "z", 0.0, w), -MAX_COORDINATE_M, MAX_COORDINATE_M, w, "z", " m")
         rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
         hx, hy = size[0] / 2, size[1] / 2
         corners = c + np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) @ rot.T
@@ -309,7 +308,9 @@ def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, se
             floor_sigma0 = cross_section(surfaces, "floor_sigma0", 0.02, where, name="surfaces.floor_sigma0")
             parts.append(sample_plane(lo, hi, 0.0, floor_sigma0, rng, what="the floor", room=room()))
         if "ceiling" in surfaces:
-            ceil = sample_plane(lo, hi, num(surfaces, "ceiling", 2.7, where, positive=True, name="surfaces.ceiling"),
+            ceiling = within(num(surfaces, "ceiling", 2.7, where, positive=True, name="surfaces.ceiling"), 0.0,
+                             MAX_COORDINATE_M, where, "surfaces.ceiling", " m")
+            ceil = sample_plane(lo, hi, ceiling,
                                 cross_section(surfaces, "ceiling_sigma0", 0.02, where,
                                     name="surfaces.ceiling_sigma0"), rng, what="the ceiling", room=room())
             ceil.normal[:, 2] = -1.0
@@ -384,11 +385,4 @@ def load_scene(name_or_path: str, *, seed: int = 0) -> Scene:
     if not os.path.isfile(path):
         raise ConfigError(f"no such scene: use one of {', '.join(BUILTIN_SCENES)} or a .toml/.json file",
                           path=name_or_path)
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-        text = raw.decode("utf-8-sig")  # a BOM (a Windows editor's) ignored
-        spec = json.loads(text) if path.endswith(".json") else tomllib.loads(text)
-    except (UnicodeDecodeError, ValueError) as exc:  # TOMLDecodeError and JSONDecodeError are ValueErrors
-        raise ConfigError(f"cannot parse: {exc}", path=path) from None
-    return scene_from_dict(spec, seed=seed, where=path)
+    return scene_from_dict(read_scene_file(path), seed=seed, where=path)

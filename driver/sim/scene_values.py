@@ -1,14 +1,34 @@
-"""A scene file's values checked as they are read: each a :class:`ConfigError` naming the scene
+"""A scene file read, and its values checked as they are read: each a :class:`ConfigError` naming the scene
 file and the key when it is missing, of the wrong type or out of range; and the keys each of the
 file's tables takes."""
 
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
-from ...errors import ConfigError
+from ... import strict_json
+from ...plain_numbers import beyond_text
+from ...errors import ConfigError, quoted
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+def finite_number(value) -> float | None:
+    """*value* as a float when it is a finite number (not a bool), else None: an integer of 309
+    digits or more is no float (float() overflows)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
 
 
 def need(d: dict, key: str, where: str, kind=None):
@@ -27,10 +47,10 @@ def vec(value, n: int, where: str, what: str, *, place: bool = True) -> np.ndarr
     scatterers it makes: :func:`cells`)."""
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # (an integer of 309 digits overflows a float)
         arr = None
     if arr is None or arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ConfigError(f"must be {n} numbers, got {value!r}", path=where, field=what)
+        raise ConfigError(f"must be {n} numbers, got {quoted(value)}", path=where, field=what)
     if place:
         check_coordinates(arr, value, where, what)
     return arr
@@ -46,11 +66,11 @@ def check_coordinates(arr: np.ndarray, value, where: str, what: str) -> None:
 def num(d: dict, key: str, default: float, where: str, *, positive: bool = False, name: str | None = None) -> float:
     """A number at *key* (*name*: its path in the file, when its table is not the top one)."""
     value = d.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or (positive and value <= 0):
-        raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {value!r}",
+    number = finite_number(value)
+    if number is None or (positive and number <= 0):
+        raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {quoted(value)}",
                           path=where, field=name or key)
-    return float(value)
+    return number
 
 
 def cross_section(d: dict, key: str, default: float, where: str, name: str | None = None) -> float:
@@ -70,7 +90,8 @@ def flag(d: dict, key: str, default: bool, where: str, name: str | None = None) 
 
 def within(value: float, lo: float, hi: float, where: str, key: str, unit: str = "") -> float:
     if not lo <= value <= hi:
-        raise ConfigError(f"must be from {lo:g} to {hi:g}{unit}, got {value:g}", path=where, field=key)
+        raise ConfigError(f"must be from {lo:g} to {hi:g}{unit}, got {beyond_text(value, lo, hi)}", path=where,
+                          field=key)
     return value
 
 
@@ -112,3 +133,23 @@ RCS_DBSM_RANGE = (-60.0, 60.0)
 #: The largest radar cross-section (a point's, an edge's, a person's, m^2) or backscatter (sigma0, m^2
 #: per m^2) a scene gives: a ship's, as RCS_DBSM_RANGE (1e100 overflowed the simulated signal to NaN).
 MAX_RCS_M2 = 10 ** (RCS_DBSM_RANGE[1] / 10)
+
+
+#: The largest scene file read as JSON, bytes (the built-in scenes are a few kB).
+MAX_SCENE_BYTES = 16 * 2**20
+
+
+def read_scene_file(path: str) -> dict:
+    """The table of a scene file (``.json``, else TOML), or :class:`ConfigError` naming it."""
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+        text = raw.decode("utf-8-sig")  # a BOM (a Windows editor's) ignored
+        # (strict JSON: nesting and number sizes bounded, no key twice; tomllib refuses a key twice
+        # itself but recurses once per nesting level)
+        return strict_json.loads(text, max_bytes=MAX_SCENE_BYTES) if path.endswith(".json") else tomllib.loads(text)
+    except (UnicodeDecodeError, ValueError) as exc:  # TOMLDecodeError and JSONDecodeError are ValueErrors
+        raise ConfigError(f"cannot parse: {exc}", path=path) from None
+    except RecursionError:
+        raise ConfigError(f"cannot parse: nested more deeply than Python's TOML reader can follow (a scene "
+                          f"nests {strict_json.MAX_DEPTH} deep at most)", path=path) from None

@@ -32,8 +32,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ...errors import ConfigError
-from .scene_values import check_coordinates
+from ...errors import ConfigError, quoted
+from ...plain_numbers import beyond_text
+from .scene_values import MAX_COORDINATE_M, check_coordinates, finite_number
 
 #: Integration step of the pose table, s.
 STEP_S = 1e-3
@@ -119,14 +120,15 @@ def _number(seg: dict, key: str, where: str, default: float | None = None, posit
     """*seg*'s number *key*; *maximum*: (the largest, its unit and why)."""
     value = seg.get(key, default)
     if value is None:
-        raise _fail(f"{seg!r} needs {key!r}", where)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _fail(f"{key} must be a number, got {value!r}", where)
-    if positive and value <= 0:
-        raise _fail(f"{key} must be above 0, got {value!r}", where)
-    if maximum is not None and value > maximum[0]:
-        raise _fail(f"{key} must be at most {maximum[0]:g} {maximum[1]}, got {value:g}", where)
-    return float(value)
+        raise _fail(f"{quoted(seg)} needs {key!r}", where)
+    number = finite_number(value)
+    if number is None:
+        raise _fail(f"{key} must be a number, got {quoted(value)}", where)
+    if positive and number <= 0:
+        raise _fail(f"{key} must be above 0, got {quoted(value)}", where)
+    if maximum is not None and number > maximum[0]:
+        raise _fail(f"{key} must be at most {maximum[0]:g} {maximum[1]}, got {beyond_text(number, maximum[0])}", where)
+    return number
 
 
 #: _number's maxima of a speed and of a turn's rate.
@@ -138,13 +140,19 @@ def polyline(value: Any, where: str, what: str) -> np.ndarray:
     """Two or more finite [x, y] points as a float array (n, 2), or ConfigError."""
     try:
         pts = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # (an integer of 309 digits overflows a float)
         pts = np.zeros((0, 0))
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
         raise ConfigError(f"must be two or more [x, y] points of numbers, got {value!r}"[:200],
                           path=where, field=what)
     check_coordinates(pts, value, where, what)
     return pts
+
+
+def _lasting(amount: float, rate: float) -> float:
+    """How long *amount* takes at *rate*, s: infinite where the rate underflowed to 0 (a rate of
+    5e-324 deg/s is 0 rad/s), which the trajectory's longest duration then refuses."""
+    return amount / rate if rate > 0.0 else (math.inf if amount > 0.0 else 0.0)
 
 
 def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, float]]:
@@ -166,14 +174,14 @@ def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, 
             speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
             rate = speed / radius
             if math.degrees(rate) > MAX_TURN_RATE_DPS:
-                raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at {math.degrees(rate):.4g} "
-                            f"deg/s, more than {MAX_TURN_RATE_DPS:g} (ten turns a second): a larger radius or a "
-                            "rotate segment", where)
-            out.append((abs(angle) / rate, speed, math.copysign(rate, angle)))
+                raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at "
+                            f"{beyond_text(math.degrees(rate), MAX_TURN_RATE_DPS)} deg/s, more than {MAX_TURN_RATE_DPS:g} (ten turns a "
+                            "second): a larger radius or a rotate segment", where)
+            out.append((_lasting(abs(angle), rate), speed, math.copysign(rate, angle)))
         elif "rotate" in seg:
             angle = math.radians(_number(seg, "rotate", where))
             rate = math.radians(_number(seg, "rate", where, 45.0, positive=True, maximum=_RATE))
-            out.append((abs(angle) / rate, 0.0, math.copysign(rate, angle)))
+            out.append((_lasting(abs(angle), rate), 0.0, math.copysign(rate, angle)))
         elif "pause" in seg:
             out.append((_number(seg, "pause", where, positive=True), 0.0, 0.0))
         else:
@@ -192,11 +200,13 @@ def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.
     (x m ahead, y m left, yaw deg) on the base."""
     cmds = _commands(segments, where)
     if not cmds:
-        raise _fail("no segments", where)
+        raise _fail("no segments (waypoints make none when they are all at one place)", where)
     speeds, rates = [], []
     for duration, v, w in cmds:
-        n = round(duration / STEP_S)
-        if n == 0:  # a zero turn or a distance shorter than one step moves nothing
+        # A segment shorter than a step takes one, at the speed that keeps its distance and angle
+        # (left out, many short ones added up to a turn or a distance lost); a zero turn takes none.
+        n = max(1, round(duration / STEP_S)) if duration > 0.0 else 0
+        if n == 0:
             continue
         # Rounding the duration to whole steps would change the distance and angle:
         # scale the command instead so that its integral stays exact.
@@ -204,7 +214,7 @@ def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.
         speeds.append(np.full(n, v * stretch))
         rates.append(np.full(n, w * stretch))
     if not speeds:
-        raise _fail("the segments add up to no motion and no time", where)
+        raise _fail("the segments add up to no motion and no time (every turn of 0 degrees)", where)
     speed, rate = np.concatenate(speeds), np.concatenate(rates)
     width = max(1, round(smoothing_s / STEP_S))
     box = np.full(width, 1.0 / width)
@@ -251,7 +261,7 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
     check_keys(spec, TRAJECTORY_KEYS, where, "trajectory")
     start = _triple(spec, "start", where)
     mount = _triple(spec, "mount", where)
-    height = _number(spec, "height", where, 0.4, positive=True)
+    height = _number(spec, "height", where, 0.4, positive=True, maximum=(MAX_COORDINATE_M, "m (a scene is metres high)"))
     smoothing = _number(spec, "smoothing_s", where, 0.3, positive=True)
     if smoothing > MAX_SMOOTHING_S:
         raise _fail(f"smoothing_s must be at most {MAX_SMOOTHING_S:g} s (the speed and turn-rate ramps), "
@@ -275,8 +285,6 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
 def _triple(spec: dict[str, Any], key: str, where: str) -> list[float]:
     """An optional [x m, y m, yaw deg] (default zeros), or ConfigError."""
     value = spec.get(key, [0.0, 0.0, 0.0])
-    if not (isinstance(value, (list, tuple)) and len(value) == 3
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                    for v in value)):
-        raise _fail(f"{key} must be [x, y, yaw_deg], got {value!r}"[:200], where)
+    if not (isinstance(value, (list, tuple)) and len(value) == 3 and all(finite_number(v) is not None for v in value)):
+        raise _fail(f"{key} must be [x, y, yaw_deg], got {quoted(value)}", where)
     return [float(v) for v in value]
