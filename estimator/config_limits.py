@@ -16,7 +16,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..errors import ConfigError, quoted
-from ..plain_numbers import is_number
+from ..plain_numbers import beyond_text, is_number
 
 #: The finest grid step a rotation search takes, rad (0.006 degrees): with searches of at most
 #: half a turn, a grid of at most some 63 000 rotations (a finer step is a typo, and its grid
@@ -89,9 +89,9 @@ FEATURES = {
 }
 
 #: The numbers of a CFAR section (``features.cfar``, ``features.cfar_azimuth``) the CFAR's own
-#: checks leave unbounded; checked before its parameters compute with them (10^(dB/10)).
+#: checks leave unbounded (``CfarParams`` bounds threshold_db to [0, 200] dB, pfa and os_rank).
 CFAR = {
-    "guard": "[0, 10000] cells", "train": "[1, 10000] cells", "threshold_db": "[0, 200] dB", "channels": COUNT,
+    "guard": "[0, 10000] cells", "train": "[1, 10000] cells", "channels": COUNT,
 }
 
 ICP = {
@@ -138,8 +138,8 @@ POINT_YAW = {
 }
 
 
-def _spelled(value: Any) -> str:
-    return f"{value:g}" if isinstance(value, float) else quoted(value)
+def _spelled(value: Any, bounds: Limit) -> str:
+    return beyond_text(value, bounds.low, bounds.high) if isinstance(value, float) else quoted(value)
 
 
 def check_limits(values: object, limits: Mapping[str, str], prefix: str = "") -> None:
@@ -149,4 +149,4 @@ def check_limits(values: object, limits: Mapping[str, str], prefix: str = "") ->
     for name, text in limits.items():
         value = values.get(name) if isinstance(values, Mapping) else getattr(values, name)
         if is_number(value) and not limit(text).admits(value):
-            raise ConfigError(f"must be in {text}, got {_spelled(value)}", field=prefix + name)
+            raise ConfigError(f"must be in {text}, got {_spelled(value, limit(text))}", field=prefix + name)

@@ -60,8 +60,9 @@ PARTNERS = {"features.max_range_m": {"min_range_m": 0.0}, "icp.eps_max": {"eps_m
             "point_yaw.max_noise_rad": {"min_noise_rad": 1e-6}}
 SECTIONS = {"velocity": config_limits.VELOCITY, "features": config_limits.FEATURES, "icp": config_limits.ICP,
             "odometry": config_limits.ODOMETRY, "point_yaw": config_limits.POINT_YAW}
-#: The CFAR sections' numbers the CFAR's own checks bound (pfa in (0, 1), os_rank up to 2 train).
-CFAR_OWN = ("pfa", "os_rank")
+#: The CFAR sections' numbers the CFAR's own checks bound (pfa in (0, 1), os_rank up to 2 train, threshold_db in [0, 200]
+#: dB).
+CFAR_OWN = ("pfa", "os_rank", "threshold_db")
 WHEELED = ("mount_x_m", "mount_y_m", "mount_yaw_rad", "min_lever_arm_m", "doppler_yaw_rate_noise_radps",
            "doppler_yaw_min_rate_radps", "axis_learn_frames", "axis_straight_radps", "axis_min_speed_mps",
            "no_slip_angle_std_rad")
