@@ -51,3 +51,9 @@ def beyond_text(value: float, *bounds: float) -> str:
     round it onto one of them (100.00000000001 shown as 100 would not be beyond 100)."""
     short = f"{value:g}"
     return repr(value) if float(short) != value and float(short) in bounds else short
+
+
+def time_text(t: float, decimals: int = 3) -> str:
+    """A time in s as a message shows it: to *decimals* places (the millisecond), but in exponent
+    form past some 30000 years (a file's time of 1e300 is not written out in 300 digits)."""
+    return f"{t:.{decimals}f}" if abs(t) < 1e12 else f"{t:.{decimals + 6}g}"

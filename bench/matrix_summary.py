@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 
 BASE = {"cfg": "shipped", "snr_db": 0.0, "speed_mps": 0.8, "turn_rate_dps": 45.0, "movers": "scene", "mount_m": 0.0}
@@ -115,8 +116,10 @@ def covariance_table(results: list[dict]) -> list[str]:
             values = [r["covariance"][part][key] for r in cells
                       if r["covariance"].get(part) and r["covariance"][part][key] is not None]
             return f"{statistics.mean(values):.2f}" if values else "-"
-        sd = statistics.mean(r["covariance"]["final_yaw_sigma_deg"] for r in cells)
-        err = statistics.mean(r["covariance"]["final_yaw_error_deg"] ** 2 for r in cells) ** 0.5
+        finals = [(r["covariance"]["final_yaw_sigma_deg"], r["covariance"]["final_yaw_error_deg"]) for r in cells]
+        finals = [(sd, err) for sd, err in finals if sd is not None and err is not None]  # (null: it overflowed)
+        sd = statistics.mean(sd for sd, _ in finals) if finals else math.nan
+        err = statistics.mean(err ** 2 for _, err in finals) ** 0.5 if finals else math.nan
         lines.append(f"| {label} ({len(cells)}) | {mean('yaw', 'z_rms')} | {mean('yaw', 'within_2sigma')} "
                      f"| {sd:.1f} / {err:.1f} | {mean('position', 'z_rms')} | {mean('position', 'within_2sigma')} "
                      f"| {mean('yaw_rate', 'z_rms')} | {mean('yaw_rate', 'within_2sigma')} |")

@@ -161,13 +161,16 @@ def _estimate_sim(cell: SimCell, data: str, settings: dict | None = None):
     odom = RadarOdometry(estimator_config(cell, settings))
     poses = np.zeros((len(seq), 3))
     covariances = np.zeros((len(seq), 2, 3, 3))
+    rates, frames = np.zeros(len(seq)), np.zeros(len(seq), np.int64)
     flagged = 0
     for i in range(len(seq)):
         st = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
         poses[i] = st.x, st.y, st.yaw
         covariances[i] = st.pose_covariance, st.twist_covariance
+        rates[i], frames[i] = st.yaw_rate, st.frame
         flagged += not st.ok
-    return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged, covariances
+    states = (seq.times, poses, covariances[:, 0], covariances[:, 1], rates, frames)
+    return TumTrajectory.from_se2(seq.times, poses, source=cell.name), seq.groundtruth, flagged, states
 
 
 def _estimate_coloradar(cell: ColoradarCell, data: str, settings: dict | None = None):
@@ -197,10 +200,11 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
         with open(path, encoding="utf-8") as fh:
             return {**json.load(fh), "cached": True}
     from radarodom.estimator.evaluation import associate
+    from radarodom.estimator.consistency import odometry_consistency
     from radarodom.estimator.heading_metrics import drift_parts, heading_metrics
     from radarodom.strict_json import finite
     started = time.monotonic()
-    est, truth, flagged, covariances = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(
+    est, truth, flagged, states = (_estimate_sim if isinstance(cell, SimCell) else _estimate_coloradar)(
         cell, data, settings)
     if isinstance(cell, SimCell) and not keep_adc:
         drop_adc(_sequence_dir(cell, data))
@@ -210,30 +214,14 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     parts = drift_parts(ref_m.times, ref_m.se2(), est_m.se2(), radar_on_base=mount)
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
-              "drift_parts": finite(parts), "covariance": _consistency(est, est_m, ref_m, covariances, mount),
+              "drift_parts": finite(parts),
+              "covariance": None if states is None else finite(odometry_consistency(*states, truth)[0]),
               "compute_s": time.monotonic() - started, "fingerprint": fp}
     os.makedirs(os.path.dirname(path), exist_ok=True)
     with open(path + ".tmp", "w", encoding="utf-8") as fh:
         json.dump(result, fh, indent=1)
     os.replace(path + ".tmp", path)
     return {**result, "cached": False}
-
-
-def _consistency(est, est_m, ref_m, covariances, mount) -> dict | None:
-    """The reported pose covariance (and the twist's yaw rate) against the errors
-    (estimator/consistency.py), over the frames associated with the truth; the position's only with
-    the radar on the base's axis (the truth is the base's). *covariances*: (n, 2, 3, 3) each
-    frame's pose and twist covariances."""
-    if covariances is None:
-        return None
-    from radarodom.estimator.consistency import covariance_consistency
-    from radarodom.strict_json import finite
-    frames = np.searchsorted(est.times, est_m.times)
-    # The twist's yaw rate is each state's step from the one before: only where every frame matched.
-    every = len(frames) == len(est.times)
-    return finite(covariance_consistency(ref_m.se2(), est_m.se2(), covariances[frames, 0], position=mount[0] == 0.0,
-                                         twist_covariance=covariances[frames, 1] if every else None,
-                                         times=est_m.times if every else None))
 
 
 # ------------------------------------------------------------------ the matrix

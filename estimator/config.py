@@ -296,7 +296,8 @@ class EstimatorConfig(Settings):
                    icp=IcpConfig(sampling=sampling, two_way=two_way, initial_guess="zero", neglect_aligned=True,
                                  refinement="none", score_support="inside", reject_moving_mps=None),
                    odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0,
-                                           velocity_fallback="hold", rectification="velocity", bridge_s=0.0))
+                                           velocity_fallback="hold", rectification="velocity", bridge_s=0.0,
+                                           yaw_walk_per_sqrt_m=0.0, yaw_walk_per_sqrt_rad=0.0))
 
     @classmethod
     def tidemo(cls) -> "EstimatorConfig":

@@ -95,12 +95,13 @@ class OdometryConfig(Settings):
     #: filter's delay, so that keyframe's pose carries the lag, and the drive after the turn
     #: would be corrected towards it (docs/heading.md, item 14).  None: only distance and angle renew.
     keyframe_turn_renew_radps: float | None = math.radians(25.0)
-    #: Beyond the paper: what the pose's yaw variance grows by.  Where the keyframes (or the point
-    #: map) bound the frames' own noise, a step adds this squared for every metre the radar moves,
+    #: Beyond the paper: what the pose's yaw variance grows by.  Where the keyframes bound the
+    #: frames' own noise, a step adds this squared for every metre the radar moves,
     #: rad per sqrt(m), and ``yaw_walk_per_sqrt_rad`` squared for every radian it turns, rad per
     #: sqrt(rad): a random walk in distance and angle, as a wheel odometry's error model, since what
     #: stays in the heading is each straight's and each turn's error, not each frame's; a step they
-    #: do not bound (its yaw held, bridged, or no keyframes) adds its own variance too.  The two are
+    #: do not bound (its yaw unmeasured, bridged, no keyframes, the point map's) adds its own variance
+    #: too (0 and 0 with no keyframes: each step's own alone, the paper's).  The two are
     #: the robustness matrix's straights' and turns' errors (docs/heading.md, item 28) ...
     yaw_walk_per_sqrt_m: float = 0.017
     #: ... and its turns', rad per sqrt(rad).

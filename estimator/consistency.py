@@ -1,9 +1,9 @@
 """How well the odometry's reported covariance covers its errors against a ground truth: each
-frame's heading (and position) error since the start over its reported standard deviation
-(docs/estimator.md, "Pose covariance").  An RMS ratio below 1 says the covariance is wide, above 1
-that it is narrow.  A normal heading error lies within one standard deviation in 68 % of the
-frames, within two in 95 %; a position error, its distance over the root of the covariance's
-trace, in 63 % and 98 % (round, two dimensions)."""
+frame's heading and position error since the first compared frame over its reported standard
+deviation, and each step's yaw rate's (docs/estimator.md, "Pose covariance").  An RMS ratio below 1
+says the covariance is wide, above 1 that it is narrow.  A normal heading or yaw-rate error lies
+within one standard deviation in 68 % of the frames, within two in 95 %; a position error, its
+distance over the root of the covariance's trace, in 63 % and 98 % (round, two dimensions)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,8 @@ import math
 import numpy as np
 
 from ..errors import EvaluationError
+from ..tum import TumTrajectory
+from .evaluation import associate
 
 
 def _normalised(errors: np.ndarray, variances: np.ndarray) -> np.ndarray:
@@ -27,42 +29,73 @@ def _summary(z: np.ndarray) -> dict:
             "within_2sigma": float(np.mean(np.abs(z) <= 2.0))}
 
 
+def _single_steps(estimate: np.ndarray, times: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray | None
+                  ) -> np.ndarray:
+    """Which of the n - 1 steps between consecutive frames are one estimator step each: its yaw rate
+    times its time is its yaw change (a step measured across a bridged run carries the run's mean
+    rate, and its twist is of the whole run), and, given *frames*, their numbers follow."""
+    change = np.angle(np.exp(1j * np.diff(estimate[:, 2])))  # (a yaw read back from a quaternion wraps)
+    single = np.abs(yaw_rates[1:] * np.diff(times) - change) <= 1e-9 + 1e-6 * np.abs(change)
+    if frames is not None:
+        single &= np.diff(np.asarray(frames).astype(np.uint64)) == 1  # (a number going down wraps)
+    return single
+
+
 def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_covariance: np.ndarray, *,
-                           position: bool = True, twist_covariance: np.ndarray | None = None,
-                           times: np.ndarray | None = None) -> dict:
-    """The heading's (and, with *position*, the position's) error over the reported standard
-    deviation, frame by frame; with *twist_covariance* and *times*, the yaw rate's too.
+                           twist_covariance: np.ndarray | None = None, times: np.ndarray | None = None,
+                           yaw_rates: np.ndarray | None = None, frames: np.ndarray | None = None) -> dict:
+    """The heading's and the position's error over the reported standard deviation, frame by frame;
+    with *twist_covariance*, *times* and *yaw_rates*, each step's yaw rate's too.
 
     *reference*, *estimate*: (n, 3) x, y m and yaw rad of the same frames (associated), each in its
-    own world; the reference is put in the estimate's by their first poses.  *pose_covariance*:
-    (n, 3, 3) the estimate's, over (x, y, yaw).  *twist_covariance*: (n, 3, 3) over (vx, vy, yaw
-    rate), each frame's of its step from the frame before (consecutive states), *times* (n,) s.
-    Returns ``yaw``, ``position`` (None without *position*) and ``yaw_rate`` (None without the
-    twist's), each {"z_rms", "within_1sigma", "within_2sigma"} over the frames with a variance, and
-    ``final_yaw_error_deg`` and ``final_yaw_sigma_deg`` (the last frame's)."""
+    own world; the reference is put in the estimate's by their first poses, and the errors count
+    from there, so the covariance the estimate had at its first frame is taken off (exact for the
+    heading's random walk, near enough for the position's).  *pose_covariance*: (n, 3, 3) the
+    estimate's, over (x, y, yaw).  *twist_covariance*: (n, 3, 3) over (vx, vy, yaw rate), each of
+    its step from the frame before; *times* (n,) s; *yaw_rates* (n,) rad/s, the estimate's;
+    *frames* (n,) its frame numbers (optional): only the steps that are one estimator step each are
+    compared.  Returns ``yaw``, ``position`` and ``yaw_rate`` (None without the twist's), each
+    {"z_rms", "within_1sigma", "within_2sigma"} over the frames (steps) with a variance, and
+    ``final_yaw_error_deg`` and ``final_yaw_sigma_deg`` (the last frame's, from the first)."""
     reference, estimate = np.asarray(reference, float), np.asarray(estimate, float)
     cov = np.asarray(pose_covariance, float)
     n = len(reference)
-    twist = None if twist_covariance is None else np.asarray(twist_covariance, float)
-    stamps = None if times is None else np.asarray(times, float)
+    twist = [None if a is None else np.asarray(a, float) for a in (twist_covariance, times, yaw_rates)]
+    given = [a is not None for a in twist]
     if (reference.shape != (n, 3) or estimate.shape != (n, 3) or cov.shape != (n, 3, 3) or n < 2
-            or (twist is None) != (stamps is None)
-            or (twist is not None and (twist.shape != (n, 3, 3) or stamps.shape != (n,)))):
-        shapes = [a.shape for a in (reference, estimate, cov, twist, stamps) if a is not None]
+            or any(given) != all(given) or (all(given) and [a.shape for a in twist] != [(n, 3, 3), (n,), (n,)])
+            or (frames is not None and np.shape(frames) != (n,))):
+        shapes = [np.shape(a) for a in (reference, estimate, cov, *twist, frames) if a is not None]
         raise EvaluationError(f"covariance_consistency: need n >= 2 poses (n, 3) and covariances (n, 3, 3) of the "
-                              f"same frames (a twist's with their times (n,)), got shapes {shapes}")
+                              f"same frames (a twist's with their times and yaw rates (n,)), got shapes {shapes}")
+    cov = cov - cov[0]
     turn = estimate[0, 2] - reference[0, 2]
     c, s = math.cos(turn), math.sin(turn)
     d = reference[:, :2] - reference[0, :2]
     placed = np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], axis=1) + estimate[0, :2]
     yaw_error = np.angle(np.exp(1j * (estimate[:, 2] - reference[:, 2] - turn)))
-    out = {"yaw": _summary(_normalised(yaw_error, cov[:, 2, 2])), "position": None,
-           "final_yaw_error_deg": math.degrees(float(yaw_error[-1])),
+    out = {"yaw": _summary(_normalised(yaw_error, cov[:, 2, 2])),
+           "position": _summary(_normalised(np.hypot(*(estimate[:, :2] - placed).T), cov[:, 0, 0] + cov[:, 1, 1])),
+           "yaw_rate": None, "final_yaw_error_deg": math.degrees(float(yaw_error[-1])),
            "final_yaw_sigma_deg": math.degrees(math.sqrt(max(float(cov[-1, 2, 2]), 0.0)))}
-    if position:
-        out["position"] = _summary(_normalised(np.hypot(*(estimate[:, :2] - placed).T), cov[:, 0, 0] + cov[:, 1, 1]))
-    out["yaw_rate"] = None
-    if twist is not None:
-        step_error = np.angle(np.exp(1j * (np.diff(estimate[:, 2]) - np.diff(reference[:, 2]))))
-        out["yaw_rate"] = _summary(_normalised(step_error, twist[1:, 2, 2] * np.diff(stamps) ** 2))
+    if all(given):
+        tw, stamps, rates = twist
+        single = _single_steps(estimate, stamps, rates, frames)
+        step_error = np.angle(np.exp(1j * (np.diff(estimate[:, 2]) - np.diff(reference[:, 2]))))[single]
+        out["yaw_rate"] = _summary(_normalised(step_error, (tw[1:, 2, 2] * np.diff(stamps) ** 2)[single]))
     return out
+
+
+def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: np.ndarray,
+                         twist_covariance: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray,
+                         reference: TumTrajectory, max_diff: float = 0.01, source: str = "odometry") -> tuple[dict, int]:
+    """:func:`covariance_consistency` of an odometry run's states (their *times* (n,) s, *poses*
+    (n, 3), covariances (n, 3, 3), *yaw_rates* (n,) and *frames* (n,)) against the ground truth
+    *reference*, over the states paired with it in time (within *max_diff* s, as radar-eval pairs
+    poses); and how many were.  Raises :class:`EvaluationError` (naming *source*) when fewer than
+    two pair."""
+    est_m, ref_m = associate(TumTrajectory.from_se2(times, poses, source=source), reference, max_diff)
+    k = np.searchsorted(times, est_m.times)
+    return covariance_consistency(ref_m.se2(), est_m.se2(), np.asarray(pose_covariance)[k],
+                                  twist_covariance=np.asarray(twist_covariance)[k], times=est_m.times,
+                                  yaw_rates=np.asarray(yaw_rates)[k], frames=np.asarray(frames)[k]), len(k)

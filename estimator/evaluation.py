@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import strict_json
 from ..errors import EvaluationError
-from ..plain_numbers import is_number
+from ..plain_numbers import is_number, time_text
 from ..tum import TumTrajectory
 from .angles import wrap
 
@@ -144,15 +144,15 @@ def _span(traj: TumTrajectory) -> str:
     name = traj.source or "<trajectory>"
     if not len(traj):
         return f"{name} (no poses)"
-    return f"{name} ({len(traj)} poses, t {traj.times[0]:.3f} .. {traj.times[-1]:.3f} s)"
+    return f"{name} ({len(traj)} poses, t {time_text(traj.times[0])} .. {time_text(traj.times[-1])} s)"
 
 
 def _check_increasing(traj: TumTrajectory) -> None:
     bad = np.flatnonzero(np.diff(traj.times) <= 0)
     if len(bad):
         i = int(bad[0]) + 1
-        raise EvaluationError(f"{traj.where(i)}: time {traj.times[i]:.9f} s is not after the previous "
-                              f"pose's {traj.times[i - 1]:.9f} s; timestamps must increase")
+        raise EvaluationError(f"{traj.where(i)}: time {time_text(traj.times[i], 9)} s is not after the previous "
+                              f"pose's {time_text(traj.times[i - 1], 9)} s; timestamps must increase")
 
 
 def _check_trajectory(name: str, traj) -> None:

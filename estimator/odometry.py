@@ -257,12 +257,13 @@ class RadarOdometry:
                 dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame,
                                                        registered=step.registered)
         # Where the keyframes bound each frame's noise, what stays in the heading is each straight's
-        # and each turn's error (docs/heading.md, item 28).
-        walk = self._walk_var_m * float(np.hypot(v[0], v[1])) * dt + self._walk_var_rad * abs(dyaw)
+        # and each turn's error (docs/heading.md, item 28).  A measured step the keyframe measurement
+        # failed on is bounded too: the next one corrects the chain against the same keyframe.
+        added_yaw_var = self._walk_var_m * float(np.hypot(v[0], v[1])) * dt + self._walk_var_rad * abs(dyaw)
         if step.observed is None or bridged or not self.keyframes.bounds_noise:
-            walk += var_yaw
+            added_yaw_var += var_yaw
         pose, pose_cov, twist = integrate(last.pose, last.pose_covariance, v, velocity.covariance, dyaw, var_yaw, dt,
-                                          pose_var_yaw=walk)
+                                          pose_var_yaw=added_yaw_var)
         # Across a bridged run, the increment since the latest state (the run's held motion).
         increment = dyaw if last is self._state else pose[2] - self._state.yaw
         state = OdometryState(t=t, frame=index, x=pose[0], y=pose[1], yaw=pose[2], vx=float(v[0]), vy=float(v[1]),

@@ -25,7 +25,7 @@ from radarodom.estimator.odometry import OdometryState
 from radarodom.estimator.quality import Flag
 from radarodom.tools import plots
 from radarodom.tools import plot_panels
-from radarodom.tools.eval_flags import FlagTimeline, read_odometry_flags
+from radarodom.tools.odometry_log import OdometryLog, read_odometry_log
 from radarodom.tools.radar_echo import format_message
 from radarodom.tum import read_tum
 
@@ -81,7 +81,7 @@ def s_bend_flags(s_bends):
     for k in (40, 41, 43, 44, 100):
         flags[k] = (Flag.ICP_FAILED,)
     flags[42] = (Flag.ICP_FAILED, Flag.VELOCITY_HELD)
-    return FlagTimeline(s_bends.times.copy(), tuple(tuple(str(f) for f in step) for step in flags), "f.jsonl")
+    return OdometryLog(s_bends.times.copy(), tuple(tuple(str(f) for f in step) for step in flags), "f.jsonl")
 
 
 # ------------------------------------------------------------------ the figures
@@ -192,7 +192,7 @@ def _bar_spans(collection) -> list[tuple[float, float]]:
 
 
 def test_flag_runs_merge_consecutive_steps_only():
-    tl = FlagTimeline(np.array([0.0, 0.1, 0.2, 0.3, 0.5]), ((), ("a",), ("a",), (), ("a",)))
+    tl = OdometryLog(np.array([0.0, 0.1, 0.2, 0.3, 0.5]), ((), ("a",), ("a",), (), ("a",)))
     np.testing.assert_allclose(plot_panels.flag_runs(tl, "a"), [(0.1, 0.2), (0.5, 0.1)])
     assert plot_panels.flag_runs(tl, "b") == []
 
@@ -205,7 +205,7 @@ def test_flags_are_read_from_radar_echo_json_and_published_messages(tmp_path):
                     + "\n"
                     + odom_line(10.1, 1, [Flag.ICP_FAILED, "a_newer_flag"])
                     + odom_line(10.2, 2))
-    timeline = read_odometry_flags(path)
+    timeline = read_odometry_log(path)
     np.testing.assert_allclose(timeline.times, [10.0, 10.1, 10.2])
     assert timeline.flags == (("first_frame",), ("icp_failed", "a_newer_flag"), ())
     assert timeline.names() == ["first_frame", "icp_failed", "a_newer_flag"]
@@ -219,19 +219,21 @@ def test_flags_are_read_from_radar_echo_json_and_published_messages(tmp_path):
     ('{"schema": "radarodom/odom", "version": 1, "t": 1.0}\n',
      "odom.jsonl:2: radarodom/odom: field 'frame' is missing"),
     (odom_line(9.0, 1), "odom.jsonl:2: time 9.000000000 s is not after the previous message's 10.000000000 s"),
+    # json recurses once per level: a thousand was "internal error: RecursionError" (a helper's hunt)
+    ("[" * 1000 + "]" * 1000 + "\n", "odom.jsonl:2: not an odometry message: nested 1000 deep, more than the 32"),
 ])
 def test_a_bad_flags_file_names_file_and_line(tmp_path, text, message):
     path = tmp_path / "odom.jsonl"
     path.write_text(odom_line(10.0, 0) + text)
     with pytest.raises(CaptureFormatError, match=re.escape(message)):
-        read_odometry_flags(path)
+        read_odometry_log(path)
 
 
 def test_a_flags_files_cut_off_last_line_is_left_out_with_a_warning(tmp_path, caplog):
     path = tmp_path / "odom.jsonl"
     path.write_text(odom_line(10.0, 0) + odom_line(10.1, 1) + odom_line(10.2, 2)[:40])  # a killed --odom-json
     with caplog.at_level("WARNING"):
-        timeline = read_odometry_flags(path)
+        timeline = read_odometry_log(path)
     np.testing.assert_allclose(timeline.times, [10.0, 10.1])
     assert [r.getMessage() for r in caplog.records] == [f"{path}:3: ignoring a last line without end of line"]
 
@@ -240,9 +242,14 @@ def test_a_flags_file_without_odometry_is_refused(tmp_path):
     path = tmp_path / "status.jsonl"
     path.write_text('{"schema":"radarodom/status","version":1}\n')
     with pytest.raises(UsageError, match="no odometry message .* radar-echo --json odom"):
-        read_odometry_flags(path)
+        read_odometry_log(path)
     with pytest.raises(UsageError, match="no such file"):
-        read_odometry_flags(tmp_path / "nope.jsonl")
+        read_odometry_log(tmp_path / "nope.jsonl")
+    # One message without its end of line: no warning besides the error, which says why.
+    cut = tmp_path / "cut.jsonl"
+    cut.write_text(odom_line(10.0, 0).rstrip("\n"))
+    with pytest.raises(UsageError, match="no odometry message .* but line 1, which has no end of line"):
+        read_odometry_log(cut)
 
 
 # ------------------------------------------------------------------ radar-eval --plot on a simulated run
@@ -294,7 +301,7 @@ def test_radar_eval_plot_figures_match_what_it_printed(sim_run):
     """The same evaluation in the library: the figure's numbers are the table's, its flag rows the
     file's, and its name the estimate's file name when --name is not given."""
     r = evaluate(read_tum(sim_run.tum), read_tum(sim_run.rec / "groundtruth.tum"))
-    flags = read_odometry_flags(sim_run.flags)
+    flags = read_odometry_log(sim_run.flags)
     fig = plots.evaluation_figures(r, name="corridor", flags=flags.since(flags.times[0]))["report.png"]
     proc = run_cli("radar-eval", sim_run.tum, f"replay://{sim_run.rec}", timeout=120)
     assert f"{r.yaw_rmse_deg:.4f}" in proc.stdout and f"yaw-increment RMSE {r.yaw_rmse_deg:.3f} deg" in all_text(fig)
@@ -309,7 +316,7 @@ def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     assert (proc.returncode, proc.stderr) == (2, "radar-eval: error: --name is for the plots: add --plot DIR\n")
     # Without --plot the messages' covariances are still checked (these hand-written ones report none).
     proc = run_cli("radar-eval", sim_run.tum, gt, "--flags", sim_run.flags, timeout=120)
-    assert proc.returncode == 0 and "  heading           no variance reported" in proc.stdout
+    assert proc.returncode == 0 and "  heading           not compared: no frame with a variance" in proc.stdout
     late = tmp_path / "late.jsonl"
     late.write_text(odom_line(5000.0, 0) + odom_line(5000.1, 1))
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", late, timeout=120)
@@ -321,10 +328,12 @@ def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     early.write_text("".join(sim_run.tum.read_text().splitlines(keepends=True)[:10]))
     later = tmp_path / "later.jsonl"
     later.write_text("".join(sim_run.flags.read_text().splitlines(keepends=True)[20:]))
-    proc = run_cli("radar-eval", early, gt, "--plot", tmp_path / "p", "--flags", later, timeout=120)
+    proc = run_cli("radar-eval", early, gt, "--plot", tmp_path / "p", "--flags", later, "--json", tmp_path / "e.json",
+                   timeout=120)
     assert proc.returncode == 2, proc.stderr  # (after a warning: the first second stands still, no RPE per metre)
     assert proc.stderr.splitlines()[-1].startswith(f"radar-eval: error: {later}: its 10 odometry messages (t 2.000 "
                                                    ".. 2.900 s) fall outside the evaluated poses (t 0.000 .. 0.900 s)")
+    assert proc.stdout == "" and not (tmp_path / "e.json").exists() and not (tmp_path / "p").exists()
     bad = tmp_path / "bad.jsonl"
     bad.write_text(odom_line(1.0, 0) + "oops\n")
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad, timeout=120)
@@ -367,7 +376,7 @@ def test_a_plot_directory_that_cannot_be_written_is_refused_before_the_work(sim_
 def test_a_flags_file_with_a_byte_order_mark_reads(tmp_path):
     path = tmp_path / "flags.jsonl"
     path.write_bytes(b"\xef\xbb\xbf" + (odom_line(1.0, 0) + odom_line(1.1, 1)).encode())
-    assert len(read_odometry_flags(path).times) == 2
+    assert len(read_odometry_log(path).times) == 2
 
 
 def test_the_json_may_go_into_the_plot_directory_the_run_makes(sim_run, tmp_path):

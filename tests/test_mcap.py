@@ -38,7 +38,7 @@ from radarodom.pipeline import Pipeline  # noqa: E402
 from radarodom.pipeline.mcap_sink import McapSink  # noqa: E402
 from radarodom.pipeline.sinks import OdometryJsonSink, Sink  # noqa: E402
 from radarodom.ros2_bag import BagWriter  # noqa: E402
-from radarodom.tools.eval_flags import read_odometry_flags  # noqa: E402
+from radarodom.tools.odometry_log import read_odometry_log  # noqa: E402
 
 MOUNT = Mount(0.35, -0.12, 0.25, math.radians(12.0))
 TOPICS = {"/radar/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
@@ -336,7 +336,7 @@ def test_the_odometry_json_lines_are_the_published_messages_and_radar_eval_reads
     states = [r.state for r in results if r.state is not None]
     assert lines == [messages.odometry_json(s) for s in states]
     assert [messages.parse_odometry(line)["frame"] for line in lines] == [s.frame for s in states]
-    timeline = read_odometry_flags(path.parent / "odom.jsonl")
+    timeline = read_odometry_log(path.parent / "odom.jsonl")
     assert len(timeline) == len(states)
     assert list(timeline.flags) == [tuple(str(f) for f in s.flags) for s in states]
 

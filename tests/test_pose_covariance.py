@@ -114,19 +114,68 @@ def test_walk_settings_out_of_range_are_refused(field, value):
     assert ("rad/sqrt" if math.isfinite(value) else "finite") in str(exc.value)
 
 
+def test_the_walk_changes_the_covariance_only():
+    still = EstimatorConfig().with_(odometry={"yaw_walk_per_sqrt_m": 0.0, "yaw_walk_per_sqrt_rad": 0.0})
+    plain, _ = run_sequence(still, LOOP)
+    walked, _ = run_sequence(EstimatorConfig(), LOOP)
+    assert [(s.t, s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.flags) for s in plain] == \
+        [(s.t, s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.flags) for s in walked]
+    assert all(np.array_equal(a.twist_covariance, b.twist_covariance) for a, b in zip(plain, walked))
+
+
+def test_the_papers_method_adds_each_steps_own_variance_alone():
+    config = EstimatorConfig.paper()
+    assert (config.odometry.yaw_walk_per_sqrt_m, config.odometry.yaw_walk_per_sqrt_rad) == (0.0, 0.0)
+    states, _ = run_sequence(config, LOOP)
+    own = [s.twist_covariance[2, 2] * (s.t - a.t) ** 2 for a, s in zip(states, states[1:])]
+    np.testing.assert_allclose([s.pose_covariance[2, 2] for s in states[1:]], np.cumsum(own), rtol=1e-9)
+
+
+def test_a_bridged_step_adds_its_own_variance():
+    # Turning in place, blind for 0.8 s: the frame that sees again is measured across the run from
+    # the last measured state, whose covariance it starts from, and adds its own variance as well.
+    from test_estimator_bridge import run as turn_blind
+    config = EstimatorConfig()
+    states = turn_blind(1.0, range(5, 13), "blind")
+    back, anchor = states[13], states[4]
+    dyaw = back.yaw - anchor.yaw
+    assert back.yaw_rate * (back.t - anchor.t) == pytest.approx(dyaw)  # the run's mean rate: bridged
+    own = back.twist_covariance[2, 2] * (back.t - anchor.t) ** 2
+    walk_part = config.odometry.yaw_walk_per_sqrt_rad ** 2 * abs(dyaw) + config.odometry.yaw_walk_per_sqrt_m ** 2 \
+        * math.hypot(back.vx, back.vy) * (back.t - anchor.t)
+    assert back.pose_covariance[2, 2] == pytest.approx(anchor.pose_covariance[2, 2] + walk_part + own, rel=1e-9)
+
+
+def _arrays(states):
+    return (np.array([s.t for s in states]), np.array([(s.x, s.y, s.yaw) for s in states]),
+            np.array([s.pose_covariance for s in states]), np.array([s.twist_covariance for s in states]),
+            np.array([s.yaw_rate for s in states]), np.array([s.frame for s in states]))
+
+
 def test_consistency_of_the_synthetic_loop(loop):
     _, states, truths = loop
-    est = np.array([(s.x, s.y, s.yaw) for s in states])
-    got = covariance_consistency(np.array(truths), est, np.array([s.pose_covariance for s in states]))
+    times, est, pose_cov, twist_cov, rates, frames = _arrays(states)
+    got = covariance_consistency(np.array(truths), est, pose_cov)
     assert got["yaw"]["within_2sigma"] == 1.0 and 0.1 < got["yaw"]["z_rms"] < 1.5
     assert 0.1 < got["position"]["z_rms"] < 1.5
     assert got["final_yaw_sigma_deg"] == pytest.approx(math.degrees(math.sqrt(states[-1].pose_covariance[2, 2])))
-    assert got["yaw_rate"] is None
-    with_twist = covariance_consistency(np.array(truths), est, np.array([s.pose_covariance for s in states]),
-                                        twist_covariance=np.array([s.twist_covariance for s in states]),
-                                        times=np.array([s.t for s in states]))
-    assert with_twist["yaw"] == got["yaw"] and 0.1 < with_twist["yaw_rate"]["z_rms"] < 1.5
     assert got["final_yaw_error_deg"] == pytest.approx(math.degrees(states[-1].yaw - truths[-1][2]), abs=1e-9)
+    assert got["yaw_rate"] is None
+    with_twist = covariance_consistency(np.array(truths), est, pose_cov, twist_covariance=twist_cov, times=times,
+                                        yaw_rates=rates, frames=frames)
+    assert with_twist["yaw"] == got["yaw"] and 0.1 < with_twist["yaw_rate"]["z_rms"] < 1.5
+
+
+def test_consistency_counts_from_the_first_compared_frame(loop):
+    # Messages from the middle of a run (radar-echo started late): the covariance the odometry had
+    # there is taken off, as the errors count from there.
+    _, states, truths = loop
+    _, est, pose_cov, *_ = _arrays(states)
+    late = covariance_consistency(np.array(truths)[60:], est[60:], pose_cov[60:])
+    sd = math.sqrt(states[-1].pose_covariance[2, 2] - states[60].pose_covariance[2, 2])
+    assert late["final_yaw_sigma_deg"] == pytest.approx(math.degrees(sd))
+    err = math.remainder((states[-1].yaw - truths[-1][2]) - (states[60].yaw - truths[60][2]), math.tau)
+    assert late["final_yaw_error_deg"] == pytest.approx(math.degrees(err), abs=1e-9)
 
 
 def test_consistency_puts_the_truth_in_the_estimates_world_and_counts_the_frames():
@@ -146,14 +195,37 @@ def test_consistency_puts_the_truth_in_the_estimates_world_and_counts_the_frames
     assert got["yaw"]["within_1sigma"] == pytest.approx(1 / 3) and got["yaw"]["within_2sigma"] == pytest.approx(2 / 3)
     assert got["position"]["z_rms"] == pytest.approx(math.sqrt(1 / 3)) and got["position"]["within_1sigma"] == 1.0
     assert got["final_yaw_error_deg"] == pytest.approx(3.0) and got["final_yaw_sigma_deg"] == pytest.approx(1.0)
-    assert covariance_consistency(truth, est, cov, position=False)["position"] is None
     # The yaw rate: each step's turn error (0.5, -2, 4.5 degrees) over its rate's sd (1 deg/s) times 0.4 s.
+    times = np.arange(4) * 0.4
     twist = np.zeros((4, 3, 3))
     twist[:, 2, 2] = DEG ** 2
-    rate = covariance_consistency(truth, est, cov, twist_covariance=twist, times=np.arange(4) * 0.4)["yaw_rate"]
+    rates = np.r_[0.0, np.diff(est[:, 2]) / 0.4]
+    rate = covariance_consistency(truth, est, cov, twist_covariance=twist, times=times, yaw_rates=rates)["yaw_rate"]
     assert rate["z_rms"] == pytest.approx(math.sqrt((1.25 ** 2 + 5 ** 2 + 11.25 ** 2) / 3))
     assert rate["within_1sigma"] == 0.0 and rate["within_2sigma"] == pytest.approx(1 / 3)
+    # A step whose rate is not its turn over its time (measured across a bridged run), or between
+    # frames that do not follow (a message lost), is not one step: left out.
+    bridged = rates.copy()
+    bridged[2] /= 3
+    rate = covariance_consistency(truth, est, cov, twist_covariance=twist, times=times, yaw_rates=bridged,
+                                  frames=[0, 1, 2, 4])["yaw_rate"]
+    assert rate["z_rms"] == pytest.approx(1.25)
     with pytest.raises(EvaluationError, match="same frames"):
         covariance_consistency(truth, est[:3], cov)
-    with pytest.raises(EvaluationError, match="their times"):
-        covariance_consistency(truth, est, cov, twist_covariance=twist)
+    with pytest.raises(EvaluationError, match="yaw rates"):
+        covariance_consistency(truth, est, cov, twist_covariance=twist, times=times)
+
+
+def test_a_step_across_half_a_turn_is_one_step():
+    # Yaws read back from quaternions wrap at +/-180 degrees; a step from 179 to -179 degrees turned 2.
+    yaw = np.radians([177.0, 179.0, -179.0, -177.0])
+    est = np.c_[np.zeros(4), np.zeros(4), yaw]
+    truth = est.copy()
+    truth[:, 2] += np.radians([0.0, 0.5, 0.5, 0.5])  # the estimate's second step 0.5 degrees short
+    cov = np.zeros((4, 3, 3))
+    cov[:, 2, 2] = np.arange(4) * DEG ** 2
+    twist = np.zeros((4, 3, 3))
+    twist[:, 2, 2] = (0.5 * DEG / 0.1) ** 2  # a step's sd of 0.5 degrees
+    rates = np.full(4, math.radians(2.0) / 0.1)
+    got = covariance_consistency(truth, est, cov, twist_covariance=twist, times=np.arange(4) * 0.1, yaw_rates=rates)
+    assert got["yaw_rate"]["z_rms"] == pytest.approx(math.sqrt(1 / 3))  # all three steps, one off by one sd

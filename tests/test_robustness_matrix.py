@@ -179,7 +179,7 @@ def test_the_summary_says_what_makes_the_drift_per_row():
 
 def test_the_summary_says_how_the_covariance_covers_the_errors():
     import matrix_summary
-    def result(name, z, final_sd, final_error, position=True, **cell):
+    def result(name, z, final_sd, final_error, position=True, **cell):  # (position False: a result without one)
         cov = {"yaw": {"z_rms": z, "within_1sigma": 0.7, "within_2sigma": 0.8 + z / 5},
                "position": {"z_rms": 2 * z, "within_1sigma": 0.5, "within_2sigma": 0.8} if position else None,
                "final_yaw_error_deg": final_error, "final_yaw_sigma_deg": final_sd,

@@ -8,7 +8,7 @@ import math
 from ..estimator.evaluation import EvaluationResult, Stats
 from ..estimator.heading_metrics import DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG, STRAIGHT_RATE_DPS, HeadingMetrics
 from ..estimator.quality import Flag
-from .eval_flags import FlagTimeline
+from .odometry_log import OdometryLog
 
 _COLUMNS = ("rmse", "mean", "median", "std", "min", "max")
 
@@ -89,19 +89,20 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
 def format_covariance(c: dict, source: str, used: int, total: int) -> str:
     """The lines radar-eval prints for the reported covariances against the truth
     (``covariance_consistency``'s dict *c*, over *used* of the *total* messages of *source*)."""
-    def line(label: str, part: dict | None, why: str, more: str = "") -> str:
+    def line(label: str, part: dict | None, normal: str, more: str = "") -> str:
         if part is None or part["z_rms"] is None:
-            return f"  {label:<18}{why}"
-        return (f"  {label:<18}RMS {part['z_rms']:.2f}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
-                f"within 2 sd {100 * part['within_2sigma']:.0f} %{more}")
+            return f"  {label:<18}not compared: no {'step' if label == 'yaw rate' else 'frame'} with a variance"
+        return (f"  {label:<18}RMS {_fit(part['z_rms'], '.2f')}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
+                f"within 2 sd {100 * part['within_2sigma']:.0f} % ({normal}){more}")
     return "\n".join([
-        f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched; each error over its "
-        "standard deviation,",
-        "  a normal one within 1 sd in 68 % of the frames, 2 sd in 95 %; RMS below 1: the covariance is wide):",
-        line("heading", c["yaw"], "no variance reported",
-             f"; after the run: error {c['final_yaw_error_deg']:+.2f} deg, sd {c['final_yaw_sigma_deg']:.2f} deg"),
-        line("position", c["position"], "not compared: the radar sits off the base's axis (--mount)"),
-        line("yaw rate", c["yaw_rate"], "not compared: not every message matched a pose of the truth", " (each step's)"),
+        f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched; each error since the "
+        "first over its standard deviation",
+        "  (RMS below 1: the covariance is wide, above 1: narrow; a normal error's shares in brackets)):",
+        line("heading", c["yaw"], "68 / 95 %",
+             f"; after the run: error {_fit(c['final_yaw_error_deg'], '+.2f')} deg, "
+             f"sd {_fit(c['final_yaw_sigma_deg'], '.2f')} deg"),
+        line("position", c["position"], "63 / 98 %"),
+        line("yaw rate", c["yaw_rate"], "68 / 95 %", ", each single step"),
     ])
 
 
@@ -113,7 +114,7 @@ def _short(text: str, limit: int = 48) -> str:
     return text if len(text) <= limit else "..." + text[-(limit - 3):]
 
 
-def summary_lines(r: EvaluationResult, flags: FlagTimeline | None = None) -> list[str]:
+def summary_lines(r: EvaluationResult, flags: OdometryLog | None = None) -> list[str]:
     """The numbers radar-eval prints, in four lines: what was compared, the main errors, the
     relative errors, the flags."""
     rpe_d, rpe_f = r.rpe_distance, r.rpe_frame

@@ -16,7 +16,7 @@ import numpy as np
 from ..estimator.evaluation import EvaluationResult, Stats, path_steps
 from ..estimator.heading_metrics import MIN_TURN_DEG, STRAIGHT_RATE_DPS, segment_turns
 from ..estimator.quality import Flag
-from .eval_flags import FlagTimeline
+from .odometry_log import OdometryLog
 
 #: The truth turns where its yaw rate exceeds this (deg/s), over at least TURN_MIN_DEG: as
 #: radar-eval's heading figures tell turns.
@@ -59,7 +59,7 @@ def turns(r: EvaluationResult) -> list[Turn]:
             for i, j, _ in segment_turns(r.times, r.ref, straight_rate_dps=TURN_RATE_DPS, min_turn_deg=TURN_MIN_DEG)]
 
 
-def flag_runs(timeline: FlagTimeline, name: str) -> list[tuple[float, float]]:
+def flag_runs(timeline: OdometryLog, name: str) -> list[tuple[float, float]]:
     """(start, width) s of each run of consecutive steps flagged *name*: a step lasts until the
     next one (the last one, the median step)."""
     t = timeline.times
@@ -101,7 +101,7 @@ class PlotData:
 
     result: EvaluationResult
     turns: list[Turn]
-    flags: FlagTimeline | None
+    flags: OdometryLog | None
 
 
 def trajectory(ax: Any, d: PlotData) -> None:

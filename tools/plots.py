@@ -17,7 +17,7 @@ from typing import Any, Callable
 from ..errors import CaptureError, UsageError, why_not_written
 from ..estimator.evaluation import EvaluationResult
 from . import plot_panels as panels
-from .eval_flags import FlagTimeline, read_odometry_flags
+from .odometry_log import OdometryLog, read_odometry_log
 from .eval_summary import format_table, summary_lines
 
 log = logging.getLogger(__name__)
@@ -44,8 +44,8 @@ _SINGLE: dict[str, tuple[Panel, tuple[str, ...]]] = {
 _REPORT_TIME: tuple[Panel, ...] = (panels.yaw, panels.speed, panels.position_error, panels.yaw_error,
                                    panels.flags)
 
-__all__ = ["evaluation_figures", "file_names", "plot_evaluation", "require_matplotlib", "FlagTimeline",
-           "read_odometry_flags"]
+__all__ = ["evaluation_figures", "file_names", "plot_evaluation", "require_matplotlib", "OdometryLog",
+           "read_odometry_log"]
 
 
 def file_names(*, flags: bool) -> list[str]:
@@ -83,7 +83,7 @@ def _header(fig: Any, name: str, lines: list[str], *, size: str) -> None:
 
 
 def evaluation_figures(result: EvaluationResult, *, name: str,
-                       flags: FlagTimeline | None = None) -> dict[str, Any]:
+                       flags: OdometryLog | None = None) -> dict[str, Any]:
     """The evaluation's figures by file name: one per panel and ``report.png`` with them all.
 
     *name* titles every figure; *flags* are the estimator's flags on the evaluation's clock
@@ -140,7 +140,7 @@ def make_directory(directory: str | os.PathLike) -> str:
 
 
 def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, name: str,
-                    flags: FlagTimeline | None = None) -> list[str]:
+                    flags: OdometryLog | None = None) -> list[str]:
     """Write the evaluation's figures into *directory* (created if needed; PNGs of the same
     names are replaced); returns their paths, ``report.png`` first."""
     figures = evaluation_figures(result, name=name, flags=flags)

@@ -34,7 +34,8 @@ import numpy as np
 from ..driver.recordings.capture_writer import json_text
 from ..errors import UsageError
 from ..mount import Mount
-from ..estimator.consistency import covariance_consistency
+from ..plain_numbers import time_text
+from ..estimator.consistency import odometry_consistency
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..estimator.heading_metrics import drift_parts, heading_metrics
 from ..driver.sources import open_source
@@ -91,7 +92,7 @@ def _main(args: argparse.Namespace) -> int:
     _check_outputs(args)
     estimate = read_tum(args.estimate)
     reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
-    flags = plots.read_odometry_flags(args.odom) if args.odom else None
+    flags = plots.read_odometry_log(args.odom) if args.odom else None
     # Coordinates near the float limit make lengths overflow: one warning below, not numpy's
     # one per operation.
     with np.errstate(over="ignore", invalid="ignore"):
@@ -101,7 +102,9 @@ def _main(args: argparse.Namespace) -> int:
         heading = heading_metrics(result.times, result.ref, result.est, radar_on_base=on_base)
         parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
-        covariance = None if flags is None else _covariance(flags, reference, args)
+        covariance = None if flags is None else odometry_consistency(
+            flags.times, flags.poses, flags.pose_covariance, flags.twist_covariance, flags.yaw_rates, flags.frames,
+            reference, args.max_diff, source=flags.source)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], flags.source, covariance[1], len(flags))
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
@@ -114,14 +117,14 @@ def _main(args: argparse.Namespace) -> int:
     if overflow:
         log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
+    if args.plot and flags is not None:  # (messages of another stretch are refused before any output)
+        flags = _on_the_evaluation_clock(flags, estimate, reference, result)
     print(table)
     if args.json:
         if args.plot:  # the --json file may be one of its files
             plots.make_directory(args.plot)
         cli.write_output(args.json, json_text(data), overwrite=args.overwrite)  # the numbers are above
     if args.plot:
-        if flags is not None:
-            flags = _on_the_evaluation_clock(flags, estimate, reference, result)
         name = args.name or os.path.splitext(os.path.basename(args.estimate))[0]
         written = plots.plot_evaluation(result, args.plot, name=name, flags=flags)
         if not args.quiet:
@@ -153,21 +156,6 @@ def _check_outputs(args: argparse.Namespace) -> None:
         cli.check_new_outputs(plot + [(args.json, "file", "--json")], overwrite=args.overwrite)
 
 
-def _covariance(odom: plots.FlagTimeline, reference: TumTrajectory, args: argparse.Namespace) -> tuple[dict, int]:
-    """How the odometry messages' covariances cover their errors against *reference*, over the
-    messages matched to it in time, and how many matched.  The position only for a radar on the
-    base's axis (the truth is the base's); the yaw rate only when every message matched (each
-    one's twist is of its step from the one before)."""
-    est = TumTrajectory.from_se2(odom.times, odom.poses, source=odom.source)
-    est_m, ref_m = associate(est, reference, args.max_diff)
-    frames = np.searchsorted(odom.times, est_m.times)
-    every = len(frames) == len(odom)
-    on_axis = args.mount.x == 0.0 and args.mount.y == 0.0
-    return covariance_consistency(ref_m.se2(), est_m.se2(), odom.pose_covariance[frames], position=on_axis,
-                                  twist_covariance=odom.twist_covariance[frames] if every else None,
-                                  times=est_m.times if every else None), len(frames)
-
-
 def _source_groundtruth(url: str) -> TumTrajectory:
     """The ground truth a frame source knows (its frames are not read)."""
     with open_source(url) as source:
@@ -179,16 +167,16 @@ def _source_groundtruth(url: str) -> TumTrajectory:
     return truth
 
 
-def _on_the_evaluation_clock(flags: plots.FlagTimeline, estimate: TumTrajectory, reference: TumTrajectory,
-                             result: EvaluationResult) -> plots.FlagTimeline:
+def _on_the_evaluation_clock(flags: plots.OdometryLog, estimate: TumTrajectory, reference: TumTrajectory,
+                             result: EvaluationResult) -> plots.OdometryLog:
     """*flags* with times from the first matched pose (the plots' clock), those of the evaluated
     span only; a file none of whose steps fall in it is refused (another run's?)."""
     t0 = float(associate(estimate, reference, result.max_diff_s)[1].times[0])
     inside = flags.since(t0).within(-result.max_diff_s, result.duration_s + result.max_diff_s)
     if not len(inside):
-        raise UsageError(f"{flags.source}: its {len(flags)} odometry messages (t {flags.times[0]:.3f} .. "
-                         f"{flags.times[-1]:.3f} s) fall outside the evaluated poses (t {t0:.3f} .. "
-                         f"{t0 + result.duration_s:.3f} s); are they of this run?")
+        raise UsageError(f"{flags.source}: its {len(flags)} odometry messages (t {time_text(flags.times[0])} .. "
+                         f"{time_text(flags.times[-1])} s) fall outside the evaluated poses (t {time_text(t0)} .. "
+                         f"{time_text(t0 + result.duration_s)} s); are they of this run?")
     if len(inside) < len(flags):
         log.info("%s: %d of %d odometry messages fall outside the evaluated poses", flags.source,
                  len(flags) - len(inside), len(flags))

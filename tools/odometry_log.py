@@ -1,5 +1,5 @@
-"""The estimator's quality flags over a run, and its poses' covariances, read from its odometry
-messages.
+"""An odometry run's messages as radar-eval reads them: each step's quality flags, and its pose,
+yaw rate and covariances.
 
 A TUM file holds poses only.  The flags and the covariances come from the odometry v1 messages
 (:mod:`radarodom.messages`, schema ``radarodom/odom``) written one JSON object per line:
@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import messages
+from .. import messages, strict_json
+from ..plain_numbers import time_text
 from ..errors import CaptureFormatError, MessageError, UsageError
 from ..estimator.quality import Flag
 
@@ -26,16 +27,18 @@ log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class FlagTimeline:
-    """The flags of each odometry step: ``times`` (k,) s, increasing, and ``flags`` (k,)
-    tuples of flag names (empty: a good step); ``source`` names the file.  Read from a file, also
-    each message's ``poses`` (k, 3) x, y m and yaw rad and its ``pose_covariance`` and
-    ``twist_covariance`` (k, 3, 3)."""
+class OdometryLog:
+    """The odometry steps of a run: ``times`` (k,) s, increasing, and ``flags`` (k,) tuples of
+    flag names (empty: a good step); ``source`` names the file.  Read from a file, also each
+    message's ``frames`` (k,), ``poses`` (k, 3) x, y m and yaw rad, ``yaw_rates`` (k,) rad/s and
+    its ``pose_covariance`` and ``twist_covariance`` (k, 3, 3)."""
 
     times: np.ndarray
     flags: tuple[tuple[str, ...], ...]
     source: str = ""
+    frames: np.ndarray | None = None
     poses: np.ndarray | None = None
+    yaw_rates: np.ndarray | None = None
     pose_covariance: np.ndarray | None = None
     twist_covariance: np.ndarray | None = None
 
@@ -53,19 +56,19 @@ class FlagTimeline:
         """How many steps carry the flag *name*."""
         return sum(name in step for step in self.flags)
 
-    def since(self, t0: float) -> "FlagTimeline":
+    def since(self, t0: float) -> "OdometryLog":
         """The same steps with times counted from *t0* (s)."""
         return dataclasses.replace(self, times=self.times - t0)
 
-    def within(self, start: float, end: float) -> "FlagTimeline":
+    def within(self, start: float, end: float) -> "OdometryLog":
         """The steps with start <= t <= end."""
         keep = np.flatnonzero((self.times >= start) & (self.times <= end))
         rows = {name: None if getattr(self, name) is None else getattr(self, name)[keep]
-                for name in ("poses", "pose_covariance", "twist_covariance")}
-        return FlagTimeline(self.times[keep], tuple(self.flags[i] for i in keep), self.source, **rows)
+                for name in ("frames", "poses", "yaw_rates", "pose_covariance", "twist_covariance")}
+        return OdometryLog(self.times[keep], tuple(self.flags[i] for i in keep), self.source, **rows)
 
 
-def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
+def read_odometry_log(path: str | os.PathLike) -> OdometryLog:
     """The flags of the odometry messages in the JSON-lines file *path* (module text).
 
     Raises :class:`CaptureFormatError` naming ``path:line`` for a line that is not a JSON
@@ -75,17 +78,23 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
     path = os.fspath(path)
     times: list[float] = []
     flags: list[tuple[str, ...]] = []
-    poses: list[tuple[float, float, float]] = []
+    frames: list[int] = []
+    steps: list[tuple[float, float, float, float]] = []  # x, y, yaw, yaw rate
     covariances: list[tuple[list, list]] = []
     skipped = 0
+    cut = None  # the last line's number when it had no end of line
     try:
         with open(path, encoding="utf-8-sig") as fh:  # a BOM (a Windows editor's) ignored
             for lineno, line in enumerate(fh, start=1):
                 if not line.strip():
                     continue
                 if not line.endswith("\n"):  # as a TUM file's: a writer killed mid-line
-                    log.warning("%s:%d: ignoring a last line without end of line", path, lineno)
+                    cut = lineno
                     break
+                depth = strict_json.nesting_depth(line)  # (json recurses once per level)
+                if depth > strict_json.MAX_DEPTH:
+                    raise CaptureFormatError(f"{path}:{lineno}: not an odometry message: nested {depth} deep, more "
+                                             f"than the {strict_json.MAX_DEPTH} allowed")
                 try:
                     obj = json.loads(line)
                 except ValueError as exc:
@@ -100,11 +109,13 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
                 except MessageError as exc:
                     raise CaptureFormatError(f"{path}:{lineno}: {exc}") from None
                 if times and m["t"] <= times[-1]:
-                    raise CaptureFormatError(f"{path}:{lineno}: time {m['t']:.9f} s is not after the previous "
-                                             f"message's {times[-1]:.9f} s; one run's messages, in order, are needed")
+                    raise CaptureFormatError(f"{path}:{lineno}: time {time_text(m['t'], 9)} s is not after the "
+                                             f"previous message's {time_text(times[-1], 9)} s; one run's messages, "
+                                             "in order, are needed")
                 times.append(float(m["t"]))
                 flags.append(tuple(m["flags"]))
-                poses.append((m["x"], m["y"], m["yaw"]))
+                frames.append(m["frame"])
+                steps.append((m["x"], m["y"], m["yaw"], m["yaw_rate"]))
                 covariances.append((m["pose_covariance"], m["twist_covariance"]))
     except FileNotFoundError:
         raise UsageError(f"{path}: no such file") from None
@@ -114,11 +125,15 @@ def read_odometry_flags(path: str | os.PathLike) -> FlagTimeline:
         raise CaptureFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
         raise UsageError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if cut is not None and times:
+        log.warning("%s:%d: ignoring a last line without end of line", path, cut)
     if not times:
-        raise UsageError(f"{path}: no odometry message ({messages.ODOM_SCHEMA}) in it; write one with "
-                         f"radar-echo --json odom > FILE while radar-capture publishes")
+        cut_off = f" but line {cut}, which has no end of line (cut off?)" if cut is not None else ""
+        raise UsageError(f"{path}: no odometry message ({messages.ODOM_SCHEMA}) in it{cut_off}; write one with "
+                         f"radar-echo --json odom > FILE while radar-capture publishes (or radar-capture --odom-json)")
     if skipped:
         log.info("%s: %d lines of other messages skipped", path, skipped)
     cov = np.asarray(covariances, float).reshape(len(times), 2, 3, 3)
-    return FlagTimeline(np.asarray(times), tuple(flags), path, poses=np.asarray(poses, float),
-                        pose_covariance=cov[:, 0], twist_covariance=cov[:, 1])
+    rows = np.asarray(steps, float)
+    return OdometryLog(np.asarray(times), tuple(flags), path, frames=np.asarray(frames, np.uint64), poses=rows[:, :3],
+                       yaw_rates=rows[:, 3], pose_covariance=cov[:, 0], twist_covariance=cov[:, 1])
