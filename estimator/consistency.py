@@ -88,7 +88,8 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
 
 def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: np.ndarray,
                          twist_covariance: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray,
-                         reference: TumTrajectory, max_diff: float = 0.01, source: str = "odometry") -> tuple[dict, int]:
+                         reference: TumTrajectory, max_diff: float = 0.01,
+                         source: str = "odometry") -> tuple[dict, int]:
     """:func:`covariance_consistency` of an odometry run's states (their *times* (n,) s, *poses*
     (n, 3), covariances (n, 3, 3), *yaw_rates* (n,) and *frames* (n,)) against the ground truth
     *reference*, over the states paired with it in time (within *max_diff* s, as radar-eval pairs

@@ -69,7 +69,8 @@ class OdometryLog:
 
 
 def read_odometry_log(path: str | os.PathLike) -> OdometryLog:
-    """The flags of the odometry messages in the JSON-lines file *path* (module text).
+    """The odometry messages in the JSON-lines file *path* (module text): their flags, poses, rates and
+    covariances.
 
     Raises :class:`CaptureFormatError` naming ``path:line`` for a line that is not a JSON
     object or an odometry message that breaks its schema, or when the times do not increase;

@@ -92,7 +92,7 @@ def _main(args: argparse.Namespace) -> int:
     _check_outputs(args)
     estimate = read_tum(args.estimate)
     reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
-    flags = plots.read_odometry_log(args.odom) if args.odom else None
+    odom_log = plots.read_odometry_log(args.odom) if args.odom else None
     # Coordinates near the float limit make lengths overflow: one warning below, not numpy's
     # one per operation.
     with np.errstate(over="ignore", invalid="ignore"):
@@ -102,11 +102,12 @@ def _main(args: argparse.Namespace) -> int:
         heading = heading_metrics(result.times, result.ref, result.est, radar_on_base=on_base)
         parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
-        covariance = None if flags is None else odometry_consistency(
-            flags.times, flags.poses, flags.pose_covariance, flags.twist_covariance, flags.yaw_rates, flags.frames,
-            reference, args.max_diff, source=flags.source)
+        log_ = odom_log
+        covariance = None if log_ is None else odometry_consistency(
+            log_.times, log_.poses, log_.pose_covariance, log_.twist_covariance, log_.yaw_rates, log_.frames,
+            reference, args.max_diff, source=log_.source)
         if covariance is not None:
-            table += "\n\n" + format_covariance(covariance[0], flags.source, covariance[1], len(flags))
+            table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
         # (json_text writes standard JSON: an undefined figure becomes null)
         data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts},
@@ -117,8 +118,8 @@ def _main(args: argparse.Namespace) -> int:
     if overflow:
         log.warning("the coordinates are too large to compute with: lengths overflow, so figures show as "
                     "inf or nan%s (are the files in metres?)", " and are null in --json" if args.json else "")
-    if args.plot and flags is not None:  # (messages of another stretch are refused before any output)
-        flags = _on_the_evaluation_clock(flags, estimate, reference, result)
+    if args.plot and odom_log is not None:  # (messages of another stretch are refused before any output)
+        odom_log = _on_the_evaluation_clock(odom_log, estimate, reference, result)
     print(table)
     if args.json:
         if args.plot:  # the --json file may be one of its files
@@ -126,7 +127,7 @@ def _main(args: argparse.Namespace) -> int:
         cli.write_output(args.json, json_text(data), overwrite=args.overwrite)  # the numbers are above
     if args.plot:
         name = args.name or os.path.splitext(os.path.basename(args.estimate))[0]
-        written = plots.plot_evaluation(result, args.plot, name=name, flags=flags)
+        written = plots.plot_evaluation(result, args.plot, name=name, flags=odom_log)
         if not args.quiet:
             print(f"plots: {', '.join(written)}")
     return 0

@@ -34,8 +34,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError, quoted_json
-from .scene_values import (MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE, SCENE_KEYS,
-                           SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
+from .scene_values import (MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE,
+                           SCENE_KEYS, SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
                            cross_section, read_scene_file, vec, within)
 from .trajectory import MAX_SPEED_MPS, Trajectory, check_keys, from_spec, polyline
 

@@ -174,9 +174,9 @@ def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, 
             speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
             rate = speed / radius
             if math.degrees(rate) > MAX_TURN_RATE_DPS:
-                raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at "
-                            f"{beyond_text(math.degrees(rate), MAX_TURN_RATE_DPS)} deg/s, more than {MAX_TURN_RATE_DPS:g} (ten turns a "
-                            "second): a larger radius or a rotate segment", where)
+                shown = beyond_text(math.degrees(rate), MAX_TURN_RATE_DPS)
+                raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at {shown} deg/s, more than "
+                            f"{MAX_TURN_RATE_DPS:g} (ten turns a second): a larger radius or a rotate segment", where)
             out.append((_lasting(abs(angle), rate), speed, math.copysign(rate, angle)))
         elif "rotate" in seg:
             angle = math.radians(_number(seg, "rotate", where))
@@ -261,7 +261,8 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
     check_keys(spec, TRAJECTORY_KEYS, where, "trajectory")
     start = _triple(spec, "start", where)
     mount = _triple(spec, "mount", where)
-    height = _number(spec, "height", where, 0.4, positive=True, maximum=(MAX_COORDINATE_M, "m (a scene is metres high)"))
+    height = _number(spec, "height", where, 0.4, positive=True,
+                     maximum=(MAX_COORDINATE_M, "m (a scene is metres high)"))
     smoothing = _number(spec, "smoothing_s", where, 0.3, positive=True)
     if smoothing > MAX_SMOOTHING_S:
         raise _fail(f"smoothing_s must be at most {MAX_SMOOTHING_S:g} s (the speed and turn-rate ramps), "
