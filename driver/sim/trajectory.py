@@ -90,8 +90,8 @@ MAX_DURATION_S = 3600.0
 #: The longest speed and turn-rate ramp, s (smoothing_s; 0.3 s in the built-in scenes): its moving
 #: average is STEP_S wide per sample (1e300 s was an internal error, an hour's ramp a long wait).
 MAX_SMOOTHING_S = 10.0
-#: The fastest a trajectory drives, m/s, and turns, deg/s: a robot's or a car's.  Faster, a segment
-#: lasts less than a step and moved nothing (a speed of 1e300 was "no motion and no time").
+#: The fastest a trajectory drives, m/s, and turns, deg/s: a robot's or a car's; more is a unit
+#: mistaken (a speed of 1e300 m/s was "the segments add up to no motion and no time").
 MAX_SPEED_MPS = 100.0
 MAX_TURN_RATE_DPS = 3600.0
 #: The keys of each kind of segment.
