@@ -99,8 +99,8 @@ def parts_table(results: list[dict]) -> list[str]:
 def covariance_table(results: list[dict]) -> list[str]:
     """Per row of the star, how the reported pose covariance covers the errors (each frame's error
     since the start over its standard deviation: RMS, and the share within two; the final heading's
-    standard deviation against its error, RMS over the cells), and the twist's yaw rate (each step's);
-    none when the results have none (runs before 2026-12-01)."""
+    standard deviation against its error, RMS over the cells), and the twist's yaw rate and speeds
+    (each step's); none when the results have none (runs before 2026-12-01)."""
     rows: dict[str, list[dict]] = {}
     for r in sorted(results, key=lambda r: r["name"]):
         if r.get("covariance"):
@@ -108,8 +108,9 @@ def covariance_table(results: list[dict]) -> list[str]:
     if not rows:
         return []
     lines = ["| cells | heading error / sd, RMS | within 2 sd | final heading sd / error RMS, deg "
-             "| position error / sd, RMS | within 2 sd | yaw rate error / sd, RMS | within 2 sd |",
-             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+             "| position error / sd, RMS | within 2 sd | yaw rate error / sd, RMS | within 2 sd "
+             "| speed error / sd, RMS, forward / sideways |",
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     everything = [r for cells in rows.values() for r in cells]
     for label, cells in [*sorted(rows.items(), key=lambda item: not item[0].startswith("base")), ("all", everything)]:
         def mean(part: str, key: str) -> str:
@@ -122,7 +123,8 @@ def covariance_table(results: list[dict]) -> list[str]:
         err = statistics.mean(err ** 2 for _, err in finals) ** 0.5 if finals else math.nan
         lines.append(f"| {label} ({len(cells)}) | {mean('yaw', 'z_rms')} | {mean('yaw', 'within_2sigma')} "
                      f"| {sd:.1f} / {err:.1f} | {mean('position', 'z_rms')} | {mean('position', 'within_2sigma')} "
-                     f"| {mean('yaw_rate', 'z_rms')} | {mean('yaw_rate', 'within_2sigma')} |")
+                     f"| {mean('yaw_rate', 'z_rms')} | {mean('yaw_rate', 'within_2sigma')} "
+                     f"| {mean('forward_speed', 'z_rms')} / {mean('sideways_speed', 'z_rms')} |")
     return lines
 
 

@@ -1,6 +1,6 @@
 """How well the odometry's reported covariance covers its errors against a ground truth: each
 frame's heading and position error since the first compared frame over its reported standard
-deviation, and each step's yaw rate's (docs/estimator.md, "Pose covariance").  An RMS ratio below 1
+deviation, and each step's yaw rate's and velocity's (docs/estimator.md, "Pose covariance").  An RMS ratio below 1
 says the covariance is wide, above 1 that it is narrow.  A normal heading or yaw-rate error lies
 within one standard deviation in 68 % of the frames, within two in 95 %; a position error, its
 distance over the root of the covariance's trace, in 63 % and 98 % (round, two dimensions)."""
@@ -54,7 +54,8 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
     estimate's, over (x, y, yaw).  *twist_covariance*: (n, 3, 3) over (vx, vy, yaw rate), each of
     its step from the frame before; *times* (n,) s; *yaw_rates* (n,) rad/s, the estimate's;
     *frames* (n,) its frame numbers (optional): only the steps that are one estimator step each are
-    compared.  Returns ``yaw``, ``position`` and ``yaw_rate`` (None without the twist's), each
+    compared.  Returns ``yaw``, ``position``, and the twist's ``yaw_rate``, ``forward_speed`` and
+    ``sideways_speed`` (each step's, its velocity from the poses; None without the twist's), each
     {"z_rms", "within_1sigma", "within_2sigma"} over the frames (steps) with a variance, and
     ``final_yaw_error_deg`` and ``final_yaw_sigma_deg`` (the last frame's, from the first)."""
     reference, estimate = np.asarray(reference, float), np.asarray(estimate, float)
@@ -76,14 +77,29 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
     yaw_error = np.angle(np.exp(1j * (estimate[:, 2] - reference[:, 2] - turn)))
     out = {"yaw": _summary(_normalised(yaw_error, cov[:, 2, 2])),
            "position": _summary(_normalised(np.hypot(*(estimate[:, :2] - placed).T), cov[:, 0, 0] + cov[:, 1, 1])),
-           "yaw_rate": None, "final_yaw_error_deg": math.degrees(float(yaw_error[-1])),
+           "yaw_rate": None, "forward_speed": None, "sideways_speed": None,
+           "final_yaw_error_deg": math.degrees(float(yaw_error[-1])),
            "final_yaw_sigma_deg": math.degrees(math.sqrt(max(float(cov[-1, 2, 2]), 0.0)))}
     if all(given):
         tw, stamps, rates = twist
         single = _single_steps(estimate, stamps, rates, frames)
         step_error = np.angle(np.exp(1j * (np.diff(estimate[:, 2]) - np.diff(reference[:, 2]))))[single]
         out["yaw_rate"] = _summary(_normalised(step_error, (tw[1:, 2, 2] * np.diff(stamps) ** 2)[single]))
+        dt = np.diff(stamps)[single]
+        error = (_body_step(estimate) - _body_step(reference))[single] / dt[:, None]
+        out["forward_speed"] = _summary(_normalised(error[:, 0], tw[1:, 0, 0][single]))
+        out["sideways_speed"] = _summary(_normalised(error[:, 1], tw[1:, 1, 1][single]))
     return out
+
+
+def _body_step(poses: np.ndarray) -> np.ndarray:
+    """Each step's displacement (n - 1, 2), m, in the body's axes half-way through its turn: the
+    odometry's chord of the step's velocity times its time, exactly (a truth's, near enough)."""
+    turn = np.angle(np.exp(1j * np.diff(poses[:, 2])))
+    mid = poses[:-1, 2] + 0.5 * turn
+    d = np.diff(poses[:, :2], axis=0)
+    c, s = np.cos(mid), np.sin(mid)
+    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
 
 
 def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: np.ndarray,

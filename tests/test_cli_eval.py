@@ -386,6 +386,7 @@ def test_odom_checks_the_reported_covariances_against_the_truth(corridor_run, tm
                                f"{100 * np.mean(abs(z) <= 1):.0f} %, within 2 sd {100 * np.mean(abs(z) <= 2):.0f} %")
     assert f"after the run: error {math.degrees(err[-1]):+.2f} deg, sd {math.degrees(sd[-1]):.2f} deg" in block[2]
     assert block[3].startswith("  position          RMS ") and block[4].startswith("  yaw rate          RMS ")
+    assert block[5].startswith("  forward speed     RMS ") and block[6].startswith("  sideways speed    RMS ")
     got = json.loads((tmp_path / "eval.json").read_text())["covariance"]
     assert got["yaw"]["z_rms"] == pytest.approx(np.sqrt(np.mean(z ** 2)), rel=1e-6)
     # 3 s of a corridor drive, mostly standing and speeding up: the heading's sd about a degree,

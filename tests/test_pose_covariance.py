@@ -200,9 +200,11 @@ def test_consistency_puts_the_truth_in_the_estimates_world_and_counts_the_frames
     twist = np.zeros((4, 3, 3))
     twist[:, 2, 2] = DEG ** 2
     rates = np.r_[0.0, np.diff(est[:, 2]) / 0.4]
-    rate = covariance_consistency(truth, est, cov, twist_covariance=twist, times=times, yaw_rates=rates)["yaw_rate"]
+    both = covariance_consistency(truth, est, cov, twist_covariance=twist, times=times, yaw_rates=rates)
+    rate = both["yaw_rate"]
     assert rate["z_rms"] == pytest.approx(math.sqrt((1.25 ** 2 + 5 ** 2 + 11.25 ** 2) / 3))
     assert rate["within_1sigma"] == 0.0 and rate["within_2sigma"] == pytest.approx(1 / 3)
+    assert both["forward_speed"]["z_rms"] is None and both["sideways_speed"]["z_rms"] is None  # (no speed variance)
     # A step whose rate is not its turn over its time (measured across a bridged run), or between
     # frames that do not follow (a message lost), is not one step: left out.
     bridged = rates.copy()
@@ -229,3 +231,20 @@ def test_a_step_across_half_a_turn_is_one_step():
     rates = np.full(4, math.radians(2.0) / 0.1)
     got = covariance_consistency(truth, est, cov, twist_covariance=twist, times=np.arange(4) * 0.1, yaw_rates=rates)
     assert got["yaw_rate"]["z_rms"] == pytest.approx(math.sqrt(1 / 3))  # all three steps, one off by one sd
+
+
+def test_the_speeds_error_over_the_twists_sd():
+    # Straight along x at 1 m/s, 0.1 s steps; the estimate 2 cm/s fast and 1 cm/s to the left in its
+    # second step, with a speed sd of 1 cm/s each way.
+    truth = np.c_[np.arange(4) * 0.1, np.zeros(4), np.zeros(4)]
+    est = truth.copy()
+    est[2:, 0] += 0.002
+    est[2:, 1] += 0.001
+    twist = np.zeros((4, 3, 3))
+    twist[:, 0, 0] = twist[:, 1, 1] = 0.01 ** 2
+    twist[:, 2, 2] = DEG ** 2
+    got = covariance_consistency(truth, est, np.zeros((4, 3, 3)), twist_covariance=twist, times=np.arange(4) * 0.1,
+                                 yaw_rates=np.zeros(4))
+    assert got["forward_speed"]["z_rms"] == pytest.approx(math.sqrt(4 / 3))
+    assert got["sideways_speed"]["z_rms"] == pytest.approx(math.sqrt(1 / 3))
+    assert got["forward_speed"]["within_1sigma"] == pytest.approx(2 / 3)

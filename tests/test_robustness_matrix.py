@@ -183,7 +183,9 @@ def test_the_summary_says_how_the_covariance_covers_the_errors():
         cov = {"yaw": {"z_rms": z, "within_1sigma": 0.7, "within_2sigma": 0.8 + z / 5},
                "position": {"z_rms": 2 * z, "within_1sigma": 0.5, "within_2sigma": 0.8} if position else None,
                "final_yaw_error_deg": final_error, "final_yaw_sigma_deg": final_sd,
-               "yaw_rate": {"z_rms": z / 2, "within_1sigma": 0.9, "within_2sigma": 1.0}}
+               "yaw_rate": {"z_rms": z / 2, "within_1sigma": 0.9, "within_2sigma": 1.0},
+               "forward_speed": {"z_rms": 1.0, "within_1sigma": 0.7, "within_2sigma": 0.95},
+               "sideways_speed": {"z_rms": z, "within_1sigma": 0.7, "within_2sigma": 0.95}}
         return {"name": name, "cell": {**dataclasses.asdict(rm.SimCell(scene="room")), **cell}, "yaw_rmse_deg": 0.3,
                 "straight_bias_deg_per_frame": 0.0, "moving_turn_ratio": 1.0, "inplace_turn_ratio": 1.0,
                 "drift_pct": 1.0, "final_heading_error_deg": 0.0, "covariance": cov}
@@ -192,9 +194,9 @@ def test_the_summary_says_how_the_covariance_covers_the_errors():
                                     result("c", 0.8, 5.0, 0.0, position=False, mount_m=0.3), older]])
     lines = text.split("The reported pose covariance")[1].splitlines()
     head = next(i for i, line in enumerate(lines) if line.startswith("| cells |"))
-    assert lines[head + 2] == "| base (shipped cfg, scene SNR, 0.8 m/s, 45 deg/s) (2) | 0.75 | 0.95 | 5.0 / 3.5 | 1.50 | 0.80 | 0.38 | 1.00 |"
-    assert lines[head + 3] == "| radar 0.3 m ahead, wheeled (1) | 0.80 | 0.96 | 5.0 / 0.0 | - | - | 0.40 | 1.00 |"
-    assert lines[head + 4] == "| all (3) | 0.77 | 0.95 | 5.0 / 2.9 | 1.50 | 0.80 | 0.38 | 1.00 |"
+    assert lines[head + 2] == "| base (shipped cfg, scene SNR, 0.8 m/s, 45 deg/s) (2) | 0.75 | 0.95 | 5.0 / 3.5 | 1.50 | 0.80 | 0.38 | 1.00 | 1.00 / 0.75 |"
+    assert lines[head + 3] == "| radar 0.3 m ahead, wheeled (1) | 0.80 | 0.96 | 5.0 / 0.0 | - | - | 0.40 | 1.00 | 1.00 / 0.80 |"
+    assert lines[head + 4] == "| all (3) | 0.77 | 0.95 | 5.0 / 2.9 | 1.50 | 0.80 | 0.38 | 1.00 | 1.00 / 0.77 |"
 
 
 @pytest.mark.parametrize("scene", sorted(rm.LAYOUT))

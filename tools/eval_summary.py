@@ -91,7 +91,8 @@ def format_covariance(c: dict, source: str, used: int, total: int) -> str:
     (``covariance_consistency``'s dict *c*, over *used* of the *total* messages of *source*)."""
     def line(label: str, part: dict | None, normal: str, more: str = "") -> str:
         if part is None or part["z_rms"] is None:
-            return f"  {label:<18}not compared: no {'step' if label == 'yaw rate' else 'frame'} with a variance"
+            what = "frame" if label in ("heading", "position") else "step"
+            return f"  {label:<18}not compared: no {what} with a variance"
         return (f"  {label:<18}RMS {_fit(part['z_rms'], '.2f')}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
                 f"within 2 sd {100 * part['within_2sigma']:.0f} % ({normal}){more}")
     return "\n".join([
@@ -103,6 +104,8 @@ def format_covariance(c: dict, source: str, used: int, total: int) -> str:
              f"sd {_fit(c['final_yaw_sigma_deg'], '.2f')} deg"),
         line("position", c["position"], "63 / 98 %"),
         line("yaw rate", c["yaw_rate"], "68 / 95 %", ", each single step"),
+        line("forward speed", c.get("forward_speed"), "68 / 95 %", ", each single step"),
+        line("sideways speed", c.get("sideways_speed"), "68 / 95 %", ", each single step"),
     ])
 
 
