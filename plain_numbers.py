@@ -9,6 +9,7 @@ setting built in code): :func:`is_number`, :func:`is_whole_number`, a bool being
 
 from __future__ import annotations
 
+import math
 import numbers
 import re
 from typing import Any
@@ -44,6 +45,18 @@ def is_number(value: Any) -> bool:
 def is_whole_number(value: Any) -> bool:
     """Whether *value*, given in Python, is a whole number: any integral (numpy's too), not a bool."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def finite_float(value: Any) -> float | None:
+    """*value*, read from a file (JSON, TOML), as a float when it is a finite number (an int or a
+    float, not a bool), else None: an integer of 309 digits or more is no float (float() overflows)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
 
 
 def beyond_text(value: float, *bounds: float) -> str:

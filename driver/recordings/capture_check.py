@@ -16,7 +16,6 @@ timestamps' bound), so that the writer (:mod:`.capture_writer`) and the reader
 from __future__ import annotations
 
 import logging
-import math
 from typing import Any
 
 import numpy as np
@@ -25,7 +24,7 @@ from ... import strict_json
 from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ...cfg_commands import coefficient_ok, coefficient_part_ok
 from ...errors import CaptureError, CaptureFormatError, named_character, quoted, quoted_json
-from ...plain_numbers import plain_float
+from ...plain_numbers import finite_float, plain_float
 
 log = logging.getLogger(__name__)
 
@@ -57,12 +56,7 @@ def _is_int(value: Any) -> bool:
 
 
 def _is_number(value: Any) -> bool:
-    if not isinstance(value, (int, float)) or isinstance(value, bool):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:  # an integer of 309 digits or more: beyond any float
-        return False
+    return finite_float(value) is not None
 
 
 class _Checker:

@@ -10,25 +10,13 @@ import sys
 import numpy as np
 
 from ... import strict_json
-from ...plain_numbers import beyond_text
+from ...plain_numbers import beyond_text, finite_float
 from ...errors import ConfigError, quoted
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
-
-
-def finite_number(value) -> float | None:
-    """*value* as a float when it is a finite number (not a bool), else None: an integer of 309
-    digits or more is no float (float() overflows)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    try:
-        number = float(value)
-    except OverflowError:
-        return None
-    return number if math.isfinite(number) else None
 
 
 def need(d: dict, key: str, where: str, kind=None):
@@ -66,7 +54,7 @@ def check_coordinates(arr: np.ndarray, value, where: str, what: str) -> None:
 def num(d: dict, key: str, default: float, where: str, *, positive: bool = False, name: str | None = None) -> float:
     """A number at *key* (*name*: its path in the file, when its table is not the top one)."""
     value = d.get(key, default)
-    number = finite_number(value)
+    number = finite_float(value)
     if number is None or (positive and number <= 0):
         raise ConfigError(f"must be a {'positive ' if positive else ''}number, got {quoted(value)}",
                           path=where, field=name or key)

@@ -33,8 +33,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...errors import ConfigError, quoted
-from ...plain_numbers import beyond_text
-from .scene_values import MAX_COORDINATE_M, check_coordinates, finite_number
+from ...plain_numbers import beyond_text, finite_float
+from .scene_values import MAX_COORDINATE_M, check_coordinates
 
 #: Integration step of the pose table, s.
 STEP_S = 1e-3
@@ -121,7 +121,7 @@ def _number(seg: dict, key: str, where: str, default: float | None = None, posit
     value = seg.get(key, default)
     if value is None:
         raise _fail(f"{quoted(seg)} needs {key!r}", where)
-    number = finite_number(value)
+    number = finite_float(value)
     if number is None:
         raise _fail(f"{key} must be a number, got {quoted(value)}", where)
     if positive and number <= 0:
@@ -286,6 +286,6 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
 def _triple(spec: dict[str, Any], key: str, where: str) -> list[float]:
     """An optional [x m, y m, yaw deg] (default zeros), or ConfigError."""
     value = spec.get(key, [0.0, 0.0, 0.0])
-    if not (isinstance(value, (list, tuple)) and len(value) == 3 and all(finite_number(v) is not None for v in value)):
+    if not (isinstance(value, (list, tuple)) and len(value) == 3 and all(finite_float(v) is not None for v in value)):
         raise _fail(f"{key} must be [x, y, yaw_deg], got {quoted(value)}", where)
     return [float(v) for v in value]
