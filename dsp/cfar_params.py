@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
+from ..plain_numbers import beyond_text
 from .cfar_pfa import log_pfa_go, log_pfa_os, log_pfa_so, noise_factor, solve_alpha, summed_scale
 
 #: CFAR methods :class:`CfarParams` accepts.
@@ -108,7 +109,8 @@ class CfarParams:
         if thr is not None and not 0.0 <= thr <= MAX_THRESHOLD_DB:
             # (below 0 the threshold is under the noise estimate; above 200 dB, a power ratio of 1e20,
             # beyond any radar's dynamic range: 1e30 dB overflowed the ratio)
-            raise _fail(f"must be in [0, {MAX_THRESHOLD_DB:g}] dB, got {thr:g}", "threshold_db")
+            raise _fail(f"must be in [0, {MAX_THRESHOLD_DB:g}] dB, got {beyond_text(thr, 0.0, MAX_THRESHOLD_DB)}",
+                        "threshold_db")
         if pfa is not None and not 0.0 < pfa < 1.0:
             raise _fail(f"must be in (0, 1), got {pfa:g}", "pfa")
         set_(self, "threshold_db", thr)

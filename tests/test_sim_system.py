@@ -757,13 +757,18 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[trajectory]\nwaypoints = [[1, 0.8], [1, 0.8], [1, 0.8]]\n', ("no segments (waypoints make none",)),
 ])
 def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
-    path = _write_scene(tmp_path, "scene", text)
-    proc = _run("radar-sim", path, "--out", tmp_path / "cap")
+    _refused(_write_scene(tmp_path, "scene", text), tmp_path / "cap", words)
+
+
+def _refused(path, out, words) -> None:
+    """radar-sim given the scene file *path* says one line naming it and holding each of *words*,
+    exits 2 and makes no *out*."""
+    proc = _run("radar-sim", path, "--out", out)
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
     assert all(w in lines[0] for w in words), lines[0]
-    assert not (tmp_path / "cap").exists()
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("text, words", [
@@ -776,11 +781,7 @@ def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
 def test_radar_sim_refuses_a_json_scene_it_cannot_read(tmp_path, text, words):
     path = tmp_path / "scene.json"
     path.write_text(text)
-    proc = _run("radar-sim", path, "--out", tmp_path / "cap")
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
-    assert all(w in lines[0] for w in words), lines[0]
+    _refused(path, tmp_path / "cap", words)
 
 
 def test_segments_shorter_than_a_step_keep_their_distance_and_turn():
