@@ -102,10 +102,9 @@ def _main(args: argparse.Namespace) -> int:
         heading = heading_metrics(result.times, result.ref, result.est, radar_on_base=on_base)
         parts = drift_parts(result.times, result.ref, result.est, radar_on_base=on_base)
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
-        log_ = odom_log
-        covariance = None if log_ is None else odometry_consistency(
-            log_.times, log_.poses, log_.pose_covariance, log_.twist_covariance, log_.yaw_rates, log_.frames,
-            reference, args.max_diff, source=log_.source)
+        covariance = None if odom_log is None else odometry_consistency(
+            odom_log.times, odom_log.poses, odom_log.pose_covariance, odom_log.twist_covariance,
+            odom_log.yaw_rates, odom_log.frames, reference, args.max_diff, source=odom_log.source)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
