@@ -205,6 +205,12 @@ class ConfigPhysics:
         return self.num_loops * self.chirp_repetition_s
 
     @property
+    def measured_at_s(self) -> float:
+        """When a frame's heatmap and points describe the radar, s after the frame's timestamp (its
+        first chirp): the middle of its chirps.  The odometry of a frame is the radar's then."""
+        return 0.5 * self.active_frame_time_s
+
+    @property
     def frame_period_s(self) -> float:
         return self.frame.frame_period_ms * 1e-3
 
@@ -260,6 +266,7 @@ class ConfigPhysics:
             "unambiguous_range_m": self.unambiguous_range_m,
             "chirp_time_s": self.chirp_time_s,
             "active_frame_time_s": self.active_frame_time_s,
+            "measured_at_s": self.measured_at_s,
             "duty_cycle": self.duty_cycle,
             "packet_delay_us": packet_delay_us,
             "dca1000_capacity_mbps": dca1000_capacity_mbps(packet_delay_us),

@@ -201,6 +201,7 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
             return {**json.load(fh), "cached": True}
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.consistency import odometry_consistency
+    from radarodom.cfg import RadarConfig
     from radarodom.estimator.heading_metrics import drift_parts, heading_metrics
     from radarodom.strict_json import finite
     started = time.monotonic()
@@ -215,7 +216,8 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     result = {"cell": dataclasses.asdict(cell), "name": cell.name, "frames": len(est_m), "flagged": flagged,
               "duration_s": float(ref_m.times[-1] - ref_m.times[0]), **metrics.to_dict(),
               "drift_parts": finite(parts),
-              "covariance": None if states is None else finite(odometry_consistency(*states, truth)[0]),
+              "covariance": None if states is None else finite(odometry_consistency(
+                  *states, truth, measured_at_s=RadarConfig.from_file(CFGS[cell.cfg]).measured_at_s)[0]),
               "compute_s": time.monotonic() - started, "fingerprint": fp}
     os.makedirs(os.path.dirname(path), exist_ok=True)
     with open(path + ".tmp", "w", encoding="utf-8") as fh:

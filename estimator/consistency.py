@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ..errors import EvaluationError
+from ..plain_numbers import is_number, time_text
 from ..tum import TumTrajectory
 from .evaluation import associate
 
@@ -105,14 +106,43 @@ def _body_step(poses: np.ndarray) -> np.ndarray:
 def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: np.ndarray,
                          twist_covariance: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray,
                          reference: TumTrajectory, max_diff: float = 0.01,
-                         source: str = "odometry") -> tuple[dict, int]:
+                         source: str = "odometry", measured_at_s: float = 0.0) -> tuple[dict, int]:
     """:func:`covariance_consistency` of an odometry run's states (their *times* (n,) s, *poses*
     (n, 3), covariances (n, 3, 3), *yaw_rates* (n,) and *frames* (n,)) against the ground truth
     *reference*, over the states paired with it in time (within *max_diff* s, as radar-eval pairs
-    poses); and how many were.  Raises :class:`EvaluationError` (naming *source*) when fewer than
-    two pair."""
+    poses); and how many were.  Each state is compared with the truth *measured_at_s* s after its
+    time, interpolated between the truth's poses (the odometry describes the radar at the middle of
+    the frame's chirps, ``RadarConfig.measured_at_s`` after its stamp; 0: the truth paired as it is).
+    The result has ``measured_at_s`` too.  Raises :class:`EvaluationError` (naming *source*) when
+    fewer than two pair."""
+    if not (is_number(measured_at_s) and math.isfinite(measured_at_s)
+            and abs(measured_at_s) <= MAX_MEASURED_AT_S):
+        raise EvaluationError(f"measured_at_s must be a time within +/-{MAX_MEASURED_AT_S:g} s, got {measured_at_s!r}")
     est_m, ref_m = associate(TumTrajectory.from_se2(times, poses, source=source), reference, max_diff)
     k = np.searchsorted(times, est_m.times)
-    return covariance_consistency(ref_m.se2(), est_m.se2(), np.asarray(pose_covariance)[k],
-                                  twist_covariance=np.asarray(twist_covariance)[k], times=est_m.times,
-                                  yaw_rates=np.asarray(yaw_rates)[k], frames=np.asarray(frames)[k]), len(k)
+    estimate, truth = est_m.se2(), ref_m.se2()
+    if measured_at_s:
+        at = est_m.times + measured_at_s
+        inside = (at >= reference.times[0]) & (at <= reference.times[-1])
+        if np.count_nonzero(inside) < 2:
+            raise EvaluationError(f"{source}: fewer than two of its {len(k)} paired messages have a ground truth "
+                                  f"{measured_at_s:g} s later (the truth ends at t {time_text(reference.times[-1])})")
+        k, estimate, truth = k[inside], estimate[inside], _poses_at(reference, at[inside])
+    result = covariance_consistency(truth, estimate, np.asarray(pose_covariance)[k],
+                                    twist_covariance=np.asarray(twist_covariance)[k], times=np.asarray(times)[k],
+                                    yaw_rates=np.asarray(yaw_rates)[k], frames=np.asarray(frames)[k])
+    return {**result, "measured_at_s": float(measured_at_s)}, len(k)
+
+
+#: The largest offset between a message's stamp and the time it describes: a frame's chirps last
+#: tens of milliseconds.
+MAX_MEASURED_AT_S = 1.0
+
+
+def _poses_at(reference: TumTrajectory, times: np.ndarray) -> np.ndarray:
+    """The reference's poses (k, 3) at *times* (k,) s within its span: x, y and the unwrapped yaw
+    each linear between its own poses (a step's velocity from two such poses is then its chords'
+    blend, the velocity at the shifted step to first order)."""
+    se2 = reference.se2()
+    columns = (se2[:, 0], se2[:, 1], np.unwrap(se2[:, 2]))
+    return np.stack([np.interp(times, reference.times, c) for c in columns], axis=1)

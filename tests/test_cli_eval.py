@@ -399,6 +399,37 @@ def test_odom_checks_the_reported_covariances_against_the_truth(corridor_run, tm
     assert "reported covariance" not in without and with_odom.startswith(without.rstrip("\n"))
 
 
+def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(corridor_run, tmp_path):
+    # The odometry describes the radar at the middle of each frame's chirps (the shipped cfg's 13.44
+    # ms after the stamp): --measured-at compares it with the truth there, interpolated.
+    from radarodom.cfg import RadarConfig, shipped_config_path
+    from radarodom.estimator.consistency import odometry_consistency
+    from radarodom.tools.odometry_log import read_odometry_log
+
+    at = RadarConfig.from_file(shipped_config_path()).measured_at_s
+    assert at == pytest.approx(0.01344)
+    gt = corridor_run.rec / "groundtruth.tum"
+    proc = run_eval(corridor_run.tum, gt, "--odom", corridor_run.odom, "--measured-at", f"{at!r}",
+                    "--json", tmp_path / "eval.json")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert ("live.jsonl: 29 of 30 odometry messages matched, each compared with the truth 13.44 ms after its t"
+            in proc.stdout)  # (the last one's truth would be after the truth's end)
+    odom = read_odometry_log(corridor_run.odom)
+    expected, used = odometry_consistency(odom.times, odom.poses, odom.pose_covariance, odom.twist_covariance,
+                                          odom.yaw_rates, odom.frames, read_tum(gt), measured_at_s=at)
+    got = json.loads((tmp_path / "eval.json").read_text())["covariance"]
+    assert used == 29 and got["measured_at_s"] == at
+    assert got["forward_speed"]["z_rms"] == pytest.approx(expected["forward_speed"]["z_rms"])
+    # The run speeds up from standing: against the truth at the stamps its speed reads ahead.
+    paired, _ = odometry_consistency(odom.times, odom.poses, odom.pose_covariance, odom.twist_covariance,
+                                     odom.yaw_rates, odom.frames, read_tum(gt))
+    assert got["forward_speed"]["z_rms"] < paired["forward_speed"]["z_rms"]
+    for args, message in ((("--measured-at", "0.01"), "--measured-at is for the covariance check: add --odom"),
+                          (("--odom", corridor_run.odom, "--measured-at", "2"), "expected a number in -1..1 s")):
+        proc = run_eval(corridor_run.tum, gt, *args)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
+
+
 def test_odom_messages_that_miss_the_truth_are_one_line(corridor_run, tmp_path):
     late = tmp_path / "late.jsonl"
     late.write_text("".join(line.replace('"t":', '"t":1000') for line in

@@ -248,3 +248,51 @@ def test_the_speeds_error_over_the_twists_sd():
     assert got["forward_speed"]["z_rms"] == pytest.approx(math.sqrt(4 / 3))
     assert got["sideways_speed"]["z_rms"] == pytest.approx(math.sqrt(1 / 3))
     assert got["forward_speed"]["within_1sigma"] == pytest.approx(2 / 3)
+
+
+
+def _consistency_of_a_perfect_estimate(poses, at: float, measured_at_s: float = 0.0, n: int = 21):
+    """odometry_consistency of an estimate that is *poses* (times -> (n, 3)) exactly *at* s after
+    each of its *n* stamps 0.1 s apart, against those poses at the stamps; standard deviations of 1 cm,
+    1 cm/s and 1 degree (a second)."""
+    from radarodom.estimator.consistency import odometry_consistency
+    from radarodom.tum import TumTrajectory
+    stamps = np.arange(n) * 0.1
+    est = poses(stamps + at)
+    est -= est[0]
+    pose_cov = np.zeros((n, 3, 3))
+    pose_cov[1:] = np.diag([0.01 ** 2, 0.01 ** 2, DEG ** 2])
+    twist = np.zeros((n, 3, 3))
+    twist[:] = np.diag([0.01 ** 2, 0.01 ** 2, DEG ** 2])
+    rates = np.r_[0.0, np.diff(est[:, 2]) / 0.1]
+    return odometry_consistency(stamps, est, pose_cov, twist, rates, np.arange(n),
+                                TumTrajectory.from_se2(stamps, poses(stamps)), measured_at_s=measured_at_s)
+
+
+def test_the_truth_compared_where_the_odometry_describes_the_radar():
+    # The odometry describes the radar at the middle of a frame's chirps, 13.44 ms after its stamp
+    # (RadarConfig.measured_at_s).  Speeding up at 2 m/s^2, a perfect estimate of that pose reads
+    # 2.7 cm/s fast against the truth at the stamps, and nothing against the truth 13.44 ms later
+    # (interpolated between its 10 Hz poses: for a steady acceleration, exactly the velocity there);
+    # starting a turn at 100 deg/s^2, its yaw rate alike.
+    at = 0.01344
+    driving = lambda t: np.c_[t * t, np.zeros(len(t)), np.zeros(len(t))]  # noqa: E731
+    turning = lambda t: np.c_[np.zeros(len(t)), np.zeros(len(t)), 0.5 * math.radians(100.0) * t * t]  # noqa: E731
+    paired, count = _consistency_of_a_perfect_estimate(driving, at)
+    assert count == 21 and paired["measured_at_s"] == 0.0
+    assert paired["forward_speed"]["z_rms"] == pytest.approx(2.0 * at / 0.01, rel=1e-6)  # a * 13.44 ms over 1 cm/s
+    shifted, count = _consistency_of_a_perfect_estimate(driving, at, at)
+    assert count == 20 and shifted["measured_at_s"] == at  # the last message's truth would be after the truth's end
+    for part in ("forward_speed", "sideways_speed", "yaw_rate", "yaw"):
+        assert shifted[part]["z_rms"] < 1e-6, part
+    assert shifted["position"]["z_rms"] < 0.1  # (linear between poses 0.1 s apart: a millimetre at most)
+    paired, _ = _consistency_of_a_perfect_estimate(turning, at)
+    assert paired["yaw_rate"]["z_rms"] == pytest.approx(100.0 * at / 1.0, rel=1e-6)
+    shifted, _ = _consistency_of_a_perfect_estimate(turning, at, at)
+    assert shifted["yaw_rate"]["z_rms"] < 1e-6 and shifted["yaw"]["z_rms"] < 0.1
+    for bad in (1.5, -2.0, math.nan, math.inf, True, "0.01"):
+        with pytest.raises(EvaluationError, match="measured_at_s must be a time within"):
+            _consistency_of_a_perfect_estimate(driving, at, bad)
+    with pytest.raises(EvaluationError, match=r"fewer than two of its 5 paired messages have a ground truth 0.35 s "
+                                              r"later \(the truth ends at t 0.400\)"):
+        _consistency_of_a_perfect_estimate(driving, at, 0.35, n=5)

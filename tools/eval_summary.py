@@ -96,8 +96,9 @@ def format_covariance(c: dict, source: str, used: int, total: int) -> str:
         return (f"  {label:<18}RMS {_fit(part['z_rms'], '.2f')}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
                 f"within 2 sd {100 * part['within_2sigma']:.0f} % ({normal}){more}")
     return "\n".join([
-        f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched; each error since the "
-        "first over its standard deviation",
+        f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched"
+        + (f", each compared with the truth {1e3 * at:g} ms after its t" if (at := c.get("measured_at_s")) else "")
+        + "; each error since the first over its standard deviation",
         "  (RMS below 1: the covariance is wide, above 1: narrow; a normal error's shares in brackets)):",
         line("heading", c["yaw"], "68 / 95 %",
              f"; after the run: error {_fit(c['final_yaw_error_deg'], '+.2f')} deg, "

@@ -28,6 +28,7 @@ _ROWS = (
     ("bandwidth_hz", "sampled bandwidth", "MHz", 1e-6, ".1f"),
     ("chirp_time_s", "chirp time", "us", 1e6, ".2f"),
     ("active_frame_time_s", "active frame time", "ms", 1e3, ".3f"),
+    ("measured_at_s", "chirps' middle", "ms after stamp", 1e3, ".3f"),
     ("frame_period_s", "frame period", "ms", 1e3, ".3f"),
     ("duty_cycle", "duty cycle", "%", 100, ".1f"),
     ("frame_bytes", "frame size", "bytes", 1, "d"),

@@ -1,6 +1,7 @@
 """radar-eval: compare an estimated trajectory with ground truth.
 
-    radar-eval EST.tum GT.tum|SOURCE_URL [--odom ODOM.jsonl] [--plot DIR [--name NAME]] [--json FILE [--overwrite]]
+    radar-eval EST.tum GT.tum|SOURCE_URL [--odom ODOM.jsonl [--measured-at S]] [--plot DIR [--name NAME]]
+               [--json FILE [--overwrite]]
                [--delta-m M] [--max-diff S] [--mount X,Y,Z,YAW_DEG] [-v|-q]
 
 The ground truth is a TUM file, or the source URL the estimate was made from when that source
@@ -35,7 +36,7 @@ from ..driver.recordings.capture_writer import json_text
 from ..errors import UsageError
 from ..mount import Mount
 from ..plain_numbers import time_text
-from ..estimator.consistency import odometry_consistency
+from ..estimator.consistency import MAX_MEASURED_AT_S, odometry_consistency
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..estimator.heading_metrics import drift_parts, heading_metrics
 from ..driver.sources import open_source
@@ -67,6 +68,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the estimator's odometry messages, one JSON object per line (radar-capture --odom-json, "
                              "radar-echo --json odom): their covariances checked against the ground truth, and "
                              "their quality flags on the plots")
+    parser.add_argument("--measured-at", type=cli.float_in(-MAX_MEASURED_AT_S, MAX_MEASURED_AT_S, unit="s"),
+                        default=0.0, metavar="S",
+                        help="with --odom: each message describes the radar S s after its t (the middle of the "
+                             "frame's chirps: radar-cfg prints it as \"chirps' middle\", 0.01344 s with the "
+                             "shipped cfg); the covariance check compares it with the truth there, interpolated "
+                             "(default 0: the truth paired at t)")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE (a new file)")
     cli.add_overwrite(parser)
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
@@ -86,6 +93,8 @@ def _main(args: argparse.Namespace) -> int:
         plots.require_matplotlib()  # before the work, not after it
     elif args.name:
         raise UsageError("--name is for the plots: add --plot DIR")
+    if args.measured_at and not args.odom:
+        raise UsageError("--measured-at is for the covariance check: add --odom ODOM.jsonl")
     for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
         if not os.path.isfile(path):
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
@@ -104,7 +113,8 @@ def _main(args: argparse.Namespace) -> int:
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
         covariance = None if odom_log is None else odometry_consistency(
             odom_log.times, odom_log.poses, odom_log.pose_covariance, odom_log.twist_covariance,
-            odom_log.yaw_rates, odom_log.frames, reference, args.max_diff, source=odom_log.source)
+            odom_log.yaw_rates, odom_log.frames, reference, args.max_diff, source=odom_log.source,
+            measured_at_s=args.measured_at)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
