@@ -59,18 +59,27 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
     ``sideways_speed`` (each step's, its velocity from the poses; None without the twist's), each
     {"z_rms", "within_1sigma", "within_2sigma"} over the frames (steps) with a variance, and
     ``final_yaw_error_deg`` and ``final_yaw_sigma_deg`` (the last frame's, from the first)."""
-    reference, estimate = np.asarray(reference, float), np.asarray(estimate, float)
-    cov = np.asarray(pose_covariance, float)
+    reference, estimate = _floats("reference", reference), _floats("estimate", estimate)
+    cov = _floats("pose_covariance", pose_covariance)
     n = len(reference)
-    twist = [None if a is None else np.asarray(a, float) for a in (twist_covariance, times, yaw_rates)]
+    twist = [None if a is None else _floats(name, a)
+             for name, a in (("twist_covariance", twist_covariance), ("times", times), ("yaw_rates", yaw_rates))]
     given = [a is not None for a in twist]
+    frames = None if frames is None else _frame_numbers(frames)
     if (reference.shape != (n, 3) or estimate.shape != (n, 3) or cov.shape != (n, 3, 3) or n < 2
             or any(given) != all(given) or (all(given) and [a.shape for a in twist] != [(n, 3, 3), (n,), (n,)])
             or (frames is not None and np.shape(frames) != (n,))):
         shapes = [np.shape(a) for a in (reference, estimate, cov, *twist, frames) if a is not None]
         raise EvaluationError(f"covariance_consistency: need n >= 2 poses (n, 3) and covariances (n, 3, 3) of the "
                               f"same frames (a twist's with their times and yaw rates (n,)), got shapes {shapes}")
-    cov = cov - cov[0]
+    if all(given) and not np.all(np.diff(twist[1]) > 0):
+        raise EvaluationError("covariance_consistency: the times must increase")
+    with np.errstate(over="ignore", invalid="ignore"):  # (variances near the float limit: inf, not a warning)
+        return _consistency(reference, estimate, cov - cov[0], twist, frames, all(given))
+
+
+def _consistency(reference: np.ndarray, estimate: np.ndarray, cov: np.ndarray, twist: list, frames, with_twist: bool
+                 ) -> dict:
     turn = estimate[0, 2] - reference[0, 2]
     c, s = math.cos(turn), math.sin(turn)
     d = reference[:, :2] - reference[0, :2]
@@ -81,7 +90,7 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
            "yaw_rate": None, "forward_speed": None, "sideways_speed": None,
            "final_yaw_error_deg": math.degrees(float(yaw_error[-1])),
            "final_yaw_sigma_deg": math.degrees(math.sqrt(max(float(cov[-1, 2, 2]), 0.0)))}
-    if all(given):
+    if with_twist:
         tw, stamps, rates = twist
         single = _single_steps(estimate, stamps, rates, frames)
         step_error = np.angle(np.exp(1j * (np.diff(estimate[:, 2]) - np.diff(reference[:, 2]))))[single]
@@ -91,6 +100,28 @@ def covariance_consistency(reference: np.ndarray, estimate: np.ndarray, pose_cov
         out["forward_speed"] = _summary(_normalised(error[:, 0], tw[1:, 0, 0][single]))
         out["sideways_speed"] = _summary(_normalised(error[:, 1], tw[1:, 1, 1][single]))
     return out
+
+
+def _floats(name: str, value) -> np.ndarray:
+    """*value* as an array of finite floats, or :class:`EvaluationError` naming the argument."""
+    try:
+        array = np.asarray(value, float)
+    except (TypeError, ValueError, OverflowError):
+        raise EvaluationError(f"{name}: numbers are needed, got {type(value).__name__}") from None
+    if not np.all(np.isfinite(array)):
+        raise EvaluationError(f"{name}: every value must be a finite number")
+    return array
+
+
+def _frame_numbers(value) -> np.ndarray:
+    """Frame numbers as unsigned integers, or :class:`EvaluationError`."""
+    array = np.asarray(value)
+    if array.dtype.kind == "f" and np.all(np.isfinite(array)) and np.all(array == np.round(array)) \
+            and np.all(array >= 0):
+        array = array.astype(np.uint64)
+    if array.dtype.kind not in "iu" or (array.dtype.kind == "i" and np.any(array < 0)):
+        raise EvaluationError("frames: whole numbers from 0 are needed")
+    return array
 
 
 def _body_step(poses: np.ndarray) -> np.ndarray:
@@ -104,39 +135,85 @@ def _body_step(poses: np.ndarray) -> np.ndarray:
 
 
 def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: np.ndarray,
-                         twist_covariance: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray,
+                         twist_covariance: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray | None,
                          reference: TumTrajectory, max_diff: float = 0.01,
                          source: str = "odometry", measured_at_s: float = 0.0) -> tuple[dict, int]:
     """:func:`covariance_consistency` of an odometry run's states (their *times* (n,) s, *poses*
-    (n, 3), covariances (n, 3, 3), *yaw_rates* (n,) and *frames* (n,)) against the ground truth
-    *reference*, over the states paired with it in time (within *max_diff* s, as radar-eval pairs
-    poses); and how many were.  Each state is compared with the truth *measured_at_s* s after its
-    time, interpolated between the truth's poses (the odometry describes the radar at the middle of
-    the frame's chirps, ``RadarConfig.measured_at_s`` after its stamp; 0: the truth paired as it is).
-    The result has ``measured_at_s`` too.  Raises :class:`EvaluationError` (naming *source*) when
-    fewer than two pair."""
-    if not (is_number(measured_at_s) and math.isfinite(measured_at_s)
-            and abs(measured_at_s) <= MAX_MEASURED_AT_S):
-        raise EvaluationError(f"measured_at_s must be a time within +/-{MAX_MEASURED_AT_S:g} s, got {measured_at_s!r}")
-    est_m, ref_m = associate(TumTrajectory.from_se2(times, poses, source=source), reference, max_diff)
+    (n, 3), covariances (n, 3, 3), *yaw_rates* (n,) and *frames* (n,) or None) against the ground
+    truth *reference*, over the states paired with it in time (within *max_diff* s, as radar-eval
+    pairs poses); and how many were compared.  Each state is compared with the truth *measured_at_s*
+    s after its time, interpolated between the truth's poses (the odometry describes the radar at
+    the middle of the frame's chirps, ``RadarConfig.measured_at_s`` after its stamp; 0: at its
+    time), over the states whose time then lies within the truth's span and not in a gap of it (two
+    truth poses more than :data:`MAX_GAP_STEPS` of its median step apart).  The result has
+    ``measured_at_s`` too.  Raises :class:`EvaluationError` (naming *source*) when fewer than two
+    are compared, or an argument is not what it must be."""
+    at = _offset(measured_at_s)
+    times = _floats("times", times)
+    n = len(times) if times.ndim == 1 else -1
+    arrays = {name: _floats(name, value) for name, value in (
+        ("poses", poses), ("pose_covariance", pose_covariance), ("twist_covariance", twist_covariance),
+        ("yaw_rates", yaw_rates))}
+    shapes = {"poses": (n, 3), "pose_covariance": (n, 3, 3), "twist_covariance": (n, 3, 3), "yaw_rates": (n,)}
+    if frames is not None:
+        shapes["frames"], arrays["frames"] = (n,), _frame_numbers(frames)
+    wrong = [f"{name} {np.shape(arrays[name])}" for name, shape in shapes.items() if np.shape(arrays[name]) != shape]
+    if n < 0 or wrong:
+        raise EvaluationError(f"odometry_consistency: times (n,) and each state's pose (n, 3), covariances (n, 3, 3), "
+                              f"yaw rate and frame (n,) are needed; got times {times.shape}"
+                              + "".join(f", {w}" for w in wrong))
+    est_m, _ = associate(TumTrajectory.from_se2(times, arrays["poses"], source=source), reference, max_diff)
     k = np.searchsorted(times, est_m.times)
-    estimate, truth = est_m.se2(), ref_m.se2()
-    if measured_at_s:
-        at = est_m.times + measured_at_s
-        inside = (at >= reference.times[0]) & (at <= reference.times[-1])
-        if np.count_nonzero(inside) < 2:
-            raise EvaluationError(f"{source}: fewer than two of its {len(k)} paired messages have a ground truth "
-                                  f"{measured_at_s:g} s later (the truth ends at t {time_text(reference.times[-1])})")
-        k, estimate, truth = k[inside], estimate[inside], _poses_at(reference, at[inside])
-    result = covariance_consistency(truth, estimate, np.asarray(pose_covariance)[k],
-                                    twist_covariance=np.asarray(twist_covariance)[k], times=np.asarray(times)[k],
-                                    yaw_rates=np.asarray(yaw_rates)[k], frames=np.asarray(frames)[k])
-    return {**result, "measured_at_s": float(measured_at_s)}, len(k)
+    inside = _within_truth(reference, est_m.times + at)
+    if np.count_nonzero(inside) < 2:
+        raise EvaluationError(f"{source}: fewer than two of its {len(k)} messages paired with the ground truth have "
+                              f"one {offset_text(at, 'their')} (the truth: t {time_text(reference.times[0])} .. "
+                              f"{time_text(reference.times[-1])}, {len(reference)} poses)")
+    k = k[inside]
+    result = covariance_consistency(_poses_at(reference, times[k] + at), arrays["poses"][k],
+                                    arrays["pose_covariance"][k], twist_covariance=arrays["twist_covariance"][k],
+                                    times=times[k], yaw_rates=arrays["yaw_rates"][k],
+                                    frames=None if frames is None else arrays["frames"][k])
+    return {**result, "measured_at_s": at}, len(k)
 
 
 #: The largest offset between a message's stamp and the time it describes: a frame's chirps last
 #: tens of milliseconds.
 MAX_MEASURED_AT_S = 1.0
+#: Truth poses farther apart than this many of the truth's median steps are a gap, not
+#: interpolated across.
+MAX_GAP_STEPS = 2.0
+
+
+def _offset(value) -> float:
+    try:
+        at = float(value) if is_number(value) else math.nan
+    except OverflowError:
+        at = math.nan
+    if not (math.isfinite(at) and abs(at) <= MAX_MEASURED_AT_S):
+        raise EvaluationError(f"measured_at_s must be a time within +/-{MAX_MEASURED_AT_S:g} s, got {value!r}")
+    return at
+
+
+def offset_text(at: float, whose: str = "its") -> str:
+    """Where *at* s from a stamp is, as a message says it: "13.44 ms after its t"."""
+    if at == 0.0:
+        return f"at {whose} t"
+    return f"{abs(at) * 1e3:.4g} ms {'after' if at > 0 else 'before'} {whose} t"
+
+
+#: A time this close to a truth pose's is that pose's (files round their times).
+SAME_TIME_S = 1e-6
+
+
+def _within_truth(reference: TumTrajectory, times: np.ndarray) -> np.ndarray:
+    """Which *times* the truth's poses bracket closely enough to interpolate, or hit."""
+    t = reference.times
+    after = np.searchsorted(t, times, side="left")
+    at_or_after, before = t[np.minimum(after, len(t) - 1)], t[np.maximum(after - 1, 0)]
+    hit = (np.abs(at_or_after - times) <= SAME_TIME_S) | (np.abs(before - times) <= SAME_TIME_S)
+    bracketed = (after > 0) & (after < len(t))
+    return hit | (bracketed & (at_or_after - before <= MAX_GAP_STEPS * float(np.median(np.diff(t)))))
 
 
 def _poses_at(reference: TumTrajectory, times: np.ndarray) -> np.ndarray:

@@ -214,19 +214,43 @@ def test_flags_are_read_from_radar_echo_json_and_published_messages(tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
-    ("{not json\n", "odom.jsonl:2: not a JSON object"),
+    ("{not json\n", "odom.jsonl:2: not an odometry message: not JSON: Expecting property name"),
     ("[1, 2]\n", "odom.jsonl:2: not a JSON object"),
     ('{"schema": "radarodom/odom", "version": 1, "t": 1.0}\n',
      "odom.jsonl:2: radarodom/odom: field 'frame' is missing"),
     (odom_line(9.0, 1), "odom.jsonl:2: time 9.000000000 s is not after the previous message's 10.000000000 s"),
     # json recurses once per level: a thousand was "internal error: RecursionError" (a helper's hunt)
     ("[" * 1000 + "]" * 1000 + "\n", "odom.jsonl:2: not an odometry message: nested 1000 deep, more than the 32"),
+    # (Python's own message advised sys.set_int_max_str_digits: a helper's hunt)
+    ('{"schema": "radarodom/odom", "x": 1' + "0" * 5000 + "}\n",
+     "odom.jsonl:2: not an odometry message: an integer of 5001 digits, more than the 4300 allowed"),
+    (odom_line(10.1, 1).replace('"twist_covariance":[1.0,0.0,0.0,0.0,1.0', '"twist_covariance":[1.0,0.0,0.0,0.0,-2.5'),
+     "odom.jsonl:2: twist_covariance: a variance (its diagonal: items 1, 5, 9) is negative (-2.5): not a covariance"),
 ])
 def test_a_bad_flags_file_names_file_and_line(tmp_path, text, message):
     path = tmp_path / "odom.jsonl"
     path.write_text(odom_line(10.0, 0) + text)
     with pytest.raises(CaptureFormatError, match=re.escape(message)):
         read_odometry_log(path)
+
+
+def test_an_odometry_log_path_that_is_no_path_is_one_error():
+    for path, message in (("a\0b.jsonl", "a path cannot contain a NUL character"), (7, "expected a file path")):
+        with pytest.raises(UsageError, match=message):
+            read_odometry_log(path)
+
+
+def test_a_twist_part_not_compared_says_why():
+    # Steps with a variance that are no single estimator step (frames that skip, a rate that is not
+    # the turn over the time): "no step with a variance" was the wrong reason (a helper's hunt).
+    from radarodom.tools.eval_summary import format_covariance
+    part = {"z_rms": 0.5, "within_1sigma": 0.9, "within_2sigma": 1.0}
+    text = format_covariance({"yaw": part, "position": part, "yaw_rate": None, "forward_speed": None,
+                              "sideways_speed": None, "final_yaw_error_deg": 1.0, "final_yaw_sigma_deg": 2.0,
+                              "measured_at_s": -0.5}, "odom.jsonl", 10, 12)
+    assert "10 of 12 odometry messages matched, each compared with the truth 500 ms before its t" in text
+    assert ("  yaw rate          not compared: no single estimator step (frames that follow, whose yaw rate times "
+            "time is their turn) with a variance") in text
 
 
 def test_a_flags_files_cut_off_last_line_is_left_out_with_a_warning(tmp_path, caplog):
@@ -337,7 +361,7 @@ def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     bad = tmp_path / "bad.jsonl"
     bad.write_text(odom_line(1.0, 0) + "oops\n")
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad, timeout=120)
-    assert proc.returncode == 2 and proc.stderr.startswith(f"radar-eval: error: {bad}:2: not a JSON object")
+    assert proc.returncode == 2 and proc.stderr.startswith(f"radar-eval: error: {bad}:2: not an odometry message: not JSON")
     assert proc.stdout == "" and not (tmp_path / "p").exists()
 
 

@@ -290,9 +290,55 @@ def test_the_truth_compared_where_the_odometry_describes_the_radar():
     assert paired["yaw_rate"]["z_rms"] == pytest.approx(100.0 * at / 1.0, rel=1e-6)
     shifted, _ = _consistency_of_a_perfect_estimate(turning, at, at)
     assert shifted["yaw_rate"]["z_rms"] < 1e-6 and shifted["yaw"]["z_rms"] < 0.1
-    for bad in (1.5, -2.0, math.nan, math.inf, True, "0.01"):
+    for bad in (1.5, -2.0, math.nan, math.inf, True, "0.01", 10 ** 400):
         with pytest.raises(EvaluationError, match="measured_at_s must be a time within"):
             _consistency_of_a_perfect_estimate(driving, at, bad)
-    with pytest.raises(EvaluationError, match=r"fewer than two of its 5 paired messages have a ground truth 0.35 s "
-                                              r"later \(the truth ends at t 0.400\)"):
-        _consistency_of_a_perfect_estimate(driving, at, 0.35, n=5)
+    for offset, where in ((0.35, "350 ms after"), (-0.35, "350 ms before")):
+        with pytest.raises(EvaluationError, match=rf"odometry: fewer than two of its 5 messages paired with the ground "
+                                                  rf"truth have one {where} their t \(the truth: t 0.000 .. 0.400, 5 "
+                                                  rf"poses\)"):
+            _consistency_of_a_perfect_estimate(driving, at, offset, n=5)
+
+
+def test_the_truth_is_not_interpolated_across_its_gaps():
+    # A truth with 2 s missing: the message paired at its stamp before the gap would be compared with
+    # a pose interpolated across it (a helper's hunt: forward speed 5.4 RMS where the truth gave 0.5).
+    from radarodom.estimator.consistency import odometry_consistency
+    from radarodom.tum import TumTrajectory
+    stamps = np.arange(40) * 0.1
+    truth = np.c_[stamps * stamps, np.zeros(40), np.zeros(40)]  # speeding up at 2 m/s^2
+    keep = (stamps < 1.0) | (stamps > 2.95)
+    n = 40
+    cov = np.zeros((n, 3, 3))
+    cov[:] = np.diag([1e-4, 1e-4, DEG ** 2])
+    args = (stamps, truth - truth[0], cov, cov, np.zeros(n), np.arange(n), TumTrajectory.from_se2(stamps[keep],
+                                                                                                  truth[keep]))
+    whole, used = odometry_consistency(*args[:-1], TumTrajectory.from_se2(stamps, truth), measured_at_s=0.01)
+    gapped, used_gapped = odometry_consistency(*args, measured_at_s=0.01)
+    assert used == 39 and used_gapped == int(keep.sum()) - 2  # the last, and the last before the gap
+    # The estimate is the truth at the stamps: 2 cm/s slow against the truth 10 ms later, 2 sd, either way.
+    assert gapped["forward_speed"]["z_rms"] == pytest.approx(2.0) and whole["forward_speed"]["z_rms"] == pytest.approx(2.0)
+    # At 0 s, a message at a truth pose's time (to a microsecond: files round) is compared with it.
+    at_stamps, used = odometry_consistency(stamps + 1e-7, *args[1:])
+    assert used == int(keep.sum()) and at_stamps["measured_at_s"] == 0.0
+
+
+def test_odometry_consistency_refuses_what_is_not_a_run():
+    from radarodom.estimator.consistency import odometry_consistency
+    from radarodom.tum import TumTrajectory
+    t = np.arange(5) * 0.1
+    poses, cov = np.zeros((5, 3)), np.zeros((5, 3, 3))
+    truth = TumTrajectory.from_se2(t, poses)
+    good = dict(times=t, poses=poses, pose_covariance=cov, twist_covariance=cov, yaw_rates=np.zeros(5),
+                frames=np.arange(5), reference=truth)
+    assert odometry_consistency(**{**good, "frames": None})[1] == 5  # (frame numbers are optional)
+    for change, message in (({"pose_covariance": cov[:4]}, r"pose_covariance \(4, 3, 3\)"),
+                            ({"frames": np.arange(4)}, r"frames \(4,\)"),
+                            ({"times": t[:, None]}, r"got times \(5, 1\)"),
+                            ({"poses": np.full((5, 3), np.inf)}, "poses: every value must be a finite number"),
+                            ({"yaw_rates": ["a"] * 5}, "yaw_rates: numbers are needed"),
+                            ({"frames": -np.arange(5)}, "frames: whole numbers from 0")):
+        with pytest.raises(EvaluationError, match=message):
+            odometry_consistency(**{**good, **change})
+    with pytest.raises(EvaluationError, match="the times must increase"):
+        covariance_consistency(poses, poses, cov, twist_covariance=cov, times=np.zeros(5), yaw_rates=np.zeros(5))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+from ..estimator.consistency import offset_text
 from ..estimator.evaluation import EvaluationResult, Stats
 from ..estimator.heading_metrics import DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG, STRAIGHT_RATE_DPS, HeadingMetrics
 from ..estimator.quality import Flag
@@ -91,13 +92,14 @@ def format_covariance(c: dict, source: str, used: int, total: int) -> str:
     (``covariance_consistency``'s dict *c*, over *used* of the *total* messages of *source*)."""
     def line(label: str, part: dict | None, normal: str, more: str = "") -> str:
         if part is None or part["z_rms"] is None:
-            what = "frame" if label in ("heading", "position") else "step"
+            what = ("frame" if label in ("heading", "position") else
+                    "single estimator step (frames that follow, whose yaw rate times time is their turn)")
             return f"  {label:<18}not compared: no {what} with a variance"
         return (f"  {label:<18}RMS {_fit(part['z_rms'], '.2f')}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
                 f"within 2 sd {100 * part['within_2sigma']:.0f} % ({normal}){more}")
     return "\n".join([
         f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched"
-        + (f", each compared with the truth {1e3 * at:g} ms after its t" if (at := c.get("measured_at_s")) else "")
+        + (f", each compared with the truth {offset_text(at)}" if (at := c.get("measured_at_s")) else "")
         + "; each error since the first over its standard deviation",
         "  (RMS below 1: the covariance is wide, above 1: narrow; a normal error's shares in brackets)):",
         line("heading", c["yaw"], "68 / 95 %",

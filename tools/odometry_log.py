@@ -11,7 +11,6 @@ messages) are skipped; every odometry object is checked as a subscriber checks i
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import os
 from dataclasses import dataclass
@@ -20,7 +19,7 @@ import numpy as np
 
 from .. import messages, strict_json
 from ..plain_numbers import time_text
-from ..errors import CaptureFormatError, MessageError, UsageError
+from ..errors import CaptureFormatError, MessageError, UsageError, given_path
 from ..estimator.quality import Flag
 
 log = logging.getLogger(__name__)
@@ -76,7 +75,7 @@ def read_odometry_log(path: str | os.PathLike) -> OdometryLog:
     object or an odometry message that breaks its schema, or when the times do not increase;
     :class:`UsageError` when the file is missing or holds no odometry message.
     """
-    path = os.fspath(path)
+    path = given_path(path, UsageError, "file path (the odometry messages)")
     times: list[float] = []
     flags: list[tuple[str, ...]] = []
     frames: list[int] = []
@@ -92,14 +91,10 @@ def read_odometry_log(path: str | os.PathLike) -> OdometryLog:
                 if not line.endswith("\n"):  # as a TUM file's: a writer killed mid-line
                     cut = lineno
                     break
-                depth = strict_json.nesting_depth(line)  # (json recurses once per level)
-                if depth > strict_json.MAX_DEPTH:
-                    raise CaptureFormatError(f"{path}:{lineno}: not an odometry message: nested {depth} deep, more "
-                                             f"than the {strict_json.MAX_DEPTH} allowed")
-                try:
-                    obj = json.loads(line)
+                try:  # (bounded: depth, digits, non-finite numbers, as a subscriber reads a message)
+                    obj = strict_json.loads(line, max_bytes=messages.MAX_JSON_BYTES)
                 except ValueError as exc:
-                    raise CaptureFormatError(f"{path}:{lineno}: not a JSON object ({exc})") from None
+                    raise CaptureFormatError(f"{path}:{lineno}: not an odometry message: {exc}") from None
                 if not isinstance(obj, dict):
                     raise CaptureFormatError(f"{path}:{lineno}: not a JSON object")
                 if obj.get("schema") != messages.ODOM_SCHEMA:
@@ -113,6 +108,10 @@ def read_odometry_log(path: str | os.PathLike) -> OdometryLog:
                     raise CaptureFormatError(f"{path}:{lineno}: time {time_text(m['t'], 9)} s is not after the "
                                              f"previous message's {time_text(times[-1], 9)} s; one run's messages, "
                                              "in order, are needed")
+                for name in ("pose_covariance", "twist_covariance"):
+                    if min(m[name][0::4]) < 0.0:
+                        raise CaptureFormatError(f"{path}:{lineno}: {name}: a variance (its diagonal: items 1, 5, 9) "
+                                                 f"is negative ({min(m[name][0::4]):g}): not a covariance")
                 times.append(float(m["t"]))
                 flags.append(tuple(m["flags"]))
                 frames.append(m["frame"])
