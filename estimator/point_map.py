@@ -48,8 +48,9 @@ class LocalMap:
     chain of poses; in the keyframe correction's place in the odometry (:meth:`correct`,
     :meth:`update`)."""
 
-    #: Whether its corrections keep each step's yaw noise out of the heading: not measured for the
-    #: demo's points (docs/heading.md, item 28), so the steps' variances still add up.
+    #: Whether its corrections keep each step's yaw noise out of the heading: not shown for the
+    #: demo's points, so the steps' variances still add up (wide, the walk alone narrow at 15 dB:
+    #: docs/tidemo.md, "The reported covariance").
     bounds_noise = False
 
     def __init__(self, config: PointYawConfig) -> None:
