@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --odom: each message describes the radar S s after its t (the middle of the "
                              "frame's chirps: radar-cfg prints it as \"chirps' middle\", 0.01344 s with the "
                              "shipped cfg); the covariance check compares it with the truth there, interpolated "
-                             "(default 0: the truth paired at t)")
+                             "(default 0: the truth at t)")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE (a new file)")
     cli.add_overwrite(parser)
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
