@@ -164,6 +164,9 @@ def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: 
                               + "".join(f", {w}" for w in wrong))
     est_m, _ = associate(TumTrajectory.from_se2(times, arrays["poses"], source=source), reference, max_diff)
     k = np.searchsorted(times, est_m.times)
+    if at and np.any(est_m.times + at == est_m.times):
+        raise EvaluationError(f"{source}: its times (t {time_text(est_m.times[-1])} s) are too large to be moved by "
+                              f"{at:g} s in floating point: count them from the run's start")
     inside = _within_truth(reference, est_m.times + at)
     if np.count_nonzero(inside) < 2:
         raise EvaluationError(f"{source}: fewer than two of its {len(k)} messages paired with the ground truth have "

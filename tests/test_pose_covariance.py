@@ -340,5 +340,9 @@ def test_odometry_consistency_refuses_what_is_not_a_run():
                             ({"frames": -np.arange(5)}, "frames: whole numbers from 0")):
         with pytest.raises(EvaluationError, match=message):
             odometry_consistency(**{**good, **change})
+    far = 1e15 + 10 * t  # (steps of 1 s: there t + 0.01 == t in floating point)
+    with pytest.raises(EvaluationError, match="are too large to be moved by 0.01 s in floating point"):
+        odometry_consistency(**{**good, "times": far, "reference": TumTrajectory.from_se2(far, poses)},
+                             measured_at_s=0.01)
     with pytest.raises(EvaluationError, match="the times must increase"):
         covariance_consistency(poses, poses, cov, twist_covariance=cov, times=np.zeros(5), yaw_rates=np.zeros(5))
