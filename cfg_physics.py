@@ -207,7 +207,8 @@ class ConfigPhysics:
     @property
     def measured_at_s(self) -> float:
         """When a frame's heatmap and points describe the radar, s after the frame's timestamp (its
-        first chirp): the middle of its chirps.  The odometry of a frame is the radar's then."""
+        first chirp): the middle of its chirps, half the active frame time.  The odometry of a frame is
+        the radar's then."""
         return 0.5 * self.active_frame_time_s
 
     @property

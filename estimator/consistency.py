@@ -14,7 +14,17 @@ import numpy as np
 from ..errors import EvaluationError
 from ..plain_numbers import is_number, time_text
 from ..tum import TumTrajectory
-from .evaluation import associate
+
+#: The largest offset between a message's stamp and the time it describes: a frame's chirps last
+#: tens of milliseconds.
+MAX_MEASURED_AT_S = 1.0
+#: A time this close to a truth pose's is that pose's (files round their times).
+SAME_TIME_S = 1e-6
+#: Truth poses farther apart than this many of the truth's median steps, and than
+#: :data:`MIN_GAP_S`, are a gap, not interpolated across ...
+MAX_GAP_STEPS = 2.0
+#: ... s (a fast truth's dropout of a few poses is interpolated).
+MIN_GAP_S = 0.05
 
 
 def _normalised(errors: np.ndarray, variances: np.ndarray) -> np.ndarray:
@@ -117,7 +127,7 @@ def _frame_numbers(value) -> np.ndarray:
     """Frame numbers as unsigned integers, or :class:`EvaluationError`."""
     array = np.asarray(value)
     if array.dtype.kind == "f" and np.all(np.isfinite(array)) and np.all(array == np.round(array)) \
-            and np.all(array >= 0):
+            and np.all(array >= 0) and np.all(array < 2.0 ** 64):
         array = array.astype(np.uint64)
     if array.dtype.kind not in "iu" or (array.dtype.kind == "i" and np.any(array < 0)):
         raise EvaluationError("frames: whole numbers from 0 are needed")
@@ -136,16 +146,17 @@ def _body_step(poses: np.ndarray) -> np.ndarray:
 
 def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: np.ndarray,
                          twist_covariance: np.ndarray, yaw_rates: np.ndarray, frames: np.ndarray | None,
-                         reference: TumTrajectory, max_diff: float = 0.01,
-                         source: str = "odometry", measured_at_s: float = 0.0) -> tuple[dict, int]:
+                         reference: TumTrajectory, *, source: str = "odometry",
+                         measured_at_s: float = 0.0) -> tuple[dict, int]:
     """:func:`covariance_consistency` of an odometry run's states (their *times* (n,) s, *poses*
     (n, 3), covariances (n, 3, 3), *yaw_rates* (n,) and *frames* (n,) or None) against the ground
-    truth *reference*, over the states paired with it in time (within *max_diff* s, as radar-eval
-    pairs poses); and how many were compared.  Each state is compared with the truth *measured_at_s*
-    s after its time, interpolated between the truth's poses (the odometry describes the radar at
-    the middle of the frame's chirps, ``RadarConfig.measured_at_s`` after its stamp; 0: at its
-    time), over the states whose time then lies within the truth's span and not in a gap of it (two
-    truth poses more than :data:`MAX_GAP_STEPS` of its median step apart).  The result has
+    truth *reference*; and how many states were compared.  Each state is compared with the truth
+    *measured_at_s* s after its time (the odometry describes the radar at the middle of the frame's
+    chirps, ``RadarConfig.measured_at_s`` after its stamp), interpolated between the truth's poses
+    (a pose within :data:`SAME_TIME_S` taken as it is), over the states whose time then lies within
+    the truth's span and not in a gap of it (two truth poses farther apart than :data:`MAX_GAP_STEPS`
+    of its median steps and :data:`MIN_GAP_S`).  Without *frames* the states' own order stands in
+    for their numbers, so a step across a state left out is no single step.  The result has
     ``measured_at_s`` too.  Raises :class:`EvaluationError` (naming *source*) when fewer than two
     are compared, or an argument is not what it must be."""
     at = _offset(measured_at_s)
@@ -154,38 +165,30 @@ def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: 
     arrays = {name: _floats(name, value) for name, value in (
         ("poses", poses), ("pose_covariance", pose_covariance), ("twist_covariance", twist_covariance),
         ("yaw_rates", yaw_rates))}
-    shapes = {"poses": (n, 3), "pose_covariance": (n, 3, 3), "twist_covariance": (n, 3, 3), "yaw_rates": (n,)}
-    if frames is not None:
-        shapes["frames"], arrays["frames"] = (n,), _frame_numbers(frames)
+    arrays["frames"] = np.arange(max(n, 0), dtype=np.uint64) if frames is None else _frame_numbers(frames)
+    shapes = {"poses": (n, 3), "pose_covariance": (n, 3, 3), "twist_covariance": (n, 3, 3), "yaw_rates": (n,),
+              "frames": (n,)}
     wrong = [f"{name} {np.shape(arrays[name])}" for name, shape in shapes.items() if np.shape(arrays[name]) != shape]
     if n < 0 or wrong:
         raise EvaluationError(f"odometry_consistency: times (n,) and each state's pose (n, 3), covariances (n, 3, 3), "
                               f"yaw rate and frame (n,) are needed; got times {times.shape}"
                               + "".join(f", {w}" for w in wrong))
-    est_m, _ = associate(TumTrajectory.from_se2(times, arrays["poses"], source=source), reference, max_diff)
-    k = np.searchsorted(times, est_m.times)
-    if at and np.any(est_m.times + at == est_m.times):
-        raise EvaluationError(f"{source}: its times (t {time_text(est_m.times[-1])} s) are too large to be moved by "
+    if n and not np.all(np.diff(times) > 0):
+        raise EvaluationError(f"{source}: the times must increase")
+    shifted = times + at
+    if n and np.max(np.abs(shifted - times - at)) > SAME_TIME_S:
+        raise EvaluationError(f"{source}: its times (t {time_text(times[-1])} s) are too large to be moved by "
                               f"{at:g} s in floating point: count them from the run's start")
-    inside = _within_truth(reference, est_m.times + at)
-    if np.count_nonzero(inside) < 2:
-        raise EvaluationError(f"{source}: fewer than two of its {len(k)} messages paired with the ground truth have "
-                              f"one {offset_text(at, 'their')} (the truth: t {time_text(reference.times[0])} .. "
-                              f"{time_text(reference.times[-1])}, {len(reference)} poses)")
-    k = k[inside]
-    result = covariance_consistency(_poses_at(reference, times[k] + at), arrays["poses"][k],
+    k = np.flatnonzero(_within_truth(reference, shifted))
+    if len(k) < 2:
+        span = f" (t {time_text(times[0])} .. {time_text(times[-1])} s)" if n else ""
+        raise EvaluationError(f"{source}: fewer than two of its {n} messages{span} have a ground truth "
+                              f"{offset_text(at, 'their')} (the truth: t {time_text(reference.times[0])} .. "
+                              f"{time_text(reference.times[-1])} s, {len(reference)} poses)")
+    result = covariance_consistency(_poses_at(reference, shifted[k]), arrays["poses"][k],
                                     arrays["pose_covariance"][k], twist_covariance=arrays["twist_covariance"][k],
-                                    times=times[k], yaw_rates=arrays["yaw_rates"][k],
-                                    frames=None if frames is None else arrays["frames"][k])
+                                    times=times[k], yaw_rates=arrays["yaw_rates"][k], frames=arrays["frames"][k])
     return {**result, "measured_at_s": at}, len(k)
-
-
-#: The largest offset between a message's stamp and the time it describes: a frame's chirps last
-#: tens of milliseconds.
-MAX_MEASURED_AT_S = 1.0
-#: Truth poses farther apart than this many of the truth's median steps are a gap, not
-#: interpolated across.
-MAX_GAP_STEPS = 2.0
 
 
 def _offset(value) -> float:
@@ -205,18 +208,17 @@ def offset_text(at: float, whose: str = "its") -> str:
     return f"{abs(at) * 1e3:.4g} ms {'after' if at > 0 else 'before'} {whose} t"
 
 
-#: A time this close to a truth pose's is that pose's (files round their times).
-SAME_TIME_S = 1e-6
-
-
 def _within_truth(reference: TumTrajectory, times: np.ndarray) -> np.ndarray:
     """Which *times* the truth's poses bracket closely enough to interpolate, or hit."""
     t = reference.times
+    if len(t) < 2:
+        return np.abs(times - t[0]) <= SAME_TIME_S if len(t) else np.zeros(len(times), bool)
     after = np.searchsorted(t, times, side="left")
     at_or_after, before = t[np.minimum(after, len(t) - 1)], t[np.maximum(after - 1, 0)]
     hit = (np.abs(at_or_after - times) <= SAME_TIME_S) | (np.abs(before - times) <= SAME_TIME_S)
     bracketed = (after > 0) & (after < len(t))
-    return hit | (bracketed & (at_or_after - before <= MAX_GAP_STEPS * float(np.median(np.diff(t)))))
+    gap = max(MAX_GAP_STEPS * float(np.median(np.diff(t))), MIN_GAP_S)
+    return hit | (bracketed & (at_or_after - before <= gap))
 
 
 def _poses_at(reference: TumTrajectory, times: np.ndarray) -> np.ndarray:

@@ -381,7 +381,7 @@ def test_odom_checks_the_reported_covariances_against_the_truth(corridor_run, tm
     sd = np.sqrt(odom.pose_covariance[:, 2, 2] - odom.pose_covariance[0, 2, 2])
     z = err[1:] / sd[1:]
     block = proc.stdout.split("reported covariance (")[1].splitlines()
-    assert "live.jsonl: 30 of 30 odometry messages matched" in block[0]
+    assert "live.jsonl: 30 of 30 odometry messages compared with the truth at its t;" in block[0]
     assert block[2].startswith(f"  heading           RMS {np.sqrt(np.mean(z ** 2)):.2f}, within 1 sd "
                                f"{100 * np.mean(abs(z) <= 1):.0f} %, within 2 sd {100 * np.mean(abs(z) <= 2):.0f} %")
     assert f"after the run: error {math.degrees(err[-1]):+.2f} deg, sd {math.degrees(sd[-1]):.2f} deg" in block[2]
@@ -412,7 +412,7 @@ def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(c
     proc = run_eval(corridor_run.tum, gt, "--odom", corridor_run.odom, "--measured-at", f"{at!r}",
                     "--json", tmp_path / "eval.json")
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
-    assert ("live.jsonl: 29 of 30 odometry messages matched, each compared with the truth 13.44 ms after its t"
+    assert ("live.jsonl: 29 of 30 odometry messages compared with the truth 13.44 ms after its t;"
             in proc.stdout)  # (the last one's truth would be after the truth's end)
     odom = read_odometry_log(corridor_run.odom)
     expected, used = odometry_consistency(odom.times, odom.poses, odom.pose_covariance, odom.twist_covariance,

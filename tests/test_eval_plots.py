@@ -248,7 +248,7 @@ def test_a_twist_part_not_compared_says_why():
     text = format_covariance({"yaw": part, "position": part, "yaw_rate": None, "forward_speed": None,
                               "sideways_speed": None, "final_yaw_error_deg": 1.0, "final_yaw_sigma_deg": 2.0,
                               "measured_at_s": -0.5}, "odom.jsonl", 10, 12)
-    assert "10 of 12 odometry messages matched, each compared with the truth 500 ms before its t" in text
+    assert "10 of 12 odometry messages compared with the truth 500 ms before its t" in text
     assert ("  yaw rate          not compared: no single estimator step (frames that follow, whose yaw rate times "
             "time is their turn) with a variance") in text
 
@@ -346,7 +346,8 @@ def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", late, timeout=120)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     # (its covariances are checked first: the messages' poses match none of the truth's)
-    assert f"radar-eval: error: only 0 pose(s) of {late} (2 poses, t 5000.000 .. 5000.100 s)" in proc.stderr
+    assert (f"radar-eval: error: {late}: fewer than two of its 2 messages (t 5000.000 .. 5000.100 s) have a ground "
+            "truth at their t (the truth: t 0.000 .. 2.900 s, 30 poses)") in proc.stderr
     # Messages that match the truth but not the evaluated stretch of the estimate: no flags to plot.
     early = tmp_path / "early.tum"
     early.write_text("".join(sim_run.tum.read_text().splitlines(keepends=True)[:10]))

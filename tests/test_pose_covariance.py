@@ -294,9 +294,8 @@ def test_the_truth_compared_where_the_odometry_describes_the_radar():
         with pytest.raises(EvaluationError, match="measured_at_s must be a time within"):
             _consistency_of_a_perfect_estimate(driving, at, bad)
     for offset, where in ((0.35, "350 ms after"), (-0.35, "350 ms before")):
-        with pytest.raises(EvaluationError, match=rf"odometry: fewer than two of its 5 messages paired with the ground "
-                                                  rf"truth have one {where} their t \(the truth: t 0.000 .. 0.400, 5 "
-                                                  rf"poses\)"):
+        with pytest.raises(EvaluationError, match=rf"odometry: fewer than two of its 5 messages \(t 0.000 .. 0.400 s\) have a ground truth "
+                                                  rf"{where} their t \(the truth: t 0.000 .. 0.400 s, 5 poses\)"):
             _consistency_of_a_perfect_estimate(driving, at, offset, n=5)
 
 
@@ -321,6 +320,46 @@ def test_the_truth_is_not_interpolated_across_its_gaps():
     # At 0 s, a message at a truth pose's time (to a microsecond: files round) is compared with it.
     at_stamps, used = odometry_consistency(stamps + 1e-7, *args[1:])
     assert used == int(keep.sum()) and at_stamps["measured_at_s"] == 0.0
+    assert at_stamps["forward_speed"]["z_rms"] < 1e-3
+
+
+def _perfect_run(stamps: np.ndarray, truth_stamps: np.ndarray, frames=True, jump_at: float = math.inf):
+    """odometry_consistency at 0 s of states at *stamps* driving along x at 1 m/s exactly (5 cm
+    ahead from *jump_at* s), against the same motion's truth at *truth_stamps*; sds of 1 cm, 1 cm/s,
+    1 degree."""
+    from radarodom.estimator.consistency import odometry_consistency
+    from radarodom.tum import TumTrajectory
+    n = len(stamps)
+    pose = lambda t: np.c_[t, np.zeros(len(t)), np.zeros(len(t))]  # noqa: E731
+    cov = np.zeros((n, 3, 3))
+    cov[:] = np.diag([1e-4, 1e-4, DEG ** 2])
+    est = pose(stamps) - pose(stamps[:1])
+    est[stamps >= jump_at, 0] += 0.05
+    return odometry_consistency(stamps, est, cov * np.arange(1, n + 1)[:, None, None],
+                                cov, np.zeros(n),
+                                np.arange(n) if frames else None, TumTrajectory.from_se2(truth_stamps,
+                                                                                         pose(truth_stamps)))
+
+
+def test_every_message_within_the_truth_is_compared():
+    # A review's findings: messages were first paired one to one with a truth pose within --max-diff,
+    # so a truth slower than the odometry, or stamped off it, left most out (or all: "0 poses match").
+    odometry = np.arange(60) / 30.0
+    got, used = _perfect_run(odometry, np.arange(20) * 0.1)  # 30 Hz odometry, 10 Hz truth
+    assert used == 58 and got["forward_speed"]["z_rms"] < 1e-9 and got["position"]["z_rms"] < 1e-9
+    got, used = _perfect_run(odometry, np.arange(20) * 0.1 + 0.05)  # the truth's stamps 50 ms off
+    assert used == 57 and got["forward_speed"]["z_rms"] < 1e-9  # (interpolated at t, not the nearest)
+    # A fast truth's dropout of a few poses is interpolated across (the gap's floor, 50 ms) ...
+    fast = np.arange(100) * 0.01
+    _, used = _perfect_run(fast, np.delete(fast, [40, 41]))
+    assert used == 100
+    # ... and without frame numbers a step across messages left out is not a single step (here the
+    # estimate jumps 5 cm ahead in the gap: were the step across it compared, its speed 10 sd off).
+    truth = np.delete(np.arange(20) * 0.1, range(8, 12))  # 0.4 s missing: a gap
+    numbered, used = _perfect_run(np.arange(20) * 0.1, truth, jump_at=1.0)
+    unnumbered, used_too = _perfect_run(np.arange(20) * 0.1, truth, frames=False, jump_at=1.0)
+    assert used == used_too == 16 and numbered["forward_speed"] == unnumbered["forward_speed"]
+    assert unnumbered["forward_speed"]["z_rms"] < 1e-9 and unnumbered["position"]["z_rms"] > 0.1
 
 
 def test_odometry_consistency_refuses_what_is_not_a_run():
@@ -340,9 +379,11 @@ def test_odometry_consistency_refuses_what_is_not_a_run():
                             ({"frames": -np.arange(5)}, "frames: whole numbers from 0")):
         with pytest.raises(EvaluationError, match=message):
             odometry_consistency(**{**good, **change})
-    far = 1e15 + 10 * t  # (steps of 1 s: there t + 0.01 == t in floating point)
-    with pytest.raises(EvaluationError, match="are too large to be moved by 0.01 s in floating point"):
-        odometry_consistency(**{**good, "times": far, "reference": TumTrajectory.from_se2(far, poses)},
-                             measured_at_s=0.01)
+    for far in (1e15 + 10 * t, 1e12 + t):  # (t + 0.01 is t there, or 12 microseconds off)
+        with pytest.raises(EvaluationError, match="are too large to be moved by 0.01 s in floating point"):
+            odometry_consistency(**{**good, "times": far, "reference": TumTrajectory.from_se2(far, poses)},
+                                 measured_at_s=0.01)
+    with pytest.raises(EvaluationError, match="frames: whole numbers from 0"):
+        odometry_consistency(**{**good, "frames": np.full(5, 2.0 ** 64)})
     with pytest.raises(EvaluationError, match="the times must increase"):
         covariance_consistency(poses, poses, cov, twist_covariance=cov, times=np.zeros(5), yaw_rates=np.zeros(5))

@@ -89,7 +89,7 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
 
 def format_covariance(c: dict, source: str, used: int, total: int) -> str:
     """The lines radar-eval prints for the reported covariances against the truth
-    (``covariance_consistency``'s dict *c*, over *used* of the *total* messages of *source*)."""
+    (``odometry_consistency``'s dict *c*, over *used* of the *total* messages of *source*)."""
     def line(label: str, part: dict | None, normal: str, more: str = "") -> str:
         if part is None or part["z_rms"] is None:
             what = ("frame" if label in ("heading", "position") else
@@ -98,9 +98,8 @@ def format_covariance(c: dict, source: str, used: int, total: int) -> str:
         return (f"  {label:<18}RMS {_fit(part['z_rms'], '.2f')}, within 1 sd {100 * part['within_1sigma']:.0f} %, "
                 f"within 2 sd {100 * part['within_2sigma']:.0f} % ({normal}){more}")
     return "\n".join([
-        f"reported covariance ({_short(source)}: {used} of {total} odometry messages matched"
-        + (f", each compared with the truth {offset_text(at)}" if (at := c.get("measured_at_s")) else "")
-        + "; each error since the first over its standard deviation",
+        f"reported covariance ({_short(source)}: {used} of {total} odometry messages compared with the truth "
+        f"{offset_text(c.get('measured_at_s', 0.0))}; each error since the first over its standard deviation",
         "  (RMS below 1: the covariance is wide, above 1: narrow; a normal error's shares in brackets)):",
         line("heading", c["yaw"], "68 / 95 %",
              f"; after the run: error {_fit(c['final_yaw_error_deg'], '+.2f')} deg, "

@@ -113,7 +113,7 @@ def _main(args: argparse.Namespace) -> int:
         table = format_table(result) + "\n\n" + format_heading(heading, parts)
         covariance = None if odom_log is None else odometry_consistency(
             odom_log.times, odom_log.poses, odom_log.pose_covariance, odom_log.twist_covariance,
-            odom_log.yaw_rates, odom_log.frames, reference, args.max_diff, source=odom_log.source,
+            odom_log.yaw_rates, odom_log.frames, reference, source=odom_log.source,
             measured_at_s=args.measured_at)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
