@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import EvaluationError
 from ..plain_numbers import is_number, time_text
 from ..tum import TumTrajectory
+from .evaluation import check_increasing, check_trajectory
 
 #: The largest offset between a message's stamp and the time it describes: a frame's chirps last
 #: tens of milliseconds.
@@ -160,6 +161,8 @@ def odometry_consistency(times: np.ndarray, poses: np.ndarray, pose_covariance: 
     ``measured_at_s`` too.  Raises :class:`EvaluationError` (naming *source*) when fewer than two
     are compared, or an argument is not what it must be."""
     at = _offset(measured_at_s)
+    check_trajectory("reference", reference)
+    check_increasing(reference)
     times = _floats("times", times)
     n = len(times) if times.ndim == 1 else -1
     arrays = {name: _floats(name, value) for name, value in (

@@ -147,7 +147,7 @@ def _span(traj: TumTrajectory) -> str:
     return f"{name} ({len(traj)} poses, t {time_text(traj.times[0])} .. {time_text(traj.times[-1])} s)"
 
 
-def _check_increasing(traj: TumTrajectory) -> None:
+def check_increasing(traj: TumTrajectory) -> None:
     bad = np.flatnonzero(np.diff(traj.times) <= 0)
     if len(bad):
         i = int(bad[0]) + 1
@@ -155,7 +155,7 @@ def _check_increasing(traj: TumTrajectory) -> None:
                               f"pose's {time_text(traj.times[i - 1], 9)} s; timestamps must increase")
 
 
-def _check_trajectory(name: str, traj) -> None:
+def check_trajectory(name: str, traj) -> None:
     """:class:`EvaluationError` unless *traj* is a trajectory (a path is read by ``read_tum``)."""
     if not isinstance(traj, TumTrajectory):
         how = " (radarodom.tum.read_tum reads a TUM file)" if isinstance(traj, (str, bytes, os.PathLike)) else ""
@@ -177,9 +177,9 @@ def associate(est: TumTrajectory, ref: TumTrajectory, max_diff: float = 0.01
     if not (is_number(max_diff) and max_diff >= 0 and math.isfinite(max_diff)):
         raise EvaluationError(f"max_diff must be a time >= 0 s, got {max_diff!r}")
     for name, traj in (("est", est), ("ref", ref)):
-        _check_trajectory(name, traj)
+        check_trajectory(name, traj)
     for traj in (est, ref):
-        _check_increasing(traj)
+        check_increasing(traj)
     # evo iterates over the shorter trajectory (the estimate when they are equally long).
     est_short = len(est) <= len(ref)
     short, long_ = (est, ref) if est_short else (ref, est)

@@ -385,5 +385,9 @@ def test_odometry_consistency_refuses_what_is_not_a_run():
                                  measured_at_s=0.01)
     with pytest.raises(EvaluationError, match="frames: whole numbers from 0"):
         odometry_consistency(**{**good, "frames": np.full(5, 2.0 ** 64)})
+    with pytest.raises(EvaluationError, match="reference: a TumTrajectory"):
+        odometry_consistency(**{**good, "reference": "gt.tum"})
+    with pytest.raises(EvaluationError, match="timestamps must increase"):
+        odometry_consistency(**{**good, "reference": TumTrajectory.from_se2(t[::-1], poses)})
     with pytest.raises(EvaluationError, match="the times must increase"):
         covariance_consistency(poses, poses, cov, twist_covariance=cov, times=np.zeros(5), yaw_rates=np.zeros(5))
