@@ -251,22 +251,30 @@ def test_the_speeds_error_over_the_twists_sd():
 
 
 
-def _consistency_of_a_perfect_estimate(poses, at: float, measured_at_s: float = 0.0, n: int = 21):
-    """odometry_consistency of an estimate that is *poses* (times -> (n, 3)) exactly *at* s after
-    each of its *n* stamps 0.1 s apart, against those poses at the stamps; standard deviations of 1 cm,
-    1 cm/s and 1 degree (a second)."""
+def _perfect_run(poses, stamps: np.ndarray, truth_stamps: np.ndarray | None = None, *, at: float = 0.0,
+                 measured_at_s: float = 0.0, frames: bool = True, jump_at: float = math.inf):
+    """odometry_consistency of states at *stamps* whose poses are *poses* (times -> (n, 3)) exactly
+    *at* s later (5 cm further along x from *jump_at* s), against those poses at *truth_stamps*
+    (default: the states' own); standard deviations of 1 cm, 1 cm/s and 1 degree (a second)."""
     from radarodom.estimator.consistency import odometry_consistency
     from radarodom.tum import TumTrajectory
-    stamps = np.arange(n) * 0.1
+    truth_stamps = stamps if truth_stamps is None else truth_stamps
+    n = len(stamps)
     est = poses(stamps + at)
     est -= est[0]
+    est[stamps >= jump_at, 0] += 0.05
     pose_cov = np.zeros((n, 3, 3))
     pose_cov[1:] = np.diag([0.01 ** 2, 0.01 ** 2, DEG ** 2])
     twist = np.zeros((n, 3, 3))
     twist[:] = np.diag([0.01 ** 2, 0.01 ** 2, DEG ** 2])
-    rates = np.r_[0.0, np.diff(est[:, 2]) / 0.1]
-    return odometry_consistency(stamps, est, pose_cov, twist, rates, np.arange(n),
-                                TumTrajectory.from_se2(stamps, poses(stamps)), measured_at_s=measured_at_s)
+    rates = np.r_[0.0, np.diff(est[:, 2]) / np.diff(stamps)]
+    return odometry_consistency(stamps, est, pose_cov, twist, rates, np.arange(n) if frames else None,
+                                TumTrajectory.from_se2(truth_stamps, poses(truth_stamps)), measured_at_s=measured_at_s)
+
+
+def _consistency_of_a_perfect_estimate(poses, at: float, measured_at_s: float = 0.0, n: int = 21):
+    """:func:`_perfect_run` at *n* stamps 0.1 s apart, the truth at the stamps."""
+    return _perfect_run(poses, np.arange(n) * 0.1, at=at, measured_at_s=measured_at_s)
 
 
 def test_the_truth_compared_where_the_odometry_describes_the_radar():
@@ -294,7 +302,8 @@ def test_the_truth_compared_where_the_odometry_describes_the_radar():
         with pytest.raises(EvaluationError, match="measured_at_s must be a time within"):
             _consistency_of_a_perfect_estimate(driving, at, bad)
     for offset, where in ((0.35, "350 ms after"), (-0.35, "350 ms before")):
-        with pytest.raises(EvaluationError, match=rf"odometry: fewer than two of its 5 messages \(t 0.000 .. 0.400 s\) have a ground truth "
+        with pytest.raises(EvaluationError, match=rf"odometry: fewer than two of its 5 messages \(t 0.000 .. 0.400 s\) "
+                                                  rf"have a ground truth "
                                                   rf"{where} their t \(the truth: t 0.000 .. 0.400 s, 5 poses\)"):
             _consistency_of_a_perfect_estimate(driving, at, offset, n=5)
 
@@ -316,48 +325,36 @@ def test_the_truth_is_not_interpolated_across_its_gaps():
     gapped, used_gapped = odometry_consistency(*args, measured_at_s=0.01)
     assert used == 39 and used_gapped == int(keep.sum()) - 2  # the last, and the last before the gap
     # The estimate is the truth at the stamps: 2 cm/s slow against the truth 10 ms later, 2 sd, either way.
-    assert gapped["forward_speed"]["z_rms"] == pytest.approx(2.0) and whole["forward_speed"]["z_rms"] == pytest.approx(2.0)
+    assert gapped["forward_speed"]["z_rms"] == pytest.approx(2.0)
+    assert whole["forward_speed"]["z_rms"] == pytest.approx(2.0)
     # At 0 s, a message at a truth pose's time (to a microsecond: files round) is compared with it.
     at_stamps, used = odometry_consistency(stamps + 1e-7, *args[1:])
     assert used == int(keep.sum()) and at_stamps["measured_at_s"] == 0.0
     assert at_stamps["forward_speed"]["z_rms"] < 1e-3
 
 
-def _perfect_run(stamps: np.ndarray, truth_stamps: np.ndarray, frames=True, jump_at: float = math.inf):
-    """odometry_consistency at 0 s of states at *stamps* driving along x at 1 m/s exactly (5 cm
-    ahead from *jump_at* s), against the same motion's truth at *truth_stamps*; sds of 1 cm, 1 cm/s,
-    1 degree."""
-    from radarodom.estimator.consistency import odometry_consistency
-    from radarodom.tum import TumTrajectory
-    n = len(stamps)
-    pose = lambda t: np.c_[t, np.zeros(len(t)), np.zeros(len(t))]  # noqa: E731
-    cov = np.zeros((n, 3, 3))
-    cov[:] = np.diag([1e-4, 1e-4, DEG ** 2])
-    est = pose(stamps) - pose(stamps[:1])
-    est[stamps >= jump_at, 0] += 0.05
-    return odometry_consistency(stamps, est, cov * np.arange(1, n + 1)[:, None, None],
-                                cov, np.zeros(n),
-                                np.arange(n) if frames else None, TumTrajectory.from_se2(truth_stamps,
-                                                                                         pose(truth_stamps)))
+def _driving(t: np.ndarray) -> np.ndarray:
+    """Along x at 1 m/s."""
+    return np.c_[t, np.zeros(len(t)), np.zeros(len(t))]
 
 
 def test_every_message_within_the_truth_is_compared():
     # A review's findings: messages were first paired one to one with a truth pose within --max-diff,
     # so a truth slower than the odometry, or stamped off it, left most out (or all: "0 poses match").
     odometry = np.arange(60) / 30.0
-    got, used = _perfect_run(odometry, np.arange(20) * 0.1)  # 30 Hz odometry, 10 Hz truth
+    got, used = _perfect_run(_driving, odometry, np.arange(20) * 0.1)  # 30 Hz odometry, 10 Hz truth
     assert used == 58 and got["forward_speed"]["z_rms"] < 1e-9 and got["position"]["z_rms"] < 1e-9
-    got, used = _perfect_run(odometry, np.arange(20) * 0.1 + 0.05)  # the truth's stamps 50 ms off
+    got, used = _perfect_run(_driving, odometry, np.arange(20) * 0.1 + 0.05)  # the truth's stamps 50 ms off
     assert used == 57 and got["forward_speed"]["z_rms"] < 1e-9  # (interpolated at t, not the nearest)
     # A fast truth's dropout of a few poses is interpolated across (the gap's floor, 50 ms) ...
     fast = np.arange(100) * 0.01
-    _, used = _perfect_run(fast, np.delete(fast, [40, 41]))
+    _, used = _perfect_run(_driving, fast, np.delete(fast, [40, 41]))
     assert used == 100
     # ... and without frame numbers a step across messages left out is not a single step (here the
     # estimate jumps 5 cm ahead in the gap: were the step across it compared, its speed 10 sd off).
     truth = np.delete(np.arange(20) * 0.1, range(8, 12))  # 0.4 s missing: a gap
-    numbered, used = _perfect_run(np.arange(20) * 0.1, truth, jump_at=1.0)
-    unnumbered, used_too = _perfect_run(np.arange(20) * 0.1, truth, frames=False, jump_at=1.0)
+    numbered, used = _perfect_run(_driving, np.arange(20) * 0.1, truth, jump_at=1.0)
+    unnumbered, used_too = _perfect_run(_driving, np.arange(20) * 0.1, truth, frames=False, jump_at=1.0)
     assert used == used_too == 16 and numbered["forward_speed"] == unnumbered["forward_speed"]
     assert unnumbered["forward_speed"]["z_rms"] < 1e-9 and unnumbered["position"]["z_rms"] > 0.1
 

@@ -109,9 +109,10 @@ def read_odometry_log(path: str | os.PathLike) -> OdometryLog:
                                              f"previous message's {time_text(times[-1], 9)} s; one run's messages, "
                                              "in order, are needed")
                 for name in ("pose_covariance", "twist_covariance"):
-                    if min(m[name][0::4]) < 0.0:
+                    least = min(m[name][0::4])
+                    if least < 0.0:
                         raise CaptureFormatError(f"{path}:{lineno}: {name}: a variance (its diagonal: items 1, 5, 9) "
-                                                 f"is negative ({min(m[name][0::4]):g}): not a covariance")
+                                                 f"is negative ({least:g}): not a covariance")
                 times.append(float(m["t"]))
                 flags.append(tuple(m["flags"]))
                 frames.append(m["frame"])
