@@ -123,7 +123,7 @@ ODOMETRY = {
 }
 
 POINT_YAW = {
-    "map_frames": "[1, 10000]", "bearing_noise_rad": NOISE, "range_noise_m": "[1e-6, 10] m",
+    "blend": "[0, 1)", "map_frames": "[1, 10000]", "bearing_noise_rad": NOISE, "range_noise_m": "[1e-6, 10] m",
     "position_floor_m": "[1e-6, 10] m", "static_threshold_mps": SPEED, "min_points": COUNT, "min_map_points": COUNT,
     # the step below the search (each at least the finest step), and below half a turn
     "search_rad": f"({MIN_SEARCH_STEP_RAD:g}, pi] rad", "step_rad": f"[{MIN_SEARCH_STEP_RAD:g}, pi) rad",

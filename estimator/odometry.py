@@ -35,6 +35,7 @@ from .config import EstimatorConfig
 from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
+from .heading_blend import HeadingBlend
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
@@ -133,6 +134,11 @@ class RadarOdometry:
         self.point_yaw = point_yaw_part(self.config, self.yaw)
         if self.point_yaw is not None:
             self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
+        share = self.config.point_yaw.blend
+        #: point_yaw.blend: the points' own estimator beside this one, its heading blended into
+        #: what this one publishes (None: not run).
+        self.blend = None if self.point_yaw is not None or share == 0.0 else HeadingBlend(
+            RadarOdometry(self.config.with_(point_yaw={"use": True, "blend": 0.0})), share)
         self._held_rate_std = odo.held_yaw_rate_std_radps
         self._walk_var_m, self._walk_var_rad = odo.yaw_walk_per_sqrt_m ** 2, odo.yaw_walk_per_sqrt_rad ** 2
         # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess
@@ -144,14 +150,15 @@ class RadarOdometry:
         self._blind_since = False
         self._chord = odo.rectification == "chord"
         self._previous: KeptFrame | None = None
-        self._state: OdometryState | None = None
+        self._state: OdometryState | None = None  # this chain's, which its steps start from
+        self._published: OdometryState | None = None  # with point_yaw.blend, the blend's
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate rad/s) of the last measured yaw
         self._frames = 0
         self._velocity_s = 0.0  # time in add_points since the last heatmap frame
 
     @property
     def state(self) -> OdometryState | None:
-        return self._state
+        return self._published
 
     # ------------------------------------------------------------------ velocity stream
     def add_points(self, t: float, points: np.ndarray) -> VelocityEstimate:
@@ -168,6 +175,8 @@ class RadarOdometry:
         if self.point_yaw is not None:
             self.point_yaw.add_points(t, points, est)
         self._velocity_s += time.perf_counter() - start
+        if self.blend is not None:
+            self.blend.add_points(t, points)
         return est
 
     def add_velocity(self, est: VelocityEstimate) -> None:
@@ -175,6 +184,8 @@ class RadarOdometry:
         axis loses its sideways part as the point clouds' do."""
         _check_time(est.t, "velocity")
         self.velocities.add(est)
+        if self.blend is not None:
+            self.blend.add_velocity(est)
 
     def _without_slip(self, est: VelocityEstimate) -> VelocityEstimate:
         """*est* without sideways slip at the last measured yaw rate (``no_side_slip``)."""
@@ -191,7 +202,7 @@ class RadarOdometry:
         start = time.perf_counter()
         _check_time(t, "heatmap")
         _check_heatmap(heatmap)
-        previous = self._previous
+        given, previous = heatmap, self._previous
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "
                                  "feed frames in time order")
@@ -218,7 +229,8 @@ class RadarOdometry:
         self._previous, self._state = current, state
         state.compute_s = time.perf_counter() - start + self._velocity_s
         self._velocity_s = 0.0
-        return state
+        self._published = state if self.blend is None else self.blend(state, t, given)
+        return self._published
 
     def _step(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, index: int) -> OdometryState:
         """The odometry of the step from *previous* to *current*: velocity at its middle (eq. 2),
