@@ -297,7 +297,8 @@ class EstimatorConfig(Settings):
                                  refinement="none", score_support="inside", reject_moving_mps=None),
                    odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0,
                                            velocity_fallback="hold", rectification="velocity", bridge_s=0.0,
-                                           yaw_walk_per_sqrt_m=0.0, yaw_walk_per_sqrt_rad=0.0))
+                                           yaw_walk_per_sqrt_m=0.0, yaw_walk_per_sqrt_rad=0.0),
+                   point_yaw=PointYawConfig(blend=0.0))
 
     @classmethod
     def tidemo(cls) -> "EstimatorConfig":

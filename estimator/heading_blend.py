@@ -6,9 +6,10 @@ points against the last seconds' map, estimator/point_yaw.py) err by their own d
 scene's speckle: over the robustness matrix the two chains' turns in place, drift and straight
 drives hardly correlate from cell to cell, so a share of each holds the heading better than
 either alone.  The two run side by side, unaware of each other (each its own velocity fit, yaw-rate
-filter and keyframes or map); what is published is the heatmap chain's state with its heading
-moved *share* of the way to the points' chain, and its position integrated from the heatmap
-chain's own steps along that heading.
+filter and keyframes or map); what is published is the heatmap chain's state, each step's turn
+moved *share* of the way to the points' chain's turn over the same step where both measured it
+(otherwise the heatmap chain's alone), and its position integrated from the heatmap chain's own
+steps along that heading.
 """
 
 from __future__ import annotations
@@ -18,6 +19,10 @@ from dataclasses import replace
 from typing import Protocol
 
 import numpy as np
+
+
+#: A step longer than this many frame periods has lost frames.
+_LOST = 1.5
 
 
 class _Odometry(Protocol):
@@ -37,7 +42,8 @@ class HeadingBlend:
     def __init__(self, points: _Odometry, share: float) -> None:
         self.points = points
         self.share = share
-        self._last: tuple | None = None  # (the heatmap chain's state, the published state)
+        self._period = math.inf  # the shortest step yet, s: the frame period
+        self._last: tuple | None = None  # (the heatmap chain's state, the points', the published)
 
     def add_points(self, t: float, points: np.ndarray) -> None:
         self.points.add_points(t, points)
@@ -49,29 +55,33 @@ class HeadingBlend:
         """The state to publish for the heatmap chain's *own* state at *t*, its heatmap given to
         the points' estimator too."""
         other = self.points.add_heatmap(t, heatmap)
-        w = self.share
-        yaw = own.yaw + w * (other.yaw - own.yaw)
         if self._last is None:
-            x, y, increment = own.x, own.y, yaw
+            state = replace(own)
         else:
-            before, published = self._last
+            before, other_before, published = self._last
+            dt = own.t - before.t
+            self._period = min(self._period, dt)
+            own_turn, other_turn = own.yaw - before.yaw, other.yaw - other_before.yaw
+            # Only a step both measured is blended: where either held, bridged or lost its motion,
+            # or frames were lost (a step half a period longer than the shortest), the heatmap
+            # chain's turn stands, whose ways across such steps are tested.
+            w = self.share if own.ok and other.ok and dt <= _LOST * self._period else 0.0
+            increment = own_turn + w * (other_turn - own_turn)
             # The heatmap chain's step in its own axes at the step's start, turned onto the
             # published heading there.
             dx, dy = own.x - before.x, own.y - before.y
             turn = published.yaw - before.yaw
             c, s = math.cos(turn), math.sin(turn)
-            x, y = published.x + c * dx - s * dy, published.y + s * dx + c * dy
-            increment = yaw - published.yaw
-        state = replace(
-            own, x=float(x), y=float(y), yaw=float(yaw), yaw_increment=float(increment),
-            yaw_rate=float(own.yaw_rate + w * (other.yaw_rate - own.yaw_rate)),
-            # A convex sum of the two covariances bounds the blend's whatever the chains'
-            # correlation (they hardly correlate: it overstates the heading's by up to sqrt 2).
-            pose_covariance=(1.0 - w) * own.pose_covariance + w * other.pose_covariance,
-            twist_covariance=_twist_covariance(own.twist_covariance, other.twist_covariance, w),
-            flags=own.flags + tuple(f for f in other.flags if f not in own.flags),
-            compute_s=own.compute_s + other.compute_s)
-        self._last = (own, state)
+            state = replace(
+                own, x=float(published.x + c * dx - s * dy), y=float(published.y + s * dx + c * dy),
+                yaw=float(published.yaw + increment), yaw_increment=float(increment),
+                yaw_rate=float(own.yaw_rate + w * (other.yaw_rate - own.yaw_rate)),
+                # A convex sum of the two covariances bounds the blend's whatever the chains'
+                # correlation (they hardly correlate: it overstates the heading's by up to sqrt 2).
+                pose_covariance=(1.0 - self.share) * own.pose_covariance + self.share * other.pose_covariance,
+                twist_covariance=_twist_covariance(own.twist_covariance, other.twist_covariance, w))
+        state.compute_s = own.compute_s + other.compute_s
+        self._last = (own, other, state)
         return state
 
 

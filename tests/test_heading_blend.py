@@ -1,6 +1,7 @@
 """The heading of the heatmaps' and the points' registrations blended (``point_yaw.blend``,
-estimator/heading_blend.py; docs/heading.md item 30), on a synthetic scene of point reflectors: a
-straight drive into a moving turn, and a turn in place."""
+estimator/heading_blend.py; docs/heading.md item 30), on a synthetic scene of point reflectors
+whose point clouds are the reflectors in view: a straight drive into a moving turn, and a turn in
+place; then frames lost and a blind run, where the heatmap chain's turn stands."""
 
 from __future__ import annotations
 
@@ -16,58 +17,89 @@ from radarodom.estimator.odometry import RadarOdometry
 
 DRIVE = synth.Trajectory([(1.0, 0.8, 0.0), (2.0, 0.8, math.radians(40.0)), (1.0, 0.8, 0.0),
                           (2.0, 0.0, math.radians(60.0)), (0.5, 0.0, 0.0)])
+HEATMAPS = EstimatorConfig().with_(point_yaw={"blend": 0.0})
+POINTS = EstimatorConfig().with_(point_yaw={"use": True})
 
 
-def _three(share: float):
+def _frames(trajectory, *, drop=(), blind=(), seed=2):
+    """(t, cloud, heatmap) of each frame along *trajectory* at 10 Hz; frames whose index is in
+    *drop* lost, those in *blind* seeing nothing (an empty cloud, a heatmap of noise)."""
+    world, amp = synth.scene(trajectory, 40, seed=seed)
+    rng = np.random.default_rng(seed + 100)
+    out = []
+    for i in range(round(trajectory.duration * 10) + 1):
+        t = i / 10
+        vx, vy, _ = trajectory.twist(t)
+        cloud, hm = synth.frame(world, amp, trajectory.pose(t), (vx, vy), rng)
+        if i in blind:
+            cloud, hm = cloud[:0], synth.heatmap(np.zeros((0, 2)), noise=1.0, rng=rng)
+        if i not in drop:
+            out.append((t, cloud, hm))
+    return out
+
+
+def _run(config, frames):
+    odom = RadarOdometry(config)
+    return [odom.step(t, cloud, hm) for t, cloud, hm in frames]
+
+
+def _three(share, frames):
     """The states of the heatmaps' estimator, the points' and the blend's, frame by frame."""
-    states = [synth.run_sequence(config, DRIVE)[0] for config in (
-        EstimatorConfig(), EstimatorConfig().with_(point_yaw={"use": True}),
-        EstimatorConfig().with_(point_yaw={"blend": share}))]
-    return list(zip(*states))
+    blend = EstimatorConfig().with_(point_yaw={"blend": share})
+    return list(zip(*(_run(config, frames) for config in (HEATMAPS, POINTS, blend))))
+
+
+def _turns(states):
+    return np.diff([s.yaw for s in states])
 
 
 @pytest.mark.parametrize("share", [0.3, 0.5])
-def test_the_heading_is_the_share_of_the_way_from_the_heatmaps_chain_to_the_points(share):
-    frames = _three(share)
-    field = np.array([a.yaw for a, _, _ in frames])
-    points = np.array([b.yaw for _, b, _ in frames])
-    blend = np.array([c.yaw for _, _, c in frames])
-    # The two chains differ (else the test could not tell a share), and the blend lies between.
-    assert np.max(np.abs(points - field)) > math.radians(0.2)
+def test_each_steps_turn_is_the_share_of_the_way_from_the_heatmaps_to_the_points(share):
+    frames = _three(share, _frames(DRIVE))
+    field, points, blend = (_turns(chain) for chain in zip(*frames))
+    # The two chains differ (else the test could not tell a share), and every step measured by
+    # both (all of them here) is blended.
+    assert np.max(np.abs(np.cumsum(points - field))) > math.radians(0.2)
+    assert all(a.ok and b.ok for a, b, _ in frames[1:])
     np.testing.assert_allclose(blend, field + share * (points - field), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(np.diff(blend), [c.yaw_increment for _, _, c in frames[1:]], atol=1e-12)
+    np.testing.assert_allclose(blend, [c.yaw_increment for _, _, c in frames[1:]], atol=1e-12)
     np.testing.assert_allclose([c.yaw_rate for _, _, c in frames],
                                [a.yaw_rate + share * (b.yaw_rate - a.yaw_rate) for a, b, _ in frames], atol=1e-12)
-    for (a0, _, c0), (a1, _, c1) in zip(frames, frames[1:]):
+    for (a0, _, c0), (a1, b1, c1) in zip(frames, frames[1:]):
         # Each step of the position is the heatmap chain's, turned by the two headings' difference.
-        step_a = np.array([a1.x - a0.x, a1.y - a0.y])
-        step_c = np.array([c1.x - c0.x, c1.y - c0.y])
         turn = c0.yaw - a0.yaw
         rot = np.array([[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]])
-        np.testing.assert_allclose(step_c, rot @ step_a, atol=1e-12)
-        assert (c1.vx, c1.vy) == (a1.vx, a1.vy)
-    # The covariance between the two chains' (a convex sum); the speeds' the velocity fit's.
-    last_a, last_b, last_c = frames[-1]
-    lo, hi = sorted((last_a.pose_covariance[2, 2], last_b.pose_covariance[2, 2]))
-    assert lo <= last_c.pose_covariance[2, 2] <= hi
-    np.testing.assert_array_equal(last_c.twist_covariance[:2, :2], last_a.twist_covariance[:2, :2])
+        np.testing.assert_allclose([c1.x - c0.x, c1.y - c0.y], rot @ [a1.x - a0.x, a1.y - a0.y], atol=1e-12)
+        assert (c1.vx, c1.vy, c1.flags) == (a1.vx, a1.vy, a1.flags)
+        # The covariance between the two chains' (a convex sum); the speeds' the velocity fit's.
+        lo, hi = sorted((a1.pose_covariance[2, 2], b1.pose_covariance[2, 2]))
+        assert lo <= c1.pose_covariance[2, 2] <= hi
+        np.testing.assert_array_equal(c1.twist_covariance[:2, :2], a1.twist_covariance[:2, :2])
 
 
-def test_the_flags_are_both_chains_and_the_compute_time_both():
-    frames = _three(0.5)
-    for a, b, c in frames:
-        assert set(c.flags) == set(a.flags) | set(b.flags)
-        assert c.flags[:len(a.flags)] == a.flags
-        assert c.compute_s > a.compute_s
+def test_a_step_over_lost_frames_or_one_either_chain_did_not_measure_takes_the_heatmaps_turn():
+    standing_turn = synth.Trajectory([(1.0, 0.8, 0.0), (3.0, 0.0, math.radians(30.0)), (1.0, 0.8, 0.0)])
+    frames = _three(0.5, _frames(standing_turn, drop={15, 16, 17}, blind={30, 31}))
+    field, points, blend = (_turns(chain) for chain in zip(*frames))
+    kept = [a.ok and b.ok for a, b, _ in frames[1:]]
+    lost = [frames[k + 1][0].t - frames[k][0].t > 0.15 for k in range(len(frames) - 1)]
+    assert sum(lost) == 1 and not all(kept)  # the test sees both kinds
+    for k, (both, gap) in enumerate(zip(kept, lost)):
+        expected = field[k] if gap or not both else 0.5 * (field[k] + points[k])
+        assert blend[k] == pytest.approx(expected, abs=1e-12), k
+    assert np.max(np.abs(blend - field)[np.array(kept) & ~np.array(lost)]) > 1e-4  # blended where both measured
+    # Where the points' chain did not measure, the flags are still the heatmap chain's alone.
+    assert all(c.flags == a.flags for a, _, c in frames)
 
 
 def test_without_a_share_or_with_the_points_alone_nothing_is_blended():
-    assert RadarOdometry(EstimatorConfig()).blend is None
-    alone = EstimatorConfig().with_(point_yaw={"use": True})
-    assert RadarOdometry(alone.with_(point_yaw={"blend": 0.5})).blend is None
-    points = synth.run_sequence(alone, DRIVE)[0]
-    both = synth.run_sequence(alone.with_(point_yaw={"blend": 0.5}), DRIVE)[0]
-    assert [s.pose for s in both] == [s.pose for s in points]
+    assert RadarOdometry(HEATMAPS).blend is None
+    assert RadarOdometry(POINTS.with_(point_yaw={"blend": 0.5})).blend is None
+    frames = _frames(DRIVE)[:20]
+    assert [s.pose for s in _run(POINTS.with_(point_yaw={"blend": 0.5}), frames)] == \
+        [s.pose for s in _run(POINTS, frames)]
+    # The paper's method has no option beyond it.
+    assert EstimatorConfig.paper().point_yaw.blend == 0.0
 
 
 @pytest.mark.parametrize("value", [-0.1, 1.0, 2.0])
