@@ -7,9 +7,9 @@ scene's speckle: over the robustness matrix the two chains' turns in place, drif
 drives hardly correlate from cell to cell, so a share of each holds the heading better than
 either alone.  The two run side by side, unaware of each other (each its own velocity fit, yaw-rate
 filter and keyframes or map); what is published is the heatmap chain's state, each step's turn
-moved *share* of the way to the points' chain's turn over the same step where both measured it
-(otherwise the heatmap chain's alone), and its position integrated from the heatmap chain's own
-steps along that heading.
+moved *share* of the way to the points' chain's turn over the same step (but the heatmap chain's
+alone where it did not measure the step or frames were lost), and its position integrated from
+the heatmap chain's own steps along that heading; its covariances the heatmap chain's.
 """
 
 from __future__ import annotations
@@ -62,10 +62,11 @@ class HeadingBlend:
             dt = own.t - before.t
             self._period = min(self._period, dt)
             own_turn, other_turn = own.yaw - before.yaw, other.yaw - other_before.yaw
-            # Only a step both measured is blended: where either held, bridged or lost its motion,
-            # or frames were lost (a step half a period longer than the shortest), the heatmap
-            # chain's turn stands, whose ways across such steps are tested.
-            w = self.share if own.ok and other.ok and dt <= _LOST * self._period else 0.0
+            # Where the heatmap chain held, bridged or lost its motion, or frames were lost (a step
+            # half a period longer than the shortest), its turn stands, whose ways across such
+            # steps are tested.  The points' chain's own such steps are blended: it makes up for
+            # a turn it held in the steps after (point_yaw.correct_lag), which are blended too.
+            w = self.share if own.ok and dt <= _LOST * self._period else 0.0
             increment = own_turn + w * (other_turn - own_turn)
             # The heatmap chain's step in its own axes at the step's start, turned onto the
             # published heading there.
@@ -75,19 +76,10 @@ class HeadingBlend:
             state = replace(
                 own, x=float(published.x + c * dx - s * dy), y=float(published.y + s * dx + c * dy),
                 yaw=float(published.yaw + increment), yaw_increment=float(increment),
-                yaw_rate=float(own.yaw_rate + w * (other.yaw_rate - own.yaw_rate)),
-                # A convex sum of the two covariances bounds the blend's whatever the chains'
-                # correlation (they hardly correlate: it overstates the heading's by up to sqrt 2).
-                pose_covariance=(1.0 - self.share) * own.pose_covariance + self.share * other.pose_covariance,
-                twist_covariance=_twist_covariance(own.twist_covariance, other.twist_covariance, w))
+                yaw_rate=float(own.yaw_rate + w * (other.yaw_rate - own.yaw_rate)))
+            # The covariances stay the heatmap chain's, which the blend's errors, smaller, stay
+            # within (docs/heading.md item 30); the points' chain's grow by every step's variance
+            # (estimator/point_map.py) and would widen them several times.
         state.compute_s = own.compute_s + other.compute_s
         self._last = (own, other, state)
         return state
-
-
-def _twist_covariance(own: np.ndarray, other: np.ndarray, w: float) -> np.ndarray:
-    """(3, 3): the speeds' the heatmap chain's (both fit the same points), the yaw rate's the
-    convex sum of the two."""
-    out = np.array(own, dtype=float, copy=True)
-    out[2, 2] = (1.0 - w) * own[2, 2] + w * other[2, 2]
-    return out
