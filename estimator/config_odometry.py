@@ -215,10 +215,10 @@ class PointYawConfig(Settings):
 
     #: Measure the yaw this way instead of registering heatmaps (and their keyframes).
     use: bool = False
-    #: Without ``use``: run this way beside the heatmaps' registration and publish the heading
-    #: moved this share of the way from the heatmaps' chain to the points' (0: not run;
+    #: Without ``use``: run this way beside the heatmaps' registration and publish each step's
+    #: turn moved this share of the way from the heatmaps' chain's to the points' (0: not run;
     #: estimator/heading_blend.py, docs/heading.md item 30).  With ``use``: no effect.
-    blend: float = 0.0
+    blend: float = 0.5
     #: The map holds the static points of this many last frames: a long map anchors each frame's
     #: few points to what the frames before saw (docs/tidemo.md, "How it compares").
     map_frames: int = 80

@@ -137,8 +137,10 @@ class RadarOdometry:
         share = self.config.point_yaw.blend
         #: point_yaw.blend: the points' own estimator beside this one, its heading blended into
         #: what this one publishes (None: not run).
-        self.blend = None if self.point_yaw is not None or share == 0.0 else HeadingBlend(
-            RadarOdometry(self.config.with_(point_yaw={"use": True, "blend": 0.0})), share)
+        points = None if self.point_yaw is not None or share == 0.0 else RadarOdometry(
+            self.config.with_(point_yaw={"use": True, "blend": 0.0}))
+        self.blend = None if points is None else HeadingBlend(points, share, odo.yaw_walk_per_sqrt_rad ** 2,
+                                                              self.config.point_yaw.lag_frames)
         self._held_rate_std = odo.held_yaw_rate_std_radps
         self._walk_var_m, self._walk_var_rad = odo.yaw_walk_per_sqrt_m ** 2, odo.yaw_walk_per_sqrt_rad ** 2
         # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess

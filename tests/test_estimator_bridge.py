@@ -39,7 +39,7 @@ def run(bridge_s: float, blind_frames: range, kind: str, n: int = 20, cloud_when
     """Turning in place at 20 deg/s for *n* frames at 10 Hz, blind during *blind_frames* (the
     point cloud too, unless *cloud_when_blind*)."""
     rng = np.random.default_rng(1)
-    odom = RadarOdometry(EstimatorConfig().with_(odometry={"bridge_s": bridge_s}))
+    odom = RadarOdometry(synth.heatmap_chain(odometry={"bridge_s": bridge_s}))
     states = []
     for i in range(n):
         t = 0.1 * i
@@ -110,7 +110,7 @@ def test_the_bridge_must_be_a_finite_time(value):
 
 
 def test_a_standing_radar_blinded_stays_put():
-    odom = RadarOdometry(EstimatorConfig())
+    odom = RadarOdometry(synth.heatmap_chain())
     rng = np.random.default_rng(2)
     states = [odom.step(0.1 * i, no_cloud() if 5 <= i < 17 else static_cloud((0.0, 0.0), seed=i),
                         noise_heatmap(rng) if 5 <= i < 17 else scene_heatmap()) for i in range(22)]
@@ -124,7 +124,7 @@ def drive(blind: set[int], *, cloud_back: bool = True, n: int = 24, speed: float
     cloud) at the frames in *blind*; the first frame after each run without a point cloud unless
     *cloud_back*; *odometry*: settings."""
     rng = np.random.default_rng(4)
-    odom = RadarOdometry(EstimatorConfig().with_(odometry=odometry))
+    odom = RadarOdometry(synth.heatmap_chain(odometry=odometry))
     states = []
     for i in range(n):
         t = 0.1 * i

@@ -357,7 +357,7 @@ class TestFlags:
         assert abs(s.yaw) < 0.05 * DEG and finite_state(s)
 
     @pytest.mark.parametrize("config", [
-        pytest.param(EstimatorConfig(), id="default"),
+        pytest.param(synth.heatmap_chain(), id="default"),
         pytest.param(EstimatorConfig.paper(), id="paper"),
     ])
     def test_empty_heatmap_is_refused(self, config):
@@ -380,7 +380,7 @@ class TestFlags:
         # When that frame's point cloud gives no velocity either (*blind*: it saw nothing), the
         # next frame is registered against the one before it (``bridge_s``).
         rng = np.random.default_rng(0)
-        odom = RadarOdometry(EstimatorConfig().with_(icp={"scan_structure": structure}))
+        odom = RadarOdometry(synth.heatmap_chain(icp={"scan_structure": structure}))
         states = [odom.step(0.1 * i, few_points_cloud() if blind and i == 2 else static_cloud((0.0, 0.0), seed=i),
                             synth.heatmap(SCENE_WORLD[:1] if i == 2 else SCENE_WORLD, 1.0, noise=1e-4, rng=rng))
                   for i in range(4)]
@@ -400,7 +400,7 @@ class TestFlags:
         """Turning in place 2 degrees a frame for 29 steps over the scene's reflectors in noise of
         *noise*: the states and the turn measured, degrees (58 true)."""
         rng = np.random.default_rng(0)
-        odom = RadarOdometry(EstimatorConfig().with_(icp={"scan_score_fraction": fraction}))
+        odom = RadarOdometry(synth.heatmap_chain(icp={"scan_score_fraction": fraction}))
         states = [odom.step(0.1 * i, static_cloud((0.0, 0.0), seed=i),
                             synth.heatmap(synth.world_to_body(SCENE_WORLD, (0.0, 0.0, 2.0 * DEG * i)), 1.0,
                                           noise=noise, rng=rng)) for i in range(30)]
@@ -426,7 +426,7 @@ class TestFlags:
         # held velocity every static cell would count as moving (icp.reject_moving_mps), the
         # heatmap would be blank and the turn not measured.
         trajectory = Trajectory([(0.5, 1.0, 0.0), (0.5, 0.2, 30 * DEG)])
-        odom = RadarOdometry(EstimatorConfig())
+        odom = RadarOdometry(synth.heatmap_chain())
         rng = np.random.default_rng(1)
         states = []
         for i in range(10):
@@ -599,7 +599,7 @@ class TestFlags:
         # No frames for a while (a stalled link): the step over the gap searches around the last
         # rate's turn out to every turn 90 deg/s faster or slower would make (gap_yaw_rate_radps),
         # and finds the one made.
-        odom = RadarOdometry(EstimatorConfig())
+        odom = RadarOdometry(synth.heatmap_chain())
         before, after_rate = rate_before_dps * DEG, rate_after_dps * DEG
         turning = [odom.step(0.1 * i, static_cloud((0.0, 0.0)), scene_heatmap((0.0, 0.0, before * 0.1 * i)))
                    for i in range(6)]
@@ -667,7 +667,7 @@ class TestVelocitySync:
     def test_interpolation_to_mid_time(self):
         # Velocity at 10 Hz (t = 0, 0.1, ...), changing linearly; heatmaps at 5 Hz offset by
         # 30 ms.  Paper eq. 2: the step between two heatmaps uses the velocity at their mid-time.
-        odom = RadarOdometry(EstimatorConfig())
+        odom = RadarOdometry(synth.heatmap_chain())
         v_of = lambda t: (0.5 + 0.3 * t, -0.2 + 0.1 * t)
         hm = scene_heatmap()
         events = [(round(0.1 * i, 10), "v") for i in range(25)] + [(round(0.03 + 0.2 * j, 10), "h") for j in range(11)]
@@ -883,7 +883,7 @@ def test_field_fallback_when_icp_fails(fallback):
     # Turning in place at 30 deg/s; ICP refuses every frame (more features required than
     # there are).  Without the fallback the yaw rate is held (zero so far); with it the field
     # search around the scan guess measures the turn, and the frame keeps its flag.
-    cfg = EstimatorConfig().with_(odometry={"min_features": 10000}, icp={"field_fallback": fallback})
+    cfg = synth.heatmap_chain(odometry={"min_features": 10000}, icp={"field_fallback": fallback})
     odom = RadarOdometry(cfg)
     rate = 30 * DEG
     states = [odom.step(0.1 * i, static_cloud((0.0, 0.0)), scene_heatmap((0.0, 0.0, rate * 0.1 * i)))

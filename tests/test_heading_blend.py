@@ -1,7 +1,8 @@
 """The heading of the heatmaps' and the points' registrations blended (``point_yaw.blend``,
 estimator/heading_blend.py; docs/heading.md item 30), on a synthetic scene of point reflectors
 whose point clouds are the reflectors in view: a straight drive into a moving turn, and a turn in
-place; then frames lost and a blind run, where the heatmap chain's turn stands."""
+place; then frames lost and a long run the points did not measure, where the heatmap chain's turn
+stands, and steps only one of the two measured, blended."""
 
 from __future__ import annotations
 
@@ -21,9 +22,10 @@ HEATMAPS = EstimatorConfig().with_(point_yaw={"blend": 0.0})
 POINTS = EstimatorConfig().with_(point_yaw={"use": True})
 
 
-def _frames(trajectory, *, drop=(), blind=(), seed=2):
+def _frames(trajectory, *, drop=(), blind=(), dark=(), sparse=(), seed=2):
     """(t, cloud, heatmap) of each frame along *trajectory* at 10 Hz; frames whose index is in
-    *drop* lost, those in *blind* seeing nothing (an empty cloud, a heatmap of noise)."""
+    *drop* lost, those in *blind* seeing nothing (an empty cloud, a heatmap of noise), those in
+    *dark* a heatmap of noise beside their cloud, those in *sparse* one point in their cloud."""
     world, amp = synth.scene(trajectory, 40, seed=seed)
     rng = np.random.default_rng(seed + 100)
     out = []
@@ -31,8 +33,11 @@ def _frames(trajectory, *, drop=(), blind=(), seed=2):
         t = i / 10
         vx, vy, _ = trajectory.twist(t)
         cloud, hm = synth.frame(world, amp, trajectory.pose(t), (vx, vy), rng)
-        if i in blind:
-            cloud, hm = cloud[:0], synth.heatmap(np.zeros((0, 2)), noise=1.0, rng=rng)
+        if i in blind or i in dark:
+            hm = synth.heatmap(np.zeros((0, 2)), noise=1.0, rng=rng)
+            cloud = cloud[:0] if i in blind else cloud
+        if i in sparse:
+            cloud = cloud[:1]
         if i not in drop:
             out.append((t, cloud, hm))
     return out
@@ -71,23 +76,42 @@ def test_each_steps_turn_is_the_share_of_the_way_from_the_heatmaps_to_the_points
         rot = np.array([[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]])
         np.testing.assert_allclose([c1.x - c0.x, c1.y - c0.y], rot @ [a1.x - a0.x, a1.y - a0.y], atol=1e-12)
         assert (c1.vx, c1.vy, c1.flags) == (a1.vx, a1.vy, a1.flags)
-        # The covariances the heatmap chain's (the points' chain's grow by every step's variance).
-        np.testing.assert_array_equal(c1.pose_covariance, a1.pose_covariance)
+        # The covariances the heatmap chain's (the points' chain's grow by every step's variance),
+        # the heading's walked by the turn the blend added, as the chain's by its turns.
         np.testing.assert_array_equal(c1.twist_covariance, a1.twist_covariance)
+        same = np.ones((3, 3), bool)
+        same[2, 2] = False
+        np.testing.assert_array_equal(c1.pose_covariance[same], a1.pose_covariance[same])
         assert b1.pose_covariance[2, 2] != a1.pose_covariance[2, 2]
+    walk = EstimatorConfig().odometry.yaw_walk_per_sqrt_rad ** 2
+    np.testing.assert_allclose([c.pose_covariance[2, 2] - a.pose_covariance[2, 2] for a, _, c in frames[1:]],
+                               walk * np.cumsum(np.abs(blend - field)), rtol=1e-9, atol=1e-15)
 
 
-def test_a_step_over_lost_frames_or_one_the_heatmaps_did_not_measure_takes_the_heatmaps_turn():
-    standing_turn = synth.Trajectory([(1.0, 0.8, 0.0), (3.0, 0.0, math.radians(30.0)), (1.0, 0.8, 0.0)])
-    frames = _three(0.5, _frames(standing_turn, drop={15, 16, 17}, blind={30, 31}))
+def test_frames_lost_or_long_unmeasured_by_the_points_take_the_heatmaps_turn():
+    standing_turn = synth.Trajectory([(1.0, 0.8, 0.0), (3.0, 0.0, math.radians(30.0)), (2.5, 0.8, 0.0)])
+    frames = _three(0.5, _frames(standing_turn, drop={12, 13, 14}, blind={30, 31}, dark={36, 37},
+                                 sparse=set(range(45, 62))))
     field, points, blend = (_turns(chain) for chain in zip(*frames))
-    measured = np.array([a.ok for a, _, _ in frames[1:]])
     lost = np.array([frames[k + 1][0].t - frames[k][0].t > 0.15 for k in range(len(frames) - 1)])
-    assert lost.sum() == 1 and not measured.all()  # the test sees both kinds
+    # The points' chain's steps since its last measured one: within lag_frames (10) it still makes
+    # up for what it held, and its held steps are blended; beyond, the heatmaps' turn stands.
+    unmeasured, alive = math.inf, []
+    for _, b, _ in frames[1:]:
+        unmeasured = 0 if b.ok else unmeasured + 1
+        alive.append(unmeasured <= EstimatorConfig().point_yaw.lag_frames)
+    alive = np.array(alive)
+    points_held = np.array([not b.ok for _, b, _ in frames[1:]])
+    heatmaps_held = np.array([not a.ok for a, _, _ in frames[1:]])
+    # The test sees each kind: frames lost; held steps of the points' chain blended (the blind
+    # run), and the heatmaps' turn alone after ten of them (the sparse clouds); steps only the
+    # points measured (heatmaps of noise beside clouds), blended.
+    assert lost.sum() == 1 and (points_held & alive & ~lost).any() and (~alive & ~lost).any()
+    assert (heatmaps_held & ~points_held & ~lost).any()
     for k in range(len(field)):
-        expected = field[k] if lost[k] or not measured[k] else 0.5 * (field[k] + points[k])
+        expected = 0.5 * (field[k] + points[k]) if alive[k] and not lost[k] else field[k]
         assert blend[k] == pytest.approx(expected, abs=1e-12), k
-    assert np.max(np.abs(blend - field)[measured & ~lost]) > 1e-4
+    assert np.max(np.abs(blend - field)[heatmaps_held & ~points_held & ~lost]) > 1e-4
     assert all(c.flags == a.flags for a, _, c in frames)
 
 
@@ -97,8 +121,9 @@ def test_without_a_share_or_with_the_points_alone_nothing_is_blended():
     frames = _frames(DRIVE)[:20]
     assert [s.pose for s in _run(POINTS.with_(point_yaw={"blend": 0.5}), frames)] == \
         [s.pose for s in _run(POINTS, frames)]
-    # The paper's method has no option beyond it.
+    # The paper's method has no option beyond it; the default blends half of each.
     assert EstimatorConfig.paper().point_yaw.blend == 0.0
+    assert EstimatorConfig().point_yaw.blend == 0.5 and RadarOdometry(EstimatorConfig()).blend is not None
 
 
 @pytest.mark.parametrize("value", [-0.1, 1.0, 2.0])

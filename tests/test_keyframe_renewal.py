@@ -22,7 +22,7 @@ def heatmap(yaw: float):
 
 def odometry(renew_degps: float | None) -> RadarOdometry:
     renew = None if renew_degps is None else renew_degps * DEG
-    return RadarOdometry(EstimatorConfig().with_(odometry={"keyframe_turn_renew_radps": renew}))
+    return RadarOdometry(synth.heatmap_chain(odometry={"keyframe_turn_renew_radps": renew}))
 
 
 def kept(odom: RadarOdometry, t: float):

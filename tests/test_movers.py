@@ -11,7 +11,6 @@ import math
 import estimator_synth as synth
 import numpy as np
 import pytest
-from radarodom.estimator.config import EstimatorConfig
 from radarodom.estimator.features import Features, static_mask
 from radarodom.estimator.movers import CONFIRM_HITS, GATE_M, MASK_M, MoverTracks, Track
 from radarodom.estimator.odometry import RadarOdometry
@@ -163,7 +162,7 @@ def test_static_structure_is_never_followed(pattern):
 
 
 def run(track: bool, strength: float) -> list[float]:
-    odom = RadarOdometry(EstimatorConfig().with_(icp={"track_movers": track}))
+    odom = RadarOdometry(synth.heatmap_chain(icp={"track_movers": track}))
     return [odom.step(DT * i, synth.static_cloud((0.0, 0.0), seed=i), crossing(i, strength)[0]).yaw
             for i in range(36)]
 
