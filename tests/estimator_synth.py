@@ -17,6 +17,7 @@ from radarodom.dsp.processor import POINT_DTYPE
 from radarodom.estimator.config import EstimatorConfig
 from radarodom.estimator.odometry import RadarOdometry
 
+
 def heatmap_chain(**changes) -> EstimatorConfig:
     """The default settings with *changes* (by section, as ``EstimatorConfig.with_``) and the
     heatmaps' registration alone (``point_yaw.blend`` 0): for the tests of that chain's ways whose
