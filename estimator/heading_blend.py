@@ -8,9 +8,9 @@ drives hardly correlate from cell to cell, so a share of each holds the heading 
 either alone.  The two run side by side, unaware of each other (each its own velocity fit, yaw-rate
 filter and keyframes or map); what is published is the heatmap chain's state, each step's turn
 moved *share* of the way to the points' chain's turn over the same step (the heatmap chain's
-alone over frames lost and where the points' chain has long measured nothing), and its position integrated from the heatmap chain's own steps along
-that heading; its covariances the heatmap chain's, the heading's walked further by the turn the
-blend adds.
+alone over frames lost and where the points' chain has long measured nothing), and its position
+integrated from the heatmap chain's own steps along that heading; its covariances the heatmap
+chain's, the heading's walked further by the turn the blend adds.
 """
 
 from __future__ import annotations

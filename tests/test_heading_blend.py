@@ -18,7 +18,7 @@ from radarodom.estimator.odometry import RadarOdometry
 
 DRIVE = synth.Trajectory([(1.0, 0.8, 0.0), (2.0, 0.8, math.radians(40.0)), (1.0, 0.8, 0.0),
                           (2.0, 0.0, math.radians(60.0)), (0.5, 0.0, 0.0)])
-HEATMAPS = EstimatorConfig().with_(point_yaw={"blend": 0.0})
+HEATMAPS = synth.heatmap_chain()
 POINTS = EstimatorConfig().with_(point_yaw={"use": True})
 
 
@@ -70,6 +70,8 @@ def test_each_steps_turn_is_the_share_of_the_way_from_the_heatmaps_to_the_points
     np.testing.assert_allclose(blend, [c.yaw_increment for _, _, c in frames[1:]], atol=1e-12)
     np.testing.assert_allclose([c.yaw_rate for _, _, c in frames],
                                [a.yaw_rate + share * (b.yaw_rate - a.yaw_rate) for a, b, _ in frames], atol=1e-12)
+    same = np.ones((3, 3), bool)  # the pose covariance's entries but the heading's variance
+    same[2, 2] = False
     for (a0, _, c0), (a1, b1, c1) in zip(frames, frames[1:]):
         # Each step of the position is the heatmap chain's, turned by the two headings' difference.
         turn = c0.yaw - a0.yaw
@@ -79,8 +81,6 @@ def test_each_steps_turn_is_the_share_of_the_way_from_the_heatmaps_to_the_points
         # The covariances the heatmap chain's (the points' chain's grow by every step's variance),
         # the heading's walked by the turn the blend added, as the chain's by its turns.
         np.testing.assert_array_equal(c1.twist_covariance, a1.twist_covariance)
-        same = np.ones((3, 3), bool)
-        same[2, 2] = False
         np.testing.assert_array_equal(c1.pose_covariance[same], a1.pose_covariance[same])
         assert b1.pose_covariance[2, 2] != a1.pose_covariance[2, 2]
     walk = EstimatorConfig().odometry.yaw_walk_per_sqrt_rad ** 2
