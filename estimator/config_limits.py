@@ -127,7 +127,8 @@ POINT_YAW = {
     "position_floor_m": "[1e-6, 10] m", "static_threshold_mps": SPEED, "min_points": COUNT, "min_map_points": COUNT,
     # the step below the search (each at least the finest step), and below half a turn
     "search_rad": f"({MIN_SEARCH_STEP_RAD:g}, pi] rad", "step_rad": f"[{MIN_SEARCH_STEP_RAD:g}, pi) rad",
-    "prior_rad": PRIOR, "gap_widen_rad": WIDENING,
+    "coarse_step_rad": f"[{MIN_SEARCH_STEP_RAD:g}, pi) rad (or null: every step_rad)", "prior_rad": PRIOR,
+    "gap_widen_rad": WIDENING,
     "gap_widen_frames": "[0, 1000]", "relocate_cells": "[0, 1e6] (0: never)", "relocate_gap_frames": COUNT,
     "relocate_widen_rad": WIDENING, "relocate_prior_rad": PRIOR, "relocate_step_rad": STEP,
     "gap_turn_std_rad": NOISE, "gap_correction_max_rad": ANGLE,

@@ -239,6 +239,10 @@ class PointYawConfig(Settings):
     search_rad: float = math.radians(8.0)
     #: ... every this, rad.
     step_rad: float = math.radians(0.1)
+    #: ... first every this, rad, then every ``step_rad`` about the best of those (null: every
+    #: ``step_rad`` at once; a point's likelihood spans degrees of turn, so the coarse grid finds
+    #: the peak the fine one would at a fraction of the cost).
+    coarse_step_rad: float | None = None
     #: The prior about the predicted turn that picks among peaks, rad (standard deviation).
     prior_rad: float = math.radians(3.0)
     #: After frames whose turn went unmeasured (the held rate stood in), the search and the prior

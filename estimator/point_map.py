@@ -28,6 +28,22 @@ def _world(xy: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
     return np.stack([pose[0] + c * xy[:, 0] - s * xy[:, 1], pose[1] + s * xy[:, 0] + c * xy[:, 1]], 1)
 
 
+def _gaussians(points: np.ndarray, origin: np.ndarray,
+               cfg: PointYawConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The map's Gaussians of the *points* (k, 2) m seen from *origin* (2,) m: the points, their
+    inverse covariances (k, 2, 2) 1/m^2 (``range_noise_m`` along the ray, ``bearing_noise_rad``
+    times the range across, ``position_floor_m`` on both) and largest standard deviations (k,) m."""
+    ray = points - origin
+    r = np.maximum(np.hypot(ray[:, 0], ray[:, 1]), 1e-6)
+    u = ray / r[:, None]
+    n = np.stack([-u[:, 1], u[:, 0]], 1)
+    across = (r * cfg.bearing_noise_rad) ** 2
+    cov = (cfg.range_noise_m ** 2 * u[:, :, None] * u[:, None, :] + across[:, None, None] * n[:, :, None]
+           * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
+    sigma = np.sqrt(np.maximum(across, cfg.range_noise_m ** 2) + cfg.position_floor_m ** 2)
+    return points, np.linalg.inv(cov), sigma
+
+
 @dataclass
 class _Reference:
     """The frame ``correct_lag`` measures the yaw from (see :class:`LocalMap`)."""
@@ -55,8 +71,10 @@ class LocalMap:
 
     def __init__(self, config: PointYawConfig) -> None:
         self._config = config
-        self._frames: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.map_frames)
-        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
+        #: Each frame's points placed in the world, their inverse covariances and largest standard
+        #: deviations (:meth:`arrays`): placed once, so worked out once.
+        self._frames: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=config.map_frames)
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         #: The last frame's pose along the map's chain, and the odometry's.
         self.pose: tuple[float, float, float] | None = None
         self._odometry_pose: tuple[float, float, float] | None = None
@@ -118,7 +136,7 @@ class LocalMap:
             ref.steps += 1
         self._odometry_pose, self.pose, self.turn = pose, chained, None
         if self.pending is not None and self.pending[0] == current.t and len(self.pending[1]):
-            self._frames.append((_world(self.pending[1], chained), np.array(chained[:2])))
+            self._frames.append(_gaussians(_world(self.pending[1], chained), np.array(chained[:2]), self._config))
             self._arrays = None
         self.pending = None
 
@@ -126,18 +144,7 @@ class LocalMap:
         """The map's points (m, 2) m, their Gaussians' inverse covariances (m, 2, 2), 1/m^2, and
         their largest standard deviations (m,), m."""
         if self._arrays is None:
-            cfg = self._config
             if not self._frames:
                 return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0)
-            points = np.concatenate([f[0] for f in self._frames])
-            origins = np.concatenate([np.broadcast_to(f[1], f[0].shape) for f in self._frames])
-            ray = points - origins
-            r = np.maximum(np.hypot(ray[:, 0], ray[:, 1]), 1e-6)
-            u = ray / r[:, None]
-            n = np.stack([-u[:, 1], u[:, 0]], 1)
-            across = (r * cfg.bearing_noise_rad) ** 2
-            cov = (cfg.range_noise_m ** 2 * u[:, :, None] * u[:, None, :] + across[:, None, None] * n[:, :, None]
-                   * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
-            sigma = np.sqrt(np.maximum(across, cfg.range_noise_m ** 2) + cfg.position_floor_m ** 2)
-            self._arrays = points, np.linalg.inv(cov), sigma
+            self._arrays = tuple(np.concatenate([f[i] for f in self._frames]) for i in range(3))
         return self._arrays

@@ -18,7 +18,8 @@ register frame to frame, but enough against the points of the last seconds:
   ``bearing_noise_rad`` times its range across (the chip measures one azimuth a point with a small
   array), at least ``position_floor_m``;
 - a step's turn: the frame's static points moved by the step's translation (the velocity's) and
-  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn
+  turned by each turn on a grid of ``step_rad`` within ``search_rad`` of the predicted turn (every
+  ``coarse_step_rad`` first, then every ``step_rad`` about the best of those)
   (wider by ``gap_widen_rad`` for each of the steps just before whose turn went unmeasured, at
   most ``gap_widen_frames`` of them, the prior likewise: braking into a turn in place, the held
   rate misses what the map can still measure),
@@ -67,6 +68,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -87,6 +89,28 @@ def _search_grid(search_rad: float, step_rad: float) -> np.ndarray:
     return np.arange(-search_rad, search_rad + 0.5 * step_rad, step_rad)
 
 
+def _climb(score_at: Callable[[np.ndarray], np.ndarray], prior: np.ndarray,
+           coarse: int) -> tuple[np.ndarray, int]:
+    """The scores (T,) on a grid of T turns where computed (-inf elsewhere) and the index of the
+    best score plus *prior* (T,): every *coarse* turn first, then every turn within *coarse* of
+    the best of those.  That best is inside the fine window (its edges are coarse turns it beat)
+    unless it is the grid's edge, so its two neighbours are scored, for the parabola.  A point's
+    likelihood spans degrees of turn (``bearing_noise_rad``), so a coarse grid of a fraction of
+    that finds the peak a full one would at a fraction of the cost, all but where two peaks score
+    nearly the same.  *score_at* gives the scores at an index array."""
+    score = np.full(len(prior), -np.inf)
+    if coarse <= 1:
+        score[:] = score_at(np.arange(len(prior)))
+        return score, int(np.argmax(score + prior))
+    grid = np.arange(0, len(prior), coarse)
+    score[grid] = score_at(grid)
+    centre = int(grid[np.argmax(score[grid] + prior[grid])])
+    fine = np.arange(max(centre - coarse, 0), min(centre + coarse, len(prior) - 1) + 1)
+    todo = fine[np.isneginf(score[fine])]
+    score[todo] = score_at(todo)
+    return score, int(fine[np.argmax(score[fine] + prior[fine])])
+
+
 def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float) -> np.ndarray:
     """The horizontal body-frame positions (m, 2) of the *points* (TI frame, products.POINT_DTYPE)
     whose radial velocity is within *threshold_mps* of a static reflector's at the sensor's
@@ -98,6 +122,50 @@ def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float
     expected = -(velocity[0] * np.cos(bearing) + velocity[1] * np.sin(bearing)) * np.cos(points["elevation"])
     static = np.abs(points["velocity"] - expected) <= threshold_mps
     return np.stack([y[static], -x[static]], 1)
+
+
+class _PairScore:
+    """The log-likelihood of a frame's static points under the map at any turn, from their
+    (point, map point) pairs (:meth:`PointYaw._pairs`).
+
+    A pair's Mahalanobis distance at yaw t is e W e with e = d + R(t) p (d the sensor's position
+    less the map point's, p the point in the sensor's axes, W the map point's inverse covariance):
+    a constant plus terms in cos t, sin t, cos 2t and sin 2t, whose five coefficients a pair
+    computes once, so each turn tried costs five products a pair rather than the rotation and the
+    quadratic form."""
+
+    def __init__(self, xy: np.ndarray, origin: np.ndarray, centres: np.ndarray, inverse: np.ndarray,
+                 point: np.ndarray, near: np.ndarray, log_outlier: float) -> None:
+        p = xy[point]  # (pairs, 2) m
+        jp = np.stack([-p[:, 1], p[:, 0]], 1)  # p turned a quarter
+        d = origin - centres[near]  # (pairs, 2) m
+        w = inverse[near]  # (pairs, 2, 2) m^-2
+        w00, w01, w11 = w[:, 0, 0], w[:, 0, 1], w[:, 1, 1]
+
+        def form(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # a W b of each pair (W symmetric)
+            return a[:, 0] * (w00 * b[:, 0] + w01 * b[:, 1]) + a[:, 1] * (w01 * b[:, 0] + w11 * b[:, 1])
+
+        pwp, jwj = form(p, p), form(jp, jp)
+        # Times -1/2: the Gaussian's exponent, (5, pairs).
+        self._terms = -0.5 * np.stack([form(d, d) + 0.5 * (pwp + jwj), 2.0 * form(d, p), 2.0 * form(d, jp),
+                                       0.5 * (pwp - jwj), form(p, jp)])
+        self._n = len(xy)
+        counts = np.bincount(point, minlength=self._n)
+        self._has = counts > 0
+        self._starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[self._has]
+        self._floor = math.exp(log_outlier)
+
+    def at(self, yaws: np.ndarray) -> np.ndarray:
+        """The score (T,) at each sensor yaw in *yaws* (T,) rad: each point's log of its pairs'
+        likelihood sum, at least the outlier's, summed over the points."""
+        k = self._terms
+        c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
+        c2, s2 = np.cos(2.0 * yaws)[:, None], np.sin(2.0 * yaws)[:, None]
+        likelihood = np.zeros((len(yaws), self._n))  # (T, n)
+        if len(self._starts):
+            exponent = k[0] + c * k[1] + s * k[2] + c2 * k[3] + s2 * k[4]  # (T, pairs)
+            likelihood[:, self._has] = np.add.reduceat(np.exp(exponent), self._starts, axis=1)
+        return np.log(np.maximum(likelihood, self._floor)).sum(axis=1)
 
 
 class PointYaw:
@@ -285,19 +353,9 @@ class PointYaw:
             prior_rad = math.hypot(cfg.prior_rad, widen)
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets
-        c, s = np.cos(yaw0 + turns)[:, None], np.sin(yaw0 + turns)[:, None]
-        # Each pair's point at each turn less its map point (T, pairs).
-        ex = origin[0] + c * xy[point, 0] - s * xy[point, 1] - centres[near, 0]
-        ey = origin[1] + s * xy[point, 0] + c * xy[point, 1] - centres[near, 1]
-        inv = inverse[near]
-        q = ex * ex * inv[:, 0, 0] + 2.0 * ex * ey * inv[:, 0, 1] + ey * ey * inv[:, 1, 1]
-        likelihood = np.zeros((len(turns), len(xy)))  # (T, n)
-        counts = np.bincount(point, minlength=len(xy))
-        if len(point):
-            starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            likelihood[:, counts > 0] = np.add.reduceat(np.exp(-0.5 * q), starts[counts > 0], axis=1)
-        score = np.log(np.maximum(likelihood, math.exp(self._log_outlier))).sum(axis=1)  # (T,)
-        best = int(np.argmax(score - 0.5 * (offsets / prior_rad) ** 2))
+        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._log_outlier)
+        score, best = _climb(lambda i: pairs.at(yaw0 + turns[i]), -0.5 * (offsets / prior_rad) ** 2,
+                             max(1, round(cfg.coarse_step_rad / step)) if cfg.coarse_step_rad else 1)
         if best == 0 or best == len(score) - 1:
             return None
         left, mid, right = score[best - 1:best + 2]
