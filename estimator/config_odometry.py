@@ -242,7 +242,7 @@ class PointYawConfig(Settings):
     #: ... first every this, rad, then every ``step_rad`` about the best of those (null: every
     #: ``step_rad`` at once; a point's likelihood spans degrees of turn, so the coarse grid finds
     #: the peak the fine one would at a fraction of the cost).
-    coarse_step_rad: float | None = None
+    coarse_step_rad: float | None = math.radians(0.5)
     #: The prior about the predicted turn that picks among peaks, rad (standard deviation).
     prior_rad: float = math.radians(3.0)
     #: After frames whose turn went unmeasured (the held rate stood in), the search and the prior
