@@ -252,9 +252,10 @@ class PointYawConfig(Settings):
     #: have turned meanwhile (braking into a turn in place), and the map, placed before the gap,
     #: can measure it (docs/tidemo.md, "The turn after a gap").
     gap_widen_frames: int = 4
-    #: Where the points' score still rises at the search's edge (no peak inside), search as far
-    #: again beyond it and take a peak there: after a false turn the held rate is off, and the
-    #: true turn lies past the edge, which else leaves the false rate held (docs/tidemo.md).
+    #: Where the points' score still rises at the search's edge (no peak inside) right after a
+    #: measured step, search as far again beyond it and take a peak there: after a false turn the
+    #: held rate is off, and the true turn lies past the edge, which else leaves the false rate
+    #: held (docs/tidemo.md; not after unmeasured steps, whose widened search is enough).
     look_beyond: bool = True
     #: After at least ``relocate_gap_frames`` unmeasured steps, when slow (the static heatmap then
     #: holds the scene), this many of the heatmap's strongest cells are registered on the map as

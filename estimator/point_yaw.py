@@ -300,17 +300,17 @@ class PointYaw:
 
     def _points_turn(self, xy: np.ndarray, translation: np.ndarray,
                      predicted_turn: float) -> tuple[float, float] | None:
-        """The static points' turn and variance (:meth:`_register`); where the search found no peak,
-        with ``look_beyond`` a second search as far again beyond it, whose peak counts only outside
-        the first (a rate held from a false turn puts the true one past the edge)."""
+        """The static points' turn and variance (:meth:`_register`); where the search found no peak
+        right after a measured step, with ``look_beyond`` a second search as far again beyond it,
+        whose peak counts only outside the first (a rate held from a false turn puts the true one
+        past the edge).  After unmeasured steps the search is already wider by what they may have
+        missed, and a look beyond that takes a braking gap's few points to false turns."""
         found = self._register(xy, translation, predicted_turn)
         cfg = self._config
-        if found is not None or not cfg.look_beyond:
+        if found is not None or not cfg.look_beyond or self._gap:
             return found
-        widen = self._gap_widen_rad
-        beyond = self._register(xy, translation, predicted_turn, widen + cfg.search_rad,
-                                math.hypot(cfg.prior_rad, widen))
-        if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad + widen - cfg.step_rad:
+        beyond = self._register(xy, translation, predicted_turn, cfg.search_rad, cfg.prior_rad)
+        if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad - cfg.step_rad:
             return None
         return beyond
 

@@ -322,6 +322,20 @@ def test_a_turn_past_the_searchs_edge_is_looked_for_beyond_it():
     assert part._points_turn(xy, np.zeros(2), 0.0) is None
 
 
+def test_after_unmeasured_steps_there_is_no_look_beyond_the_widened_search():
+    # A braking gap: after a step whose turn went unmeasured the search is 2 degrees wider (+/- 10)
+    # and a turn 12 degrees off lies past it.  Its few points there are no false turn to hold (a
+    # turn in place's: the wheeled lab's at -5 dB found 14.7 degrees where the truth turned 3.3):
+    # no look beyond, the turn unmeasured, as after a measured step it is found.
+    rng = np.random.default_rng(5)
+    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.0), (1.2, 0.0, 0.0), 12.0, 6.0, 10)
+    found = part._points_turn(xy, np.zeros(2), 0.0)
+    assert found is not None and math.degrees(found[0]) == pytest.approx(12.0, abs=0.5), found
+    part._gap = 1
+    assert part._register(xy, np.zeros(2), 0.0) is None
+    assert part._points_turn(xy, np.zeros(2), 0.0) is None
+
+
 def test_after_a_braking_gap_the_static_heatmaps_cells_find_the_turn_the_points_cannot():
     # Four steps went unmeasured (braking into a turn in place) and the map's chain is 22 degrees
     # behind the frame: beyond the points' widened search (+/- 16), and two points a frame could
