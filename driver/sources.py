@@ -210,11 +210,19 @@ MAX_URL_NUMBER = 1e9
 PACING_SLICE_S = 0.05
 
 
+#: Slowest ``rate=`` a source streams at: a thousandth of real time (a 10 Hz stream's frame every
+#: 100 s); slower is a typing slip (``rate=1e-9`` would wait years for its second frame).
+MIN_RATE = 1e-3
+
+
 def parse_rate(text: str) -> float:
-    """A ``rate=`` option: a speed factor above 0, or ``max`` (infinite)."""
+    """A ``rate=`` option: a speed factor from :data:`MIN_RATE`, or ``max`` (infinite)."""
     if text == "max":
         return float("inf")
-    return positive_number(text)
+    value = positive_number(text)
+    if value < MIN_RATE:
+        raise ValueError(text)
+    return value
 
 
 class Pacer:
@@ -261,7 +269,7 @@ def positive_number(text: str) -> float:
 
 
 positive_number.limit = f"at most {MAX_URL_NUMBER:g}"  # type: ignore[attr-defined]
-parse_rate.limit = positive_number.limit  # type: ignore[attr-defined]
+parse_rate.limit = f"from {MIN_RATE:g} to {MAX_URL_NUMBER:g}"  # type: ignore[attr-defined]
 
 
 def number_in(lo: float, hi: float) -> Callable[[str], float]:
