@@ -226,63 +226,6 @@ def test_the_map_points_left_out_of_a_points_likelihood_change_nothing(monkeypat
     assert pruned == pytest.approx(every_pair, rel=1e-9, abs=1e-12)
 
 
-def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussians():
-    # The score's five per-pair terms against the rotation and quadratic form written out, on a
-    # room's map: the same at every turn, to rounding.
-    rng = np.random.default_rng(8)
-    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.01), (1.2, 0.4, math.radians(30.0)), 2.0, 6.0, 12)
-    centres, inverse, sigma = part.map.arrays()
-    origin = np.array([1.5, 0.2])
-    point, near = part._pairs(xy, origin, 0.5, centres, sigma, math.radians(8.0))
-    yaws = 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
-    score = point_yaw._PairScore(xy, origin, centres, inverse, point, near, part._log_outlier).at(yaws)
-    expected = []
-    for yaw in yaws:
-        c, s = math.cos(yaw), math.sin(yaw)
-        e = origin + xy[point] @ np.array([[c, s], [-s, c]]) - centres[near]  # (pairs, 2) m
-        likelihood = np.zeros(len(xy))
-        np.add.at(likelihood, point, np.exp(-0.5 * np.einsum("pi,pij,pj->p", e, inverse[near], e)))
-        expected.append(np.log(np.maximum(likelihood, math.exp(part._log_outlier))).sum())
-    assert 0 < len(point) and np.ptp(score) > 1.0
-    assert score == pytest.approx(np.array(expected), rel=1e-9, abs=1e-9)
-
-
-def _score_calls(values):
-    """A score over a grid given by *values* (T,), and the indices it was asked for, in order."""
-    asked = []
-
-    def score_at(i):
-        asked.extend(i.tolist())
-        return values[i]
-    return score_at, asked
-
-
-@pytest.mark.parametrize("peak", [0, 3, 57, 100, 159, 160])
-def test_the_coarse_then_fine_search_finds_a_single_peak_anywhere_scoring_a_fraction(peak):
-    # One smooth peak on 161 turns (the prior flat): every fifth turn, then about the best, finds
-    # the full grid's best wherever it lies (at either edge too, which the caller rejects), and the
-    # turns either side of it are scored for the parabola, each turn at most once.
-    values = -((np.arange(161) - peak) / 20.0) ** 2
-    score_at, asked = _score_calls(values)
-    score, best = point_yaw._climb(score_at, np.zeros(161), 5)
-    assert best == peak
-    assert all(np.isfinite(score[max(best - 1, 0):best + 2]))
-    assert len(asked) == len(set(asked)) and len(asked) < 50
-    assert score[asked] == pytest.approx(values[asked]) and np.isneginf(np.delete(score, asked)).all()
-    full, everywhere = point_yaw._climb(score_at, np.zeros(161), 1)
-    assert everywhere == peak and full == pytest.approx(values)
-
-
-def test_the_coarse_then_fine_search_weighs_the_prior_as_the_full_one_does():
-    # Two equal peaks: the prior about the middle picks the nearer, as on the full grid; off the
-    # coarse grid (peaks at 62 and 108) too.
-    for low, high in ((60, 110), (62, 108)):
-        twin = np.maximum(-((np.arange(161) - low) / 5.0) ** 2, -((np.arange(161) - high) / 5.0) ** 2)
-        prior = -0.5 * ((np.arange(161) - 80) / 40.0) ** 2
-        score_at, _ = _score_calls(twin)
-        assert point_yaw._climb(score_at, prior, 5)[1] == point_yaw._climb(score_at, prior, 1)[1] == low
-
-
 def _turning_map(k, world, pose, amp, rng):
     """A zero-Doppler map while moving that holds structure which is not the scene's: the
     reflectors as if the radar had turned 4 degrees more each frame (a smeared map's leakage)."""
