@@ -240,8 +240,10 @@ class PointYawConfig(Settings):
     #: ... every this, rad.
     step_rad: float = math.radians(0.1)
     #: ... first every this, rad, then every ``step_rad`` about the best of those (null: every
-    #: ``step_rad`` at once; a point's likelihood spans degrees of turn, so the coarse grid finds
-    #: the peak the fine one would at a fraction of the cost).
+    #: ``step_rad`` at once; a point's likelihood spans degrees of turn, ``bearing_noise_rad``, so a
+    #: coarse grid well finer than that finds the peak the fine one would at a fraction of the
+    #: cost).  Taken as the nearest whole number of ``step_rad`` (of ``relocate_step_rad`` for
+    #: the heatmap cells' search); under one and a half of them, every step is searched.
     coarse_step_rad: float | None = math.radians(0.5)
     #: The prior about the predicted turn that picks among peaks, rad (standard deviation).
     prior_rad: float = math.radians(3.0)
@@ -252,10 +254,11 @@ class PointYawConfig(Settings):
     #: have turned meanwhile (braking into a turn in place), and the map, placed before the gap,
     #: can measure it (docs/tidemo.md, "The turn after a gap").
     gap_widen_frames: int = 4
-    #: Where the points' score still rises at the search's edge (no peak inside) right after a
-    #: measured step, search as far again beyond it and take a peak there: after a false turn the
-    #: held rate is off, and the true turn lies past the edge, which else leaves the false rate
-    #: held (docs/tidemo.md; not after unmeasured steps, whose widened search is enough).
+    #: Where the points' score still rises at the search's edge (no peak inside), search as far
+    #: again beyond it and take a peak there: after a false turn the held rate is off, and the
+    #: true turn lies past the edge, which else leaves the false rate held (docs/tidemo.md; not
+    #: where the search is already widened after steps the points did not measure: heading.md
+    #: item 32).
     look_beyond: bool = True
     #: After at least ``relocate_gap_frames`` unmeasured steps, when slow (the static heatmap then
     #: holds the scene), this many of the heatmap's strongest cells are registered on the map as

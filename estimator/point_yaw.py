@@ -92,9 +92,11 @@ def _search_grid(search_rad: float, step_rad: float) -> np.ndarray:
 def _climb(score_at: Callable[[np.ndarray], np.ndarray], prior: np.ndarray,
            coarse: int) -> tuple[np.ndarray, int]:
     """The scores (T,) on a grid of T turns where computed (-inf elsewhere) and the index of the
-    best score plus *prior* (T,): every *coarse* turn first, then every turn within *coarse* of
-    the best of those.  That best is inside the fine window (its edges are coarse turns it beat)
-    unless it is the grid's edge, so its two neighbours are scored, for the parabola.  A point's
+    best score plus *prior* (T,): every *coarse* turn first (counted from the grid's middle, the
+    predicted turn, and both ends: a score rising to an edge is no peak), then every turn within
+    *coarse* of the best of those.  That best is inside the fine window (its edges are coarse
+    turns it beat) unless it is the grid's edge, so its two neighbours are scored, for the
+    parabola.  A point's
     likelihood spans degrees of turn (``bearing_noise_rad``), so a coarse grid of a fraction of
     that finds the peak a full one would at a fraction of the cost, all but where two peaks score
     nearly the same.  *score_at* gives the scores at an index array."""
@@ -102,7 +104,7 @@ def _climb(score_at: Callable[[np.ndarray], np.ndarray], prior: np.ndarray,
     if coarse <= 1:
         score[:] = score_at(np.arange(len(prior)))
         return score, int(np.argmax(score + prior))
-    grid = np.arange(0, len(prior), coarse)
+    grid = np.union1d(np.arange((len(prior) - 1) // 2 % coarse, len(prior), coarse), [0, len(prior) - 1])
     score[grid] = score_at(grid)
     centre = int(grid[np.argmax(score[grid] + prior[grid])])
     fine = np.arange(max(centre - coarse, 0), min(centre + coarse, len(prior) - 1) + 1)
@@ -300,14 +302,14 @@ class PointYaw:
 
     def _points_turn(self, xy: np.ndarray, translation: np.ndarray,
                      predicted_turn: float) -> tuple[float, float] | None:
-        """The static points' turn and variance (:meth:`_register`); where the search found no peak
-        right after a measured step, with ``look_beyond`` a second search as far again beyond it,
-        whose peak counts only outside the first (a rate held from a false turn puts the true one
-        past the edge).  After unmeasured steps the search is already wider by what they may have
-        missed, and a look beyond that takes a braking gap's few points to false turns."""
+        """The static points' turn and variance (:meth:`_register`); where the search found no peak,
+        with ``look_beyond`` a second search as far again beyond it, whose peak counts only outside
+        the first (a rate held from a false turn puts the true one past the edge), unless the
+        search is already wider by what steps the points did not measure may have missed: a look
+        beyond that took a braking gap's few points to false turns (docs/heading.md item 32)."""
         found = self._register(xy, translation, predicted_turn)
         cfg = self._config
-        if found is not None or not cfg.look_beyond or self._gap:
+        if found is not None or not cfg.look_beyond or self._gap_widen_rad > 0:
             return found
         beyond = self._register(xy, translation, predicted_turn, cfg.search_rad, cfg.prior_rad)
         if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad - cfg.step_rad:

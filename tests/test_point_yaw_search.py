@@ -68,3 +68,17 @@ def test_the_coarse_then_fine_search_weighs_the_prior_as_the_full_one_does():
         prior = -0.5 * ((np.arange(161) - 80) / 40.0) ** 2
         score_at, _ = _score_calls(twin)
         assert point_yaw._climb(score_at, prior, 5)[1] == point_yaw._climb(score_at, prior, 1)[1] == low
+
+
+@pytest.mark.parametrize("size", [161, 163, 164, 167])
+def test_the_coarse_grid_holds_both_ends_and_the_predicted_turn_whatever_the_grid_size(size):
+    # A score still rising at the search's high edge (no peak: look_beyond's cue) is found there on
+    # a grid whose last turn is no multiple of the coarse step from the first, as the full grid
+    # finds it; and the middle turn (the prediction) is a coarse one.
+    rising = np.arange(size) / 10.0
+    score_at, asked = _score_calls(rising)
+    assert point_yaw._climb(score_at, np.zeros(size), 5)[1] == size - 1
+    assert {0, (size - 1) // 2, size - 1} <= set(asked)
+    falling = -rising
+    score_at, _ = _score_calls(falling)
+    assert point_yaw._climb(score_at, np.zeros(size), 5)[1] == 0

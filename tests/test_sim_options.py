@@ -44,17 +44,19 @@ def test_url_options_take_plain_decimal_numbers_only(option):
         open_source(f"sim://corridor?{option}")
 
 
-@pytest.mark.parametrize("scheme", ["sim://corridor", "replay://runs/x", "coloradar://runs/x"])
+@pytest.mark.parametrize("scheme", ["sim://corridor", "replay://runs/x", "replay://runs/uart.bin?format=tidemo",
+                                    "coloradar://runs/x"])
 def test_a_rate_that_would_wait_for_ever_is_refused_with_its_range(scheme):
     # A tiny positive rate (a typing slip) made a stream wait years for its second frame.
     for text in ("5e-324", "0.0000001", "0.0009"):
         with pytest.raises(SourceError, match=f"rate='{text}'.*from 0.001 to 1e\\+09"):
-            open_source(f"{scheme}?rate={text}")
+            open_source(f"{scheme}{'&' if '?' in scheme else '?'}rate={text}")
 
 
 def test_the_slowest_rate_streams():
     with open_source("sim://corridor?rate=0.001&duration=0.1") as src:
         assert src.rate == 0.001
+        assert next(iter(src)).index == 0  # the first frame is due at once
 
 
 def test_a_word_option_says_its_words_not_numbers():

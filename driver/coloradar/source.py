@@ -223,7 +223,7 @@ def _seconds(text: str) -> float:
 def open_coloradar(path: str, options: UrlOptions, config: RadarConfig | None) -> ColoRadarSource:
     velocity = options.take("velocity", one_of(*VELOCITY_MODES), "single_chip", "|".join(VELOCITY_MODES))
     heatmap = options.take("heatmap", one_of(*HEATMAP_MODES), "cascade", "|".join(HEATMAP_MODES))
-    rate = options.take("rate", parse_rate, 1.0, "a speed factor (1: real time) or max")
+    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
     start = options.take("start", _seconds, 0.0, "seconds from the first frame, like 20 or 20s")
     calib = options.take("calib", str, None, "the calib directory")
     options.finish()

@@ -141,7 +141,7 @@ def _capture_without_data(path: str) -> bool:
 
 
 def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:
-    rate = options.take("rate", parse_rate, 1.0, "a speed factor (1: real time) or max")
+    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     start = options.take("start", _start, ("frame", 0), "a frame number or seconds like 2.5s")
     frames = options.take("frames", at_least(1), None, "a number of frames >= 1")

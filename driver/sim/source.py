@@ -110,7 +110,7 @@ _board_name.words = True  # type: ignore[attr-defined]  # a word, not a number
 
 def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimSource:
     seed = options.take("seed", at_least(0), 0, "an integer >= 0")
-    rate = options.take("rate", parse_rate, 1.0, "a speed factor (1: real time) or max")
+    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
     duration = options.take("duration", positive_number, None, "seconds > 0")
     fidelity = options.take("fidelity", one_of(*FIDELITIES), None, " or ".join(FIDELITIES))
     board = options.take("board", _board_name, "ideal", "ideal, uncalibrated or a board .toml file")

@@ -148,7 +148,7 @@ def _check_metadata(path: str) -> None:
 
 
 def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
-    rate = options.take("rate", parse_rate, 1.0, "a speed factor (1: real time) or max")
+    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     frames = options.take("frames", at_least(1), None, "a number of frames >= 1")
     options.finish()
