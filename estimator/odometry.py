@@ -134,15 +134,15 @@ class RadarOdometry:
         self.point_yaw = point_yaw_part(self.config, self.yaw)
         if self.point_yaw is not None:
             self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
+        self._walk_var_m, self._walk_var_rad = odo.yaw_walk_per_sqrt_m ** 2, odo.yaw_walk_per_sqrt_rad ** 2
         #: point_yaw.blend: the points' own estimator beside this one, its heading blended into
         #: what this one publishes (None: not run).
         self.blend = None
         if self.point_yaw is None and self.config.point_yaw.blend:
             points = RadarOdometry(self.config.with_(point_yaw={"use": True, "blend": 0.0}))
-            self.blend = HeadingBlend(points, self.config.point_yaw.blend, odo.yaw_walk_per_sqrt_rad ** 2,
+            self.blend = HeadingBlend(points, self.config.point_yaw.blend, self._walk_var_rad,
                                       self.config.point_yaw.lag_frames)
         self._held_rate_std = odo.held_yaw_rate_std_radps
-        self._walk_var_m, self._walk_var_rad = odo.yaw_walk_per_sqrt_m ** 2, odo.yaw_walk_per_sqrt_rad ** 2
         # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess
         # without the rate's prediction would start the step across a run from no turn.
         self._bridge_s = odo.bridge_s if self.point_yaw is None and self.yaw.guess.uses_rate else 0.0

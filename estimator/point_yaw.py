@@ -96,10 +96,9 @@ def _climb(score_at: Callable[[np.ndarray], np.ndarray], prior: np.ndarray,
     predicted turn, and both ends: a score rising to an edge is no peak), then every turn within
     *coarse* of the best of those.  That best is inside the fine window (its edges are coarse
     turns it beat) unless it is the grid's edge, so its two neighbours are scored, for the
-    parabola.  A point's
-    likelihood spans degrees of turn (``bearing_noise_rad``), so a coarse grid of a fraction of
-    that finds the peak a full one would at a fraction of the cost, all but where two peaks score
-    nearly the same.  *score_at* gives the scores at an index array."""
+    parabola.  A point's likelihood spans degrees of turn (``bearing_noise_rad``), so a coarse
+    grid of a fraction of that finds the peak a full one would at a fraction of the cost, all but
+    where two peaks score nearly the same.  *score_at* gives the scores at an index array."""
     score = np.full(len(prior), -np.inf)
     if coarse <= 1:
         score[:] = score_at(np.arange(len(prior)))
@@ -137,7 +136,7 @@ class _PairScore:
     quadratic form."""
 
     def __init__(self, xy: np.ndarray, origin: np.ndarray, centres: np.ndarray, inverse: np.ndarray,
-                 point: np.ndarray, near: np.ndarray, log_outlier: float) -> None:
+                 point: np.ndarray, near: np.ndarray, floor: float) -> None:
         p = xy[point]  # (pairs, 2) m
         jp = np.stack([-p[:, 1], p[:, 0]], 1)  # p turned a quarter
         d = origin - centres[near]  # (pairs, 2) m
@@ -155,7 +154,7 @@ class _PairScore:
         counts = np.bincount(point, minlength=self._n)
         self._has = counts > 0
         self._starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[self._has]
-        self._floor = math.exp(log_outlier)
+        self._floor = floor  # a point's likelihood at the least (``outlier_sigmas``)
 
     def at(self, yaws: np.ndarray) -> np.ndarray:
         """The score (T,) at each sensor yaw in *yaws* (T,) rad: each point's log of its pairs'
@@ -191,7 +190,8 @@ class PointYaw:
         #: The points' turn less the heatmap's (rad) in the steps running whose turn the heatmap's
         #: check took from the heatmap (``check_steady_frames``).
         self._overrides: deque[float] = deque(maxlen=max(cfg.check_steady_frames, 1))
-        self._log_outlier = -0.5 * cfg.outlier_sigmas ** 2
+        #: A point's likelihood under the map at the least: that of ``outlier_sigmas``.
+        self._floor = math.exp(-0.5 * cfg.outlier_sigmas ** 2)
         self._fuse = cfg.heatmap_use == "fuse"
         #: Whether the heatmap is measured beside the points' turn (not only in its absence).
         self._beside = cfg.heatmap_use in ("check", "fuse")
@@ -355,7 +355,7 @@ class PointYaw:
             prior_rad = math.hypot(cfg.prior_rad, widen)
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets
-        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._log_outlier)
+        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._floor)
         score, best = _climb(lambda i: pairs.at(yaw0 + turns[i]), -0.5 * (offsets / prior_rad) ** 2,
                              max(1, round(cfg.coarse_step_rad / step)) if cfg.coarse_step_rad else 1)
         if best == 0 or best == len(score) - 1:

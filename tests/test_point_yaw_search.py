@@ -22,14 +22,14 @@ def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussian
     origin = np.array([1.5, 0.2])
     point, near = part._pairs(xy, origin, 0.5, centres, sigma, math.radians(8.0))
     yaws = 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
-    score = point_yaw._PairScore(xy, origin, centres, inverse, point, near, part._log_outlier).at(yaws)
+    score = point_yaw._PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws)
     expected = []
     for yaw in yaws:
         c, s = math.cos(yaw), math.sin(yaw)
         e = origin + xy[point] @ np.array([[c, s], [-s, c]]) - centres[near]  # (pairs, 2) m
         likelihood = np.zeros(len(xy))
         np.add.at(likelihood, point, np.exp(-0.5 * np.einsum("pi,pij,pj->p", e, inverse[near], e)))
-        expected.append(np.log(np.maximum(likelihood, math.exp(part._log_outlier))).sum())
+        expected.append(np.log(np.maximum(likelihood, math.exp(-0.5 * part._config.outlier_sigmas ** 2))).sum())
     assert 0 < len(point) and np.ptp(score) > 1.0
     assert score == pytest.approx(np.array(expected), rel=1e-9, abs=1e-9)
 
