@@ -215,6 +215,10 @@ PACING_SLICE_S = 0.05
 MIN_RATE = 1e-3
 
 
+#: What every source's ``rate=`` option says it takes (:func:`parse_rate`).
+RATE_EXPECTED = "max, or a speed factor (1: real time)"
+
+
 def parse_rate(text: str) -> float:
     """A ``rate=`` option: a speed factor from :data:`MIN_RATE`, or ``max`` (infinite)."""
     if text == "max":

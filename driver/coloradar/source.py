@@ -43,7 +43,7 @@ from .files import STREAMS
 from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
 from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
 from ...plain_numbers import plain_float
-from ..sources import Frame, Pacer, Source, UrlOptions, one_of, parse_rate
+from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, one_of, parse_rate
 
 log = logging.getLogger(__name__)
 
@@ -223,7 +223,7 @@ def _seconds(text: str) -> float:
 def open_coloradar(path: str, options: UrlOptions, config: RadarConfig | None) -> ColoRadarSource:
     velocity = options.take("velocity", one_of(*VELOCITY_MODES), "single_chip", "|".join(VELOCITY_MODES))
     heatmap = options.take("heatmap", one_of(*HEATMAP_MODES), "cascade", "|".join(HEATMAP_MODES))
-    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
+    rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     start = options.take("start", _seconds, 0.0, "seconds from the first frame, like 20 or 20s")
     calib = options.take("calib", str, None, "the calib directory")
     options.finish()

@@ -32,7 +32,7 @@ from ...errors import CaptureFormatError, ConfigError, SourceError, quoted
 from ...plain_numbers import plain_float
 from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
 from ..sim.board import BUILTIN_BOARDS, load_board
-from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
+from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .ti_recorder import NO_RECORDING, SERIES_PATTERN as _TI_SERIES, TiRecording
 
 log = logging.getLogger(__name__)
@@ -141,7 +141,7 @@ def _capture_without_data(path: str) -> bool:
 
 
 def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> ReplaySource:
-    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
+    rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     start = options.take("start", _start, ("frame", 0), "a frame number or seconds like 2.5s")
     frames = options.take("frames", at_least(1), None, "a number of frames >= 1")

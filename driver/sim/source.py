@@ -35,7 +35,7 @@ import numpy as np
 
 from ...cfg import RadarConfig, shipped_config_path
 from ...tum import TumTrajectory
-from ..sources import Frame, Pacer, Source, UrlOptions, at_least, one_of, parse_rate, positive_number
+from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, one_of, parse_rate, positive_number
 from .board import load_board
 from .physics import FIDELITIES
 from .scene import load_scene
@@ -110,7 +110,7 @@ _board_name.words = True  # type: ignore[attr-defined]  # a word, not a number
 
 def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimSource:
     seed = options.take("seed", at_least(0), 0, "an integer >= 0")
-    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
+    rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     duration = options.take("duration", positive_number, None, "seconds > 0")
     fidelity = options.take("fidelity", one_of(*FIDELITIES), None, " or ".join(FIDELITIES))
     board = options.take("board", _board_name, "ideal", "ideal, uncalibrated or a board .toml file")

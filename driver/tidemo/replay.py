@@ -33,7 +33,7 @@ from ... import strict_json
 from ...cfg import RadarConfig
 from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError
 from ..recordings.capture_check import read_timestamps
-from ..sources import Frame, Pacer, Source, UrlOptions, at_least, parse_rate
+from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, parse_rate
 from .framer import TlvFramer
 from .layout import DemoGeometry, gui_selection
 from .products import FrameIndexer, PacketFrames
@@ -148,7 +148,7 @@ def _check_metadata(path: str) -> None:
 
 
 def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
-    rate = options.take("rate", parse_rate, 1.0, "max, or a speed factor (1: real time)")
+    rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     frames = options.take("frames", at_least(1), None, "a number of frames >= 1")
     options.finish()
