@@ -464,24 +464,6 @@ def test_a_saved_view_that_could_not_be_written_fails_the_run(tmp_path):
     assert "Traceback" not in proc.stderr
 
 
-def test_connect_to_where_no_viewer_listens_says_so_when_the_view_opens(caplog):
-    # Rerun waited for it in silence: 30 s at the end, a live radar's frames dropped meanwhile.
-    # A viewer may come later (Rerun keeps the data), so it is said, not refused.
-    from radarodom.pipeline.stats import PipelineStats
-
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]  # closed again: nothing listens there
-    caplog.set_level(logging.WARNING, logger="radarodom")
-    sink = open_view(ViewTarget("connect", address=f"127.0.0.1:{port}"), close_timeout_s=1.0)
-    try:
-        said = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
-        assert any(f"no Rerun viewer answers at rerun+http://127.0.0.1:{port}/proxy" in m
-                   and "waits up to 1 s" in m for m in said), said
-    finally:
-        sink.close(PipelineStats())
-
-
 def _free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
@@ -493,11 +475,17 @@ def test_connect_to_where_no_viewer_ever_listens_says_no_frame_reached_one(captu
     """Nothing listens when the view opens, nor later: the summary said '30 frames drawn, 0 dropped'
     (Rerun had them, and waited for a viewer in vain, or gave up); now no frame counts as drawn.
     Rerun's last flush either gives up (more often with little data: the small capture) or waits
-    until the close's timeout (more often with much: the simulator's heatmaps fill its queue)."""
+    until the close's timeout (more often with much: the simulator's heatmaps fill its queue).
+    It is also said when the view opens: Rerun waited for a viewer in silence (30 s at the end, a
+    live radar's frames dropped meanwhile); a viewer may come later (Rerun keeps the data), so it
+    is said, not refused."""
     port = _free_port()
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     caplog.set_level(logging.WARNING, logger="radarodom")
     view = open_view(ViewTarget("connect", address=f"127.0.0.1:{port}"), close_timeout_s=close_timeout_s)
+    said = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert any(f"no Rerun viewer answers at {url}" in m and f"waits up to {close_timeout_s:.0f} s" in m
+               for m in said), said
     with Pipeline.from_url(capture if source == "capture" else source, sinks=[view]) as pipe:
         stats = pipe.run()
     gave_up = r": Rerun never connected to it \(gRPC has been unable to connect for \d+s\)"
