@@ -13,6 +13,13 @@ to tell elevation by, but it keeps its distance to everything around it: each ra
 the elevation of its cells, power-weighted, from the frames that moved (floors and ceilings are
 where they were), averaged over the last ``doppler_elevation_memory_s`` or so of them, for
 ``doppler_elevation_rest_s`` (a bin not seen within that time is taken as level).
+
+The same frame's point cloud, where it has no elevation either (every point level: such an array
+gives 0), gets its points' elevation the same way (:meth:`DopplerElevation.points_cos_elevation`):
+in a turn each point's from its own radial velocity, at rest its range bin's; placed as level, a
+reflector above or below the radar sits at cos(el) of its bearing's sine, and the points' map
+measured turns short by the scene's cos(el) where the heatmap's cells had it (docs/heading.md,
+item 33).
 """
 
 from __future__ import annotations
@@ -60,14 +67,27 @@ class _RangeProfile:
         return np.divide(self._cos_sum, self._weight, out=np.ones(n_range), where=recent)
 
 
+@dataclasses.dataclass(frozen=True)
+class _FrameElevation:
+    """How the last heatmap's cells got their elevation, for its frame's points: at rest its range
+    axis (n_range,) m and each bin's cos(elevation) (n_range,); moving, the body velocity (2,) m/s
+    the cells' Doppler was read against."""
+
+    range_m: np.ndarray | None = None
+    cos_per_bin: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+
+
 class DopplerElevation:
-    """:meth:`__call__` gives a heatmap without elevation its cells' elevation (module docstring)."""
+    """:meth:`__call__` gives a heatmap without elevation its cells' elevation, and
+    :meth:`points_cos_elevation` the same frame's points theirs (module docstring)."""
 
     def __init__(self, config: FeatureConfig) -> None:
         self._min_mps = config.doppler_elevation_min_mps
         self._turn_radps = config.doppler_elevation_turn_radps if config.doppler_elevation == "turns" else None
         self._rest_s = config.doppler_elevation_rest_s
         self._profile = _RangeProfile(config.doppler_elevation_memory_s)
+        self._last: _FrameElevation | None = None  # the last heatmap's, None: it kept its own
 
     def __call__(self, heatmap, t: float, velocity: np.ndarray | None, yaw_rate_radps: float):
         """*heatmap* (taken at *t*, s) with ``elevation_rad`` (n_range, n_azimuth) rad: from its
@@ -76,6 +96,7 @@ class DopplerElevation:
         measured *yaw_rate_radps* is above ``doppler_elevation_turn_radps``); slower than that
         every way, each range bin's from the moving frames before.  Unchanged when it has an
         elevation or no Doppler, or without a velocity of its own."""
+        self._last = None
         if (not dataclasses.is_dataclass(heatmap) or getattr(heatmap, "elevation_rad", None) is not None
                 or getattr(heatmap, "doppler_mps", None) is None or velocity is None):
             return heatmap
@@ -91,6 +112,7 @@ class DopplerElevation:
             per_bin = self._profile.cos_elevation(t, self._rest_s, shape[0])
             if float(np.hypot(*velocity)) >= self._min_mps or per_bin is None:
                 return heatmap
+            self._last = _FrameElevation(range_m=np.asarray(heatmap.range_m, dtype=float), cos_per_bin=per_bin)
             rows = np.arccos(np.clip(per_bin, 0.0, 1.0)).astype(np.float32)
             return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], shape[1], axis=1))
         r, a = np.divmod(cells, shape[1])
@@ -107,9 +129,28 @@ class DopplerElevation:
         self._profile.add(t, float(velocity[0]) ** 2, per_bin, total > 0)
         if self._turn_radps is not None and abs(yaw_rate_radps) < self._turn_radps:
             return heatmap
+        self._last = _FrameElevation(velocity=np.asarray(velocity, dtype=float))
         elevation = np.zeros(shape, np.float32)
         elevation.ravel()[cells] = np.arccos(cos_el)
         return dataclasses.replace(heatmap, elevation_rad=elevation)
+
+
+    def points_cos_elevation(self, points: np.ndarray) -> np.ndarray | None:
+        """The cos(elevation) (n,) of the *points* (TI frame, products.POINT_DTYPE) of the frame
+        whose heatmap :meth:`__call__` was last given, as its cells got theirs: at rest their range
+        bin's (at the point's slant range), moving from each one's radial velocity; None where the
+        cells kept their own (or none) or the cloud has an elevation of its own."""
+        frame = self._last
+        if frame is None or len(points) == 0 or np.any(points["elevation"]):
+            return None
+        x, y = points["x"].astype(float), points["y"].astype(float)
+        slant = np.hypot(x, y)  # level points: the measured range
+        if frame.cos_per_bin is not None:
+            return np.interp(slant, frame.range_m, frame.cos_per_bin)
+        vx, vy = frame.velocity
+        u = x / np.maximum(slant, 1e-9)
+        w = (vy * u - points["velocity"].astype(float)) / vx
+        return np.sqrt(np.clip(w * w + u * u, 0.0, 1.0))
 
 
 def doppler_elevation_part(config: FeatureConfig) -> DopplerElevation | None:

@@ -131,7 +131,7 @@ class RadarOdometry:
         self.keyframes = KeyframeCorrection(self.config, self.yaw) if odo.keyframe_distance_m > 0 else NoKeyframes()
         # point_yaw.use: the yaw from the point clouds on a local map (the heatmap's when slow),
         # which also stands in for the keyframes.
-        self.point_yaw = point_yaw_part(self.config, self.yaw)
+        self.point_yaw = point_yaw_part(self.config, self.yaw, self.doppler_elevation)
         if self.point_yaw is not None:
             self.yaw, self.keyframes = self.point_yaw, self.point_yaw.map
         self._walk_var_m, self._walk_var_rad = odo.yaw_walk_per_sqrt_m ** 2, odo.yaw_walk_per_sqrt_rad ** 2

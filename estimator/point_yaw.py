@@ -74,6 +74,7 @@ import numpy as np
 
 from .angles import wrap
 from .config import EstimatorConfig
+from .doppler_elevation import DopplerElevation
 from .point_map import LocalMap
 from .quality import Flag
 from .velocity import OK, ZERO, VelocityEstimate
@@ -112,16 +113,21 @@ def _climb(score_at: Callable[[np.ndarray], np.ndarray], prior: np.ndarray,
     return score, int(fine[np.argmax(score[fine] + prior[fine])])
 
 
-def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float) -> np.ndarray:
+def static_points(points: np.ndarray, velocity: np.ndarray, threshold_mps: float,
+                  cos_elevation: np.ndarray | None = None) -> np.ndarray:
     """The horizontal body-frame positions (m, 2) of the *points* (TI frame, products.POINT_DTYPE)
     whose radial velocity is within *threshold_mps* of a static reflector's at the sensor's
-    body-frame *velocity* (2,) m/s: v_r = -(vx cos b + vy sin b) cos(el)."""
+    body-frame *velocity* (2,) m/s: v_r = -(vx cos b + vy sin b) cos(el).  *cos_elevation* (n,):
+    level points' elevation from elsewhere (their x is the slant range times the azimuth axis
+    cos(el) sin(az), so only the forward coordinate moves)."""
     if len(points) == 0:
         return np.zeros((0, 2))
     x, y = points["x"].astype(float), points["y"].astype(float)
     bearing = np.arctan2(-x, y)
     expected = -(velocity[0] * np.cos(bearing) + velocity[1] * np.sin(bearing)) * np.cos(points["elevation"])
     static = np.abs(points["velocity"] - expected) <= threshold_mps
+    if cos_elevation is not None:
+        y = np.sqrt(np.maximum(cos_elevation ** 2 * (x * x + y * y) - x * x, 0.0))
     return np.stack([y[static], -x[static]], 1)
 
 
@@ -174,9 +180,13 @@ class PointYaw:
     :class:`~.yaw_measurement.YawMeasurement` (whose heatmap registration it runs when slow),
     :meth:`add_points` for each point cloud, and :attr:`map` in the keyframe correction's place."""
 
-    def __init__(self, config: EstimatorConfig, heatmap: YawMeasurement) -> None:
+    def __init__(self, config: EstimatorConfig, heatmap: YawMeasurement,
+                 elevation: DopplerElevation | None = None) -> None:
         self._config = config.point_yaw
         self._heatmap = heatmap
+        #: The heatmap's elevation from its Doppler (features.doppler_elevation), which gives a
+        #: cloud without elevation its points' too (the same frame's: it runs on the heatmap first).
+        self._elevation = elevation
         #: The initial guess's part (the odometry predicts the turn from the yaw rate when it uses it).
         self.guess = heatmap.guess
         self.map = LocalMap(config.point_yaw)
@@ -220,8 +230,9 @@ class PointYaw:
         velocity = translation / dt
         xy = np.zeros((0, 2))
         if self._points is not None and self._points[0] == current.t:
-            own = self._points[2]
-            xy = static_points(self._points[1], own if own is not None else velocity, cfg.static_threshold_mps)
+            own, cloud = self._points[2], self._points[1]
+            cos_el = None if self._elevation is None else self._elevation.points_cos_elevation(cloud)
+            xy = static_points(cloud, own if own is not None else velocity, cfg.static_threshold_mps, cos_el)
         self.map.pending = (current.t, xy)
         points = self._points_turn(xy, translation, -predicted)
         slow = self._slow(velocity, flags)
@@ -388,6 +399,7 @@ class PointYaw:
         return np.nonzero(near)
 
 
-def point_yaw_part(config: EstimatorConfig, heatmap: YawMeasurement) -> PointYaw | None:
+def point_yaw_part(config: EstimatorConfig, heatmap: YawMeasurement,
+                   elevation: DopplerElevation | None = None) -> PointYaw | None:
     """The part for ``point_yaw.use`` (None when off: the heatmap registration alone)."""
-    return PointYaw(config, heatmap) if config.point_yaw.use else None
+    return PointYaw(config, heatmap, elevation) if config.point_yaw.use else None
