@@ -430,6 +430,25 @@ def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(c
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
 
 
+def test_measured_at_defaults_to_a_raw_sources_chirps_middle(corridor_run, tmp_path):
+    # With the recording itself as the reference (replay://), its cfg says where the odometry
+    # describes the radar: the messages are compared there without --measured-at; 0 says the stamps.
+    from radarodom.cfg import RadarConfig
+    at = RadarConfig.from_file(str(corridor_run.rec / "radar.cfg")).measured_at_s
+    url = f"replay://{corridor_run.rec}"
+    proc = run_eval(corridor_run.tum, url, "--odom", corridor_run.odom, "--json", tmp_path / "eval.json")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert f"29 of 30 odometry messages compared with the truth {1e3 * at:.2f} ms after its t;" in proc.stdout
+    assert json.loads((tmp_path / "eval.json").read_text())["covariance"]["measured_at_s"] == at
+    given = run_eval(corridor_run.tum, url, "--odom", corridor_run.odom, "--measured-at", f"{at!r}").stdout
+    assert given == proc.stdout
+    at_stamps = run_eval(corridor_run.tum, url, "--odom", corridor_run.odom, "--measured-at", "0").stdout
+    assert "30 of 30 odometry messages compared with the truth at its t;" in at_stamps
+    # A TUM file's truth knows no cfg: the stamps.
+    gt = run_eval(corridor_run.tum, corridor_run.rec / "groundtruth.tum", "--odom", corridor_run.odom).stdout
+    assert "30 of 30 odometry messages compared with the truth at its t;" in gt
+
+
 def test_odom_messages_that_miss_the_truth_are_one_line(corridor_run, tmp_path):
     late = tmp_path / "late.jsonl"
     late.write_text("".join(line.replace('"t":', '"t":1000') for line in

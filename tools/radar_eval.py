@@ -69,11 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
                              "radar-echo --json odom): their covariances checked against the ground truth, and "
                              "their quality flags on the plots")
     parser.add_argument("--measured-at", type=cli.float_in(-MAX_MEASURED_AT_S, MAX_MEASURED_AT_S, unit="s"),
-                        default=0.0, metavar="S",
+                        metavar="S",
                         help="with --odom: each message describes the radar S s after its t (the middle of the "
                              "frame's chirps: radar-cfg prints it as \"chirps' middle\", 0.01344 s with the "
                              "shipped cfg); the covariance check compares it with the truth there, interpolated "
-                             "(default 0: the truth at t)")
+                             "(default: a source URL's, where its frames are raw and it has a cfg; else 0, the "
+                             "truth at t)")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON to FILE (a new file)")
     cli.add_overwrite(parser)
     parser.add_argument("--delta-m", type=cli.positive_float, default=1.0, metavar="M",
@@ -100,7 +101,11 @@ def _main(args: argparse.Namespace) -> int:
             raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
     _check_outputs(args)
     estimate = read_tum(args.estimate)
-    reference = _source_groundtruth(args.reference) if "://" in args.reference else read_tum(args.reference)
+    if "://" in args.reference:
+        reference, chirps_middle_s = _source_groundtruth(args.reference)
+    else:
+        reference, chirps_middle_s = read_tum(args.reference), 0.0
+    measured_at = chirps_middle_s if args.measured_at is None else args.measured_at
     odom_log = plots.read_odometry_log(args.odom) if args.odom else None
     # Coordinates near the float limit make lengths overflow: one warning below, not numpy's
     # one per operation.
@@ -114,7 +119,7 @@ def _main(args: argparse.Namespace) -> int:
         covariance = None if odom_log is None else odometry_consistency(
             odom_log.times, odom_log.poses, odom_log.pose_covariance, odom_log.twist_covariance,
             odom_log.yaw_rates, odom_log.frames, reference, source=odom_log.source,
-            measured_at_s=args.measured_at)
+            measured_at_s=measured_at)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
         overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
@@ -166,15 +171,19 @@ def _check_outputs(args: argparse.Namespace) -> None:
         cli.check_new_outputs(plot + [(args.json, "file", "--json")], overwrite=args.overwrite)
 
 
-def _source_groundtruth(url: str) -> TumTrajectory:
-    """The ground truth a frame source knows (its frames are not read)."""
+def _source_groundtruth(url: str) -> tuple[TumTrajectory, float]:
+    """The ground truth a frame source knows (its frames are not read), and when after a frame's
+    stamp its odometry describes the radar, s: the middle of the frame's chirps where the DSP makes
+    its products from raw frames by the source's cfg (``RadarConfig.measured_at_s``), else 0."""
     with open_source(url) as source:
         truth = source.groundtruth()
+        raw = source.heatmaps_from_raw and source.config is not None
+        chirps_middle_s = source.config.measured_at_s if raw else 0.0
     if truth is None:
         raise UsageError(f"{url}: the source knows no ground truth")
     if len(truth) == 0:
         raise UsageError(f"{url}: no frame falls inside the ground truth")
-    return truth
+    return truth, chirps_middle_s
 
 
 def _on_the_evaluation_clock(flags: plots.OdometryLog, estimate: TumTrajectory, reference: TumTrajectory,
