@@ -134,7 +134,6 @@ class DopplerElevation:
         elevation.ravel()[cells] = np.arccos(cos_el)
         return dataclasses.replace(heatmap, elevation_rad=elevation)
 
-
     def points_cos_elevation(self, points: np.ndarray) -> np.ndarray | None:
         """The cos(elevation) (n,) of the *points* (TI frame, products.POINT_DTYPE) of the frame
         whose heatmap :meth:`__call__` was last given, as its cells got theirs: at rest their range
