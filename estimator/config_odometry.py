@@ -126,8 +126,10 @@ class OdometryConfig(Settings):
     #: the axis ...
     min_lever_arm_m: float = 0.05
     #: ... and the Doppler yaw rate counts as at least this noise, rad/s (the velocity fit's
-    #: covariance comes from its residuals, which do not see a bias of the fit).
-    doppler_yaw_rate_noise_radps: float = math.radians(2.0)
+    #: covariance comes from its residuals, which do not see a bias of the fit: in moving turns
+    #: its direction leans towards the turn, and the registration, short there, weighs as much
+    #: at this floor; docs/heading.md item 34).
+    doppler_yaw_rate_noise_radps: float = math.radians(6.0)
     #: ... and is used only where it is at least this large, rad/s: in turns, where heatmap
     #: registration is weakest.  On straight drives a bias of the Doppler fit's direction (a
     #: tenth of a degree is 2 mm/s sideways at 1 m/s: 0.4 deg/s over a 0.3 m lever arm) would
