@@ -117,8 +117,7 @@ class DopplerElevation:
             return dataclasses.replace(heatmap, elevation_rad=np.repeat(rows[:, None], shape[1], axis=1))
         r, a = np.divmod(cells, shape[1])
         u = np.sin(np.asarray(heatmap.azimuth_rad, dtype=float)[a])
-        w = (velocity[1] * u - doppler.ravel()[cells].astype(float)) / velocity[0]
-        cos_el = np.sqrt(np.clip(w * w + u * u, 0.0, 1.0))
+        cos_el = _cos_elevation(u, doppler.ravel()[cells].astype(float), velocity)
         power = np.asarray(heatmap.intensity).ravel()[cells].astype(float)
         total = np.bincount(r, power, minlength=shape[0])
         weighted = np.bincount(r, power * cos_el, minlength=shape[0])
@@ -146,10 +145,15 @@ class DopplerElevation:
         slant = np.hypot(x, y)  # level points: the measured range
         if frame.cos_per_bin is not None:
             return np.interp(slant, frame.range_m, frame.cos_per_bin)
-        vx, vy = frame.velocity
-        u = x / np.maximum(slant, 1e-9)
-        w = (vy * u - points["velocity"].astype(float)) / vx
-        return np.sqrt(np.clip(w * w + u * u, 0.0, 1.0))
+        return _cos_elevation(x / np.maximum(slant, 1e-9), points["velocity"].astype(float), frame.velocity)
+
+
+def _cos_elevation(u: np.ndarray, radial_mps: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """cos(elevation) (n,) of static reflectors on the azimuth axis *u* (n,) whose radial velocity
+    is *radial_mps* (n,) m/s, seen from a sensor moving at the body *velocity* (2,) m/s (forward
+    part nonzero): cos(el)^2 = ((vy u - v_r) / vx)^2 + u^2, at most 1."""
+    w = (velocity[1] * u - radial_mps) / velocity[0]
+    return np.sqrt(np.clip(w * w + u * u, 0.0, 1.0))
 
 
 def doppler_elevation_part(config: FeatureConfig) -> DopplerElevation | None:
