@@ -160,11 +160,13 @@ def port_is_free(ip: str, port: int) -> bool:
 
 
 def fds_open_on(path: str) -> int:
-    """How many file descriptors of this process are open on *path* (a pty)."""
+    """How many file descriptors of this process are open on *path* (a pty), the
+    pty still there or gone: once its master closes, Linux shows its slave's fds
+    as "*path* (deleted)", and a driver still holding a vanished port holds one."""
     n = 0
     for fd in os.listdir("/proc/self/fd"):
         try:
-            if os.readlink(f"/proc/self/fd/{fd}") == path:
+            if os.readlink(f"/proc/self/fd/{fd}") in (path, f"{path} (deleted)"):
                 n += 1
         except OSError:
             pass

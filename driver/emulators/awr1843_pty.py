@@ -75,8 +75,7 @@ class Awr1843Pty:
     def __init__(self) -> None:
         #: Slave path of the open pty, or None.
         self.path: str | None = None
-        #: True once a ``disappear_on`` fault closed the port.
-        self.disappeared = False
+        self._disappeared = False  # read through the property: see there
         self._io_lock = threading.Lock()  # the master fd and writes to it
         self._master: int | None = None
         self._slave: int | None = None
@@ -102,13 +101,23 @@ class Awr1843Pty:
             self._master, self._slave = master, slave  # the slave stays open so the
             self._wake_r, self._wake_w = wake_r, wake_w  # master never sees EIO between clients
             self.path = os.ttyname(slave)
-            self.disappeared = False
+            self._disappeared = False
             self._stop.clear()
             self._thread = threading.Thread(target=self._serve, args=(master, wake_r),
                                             name=f"fake-awr1843 {self.path}", daemon=True)
             self._thread.start()
         log.info("fake AWR1843 CLI on %s", self.path)
         return self.path
+
+    @property
+    def disappeared(self) -> bool:
+        """True once a ``disappear_on`` fault closed the port.
+
+        Read under the lock :meth:`_disappear` holds while it closes every fd: whoever sees
+        True sees the pty gone, not a slave fd still open a moment after the flag.
+        """
+        with self._io_lock:
+            return self._disappeared
 
     def close(self) -> None:
         """Stop serving and close the pty (idempotent)."""
@@ -169,7 +178,7 @@ class Awr1843Pty:
             if not data:
                 break
             self._feed(data)
-            if self.disappeared:
+            if self._disappeared:
                 break
         log.debug("fake AWR1843 serving thread ends")
 
@@ -198,7 +207,7 @@ class Awr1843Pty:
     def _disappear(self) -> None:
         """Close the pty now, like pulling the USB cable (called on the serving thread)."""
         with self._io_lock:
-            self.disappeared = True  # set before the client can see the hang-up
+            self._disappeared = True  # set before the client can see the hang-up
             self._close_fds()
 
 

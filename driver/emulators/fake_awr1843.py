@@ -187,7 +187,7 @@ class FakeAwr1843(Awr1843Pty):
             if raw.endswith(b"\r"):
                 raw = raw[:-1]
             self._handle_line(raw)
-            if self.disappeared:
+            if self._disappeared:
                 return
 
     def _handle_line(self, raw: bytes) -> None:
