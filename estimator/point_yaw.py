@@ -32,20 +32,12 @@ register frame to frame, but enough against the points of the last seconds:
   where the step has no velocity at all, the last one measured says, and before the first none
   does: a radar starting off with too few points for a velocity has a smeared zero-Doppler map):
   there the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's)
-  measures the turn too, with a variance of at least ``heatmap_noise_rad`` squared, and with
-  ``heatmap_use`` "check" its turn is taken where the points give none or where the two differ by
-  more than ``check_sigmas`` of their combined spread (a turn from 3-5 points can be far off; the
-  heatmap's comes from the whole static scene), unless it has been taken so for
-  ``check_steady_frames`` steps running by a steady difference: that is the map's chain off by a
-  turn the steps before missed, which the points see against the map and the heatmap cannot.
-  It has no elevation (the demo sends the azimuth row only), so it reads every cell at
-  cos(elevation) of its bearing's sine and measures turns in place short near floors, ceilings
-  and walls: where the two agree, the points' is kept.  Facing a wall its few cells register to
-  false turns, so its turn is not believed further from the predicted one than
-  ``heatmap_max_accel_radps2`` allows over the step plus three of its noise.
-  With "fallback" it is measured only where the points give none; with "fuse" both are averaged
-  by their variances, or, when they disagree by more than ``agreement_sigmas`` of their combined
-  spread, the points' is taken.
+  measures the turn too (a variance of at least ``heatmap_noise_rad`` squared); ``heatmap_use``
+  says how the two are combined ("check", the default, takes the heatmap's where the points give
+  none or where they disagree by more than ``check_sigmas``, unless steadily: the settings'
+  docstrings, :class:`~.config_odometry.PointYawConfig`, say why).  The demo's heatmap has no
+  elevation, and facing a wall its few cells register to false turns: its turn is not believed
+  further from the predicted one than ``heatmap_max_accel_radps2`` allows over the step.
 
 After ``relocate_gap_frames`` unmeasured steps (a braking gap: 0-2 points a frame, the rate held)
 and slow again, the static heatmap's ``relocate_cells`` strongest cells are registered on the map
