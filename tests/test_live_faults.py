@@ -246,7 +246,9 @@ def test_cli_port_disappearing_during_configuration_is_a_device_error(small_capt
                      cli_faults=CliFaults(disappear_on=command)) as rig:
         path = rig.cli_path
         with pytest.raises(DeviceError) as info:
-            open_source(rig.url(**URL_TIMEOUTS), small_cfg)
+            # A generous CLI timeout: on a busy machine the fake's thread may take seconds to read
+            # the command; timing out first, the driver's sensorStop at close made the port vanish.
+            open_source(rig.url(**URL_TIMEOUTS, cli_timeout=30.0), small_cfg)
         assert rig.radar.disappeared
         assert port_is_free(HOST_IP, rig.data_port)
         assert fds_open_on(path) == 0, "the driver still holds the vanished CLI port"
