@@ -247,7 +247,7 @@ def test_cli_port_disappearing_during_configuration_is_a_device_error(small_capt
         path = rig.cli_path
         with pytest.raises(DeviceError) as info:
             # A generous CLI timeout: on a busy machine the fake's thread may take seconds to read
-            # the command; timing out first, the driver's sensorStop at close made the port vanish.
+            # the command; the driver, timing out first, met the vanishing while it closed instead.
             open_source(rig.url(**URL_TIMEOUTS, cli_timeout=30.0), small_cfg)
         assert rig.radar.disappeared
         assert port_is_free(HOST_IP, rig.data_port)
