@@ -211,6 +211,7 @@ class Pipeline:
         for frame in self.source:
             if self._past_duration(frame):
                 stats.reason = "duration limit"
+                stats.unstreamed_lost_bytes += frame.missing_bytes - frame.cut_bytes
                 break
             stats.count(frame.timestamp, frame.missing_bytes, frame.cut_bytes)
             result = self.process(frame)

@@ -85,6 +85,9 @@ class PipelineStats:
     estimator_s: collections.deque = field(default_factory=lambda: collections.deque(maxlen=1000))
     #: The latest odometry (None before the first heatmap frame, or without an estimator).
     state: OdometryState | None = None
+    #: The frame the source gave past the duration limit (a frame's time is known once it is
+    #: read), not streamed: its bytes lost on the way, which a live source's accounting holds.
+    unstreamed_lost_bytes: int = 0
 
     @property
     def lost_bytes(self) -> int:
