@@ -136,20 +136,20 @@ class Pipeline:
         self.feed = None if estimator is None else OdometryFeed(RadarOdometry(estimator))
         # Nothing to compute for (recording alone): no DSP at all.
         self.products = None
+        full = any(getattr(s, "full_heatmaps", False) for s in self._result_sinks)
         if self.feed is not None or self._result_sinks:
             features = (estimator or EstimatorConfig()).features
-            full = any(getattr(s, "full_heatmaps", False) for s in self._result_sinks)
             if self.feed is not None:  # settings that cannot run on these heatmaps fail now, not at a frame
                 check_features_fit(source, features, dsp)
-            self.products = (FrameProducts(source.config, dsp, coupling=source.coupling, calibrated=source.calibrated)
-                             if full else FrameProducts.for_estimator(source.config, features, dsp,
-                                                                      coupling=source.coupling,
-                                                                      calibrated=source.calibrated))
+            # A sink that shows full maps gets them, the estimator its own kind all the same.
+            self.products = FrameProducts(source.config, dsp, coupling=source.coupling, calibrated=source.calibrated,
+                                          doppler_cells=None if full and self.feed is None else features.doppler_cells,
+                                          full_heatmaps=full)
         # A heatmap is made when the estimator or a sink takes it; a velocity-only frame's only
-        # for a sink that wants every heatmap.
+        # for a sink that wants every heatmap (FrameProducts.shown_heatmap's, beside an estimator).
         wanted = self.feed is not None or any(getattr(s, "wants_heatmaps", False) for s in self._result_sinks)
         self._heatmap_for = {role: wanted for role in ROLES}
-        self._heatmap_for["velocity"] = any(getattr(s, "full_heatmaps", False) for s in self._result_sinks)
+        self._heatmap_for["velocity"] = full and self.feed is None
 
     @classmethod
     def from_url(cls, url: str, config: RadarConfig | None = None, **kwargs) -> Pipeline:
@@ -177,7 +177,7 @@ class Pipeline:
         if state is not None:
             self.stats.state = state
             self.stats.estimator_s.append(state.compute_s)
-        result = FrameResult(frame, products.points, products.heatmap, state)
+        result = FrameResult(frame, products.points, self.products.shown_heatmap(products), state)
         for sink in self._result_sinks:
             sink.write(result, self.stats)
         self.stats.latency.add(time.monotonic() - frame.ready_monotonic)

@@ -21,7 +21,7 @@ from ..dsp.processor import FrameProcessor, heatmap_range_bins
 from ..dsp.static_heatmap import StaticHeatmapMaker
 from ..errors import CaptureError
 from ..estimator.config import FeatureConfig
-from ..products import Products
+from ..products import Products, RangeAzimuth
 
 
 class FrameProducts:
@@ -30,17 +30,24 @@ class FrameProducts:
     *config*: the radar configuration of the source's raw frames (None when it has none: then
     no DSP is built); *dsp*: the DSP's settings (default: ``DspConfig()``).  *doppler_cells*:
     how many of the heatmap's strongest cells get their dominant Doppler (None: every cell, the
-    full map; see dsp.heatmap.HeatmapMaker).  *coupling*: the source's TX-to-RX coupling to
-    remove (``Source.coupling``); *calibrated*: whether the cfg's channel calibration is known
-    to fit the source's board (``Source.calibrated``).
+    full map; see dsp.heatmap.HeatmapMaker).  *full_heatmaps*: the outputs show full maps
+    although *doppler_cells* limits the heatmaps made for the estimator (:meth:`shown_heatmap`).
+    *coupling*: the source's TX-to-RX coupling to remove (``Source.coupling``); *calibrated*:
+    whether the cfg's channel calibration is known to fit the source's board (``Source.calibrated``).
     """
 
     def __init__(self, config: RadarConfig | None, dsp: DspConfig | None = None, *,
-                 doppler_cells: int | None = None, coupling: RangeCoupling | None = None,
-                 calibrated: bool | None = None) -> None:
+                 doppler_cells: int | None = None, full_heatmaps: bool = False,
+                 coupling: RangeCoupling | None = None, calibrated: bool | None = None) -> None:
         self.processor = (FrameProcessor(config, dsp, coupling=coupling, calibrated=calibrated)
                           if config is not None else None)
         self.heatmaps = None if self.processor is None else HeatmapMaker(self.processor, doppler_cells=doppler_cells)
+        # The outputs' full maps, made apart: the estimator's heatmaps, and so its odometry, are
+        # the same whatever the outputs show.
+        self._full_maps = (HeatmapMaker(self.processor) if full_heatmaps and doppler_cells is not None
+                           and self.processor is not None else None)
+        # The DSP spectrum of the frame last called for, where it made (or could make) its heatmap.
+        self._spectrum = None
         # A radar's own zero-Doppler antenna values (TI's demo): the same axes and calibration.
         self.static_maps = None if self.processor is None else StaticHeatmapMaker(self.processor)
         # Reused: no allocation per frame.
@@ -58,6 +65,7 @@ class FrameProducts:
         """The products of *frame*.  The DSP's heatmap is made only when *heatmap* is true (it
         is the costly half of a velocity-only frame)."""
         result = None
+        self._spectrum = None
         if frame.raw is not None:
             if self.processor is None:
                 raise CaptureError(f"frame {frame.index} carries raw samples but the source gave no radar "
@@ -65,14 +73,25 @@ class FrameProducts:
             result = self.processor.process(frame.cube(out=self._cube))
         points = frame.points if frame.points is not None else (None if result is None else result.points)
         hm = frame.heatmap
-        if hm is None and result is not None and heatmap:
-            hm = self.heatmaps.range_azimuth(result.spectrum)
+        if hm is None and result is not None:
+            self._spectrum = result.spectrum
+            if heatmap:
+                hm = self.heatmaps.range_azimuth(result.spectrum)
         if hm is None and frame.static_antennas is not None and heatmap:
             if self.static_maps is None:
                 raise CaptureError(f"frame {frame.index} carries antenna values but the source gave no radar "
                                    "configuration")
             hm = self.static_maps.range_azimuth(frame.static_antennas)
         return Products(points, hm)
+
+    def shown_heatmap(self, products: Products) -> RangeAzimuth | None:
+        """The heatmap the outputs show of the frame this was last called for (*products*, what
+        the call gave): with *full_heatmaps*, the full map of the same DSP spectrum (made here,
+        also for a frame whose heatmap the call did not make); else, or where the frame brought
+        its own, the products' heatmap."""
+        if self._full_maps is None or self._spectrum is None:
+            return products.heatmap
+        return self._full_maps.range_azimuth(self._spectrum)
 
 
 def check_features_fit(source: Source, features: FeatureConfig, dsp: DspConfig | None = None) -> None:

@@ -335,6 +335,20 @@ def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path):
     assert proc.returncode == 0, proc.stderr
 
 
+def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, tmp_path):
+    """--heatmap-out writes every cell's dominant Doppler, the estimator takes its strongest
+    cells' only: the export is made apart, and the odometry is the same to the last digit."""
+    plain, exported, heatmaps = tmp_path / "plain.tum", tmp_path / "exported.tum", tmp_path / "heatmaps"
+    for args in (["--odom-out", plain], ["--odom-out", exported, "--heatmap-out", heatmaps]):
+        proc = run_capture_cli("--source", replay_url(sim_run), *args)
+        assert proc.returncode == 0, proc.stderr
+    assert plain.read_bytes() == exported.read_bytes()
+    index = json.loads((heatmaps / "index.json").read_text())
+    assert len(index["frames"]) == len(plain.read_text().splitlines()) >= 20
+    doppler = np.load(heatmaps / f"{index['frames'][-1]['frame']:06d}_doppler.npy")
+    assert np.isfinite(doppler).all()  # the full map, not the estimator's strongest cells
+
+
 def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
     points, heatmaps = tmp_path / "points.csv", tmp_path / "heatmaps"
     proc = run_capture_cli("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,
