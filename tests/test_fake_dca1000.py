@@ -27,6 +27,7 @@ from radarodom.driver.live.dca1000_wire import (
     WireError,
 )
 from radarodom.driver.emulators.fake_dca1000 import FakeDca1000, Faults
+from radarodom.driver.emulators.source_url import emulated_source_url
 from radarodom.driver.recordings.pcap import read_udp
 from radarodom.driver.sources import open_source
 
@@ -667,10 +668,21 @@ def test_from_url_replay_capture_directory(tmp_path, small_cfg, client, receiver
     assert covered.all() and stream == b"".join(frames * 3)[: 7 * FRAME]
 
 
-def test_from_url_simulator(client, receiver):
-    with open_source("sim://calibration?rate=max") as sim:
+def test_an_emulated_boards_source_url_keeps_what_it_is_told():
+    assert emulated_source_url("sim://lab?rate=2", defaults={"rate": "max", "loop": "0"}) == \
+        "sim://lab?rate=2&loop=0&fidelity=fast"
+    assert emulated_source_url("sim:///s.json?fidelity=exact&rate=1", replaced={"rate": "max"}) == \
+        "sim:///s.json?fidelity=exact&rate=max"
+    assert emulated_source_url("replay:///d", replaced={"rate": "max"}) == "replay:///d?rate=max"
+
+
+@pytest.mark.parametrize("given, fidelity", [("", "fast"), ("?fidelity=exact", "exact")])
+def test_from_url_simulator(client, receiver, given, fidelity):
+    """The board streams the simulator's frames in real time: at its real-time fidelity (fast)
+    unless the URL names another."""
+    with open_source(f"sim://calibration?rate=max&fidelity={fidelity}") as sim:
         expected = [bytes(f.raw) for _, f in zip(range(2), sim)]
-    with FakeDca1000.from_url("sim://calibration", host_data_port=receiver.getsockname()[1]) as board:
+    with FakeDca1000.from_url("sim://calibration" + given, host_data_port=receiver.getsockname()[1]) as board:
         size = board.config.frame_bytes
         assert board.frame_period_s == board.config.frame_period_s and size == len(expected[0])
         start_recording(client, board)

@@ -81,6 +81,7 @@ from .dca1000_commands import CommandPort
 from .dca1000_faults import Faults, StreamStats
 from .dca1000_inspection import BoardInspection
 from .dca1000_streamer import DataStreamer, _frame_bytes
+from .source_url import emulated_source_url
 
 log = logging.getLogger(__name__)
 
@@ -99,9 +100,7 @@ DEFAULT_FPGA_VERSION = FpgaVersion(2, 8, False)
 
 def _url_with_rate_max(url: str) -> str:
     """*url* with its ``rate`` option replaced by ``rate=max`` (the board paces)."""
-    base, sep, query = url.partition("?")
-    items = [q for q in query.split("&") if q and not q.startswith("rate=")] if sep else []
-    return base + "?" + "&".join(items + ["rate=max"])
+    return emulated_source_url(url, replaced={"rate": "max"})
 
 
 class FakeDca1000(CommandPort, DataStreamer, BoardInspection):

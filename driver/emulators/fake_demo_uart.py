@@ -37,6 +37,7 @@ from ...cfg import RadarConfig
 from ..tidemo.layout import BITS_PER_BYTE, DEFAULT_BAUD
 from .demo_frames import DemoFrameMaker
 from .awr1843_pty import write_all
+from .source_url import emulated_source_url
 from .fake_awr1843 import BOOT_TIME_S, CliFaults, FakeAwr1843
 
 log = logging.getLogger(__name__)
@@ -218,9 +219,7 @@ class FakeDemoDataPort:
             return None, iter(self.frames(config))
         from ..sources import open_source
 
-        url = self.frames
-        extra = {k: v for k, v in (("rate", "max"), ("loop", "0")) if f"{k}=" not in url}
-        source = open_source(url + ("&" if "?" in url else "?") + urlencode(extra) if extra else url, config)
+        source = open_source(emulated_source_url(self.frames, defaults={"rate": "max", "loop": "0"}), config)
         return source, (f.raw for f in source)
 
     def _sleep_until(self, due: float, generation: int) -> bool:

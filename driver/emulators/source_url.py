@@ -1,0 +1,21 @@
+"""The URL an emulated board opens its frames' source with."""
+
+from __future__ import annotations
+
+
+def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
+                        defaults: dict[str, str] | None = None) -> str:
+    """*url* with the options *replaced* set whatever it says and *defaults* where it says
+    nothing (the URL's own options kept as written); a simulator's ``fidelity`` is ``fast``
+    unless it says: the board streams in real time, which ``fast`` keeps up with on two cores,
+    and opens its source with ``rate=max`` (the board paces), at which the simulator would
+    otherwise take its slow ``exact`` fidelity."""
+    replaced, defaults = dict(replaced or {}), dict(defaults or {})
+    if url.startswith("sim:"):
+        defaults.setdefault("fidelity", "fast")
+    base, _, query = url.partition("?")
+    items = [q for q in query.split("&") if q and q.partition("=")[0] not in replaced]
+    given = {q.partition("=")[0] for q in items}
+    items += [f"{k}={v}" for k, v in defaults.items() if k not in given and k not in replaced]
+    items += [f"{k}={v}" for k, v in replaced.items()]
+    return base + "?" + "&".join(items) if items else base
