@@ -252,6 +252,16 @@ def capture_main(argv, capsys) -> tuple[int, str, str]:
     return rc, out, err
 
 
+def test_quiet_keeps_the_view_to_the_summary(tmp_path, capsys):
+    """-q: only errors and the summary (docs/cli.md); the summary still names the view's frames."""
+    rrd = tmp_path / "run.rrd"
+    rc, out, err = capture_main(["--source", "sim://corridor?rate=max&duration=0.3", "--no-publish", "-q",
+                                 "--view", f"save:{rrd}"], capsys)
+    assert rc == 0, err
+    assert "view:" not in err, err
+    assert re.search(r"; view: \d+ frames drawn", out), out
+
+
 def test_radar_capture_saves_a_simulated_run_that_reads_back(tmp_path, capsys):
     """``--view save:FILE.rrd`` on the simulator: every frame's points (as --points-out writes
     them, in REP-103), the odometry (as --odom-out), the ground truth and the time series."""

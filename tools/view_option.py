@@ -84,7 +84,8 @@ def build_sinks(args: argparse.Namespace, source) -> list:
 
     sink = open_view(args.view, estimator=None if args.no_odom else args.estimator, config=source.config,
                      mount=getattr(args, "mount", None))
-    print(f"radar-capture: view: {sink.where}", file=sys.stderr)
+    if not args.quiet:
+        print(f"radar-capture: view: {sink.where}", file=sys.stderr)
     return [sink]
 
 
