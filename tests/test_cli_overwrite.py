@@ -66,7 +66,7 @@ def test_a_heatmap_directory_is_replaced_keeping_other_files(tmp_path, capsys):
     (out / "999999_intensity.npy").write_bytes(b"old")  # a heatmap of the earlier run
     (out / "notes.txt").write_text("mine")
     rc, err = capture(capsys, "--heatmap-out", out, "--no-odom")
-    assert rc == 2 and "already holds heatmaps" in err
+    assert rc == 2 and "already holds heatmaps; choose a new directory (or --overwrite)" in err
     rc, err = capture(capsys, "--heatmap-out", out, "--no-odom", "--overwrite")
     assert rc == 0, err
     again = json.loads((out / "index.json").read_text())
@@ -83,7 +83,7 @@ def test_a_recording_is_replaced_only_when_radarodom_wrote_it(tmp_path, capsys):
     (out / "notes.txt").write_text("mine")
     size = (out / "adc_data.bin").stat().st_size
     rc, err = capture(capsys, "--record", out, "--no-odom")
-    assert rc == 2 and "already holds a capture" in err
+    assert rc == 2 and "already holds a capture (adc_data.bin); choose a new directory (or --overwrite)" in err
     rc, err = capture(capsys, "--record", out, "--no-odom", "--frames", "1", "--overwrite")
     assert rc == 0, err
     assert 0 < (out / "adc_data.bin").stat().st_size < size  # the new one-frame recording
@@ -103,6 +103,8 @@ def test_overwrite_does_not_apply_to_a_heatmap_run_over_a_capture(tmp_path, caps
     out = tmp_path / "rec"
     assert capture(capsys, "--record", out, "--no-odom")[0] == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
+    rc, err = capture(capsys, "--heatmap-out", out, "--no-odom", "--frames", "1")
+    assert rc == 0, err  # heatmaps into the recording's directory: no heatmaps there yet
     rc, err = capture(capsys, "--heatmap-out", out, "--no-odom", "--overwrite", "--frames", "1")
     assert rc == 0, err  # heatmaps written beside the capture, which stays whole
     assert all((out / name).read_bytes() == data for name, data in before.items() if name != "capture.json")
@@ -114,7 +116,7 @@ def test_radar_sim_out_is_replaced_with_overwrite(tmp_path, capsys):
     assert radar_sim.main(argv) == 0
     (out / "notes.txt").write_text("mine")
     assert radar_sim.main(argv) == 2
-    assert "already holds a capture" in capsys.readouterr().err
+    assert "already holds a capture (adc_data.bin); choose a new directory (or --overwrite)" in capsys.readouterr().err
     assert radar_sim.main([*argv, "--seed", "1", "--overwrite"]) == 0
     assert json.loads((out / "capture.json").read_text())["source"].endswith("seed=1")
     assert (out / "notes.txt").read_text() == "mine"

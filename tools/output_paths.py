@@ -13,7 +13,8 @@ from typing import Mapping, Sequence
 from ..errors import CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageError, no_directory, why_not_written
 
 
-def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None) -> None:
+def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None,
+                   kind: str | None = None) -> None:
     """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
     created (no parent directory): radarodom never overwrites what a user has.
 
@@ -21,7 +22,9 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
     directory it wrote).  A directory in place of a file is still refused, and so is, by its
     writer, a directory that holds data radarodom did not write.  *what*: what is written there,
-    for the message ("cannot write the copy of NAME to PATH")."""
+    for the message ("cannot write the copy of NAME to PATH").  *kind*: what a directory output
+    holds ("capture", "heatmaps"): an existing one of that kind radarodom wrote is refused here
+    without *overwrite*, with the option's name (its writer would refuse it without)."""
     target = f"write {what} to {path}" if what else f"create {path}"
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is a file, not a directory"
@@ -36,12 +39,28 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     if is_dir and os.path.isdir(path):  # an existing directory: written into, whatever is above it
         if not os.access(path, os.W_OK | os.X_OK):
             raise UsageError(f"cannot write into {path}: the directory is not writable; {CHOOSE_WRITABLE}")
+        held = None if overwrite else _own_output_in(path, kind)
+        if held:  # its writer would refuse it too, but without the option that replaces it
+            raise CaptureExistsError(f"{path} already holds {held}; choose a new directory (or --overwrite)")
         return
     parent = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(parent):  # a path mistyped: a usage error, as a file where a directory goes
         raise UsageError(f"cannot {target}: {no_directory(parent)}")
     if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
         raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
+
+
+def _own_output_in(directory: str, kind: str | None) -> str | None:
+    """What of *kind* radarodom wrote that *directory* holds, which ``--overwrite`` replaces: a
+    capture of a frame or more (with its capture.json) or heatmaps; None when it holds none."""
+    from ..driver.recordings.capture_writer import ADC_DATA, foreign_data, holds_frames
+    from ..pipeline.sinks import HeatmapSink
+
+    if kind == "capture" and holds_frames(directory) and foreign_data(directory) is None:
+        return f"a capture ({ADC_DATA})"
+    if kind == "heatmaps" and os.path.exists(os.path.join(directory, HeatmapSink.INDEX)):
+        return "heatmaps"
+    return None
 
 
 def missing_directories(path: str) -> list[str]:
@@ -164,7 +183,7 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
             continue
         if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
             continue
-        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option))
+        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option), kind=kind)
         theirs = overwrite and kind == "capture" and os.path.isdir(path) and foreign_data(path)
         if theirs:
             raise CaptureExistsError(f"{path} already holds a capture ({theirs}) not written by radarodom "

@@ -118,6 +118,12 @@ _CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp"
 RECORDING_FILES = (*_CAPTURE_FILES, *REPLAY_FORMAT_FILES.values())
 
 
+def holds_frames(directory: str) -> bool:
+    """Whether *directory* holds a capture of a frame or more, which a recording refuses to
+    write over (one of no frame, left by a run killed before it could clean up, it records over)."""
+    return os.path.exists(os.path.join(directory, ADC_DATA)) and not _holds_no_frame(directory)
+
+
 def _holds_no_frame(directory: str) -> bool:
     """Whether the capture in *directory* recorded nothing: no frame data, no timestamp, no pose."""
     for name in (ADC_DATA, TIMESTAMPS, GROUNDTRUTH):
