@@ -25,6 +25,7 @@ The Zenoh publisher's sink is :class:`radarodom.pipeline.zenoh_sink.PublisherSin
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 from dataclasses import dataclass
@@ -34,6 +35,7 @@ import numpy as np
 
 from .. import messages
 from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
+from ..driver.recordings.capture_writer import write_file_all
 from ..driver.sources import Frame, Source
 from ..errors import CaptureError, CaptureExistsError, given_path
 from ..estimator.odometry import OdometryState
@@ -133,27 +135,47 @@ def remove_if_no_frame(path: str, stats: PipelineStats | None) -> None:
             os.remove(path)
 
 
-def _new_text_file(path: str | os.PathLike):
-    """A new text file (ASCII, "\\n" lines), or the package's error saying why not."""
-    try:
-        return open(path, "x", encoding="ascii", newline="\n")
-    except FileExistsError:
-        raise CaptureExistsError(f"{os.fspath(path)} already exists; choose a new file") from None
-    except OSError as exc:
-        raise CaptureError(f"cannot create {os.fspath(path)}: {exc.strerror or exc}") from None
+class _LineFile:
+    """A new text file (ASCII, "\\n" lines) written a frame's lines at a time, unbuffered: lines
+    whose writing fails (a full disk) are cut off again, so the file holds the frames before them
+    whole, and the error names the file (:class:`CaptureError`)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        try:
+            self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o666)
+        except FileExistsError:
+            raise CaptureExistsError(f"{path} already exists; choose a new file") from None
+        except OSError as exc:
+            raise CaptureError(f"cannot create {path}: {exc.strerror or exc}") from None
+        self._size = 0
+
+    def write(self, text: str) -> None:
+        """*text*, one frame's whole lines."""
+        data = text.encode("ascii")
+        try:
+            write_file_all(self._fd, data)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._fd, self._size)
+            raise CaptureError(f"writing {self.path} failed: {exc.strerror or exc}; the lines before are "
+                               "kept whole") from None
+        self._size += len(data)
+
+    def close(self) -> None:
+        os.close(self._fd)
 
 
 class OdometryJsonSink(Sink):
-    """The odometry as a new JSON-lines file (module docstring), flushed line by line."""
+    """The odometry as a new JSON-lines file (module docstring), written line by line."""
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = given_path(path, CaptureError)
-        self._fh = _new_text_file(path)
+        self._fh = _LineFile(self.path)
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
         if result.state is not None:
             self._fh.write(messages.odometry_json(result.state).decode("ascii") + "\n")
-            self._fh.flush()
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._fh.close()
@@ -168,9 +190,12 @@ class PointsCsvSink(Sink):
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = given_path(path, CaptureError)
-        self._fh = _new_text_file(path)
-        self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
-        self._fh.flush()
+        self._fh = _LineFile(self.path)
+        try:
+            self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
+        except CaptureError:
+            self._fh.close()
+            raise
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
         if result.points is not None:
@@ -181,7 +206,6 @@ class PointsCsvSink(Sink):
             cols = np.column_stack([points[c].astype(float) for c in POINT_COLUMNS])
             prefix = f"{frame},{t:.6f},"
             self._fh.write("".join(prefix + ",".join(f"{v:.5g}" for v in row) + "\n" for row in cols))
-        self._fh.flush()
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._fh.close()
@@ -222,15 +246,39 @@ class HeatmapSink(Sink):
         if "range_m" not in self._index:
             self._index["range_m"] = heatmap.range_m.tolist()
             self._index["azimuth_rad"] = heatmap.azimuth_rad.tolist()
-        for name in self.FILES:
-            arr = getattr(heatmap, name if name != "doppler" else "doppler_mps")
-            np.save(os.path.join(self.directory, f"{frame:06d}_{name}.npy"), arr.astype(np.float32))
+        paths = [os.path.join(self.directory, f"{frame:06d}_{name}.npy") for name in self.FILES]
+        try:
+            for name, path in zip(self.FILES, paths):
+                _save_npy(path, getattr(heatmap, name if name != "doppler" else "doppler_mps").astype(np.float32))
+        except OSError as exc:  # a full disk: the frame's files taken back, the frames before kept
+            for path in paths:
+                with contextlib.suppress(OSError):
+                    os.remove(path)
+            raise CaptureError(f"{self.directory}: writing frame {frame}'s heatmaps failed: "
+                               f"{exc.strerror or exc}; the {len(self._index['frames'])} frames before are kept"
+                               ) from None
         self._index["frames"].append({"frame": frame, "t": t})
         if len(self._index["frames"]) % 50 == 1:
             self._write_index()
 
     def _write_index(self) -> None:
-        write_json_atomically(os.path.join(self.directory, self.INDEX), self._index)
+        path = os.path.join(self.directory, self.INDEX)
+        try:
+            write_json_atomically(path, self._index)
+        except OSError as exc:
+            raise CaptureError(f"writing {path} failed: {exc.strerror or exc}") from None
 
     def close(self, stats: PipelineStats | None = None) -> None:
         self._write_index()
+
+
+def _save_npy(path: str, array: np.ndarray) -> None:
+    """*array* as a .npy file at *path*, through one write: a failure is the system's OSError
+    (numpy's own writer says only how many bytes it wrote)."""
+    buffer = io.BytesIO()
+    np.save(buffer, array)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+    try:
+        write_file_all(fd, buffer.getbuffer())
+    finally:
+        os.close(fd)

@@ -745,6 +745,39 @@ def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_pat
     assert len(summary) == 1 and f"stopped by an error; recorded 3 of them to {out}" in summary[0], proc.stdout
 
 
+@pytest.mark.parametrize("option, name", [("--points-out", "points.csv"), ("--odom-json", "odom.jsonl")])
+def test_a_text_output_that_runs_out_of_room_names_itself_and_keeps_whole_lines(tmp_path, option, name):
+    """A full disk (here the file size limit) under --points-out / --odom-json: one error line
+    naming the file, the summary, and a file of whole lines (a frame's lines written or not)."""
+    out = tmp_path / name
+    proc = subprocess.run(CAPTURE + ["--source", "sim://calibration?rate=max", "--frames", "20", "--no-publish",
+                                     option, str(out)], stdin=subprocess.DEVNULL, capture_output=True,
+                          text=True, timeout=120, preexec_fn=_file_size_limit(3000))
+    assert proc.returncode == 1, proc.stderr
+    assert one_error_line(proc) == (f"radar-capture: error: writing {out} failed: File too large; the lines "
+                                    "before are kept whole"), proc.stderr
+    assert "stopped by an error" in proc.stdout, proc.stdout
+    text = out.read_text()
+    assert 0 < len(text) <= 3000 and text.endswith("\n")
+    lines = text.splitlines()
+    if option == "--odom-json":
+        assert [json.loads(line)["frame"] for line in lines] == list(range(len(lines)))
+    else:
+        assert lines[0].startswith("frame,t,") and all(len(line.split(",")) == 10 for line in lines[1:])
+
+
+def test_heatmaps_that_run_out_of_room_name_the_frame_and_leave_no_part_of_it(tmp_path):
+    out = tmp_path / "maps"
+    proc = subprocess.run(CAPTURE + ["--source", "sim://calibration?rate=max", "--frames", "3", "--no-publish",
+                                     "--no-odom", "--heatmap-out", str(out)], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(30000))
+    assert proc.returncode == 1, proc.stderr
+    assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 0's heatmaps failed: File too "
+                                    "large; the 0 frames before are kept"), proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["index.json"]
+    assert json.loads((out / "index.json").read_text())["frames"] == []
+
+
 def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usage():
     from radarodom.tools import radar_echo
 

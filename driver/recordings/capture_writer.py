@@ -163,7 +163,8 @@ def _new_file(path: str) -> int:
     return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
 
 
-def _write_all(fd: int, data) -> None:
+def write_file_all(fd: int, data) -> None:
+    """All of *data* (a bytes-like object) to the file descriptor *fd*, however many writes it takes."""
     view = memoryview(data).cast("B")
     while view:
         view = view[os.write(fd, view):]
@@ -267,12 +268,12 @@ class CaptureWriter:
         ts_line = f"{timestamp:.9f}\n".encode("ascii")
         gt_line = None if pose is None else format_tum_line(timestamp, pose[:3], pose[3:]).encode("ascii")
         try:
-            _write_all(self._data_fd, raw)
-            _write_all(self._ts_fd, ts_line)
+            write_file_all(self._data_fd, raw)
+            write_file_all(self._ts_fd, ts_line)
             if gt_line is not None:
                 if self._gt_fd is None:
                     self._gt_fd = _new_file(os.path.join(self.directory, GROUNDTRUTH))
-                _write_all(self._gt_fd, gt_line)
+                write_file_all(self._gt_fd, gt_line)
         except OSError as exc:
             # The frame's part is cut off again: what is left holds whole frames, and a full
             # disk gets the room back that closing the capture needs.
