@@ -23,7 +23,7 @@ import os
 from typing import Any
 
 from . import __version__
-from .errors import CaptureError, CaptureExistsError, MessageError, UsageError
+from .errors import CaptureError, CaptureExistsError, MessageError, UsageError, why_not_written
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -81,7 +81,7 @@ class BagWriter:
         except FileExistsError:
             raise CaptureExistsError(f"{self.path} already exists; choose a new file") from None
         except OSError as exc:
-            raise CaptureError(f"cannot create {self.path}: {exc.strerror or exc}") from None
+            raise CaptureError(f"cannot create {self.path}: {why_not_written(exc, self.path)}") from None
         try:
             self._writer = writer_module.Writer(self._file, chunk_size=chunk_bytes,
                                                 compression=writer_module.CompressionType.ZSTD,

@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError, given_path
+from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError, given_path, why_not_written
 from .plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
@@ -209,7 +209,7 @@ class TumWriter:
         except FileExistsError:
             raise CaptureExistsError(f"{self.path} already exists; choose a new file") from None
         except OSError as exc:
-            raise CaptureError(f"cannot create {self.path}: {exc.strerror or exc}") from None
+            raise CaptureError(f"cannot create {self.path}: {why_not_written(exc, self.path)}") from None
 
     def write(self, t: float, x: float, y: float, yaw: float) -> None:
         """A planar pose: x, y (m) and yaw (rad) at time *t* (s); z = 0."""

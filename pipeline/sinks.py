@@ -37,7 +37,7 @@ from .. import messages
 from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
 from ..driver.recordings.capture_writer import write_file_all
 from ..driver.sources import Frame, Source
-from ..errors import CaptureError, CaptureExistsError, given_path
+from ..errors import CaptureError, CaptureExistsError, given_path, why_not_written
 from ..estimator.odometry import OdometryState
 from ..products import RangeAzimuth
 from ..tum import TumWriter
@@ -147,7 +147,7 @@ class _LineFile:
         except FileExistsError:
             raise CaptureExistsError(f"{path} already exists; choose a new file") from None
         except OSError as exc:
-            raise CaptureError(f"cannot create {path}: {exc.strerror or exc}") from None
+            raise CaptureError(f"cannot create {path}: {why_not_written(exc, path)}") from None
         self._size = 0
 
     def write(self, text: str) -> None:
@@ -232,7 +232,7 @@ class HeatmapSink(Sink):
         try:
             os.makedirs(self.directory, exist_ok=True)
         except OSError as exc:
-            raise CaptureError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
+            raise CaptureError(f"cannot create {self.directory}: {why_not_written(exc, self.directory)}") from None
         if os.path.exists(os.path.join(self.directory, self.INDEX)):
             raise CaptureExistsError(f"{self.directory} already holds heatmaps; choose a new directory")
         self._index: dict = {"format": "radarodom-heatmaps", "format_version": 1,

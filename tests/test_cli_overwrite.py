@@ -179,6 +179,23 @@ def test_a_file_where_a_directory_goes_is_a_usage_error(tmp_path, capsys, option
         rc, err = capture(capsys, option, blocker)
     assert rc == 2 and err.endswith(f"error: {blocker} is a file, not a directory\n")
     assert blocker.read_text() == "mine\n"
+    under = blocker / "run"  # a directory under the file: refused before the work, exit 2 as well
+    if option == "radar-sim --out":
+        rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", str(under), "-q"])
+        err = capsys.readouterr().err
+    else:
+        rc, err = capture(capsys, option, under)
+    name = "--out" if option == "radar-sim --out" else option
+    assert rc == 2 and err.endswith(f"error: {name} {under}: {blocker} is a file, not a directory; choose a "
+                                    "writable destination\n"), err
+
+
+@pytest.mark.parametrize("option", ["--points-out", "--odom-json", "--odom-out", "--mcap", "--heatmap-out"])
+def test_an_output_the_system_will_not_take_says_why_in_one_line(capsys, option):
+    out = "/proc/radarodom-test-output"  # a directory no file can be made in, for root too
+    rc, err = capture(capsys, option, out)
+    assert rc == 1 and err.endswith(f"error: cannot create {out}: the directory /proc takes no new files (the "
+                                    "system says: No such file or directory); choose a writable destination\n"), err
 
 
 def test_an_output_directory_is_made_with_its_parents(tmp_path, capsys):

@@ -77,7 +77,9 @@ def check_writable_directory(path: str, option: str) -> None:
     into: itself, or the nearest directory above it that is there."""
     missing = missing_directories(path)
     there = os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
-    if os.path.isdir(there) and not os.access(there, os.W_OK | os.X_OK):
+    if not os.path.isdir(there):  # a file where a directory goes (notes.txt/run)
+        raise UsageError(f"{option} {path}: {no_directory(os.path.abspath(path))}")
+    if not os.access(there, os.W_OK | os.X_OK):
         raise UsageError(f"{option} {path}: the directory {there} is not writable; {CHOOSE_WRITABLE}")
 
 

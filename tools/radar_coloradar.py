@@ -28,7 +28,7 @@ import numpy as np
 from .. import strict_json
 from ..driver.coloradar.run import ColoRadarRun
 from ..driver.coloradar.source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
-from ..errors import CaptureError, SourceError, UsageError
+from ..errors import CaptureError, SourceError, UsageError, why_not_written
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
@@ -183,7 +183,7 @@ def _make_out(directory: str | None) -> list[str]:
     try:
         os.makedirs(directory)
     except OSError as exc:
-        raise CaptureError(f"cannot create {directory}: {exc.strerror or exc}") from None
+        raise CaptureError(f"cannot create {directory}: {why_not_written(exc, directory)}") from None
     return made
 
 

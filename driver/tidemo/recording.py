@@ -30,7 +30,7 @@ from typing import Any
 
 from ... import __version__
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureExistsError
+from ...errors import CaptureError, CaptureExistsError, why_not_written
 from ..recordings.capture_dir import write_json_atomically
 
 log = logging.getLogger(__name__)
@@ -70,8 +70,10 @@ class UartRecorder:
             config.write(os.path.join(self.directory, RADAR_CFG))
             self._fd = os.open(data, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
             self._ts = open(os.path.join(self.directory, TIMESTAMPS), "w", buffering=1, encoding="ascii")
-        except OSError as exc:
-            raise CaptureError(f"cannot create recording directory {self.directory}: {exc.strerror or exc}") from None
+        except OSError as exc:  # the directory, or a file in it (exc.filename)
+            failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
+            raise CaptureError(f"cannot create recording directory {self.directory}: "
+                               f"{why_not_written(exc, failed)}") from None
         self._save()
 
     # A pipeline sink taking the frames as they came (before any processing).
