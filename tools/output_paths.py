@@ -14,7 +14,7 @@ from ..errors import CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageErr
 
 
 def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None,
-                   kind: str | None = None) -> None:
+                   kind: str = "capture") -> None:
     """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
     created (no parent directory): radarodom never overwrites what a user has.
 
@@ -23,8 +23,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     directory it wrote).  A directory in place of a file is still refused, and so is, by its
     writer, a directory that holds data radarodom did not write.  *what*: what is written there,
     for the message ("cannot write the copy of NAME to PATH").  *kind*: what a directory output
-    holds ("capture", "heatmaps"): an existing one of that kind radarodom wrote is refused here
-    without *overwrite*, with the option's name (its writer would refuse it without)."""
+    holds ("capture", the default, or "heatmaps"): an existing one of that kind radarodom wrote is
+    refused here without *overwrite*, with the option's name (its writer would refuse it without)."""
     target = f"write {what} to {path}" if what else f"create {path}"
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is a file, not a directory"
@@ -50,7 +50,7 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
         raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
 
 
-def _own_output_in(directory: str, kind: str | None) -> str | None:
+def _own_output_in(directory: str, kind: str) -> str | None:
     """What of *kind* radarodom wrote that *directory* holds, which ``--overwrite`` replaces: a
     capture of a frame or more (with its capture.json) or heatmaps; None when it holds none."""
     from ..driver.recordings.capture_writer import ADC_DATA, foreign_data, holds_frames

@@ -60,7 +60,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     board = load_board(args.board)
     sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board, fidelity=args.fidelity)
     if os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
-        cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite, kind="capture")
+        cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite)
         if args.overwrite:
             cli.replace_output(args.out, "capture")
     else:
