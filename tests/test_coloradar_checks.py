@@ -115,6 +115,24 @@ def test_times_that_do_not_advance_are_refused_with_plain_numbers(tmp_path, caps
     assert "np." not in said
 
 
+def test_ground_truth_times_that_do_not_advance_are_refused_where_it_is_the_reference(tmp_path, capsys):
+    from radarodom.tools import radar_eval
+
+    run = write_run(tmp_path, frames=6)
+    path = run / "groundtruth" / "timestamps.txt"
+    lines = path.read_text().splitlines()
+    lines[2] = lines[1]
+    path.write_text("\n".join(lines) + "\n")
+    words = f"{path}:3: time does not advance ({float(lines[1])!r} after {float(lines[1])!r})"
+    with pytest.raises(CaptureFormatError) as caught:
+        ColoRadarRun(run).groundtruth()
+    assert str(caught.value) == words
+    estimate = tmp_path / "est.tum"
+    estimate.write_text("".join(f"{T0 + 0.1 * k!r} {0.1 * k} 0 0 0 0 0 1\n" for k in range(5)))
+    assert radar_eval.main([str(estimate), f"coloradar://{run}"]) == 2
+    assert _error_line(capsys, "radar-eval") == words
+
+
 def test_a_missing_run_or_calibration_is_a_usage_error_everywhere(tmp_path, capsys):
     absent = tmp_path / "no_such_run"
     assert radar_capture.main(["--source", f"coloradar://{absent}", "--no-publish", "-q"]) == 2

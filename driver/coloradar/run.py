@@ -248,7 +248,9 @@ class ColoRadarRun(RunStreams):
         if self._groundtruth is None:
             layout = _LAYOUT["groundtruth"]
             path = self._path(layout.text_file)
-            self.count("groundtruth")  # the poses and their timestamps pair up line by line
+            # The poses and their timestamps pair up line by line, and the times advance (an
+            # interpolation between two poses at one time is undefined).
+            self.check("groundtruth")
             times = self.timestamps("groundtruth")
             rows, lines = _read_table(path, 7, "'x y z qx qy qz qw'")
             norms = np.linalg.norm(rows[:, 3:], axis=1)
