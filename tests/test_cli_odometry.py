@@ -349,6 +349,20 @@ def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, tmp_path)
     assert np.isfinite(doppler).all()  # the full map, not the estimator's strongest cells
 
 
+def test_a_recording_of_a_replayed_simulation_keeps_its_simulated_board(sim_run, tmp_path):
+    """The simulator block (scene, seed, board and its calibration) goes into a recording of the
+    replay, which replay:// then checks a cfg's calibration line against, as the original's."""
+    copy = tmp_path / "copy"
+    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", copy, "--no-odom")
+    assert proc.returncode == 0, proc.stderr
+    original = json.loads((sim_run.rec / "capture.json").read_text())["simulator"]
+    assert json.loads((copy / "capture.json").read_text())["simulator"] == original
+    from radarodom.driver.sources import open_source
+
+    with open_source(f"replay://{sim_run.rec}") as a, open_source(f"replay://{copy}") as b:
+        assert a.calibrated is b.calibrated is not None
+
+
 def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
     points, heatmaps = tmp_path / "points.csv", tmp_path / "heatmaps"
     proc = run_capture_cli("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,

@@ -106,6 +106,12 @@ class ReplaySource(Source):
         """The recording's groundtruth.tum (TI recorder files have none)."""
         return getattr(self.store, "groundtruth", None)
 
+    def recording_metadata(self) -> dict:
+        """The simulated board a recording of a simulation was made on (its ``simulator`` block),
+        so that a recording of this replay is checked against the same board (:func:`_board_fits`)."""
+        sim = getattr(self.store, "metadata", {}).get("simulator")
+        return {} if sim is None else {"simulator": sim}
+
     def describe(self) -> dict:
         return {"url": self.url, "path": self.store.directory, "frames": self.count,
                 "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop}
