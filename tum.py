@@ -54,10 +54,18 @@ def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: st
         if odd and all(_python_float(t) is not None for t in odd):
             raise CaptureFormatError(f"{path}:{lineno}: {odd[0][:20]!r} is not a plain decimal number "
                                      f"(expected {what})")
+        if count is not None and len(tokens) != count and not odd:  # the count is what is wrong: say so
+            raise CaptureFormatError(f"{path}:{lineno}: expected {count} numbers ({what}), got {len(tokens)}: "
+                                     f"{_shortened(text)!r}")
         raise CaptureFormatError(f"{path}:{lineno}: expected {what}, got {text[:60]!r}")
     if not all(math.isfinite(v) for v in values):
         raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
     return values
+
+
+def _shortened(text: str, limit: int = 60) -> str:
+    """*text* itself when short, else its start and end (an extra column is at the end)."""
+    return text if len(text) <= limit else f"{text[:limit // 2 - 2]} ... {text[-(limit // 2 - 3):]}"
 
 
 def _python_float(text: str) -> float | None:

@@ -115,7 +115,10 @@ def test_yaw_from_quaternions_also_when_tilted():
 
 
 @pytest.mark.parametrize("text, lineno, what", [
-    ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 1\n", 2, "expected 't x y z qx qy qz qw'"),
+    ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 1\n", 2, "expected 8 numbers ('t x y z qx qy qz qw'), got 7: '1 0 0 0 0 0 1'"),
+    # An extra column is quoted with the line's end, where it is.
+    ("0 0 0 0 0 0 0 1\n1.000000000 0.0123456789 0.000000123 0.0 0.0 0.0 0.00262780049 0.99999654 7.5\n", 2,
+     "expected 8 numbers ('t x y z qx qy qz qw'), got 9: '1.000000000 0.0123456789 0.0 ... .00262780049 0.99999654 7.5'"),
     ("# header\n\n0 0 0 0 0 0 0 1\n1 a 0 0 0 0 0 1\n", 4, "expected"),
     ("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n", 2, "not a finite number"),
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 0\n", 2, "the quaternion is zero"),
