@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import MessageError, quoted
+from .errors import MessageError, quoted_json
 
 ODOM_SCHEMA = "radarodom/odom"
 STATUS_SCHEMA = "radarodom/status"
@@ -72,7 +72,8 @@ def _check_bound(size: int, limit: int, what: str) -> None:
 
 
 def _quote(value: Any) -> str:
-    return quoted(value, _QUOTE_CHARS)
+    """*value* as a message error quotes it: mostly a decoded JSON message's, in JSON's words."""
+    return quoted_json(value, _QUOTE_CHARS)
 
 
 def _payload_bytes(payload: Any, schema: str, limit: int) -> bytes:

@@ -105,7 +105,8 @@ def _odom_obj(**changes) -> bytes:
     (_odom_obj(frame=1.5), "'frame'"),
     (_odom_obj(x="1.0"), "'x'"),
     (_odom_obj(ok="yes"), "'ok'"),
-    (_odom_obj(yaw=True), "'yaw'"),
+    (_odom_obj(yaw=True), "'yaw' must be a finite number, got true$"),  # the message's own word
+    (_odom_obj(t=None), "'t' must be a finite number, got null$"),
     (_odom_obj(pose_covariance=[0.0] * 8), "'pose_covariance'"),
     (_odom_obj(flags=[1]), "'flags'"),
     (messages.odometry_json(state()).replace(b'"x":1.5', b'"x":1e400'), "1e400 is out of range"),
