@@ -97,6 +97,18 @@ def test_shipped_cfg_prints_derived_quantities_with_units(shipped_cfg):
     assert "64 loops x 3 chirps x 256 samples" in proc.stdout
 
 
+def test_a_tx_that_fires_twice_a_frame_is_counted_as_one_antenna(tmp_path, capsys):
+    """TX1, TX3, TX3 (the third chirp on TX3 again): two TX, eight virtual antennas, twelve
+    channels; "2 TX, 12 virtual antennas" contradicted itself."""
+    text = SHIPPED.read_text()
+    twice = re.sub(r"^chirpCfg 2 2 0 0 0 0 0 2\b", "chirpCfg 2 2 0 0 0 0 0 4", text, flags=re.M)
+    assert twice != text
+    path = tmp_path / "twice.cfg"
+    path.write_text(twice)
+    assert radar_cfg.main([str(path)]) == 0
+    assert "TX1 TX3 TX3  (2 TX in 3 chirps, 4 RX, 8 virtual antennas in 12 channels)" in capsys.readouterr().out
+
+
 def _check_stable_keys(data: dict, cfg: RadarConfig) -> None:
     for key in STABLE_KEYS:
         assert key in data, key

@@ -162,7 +162,7 @@ def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
         return 0
     out = [f"{path}: valid xWR18xx configuration",
            f"  {'TX order':<24} {' '.join(f'TX{t}' for t in cfg.tx_order)}"
-           f"  ({cfg.num_tx} TX, {cfg.num_rx} RX, {cfg.num_tx_slots * cfg.num_rx} virtual antennas)",
+           f"  ({_antennas(cfg)})",
            f"  {'frame':<24} {cfg.num_loops} loops x {cfg.num_tx_slots} chirps x "
            f"{cfg.num_samples} samples"]
     for key, label, unit, scale, fmt in _ROWS:
@@ -193,3 +193,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
+
+
+def _antennas(cfg) -> str:
+    """"3 TX, 4 RX, 12 virtual antennas"; a TX that fires twice a frame makes more channels than
+    antennas: "2 TX in 3 chirps, 4 RX, 8 virtual antennas in 12 channels"."""
+    antennas = cfg.num_tx * cfg.num_rx
+    if cfg.num_tx_slots == cfg.num_tx:
+        return f"{cfg.num_tx} TX, {cfg.num_rx} RX, {antennas} virtual antennas"
+    return (f"{cfg.num_tx} TX in {cfg.num_tx_slots} chirps, {cfg.num_rx} RX, {antennas} virtual antennas in "
+            f"{cfg.num_tx_slots * cfg.num_rx} channels")
