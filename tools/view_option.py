@@ -4,11 +4,14 @@ checks and its sink, so that radar_capture.py only calls in.  The view is radaro
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from ..errors import UsageError
 
 MISSING = 'the view needs rerun-sdk: pip install "radarodom[view]"'
+#: Rerun's log filter for ``--view save:`` unless RUST_LOG is set (:func:`parse_view`).
+SAVE_RUST_LOG = "warn,re_log_encoding=off,re_sdk::recording_stream=off"
 
 
 def parse_view(text: str):
@@ -35,6 +38,11 @@ def parse_view(text: str):
         check(target)  # a display to spawn on, free ports: before anything opens
     except UsageError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+    if target.kind == "save" and "RUST_LOG" not in os.environ:
+        # Before Rerun is imported (below), which reads it once: without its file writer's own
+        # console lines (ANSI-coloured ERRORs, one more at exit) for a file it could not write,
+        # which the view says in a line of its own (the run's summary and error).
+        os.environ["RUST_LOG"] = SAVE_RUST_LOG
     try:
         import rerun  # noqa: F401
     except ImportError:
@@ -108,5 +116,18 @@ def saved_problem(args: argparse.Namespace, sinks: list) -> str | None:
 
     for sink in sinks:
         if isinstance(sink, ViewSink) and (sink.problem or not sink.finished):
-            return f"--view save:{args.view.path}: the file is incomplete ({sink.problem or 'the view did not finish'})"
+            return (f"--view save:{args.view.path}: the file is incomplete ({sink.problem or 'the view did not finish'})"
+                    + _full_disk(args.view.path))
     return None
+
+
+def _full_disk(path: str) -> str:
+    """"; ... full: free some space ..." when *path*'s file system has no room left (Rerun's
+    writer says only that it stopped), else ""."""
+    try:
+        st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+    except OSError:
+        return ""
+    if st.f_bavail * st.f_frsize >= 64 * 1024:  # less than a few of the file's chunks left: full
+        return ""
+    return "; the disk it is on is full: free some space, or choose another disk"
