@@ -77,9 +77,15 @@ def stream_summary(args: argparse.Namespace, source: Source, stats: PipelineStat
     if "frames_dropped" in live:
         text += live_summary(live, stats)
     elif "discarded_bytes" in live:  # a serial stream (tidemo://, its replay): what the framer lost
-        text += (f"; {live['frames_skipped']} frame numbers skipped, {live['rejected_packets']} packets "
-                 f"rejected, {live['discarded_bytes']} bytes discarded")
+        text += (f"; {_counted(live['frames_skipped'], 'frame number')} skipped, "
+                 f"{_counted(live['rejected_packets'], 'packet')} rejected, "
+                 f"{_counted(live['discarded_bytes'], 'byte')} discarded")
     return text
+
+
+def _counted(n: int, thing: str) -> str:
+    """"1 packet", "2 packets"."""
+    return f"{n} {thing}{'' if n == 1 else 's'}"
 
 
 def live_summary(live: dict, stats: PipelineStats) -> str:
