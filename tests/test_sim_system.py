@@ -504,6 +504,32 @@ def test_bad_scene_file_raises_config_error_naming_it(tmp_path, name):
     assert path in str(info.value)
 
 
+def test_a_scene_or_board_file_that_is_no_utf8_or_a_directory_says_so(tmp_path):
+    """Found by the bad-input audit: Python's "'utf-8' codec can't decode byte 0xe9 in position
+    155" named no line, and a directory was "no such scene"."""
+    from radarodom.driver.sim.board import load_board
+
+    scene = tmp_path / "latin1.toml"
+    scene.write_bytes(('name = "room"\n# caf\u00e9\n' + _PAUSE).encode("latin-1"))
+    with pytest.raises(ConfigError) as info:
+        load_scene(str(scene))
+    assert str(info.value) == f"{scene}:2: not UTF-8 text (byte 0xe9): save the file as UTF-8"
+    board = tmp_path / "latin1_board.toml"
+    board.write_bytes("# \u00e9\nrange_bias_m = 0.01\n".encode("latin-1"))
+    with pytest.raises(ConfigError, match=r":1: not UTF-8 text \(byte 0xe9\)"):
+        load_board(str(board))
+    with pytest.raises(ConfigError, match="a directory, not a scene file: give a .toml or .json file"):
+        load_scene(str(tmp_path))
+    with pytest.raises(ConfigError, match="a directory, not a board file"):
+        load_board(str(tmp_path))
+    gains = tmp_path / "gains.toml"
+    gains.write_text("tx_gain_db = [0.0, -800, 0.6]\n")
+    with pytest.raises(ConfigError) as info:
+        load_board(str(gains))
+    assert str(info.value) == (f"{gains}: tx_gain_db: each channel's gain must be within +/- 20 dB, "
+                               "got [0.0, -800.0, 0.6]")
+
+
 @pytest.mark.parametrize("name", sorted(_BUG_SCENES))
 def test_bad_numbers_in_scene_raise_config_error(tmp_path, name):
     path = _write_scene(tmp_path, name, _BUG_SCENES[name][0])
@@ -693,17 +719,17 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     # sizes that overflowed the sampling were OverflowError or ValueError, and a floor of 100 km a
     # MemoryError for a 608 GiB array.
     ('[[objects]]\ntype = []\nposition = [1, 1, 1]\n' + _PAUSE,
-     ("objects.type: unknown object type []: use point, corner_reflector",)),
-    ('[[objects]]\ntype = { a = 1 }\n' + _PAUSE, ('objects.type: unknown object type {"a": 1}',)),
-    ('[[objects]]\nposition = [1, 1, 1]\n' + _PAUSE, ("objects.type: missing 'type': use point",)),
+     ("objects[0]: type: unknown object type []: use point, corner_reflector",)),
+    ('[[objects]]\ntype = { a = 1 }\n' + _PAUSE, ('objects[0]: type: unknown object type {"a": 1}',)),
+    ('[[objects]]\nposition = [1, 1, 1]\n' + _PAUSE, ("objects[0]: type: missing 'type': use point",)),
     ('[[walls]]\npoints = [[0, 0], [1e6, 0]]\n' + _PAUSE,
      ("a wall's segment 1e+06 m long and 2.7 m high would take the scene past the 4000000 scatterers",
       "are its sizes in metres?")),
     # A place beyond float32 (3e38) overflowed the simulator's arithmetic (numpy's RuntimeWarnings).
     ('[[walls]]\npoints = [[-1e308, 0], [1e308, 0]]\n' + _PAUSE,
-     ("walls.points: a coordinate beyond 1e+06 m (a scene is metres across",)),
+     ("walls[0]: points: a coordinate beyond 1e+06 m (a scene is metres across",)),
     ('[[objects]]\ntype = "point"\nposition = [1e200, 0, 0]\n' + _PAUSE, ("position: a coordinate beyond 1e+06 m",)),
-    ('[[movers]]\ntype = "person"\npath = [[1, 0], [1e300, 0]]\n' + _PAUSE, ("movers.path: a coordinate beyond",)),
+    ('[[movers]]\ntype = "person"\npath = [[1, 0], [1e300, 0]]\n' + _PAUSE, ("movers[0]: path: a coordinate beyond",)),
     ('[surfaces]\nmin = [0, 0]\nmax = [1e5, 1e5]\n' + _PAUSE, ("the floor 100000 m x 100000 m would take",)),
     ('[surfaces]\nmin = [-1e308, 0]\nmax = [1e308, 1]\nfloor = false\nceiling = 3\n' + _PAUSE,
      ("surfaces.min: a coordinate beyond",)),
@@ -718,10 +744,10 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     # samples" after numpy's RuntimeWarning, naming neither file nor key; a ramp of 1e300 s was an
     # internal ValueError.
     ('[[objects]]\ntype = "point"\nposition = [2, 0, 0.4]\nrcs = 1e100\n' + _PAUSE,
-     ("object 'point': rcs: must be from 0 to 1e+06 (a ship's 60 dBsm; more overflows the simulated signal), "
+     ("objects[0] (point): rcs: must be from 0 to 1e+06 (a ship's 60 dBsm; more overflows the simulated signal), "
       "got 1e+100",)),
-    ('[[walls]]\npoints = [[1, -5], [1, 5]]\nsigma0 = 1e300\n' + _PAUSE, ("walls.sigma0: must be from 0 to 1e+06",)),
-    ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nrcs = 1e7\n' + _PAUSE, ("movers.rcs: must be from 0",)),
+    ('[[walls]]\npoints = [[1, -5], [1, 5]]\nsigma0 = 1e300\n' + _PAUSE, ("walls[0]: sigma0: must be from 0 to 1e+06",)),
+    ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nrcs = 1e7\n' + _PAUSE, ("movers[0]: rcs: must be from 0",)),
     ('[trajectory]\nsmoothing_s = 1e300\nsegments = [{ pause = 1 }]\n',
      ("trajectory: smoothing_s must be at most 10 s (the speed and turn-rate ramps), got 1e+300",)),
     # A segment so fast that it lasts less than the simulator's 1 ms step moved nothing: alone, the
@@ -735,7 +761,7 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nturn_rate = 1e9\n', ("trajectory: turn_rate must be at most 3600",)),
     ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nspeed = 101\n', ("trajectory: speed must be at most 100 m/s",)),
     ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nspeed = 1e300\n' + _PAUSE,
-     ("movers.speed: must be from 0 to 100 m/s (a person walks at 1-2), got 1e+300",)),
+     ("movers[0]: speed: must be from 0 to 100 m/s (a person walks at 1-2), got 1e+300",)),
     ('[trajectory]\nsegments = [{ straight = 2, speed = 100.00000000001 }]\n', ("got 100.00000000001",)),
     # Found by a helper's hunt (2026-12-01): each was "internal error" (RecursionError,
     # OverflowError, ZeroDivisionError) or numpy's RuntimeWarnings with a run of nonsense.
@@ -745,7 +771,7 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
      ("trajectory: speed must be a number, got 1000", "(401 characters)")),
     ('[trajectory]\nstart = [0, 0, 1' + "0" * 400 + ']\nsegments = [{ pause = 1 }]\n',
      ("trajectory: start must be [x, y, yaw_deg]",)),
-    ('[[walls]]\npoints = [[0, 0], [1' + "0" * 400 + ', 0]]\n' + _PAUSE, ("walls.points: must be two or more",)),
+    ('[[walls]]\npoints = [[0, 0], [1' + "0" * 400 + ', 0]]\n' + _PAUSE, ("walls[0]: points: must be two or more",)),
     ('[radar]\nsnr_db = 1' + "0" * 400 + '\n' + _PAUSE, ("snr_db: must be a number, got 1000",)),
     ('[trajectory]\nsegments = [{ rotate = 90, rate = 5e-324 }, { pause = 1 }]\n', ("the segments last inf s",)),
     ('[trajectory]\nsegments = [{ turn = 90, radius = 10, speed = 5e-324 }]\n', ("the segments last inf s",)),
@@ -755,6 +781,13 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [1, 1, 1]\nz = 1e308\n' + _PAUSE,
      ("z: must be from -1e+06 to 1e+06 m, got 1e+308",)),
     ('[trajectory]\nwaypoints = [[1, 0.8], [1, 0.8], [1, 0.8]]\n', ("no segments (waypoints make none",)),
+    # Found by the bad-input audit (2026-12-02): which of several objects, and which table, went unsaid.
+    ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [1, 1, 1]\n' * 2
+     + '[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [0.6, -1.2, 2.0]\n' + _PAUSE,
+     (": objects[2] (box): size: must be 3 positive numbers (x, y and height, m), got [0.6, -1.2, 2.0]",)),
+    ('radar = [1]\n' + _PAUSE, (": radar: must be a table ([radar] in TOML), got [1]",)),
+    ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\n[[movers]]\ntype = "person"\npath = [[1, 0], [1, 0]]\n'
+     + _PAUSE, (": movers[1]: path: a person's path has two equal points in a row",)),
 ])
 def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
     _refused(_write_scene(tmp_path, "scene", text), tmp_path / "cap", words)

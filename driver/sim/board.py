@@ -37,6 +37,7 @@ import numpy as np
 from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, VirtualArray
 from ...calibration import ChannelCalibration
 from ...errors import ConfigError
+from .scene_values import decode_utf8
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -124,8 +125,11 @@ def board_from_dict(spec: dict[str, Any], where: str = "<board>") -> Board:
             if not lo <= value <= hi:
                 raise ConfigError(f"must be within {lo:g} .. {hi:g}, got {value:g}", path=where, field=key)
             values[key] = value
-    if any(abs(g) > 20.0 for key in ("tx_gain_db", "rx_gain_db") for g in values.get(key, ())):
-        raise ConfigError("channel gains must be within +/- 20 dB", path=where, field="gain_db")
+    for key in ("tx_gain_db", "rx_gain_db"):
+        gains = values.get(key, ())
+        if any(abs(g) > 20.0 for g in gains):
+            raise ConfigError(f"each channel's gain must be within +/- 20 dB, got {list(gains)!r}", path=where,
+                              field=key)
     return Board(**values)
 
 
@@ -149,12 +153,14 @@ def load_board(name_or_path: str) -> Board:
         text = resources.files(__package__).joinpath("boards", f"{name_or_path}.toml").read_text(encoding="utf-8")
         return board_from_dict(tomllib.loads(text), where=f"builtin:{name_or_path}")
     path = os.path.expanduser(name_or_path)
+    if os.path.isdir(path):
+        raise ConfigError("a directory, not a board file: give a .toml file", path=name_or_path)
     if not os.path.isfile(path):
         raise ConfigError(f"no such board: use one of {', '.join(BUILTIN_BOARDS)} or a .toml file", path=name_or_path)
     try:
         with open(path, "rb") as fh:
-            spec = tomllib.loads(fh.read().decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:  # TOMLDecodeError is a ValueError
+            spec = tomllib.loads(decode_utf8(fh.read(), path))
+    except ValueError as exc:  # TOMLDecodeError is a ValueError
         raise ConfigError(f"cannot parse: {exc}", path=path) from None
     return board_from_dict(spec, where=path)
 

@@ -24,6 +24,7 @@ and a seed always give the same scatterers.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -203,7 +204,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
         said = "missing 'type'" if kind is None else f"unknown object type {quoted_json(kind)}"
         raise ConfigError(f"{said}: use point, corner_reflector, box, cylinder or door", path=where,
                           field="objects.type")
-    w = f"{where} object {kind!r}"
+    w = where  # the entry (objects[i], its type) is told by the caller
     check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
         return _points(vec(need(obj, "position", w), 3, w, "position"), cross_section(obj, "rcs", 1.0, w),
@@ -272,6 +273,20 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
 
 
+@contextlib.contextmanager
+def _entry(key: str, index: int, kind: Any):
+    """A ConfigError in the *index*-th table of the scene's list *key* is told which, and of what
+    type (a file may hold a dozen of one kind): ``objects[5] (box): size: ...``."""
+    try:
+        yield
+    except ConfigError as exc:
+        field = exc.field
+        if field and (field == key or field.startswith(key + ".")):  # the list's name said already
+            field = field[len(key) + 1:] or None
+        said = f" ({kind})" if isinstance(kind, str) and kind else ""
+        raise exc.located(field=f"{key}[{index}]{said}" + (f": {field}" if field else "")) from None
+
+
 def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, segments: list) -> list[Scatterers]:
     """The scatterers of a scene's walls, objects and surfaces (their occluding segments into
     *segments*), at most about :data:`MAX_SCATTERERS` in all."""
@@ -283,20 +298,22 @@ def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, se
         counted[0] = len(parts)
         return MAX_SCATTERERS - counted[1]
 
-    for wall in spec.get("walls", []):
-        if not isinstance(wall, dict):
-            raise ConfigError(f"a wall must be a table, got {wall!r}", path=where, field="walls")
-        check_keys(wall, WALL_KEYS, where, "walls")
-        pts = polyline(need(wall, "points", where), where, "walls.points")
-        height = num(wall, "height", 2.7, where, positive=True, name="walls.height")
-        sigma0 = cross_section(wall, "sigma0", 0.1, where, name="walls.sigma0")
-        for a, b in zip(pts[:-1], pts[1:]):
-            parts.append(sample_surface(a, b, 0.0, height, sigma0, rng, what="a wall's segment", room=room()))
-            segments.append((a, b))
-    for obj in spec.get("objects", []):
-        if not isinstance(obj, dict):
-            raise ConfigError(f"an object must be a table, got {obj!r}", path=where, field="objects")
-        parts.append(_object(obj, rng, where, segments, room()))
+    for i, wall in enumerate(spec.get("walls", [])):
+        with _entry("walls", i, None):
+            if not isinstance(wall, dict):
+                raise ConfigError(f"a wall must be a table, got {wall!r}", path=where)
+            check_keys(wall, WALL_KEYS, where, "walls")
+            pts = polyline(need(wall, "points", where), where, "points")
+            height = num(wall, "height", 2.7, where, positive=True)
+            sigma0 = cross_section(wall, "sigma0", 0.1, where)
+            for a, b in zip(pts[:-1], pts[1:]):
+                parts.append(sample_surface(a, b, 0.0, height, sigma0, rng, what="a wall's segment", room=room()))
+                segments.append((a, b))
+    for i, obj in enumerate(spec.get("objects", [])):
+        with _entry("objects", i, obj.get("type") if isinstance(obj, dict) else None):
+            if not isinstance(obj, dict):
+                raise ConfigError(f"an object must be a table, got {obj!r}", path=where)
+            parts.append(_object(obj, rng, where, segments, room()))
     surfaces = spec.get("surfaces", {})
     if surfaces:
         lo = vec(need(surfaces, "min", where), 2, where, "surfaces.min")
@@ -327,8 +344,10 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
     for key in ("walls", "objects", "movers"):
         if not isinstance(spec.get(key, []), list):
             raise ConfigError(f"must be a list of tables ([[{key}]] in TOML)", path=where, field=key)
-    if not isinstance(spec.get("surfaces", {}), dict) or not isinstance(spec.get("radar", {}), dict):
-        raise ConfigError("surfaces and radar must be tables", path=where)
+    for key in ("surfaces", "radar"):
+        if not isinstance(spec.get(key, {}), dict):
+            raise ConfigError(f"must be a table ([{key}] in TOML), got {quoted_json(spec[key])}", path=where,
+                              field=key)
     check_keys(spec, SCENE_KEYS, where, "")
     check_keys(spec.get("surfaces", {}), SURFACE_KEYS, where, "surfaces")
     check_keys(spec.get("radar", {}), RADAR_KEYS, where, "radar")
@@ -337,19 +356,19 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
     except ConfigError as exc:  # too many scatterers (scene_values.cells) is told where here
         raise exc.located(path=where) from None
     movers = []
-    for m in spec.get("movers", []):
-        if not isinstance(m, dict) or m.get("type") != "person":
-            kind = m.get("type") if isinstance(m, dict) else m
-            raise ConfigError(f"unknown mover {kind!r}: use type = \"person\"", path=where, field="movers")
-        check_keys(m, MOVER_KEYS, where, "movers")
-        path = polyline(need(m, "path", where), where, "movers.path")
-        if not np.hypot(*np.diff(path, axis=0).T).all():
-            raise ConfigError("a person's path has two equal points in a row", path=where, field="movers.path")
-        speed = within(num(m, "speed", 1.2, where, positive=True, name="movers.speed"), 0.0, MAX_SPEED_MPS, where,
-                       "movers.speed", " m/s (a person walks at 1-2)")
-        movers.append(Person(path, speed,
-                             cross_section(m, "rcs", 0.5, where, name="movers.rcs"),
-                             float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
+    for i, m in enumerate(spec.get("movers", [])):
+        with _entry("movers", i, None):
+            if not isinstance(m, dict) or m.get("type") != "person":
+                kind = m.get("type") if isinstance(m, dict) else m
+                raise ConfigError(f"unknown mover {kind!r}: use type = \"person\"", path=where)
+            check_keys(m, MOVER_KEYS, where, "movers")
+            path = polyline(need(m, "path", where), where, "path")
+            if not np.hypot(*np.diff(path, axis=0).T).all():
+                raise ConfigError("a person's path has two equal points in a row", path=where, field="path")
+            speed = within(num(m, "speed", 1.2, where, positive=True), 0.0, MAX_SPEED_MPS, where,
+                           "speed", " m/s (a person walks at 1-2)")
+            movers.append(Person(path, speed, cross_section(m, "rcs", 0.5, where),
+                                 float(rng.uniform(0, 2 * np.pi)), rng.uniform(0, 2 * np.pi, len(Person.BODY))))
     trajectory = from_spec(need(spec, "trajectory", where), where)
     radar = spec.get("radar", {})
     wall_a = np.array([s[0] for s in segments], float).reshape(-1, 2)
@@ -382,6 +401,8 @@ def load_scene(name_or_path: str, *, seed: int = 0) -> Scene:
         return scene_from_dict(tomllib.loads(ref.read_text(encoding="utf-8")), seed=seed,
                                where=f"builtin:{name_or_path}")
     path = os.path.expanduser(name_or_path)
+    if os.path.isdir(path):
+        raise ConfigError("a directory, not a scene file: give a .toml or .json file", path=name_or_path)
     if not os.path.isfile(path):
         raise ConfigError(f"no such scene: use one of {', '.join(BUILTIN_SCENES)} or a .toml/.json file",
                           path=name_or_path)

@@ -127,12 +127,23 @@ MAX_RCS_M2 = 10 ** (RCS_DBSM_RANGE[1] / 10)
 MAX_SCENE_BYTES = 16 * 2**20
 
 
+def decode_utf8(raw: bytes, path: str) -> str:
+    """A scene or board file's text (a BOM, a Windows editor's, ignored), or :class:`ConfigError`
+    naming the line of the first byte that is not UTF-8 (Python's own words give its offset)."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ConfigError(f"not UTF-8 text (byte 0x{raw[exc.start]:02x}): save the file as UTF-8", path=path,
+                          line=line) from None
+
+
 def read_scene_file(path: str) -> dict:
     """The table of a scene file (``.json``, else TOML), or :class:`ConfigError` naming it."""
     try:
         with open(path, "rb") as fh:
             raw = fh.read()
-        text = raw.decode("utf-8-sig")  # a BOM (a Windows editor's) ignored
+        text = decode_utf8(raw, path)
         # (strict JSON: nesting and number sizes bounded, no key twice; tomllib refuses a key twice
         # itself but recurses once per nesting level)
         return strict_json.loads(text, max_bytes=MAX_SCENE_BYTES) if path.endswith(".json") else tomllib.loads(text)
