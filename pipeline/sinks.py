@@ -162,8 +162,15 @@ class _LineFile:
                                "kept whole") from None
         self._size += len(data)
 
+    @property
+    def closed(self) -> bool:
+        return self._fd < 0
+
     def close(self) -> None:
-        os.close(self._fd)
+        """Close the file, once (again: nothing)."""
+        if self._fd >= 0:
+            fd, self._fd = self._fd, -1
+            os.close(fd)
 
 
 class OdometryJsonSink(Sink):
