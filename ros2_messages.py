@@ -68,7 +68,10 @@ def stamp(t: float) -> tuple[int, int]:
     sec = math.floor(t)
     nanosec = round((t - sec) * 1e9)
     if nanosec == 1_000_000_000:
-        return sec + 1, 0
+        sec, nanosec = sec + 1, 0
+    if not -2**31 <= sec < 2**31:
+        raise MessageError(f"ROS 2 stamp: time {t} s is beyond what ROS 2's time holds (its seconds are a "
+                           f"32-bit integer: up to {2**31 - 1} s, 2038-01-19)")
     return sec, nanosec
 
 

@@ -30,6 +30,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk  # noqa: E402
 from frames_helpers import base_in_odom, matrix, mount_matrix, of_msg, planar, seconds  # noqa: E402
 
 from radarodom import messages  # noqa: E402
+from radarodom import ros2_messages  # noqa: E402
 from radarodom.driver.sources import open_source  # noqa: E402
 from radarodom.errors import CaptureExistsError, MessageError  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
@@ -364,6 +365,12 @@ def test_a_time_a_bag_cannot_hold_is_refused_with_the_topic(tmp_path):
         layout=store.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0), data=np.zeros(1, np.float32))
     with pytest.raises(MessageError, match="/x: time -1.0 s"):
         writer.write("/x", msg, -1.0)
+    # Past 2038 a ROS 2 stamp's 32-bit seconds overflow: it was rosbags' "'i' format requires ...".
+    with pytest.raises(MessageError, match=r"/x: time 3000000000.0 s is outside what a bag holds \(0 to 2147483647 s"):
+        writer.write("/x", msg, 3e9)
+    with pytest.raises(MessageError, match="its seconds are a 32-bit integer"):
+        ros2_messages.stamp(2.0**31)
+    assert ros2_messages.stamp(2.0**31 - 0.5) == (2**31 - 1, 500_000_000)
     writer.write("/x", msg, 1.0)
     writer.close()
     writer.close()

@@ -192,3 +192,20 @@ def test_a_bag_that_cannot_be_written_on_says_what_it_keeps(tmp_path):
             for record in StreamReader(fh, validate_crcs=True).records:
                 messages += isinstance(record, Message)
     assert messages > 0
+
+
+def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_latency(tmp_path):
+    """ROS 2 counts a stamp's seconds in 32 bits: a recording whose clock is past 2038 was an
+    internal error (rosbags' "'i' format requires ..."), and the summary of a run whose first
+    frame's outputs failed said "latency p50 nan ms"."""
+    from conftest import SMALL_CFG, make_capture
+    from radarodom.cfg import RadarConfig
+
+    rec = tmp_path / "rec"
+    make_capture(rec, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=3e9)
+    proc = capture("--source", f"replay://{rec}?rate=max", "--mcap", tmp_path / "run.mcap")
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        "radar-capture: error: ROS 2 stamp: time 3000000000.0 s is beyond what ROS 2's time holds (its seconds "
+        "are a 32-bit integer: up to 2147483647 s, 2038-01-19)"], proc.stderr
+    assert "stopped by an error" in proc.stdout and "nan" not in proc.stdout, proc.stdout

@@ -126,8 +126,9 @@ def odometry_summary(stats: PipelineStats, odom_out: str | None) -> str:
         return ""
     p50, p99 = stats.latency.percentiles_ms(50, 99)
     text = (f"; odometry: x {st.x:.2f} m, y {st.y:.2f} m, yaw {format_yaw(st.yaw)}, "
-            f"estimator median {1e3 * float(np.median(stats.estimator_s)):.1f} ms/frame, "
-            f"latency p50 {p50:.1f} ms, p99 {p99:.1f} ms")
+            f"estimator median {1e3 * float(np.median(stats.estimator_s)):.1f} ms/frame")
+    if stats.latency.count:  # none when the first frame's outputs failed
+        text += f", latency p50 {p50:.1f} ms, p99 {p99:.1f} ms"
     if odom_out:
         text += f", trajectory in {odom_out}"
     return text
