@@ -34,7 +34,7 @@ from ..estimator.odometry import OdometryState, RadarOdometry
 from ..plain_numbers import is_number, is_whole_number
 from ..products import Products
 from .products import FrameProducts, check_features_fit
-from .sinks import CaptureSink, FrameResult, HeatmapSink, PointsCsvSink, Sink, TumSink
+from .sinks import CaptureSink, FrameResult, HeatmapSink, OdometryJsonSink, PointsCsvSink, Sink, TumSink
 from .stats import LatencyMeter, PipelineStats, RateMeter
 
 log = logging.getLogger(__name__)
@@ -314,4 +314,4 @@ def _checked_limits(max_frames, max_duration_s) -> tuple[int | None, float | Non
 
 
 __all__ = ["Pipeline", "source_estimator", "PipelineStats", "OdometryFeed", "FrameResult", "Sink", "CaptureSink", "TumSink",
-           "PointsCsvSink", "HeatmapSink", "FrameProducts", "RateMeter", "LatencyMeter"]
+           "OdometryJsonSink", "PointsCsvSink", "HeatmapSink", "FrameProducts", "RateMeter", "LatencyMeter"]

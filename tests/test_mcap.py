@@ -37,7 +37,8 @@ from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.mount import Mount  # noqa: E402
 from radarodom.pipeline import Pipeline  # noqa: E402
 from radarodom.pipeline.mcap_sink import McapSink  # noqa: E402
-from radarodom.pipeline.sinks import OdometryJsonSink, Sink  # noqa: E402
+from radarodom.pipeline import OdometryJsonSink  # noqa: E402  (the name library.md gives)
+from radarodom.pipeline.sinks import Sink  # noqa: E402
 from radarodom.ros2_bag import BagWriter  # noqa: E402
 from radarodom.tools.odometry_log import read_odometry_log  # noqa: E402
 
