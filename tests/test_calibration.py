@@ -309,7 +309,8 @@ def test_board_files_and_errors(tmp_path):
              ('range_bias_m = "x"\n', "range_bias_m", "finite number"),
              ('range_bias_m = 5.0\n', "range_bias_m", "within"),
              ('tx_gains = [0, 0, 0]\n', "tx_gains", "unknown key"),
-             ('tx_gain_db = [0, 40, 0]\n', "gain_db", "20 dB")]
+             ('tx_gain_db = [0, 40, 0]\n', "tx_gain_db", "20 dB"),
+             ('rx_gain_db = [0, 0, -25, 0]\n', "rx_gain_db", r"within \+/- 20 dB, got \[0.0, 0.0, -25.0, 0.0\]")]
     for text, field, words in cases:
         path.write_text(text)
         with pytest.raises(ConfigError, match=words) as info:

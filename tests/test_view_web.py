@@ -6,6 +6,7 @@ tool (a developer's, in ../shared/tools) is absent."""
 from __future__ import annotations
 
 import os
+import re
 import pathlib
 import shutil
 import signal
@@ -65,7 +66,8 @@ def test_the_web_viewer_is_served_and_renders_the_view(tmp_path, small_cfg):
     assert proc.returncode == 0, err
     assert f"radar-capture: view: the web viewer: open http://{socket.gethostname()}:{port}/?url=" in err
     assert "Warning" not in err, err  # the view's process started without runpy's RuntimeWarning
-    assert "; stopped; " in out and "; view: " in out and " frames drawn, " in out
+    # As many frames as the replay made in real time before the Ctrl-C: one on a busy machine.
+    assert "; stopped; " in out and re.search(r"; view: [1-9]\d* frames? drawn, ", out), out
     if not shot.exists():
         pytest.skip("Chromium (apt-get install chromium) or ../shared/tools/browser_shot.py is absent: "
                     "the page was served, not rendered")
