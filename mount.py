@@ -60,5 +60,6 @@ def parse_mount(text: str) -> Mount:
         raise UsageError(f"mount {text!r}: a radar more than 100 m from its base's origin is no mounting")
     if abs(yaw_deg) > 360.0:
         raise UsageError(f"mount {text!r}: a yaw of {beyond_text(yaw_deg, 360.0, -360.0)} degrees is more than a "
-                         f"whole turn: give it within -180..180 degrees ({math.remainder(yaw_deg, 360.0) + 0.0:g} here)")
+                         f"whole turn: give it within -360..360 degrees ({math.remainder(yaw_deg, 360.0) + 0.0:g} "
+                         "here, the same direction)")
     return Mount(x, y, z, math.radians(yaw_deg))

@@ -787,8 +787,10 @@ def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usag
     # A yaw beyond a whole turn was refused by the estimator's settings, naming odometry.mount_yaw_rad.
     proc = run_capture_cli("--mount", "0.3,0,0,400", "--wheeled")
     assert proc.returncode == 2 and proc.stderr == ("radar-capture: error: argument --mount: mount '0.3,0,0,400': a yaw "
-                                                    "of 400 degrees is more than a whole turn: give it within -180..180 "
-                                                    "degrees (40 here)\n"), proc.stderr
+                                                    "of 400 degrees is more than a whole turn: give it within -360..360 "
+                                                    "degrees (40 here, the same direction)\n"), proc.stderr
+    # (cli.md's +/-360, which 0,0,0,270 is within: the advice said -180..180)
+    assert run_capture_cli("--source", "sim://corridor?rate=max&duration=0.2", "--mount", "0,0,0,270").returncode == 0
     proc = run_capture_cli("--bogus")
     assert proc.returncode == 2 and proc.stderr.startswith("usage: radar-capture")
     assert proc.stderr.splitlines()[-1] == "radar-capture: error: unrecognized arguments: --bogus"
