@@ -125,7 +125,7 @@ def _main(args: argparse.Namespace) -> int:
         print(json_report(result))
         return 0
     out = [f"reflector at {result.measured_range_m:.3f} m ({result.distance_m:g} m true), "
-           f"SNR {result.snr_db:.1f} dB, {result.frames} frames; "
+           f"SNR {result.snr_db:.1f} dB, {result.frames} frame{'' if result.frames == 1 else 's'}; "
            f"residual phase after correction {result.residual_phase_deg:.2f} deg RMS",
            "channel response corrected (relative to TX1 RX1):"]
     out += ["  " + text for text in result.calibration.table()]
