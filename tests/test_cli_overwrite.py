@@ -56,6 +56,10 @@ def test_overwrite_refuses_a_directory_in_place_of_a_file(tmp_path, capsys):
     rc, err = capture(capsys, "--odom-out", folder, "--overwrite")
     assert rc == 2 and "is a directory" in err
     assert (folder / "keep").read_text() == "x"
+    # Without --overwrite it is not offered as the fix: it would be refused next.
+    rc, err = capture(capsys, "--odom-out", folder)
+    assert rc == 2 and err.endswith(f"error: {folder} is a directory; choose a file's name (--overwrite replaces "
+                                    "only a file)\n"), err
 
 
 def test_a_heatmap_directory_is_replaced_keeping_other_files(tmp_path, capsys):

@@ -30,10 +30,10 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
         raise CaptureExistsError(f"{path} is a file, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
     if not is_dir and os.path.lexists(path):
+        if os.path.isdir(path):  # --overwrite would not help: said before it is tried
+            raise CaptureExistsError(f"{path} is a directory; choose a file's name (--overwrite replaces only a file)")
         if not overwrite:
             raise CaptureExistsError(f"{path} already exists; choose a new file (or --overwrite)")
-        if os.path.isdir(path):
-            raise CaptureExistsError(f"{path} is a directory; --overwrite replaces only a file")
         if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
             raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
     if is_dir and os.path.isdir(path):  # an existing directory: written into, whatever is above it
