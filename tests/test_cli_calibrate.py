@@ -337,3 +337,14 @@ def test_a_distance_far_from_what_the_reflector_reads_is_said():
     assert "from the distance given (3.22 m): a board's range bias is a few centimetres" in proc.stderr
     proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--frames", 5)
     assert proc.returncode == 0 and "range bias is a few centimetres" not in proc.stderr
+
+
+def test_a_coloradar_run_without_its_adc_frames_asked_for_says_how_to_ask(tmp_path):
+    from coloradar_synth import write_run
+
+    run_dir = write_run(tmp_path)
+    proc = run("--source", f"coloradar://{run_dir}", "--distance", 3)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == (f"radar-calibrate: error: coloradar://{run_dir} gives no raw ADC frames: the measurement "
+                           "needs them; a ColoRadar run's single-chip ADC frames: "
+                           "coloradar://RUN?velocity=single_chip_adc&heatmap=single_chip_adc\n")

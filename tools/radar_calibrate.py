@@ -84,7 +84,9 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
 
     with open_source(args.source, cfg) as source:
         if not source.carries_raw or source.config is None:
-            raise UsageError(f"{args.source} gives no raw ADC frames: the measurement needs them")
+            hint = ("; a ColoRadar run's single-chip ADC frames: coloradar://RUN?velocity=single_chip_adc&"
+                    "heatmap=single_chip_adc" if args.source.startswith("coloradar:") else "")
+            raise UsageError(f"{args.source} gives no raw ADC frames: the measurement needs them{hint}")
         options = {} if args.max_azimuth is None else {"max_azimuth_deg": args.max_azimuth}
         calibrator = ChannelCalibrator(source.config, args.distance, args.search_window, coupling=source.coupling,
                                        **options)
