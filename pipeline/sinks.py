@@ -200,8 +200,10 @@ class PointsCsvSink(Sink):
         self._fh = _LineFile(self.path)
         try:
             self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
-        except CaptureError:
+        except CaptureError:  # an empty file left would block the same command's next run
             self._fh.close()
+            with contextlib.suppress(OSError):
+                os.remove(self.path)
             raise
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:

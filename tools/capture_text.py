@@ -98,9 +98,10 @@ def live_summary(live: dict, stats: PipelineStats) -> str:
             f"of {live['packets']} received; {live['duplicate_packets']} duplicate, {live['foreign_packets']} "
             f"foreign and {live['malformed_packets']} malformed packets ignored")
     headers = live.get("lost_bytes")
-    if headers is not None and headers != stats.lost_bytes + stats.unstreamed_lost_bytes:
+    counted = stats.lost_bytes + stats.unstreamed_lost_bytes
+    if headers is not None and headers != counted:
         text += (f"; of the bytes missing, the packet headers account for {headers} lost on the way, "
-                 f"not {stats.lost_bytes} (see docs/live.md)")
+                 f"not {counted} (see docs/live.md)")
     return text
 
 

@@ -15,8 +15,9 @@ from ..errors import CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageErr
 
 def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None,
                    kind: str = "capture") -> None:
-    """Refuse an output that exists (a file; a directory is checked by its writer) or cannot be
-    created (no parent directory): radarodom never overwrites what a user has.
+    """Refuse an output that exists (a file, or a directory holding what radarodom wrote of its
+    *kind*; the rest of a directory is checked by its writer) or cannot be created (no parent
+    directory): radarodom never overwrites what a user has.
 
     With *overwrite* (the programs' ``--overwrite``) an existing file is accepted, and
     :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
