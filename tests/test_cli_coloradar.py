@@ -71,6 +71,9 @@ def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_p
     for args, message in [
             (["--json", mine], f"{mine} already exists; choose a new file (or --overwrite)"),
             (["--json", stamps, "--overwrite"], f"--json {stamps} would write over the input RUN_DIR {run}"),
+            # a new file in one of the run's folders: not "over" anything (it said so), but into the dataset
+            (["--json", stamps.parent / "new.json"], f"--json {stamps.parent / 'new.json'} would write into the "
+             f"input RUN_DIR {run}'s own folders: choose another path (beside them is fine)"),
             (["--out", tmp_path / "o", "--json", tmp_path / "o" / "wicp.tum"],
              f"--out and --json both name {tmp_path / 'o' / 'wicp.tum'}: give each its own"),
             (["--json", tmp_path / "nodir" / "x.json"], f"cannot create {tmp_path / 'nodir' / 'x.json'}: no directory"),

@@ -96,9 +96,13 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
         seen[real] = what
         for source, given in inputs:
             src = os.path.realpath(given)
-            if real == src or (os.path.isdir(src) and (_recordings_own(src, real) or _calibrations_own(src, real))):
+            owns = os.path.isdir(src) and (_recordings_own(src, real) or _calibrations_own(src, real))
+            if real == src or owns and os.path.lexists(real):
                 raise UsageError(f"{what} {path} would write over the input {source} {given}: "
                                  "choose another path")
+            if owns:  # a new file, in one of the recording's or dataset's own folders: left as they came
+                raise UsageError(f"{what} {path} would write into the input {source} {given}'s own folders: "
+                                 "choose another path (beside them is fine)")
 
 
 def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None,
