@@ -126,6 +126,9 @@ class TidemoSource(Source):
         self._cond = threading.Condition()
         self._reader: _Reader | None = None
         self._counts = {"delivered": 0, "dropped": 0, "over_budget": 0}
+        #: describe() when the consumer left (None: it has not): what the reader takes in after,
+        #: until the source closes, is not its stream's (as a live DCA1000 source's).
+        self._when_left: dict | None = None
         self._last_packet = time.monotonic()
         self._closed = False
         try:
@@ -177,6 +180,13 @@ class TidemoSource(Source):
         self._reader.start()
         self.radar.start()
         self._last_packet = time.monotonic()
+        try:
+            yield from self._frames()
+        except GeneratorExit:  # the consumer left (a frame or duration limit)
+            self._when_left = self.describe()
+            raise
+
+    def _frames(self) -> Iterator[Frame]:
         while not self.stop_requested:
             frame = self._next(0.1)
             if frame is not None:
@@ -225,7 +235,10 @@ class TidemoSource(Source):
         never handed on: rejected or lost on the line, or dropped), ``slow_drops`` (whole frames
         the consumer was too slow for, by the policy), the framer's figures (``packets``,
         ``discarded_bytes``, ``rejected_packets`` and by reason), ``over_budget`` (packets with
-        more points than max_points), and the UART's load (packet time over the time it has)."""
+        more points than max_points), and the UART's load (packet time over the time it has); as
+        they were when the consumer left, if it did."""
+        if self._when_left is not None:
+            return dict(self._when_left)
         return {"url": self.url, "data_port": self.data_url, "cli": self.radar.url, "baud": self.baud,
                 "frames": self._counts["delivered"], "frames_skipped": self.frames.skipped + self._counts["dropped"],
                 "slow_drops": self._counts["dropped"], "over_budget": self._counts["over_budget"],
