@@ -580,7 +580,9 @@ def test_connect_to_a_listener_that_is_no_viewer_says_so_in_one_line_and_draws_n
     lines = proc.stderr.splitlines()
     assert "\x1b" not in proc.stderr and "ERROR" not in proc.stderr, proc.stderr
     head = f"radar-capture: warning: what answers at {url} is not a Rerun viewer: it broke the connection ("
-    assert lines[0].startswith(head), lines
+    # (seen once in a clean-clone CI run: the view's first line said a viewer; stdout's summary tells
+    # what came of the frames then)
+    assert lines[0].startswith(head), (lines, proc.stdout)
     # Rerun's own words in the brackets depend on when the listener's close reaches its client.
     assert lines[0][len(head):].startswith(("gRPC connection severed", "gRPC connection is open, but flush still "
                                             "failed")), lines
