@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import math
+import time
 
 import pytest
 
@@ -120,3 +121,18 @@ def test_a_status_line_on_a_terminal_is_cut_to_its_width(monkeypatch):
     assert status.columns is None
     status.update([Field("a" * 100), Field("b" * 100, priority=9)])
     assert log.getvalue() == "a" * 100 + "  " + "b" * 100 + "\n"  # a log gets the whole line
+
+
+def test_a_log_gets_its_first_line_one_period_after_the_first_frame_not_after_start():
+    """A view whose process started slowly on a busy machine made the first frame come more
+    than a period after start: the log got 'frames 1  rate 0.0 Hz' at once."""
+    log = io.StringIO()
+    status = StatusLine(log, log_period_s=0.2)
+    time.sleep(0.3)  # opening the source and the view
+    status.update("frames 1")
+    assert log.getvalue() == ""
+    time.sleep(0.25)
+    status.update("frames 2")
+    assert log.getvalue() == "frames 2\n"
+    status.update("frames 3", force=True)
+    assert log.getvalue() == "frames 2\nframes 3\n"

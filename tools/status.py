@@ -24,8 +24,9 @@ class StatusLine:
         self.enabled = enabled
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.period = tty_period_s if self.tty else log_period_s
-        # A log gets its first line one period in, when the rate means something.
-        self._last = float("-inf") if self.tty else time.monotonic()
+        # A log gets its first line one period after the first update (the first frame), when the
+        # rate means something: opening a source or a view may take longer than a period.
+        self._last: float | None = float("-inf") if self.tty else None
         self._shown = False
 
     @property
@@ -41,6 +42,8 @@ class StatusLine:
         if not self.enabled:
             return
         now = time.monotonic()
+        if self._last is None:
+            self._last = now
         if not force and now - self._last < self.period:
             return
         self._last = now
