@@ -126,3 +126,38 @@ def test_lost_frames_keep_their_timestamp_lines(tmp_path, cfg):
     empty = UartRecorder(tmp_path / "none", cfg)
     empty.close()
     assert not (tmp_path / "none").exists()  # a recording of nothing is removed
+
+
+@pytest.mark.parametrize("played, skipped, cut_short", [(2, 0, 0), (3, 1, 0), (4, 2, 1)])
+def test_a_run_stopped_early_tells_what_the_part_it_played_lost(tmp_path, cfg, played, skipped, cut_short):
+    """radar-capture --duration on a replay said the whole file's frame numbers skipped, packets
+    rejected and bytes discarded, however little of it was played."""
+    p = packets(cfg, range(3, 10))
+    garbage = len(p[1]) - 100
+    path = tmp_path / "uart.bin"
+    path.write_bytes(p[1][100:] + p[1] + p[2] + p[4] + p[5][:-50] + p[6] + p[0][:60])  # the last cut at the end
+    with open_source(f"replay://{path}?format=tidemo&rate=max", cfg) as source:
+        with Pipeline(source, sinks=[], max_frames=played) as pipe:
+            assert pipe.run().frames == played
+        about = source.describe()
+    assert about["frames"] == 4 and about["packets"] == played and about["frames_skipped"] == skipped
+    assert about["rejected_packets"] == about.get("rejected_cut_short", 0) == cut_short
+    assert about["discarded_bytes"] == garbage + (len(p[5]) - 50 if cut_short else 0)
+    assert about["packet_bytes"] == sum(len(q) for q in [p[1], p[2], p[4], p[6]][:played])
+
+
+def test_each_pass_of_a_looped_replay_counts_the_files_losses_and_a_cut_selection_its_own(tmp_path, cfg):
+    p = packets(cfg, range(3, 10))
+    path = tmp_path / "uart.bin"
+    path.write_bytes(p[1][100:] + p[1] + p[2] + p[4] + p[5][:-50] + p[6] + p[0][:60])
+    with open_source(f"replay://{path}?format=tidemo&rate=max&loop=2", cfg) as source:
+        assert len(list(source)) == 8
+        about = source.describe()
+    assert about["packets"] == 8 and about["frames_skipped"] == 4
+    assert about["rejected_cut_short"] == about["rejected_cut_at_end"] == 2 and about["rejected_packets"] == 4
+    assert about["discarded_bytes"] == 2 * (len(p[1]) - 100 + len(p[5]) - 50 + 60)
+    with open_source(f"replay://{path}?format=tidemo&rate=max&loop=2&frames=3", cfg) as source:
+        assert len(list(source)) == 6
+        about = source.describe()
+    assert about["packets"] == 6 and about["frames_skipped"] == 2 and about["rejected_packets"] == 0
+    assert about["discarded_bytes"] == 2 * (len(p[1]) - 100)

@@ -71,9 +71,12 @@ class TlvFramer:
     """Packets of a byte stream; see the module docstring.  *max_length*: the longest packet to
     wait for (a longer header is a false magic word)."""
 
-    def __init__(self, max_length: int = 1 << 24) -> None:
+    def __init__(self, max_length: int = 1 << 24, *, note_rejections: bool = False) -> None:
         self.max_length = int(max_length)
         self.stats = FramerStats()
+        #: (stream offset, reason) of each rejection, in stream order, when *note_rejections* (a
+        #: file's replay tells what the part it played lost; a live stream would grow it forever).
+        self.rejections: list[tuple[int, str]] | None = [] if note_rejections else None
         self._buf = bytearray()
         self._offset = 0  # stream offset of _buf[0]
         self._scanned = len(MAGIC)  # _buf[1:_scanned] holds no magic word's start (when _buf starts with one)
@@ -103,11 +106,16 @@ class TlvFramer:
         out = self._frame(quiet=True)
         if self._buf:
             if self._buf.startswith(MAGIC) and len(self._buf) >= len(MAGIC):
-                self.stats.rejected[CUT_AT_END] += 1
+                self._reject(CUT_AT_END)
             self._discard(len(self._buf))
         return out
 
     # ------------------------------------------------------------------ framing
+    def _reject(self, reason: str) -> None:
+        self.stats.rejected[reason] += 1
+        if self.rejections is not None:
+            self.rejections.append((self._offset, reason))
+
     def _discard(self, n: int) -> None:
         del self._buf[:n]
         self._offset += n
@@ -123,13 +131,13 @@ class TlvFramer:
                 return out
             header = np.frombuffer(bytes(self._buf[:HEADER_DTYPE.itemsize]), HEADER_DTYPE)[0]
             if header_problem(header, self.max_length) is not None:
-                self.stats.rejected[BAD_HEADER] += 1
+                self._reject(BAD_HEADER)
                 self._discard(1)
                 continue
             total = int(header["total_packet_len"])
             inner = self._buf.find(MAGIC, self._scanned - len(MAGIC) + 1, total)
             if inner > 0:  # the next packet starts inside this one: this one lost bytes
-                self.stats.rejected[CUT_SHORT] += 1
+                self._reject(CUT_SHORT)
                 self._discard(inner)
                 continue
             self._scanned = max(self._scanned, min(len(self._buf), total))
@@ -137,7 +145,7 @@ class TlvFramer:
                 return out
             packet = parse_packet(bytes(self._buf[:total]), self.max_length)
             if isinstance(packet, str):
-                self.stats.rejected[BAD_TLVS] += 1
+                self._reject(BAD_TLVS)
                 self._discard(1)
                 continue
             verdict = self._successor(total, quiet)
@@ -176,7 +184,7 @@ class TlvFramer:
         # A packet that lost bytes has its length made up by whatever followed it: the next
         # packet's first bytes, line noise.  Nothing inside tells (no checksum), so the bytes
         # after it must be the next packet's start.
-        self.stats.rejected[FOLLOWED_BY_STRAY_BYTES] += 1
+        self._reject(FOLLOWED_BY_STRAY_BYTES)
         self._discard(1)  # the next magic word may start inside this packet's last bytes
         return "stray"
 

@@ -20,6 +20,7 @@ Options: ``rate`` (1.0: real time; ``max``), ``loop`` (passes, 0: until stopped)
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import mmap
@@ -34,7 +35,7 @@ from ...cfg import RadarConfig
 from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError
 from ..recordings.capture_check import read_timestamps
 from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, parse_rate
-from .framer import TlvFramer
+from .framer import FramerStats, TlvFramer
 from .layout import DemoGeometry, gui_selection
 from .products import FrameIndexer, PacketFrames
 from .recording import FORMAT_NAME, FORMAT_VERSION, METADATA, RADAR_CFG, TIMESTAMPS, UART_DATA, UartRecorder
@@ -61,7 +62,8 @@ class TidemoReplaySource(Source):
         self.path, self.config, self.rate, self.loop = path, config, rate, loop
         self.geometry = DemoGeometry.from_config(config)
         layout = self.geometry.layout(gui_selection(config))
-        self.framer = TlvFramer(layout.packet_bytes(self.geometry.range_bins * self.geometry.doppler_bins))
+        self.framer = TlvFramer(layout.packet_bytes(self.geometry.range_bins * self.geometry.doppler_bins),
+                                note_rejections=True)
         try:
             self._file = open(path, "rb")
         except OSError as exc:
@@ -74,6 +76,7 @@ class TidemoReplaySource(Source):
             found += self.framer.feed(self._data[at:at + _CHUNK])
         found += self.framer.finish()
         self.packets = [(p.offset, len(p.data), indexer(p.frame_number)) for p in found]
+        self._whole_file = frames is None or frames >= len(self.packets)
         if frames is not None:
             self.packets = self.packets[:frames]
         if not self.packets:
@@ -88,7 +91,12 @@ class TidemoReplaySource(Source):
         else:
             self.stamps = np.arange(last + 1) * config.frame_period_s
         self.timestamps_path = timestamps
+        # What describe() tells of a part played, found once: it is asked for every status.
+        self._played_bytes = np.cumsum([length for _, length, _ in self.packets])
+        self._rejected_at = {reason: np.array([at for at, why in self.framer.rejections if why == reason])
+                             for reason in {why for _, why in self.framer.rejections}}
         self.frames_played = 0
+        self._passes_done, self._position = 0, -1  # the last packet played: its place in self.packets
 
     def __iter__(self) -> Iterator[Frame]:
         stamps = self.stamps
@@ -109,9 +117,12 @@ class TidemoReplaySource(Source):
                 frame.ready_monotonic = time.monotonic()
                 if self.stop_requested:
                     return
-                yield frame
+                # Counted as handed on: a consumer that stops (a frame limit) does not come back.
                 self.frames_played += 1
+                self._position += 1
+                yield frame
             passes += 1
+            self._passes_done, self._position = passes, -1
 
     def recorder(self, directory: str) -> UartRecorder:
         """A sink that records the packets played (:class:`.recording.UartRecorder`), as the live
@@ -119,9 +130,44 @@ class TidemoReplaySource(Source):
         return UartRecorder(directory, self.config, source=self.url)
 
     def describe(self) -> dict:
+        """The selection (``frames``: its packets) and what the part of the stream played so far
+        lost (a run a frame or duration limit ended played less than the file): ``frames_skipped``
+        (frame numbers missing between its packets) and the framer's counts (:class:`.FramerStats`:
+        ``packets`` played, bytes discarded, packets rejected by reason).  A whole pass counts the
+        whole file's losses, what follows the last packet included, unless ``frames`` cut it."""
+        whole = self._pass_losses()
+        part = self._losses_before(self._position) if self._position >= 0 else FramerStats()
+        lost = FramerStats(packets=self.frames_played, discarded_bytes=self._passes_done * whole.discarded_bytes
+                           + part.discarded_bytes,
+                           rejected=collections.Counter({reason: self._passes_done * n for reason, n
+                                                         in whole.rejected.items()}) + part.rejected)
+        lost.packet_bytes = self._passes_done * whole.packet_bytes + part.packet_bytes
+        skipped = self._passes_done * self._skipped_before(len(self.packets) - 1)
+        if self._position >= 0:
+            skipped += self._skipped_before(self._position)
         return {"url": self.url, "path": self.path, "frames": len(self.packets),
                 "rate": "max" if self.rate == math.inf else self.rate, "loop": self.loop,
-                "frames_skipped": self.packets[-1][2] + 1 - len(self.packets), **self.framer.stats.as_dict()}
+                "frames_skipped": skipped, **lost.as_dict()}
+
+    def _skipped_before(self, k: int) -> int:
+        """Frame numbers missing up to the selection's packet *k*."""
+        return self.packets[k][2] - k
+
+    def _losses_before(self, k: int) -> FramerStats:
+        """What the stream lost before the selection's packet *k* and the packets it played to
+        *k* included (every byte before a packet is in an earlier packet or was discarded)."""
+        at, length, _ = self.packets[k]
+        played = int(self._played_bytes[k])
+        rejected = collections.Counter({reason: n for reason, offsets in self._rejected_at.items()
+                                        if (n := int(np.searchsorted(offsets, at)))})
+        return FramerStats(packets=k + 1, packet_bytes=played, discarded_bytes=at + length - played,
+                           rejected=rejected)
+
+    def _pass_losses(self) -> FramerStats:
+        """What one whole pass over the selection lost."""
+        if self._whole_file:
+            return self.framer.stats
+        return self._losses_before(len(self.packets) - 1)
 
     def close(self) -> None:
         if isinstance(self._data, mmap.mmap):
