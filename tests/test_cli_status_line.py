@@ -136,3 +136,14 @@ def test_a_log_gets_its_first_line_one_period_after_the_first_frame_not_after_st
     assert log.getvalue() == "frames 2\n"
     status.update("frames 3", force=True)
     assert log.getvalue() == "frames 2\nframes 3\n"
+
+
+def test_the_summarys_rate_counts_from_the_first_frame_not_from_the_start():
+    """Frames over the run's whole time (opening the source included) said 5 Hz of a 20 Hz stream."""
+    stats = PipelineStats(started_monotonic=time.monotonic() - 10.0)  # a source that took 10 s to open
+    stats.count(0.0, 0, 0)
+    time.sleep(0.01)
+    stats.count(0.05, 0, 0)
+    span = stats.last_frame_monotonic - stats.first_frame_monotonic
+    assert stats.mean_rate_hz == 1 / span and stats.elapsed_s > 10.0 and stats.mean_rate_hz > 2 / stats.elapsed_s
+    assert stats.stream_duration_s == 0.05
