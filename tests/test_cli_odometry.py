@@ -35,6 +35,7 @@ assert SIM_URL == CORRIDOR_URL  # the run is conftest's corridor_run
 ODOM_PART = (r"; odometry: x (?P<x>-?\d+\.\d\d) m, y (?P<y>-?\d+\.\d\d) m, yaw (?P<yaw>-?\d+\.\d) deg, "
              r"estimator median (?P<ms>\d+\.\d) ms/frame, latency p50 (?P<p50>\d+\.\d) ms, "
              r"p99 (?P<p99>\d+\.\d) ms(?:, trajectory in (?P<path>.+?))?"
+             r"(?:; (?:point clouds|heatmaps|odometry messages) in .+?)?"
              r"(?:; published \d+ odometry, \d+ point cloud, \d+ heatmap and \d+ status messages under \S+)?$")
 
 

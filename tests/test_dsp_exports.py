@@ -77,6 +77,8 @@ def test_capture_with_exports_exits_zero(exported):
     assert "Traceback" not in proc.stderr
     assert f"radar-capture: {N_FRAMES} frames" in proc.stdout
     assert csv_path.is_file() and hm_dir.is_dir()
+    # The summary says where they are, as it does for a recording and a trajectory.
+    assert f"; point clouds in {csv_path}, heatmaps in {hm_dir}" in proc.stdout.splitlines()[-1], proc.stdout
 
 
 def test_points_csv_header_and_frames(exported):

@@ -58,6 +58,7 @@ def test_a_recording_converts_at_full_speed_with_the_mount_and_the_odometry_line
                    "--mount", "0.3,0,0.2,90")
     assert proc.returncode == 0, proc.stderr
     assert f"; ROS 2 bag {out}" in proc.stdout  # the summary names the bag it wrote
+    assert f"; odometry messages in {lines}; " in proc.stdout, proc.stdout
     frames = len((corridor / "timestamps.txt").read_text().split())
     got = topics(out)
     assert {k: len(v) for k, v in got.items() if k != "/diagnostics"} == {

@@ -80,7 +80,19 @@ def stream_summary(args: argparse.Namespace, source: Source, stats: PipelineStat
         text += (f"; {_counted(live['frames_skipped'], 'frame number')} skipped, "
                  f"{_counted(live['rejected_packets'], 'packet')} rejected, "
                  f"{_counted(live['discarded_bytes'], 'byte')} discarded")
-    return text
+    return text + files_text(args, stats)
+
+
+def files_text(args: argparse.Namespace, stats: PipelineStats) -> str:
+    """Where the point clouds, heatmaps and odometry messages were written (the recording, the
+    trajectory, the ROS 2 bag and the view say it in their own parts); nothing without a frame,
+    whose files are removed."""
+    named = [(what, path) for what, path in (("point clouds", getattr(args, "points_out", None)),
+                                             ("heatmaps", getattr(args, "heatmap_out", None)),
+                                             ("odometry messages", getattr(args, "odom_json", None))) if path]
+    if not named or not stats.frames:
+        return ""
+    return "; " + ", ".join(f"{what} in {path}" for what, path in named)
 
 
 def _counted(n: int, thing: str) -> str:
