@@ -161,7 +161,8 @@ def test_status_of_a_live_capture_carries_the_board_state(recording):
     assert source["frames_complete"] + source["frames_incomplete"] == 25, source
     assert last["source"]["url"].startswith("dca1000://") and last["source"]["fpga"]
     assert isinstance(last["source"]["async_status"], dict)  # the board's status counts
-    assert last["latency_ms"]["p99"] < 1000.0 and last["rate_hz"] > 0
+    latency = last["latency_ms"]  # its percentiles in order (their size is a machine's speed: bench/)
+    assert 0 < latency["p50"] <= latency["p90"] <= latency["p99"] <= latency["max"] and last["rate_hz"] > 0
     assert len(status) >= 2  # about once a second while running, and a last one
 
 
