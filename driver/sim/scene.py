@@ -16,8 +16,10 @@ with:
   back, for the point-like targets;
 - a sensor trajectory (see :mod:`.trajectory`).
 
-Scenes are written as TOML or JSON (the format is documented in
-``scenes/README.md`` beside this file, and the built-in scenes are examples).
+Scatterer sets, the sampling of surfaces into them and the walking person live in
+:mod:`.scatterers`; this module reads a scene's description and builds a :class:`Scene` of them.
+Scenes are written as TOML or JSON (the format is documented in ``scenes/README.md`` beside this
+file, and the built-in scenes are examples).
 Everything random (scatterer jitter, phases) comes from the seed, so a scene
 and a seed always give the same scatterers.
 """
@@ -28,9 +30,9 @@ import contextlib
 import math
 import os
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +40,7 @@ from ...errors import ConfigError, quoted_json
 from .scene_values import (MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE,
                            SCENE_KEYS, SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
                            cross_section, read_scene_file, vec, within)
+from .scatterers import Person, Scatterers, point_scatterers, sample_plane, sample_surface
 from .trajectory import MAX_SPEED_MPS, Trajectory, check_keys, from_spec, polyline
 
 if sys.version_info >= (3, 11):
@@ -47,131 +50,6 @@ else:  # pragma: no cover
 
 #: Built-in scene names (files ``scenes/<name>.toml`` in this package).
 BUILTIN_SCENES = ("corridor", "room", "lab", "calibration")
-
-
-@dataclass
-class Scatterers:
-    """Static point scatterers in the world frame."""
-
-    pos: np.ndarray  # (K, 3) m
-    rcs: np.ndarray  # (K,) m^2 at normal incidence
-    normal: np.ndarray  # (K, 3) unit surface normal, or zeros for isotropic
-    exponent: np.ndarray  # (K,) incidence exponent m
-    phase: np.ndarray  # (K,) rad, fixed
-    #: True for compact strong targets that also get multipath images.
-    pointlike: np.ndarray  # (K,) bool
-
-    @classmethod
-    def empty(cls) -> "Scatterers":
-        return cls(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)), np.zeros(0), np.zeros(0),
-                   np.zeros(0, bool))
-
-    @classmethod
-    def concat(cls, parts: Sequence["Scatterers"]) -> "Scatterers":
-        parts = [p for p in parts if len(p.rcs)] or [cls.empty()]
-        return cls(*(np.concatenate([getattr(p, f) for p in parts])
-                     for f in ("pos", "rcs", "normal", "exponent", "phase", "pointlike")))
-
-
-def _points(pos, rcs, rng, *, normal=None, exponent=0.0, pointlike=False) -> Scatterers:
-    pos = np.atleast_2d(np.asarray(pos, dtype=float))
-    k = len(pos)
-    rcs = np.broadcast_to(np.asarray(rcs, dtype=float), (k,)).copy()
-    normal = np.zeros((k, 3)) if normal is None else np.broadcast_to(normal, (k, 3)).astype(float)
-    return Scatterers(pos, rcs, normal, np.full(k, float(exponent)),
-                      rng.uniform(0, 2 * np.pi, k), np.full(k, pointlike))
-
-
-def sample_surface(a, b, z0: float, z1: float, sigma0: float, rng: np.random.Generator, *,
-                   spacing: float = 0.1, row_spacing: float = 0.35, exponent: float = 2.0,
-                   what: str = "a surface", room: int = MAX_SCATTERERS) -> Scatterers:
-    """Scatterers on the vertical rectangle above the floor segment a-b, z0..z1 (at most about
-    *room* of them, else ConfigError naming *what*)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    with np.errstate(over="ignore"):  # a length beyond 1e308 is inf, and refused by cells
-        length = float(np.hypot(*(b - a)))
-    if length < 1e-6 or z1 <= z0:
-        return Scatterers.empty()
-    n_along, n_rows = cells(length / spacing, (z1 - z0) / row_spacing,
-                            f"{what} {length:g} m long and {z1 - z0:g} m high", room)
-    s = (np.arange(n_along) + rng.uniform(0.1, 0.9, (n_rows, n_along))) / n_along
-    z = z0 + (np.arange(n_rows)[:, None] + rng.uniform(0.1, 0.9, (n_rows, n_along))) * (z1 - z0) / n_rows
-    xy = a + s.reshape(-1, 1) * (b - a)
-    pos = np.column_stack([xy, z.reshape(-1)])
-    d = (b - a) / length
-    normal = np.array([-d[1], d[0], 0.0])
-    area = (length / n_along) * ((z1 - z0) / n_rows)
-    return _points(pos, sigma0 * area, rng, normal=normal, exponent=exponent)
-
-
-def sample_plane(lo, hi, z: float, sigma0: float, rng: np.random.Generator, *, spacing: float = 0.35,
-                 exponent: float = 1.0, what: str = "a surface", room: int = MAX_SCATTERERS) -> Scatterers:
-    """Scatterers on the horizontal rectangle lo..hi (x, y) at height z (floor, ceiling; at most
-    about *room* of them, else ConfigError naming *what*)."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    with np.errstate(over="ignore"):  # a size beyond 1e308 is inf, and refused by cells
-        dx, dy = float(hi[0] - lo[0]), float(hi[1] - lo[1])
-    nx, ny = cells(dx / spacing, dy / spacing, f"{what} {dx:g} m x {dy:g} m", room)
-    gx = (np.arange(nx)[:, None] + rng.uniform(0.1, 0.9, (nx, ny))) * (hi[0] - lo[0]) / nx + lo[0]
-    gy = (np.arange(ny)[None, :] + rng.uniform(0.1, 0.9, (nx, ny))) * (hi[1] - lo[1]) / ny + lo[1]
-    pos = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)])
-    area = (hi[0] - lo[0]) / nx * (hi[1] - lo[1]) / ny
-    return _points(pos, sigma0 * area, rng, normal=np.array([0.0, 0.0, 1.0]), exponent=exponent)
-
-
-@dataclass
-class Person:
-    """A person walking back and forth along a polyline: a torso and four
-    swinging limbs, so the return carries micro-Doppler."""
-
-    path: np.ndarray  # (n, 2) waypoints, m
-    speed: float = 1.0  # m/s
-    rcs: float = 0.5  # m^2, whole body
-    phase0: float = 0.0
-    phases: np.ndarray = field(default_factory=lambda: np.zeros(9))
-
-    #: (forward, side, height, swing amplitude, share of the rcs) per body scatterer.
-    BODY = (
-        (0.00, 0.00, 1.40, 0.00, 0.15), (0.05, 0.12, 1.20, 0.00, 0.15), (0.05, -0.12, 1.20, 0.00, 0.15),
-        (0.05, 0.00, 1.00, 0.00, 0.15), (0.00, 0.00, 0.90, 0.00, 0.10),
-        (0.00, 0.22, 1.00, 0.25, 0.07), (0.00, -0.22, 1.00, -0.25, 0.07),  # arms
-        (0.00, 0.10, 0.45, -0.30, 0.08), (0.00, -0.10, 0.45, 0.30, 0.08),  # legs
-    )
-    STRIDE_HZ = 0.9
-
-    def _along(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        seg = np.diff(self.path, axis=0)
-        lens = np.hypot(seg[:, 0], seg[:, 1])
-        total = lens.sum()
-        # Ping-pong along the path at constant speed.
-        s = np.mod(self.speed * t, 2 * total)
-        back = s > total
-        s = np.where(back, 2 * total - s, s)
-        cum = np.concatenate([[0.0], np.cumsum(lens)])
-        i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(lens) - 1)
-        frac = (s - cum[i]) / lens[i]
-        xy = self.path[i] + frac[:, None] * seg[i]
-        heading = np.arctan2(seg[i, 1], seg[i, 0]) + np.where(back, np.pi, 0.0)
-        return xy, heading
-
-    def positions(self, t: np.ndarray) -> np.ndarray:
-        """Body scatterer positions at times *t*, world frame, (T, 9, 3)."""
-        t = np.asarray(t, float)
-        xy, heading = self._along(t)
-        body = np.array(self.BODY)
-        swing = np.sin(2 * np.pi * self.STRIDE_HZ * t + self.phase0)[:, None] * body[None, :, 3]
-        fwd = body[None, :, 0] + swing
-        side = body[None, :, 1]
-        c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
-        out = np.empty((len(t), len(body), 3))
-        out[..., 0] = xy[:, 0:1] + c * fwd - s * side
-        out[..., 1] = xy[:, 1:2] + s * fwd + c * side
-        out[..., 2] = body[None, :, 2]
-        return out
-
-    @property
-    def body_rcs(self) -> np.ndarray:
-        return self.rcs * np.array(self.BODY)[:, 4]
 
 
 @dataclass
@@ -207,7 +85,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     w = where  # the entry (objects[i], its type) is told by the caller
     check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
-        return _points(vec(need(obj, "position", w), 3, w, "position"), cross_section(obj, "rcs", 1.0, w),
+        return point_scatterers(vec(need(obj, "position", w), 3, w, "position"), cross_section(obj, "rcs", 1.0, w),
                        rng, pointlike=True)
     if kind == "corner_reflector":
         rcs_dbsm = num(obj, "rcs_dbsm", 15.0, w)
@@ -215,7 +93,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
             raise ConfigError(f"must be from {RCS_DBSM_RANGE[0]:g} to {RCS_DBSM_RANGE[1]:g} dBsm, got {rcs_dbsm:g}",
                               path=w, field="rcs_dbsm")
         rcs = 10 ** (rcs_dbsm / 10)
-        return _points(vec(need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
+        return point_scatterers(vec(need(obj, "position", w), 3, w, "position"), rcs, rng, pointlike=True)
     if kind == "box":
         c = vec(need(obj, "center", w), 2, w, "center")
         size = vec(need(obj, "size", w), 3, w, "size", place=False)
@@ -232,7 +110,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
                                 spacing=0.1, row_spacing=0.25, what="a box's face", room=room // 4)
                  for i in range(4)]
         # Corners and edges of furniture are the strong, compact returns.
-        edges = _points(np.column_stack([corners, np.full(4, z0 + size[2])]),
+        edges = point_scatterers(np.column_stack([corners, np.full(4, z0 + size[2])]),
                         cross_section(obj, "edge_rcs", 0.2, w), rng, pointlike=True)
         if flag(obj, "occludes", False, w):
             walls_out.extend((corners[i], corners[(i + 1) % 4]) for i in range(4))
@@ -251,7 +129,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
                                np.tile(c[1] + radius * np.sin(ang), rows), z.ravel()])
         normal = np.column_stack([np.tile(np.cos(ang), rows), np.tile(np.sin(ang), rows), np.zeros(rows * n)])
         area = 2 * math.pi * radius / n * height / rows
-        s = _points(pos, sigma0 * area, rng, exponent=2.0)
+        s = point_scatterers(pos, sigma0 * area, rng, exponent=2.0)
         s.normal = normal
         if flag(obj, "occludes", True, w):  # two crossed diameters hide what is behind
             walls_out.append((c - [radius, 0.0], c + [radius, 0.0]))
@@ -270,7 +148,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     frame_rcs = cross_section(obj, "frame_rcs", 0.3, w)
     zs = np.arange(0.15, height, 0.3)
     posts = np.vstack([np.column_stack([np.full(len(zs), p[0]), np.full(len(zs), p[1]), zs]) for p in (a, b)])
-    return Scatterers.concat([leaf, _points(posts, frame_rcs, rng, pointlike=True)])
+    return Scatterers.concat([leaf, point_scatterers(posts, frame_rcs, rng, pointlike=True)])
 
 
 @contextlib.contextmanager
