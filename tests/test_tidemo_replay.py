@@ -128,14 +128,21 @@ def test_lost_frames_keep_their_timestamp_lines(tmp_path, cfg):
     assert not (tmp_path / "none").exists()  # a recording of nothing is removed
 
 
+def lossy_file(tmp_path, cfg):
+    """The packets of frames 3-9 and a serial logger's file of them: a cut one's end first, then
+    frames 4, 5 and 7, 8 cut short, 9, and 3's start cut at the end (frame numbers 6 and 8 lost)."""
+    p = packets(cfg, range(3, 10))
+    path = tmp_path / "uart.bin"
+    path.write_bytes(p[1][100:] + p[1] + p[2] + p[4] + p[5][:-50] + p[6] + p[0][:60])
+    return p, path
+
+
 @pytest.mark.parametrize("played, skipped, cut_short", [(2, 0, 0), (3, 1, 0), (4, 2, 1)])
 def test_a_run_stopped_early_tells_what_the_part_it_played_lost(tmp_path, cfg, played, skipped, cut_short):
     """radar-capture --duration on a replay said the whole file's frame numbers skipped, packets
     rejected and bytes discarded, however little of it was played."""
-    p = packets(cfg, range(3, 10))
+    p, path = lossy_file(tmp_path, cfg)
     garbage = len(p[1]) - 100
-    path = tmp_path / "uart.bin"
-    path.write_bytes(p[1][100:] + p[1] + p[2] + p[4] + p[5][:-50] + p[6] + p[0][:60])  # the last cut at the end
     with open_source(f"replay://{path}?format=tidemo&rate=max", cfg) as source:
         with Pipeline(source, sinks=[], max_frames=played) as pipe:
             assert pipe.run().frames == played
@@ -147,9 +154,7 @@ def test_a_run_stopped_early_tells_what_the_part_it_played_lost(tmp_path, cfg, p
 
 
 def test_each_pass_of_a_looped_replay_counts_the_files_losses_and_a_cut_selection_its_own(tmp_path, cfg):
-    p = packets(cfg, range(3, 10))
-    path = tmp_path / "uart.bin"
-    path.write_bytes(p[1][100:] + p[1] + p[2] + p[4] + p[5][:-50] + p[6] + p[0][:60])
+    p, path = lossy_file(tmp_path, cfg)
     with open_source(f"replay://{path}?format=tidemo&rate=max&loop=2", cfg) as source:
         assert len(list(source)) == 8
         about = source.describe()

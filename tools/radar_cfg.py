@@ -187,14 +187,6 @@ def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    return cli.run(_main, build_parser(), argv)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
-
-
 def _antennas(cfg) -> str:
     """"3 TX, 4 RX, 12 virtual antennas"; a TX that fires twice a frame makes more channels than
     antennas: "2 TX in 3 chirps, 4 RX, 8 virtual antennas in 12 channels"."""
@@ -203,3 +195,12 @@ def _antennas(cfg) -> str:
         return f"{cfg.num_tx} TX, {cfg.num_rx} RX, {antennas} virtual antennas"
     return (f"{cfg.num_tx} TX in {cfg.num_tx_slots} chirps, {cfg.num_rx} RX, {antennas} virtual antennas in "
             f"{cfg.num_tx_slots * cfg.num_rx} channels")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli.run(_main, build_parser(), argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
+

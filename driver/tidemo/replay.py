@@ -137,12 +137,12 @@ class TidemoReplaySource(Source):
         whole file's losses, what follows the last packet included, unless ``frames`` cut it."""
         whole = self._pass_losses()
         part = self._losses_before(self._position) if self._position >= 0 else FramerStats()
-        lost = FramerStats(packets=self.frames_played, discarded_bytes=self._passes_done * whole.discarded_bytes
-                           + part.discarded_bytes,
-                           rejected=collections.Counter({reason: self._passes_done * n for reason, n
-                                                         in whole.rejected.items()}) + part.rejected)
-        lost.packet_bytes = self._passes_done * whole.packet_bytes + part.packet_bytes
-        skipped = self._passes_done * self._skipped_before(len(self.packets) - 1)
+        passes = self._passes_done
+        lost = FramerStats(packets=self.frames_played, packet_bytes=passes * whole.packet_bytes + part.packet_bytes,
+                           discarded_bytes=passes * whole.discarded_bytes + part.discarded_bytes,
+                           rejected=collections.Counter({reason: passes * n for reason, n in whole.rejected.items()})
+                           + part.rejected)
+        skipped = passes * self._skipped_before(len(self.packets) - 1)
         if self._position >= 0:
             skipped += self._skipped_before(self._position)
         return {"url": self.url, "path": self.path, "frames": len(self.packets),
