@@ -24,7 +24,6 @@ from typing import Any
 
 from . import __version__
 from .errors import CaptureError, CaptureExistsError, MessageError, UsageError, why_not_written
-from .ros2_messages import STAMP_LIMIT_S
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -114,8 +113,8 @@ class BagWriter:
     def write(self, topic: str, msg: Any, t: float) -> None:
         """Write *msg* on *topic* (declared) at *t* s (log and publish time)."""
         channel, msg_type = self._channels[topic]
-        if not 0.0 <= t < STAMP_LIMIT_S:  # a message's ROS 2 stamp
-            raise MessageError(f"MCAP {topic}: time {t} s is outside what a bag holds (0 to {STAMP_LIMIT_S - 1} s, "
+        if not 0.0 <= t < 2**31:  # a message's ROS 2 stamp: 32-bit seconds
+            raise MessageError(f"MCAP {topic}: time {t} s is outside what a bag holds (0 to {2**31 - 1} s, "
                                "2038-01-19: ROS 2's time counts its seconds in 32 bits)")
         try:
             data = bytes(self._store.serialize_cdr(msg, msg_type))

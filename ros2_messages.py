@@ -60,11 +60,6 @@ HEATMAP_FLOOR_DB = -300.0
 OK, WARN, ERROR = 0, 1, 2
 
 
-#: The first time (s) a ROS 2 stamp cannot hold: builtin_interfaces/Time counts its seconds in a
-#: signed 32-bit integer (2038-01-19).
-STAMP_LIMIT_S = 2**31
-
-
 def stamp(t: float) -> tuple[int, int]:
     """(sec, nanosec) of *t* seconds, nanosec in [0, 1e9)."""
     if not math.isfinite(t):
@@ -74,9 +69,9 @@ def stamp(t: float) -> tuple[int, int]:
     nanosec = round((t - sec) * 1e9)
     if nanosec == 1_000_000_000:
         sec, nanosec = sec + 1, 0
-    if not -STAMP_LIMIT_S <= sec < STAMP_LIMIT_S:
+    if not -2**31 <= sec < 2**31:
         raise MessageError(f"ROS 2 stamp: time {t} s is beyond what ROS 2's time holds (its seconds are a "
-                           f"32-bit integer: up to {STAMP_LIMIT_S - 1} s, 2038-01-19)")
+                           f"32-bit integer: up to {2**31 - 1} s, 2038-01-19)")
     return sec, nanosec
 
 
