@@ -313,8 +313,9 @@ SMOKE = {"scenes": ["corridor", "room", "lab"], "seeds": [0], "cfgs": ["shipped"
              "turn_rates": [45.0], "movers": ["scene"], "mounts": [0.0], "straight": 2.0}
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_cell_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options that select the cells (and --data, where their recordings are), as
+    :func:`selected_cells` reads them; bench/matrix_recordings.py takes them too."""
     parser.add_argument("--smoke", action="store_true", help="the small preset: " + ", ".join(f"{k}={v}" for k, v in SMOKE.items()))
     parser.add_argument("--design", choices=["star", "product"], default="star")
     parser.add_argument("--scenes", nargs="+", choices=sorted(LAYOUT), default=["corridor", "room", "lab"])
@@ -330,9 +331,23 @@ def main(argv=None) -> int:
     parser.add_argument("--straight", type=float, default=3.0, metavar="M", help="the loop's straights (at most)")
     parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
     parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")
+    parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
+
+
+def selected_cells(args) -> list[Cell]:
+    """The cells :func:`add_cell_arguments`' options select (--smoke's preset applied to *args*)."""
+    if args.smoke:
+        for k, v in SMOKE.items():
+            setattr(args, k, v)
+    todo = cells(args)
+    return [c for c in todo if isinstance(c, ColoradarCell)] if args.no_sim else todo
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_cell_arguments(parser)
     parser.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
     parser.add_argument("--cluster", metavar="ADDRESS", help="a Dask distributed scheduler, e.g. tcp://host:8786")
-    parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
     parser.add_argument("--out", default="robustness-out")
     parser.add_argument("--estimator-config", metavar="FILE.json",
                         help="estimator settings to run (EstimatorConfig.dump; default: the defaults)")
@@ -340,12 +355,7 @@ def main(argv=None) -> int:
                         help="keep each recording's ADC samples (default: only its DSP products; see drop_adc)")
     parser.add_argument("--list", action="store_true", help="print the cells and stop")
     args = parser.parse_args(argv)
-    if args.smoke:
-        for k, v in SMOKE.items():
-            setattr(args, k, v)
-    todo = cells(args)
-    if args.no_sim:
-        todo = [c for c in todo if isinstance(c, ColoradarCell)]
+    todo = selected_cells(args)
     if args.list:
         print("\n".join(c.name for c in todo))
         return 0
