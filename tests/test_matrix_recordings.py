@@ -1,0 +1,107 @@
+"""bench/matrix_recordings.py: the matrix's recordings kept across a change to the simulator's
+sources only once the cells it records anew are the same as before, byte for byte."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
+import matrix_recordings as mr  # noqa: E402
+import robustness_matrix as rm  # noqa: E402
+import sequences  # noqa: E402
+
+#: A short loop (turns at 90 deg/s, straights of 0.5 m): a few seconds to record.
+CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
+OTHER = dataclasses.replace(CELL, seed=1)
+OLD_FP = "0123456789abcdef"
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """CELL recorded by today's simulator, with its DSP products and without its ADC samples, as
+    the matrix keeps it."""
+    data = str(tmp_path_factory.mktemp("matrix"))
+    directory = rm.record(CELL, data)
+    sequences.load(directory)
+    rm.drop_adc(directory)
+    return directory
+
+
+def _as_earlier(recording: str, data: str, cell, monkeypatch) -> str:
+    """A copy of *recording* as *cell*'s under the key of an earlier simulator (OLD_FP)."""
+    with monkeypatch.context() as m:
+        m.setattr(rm, "sim_fingerprint", lambda: OLD_FP)
+        old = rm._sequence_dir(cell, data)
+    shutil.copytree(recording, old)
+    with open(old + ".scene.json", "w", encoding="utf-8") as fh:
+        json.dump(rm.scene_spec(cell), fh)
+    with open(os.path.join(old, "capture.json"), encoding="utf-8") as fh:
+        meta = json.load(fh)
+    meta["source"] = f"sim://{old}.scene.json?seed={cell.seed}&fidelity=fast"  # as radar-sim wrote it there
+    with open(os.path.join(old, "capture.json"), "w", encoding="utf-8") as fh:
+        json.dump(meta, fh)
+    return old
+
+
+def test_earlier_recordings_are_kept_once_a_cell_recorded_anew_is_the_same(tmp_path, recorded, monkeypatch):
+    data = str(tmp_path)
+    old_checked = _as_earlier(recorded, data, CELL, monkeypatch)
+    old_other = _as_earlier(recorded, data, OTHER, monkeypatch)
+    (tmp_path / old_other / "mark").write_text("kept as it was")
+    assert mr.earlier(CELL, data) == old_checked and mr.earlier(OTHER, data) == old_other
+    said = []
+    assert mr.keep_recordings([CELL, OTHER], data, workers=1, log=said.append) == 0
+    assert "1 cells recorded under today's key the same as before; 1 earlier recordings kept" in said[-1]
+    # seed 0 was recorded anew (its earlier copy dropped); seed 1's earlier recording moved, not made again
+    assert not os.path.exists(old_checked) and not os.path.exists(old_other)
+    assert not os.path.exists(old_checked + ".scene.json") and not os.path.exists(old_other + ".scene.json")
+    today = rm._sequence_dir(OTHER, data)
+    assert rm.record(OTHER, data) == today and (tmp_path / today / "mark").read_text() == "kept as it was"
+    with open(os.path.join(today, "capture.json"), encoding="utf-8") as fh:
+        source = json.load(fh)["source"]
+    assert source == f"sim://{today}.scene.json?seed=1&fidelity=fast"
+    assert os.path.exists(today + ".scene.json")
+    assert not os.path.exists(os.path.join(rm._sequence_dir(CELL, data), "adc_data.bin"))  # dropped as the matrix does
+    said.clear()
+    assert mr.keep_recordings([CELL, OTHER], data, workers=1, log=said.append) == 0
+    assert "nothing to keep" in said[-1]
+
+
+def test_a_difference_keeps_every_earlier_recording_out(tmp_path, recorded, monkeypatch):
+    data = str(tmp_path)
+    shutil.copytree(recorded, rm._sequence_dir(CELL, data))  # today's, already recorded: compared as it is
+    old_checked = _as_earlier(recorded, data, CELL, monkeypatch)
+    old_other = _as_earlier(recorded, data, OTHER, monkeypatch)
+    with open(os.path.join(old_checked, "groundtruth.tum"), "a", encoding="utf-8") as fh:
+        fh.write("# one more line\n")
+    argv = ["--scenes", "room", "--seeds", "0", "1", "--cfgs", "shipped", "--snr", "0", "--speeds", "0.8",
+            "--turn-rates", "90", "--movers", "scene", "--mounts", "0", "--straight", "0.5", "--data", data,
+            "--workers", "1"]
+    assert mr.main(argv + ["--dry-run"]) == 0 and os.path.exists(old_other)
+    said = []
+    assert mr.keep_recordings([CELL, OTHER], data, workers=1, log=said.append) == 1
+    assert said[-1].startswith(f"{CELL.name}: groundtruth.tum differs from its earlier recording")
+    assert os.path.exists(old_other) and not os.path.exists(rm._sequence_dir(OTHER, data))
+    # a scene file other than today's is another loop: not a recording of the cell
+    with open(old_other + ".scene.json", "w", encoding="utf-8") as fh:
+        json.dump({**rm.scene_spec(OTHER), "name": "elsewhere"}, fh)
+    assert mr.earlier(OTHER, data) is None
+
+
+def test_products_that_differ_are_named(tmp_path, recorded):
+    import numpy as np
+    other = tmp_path / "other"
+    shutil.copytree(recorded, other)
+    assert mr.difference(recorded, str(other)) is None
+    path = sequences.cache_path(str(other))
+    with np.load(path) as products:
+        arrays = {k: products[k] for k in products.files}
+    arrays["intensity"] = arrays["intensity"] * 1.0001
+    np.savez(path, **arrays)
+    assert mr.difference(recorded, str(other)) == "the DSP products' 'intensity' differ"
