@@ -41,12 +41,6 @@ from matrix_cells import CFGS, SimCell, scene_spec  # noqa: E402
 _FILES = ("groundtruth.tum", "timestamps.txt", "adc_data.bin")
 
 
-def _complete(directory: str) -> bool:
-    """Whether *directory* is a recording robustness_matrix.record would use as it is."""
-    return os.path.exists(os.path.join(directory, "capture.json")) and (
-        os.path.exists(os.path.join(directory, "adc_data.bin")) or os.path.exists(sequences.cache_path(directory)))
-
-
 def earlier(cell: SimCell, data: str) -> str | None:
     """A recording of *cell* under another key than today's, made from the scene file and cfg
     today's would be (None: there is none); the newest of several."""
@@ -55,7 +49,7 @@ def earlier(cell: SimCell, data: str) -> str | None:
         cfg = fh.read()
     found = []
     for directory in glob.glob(os.path.join(data, "seq", glob.escape(cell.name) + "-*")):
-        if directory == today or not os.path.isdir(directory) or not _complete(directory):
+        if directory == today or not os.path.isdir(directory) or not rm.recorded(directory):
             continue
         try:
             with open(directory + ".scene.json", encoding="utf-8") as fh:
@@ -128,7 +122,7 @@ def keep_recordings(todo: list, data: str, *, check_seeds: list[int] | None = No
     *check_seeds* (default the first simulated cell's seed) recorded anew, and any already recorded
     under today's key, are the same as their earlier ones; the exit status."""
     sims = [c for c in todo if isinstance(c, SimCell)]
-    pairs = [(c, old, _complete(rm._sequence_dir(c, data))) for c in sims if (old := earlier(c, data)) is not None]
+    pairs = [(c, old, rm.recorded(rm._sequence_dir(c, data))) for c in sims if (old := earlier(c, data)) is not None]
     seeds = set(check_seeds) if check_seeds is not None else {sims[0].seed} if sims else set()
     checks = [(c, old) for c, old, recorded in pairs if recorded or c.seed in seeds]
     rest = [(c, old) for c, old, recorded in pairs if not (recorded or c.seed in seeds)]

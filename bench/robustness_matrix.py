@@ -108,14 +108,18 @@ def _sequence_dir(cell: SimCell, data: str) -> str:
     return os.path.join(data, "seq", f"{cell.name}-{cell_key(cell, sim_fingerprint())}")
 
 
-def record(cell: SimCell, data: str) -> str:
-    """The cell's recording, made with radar-sim unless it is there: its ADC file, or without it
-    (dropped by :func:`drop_adc`) the DSP products of today's DSP."""
+def recorded(directory: str) -> bool:
+    """Whether *directory* holds a recording :func:`record` uses as it is: its ADC file, or without
+    it (dropped by :func:`drop_adc`) the DSP products of today's DSP."""
     import sequences
+    return os.path.exists(os.path.join(directory, "capture.json")) and (
+        os.path.exists(os.path.join(directory, "adc_data.bin")) or os.path.exists(sequences.cache_path(directory)))
+
+
+def record(cell: SimCell, data: str) -> str:
+    """The cell's recording, made with radar-sim unless it is there (:func:`recorded`)."""
     directory = _sequence_dir(cell, data)
-    if os.path.exists(os.path.join(directory, "capture.json")) and (
-            os.path.exists(os.path.join(directory, "adc_data.bin"))
-            or os.path.exists(sequences.cache_path(directory))):
+    if recorded(directory):
         return directory
     shutil.rmtree(directory, ignore_errors=True)
     os.makedirs(os.path.join(data, "seq"), exist_ok=True)
