@@ -86,7 +86,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     check_keys(obj, ("type", *OBJECT_KEYS[kind]), where, f"a {kind} object")
     if kind == "point":
         return point_scatterers(vec(need(obj, "position", w), 3, w, "position"), cross_section(obj, "rcs", 1.0, w),
-                       rng, pointlike=True)
+                                rng, pointlike=True)
     if kind == "corner_reflector":
         rcs_dbsm = num(obj, "rcs_dbsm", 15.0, w)
         if not RCS_DBSM_RANGE[0] <= rcs_dbsm <= RCS_DBSM_RANGE[1]:
@@ -111,7 +111,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
                  for i in range(4)]
         # Corners and edges of furniture are the strong, compact returns.
         edges = point_scatterers(np.column_stack([corners, np.full(4, z0 + size[2])]),
-                        cross_section(obj, "edge_rcs", 0.2, w), rng, pointlike=True)
+                                 cross_section(obj, "edge_rcs", 0.2, w), rng, pointlike=True)
         if flag(obj, "occludes", False, w):
             walls_out.extend((corners[i], corners[(i + 1) % 4]) for i in range(4))
         return Scatterers.concat(faces + [edges])
@@ -129,8 +129,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
                                np.tile(c[1] + radius * np.sin(ang), rows), z.ravel()])
         normal = np.column_stack([np.tile(np.cos(ang), rows), np.tile(np.sin(ang), rows), np.zeros(rows * n)])
         area = 2 * math.pi * radius / n * height / rows
-        s = point_scatterers(pos, sigma0 * area, rng, exponent=2.0)
-        s.normal = normal
+        s = point_scatterers(pos, sigma0 * area, rng, normal=normal, exponent=2.0)
         if flag(obj, "occludes", True, w):  # two crossed diameters hide what is behind
             walls_out.append((c - [radius, 0.0], c + [radius, 0.0]))
             walls_out.append((c - [0.0, radius], c + [0.0, radius]))
