@@ -33,7 +33,7 @@ class _Odometry(Protocol):
 
     def add_velocity(self, est) -> None: ...
 
-    def add_heatmap(self, t: float, heatmap): ...
+    def add_heatmap(self, t: float, heatmap, *, products=None): ...
 
 
 class HeadingBlend:
@@ -60,10 +60,11 @@ class HeadingBlend:
     def add_velocity(self, est) -> None:
         self.points.add_velocity(est)
 
-    def __call__(self, own, t: float, heatmap):
+    def __call__(self, own, t: float, heatmap, products=None):
         """The state to publish for the heatmap chain's *own* state at *t*, its heatmap given to
-        the points' estimator too."""
-        other = self.points.add_heatmap(t, heatmap)
+        the points' estimator too, with what the heatmap chain made of it (*products*,
+        estimator/current_frame.py): the same heatmap and velocity give both the same."""
+        other = self.points.add_heatmap(t, heatmap, products=products)
         if self._last is None:
             state = replace(own)
         else:

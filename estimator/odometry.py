@@ -43,7 +43,8 @@ from .point_yaw import point_yaw_part
 from .quality import Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import StepVelocity, VelocityTrack
-from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement
+from .current_frame import CurrentFrame, FrameProducts
+from .yaw_measurement import KeptFrame, YawMeasurement
 from .yaw_rate import yaw_rate_part
 
 # The flags by their former module-level names, which callers use.
@@ -199,8 +200,10 @@ class RadarOdometry:
         self.add_points(t, points)
         return self.add_heatmap(t, heatmap)
 
-    def add_heatmap(self, t: float, heatmap: PolarHeatmap) -> OdometryState:
-        """The odometry after the heatmap frame taken at *t* (s, after the previous frame's)."""
+    def add_heatmap(self, t: float, heatmap: PolarHeatmap, *, products: FrameProducts | None = None) -> OdometryState:
+        """The odometry after the heatmap frame taken at *t* (s, after the previous frame's).
+        *products*: what another estimator made of the same heatmap in the same call, to share
+        (:mod:`.current_frame`; the blend's points' estimator gets this one's)."""
         start = time.perf_counter()
         _check_time(t, "heatmap")
         _check_heatmap(heatmap)
@@ -217,7 +220,7 @@ class RadarOdometry:
             # Against the level fit's velocity a cell at the static points' mean elevation reads
             # level: the cells' Doppler is too coarse for their own (docs/heading.md, item 26).
             heatmap = self.doppler_elevation(heatmap, t, near.level_velocity if own else None, self._last_rate)
-        frame = CurrentFrame(t, heatmap, self.config)
+        frame = CurrentFrame(t, heatmap, self.config, products)
         dt = None if previous is None else t - previous.t
         current = self.yaw.keep(frame, own_velocity, turn_rad=0.0 if dt is None else self._last_rate * dt, dt=dt)
         index, self._frames = self._frames, self._frames + 1
@@ -231,7 +234,7 @@ class RadarOdometry:
         self._previous, self._state = current, state
         state.compute_s = time.perf_counter() - start + self._velocity_s
         self._velocity_s = 0.0
-        self._published = state if self.blend is None else self.blend(state, t, given)
+        self._published = state if self.blend is None else self.blend(state, t, given, frame.products)
         return self._published
 
     def _step(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, index: int) -> OdometryState:

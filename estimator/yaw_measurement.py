@@ -8,12 +8,13 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, replace
-from functools import cached_property, partial
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from .config import EstimatorConfig
+from .current_frame import CurrentFrame, features_key, settings_key, velocity_key
 from .features import Features, PolarHeatmap, azimuth_profile, extract, static_mask
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess, score_back)
@@ -21,27 +22,6 @@ from .log_heatmap import LogHeatmap
 from .movers import MoverTracks
 from .peak_shape import shape_weighted
 from .quality import Flag
-
-
-class CurrentFrame:
-    """The heatmap being processed and its log heatmap, made once when first needed (the scan
-    guess, the field and the keyframe share it).  Not kept: the heatmap is the caller's."""
-
-    def __init__(self, t: float, heatmap: PolarHeatmap, config: EstimatorConfig) -> None:
-        self.t = t
-        self.heatmap = heatmap
-        self._features_config = config.features
-        features = config.features
-        #: Where the frame can see, as a registration target.
-        self.region = Region(features.min_range_m, features.max_range_m or float(np.max(heatmap.range_m)),
-                             features.max_azimuth_rad)
-        #: Cells whose Doppler says they move (n_range, n_azimuth), to leave out of the log
-        #: heatmap; None: none left out.  Set before :attr:`log` is first made.
-        self.moving: np.ndarray | None = None
-
-    @cached_property
-    def log(self) -> LogHeatmap:
-        return LogHeatmap(self.heatmap, self._features_config, self.moving)
 
 
 @dataclass
@@ -137,10 +117,12 @@ class ScanGuess:
         #: The best forward scores of the last steps that held structure (``scan_score_fraction``).
         self._scores: deque[float] = deque(maxlen=SCORE_HISTORY_FRAMES)
         self._common = config.icp.scan_score_support == "common"
+        self._scan_key = settings_key(scan_features)
 
     def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
         """The frame's strongest cells (moving ones left out, given the *velocity*)."""
-        return extract(frame.heatmap, self._scan_features, velocity)
+        return frame.made(("features", self._scan_key, velocity_key(velocity)),
+                          lambda: extract(frame.heatmap, self._scan_features, velocity))
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                  predicted: float, record: bool = True, widen_rad: float = 0.0) -> float | None:
@@ -183,11 +165,15 @@ class FieldSearch:
         width = config.icp.field_shape_width
         self._weigh = _as_they_are if width is None else partial(shape_weighted, width=width,
                                                                   floor=config.icp.field_shape_floor)
+        self._scan_key = settings_key(scan_features)
+        self._weigh_key = (width, config.icp.field_shape_floor)
 
     def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
-        points = guide if self._views_are_scan_points else extract(frame.heatmap, self._scan_features)
-        return LikelihoodField(self._weigh(points, frame.heatmap),
-                               frame.log.smoothed(self._smoothing_bins, self._upsampling))
+        points = guide if self._views_are_scan_points else frame.made(
+            ("features", self._scan_key, None), lambda: extract(frame.heatmap, self._scan_features))
+        weighed = frame.made(("weighed", self._weigh_key) + features_key(points),
+                             lambda: self._weigh(points, frame.heatmap))
+        return LikelihoodField(weighed, frame.smoothed(self._smoothing_bins, self._upsampling))
 
     def refine(self, source: LikelihoodField | None, target: LikelihoodField | None, translation: np.ndarray,
                rotation: float, other: float | None = None, reach: float | None = None) -> float:
@@ -259,6 +245,7 @@ class YawMeasurement:
     def __init__(self, config: EstimatorConfig, profile_step_rad: float) -> None:
         icp = config.icp
         self._config = config
+        self._features_key = settings_key(config.features)
         scan_features = replace(config.features, method="topk", k=icp.scan_points, weighting="db",
                                 peaks_only=False, subbin=False)
         scan = icp.initial_guess == "scan"
@@ -292,10 +279,12 @@ class YawMeasurement:
         the time since the previous frame, for the movers followed across the view
         (``icp.track_movers``) and the near points left out in a moving turn
         (``icp.moving_turn_min_range_m``)."""
-        features = extract(frame.heatmap, self._config.features, velocity)
+        features = frame.made(("features", self._features_key, velocity_key(velocity)),
+                              lambda: extract(frame.heatmap, self._config.features, velocity))
         scan_velocity = None
         if self._moving_mps is not None and velocity is not None:
-            frame.moving = ~static_mask(frame.heatmap, velocity, self._moving_mps)
+            frame.set_moving(lambda: ~static_mask(frame.heatmap, velocity, self._moving_mps),
+                             (self._moving_mps, velocity_key(velocity)))
             scan_velocity = velocity
         if self._movers is not None:
             self._movers.update(frame.heatmap, frame.moving, scan_velocity, turn_rad, dt)
