@@ -381,14 +381,16 @@ class PointYaw:
         (m,) m add less than exp(-18) to its likelihood, and are left out (a long map's points are
         mostly far from any one point)."""
         reach = _REACH_SIGMAS * sigma
-        rho = np.hypot(xy[:, 0], xy[:, 1])[:, None]  # (n, 1)
+        rho = np.hypot(xy[:, 0], xy[:, 1])
         offset = centres - origin
         distance = np.hypot(offset[:, 0], offset[:, 1])  # (m,)
-        gap = wrap(np.arctan2(offset[:, 1], offset[:, 0]) - (yaw + np.arctan2(xy[:, 1], xy[:, 0]))[:, None])  # (n, m)
+        # The pairs within reach in range first (most of a long map's are not), then in bearing.
+        point, near = np.nonzero(np.abs(distance - rho[:, None]) <= reach)
+        gap = wrap(np.arctan2(offset[:, 1], offset[:, 0])[near] - (yaw + np.arctan2(xy[:, 1], xy[:, 0]))[point])
         # Points on a circle at angles apart are at least 2/pi of the smaller radius times the angle apart.
-        beyond = (np.abs(gap) - search_rad) * np.minimum(rho, distance) * (2.0 / math.pi)
-        near = (np.abs(distance - rho) <= reach) & (beyond <= reach)
-        return np.nonzero(near)
+        beyond = (np.abs(gap) - search_rad) * np.minimum(rho[point], distance[near]) * (2.0 / math.pi)
+        inside = beyond <= reach[near]
+        return point[inside], near[inside]
 
 
 def point_yaw_part(config: EstimatorConfig, heatmap: YawMeasurement,
