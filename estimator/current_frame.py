@@ -64,15 +64,15 @@ class FrameProducts:
 class CurrentFrame:
     """The heatmap being processed and its log heatmap, made once when first needed (the scan
     guess, the field and the keyframe share it).  Not kept: the heatmap is the caller's.
-    *products*: another chain's products of the same call (:class:`FrameProducts`), shared."""
+    *products*: the products of the call, shared with another chain (:class:`FrameProducts`);
+    None: a chain alone, which makes each once anyway."""
 
     def __init__(self, t: float, heatmap: PolarHeatmap, config: EstimatorConfig,
                  products: FrameProducts | None = None) -> None:
         self.t = t
         self.heatmap = heatmap
         self._features_config = config.features
-        self._features_key = settings_key(config.features)
-        self.products = FrameProducts() if products is None else products
+        self.products = products
         features = config.features
         #: Where the frame can see, as a registration target.
         self.region = Region(features.min_range_m, features.max_range_m or float(np.max(heatmap.range_m)),
@@ -80,10 +80,17 @@ class CurrentFrame:
         self._moving: np.ndarray | None = None
         self._moving_key: Hashable = None
 
-    def made(self, key: tuple, make: Callable[[], Any]) -> Any:
-        """The product of this frame's heatmap under *key* (what else it is made from), made by
-        *make* unless a chain made it already in this call."""
-        return self.products.get_for(self.heatmap, key, make)
+    def made(self, key: tuple | Callable[[], tuple], make: Callable[[], Any]) -> Any:
+        """The product of this frame's heatmap under *key* (what else it is made from; or a
+        function giving it, called only when there is a chain to share with), made by *make*
+        unless a chain made it already in this call."""
+        if self.products is None:
+            return make()
+        return self.products.get_for(self.heatmap, key() if callable(key) else key, make)
+
+    @cached_property
+    def _features_key(self) -> str:
+        return settings_key(self._features_config)
 
     @property
     def moving(self) -> np.ndarray | None:
@@ -98,10 +105,10 @@ class CurrentFrame:
 
     @cached_property
     def log(self) -> LogHeatmap:
-        return self.made(("log", self._features_key, self._moving_key),
+        return self.made(lambda: ("log", self._features_key, self._moving_key),
                          lambda: LogHeatmap(self.heatmap, self._features_config, self.moving))
 
     def smoothed(self, sigma_bins: float, upsampling: int) -> LogHeatmap:
         """:attr:`log` smoothed (:meth:`LogHeatmap.smoothed`): the likelihood field."""
-        return self.made(("smoothed", self._features_key, self._moving_key, sigma_bins, upsampling),
+        return self.made(lambda: ("smoothed", self._features_key, self._moving_key, sigma_bins, upsampling),
                          lambda: self.log.smoothed(sigma_bins, upsampling))

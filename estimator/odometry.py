@@ -220,6 +220,8 @@ class RadarOdometry:
             # Against the level fit's velocity a cell at the static points' mean elevation reads
             # level: the cells' Doppler is too coarse for their own (docs/heading.md, item 26).
             heatmap = self.doppler_elevation(heatmap, t, near.level_velocity if own else None, self._last_rate)
+        if products is None and self.blend is not None:
+            products = FrameProducts()  # for the points' estimator too
         frame = CurrentFrame(t, heatmap, self.config, products)
         dt = None if previous is None else t - previous.t
         current = self.yaw.keep(frame, own_velocity, turn_rad=0.0 if dt is None else self._last_rate * dt, dt=dt)

@@ -171,7 +171,7 @@ class FieldSearch:
     def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
         points = guide if self._views_are_scan_points else frame.made(
             ("features", self._scan_key, None), lambda: extract(frame.heatmap, self._scan_features))
-        weighed = frame.made(("weighed", self._weigh_key) + features_key(points),
+        weighed = frame.made(lambda: ("weighed", self._weigh_key) + features_key(points),
                              lambda: self._weigh(points, frame.heatmap))
         return LikelihoodField(weighed, frame.smoothed(self._smoothing_bins, self._upsampling))
 

@@ -78,7 +78,8 @@ def test_a_product_is_made_once_per_heatmap_and_inputs():
     assert b.made(("x", (1.0, 0.0)), lambda: make(2)) == 1  # the same heatmap and inputs: shared
     assert b.made(("x", (1.0, 0.5)), lambda: make(3)) == 3  # another velocity
     assert CurrentFrame(0.0, other, cfg, products).made(("x", (1.0, 0.0)), lambda: make(4)) == 4  # another heatmap
-    assert CurrentFrame(0.0, hm, cfg).made(("x", (1.0, 0.0)), lambda: make(5)) == 5  # its own products
+    alone = CurrentFrame(0.0, hm, cfg)  # a chain alone: nothing to share
+    assert alone.made(("x", (1.0, 0.0)), lambda: make(5)) == 5 and alone.products is None
     assert made == [1, 3, 4, 5]
     # The log heatmap and the field follow the moving cells they were made without.
     a.set_moving(lambda: np.zeros(hm.intensity.shape, bool), (0.3, (1.0, 0.0)))
