@@ -1,7 +1,7 @@
 """Stage-by-stage heading diagnosis against the ground truth (issue 20).
 
     python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
-                                      [--baselines 1 2 4 8] [--straights 6]
+                                      [--baselines 1 2 4 8] [--straights 6] [--trace 100 120]
                                       [--turned-translation 0 0.1 -0.1]
 
 For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
@@ -31,6 +31,10 @@ cancel in the bias): the estimate's heading error over it and the field search's
 motion between frames K apart along it, in degrees a metre (docs/heading.md, "Each straight
 apart": the field has the straights' error too, so it is the registration's, not the chain's).
 
+``--trace FIRST LAST`` prints the steps into frames FIRST to LAST one by one: the truth's speed
+and turn, the estimate's, its error and the error summed from FIRST, the field search's error
+given the true motion, and the estimator's flags: where in a run the heading went.
+
 ``--turned-translation DEG [DEG ...]`` gives, on straight drives, the field search of
 consecutive frames given the true translation turned by each DEG (positive: to the left): how
 much a straight's bias moves with the direction of the translation the registration is given,
@@ -45,6 +49,7 @@ place, the rest) and the estimate's translation make alone.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -98,15 +103,29 @@ def kind(translation: np.ndarray, dyaw: float, dt: float) -> str:
     return ("moving turn, left" if dyaw > 0 else "moving turn, right") if moving else "turn in place"
 
 
-def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray]:
-    """Per kind of step, per stage: lists of (estimated, true) increments; the kept frames; and
-    the estimated poses (n, 3)."""
+@dataclasses.dataclass
+class Step:
+    """One step into frame *frame* (*t* s after the first): the truth's speed (m/s) and turn
+    (rad), the estimate's turn and the field's given the true motion (None: no field)."""
+
+    frame: int
+    t: float
+    speed_mps: float
+    true_rad: float
+    estimate_rad: float
+    field_rad: float | None
+    flags: tuple[str, ...]
+
+
+def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray, list]:
+    """Per kind of step, per stage: lists of (estimated, true) increments; the kept frames; the
+    estimated poses (n, 3); and each step's (into frame i >= 1) :class:`Step`."""
     poses = truth(seq)
     odom = RadarOdometry(config)
     icp = config.icp
     common = icp.score_support == "common"
     out: dict[str, dict[str, list]] = {}
-    kept, previous = [], None
+    kept, previous, steps = [], None, []
     estimated = np.zeros((len(seq), 3))
     for i in range(len(seq)):
         state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
@@ -117,6 +136,7 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
             t, dyaw = step_motion(poses, i - 1, i)
             rows = out.setdefault(kind(t, dyaw, seq.times[i] - seq.times[i - 1]), {s: [] for s in STAGES})
             rows["estimate"].append((state.yaw_increment, dyaw))
+            field = None
             if previous.field is not None and current.field is not None:
                 for stage, move in (("field, true translation", t), ("field, no translation", np.zeros(2))):
                     r = field_rotation(previous.field.points, current.field.points, previous.field.smoothed,
@@ -124,8 +144,27 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
                                        common)
                     if r is not None:
                         rows[stage].append((-r, dyaw))
+                        field = -r if field is None else field
+            steps.append(Step(i, seq.times[i] - seq.times[0], float(np.hypot(*t)) / (seq.times[i] - seq.times[i - 1]),
+                              dyaw, state.yaw_increment, field, tuple(str(f) for f in state.flags)))
         previous = current
-    return out, kept, estimated
+    return out, kept, estimated, steps
+
+
+def trace(steps: list[Step], first: int, last: int) -> list[str]:
+    """The steps into frames *first* to *last*, one line each, degrees (see the module docstring)."""
+    lines = ["  frame      t  speed   true  estimate   error  summed   field  flags"]
+    summed = 0.0
+    for st in steps:
+        if not first <= st.frame <= last:
+            continue
+        error = math.degrees(float(_wrap(st.estimate_rad - st.true_rad)))
+        summed += error
+        field = "-" if st.field_rad is None else f"{math.degrees(float(_wrap(st.field_rad - st.true_rad))):+.2f}"
+        lines.append(f"  {st.frame:5d} {st.t:6.2f} {st.speed_mps:6.2f} {math.degrees(st.true_rad):+6.2f} "
+                     f"{math.degrees(st.estimate_rad):+9.2f} {error:+7.2f} {summed:+7.2f} {field:>7}  "
+                     f"{' '.join(st.flags)}")
+    return lines
 
 
 def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, steps: list[int]) -> list[str]:
@@ -252,14 +291,18 @@ def main(argv=None) -> int:
     parser.add_argument("--baselines", nargs="*", type=int, default=[], metavar="K")
     parser.add_argument("--straights", type=int, default=None, metavar="K",
                         help="each straight apart, the field's hops K frames long")
+    parser.add_argument("--trace", nargs=2, type=int, default=None, metavar=("FIRST", "LAST"),
+                        help="the steps into frames FIRST to LAST, one by one")
     parser.add_argument("--turned-translation", nargs="+", type=float, default=None, metavar="DEG",
                         help="straight drives: the field given the true translation turned by each DEG")
     args = parser.parse_args(argv)
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     for directory in args.sequences:
         seq = sequences.load(directory)
-        found, kept, estimated = diagnose(seq, config)
+        found, kept, estimated, steps = diagnose(seq, config)
         print("\n".join(report(seq.name, found)))
+        if args.trace:
+            print("\n".join(trace(steps, *args.trace)))
         if args.baselines:
             print("\n".join(baselines(seq, kept, config, args.baselines)))
         if args.straights:
