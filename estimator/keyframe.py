@@ -12,9 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import EstimatorConfig
+from .current_frame import CurrentFrame
 from .icp import FEW_MATCHES, OK, Registration, register_two_way, scan_guess
 from .motion import chord
-from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement
+from .yaw_measurement import KeptFrame, YawMeasurement
 
 
 @dataclass

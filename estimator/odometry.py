@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import TimeOrderError, UsageError
 from ..plain_numbers import is_number
 from .config import EstimatorConfig
+from .current_frame import CurrentFrame, FrameProducts
 from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
@@ -43,7 +44,6 @@ from .point_yaw import point_yaw_part
 from .quality import Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import StepVelocity, VelocityTrack
-from .current_frame import CurrentFrame, FrameProducts
 from .yaw_measurement import KeptFrame, YawMeasurement
 from .yaw_rate import yaw_rate_part
 

@@ -66,11 +66,12 @@ import numpy as np
 
 from .angles import wrap
 from .config import EstimatorConfig
+from .current_frame import CurrentFrame
 from .doppler_elevation import DopplerElevation
 from .point_map import LocalMap
 from .quality import Flag
 from .velocity import OK, ZERO, VelocityEstimate
-from .yaw_measurement import CurrentFrame, KeptFrame, YawMeasurement, YawStep
+from .yaw_measurement import KeptFrame, YawMeasurement, YawStep
 
 #: Map points further than this many of their largest standard deviation from where a point can
 #: lie are left out of its likelihood (see :meth:`PointYaw._pairs`).
