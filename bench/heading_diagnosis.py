@@ -144,7 +144,8 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
                                        common)
                     if r is not None:
                         rows[stage].append((-r, dyaw))
-                        field = -r if field is None else field
+                        if stage == "field, true translation":
+                            field = -r
             steps.append(Step(i, seq.times[i] - seq.times[0], float(np.hypot(*t)) / (seq.times[i] - seq.times[i - 1]),
                               dyaw, state.yaw_increment, field, tuple(str(f) for f in state.flags)))
         previous = current
