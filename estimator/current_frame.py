@@ -17,8 +17,8 @@ from typing import Any, Callable, Hashable
 
 import numpy as np
 
-from .config import EstimatorConfig
-from .features import Features, PolarHeatmap
+from .config import EstimatorConfig, FeatureConfig
+from .features import Features, PolarHeatmap, extract
 from .icp import Region
 from .log_heatmap import LogHeatmap
 
@@ -87,6 +87,11 @@ class CurrentFrame:
         if self.products is None:
             return make()
         return self.products.get_for(self.heatmap, key() if callable(key) else key, make)
+
+    def features(self, config: FeatureConfig, key: str, velocity: np.ndarray | None = None) -> Features:
+        """The heatmap's features by *config* (whose :func:`settings_key` is *key*, worked out once
+        by the caller), moving ones left out given the *velocity* (2,) m/s (:func:`.features.extract`)."""
+        return self.made(("features", key, velocity_key(velocity)), lambda: extract(self.heatmap, config, velocity))
 
     @cached_property
     def _features_key(self) -> str:

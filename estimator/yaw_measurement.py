@@ -15,7 +15,7 @@ import numpy as np
 
 from .config import EstimatorConfig
 from .current_frame import CurrentFrame, features_key, settings_key, velocity_key
-from .features import Features, PolarHeatmap, azimuth_profile, extract, static_mask
+from .features import Features, PolarHeatmap, azimuth_profile, static_mask
 from .icp import (FEW_MATCHES, NOT_CONVERGED, Region, Registration, correlation_guess, field_rotation,
                   register_two_way, scan_guess, score_back)
 from .log_heatmap import LogHeatmap
@@ -121,8 +121,7 @@ class ScanGuess:
 
     def view(self, frame: CurrentFrame, velocity: np.ndarray | None = None) -> Features:
         """The frame's strongest cells (moving ones left out, given the *velocity*)."""
-        return frame.made(("features", self._scan_key, velocity_key(velocity)),
-                          lambda: extract(frame.heatmap, self._scan_features, velocity))
+        return frame.features(self._scan_features, self._scan_key, velocity)
 
     def __call__(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, translation: np.ndarray,
                  predicted: float, record: bool = True, widen_rad: float = 0.0) -> float | None:
@@ -169,8 +168,7 @@ class FieldSearch:
         self._weigh_key = (width, config.icp.field_shape_floor)
 
     def field(self, frame: CurrentFrame, guide: Any) -> LikelihoodField:
-        points = guide if self._views_are_scan_points else frame.made(
-            ("features", self._scan_key, None), lambda: extract(frame.heatmap, self._scan_features))
+        points = guide if self._views_are_scan_points else frame.features(self._scan_features, self._scan_key)
         weighed = frame.made(lambda: ("weighed", self._weigh_key) + features_key(points),
                              lambda: self._weigh(points, frame.heatmap))
         return LikelihoodField(weighed, frame.smoothed(self._smoothing_bins, self._upsampling))
@@ -279,8 +277,7 @@ class YawMeasurement:
         the time since the previous frame, for the movers followed across the view
         (``icp.track_movers``) and the near points left out in a moving turn
         (``icp.moving_turn_min_range_m``)."""
-        features = frame.made(("features", self._features_key, velocity_key(velocity)),
-                              lambda: extract(frame.heatmap, self._config.features, velocity))
+        features = frame.features(self._config.features, self._features_key, velocity)
         scan_velocity = None
         if self._moving_mps is not None and velocity is not None:
             frame.set_moving(lambda: ~static_mask(frame.heatmap, velocity, self._moving_mps),
