@@ -98,8 +98,8 @@ def test_a_recording_is_replaced_only_when_radarodom_wrote_it(tmp_path, capsys):
     foreign.mkdir()
     (foreign / "adc_data.bin").write_bytes(b"\x01" * 64)
     rc, err = capture(capsys, "--record", foreign, "--no-odom", "--overwrite")
-    assert rc == 2 and "already holds a capture (adc_data.bin) not written by radarodom (no capture.json), " \
-        "which --overwrite leaves alone" in err
+    assert rc == 2 and "already holds adc_data.bin not written by radarodom (no capture.json of its own), " \
+        "which a recording would replace and --overwrite leaves alone" in err
     assert (foreign / "adc_data.bin").read_bytes() == b"\x01" * 64 and len(list(foreign.iterdir())) == 1
 
 
@@ -342,7 +342,7 @@ def test_overwrite_leaves_every_output_when_the_recording_directory_is_not_radar
     old = tmp_path / "old.tum"
     old.write_text("mine\n")
     rc, err = capture(capsys, "--record", foreign, "--odom-out", old, "--overwrite")
-    assert rc == 2 and "already holds a capture (adc_data.bin) not written by radarodom" in err
+    assert rc == 2 and "already holds adc_data.bin not written by radarodom" in err
     assert old.read_text() == "mine\n" and sorted(p.name for p in foreign.iterdir()) == ["adc_data.bin"]
 
 

@@ -54,11 +54,12 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
 def _own_output_in(directory: str, kind: str) -> str | None:
     """What of *kind* radarodom wrote that *directory* holds, which ``--overwrite`` replaces: a
     capture of a frame or more (with its capture.json) or heatmaps; None when it holds none."""
-    from ..driver.recordings.capture_writer import ADC_DATA, foreign_data, holds_frames
+    from ..driver.recordings.recording_dir import ADC_DATA, holds_frames, recorded_data
     from ..pipeline.sinks import HeatmapSink
 
-    if kind == "capture" and holds_frames(directory) and foreign_data(directory) is None:
-        return f"a capture ({ADC_DATA})"
+    if kind == "capture" and holds_frames(directory):
+        held = recorded_data(directory)
+        return f"a capture ({held})" if held == ADC_DATA else f"a recording ({held})"
     if kind == "heatmaps" and os.path.exists(os.path.join(directory, HeatmapSink.INDEX)):
         return "heatmaps"
     return None
@@ -179,9 +180,9 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
     kind, option), *kind* as :func:`replace_output` takes it; *what*: what an option writes, by
     option, for its messages ("cannot write the view to PATH").  A file may go into a directory
     output the run makes (its writer is opened after the directory's); a recording directory
-    holding data radarodom did not write is refused here, before ``--overwrite`` replaces the
-    other outputs (its writer would refuse it only then)."""
-    from ..driver.recordings.capture_writer import foreign_data
+    holding files of a recording's names that radarodom did not write is refused here, before
+    ``--overwrite`` replaces the other outputs (its writer would refuse it only then)."""
+    from ..driver.recordings.recording_dir import foreign_files, foreign_files_message
 
     made = {os.path.realpath(path) for path, kind, _ in outputs if kind != "file" and not os.path.exists(path)}
     for path, kind, option in outputs:
@@ -190,11 +191,10 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
             continue
         if kind == "file" and os.path.dirname(os.path.realpath(path)) in made:
             continue
-        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option), kind=kind)
-        theirs = overwrite and kind == "capture" and os.path.isdir(path) and foreign_data(path)
+        theirs = kind == "capture" and os.path.isdir(path) and foreign_files(path)
         if theirs:
-            raise CaptureExistsError(f"{path} already holds a capture ({theirs}) not written by radarodom "
-                                     "(no capture.json), which --overwrite leaves alone; choose a new directory")
+            raise CaptureExistsError(foreign_files_message(path, theirs))
+        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option), kind=kind)
 
 
 def _heatmaps_own(name: str) -> bool:

@@ -29,6 +29,8 @@ from ...plain_numbers import finite_float, plain_float
 log = logging.getLogger(__name__)
 
 FORMAT_NAME = "radarodom-capture"
+#: The format of a recording of the TI demo's UART stream (driver/tidemo/recording.py).
+TIDEMO_FORMAT_NAME = "radarodom-tidemo"
 FORMAT_VERSION = 1
 #: The files of a capture directory (:mod:`.capture_dir` describes each).
 RADAR_CFG = "radar.cfg"

@@ -5,8 +5,8 @@ Kept apart from the reader (:mod:`.capture_dir`, which re-exports every name def
 docstring is the format: the files, timestamps.txt, capture.json's schema, what the reader
 takes of a directory cut short) so that each module holds one side of the format.  Also
 here: :func:`write_json_atomically`, which the tidemo recorder, the pipeline's sinks and
-radar-eval use for their own JSON files, and :func:`remove_capture_files`, with which
-radar-capture clears a directory.
+radar-eval use for their own JSON files.  Which directories a recording may write into, and the
+clearing of one, are :mod:`.recording_dir`'s.
 
 Crash safety: the writer hands every frame to the kernel before the next one
 (one unbuffered write for the data, then its timestamp line), and replaces
@@ -29,12 +29,13 @@ from typing import Any, Sequence
 
 from ... import __version__, strict_json
 from ...cfg import RadarConfig
-from ...errors import (CaptureError, CaptureExistsError, CaptureFormatError, add_note, given_path,
+from ...errors import (CaptureError, CaptureFormatError, add_note, given_path,
                        why_not_written)
 from ...tum import format_tum_line
-from ..sources import REPLAY_FORMAT_FILES
 from . import capture_check
 from .capture_check import ADC_DATA, FORMAT_NAME, FORMAT_VERSION, GROUNDTRUTH, METADATA, RADAR_CFG, TIMESTAMPS
+from .recording_dir import (  # noqa: F401 (RECORDING_FILES, holds_frames re-exported: they were defined here)
+    RECORDING_FILES, claim_recording_directory, holds_frames, remove_capture_files)
 
 log = logging.getLogger(__name__)
 
@@ -113,51 +114,6 @@ def _put_new(tmp: str, path: str) -> None:
     os.remove(tmp)
 
 
-_CAPTURE_FILES = (ADC_DATA, TIMESTAMPS, GROUNDTRUTH, METADATA, METADATA + ".tmp", RADAR_CFG)
-#: The files a recording radarodom writes consists of, a replay format's stream file among them.
-RECORDING_FILES = (*_CAPTURE_FILES, *REPLAY_FORMAT_FILES.values())
-
-
-def holds_frames(directory: str) -> bool:
-    """Whether *directory* holds a capture of a frame or more, which a recording refuses to
-    write over (one of no frame, left by a run killed before it could clean up, it records over)."""
-    return os.path.exists(os.path.join(directory, ADC_DATA)) and not _holds_no_frame(directory)
-
-
-def _holds_no_frame(directory: str) -> bool:
-    """Whether the capture in *directory* recorded nothing: no frame data, no timestamp, no pose."""
-    for name in (ADC_DATA, TIMESTAMPS, GROUNDTRUTH):
-        try:
-            if os.path.getsize(os.path.join(directory, name)):
-                return False
-        except FileNotFoundError:
-            pass
-    return True
-
-
-def remove_capture_files(directory: str) -> None:
-    """Remove the files a capture consists of from *directory*, a replay format's stream file
-    among them (nothing else in it)."""
-    for name in RECORDING_FILES:
-        try:
-            os.remove(os.path.join(directory, name))
-        except FileNotFoundError:
-            pass
-
-
-def foreign_data(directory: str) -> str | None:
-    """The recorded data file in *directory* that radarodom did not write (a non-empty
-    ``adc_data.bin`` or replay stream with no ``capture.json`` beside it), which ``--overwrite``
-    leaves alone and a recording refuses; None when there is none."""
-    if os.path.exists(os.path.join(directory, METADATA)):
-        return None
-    for name in (ADC_DATA, *REPLAY_FORMAT_FILES.values()):
-        with contextlib.suppress(OSError):
-            if os.path.getsize(os.path.join(directory, name)):
-                return name
-    return None
-
-
 def _new_file(path: str) -> int:
     """A new file of the capture, opened for appending without buffering."""
     return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
@@ -175,7 +131,8 @@ class CaptureWriter:
     """Append frames to a new capture directory.
 
     Use as a context manager; :meth:`close` marks the capture as closed in
-    capture.json.  Refuses a directory that already holds a capture.
+    capture.json.  Refuses a directory that already holds a recording, or files of a
+    recording's names that radarodom did not write (:mod:`.recording_dir`), before writing anything.
     """
 
     def __init__(
@@ -206,15 +163,10 @@ class CaptureWriter:
         try:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
-            if os.path.exists(os.path.join(self.directory, ADC_DATA)):
-                theirs = "" if os.path.exists(os.path.join(self.directory, METADATA)) else \
-                    " not written by radarodom (no capture.json), which --overwrite leaves alone"
-                if not _holds_no_frame(self.directory):
-                    raise CaptureExistsError(f"{self.directory} already holds a capture ({ADC_DATA}){theirs}; "
-                                             f"choose a new directory")
-                # A run that recorded nothing and was killed before it could clean up.
-                log.info("%s holds a capture of no frame; recording over it", self.directory)
-                remove_capture_files(self.directory)
+            claim_recording_directory(self.directory)
+            # capture.json first: whatever a run killed from here on leaves is then known to be
+            # a recording's, which the next recording clears (one of no frame) or keeps.
+            self._write_metadata()
             config.write(os.path.join(self.directory, RADAR_CFG))
             # Unbuffered, each file's length counted: a frame whose writing fails is taken back
             # from all three, and nothing of it is left pending to be flushed at close.
@@ -222,7 +174,6 @@ class CaptureWriter:
             self._ts_fd = _new_file(os.path.join(self.directory, TIMESTAMPS))
             self._gt_fd: int | None = None
             self._ts_bytes = self._gt_bytes = 0
-            self._write_metadata()
         except OSError as exc:  # the directory, or a file in it (exc.filename): why, and the fix
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
             raise CaptureError(f"cannot create capture directory {self.directory}: "

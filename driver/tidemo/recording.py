@@ -30,8 +30,10 @@ from typing import Any
 
 from ... import __version__
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureExistsError, why_not_written
+from ...errors import CaptureError, why_not_written
+from ..recordings.capture_check import TIDEMO_FORMAT_NAME
 from ..recordings.capture_dir import write_json_atomically
+from ..recordings.recording_dir import claim_recording_directory
 
 log = logging.getLogger(__name__)
 
@@ -39,7 +41,7 @@ UART_DATA = "uart.bin"
 TIMESTAMPS = "timestamps.txt"
 METADATA = "capture.json"
 RADAR_CFG = "radar.cfg"
-FORMAT_NAME = "radarodom-tidemo"
+FORMAT_NAME = TIDEMO_FORMAT_NAME
 FORMAT_VERSION = 1
 
 
@@ -64,9 +66,8 @@ class UartRecorder:
         try:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
-            if os.path.exists(data) and os.path.getsize(data):
-                raise CaptureExistsError(f"{self.directory} already holds a recording ({UART_DATA}); choose a new "
-                                         "directory")
+            claim_recording_directory(self.directory)
+            self._save()  # first: the files written next are then known to be a recording's
             config.write(os.path.join(self.directory, RADAR_CFG))
             self._fd = os.open(data, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
             self._ts = open(os.path.join(self.directory, TIMESTAMPS), "w", buffering=1, encoding="ascii")
