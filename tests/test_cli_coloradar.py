@@ -54,6 +54,26 @@ def test_a_run_without_point_clouds_is_refused(tmp_path):
     assert "Traceback" not in proc.stderr and "pointclouds" in proc.stderr
 
 
+def test_a_run_without_its_ground_truth_times_or_folder_is_refused_by_name(tmp_path):
+    """The truth's timestamps missing is a run cut short (the file named); no ground truth at all
+    is what radar-coloradar needs and says so, with the command that runs without one."""
+    run = write_run(tmp_path, "aspen_run5", faults=())
+    times = run / "groundtruth" / "timestamps.txt"
+    times.unlink()
+    proc = subprocess.run(console_command("radar-coloradar") + [str(run), "-q"], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and proc.stderr.strip().splitlines() == [
+        f"radar-coloradar: error: {times}: no such file (the run is incomplete: its ground truth has no timestamps)"]
+    for path in (run / "groundtruth").iterdir():
+        path.unlink()
+    (run / "groundtruth").rmdir()
+    proc = subprocess.run(console_command("radar-coloradar") + [str(run), "-q"], capture_output=True, text=True,
+                          timeout=120)
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(err) == 1 and "the run has no ground truth (no groundtruth/ folder)" in err[0] \
+        and f"radar-capture --source coloradar://{run} estimates without one" in err[0], proc.stderr
+
+
 def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_path):
     """--json is a new file (or --overwrite), never one of the run's files nor one --out writes;
     --out is a directory; each refused with one line, exit 2, before the run is read."""

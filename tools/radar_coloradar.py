@@ -80,6 +80,11 @@ class RunData:
         # Through radar-capture's pipeline, so both give the same trajectory on the same frames.
         collected = _Collected()
         with source:
+            truth = source.groundtruth()
+            if truth is None:  # before the run's frames are read
+                raise UsageError(f"{run.run_dir}: the run has no ground truth (no groundtruth/ folder), which "
+                                 f"radar-coloradar measures the odometry against; radar-capture --source "
+                                 f"coloradar://{run.run_dir} estimates without one")
             Pipeline(source, sinks=[collected]).run()
             self.groundtruth = source.groundtruth()
         #: (frame, products) of every frame, in time order.

@@ -180,7 +180,8 @@ def _source_groundtruth(url: str) -> tuple[TumTrajectory, float]:
         raw = source.heatmaps_from_raw and source.config is not None
         chirps_middle_s = source.config.measured_at_s if raw else 0.0
     if truth is None:
-        raise UsageError(f"{url}: the source knows no ground truth")
+        raise UsageError(f"{url}: the source knows no ground truth (a recording's groundtruth.tum, a ColoRadar "
+                         f"run's groundtruth/ folder, a simulation's own); give the truth as GT.tum instead")
     if len(truth) == 0:
         raise UsageError(f"{url}: no frame falls inside the ground truth")
     return truth, chirps_middle_s

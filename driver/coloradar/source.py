@@ -36,7 +36,7 @@ from typing import Iterator
 import numpy as np
 
 from ...cfg import RadarConfig
-from ...errors import SourceError
+from ...errors import CaptureFormatError, SourceError
 from ...rawframe import RawLayout
 from ...tum import TumTrajectory
 from .files import STREAMS
@@ -160,6 +160,10 @@ class ColoRadarSource(Source):
         """The heatmap radar's poses at the event times inside the ground truth, and each
         event's row among them (-1: outside); None when the run has no ground truth."""
         if not self.run.has("groundtruth"):
+            times = self.run.timestamps_file("groundtruth")
+            if os.path.isdir(os.path.dirname(times)):  # a folder without its times: a run cut short
+                raise CaptureFormatError(f"{times}: no such file (the run is incomplete: its ground truth "
+                                         f"has no timestamps)")
             log.info("%s: no ground truth", self.run.run_dir)
             return None
         traj, kept = self.run.sensor_poses(self.sensor, np.array([e.t for e in self.events]))

@@ -57,7 +57,11 @@ class RunStreams:
 
     def has(self, stream: str) -> bool:
         """True when the run holds *stream* (its timestamps file is there)."""
-        return os.path.isfile(self._path(self._layout(stream).timestamps))
+        return os.path.isfile(self.timestamps_file(stream))
+
+    def timestamps_file(self, stream: str) -> str:
+        """The path of *stream*'s timestamps.txt (there or not)."""
+        return self._path(self._layout(stream).timestamps)
 
     def timestamps(self, stream: str) -> np.ndarray:
         """Times (n,) s of *stream*'s records, in file order; read once."""
