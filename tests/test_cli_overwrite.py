@@ -395,3 +395,43 @@ def test_a_ctrl_c_while_a_program_imports_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(importlib, "import_module", interrupted)
     assert launch.radar_capture(["--version"]) == 130
     assert capsys.readouterr().err == "radar-capture: interrupted\n"
+
+
+def test_a_ctrl_c_while_a_programs_options_are_parsed_is_one_line(monkeypatch, capsys):
+    # radar-echo and others build their parser before the program's handling is in place.
+    import argparse
+
+    from radarodom.tools import launch
+
+    def interrupted(self, *args, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", interrupted)
+    for name in ("radar_echo", "radar_cfg", "radar_capture"):
+        assert getattr(launch, name)(["--version"]) == 130
+        assert capsys.readouterr().err == f"{name.replace('_', '-')}: interrupted\n"
+
+
+def test_a_ctrl_c_python_wrapped_in_another_error_is_still_an_interruption(capsys):
+    # A Ctrl-C while a class is made (a lazy import's dataclass, in __set_name__) reaches the
+    # program as a RuntimeError: it is not an internal error.
+    import argparse
+
+    from radarodom.tools import cli
+
+    class Interrupting:
+        def __set_name__(self, owner, name):
+            raise KeyboardInterrupt
+
+    def work(args):
+        type("Made", (), {"field": Interrupting()})
+
+    parser = argparse.ArgumentParser(prog="radar-test")
+    assert cli.run(work, parser, []) == 130
+    assert capsys.readouterr().err == "radar-test: interrupted\n"
+
+    def bug(args):
+        raise RuntimeError("a real bug")
+
+    assert cli.run(bug, parser, []) == 1
+    assert "radar-test: internal error: RuntimeError: a real bug" in capsys.readouterr().err

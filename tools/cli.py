@@ -209,13 +209,29 @@ def run(
         return 130
     except BrokenPipeError:
         return 1
-    except Exception as exc:  # a bug: say so in one line, details on request
+    except Exception as exc:
+        if _interrupted(exc):  # a Ctrl-C that Python wrapped (raised in a class being made)
+            print(f"{prog}: interrupted", file=sys.stderr)
+            return 130
+        # A bug: say so in one line, details on request.
         print(f"{prog}: internal error: {type(exc).__name__}: {exc}"
               + ("" if verbose else " (run with --verbose for the traceback)"), file=sys.stderr)
         _print_notes(prog, exc)
         if verbose:
             traceback.print_exc()
         return 1
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether *exc* was caused by a Ctrl-C: Python wraps one raised while a class is made (a lazy
+    import's, in ``__set_name__``) in a RuntimeError."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _option_error(parser: argparse.ArgumentParser) -> Callable[[str], None]:

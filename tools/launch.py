@@ -1,8 +1,9 @@
 """The programs' entry points: each imports its module, then runs its ``main``.
 
 Importing a program's module takes a few tenths of a second (numpy, scipy, the estimator); a
-Ctrl-C in that time would end in Python's traceback, before the program's own handling is in
-place.  Here it is the one line every program prints for it, with status 130.
+Ctrl-C in that time, or while its options are parsed, would end in Python's traceback, before
+the program's own handling is in place.  Here it is the one line every program prints for it,
+with status 130.
 """
 
 from __future__ import annotations
@@ -13,12 +14,13 @@ from typing import Callable, Sequence
 
 
 def _launch(module: str, argv: Sequence[str] | None) -> int:
+    # The program's own handling covers its work; a Ctrl-C while its module is imported or its
+    # options are parsed (before that handling is in place) comes here.
     try:
-        main = importlib.import_module(f"radarodom.tools.{module}").main
+        return importlib.import_module(f"radarodom.tools.{module}").main(argv)
     except KeyboardInterrupt:
         print(f"{module.replace('_', '-')}: interrupted", file=sys.stderr)
         return 130
-    return main(argv)
 
 
 def _entry(module: str) -> Callable[[Sequence[str] | None], int]:
