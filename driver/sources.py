@@ -35,6 +35,9 @@ log = logging.getLogger(__name__)
 
 #: scheme -> "module:function" of the backend's opener.  Openers take
 #: (path, options: UrlOptions, config: RadarConfig | None) and return a Source.
+#: The schemes of a radar read live, which an emulated board cannot stream from.
+LIVE_SCHEMES = ("dca1000", "tidemo")
+
 SCHEMES: dict[str, str] = {
     "replay": "radarodom.driver.recordings.replay:open_replay",
     "sim": "radarodom.driver.sim.source:open_sim",
@@ -333,6 +336,9 @@ class UrlOptions:
 
     def finish(self) -> None:
         """Raise if the URL had options no backend took."""
+        if "" in self._values:  # "?=3": a value with no name to put it to
+            raise SourceError(f"{self.url}: an option without a name ({'=' + self._values['']!r}); give "
+                              f"NAME=VALUE, one of {', '.join(self._supported) or 'none'}")
         if self._values:
             names = ", ".join(sorted(self._values))
             raise SourceError(f"{self.url}: unknown option(s) {names}; supported: "
@@ -369,10 +375,11 @@ def _replay_opener(path: str, options: UrlOptions, default: str | Callable[..., 
     return default if kind == "capture" else REPLAY_FORMATS[kind]
 
 
-def open_source(url: str, config: RadarConfig | None = None) -> Source:
+def open_source(url: str, config: RadarConfig | None = None, *, shown_url: str | None = None) -> Source:
     """Open the frame source *url* names.  *config* overrides the radar
     configuration the source would otherwise use (required where the source
-    carries none)."""
+    carries none).  *shown_url*: the URL the user gave, named in messages about its
+    options where *url* is it with options added (an emulated board's)."""
     if not isinstance(url, str):
         raise SourceError(f"a source URL is a str (scheme://...), got {type(url).__name__}")
     if config is not None and not isinstance(config, RadarConfig):
@@ -382,7 +389,7 @@ def open_source(url: str, config: RadarConfig | None = None) -> Source:
     if scheme not in SCHEMES:
         raise SourceError(f"unknown source scheme {scheme!r} in {url!r}; supported: "
                           f"{', '.join(s + '://' for s in sorted(SCHEMES))}")
-    options = UrlOptions(url, query)
+    options = UrlOptions(shown_url or url, query)
     opener = SCHEMES[scheme]
     if scheme == "replay":
         opener = _replay_opener(path, options, opener)

@@ -140,3 +140,18 @@ def test_a_byte_that_is_no_utf8_in_timestamps_is_named(tmp_path, small_cfg):
     d = _with_timestamps(tmp_path, small_cfg, lines[0] + b"1000.\xff1\n" + b"".join(lines[2:]))
     with pytest.raises(CaptureFormatError, match=r"timestamps.txt:2: column 6: byte 0xFF, which is not UTF-8 text"):
         CaptureDirectory(d)
+
+
+def test_a_capture_directorys_frame_data_given_alone_names_the_directory_to_give(tmp_path, small_cfg):
+    from radarodom.driver.sources import open_source
+    from radarodom.errors import ConfigError
+
+    make_capture(tmp_path / "rec", small_cfg, 2)
+    with pytest.raises(ConfigError, match=r"the frame data of the capture directory .*rec: give the directory "
+                                          r"\(replay://.*rec\)"):
+        open_source(f"replay://{tmp_path / 'rec' / 'adc_data.bin'}?rate=max")
+    # TI's own adc_data.bin (no capture.json beside it) still needs its cfg.
+    (tmp_path / "ti").mkdir()
+    (tmp_path / "ti" / "adc_data.bin").write_bytes(bytes(small_cfg.frame_bytes))
+    with pytest.raises(ConfigError, match="a recording without its radar.cfg: give the radar configuration"):
+        open_source(f"replay://{tmp_path / 'ti' / 'adc_data.bin'}")

@@ -701,6 +701,8 @@ def test_a_bad_source_is_the_one_error_before_any_zenoh_session_opens(held_port,
     # A bad scene, URL option or cfg is found first, and is all that is printed.
     for argv, what in ((["--source", "sim://nosuchscene"], "nosuchscene"),
                        (["--source", "sim://corridor?nosuch=1"], "unknown option(s) nosuch"),
+                       (["--source", "sim://corridor?=3"], "sim://corridor?=3: an option without a name ('=3'); "
+                                                           "give NAME=VALUE, one of seed="),
                        (["--source", "replay:///no/such/dir"], "no such file or directory"),
                        (["--source", "sim://corridor", "--cfg", "/no/such.cfg"], "/no/such.cfg")):
         rc = radar_capture.main([*argv, *listen])

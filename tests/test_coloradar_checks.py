@@ -139,6 +139,10 @@ def test_a_missing_run_or_calibration_is_a_usage_error_everywhere(tmp_path, caps
     assert _error_line(capsys, "radar-capture") == f"{absent}: no such run directory"
     assert radar_coloradar.main([str(absent)]) == 2
     assert _error_line(capsys, "radar-coloradar") == f"{absent}: no such run directory"
+    a_file = tmp_path / "est.tum"
+    a_file.write_text("0 0 0 0 0 0 0 1\n")
+    assert radar_coloradar.main([str(a_file)]) == 2
+    assert _error_line(capsys, "radar-coloradar") == f"{a_file}: a file, not a ColoRadar run directory"
     run = write_run(tmp_path, frames=3)
     assert radar_coloradar.main([str(run), "--calib", str(tmp_path / "nowhere")]) == 2
     assert _error_line(capsys, "radar-coloradar") == f"{tmp_path / 'nowhere'}: no such calibration directory"

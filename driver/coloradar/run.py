@@ -112,6 +112,8 @@ def _directory(path, what: str) -> str:
     if "\0" in text:
         raise UsageError(f"{what} {text[:200]!r}: a path cannot hold a NUL byte")
     full = os.path.abspath(text)
+    if os.path.exists(full) and not os.path.isdir(full):
+        raise UsageError(f"{full}: a file, not a ColoRadar {what}")
     if not os.path.isdir(full):
         raise UsageError(f"{full}: no such {what}")
     return full

@@ -215,7 +215,7 @@ class FakeDca1000(CommandPort, DataStreamer, BoardInspection):
         source's configuration, and the source is closed with the board."""
         from ..sources import open_source
 
-        source = open_source(_url_with_rate_max(url), config)
+        source = open_source(_url_with_rate_max(url), config, shown_url=url)
         try:
             kw.setdefault("frame_period_s", source.config.frame_period_s)
             board = cls(frames=lambda: (f.raw for f in source), **kw)
@@ -300,7 +300,7 @@ class FakeDca1000(CommandPort, DataStreamer, BoardInspection):
         if url is not None and url.startswith("sim:"):
             from ..sources import open_source
 
-            source = open_source(_url_with_rate_max(url), config)
+            source = open_source(_url_with_rate_max(url), config, shown_url=url)
             self._replace_source(lambda: (f.raw for f in source), config, source)
             log.info("fake DCA1000: the simulator now makes the radar's frames (TX order %s, %d bytes)",
                      " ".join(f"TX{t}" for t in config.tx_order), config.frame_bytes)

@@ -219,7 +219,8 @@ class FakeDemoDataPort:
             return None, iter(self.frames(config))
         from ..sources import open_source
 
-        source = open_source(emulated_source_url(self.frames, defaults={"rate": "max", "loop": "0"}), config)
+        source = open_source(emulated_source_url(self.frames, defaults={"rate": "max", "loop": "0"}), config,
+                             shown_url=self.frames)
         return source, (f.raw for f in source)
 
     def _sleep_until(self, due: float, generation: int) -> bool:

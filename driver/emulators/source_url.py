@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from ...errors import UsageError
+from ..sources import LIVE_SCHEMES
+
 
 def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
                         defaults: dict[str, str] | None = None) -> str:
@@ -9,7 +12,12 @@ def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
     nothing (the URL's own options kept as written); a simulator's ``fidelity`` is ``fast``
     unless it says: the board streams in real time, which ``fast`` keeps up with on two cores,
     and opens its source with ``rate=max`` (the board paces), at which the simulator would
-    otherwise take its slow ``exact`` fidelity."""
+    otherwise take its slow ``exact`` fidelity.  A live radar's URL is refused (UsageError).  Open it
+    with ``open_source(..., shown_url=url)``: its messages then name the URL the user gave."""
+    scheme = url.partition("://")[0]
+    if scheme in LIVE_SCHEMES:
+        raise UsageError(f"{url}: a live radar ({scheme}://) cannot be emulated; give a recording (--capture "
+                         f"DIR) or a sim://, replay:// or coloradar:// source")
     replaced, defaults = dict(replaced or {}), dict(defaults or {})
     if url.startswith("sim:"):
         defaults.setdefault("fidelity", "fast")

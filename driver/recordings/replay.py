@@ -173,6 +173,11 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
                 what = NO_RECORDING
             elif os.path.isfile(path) and not path.endswith(".bin"):
                 what = f"not a recording (a capture directory, or TI's {ADC_DATA} or *_Raw_<n>.bin files)"
+            elif os.path.isfile(path) and os.path.basename(path) == ADC_DATA and \
+                    os.path.exists(os.path.join(os.path.dirname(path), METADATA)):
+                # A capture directory's frame data given alone: the directory holds its cfg and times.
+                what = (f"the frame data of the capture directory {os.path.dirname(path) or '.'}: give the "
+                        f"directory (replay://{os.path.dirname(path) or '.'})")
             else:
                 what = (f"a recording without its {RADAR_CFG}: give the radar configuration with --cfg "
                         "(open_source(url, config) in Python)")
