@@ -76,6 +76,7 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
 
     def __init__(self, lines: Sequence[CfgLine], path: str | os.PathLike | None = None) -> None:
         self.path = _path_text(path)
+        self._refuse_no_cfg(lines)
         self._warnings = WarningSummary(log, self.path)
         typed = []
         try:
@@ -104,6 +105,20 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
         that is no file or no path at all included, is a :class:`ConfigError`."""
         where, text = read_cfg_file(path)
         return cls.from_text(text, where)
+
+    def _refuse_no_cfg(self, lines: Sequence[CfgLine]) -> None:
+        """A file with no command, or none a TI cfg has (another file given by mistake), is refused
+        as that, before a warning for each of its lines and a field said to be missing."""
+        commands = [ln for ln in lines if ln.kind == "command"]
+        if not commands:
+            raise ConfigError("no command in it (empty, or only comments and blank lines): not a TI mmWave "
+                              "cfg, whose lines are commands such as sensorStop, channelCfg, profileCfg",
+                              path=self.path)
+        known = (*cc.TYPED_COMMANDS, *cc.VERBATIM_COMMANDS, *cc.UNSUPPORTED_COMMANDS)
+        if not any(ln.text in known for ln in commands):
+            first = commands[0]
+            raise ConfigError(f"not a TI mmWave cfg: none of its {len(commands)} command line(s) is a cfg "
+                              f"command (the first: {shown(first.text)})", path=self.path, line=first.line)
 
     def _fail(self, message: str, ln: CfgLine | None = None, fld: str | None = None) -> ConfigError:
         return ConfigError(

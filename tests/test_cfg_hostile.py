@@ -315,3 +315,26 @@ def test_settings_path_with_nul_or_no_path_is_a_config_error(tmp_path):
     path = tmp_path / "default.json"
     EstimatorConfig().dump(path)
     assert EstimatorConfig.load(os.fsencode(path)) == EstimatorConfig()
+
+
+@pytest.mark.parametrize("text", ["", "\n\n", "% a comment only\n\n% and another\n"])
+def test_a_file_with_no_command_is_refused_as_that(text):
+    with pytest.raises(ConfigError, match=r"^mine.cfg: no command in it \(empty, or only comments and blank "
+                                          r"lines\): not a TI mmWave cfg"):
+        RadarConfig.from_text(text, "mine.cfg")
+
+
+def test_another_file_given_as_a_cfg_is_refused_before_a_warning_a_line(caplog):
+    with pytest.raises(ConfigError, match=r"^est.tum:1: not a TI mmWave cfg: none of its 2 command line\(s\) is a "
+                                          r"cfg command \(the first: '0.0'\)$"):
+        RadarConfig.from_text("0.0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n", "est.tum")
+    assert "unknown command" not in caplog.text
+
+
+def test_radar_cfg_on_an_empty_file_says_so_in_one_line(tmp_path, capsys):
+    from radarodom.tools import radar_cfg
+
+    (tmp_path / "empty.cfg").write_text("")
+    assert radar_cfg.main([str(tmp_path / "empty.cfg")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"radar-cfg: error: {tmp_path / 'empty.cfg'}: no command in it"), err

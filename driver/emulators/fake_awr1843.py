@@ -300,6 +300,8 @@ class FakeAwr1843(Awr1843Pty):
             if self.config is None:
                 return [FULL_CONFIG_NEEDED, "Error -1"], None
             config = self.config
+        elif not self._stored:  # nothing configured (or flushed): the board's own answer
+            return [FULL_CONFIG_NEEDED, "Error -1"], None
         else:
             try:
                 config = RadarConfig.from_text("".join(ln + "\n" for ln in self._stored),
