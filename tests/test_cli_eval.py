@@ -466,3 +466,15 @@ def test_times_far_out_are_shown_short(tmp_path):
     proc = run_eval(far, near)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert "(5 poses, t 1e+300 .. 1.4e+300 s)" in proc.stderr and len(proc.stderr) < 400
+
+
+@pytest.mark.parametrize("url", ["dca1000://", "dca1000://192.168.33.180?cli=/dev/ttyACM0", "tidemo://"])
+def test_a_live_radar_as_the_truth_is_refused_before_a_radar_is_looked_for(tmp_path, capsys, url):
+    from radarodom.tools import radar_eval
+
+    est = tmp_path / "est.tum"
+    est.write_text("0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n")
+    assert radar_eval.main([str(est), url]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{url}: a live radar" in err[0] and "knows no ground truth; give the truth as " \
+        "GT.tum" in err[0], err
