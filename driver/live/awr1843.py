@@ -11,6 +11,7 @@ names the cfg line and quotes the radar.  :meth:`Awr1843Cli.configure` sends
 from __future__ import annotations
 
 import logging
+import os
 import time
 
 import serial
@@ -52,8 +53,7 @@ class Awr1843Cli:
             self._port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.05,
                                                write_timeout=self.command_timeout_s)
         except (serial.SerialException, ValueError, OSError) as exc:
-            raise DeviceError(f"cannot open the radar's CLI port {self.url}: {exc}. Is the AWR1843BOOST "
-                              f"plugged in, and may you open the port (radar-devices tells)?") from None
+            raise port_open_error("CLI", self.url, exc) from None
         self._port.reset_input_buffer()
         return self
 
@@ -142,6 +142,17 @@ class Awr1843Cli:
     def _expect(reply: Reply, what: str) -> None:
         if reply.outcome not in (Outcome.DONE, Outcome.IGNORED):
             raise RadarCommandError(f"{what}: the radar answered: {reply.text or 'nothing but the prompt'}")
+
+
+def port_open_error(which: str, url: str, exc: BaseException) -> DeviceError:
+    """Why the radar's *which* ("CLI", "data") port at *url* did not open, and what to do: a path
+    to a file or a folder is no serial port (pyserial says "Inappropriate ioctl for device")."""
+    if os.path.isfile(url) or os.path.isdir(url):
+        kind = "a folder" if os.path.isdir(url) else "a regular file"
+        return DeviceError(f"the radar's {which} port {url} is {kind}, not a serial port: give the XDS110's "
+                           f"port (/dev/ttyACM0, COM3; radar-devices lists them)")
+    return DeviceError(f"cannot open the radar's {which} port {url}: {exc}. Is the AWR1843BOOST plugged in, "
+                       f"and may you open the port (radar-devices tells)?")
 
 
 def _belongs_to(text: str, command: str) -> bool:

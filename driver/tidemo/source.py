@@ -43,7 +43,7 @@ import serial
 
 from ...cfg import RadarConfig, shipped_config_path
 from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
-from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli
+from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.source import FrameClock
 from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number
 from .framer import TlvFramer
@@ -141,8 +141,7 @@ class TidemoSource(Source):
         try:
             self.port = serial.serial_for_url(self.data_url, baudrate=self.baud, timeout=READ_TIMEOUT_S)
         except (serial.SerialException, ValueError, OSError) as exc:
-            raise DeviceError(f"cannot open the radar's data port {self.data_url}: {exc}. Is the AWR1843BOOST "
-                              f"plugged in, and may you open the port (radar-devices tells)?") from None
+            raise port_open_error("data", self.data_url, exc) from None
         self.radar.open()
         self.radar.configure(self.sent_config)
 
