@@ -50,7 +50,8 @@ def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: st
         odd = [t for t, v in zip(tokens, values) if v is None]
         if odd and all(_python_float(t) is not None for t in odd) and \
                 all(not math.isfinite(_python_float(t)) for t in odd):
-            raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
+            raise CaptureFormatError(_not_finite(path, lineno, text, tokens, [_python_float(t) for t in tokens],
+                                                 count, what))
         if odd and all(_python_float(t) is not None for t in odd):
             raise CaptureFormatError(f"{path}:{lineno}: {odd[0][:20]!r} is not a plain decimal number "
                                      f"(expected {what})")
@@ -59,8 +60,19 @@ def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: st
                                      f"{_shortened(text)!r}")
         raise CaptureFormatError(f"{path}:{lineno}: expected {what}, got {text[:60]!r}")
     if not all(math.isfinite(v) for v in values):
-        raise CaptureFormatError(f"{path}:{lineno}: not a finite number: {text[:60]!r}")
+        raise CaptureFormatError(_not_finite(path, lineno, text, tokens, values, count, what))
     return values
+
+
+def _not_finite(path: str, lineno: int, text: str, tokens: list[str], values: list, count: int | None,
+                what: str) -> str:
+    """The message for a line whose *values* (floats, None where not one) are not all finite: the
+    field named where *what* lists the line's fields ("'t x y z qx qy qz qw'")."""
+    names = what.strip("'").split()
+    bad = next(i for i, v in enumerate(values) if v is not None and not math.isfinite(v))
+    if count is not None and len(names) == count == len(tokens):
+        return f"{path}:{lineno}: {names[bad]} is not a finite number ({tokens[bad][:20]!r})"
+    return f"{path}:{lineno}: not a finite number: {text[:60]!r}"
 
 
 def _shortened(text: str, limit: int = 60) -> str:

@@ -120,7 +120,8 @@ def test_yaw_from_quaternions_also_when_tilted():
     ("0 0 0 0 0 0 0 1\n1.000000000 0.0123456789 0.000000123 0.0 0.0 0.0 0.00262780049 0.99999654 7.5\n", 2,
      "expected 8 numbers ('t x y z qx qy qz qw'), got 9: '1.000000000 0.0123456789 0.0 ... .00262780049 0.99999654 7.5'"),
     ("# header\n\n0 0 0 0 0 0 0 1\n1 a 0 0 0 0 0 1\n", 4, "expected"),
-    ("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n", 2, "not a finite number"),
+    ("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n", 2, "x is not a finite number ('nan')"),
+    ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1e999\n", 2, "qw is not a finite number ('1e999')"),
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 0\n", 2, "the quaternion is zero"),
     ("\x00\x01\xff\xfe\x10\n", 1, "binary data, not text"),  # adc_data.bin given as the ground truth
 ])
