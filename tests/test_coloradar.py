@@ -321,7 +321,7 @@ def _rewrite_line(path, lineno: int, text: str) -> None:
     with open(path) as fh:
         lines = fh.read().splitlines()
     lines[lineno - 1] = text
-    with open(path, "w") as fh:
+    with open(path, "w", errors="surrogateescape") as fh:  # a line of undecodable bytes too
         fh.write("\n".join(lines) + "\n")
 
 
@@ -332,6 +332,8 @@ def _rewrite_line(path, lineno: int, text: str) -> None:
     ("calib/single_chip/waveform_cfg.txt", 5, "adc_sample_frequency nan", "waveform", ":5: not a finite number"),
     ("calib/transforms/base_to_cascade.txt", 2, "0 0 0", "transform", "base_to_cascade.txt:2: expected"),
     ("calib/transforms/base_to_cascade.txt", 2, "0 0 0 0", "transform", "base_to_cascade.txt:2: the quaternion is zero"),
+    ("calib/transforms/base_to_cascade.txt", 1, "v^\x00\udcff\udcfeB", "transform",
+     "base_to_cascade.txt:1: binary data, not text (the file is damaged, or another file is in its place)"),
     ("ec_hallways_run0/single_chip/pointclouds/timestamps.txt", 3, "1.0", "times", "timestamps.txt:3: time goes backwards"),
 ])
 def test_malformed_text_lines_name_file_and_line(tmp_path, relative, lineno, text, method, expect):

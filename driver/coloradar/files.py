@@ -126,11 +126,16 @@ def _read_lines(path: str) -> list[tuple[int, str]]:
     """(1-based line number, stripped text) of the non-blank lines of *path*."""
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
-            return [(n, s) for n, line in enumerate(fh, start=1) if (s := line.strip())]
+            lines = [(n, s) for n, line in enumerate(fh, start=1) if (s := line.strip())]
     except FileNotFoundError:
         raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
     except OSError as exc:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+    for n, text in lines:
+        if "\0" in text or "\ufffd" in text:  # quoting the line would print its bytes
+            raise CaptureFormatError(f"{path}:{n}: binary data, not text (the file is damaged, or another "
+                                     f"file is in its place)")
+    return lines
 
 
 def _read_table(path: str, columns: int, what: str) -> tuple[np.ndarray, np.ndarray]:
