@@ -412,3 +412,16 @@ def test_the_usage_says_copy_takes_at_most_one_dest(tmp_path):
     assert "--copy NAME [DEST]" in usage and "[DEST ...]" not in usage, usage
     proc = run_cfg("--copy", "awr1843_raw", tmp_path / "a", tmp_path / "b", cwd=tmp_path)
     assert proc.returncode == 2 and "--copy takes NAME and at most one DEST" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--list", "FILE"], "FILEs and --list do not go together"),
+    (["--copy", "awr1843_raw.cfg", "--list"], "--list and --copy do not go together"),
+    ([], "give one or more FILEs, or --list, or --copy NAME [DEST]"),
+])
+def test_commands_given_together_or_none_are_named(tmp_path, capsys, argv, words):
+    cfg = tmp_path / "my.cfg"
+    cfg.write_text(SMALL_CFG)
+    assert radar_cfg.main([str(cfg) if a == "FILE" else a for a in argv]) == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"radar-cfg: error: {words}" + (
+        ": give one or more FILEs to check, or --list, or --copy NAME [DEST]" if "together" in words else "")

@@ -43,7 +43,12 @@ class _Parser(argparse.ArgumentParser):
         ns = super().parse_args(args, namespace)
         if ns.copy is not None and len(ns.copy) > 2:
             self.error("--copy takes NAME and at most one DEST")
-        if sum((bool(ns.cfg), ns.list, ns.copy is not None)) != 1:
+        given = [what for what, there in (("FILEs", bool(ns.cfg)), ("--list", ns.list), ("--copy", ns.copy is not None))
+                 if there]
+        if len(given) > 1:  # each is a command of its own
+            self.error(f"{' and '.join(given)} do not go together: give one or more FILEs to check, or --list, "
+                       f"or --copy NAME [DEST]")
+        if not given:
             self.error("give one or more FILEs, or --list, or --copy NAME [DEST]")
         return ns
 
