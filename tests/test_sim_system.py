@@ -15,7 +15,7 @@ from importlib import resources
 
 import numpy as np
 import pytest
-from conftest import console_command, private_zenoh
+from conftest import REPO, console_command, private_zenoh
 from sim_helpers import decode, detect, point_scene, range_doppler, rd_power, truth
 
 from radarodom.cfg import RadarConfig
@@ -815,6 +815,17 @@ def test_radar_sim_refuses_a_json_scene_it_cannot_read(tmp_path, text, words):
     path = tmp_path / "scene.json"
     path.write_text(text)
     _refused(path, tmp_path / "cap", words)
+
+
+def test_a_toml_error_names_its_line_and_a_cfg_in_a_scenes_place_is_named(tmp_path):
+    bad = tmp_path / "scene.toml"
+    bad.write_text('name = "x"\nwalls = [\n  {a = 1,\n')
+    _refused(bad, tmp_path / "cap", (f"{bad}:3: cannot parse: ", "(column ",
+                                     ": a scene file is a TOML (or .json) table of walls, objects and a path"))
+    cfg = tmp_path / "radar.cfg"
+    cfg.write_text((REPO / "configs" / "awr1843_raw.cfg").read_text())
+    _refused(cfg, tmp_path / "cap", (f"{cfg}:1: cannot parse: Invalid statement (column 1)",
+                                     "(a .cfg is the radar's configuration: give it with --cfg)"))
 
 
 def test_segments_shorter_than_a_step_keep_their_distance_and_turn():

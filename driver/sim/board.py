@@ -37,7 +37,7 @@ import numpy as np
 from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, VirtualArray
 from ...calibration import ChannelCalibration
 from ...errors import ConfigError
-from .scene_values import decode_utf8
+from .scene_values import decode_utf8, toml_error
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -161,7 +161,7 @@ def load_board(name_or_path: str) -> Board:
         with open(path, "rb") as fh:
             spec = tomllib.loads(decode_utf8(fh.read(), path))
     except ValueError as exc:  # TOMLDecodeError is a ValueError
-        raise ConfigError(f"cannot parse: {exc}", path=path) from None
+        raise toml_error(exc, path, "a board file is a TOML table of the board's impairments") from None
     return board_from_dict(spec, where=path)
 
 

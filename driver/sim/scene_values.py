@@ -5,6 +5,7 @@ file's tables takes."""
 from __future__ import annotations
 
 import math
+import re
 import sys
 
 import numpy as np
@@ -138,6 +139,18 @@ def decode_utf8(raw: bytes, path: str) -> str:
                           line=line) from None
 
 
+def toml_error(exc: ValueError, path: str, what: str) -> ConfigError:
+    """A TOML (or JSON) reader's error as ``path:line`` (TOML's "(at line N, column M)" moved
+    there), saying what the file should be; a radar .cfg given in its place is named so."""
+    message, line = str(exc), None
+    m = re.search(r"\s*\(at line (\d+), column (\d+)\)$", message)
+    if m:
+        message, line = f"{message[:m.start()]} (column {m.group(2)})", int(m.group(1))
+    hint = (" (a .cfg is the radar's configuration: give it with --cfg)" if path.endswith(".cfg")
+            else "")
+    return ConfigError(f"cannot parse: {message}: {what}{hint}", path=path, line=line)
+
+
 def read_scene_file(path: str) -> dict:
     """The table of a scene file (``.json``, else TOML), or :class:`ConfigError` naming it."""
     try:
@@ -148,7 +161,7 @@ def read_scene_file(path: str) -> dict:
         # itself but recurses once per nesting level)
         return strict_json.loads(text, max_bytes=MAX_SCENE_BYTES) if path.endswith(".json") else tomllib.loads(text)
     except (UnicodeDecodeError, ValueError) as exc:  # TOMLDecodeError and JSONDecodeError are ValueErrors
-        raise ConfigError(f"cannot parse: {exc}", path=path) from None
+        raise toml_error(exc, path, "a scene file is a TOML (or .json) table of walls, objects and a path") from None
     except RecursionError:
         raise ConfigError(f"cannot parse: nested more deeply than Python's TOML reader can follow (a scene "
                           f"nests {strict_json.MAX_DEPTH} deep at most)", path=path) from None
