@@ -212,6 +212,7 @@ def run(
     except Exception as exc:
         if _interrupted(exc):  # a Ctrl-C that Python wrapped (raised in a class being made)
             print(f"{prog}: interrupted", file=sys.stderr)
+            _print_notes(prog, exc)
             return 130
         # A bug: say so in one line, details on request.
         print(f"{prog}: internal error: {type(exc).__name__}: {exc}"
