@@ -149,6 +149,8 @@ def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp
     (["--capture", "FILE"], "--capture FILE: not a directory (give the capture directory that holds it)"),
     # The URL quoted is the one given, without the options the board adds to it (rate, fidelity).
     (["--source", "sim://lab?foo=1"], "error: sim://lab?foo=1: unknown option(s) foo; supported: "),
+    # The demo's fake opens its source only when radar-capture starts the radar: checked at once.
+    (["--uart", "--source", "sim://lab?foo=1"], "error: sim://lab?foo=1: unknown option(s) foo; supported: "),
     (["--source", "dca1000://127.0.0.2"], "error: dca1000://127.0.0.2: a live radar (dca1000://) cannot be "
                                           "emulated; give a recording (--capture DIR) or a sim://, replay:// or "
                                           "coloradar:// source"),

@@ -137,6 +137,8 @@ def _main(args: argparse.Namespace) -> int:
 
 def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args: argparse.Namespace) -> int:
     """The fake radar with the demo's data port, until Ctrl-C."""
+    from ..driver.emulators.source_url import emulated_source_url
+    from ..driver.sources import open_source
     from ..driver.tidemo.layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, gui_selection
 
     packet_faults = [name for name in _PACKET_FAULTS if getattr(args, name)]
@@ -145,6 +147,9 @@ def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args
                          "are --uart-garbage, --uart-truncate, --uart-drop)")
     if config is not None:  # radar-capture would refuse it: say so now
         check_uart_budget(config, DemoGeometry.from_config(config).layout(gui_selection(config)), DEFAULT_BAUD, 64)
+    # The fake radar opens the source only when radar-capture starts it: its URL is checked now.
+    with open_source(emulated_source_url(url, defaults={"rate": "max", "loop": "0"}), config, shown_url=url):
+        pass
     faults = UartFaults(garbage=args.uart_garbage, truncate=args.uart_truncate, drop=args.uart_drop, seed=args.seed)
     stop = threading.Event()
     with cli.on_stop_signals(lambda *_: stop.set()):
