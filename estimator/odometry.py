@@ -30,13 +30,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import TimeOrderError, UsageError
-from ..plain_numbers import is_number
 from .config import EstimatorConfig
 from .current_frame import CurrentFrame, FrameProducts
 from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
 from .heading_blend import HeadingBlend
+from .inputs import POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points, check_time, check_velocity
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
@@ -154,6 +154,8 @@ class RadarOdometry:
         self._chord = odo.rectification == "chord"
         self._previous: KeptFrame | None = None
         self._state: OdometryState | None = None  # this chain's, which its steps start from
+        #: What add_points checks each point has: the points' yaw reads their place too.
+        self._point_fields = POINT_FIELDS if self.point_yaw is None and self.blend is None else POINT_YAW_FIELDS
         self._published: OdometryState | None = None  # with point_yaw.blend, the blend's
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate rad/s) of the last measured yaw
         self._frames = 0
@@ -169,8 +171,8 @@ class RadarOdometry:
         velocity) taken at *t* and keep it for the heatmap frames around it; the estimate kept
         (a wheeled base's on its axis without sideways slip: ``odometry.base``)."""
         start = time.perf_counter()
-        _check_time(t, "point cloud")
-        _check_points(points)
+        check_time(t, "point cloud")
+        check_points(points, self._point_fields)
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:
             est = self.velocities.level_speed(t, points, est)
@@ -185,7 +187,8 @@ class RadarOdometry:
     def add_velocity(self, est: VelocityEstimate) -> None:
         """Use a velocity from elsewhere (or from :meth:`add_points`); a wheeled base's on its
         axis loses its sideways part as the point clouds' do."""
-        _check_time(est.t, "velocity")
+        check_velocity(est)
+        check_time(est.t, "velocity")
         self.velocities.add(est)
         if self.blend is not None:
             self.blend.add_velocity(est)
@@ -205,8 +208,8 @@ class RadarOdometry:
         *products*: what another estimator made of the same heatmap in the same call, to share
         (:mod:`.current_frame`; the blend's points' estimator gets this one's)."""
         start = time.perf_counter()
-        _check_time(t, "heatmap")
-        _check_heatmap(heatmap)
+        check_time(t, "heatmap")
+        check_heatmap(heatmap)
         given, previous = heatmap, self._previous
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "
@@ -350,40 +353,6 @@ class RadarOdometry:
         good_t = None if self._good_rate is None else self._good_rate[0]
         held = may_hold(good_t, t, self.config.odometry.hold_s, Flag.YAW_HELD, flags)
         return self._good_rate[1] if held else 0.0
-
-
-def _check_time(t: float, what: str) -> None:
-    if not is_number(t):
-        raise UsageError(f"{what} at t={t!r}: a time is a number of seconds, got {type(t).__name__}")
-    if not math.isfinite(t):
-        raise TimeOrderError(f"{what} at t={t}: a time must be a finite number of seconds")
-
-
-#: What the velocity fit reads of each point (the DSP's POINT_DTYPE has them).
-_POINT_FIELDS = ("azimuth", "elevation", "velocity")
-
-
-def _check_points(points) -> None:
-    """:class:`UsageError` unless *points* is a point cloud: a (n,) structured array with the fields
-    the velocity fit reads."""
-    names = getattr(getattr(points, "dtype", None), "names", None) or ()
-    if not isinstance(points, np.ndarray) or points.ndim != 1 or any(f not in names for f in _POINT_FIELDS):
-        shape = f" {points.shape}" if isinstance(points, np.ndarray) else ""
-        raise UsageError(f"points: a (n,) structured array with fields {', '.join(_POINT_FIELDS)} "
-                         f"(radarodom.products.POINT_DTYPE), got {type(points).__name__}{shape}"
-                         + (f" with fields {', '.join(names)}" if names else ""))
-
-
-def _check_heatmap(heatmap) -> None:
-    """:class:`UsageError` unless *heatmap* has a non-empty (n_range, n_azimuth) intensity on its axes."""
-    try:
-        shape = np.shape(heatmap.intensity)
-        axes = (len(heatmap.range_m), len(heatmap.azimuth_rad))
-    except (AttributeError, TypeError):
-        raise UsageError("heatmap: a range-azimuth heatmap (radarodom.products.RangeAzimuth: intensity, "
-                         f"range_m, azimuth_rad), got {type(heatmap).__name__}") from None
-    if shape != axes or 0 in axes:
-        raise UsageError(f"heatmap: its intensity {shape} must be (range bins, azimuth bins) = {axes}, none empty")
 
 
 __all__ = ["RadarOdometry", "OdometryState", "Flag"]

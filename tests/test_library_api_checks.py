@@ -205,6 +205,21 @@ def test_a_pipeline_runs_once(tmp_path):
     (lambda o: o.add_heatmap(0.1, None), "heatmap: a range-azimuth heatmap"),
     (lambda o: o.add_heatmap(0.1, RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 3)), np.arange(3.0),
                                                 np.zeros(3))), "its intensity (4, 3) must be (range bins, azimuth bins)"),
+    # The cells' other arrays and the axes, which the features read after the intensity.
+    (lambda o: o.add_heatmap(0.1, RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 2)), np.arange(4.0),
+                                                np.zeros(3))), "heatmap: doppler_mps (4, 2) must be the intensity's shape"),
+    (lambda o: o.add_heatmap(0.1, RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 3)), np.arange(4.0),
+                                                np.zeros(3), np.zeros(3))), "heatmap: elevation_rad (3,) must be"),
+    (lambda o: o.add_heatmap(0.1, RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 3)), [0.0, 1, 2, 3],
+                                                np.zeros(3))), "heatmap: range_m must be a (n,) numpy array of numbers, "
+                                                               "got list"),
+    # The points' yaw (the blend's, on by default) reads each point's place too.
+    (lambda o: o.add_points(0.1, np.zeros(3, POINT_DTYPE)[["azimuth", "elevation", "velocity"]]),
+     "with fields azimuth, elevation, velocity, x, y"),
+    (lambda o: o.add_points(0.1, np.zeros(3, [("azimuth", "f4"), ("elevation", "f4"), ("velocity", "U8"),
+                                              ("x", "f4"), ("y", "f4")])),
+     "points: field velocity must be a real number a point (float), got <U8"),
+    (lambda o: o.add_velocity(None), "velocity: a VelocityEstimate (radarodom.estimator.velocity), got NoneType"),
 ])
 def test_the_estimators_inputs_are_checked_where_they_come_in(call, words):
     with pytest.raises(UsageError) as info:
@@ -364,3 +379,9 @@ def test_a_keyword_the_pipeline_does_not_take_closes_the_radar_from_url_opened(s
             Pipeline.from_url(rig.url(**URL_TIMEOUTS), small_cfg, sink=[])
         # The traceback (held by pytest) keeps the source alive: the port is free only if it was closed.
         assert port_is_free(HOST_IP, rig.data_port), "the DCA1000 data socket was left open"
+
+
+def test_the_paper_estimator_needs_no_point_places():
+    points = np.zeros(3, POINT_DTYPE)[["azimuth", "elevation", "velocity"]]
+    RadarOdometry(EstimatorConfig.paper()).add_points(0.1, points)
+

@@ -1,0 +1,71 @@
+"""What a caller gives the estimator, checked before it is used (:class:`~.odometry.RadarOdometry`'s
+inputs): a time, a point cloud, a heatmap, a velocity.  Each wrong one is a :class:`UsageError`
+(or :class:`TimeOrderError`) naming what was expected, rather than numpy's error from deep inside."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import TimeOrderError, UsageError
+from ..plain_numbers import is_number
+from .velocity import VelocityEstimate
+
+#: What the velocity fit reads of each point (the DSP's POINT_DTYPE has them).
+POINT_FIELDS = ("azimuth", "elevation", "velocity")
+#: ... and what the points' yaw (``point_yaw``, the blend's) reads too.
+POINT_YAW_FIELDS = (*POINT_FIELDS, "x", "y")
+
+
+def check_time(t: float, what: str) -> None:
+    if not is_number(t):
+        raise UsageError(f"{what} at t={t!r}: a time is a number of seconds, got {type(t).__name__}")
+    if not math.isfinite(t):
+        raise TimeOrderError(f"{what} at t={t}: a time must be a finite number of seconds")
+
+
+def check_points(points, fields: tuple[str, ...] = POINT_FIELDS) -> None:
+    """:class:`UsageError` unless *points* is a point cloud: a (n,) structured array with *fields*
+    (those the estimator reads), each a real number a point."""
+    names = getattr(getattr(points, "dtype", None), "names", None) or ()
+    if not isinstance(points, np.ndarray) or points.ndim != 1 or any(f not in names for f in fields):
+        shape = f" {points.shape}" if isinstance(points, np.ndarray) else ""
+        raise UsageError(f"points: a (n,) structured array with fields {', '.join(fields)} "
+                         f"(radarodom.products.POINT_DTYPE), got {type(points).__name__}{shape}"
+                         + (f" with fields {', '.join(names)}" if names else ""))
+    for name in fields:
+        kind = points.dtype[name]
+        if kind.shape or kind.kind not in "fiu":
+            raise UsageError(f"points: field {name} must be a real number a point (float), got {kind}")
+
+
+def check_heatmap(heatmap) -> None:
+    """:class:`UsageError` unless *heatmap* has a non-empty (n_range, n_azimuth) intensity on its axes
+    (1-D arrays of numbers), and its other cell arrays the intensity's shape."""
+    try:
+        shape = np.shape(heatmap.intensity)
+        axes = (len(heatmap.range_m), len(heatmap.azimuth_rad))
+    except (AttributeError, TypeError):
+        raise UsageError("heatmap: a range-azimuth heatmap (radarodom.products.RangeAzimuth: intensity, "
+                         f"range_m, azimuth_rad), got {type(heatmap).__name__}") from None
+    if shape != axes or 0 in axes:
+        raise UsageError(f"heatmap: its intensity {shape} must be (range bins, azimuth bins) = {axes}, none empty")
+    for name in ("range_m", "azimuth_rad"):
+        axis = getattr(heatmap, name)
+        if not isinstance(axis, np.ndarray) or axis.ndim != 1 or axis.dtype.kind not in "fiu":
+            got = f"{axis.dtype} array" if isinstance(axis, np.ndarray) else type(axis).__name__
+            raise UsageError(f"heatmap: {name} must be a (n,) numpy array of numbers, got {got}")
+    for name in ("static", "doppler_mps", "elevation_rad"):
+        cells = getattr(heatmap, name, None)
+        if cells is not None and np.shape(cells) != shape:
+            raise UsageError(f"heatmap: {name} {np.shape(cells)} must be the intensity's shape, (range bins, "
+                             f"azimuth bins) = {shape}")
+
+
+
+
+def check_velocity(est) -> None:
+    """:class:`UsageError` unless *est* is a :class:`~.velocity.VelocityEstimate`."""
+    if not isinstance(est, VelocityEstimate):
+        raise UsageError(f"velocity: a VelocityEstimate (radarodom.estimator.velocity), got {type(est).__name__}")
