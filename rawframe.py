@@ -55,6 +55,8 @@ class RawLayout:
 
     @classmethod
     def from_config(cls, cfg: "RadarConfig", *, iq_interleaved: bool = False) -> "RawLayout":
+        if not hasattr(cfg, "cube_shape") or not hasattr(cfg, "adcbuf"):  # (cfg imports this module)
+            raise UsageError(f"cfg: a RadarConfig (RadarConfig.from_file(path) reads one), got {type(cfg).__name__}")
         loops, slots, rx, samples = cfg.cube_shape
         return cls(loops, slots, rx, samples, bool(cfg.adcbuf.sample_swap), iq_interleaved)
 
@@ -83,7 +85,11 @@ class RawLayout:
         not given with a frames axis), else (k, loops, tx_slots, rx, samples).
         *out*, when given, is filled and returned (no allocation).
         """
-        nbytes = memoryview(buf).nbytes
+        try:
+            nbytes = memoryview(buf).nbytes
+        except TypeError:
+            raise UsageError(f"decode: a frame's bytes (bytes, bytearray, memoryview or a uint8 array), got "
+                             f"{type(buf).__name__}") from None
         if nbytes == 0 or nbytes % self.frame_bytes:
             raise CaptureFormatError(
                 f"{nbytes} bytes is not a whole number of {self.frame_bytes}-byte frames")

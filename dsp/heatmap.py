@@ -146,7 +146,17 @@ class HeatmapMaker:
             buf[self._weighted_rows] *= self._row_weights[self._weighted_rows]
         return np.transpose(buf, (1, 0, 2))
 
+    def _check_spectrum(self, spectrum) -> None:
+        """:class:`UsageError` unless *spectrum* is the processor's Doppler spectrum (doppler_fft's)."""
+        proc = self.proc
+        want = (proc.n_doppler, *proc.cfg.cube_shape[1:3], proc.n_range)
+        if not isinstance(spectrum, np.ndarray) or spectrum.shape != want or spectrum.dtype.kind != "c":
+            got = f"{spectrum.dtype} {spectrum.shape}" if isinstance(spectrum, np.ndarray) else type(spectrum).__name__
+            raise UsageError(f"spectrum: the processor's Doppler spectrum (FrameProcessor.doppler_fft), complex "
+                             f"(n_doppler, tx_slots, rx, n_range) = {want}, got {got}")
+
     def range_azimuth(self, spectrum: np.ndarray) -> RangeAzimuth:
+        self._check_spectrum(spectrum)
         if self._full is None:
             return self._range_azimuth_strong(spectrum)
         proc = self.proc
@@ -229,6 +239,7 @@ class HeatmapMaker:
         return out
 
     def range_azimuth_elevation(self, spectrum: np.ndarray) -> RangeAzimuthElevation:
+        self._check_spectrum(spectrum)
         data = self._compensated(spectrum)  # (n_doppler, elements, n_range)
         x = np.transpose(data, (2, 1, 0))  # (n_range, elements, n_doppler)
         cov = x @ np.conj(np.transpose(x, (0, 2, 1)))  # (n_range, elements, elements)

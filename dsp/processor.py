@@ -330,6 +330,8 @@ def _params_for(cfg: RadarConfig, params: DspConfig | None) -> DspConfig:
     """The DSP's settings for *cfg*: *params* (default: ``DspConfig()``), TI's own with ``ti_like``;
     :class:`UsageError` for settings of another kind, :class:`ConfigError` for a range FFT shorter than
     the cfg's ADC samples a chirp or a Doppler FFT shorter than its loops (zero padding lengthens)."""
+    if not isinstance(cfg, RadarConfig):
+        raise UsageError(f"cfg: a RadarConfig (RadarConfig.from_file(path) reads one), got {type(cfg).__name__}")
     if params is None:
         params = DspConfig()
     elif not isinstance(params, DspConfig):

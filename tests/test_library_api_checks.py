@@ -73,6 +73,30 @@ def test_dsp_ffts_shorter_than_the_cfgs_chirps_or_loops_are_refused_by_name(ship
     assert FrameProcessor(shipped_cfg, DspConfig(range_fft_size=2 * samples)).n_range == 2 * samples
 
 
+def test_the_dsps_parts_name_what_they_take(shipped_cfg):
+    from radarodom.dsp.heatmap import HeatmapMaker
+    from radarodom.rawframe import RawLayout
+
+    for cfg in (None, "configs/awr1843_raw.cfg"):
+        with pytest.raises(UsageError, match=r"cfg: a RadarConfig \(RadarConfig.from_file\(path\) reads one\), got"):
+            FrameProcessor(cfg)
+        with pytest.raises(UsageError, match=r"cfg: a RadarConfig"):
+            RawLayout.from_config(cfg)
+    layout = RawLayout.from_config(shipped_cfg)
+    for buf in ("abc", None, [1, 2, 3]):
+        with pytest.raises(UsageError, match=r"decode: a frame's bytes \(bytes, bytearray, memoryview or a uint8 "
+                                             r"array\), got"):
+            layout.decode(buf)
+    proc = FrameProcessor(shipped_cfg)
+    spectrum = proc.doppler_fft(proc.range_fft(np.ones(shipped_cfg.cube_shape, np.complex64)))
+    maker = HeatmapMaker(proc)
+    assert maker.range_azimuth(spectrum).intensity.shape == (len(maker.range_m), len(maker.azimuth_rad))
+    for bad in (None, spectrum.tolist(), spectrum[..., :10], spectrum.real):
+        with pytest.raises(UsageError, match=r"spectrum: the processor's Doppler spectrum \(FrameProcessor.doppler_fft"
+                                             r"\), complex \(n_doppler, tx_slots, rx, n_range\) = "):
+            maker.range_azimuth(bad)
+
+
 @pytest.mark.parametrize("bad, words", [
     (np.inf, "hold 1 NaN or infinite value(s) of 196608 (the first at loop 0, TX slot 0, RX 0, sample 5)"),
     (complex(0, np.nan), "hold 1 NaN or infinite value(s) of 196608 (the first at loop 0, TX slot 0, RX 0, sample 5)"),
