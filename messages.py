@@ -186,6 +186,11 @@ _ODOM_FIELDS = {
 def odometry_dict(state: OdometryState) -> dict:
     """The odometry v1 object of an :class:`radarodom.estimator.odometry.OdometryState`
     (or anything with its attributes)."""
+    missing = [name for name in ("t", "frame", "x", "y", "yaw", "vx", "vy", "yaw_rate", "pose_covariance")
+               if not hasattr(state, name)]
+    if missing:
+        raise MessageError(f"odometry: an OdometryState (radarodom.estimator.odometry), got {type(state).__name__} "
+                           f"without {', '.join(missing)}")
     return {
         "schema": ODOM_SCHEMA, "version": VERSION,
         "t": float(state.t), "frame": int(state.frame),
@@ -228,6 +233,8 @@ def parse_odometry(payload: bytes) -> dict:
 def status_json(status: Mapping[str, Any]) -> bytes:
     """The status v1 message: *status*'s items after ``schema`` and ``version``
     (which it must not set itself); refuses NaN and infinity."""
+    if not isinstance(status, Mapping):
+        raise MessageError(f"status: a mapping of the status' items, got {type(status).__name__}")
     reserved = {"schema", "version"} & set(status)
     if reserved:
         raise MessageError(f"status: {', '.join(sorted(reserved))} are set by the schema, not the caller")
@@ -278,6 +285,9 @@ def _check_size(payload: bytes, expected: int, schema: str, what: str) -> None:
 def encode_pointcloud(frame: int, t: float, points: np.ndarray) -> bytes:
     """The point cloud v1 message of one frame; *points* is a structured array
     with at least the fields of :data:`POINTCLOUD_RECORD` (``POINT_DTYPE`` has them)."""
+    if not isinstance(points, np.ndarray):
+        raise MessageError(f"point cloud: a structured array of points (radarodom.products.POINT_DTYPE), got "
+                           f"{type(points).__name__}")
     names = points.dtype.names or ()
     missing = [f for f in POINTCLOUD_RECORD.names if f not in names]
     if missing:
@@ -313,6 +323,9 @@ def decode_pointcloud(payload: bytes) -> tuple[dict, np.ndarray]:
 def encode_heatmap(frame: int, t: float, heatmap: RangeAzimuth) -> bytes:
     """The heatmap v1 message of a :class:`radarodom.dsp.heatmap.RangeAzimuth`
     (or anything with its five arrays)."""
+    if not all(hasattr(heatmap, name) for name in ("intensity", "static", "doppler_mps", "range_m", "azimuth_rad")):
+        raise MessageError(f"heatmap: a range-azimuth heatmap (radarodom.products.RangeAzimuth), got "
+                           f"{type(heatmap).__name__}")
     range_m = np.ascontiguousarray(heatmap.range_m, "<f4")
     azimuth = np.ascontiguousarray(heatmap.azimuth_rad, "<f4")
     if range_m.ndim != 1 or azimuth.ndim != 1:

@@ -191,6 +191,9 @@ class Pipeline:
         if self._ran or self._closed:
             raise UsageError("a Pipeline runs once, and this one has " + ("run" if self._ran else "been closed")
                              + ": build a new one (its sinks and source are closed)")
+        if on_frame is not None and not callable(on_frame):  # before a frame, not after the first
+            raise UsageError(f"on_frame: a function of (FrameResult, PipelineStats) or None, got "
+                             f"{type(on_frame).__name__}")
         self._ran = True
         stats = self.stats
         stats.reason = "end of source"

@@ -207,6 +207,15 @@ def test_a_pipeline_that_cannot_be_built_closes_the_radar_it_opened(tmp_path, sm
         assert not any(line.startswith("sensorStart") for line in rig.radar.received), rig.radar.received
 
 
+def test_a_pipelines_on_frame_is_checked_before_the_first_frame():
+    pipe = Pipeline.from_url(SIM, estimator=EstimatorConfig(), max_frames=2)
+    with pytest.raises(UsageError, match=r"on_frame: a function of \(FrameResult, PipelineStats\) or None, got str"):
+        pipe.run("notcallable")
+    assert pipe.stats.frames == 0
+    assert pipe.run().frames == 2  # refused before it ran: it may still run once
+    pipe.close()
+
+
 def test_a_pipeline_runs_once(tmp_path):
     pipe = Pipeline.from_url(SIM, estimator=EstimatorConfig(), sinks=[TumSink(tmp_path / "odom.tum")], max_frames=2)
     assert pipe.run().frames == 2

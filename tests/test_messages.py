@@ -436,3 +436,17 @@ def test_messages_import_neither_zenoh_nor_the_dsp():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: messages.encode_pointcloud(0, 0.0, None), "point cloud: a structured array of points"),
+    (lambda: messages.encode_pointcloud(0, 0.0, [[1.0, 2.0]]), "point cloud: a structured array of points"),
+    (lambda: messages.encode_heatmap(0, 0.0, None), "heatmap: a range-azimuth heatmap"),
+    (lambda: messages.odometry_json(None), "odometry: an OdometryState (radarodom.estimator.odometry), got NoneType"),
+    (lambda: messages.odometry_dict({}), "odometry: an OdometryState"),
+    (lambda: messages.status_json(None), "status: a mapping of the status' items, got NoneType"),
+])
+def test_the_encoders_name_what_they_take(call, words):
+    with pytest.raises(MessageError) as info:
+        call()
+    assert words in str(info.value), str(info.value)
