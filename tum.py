@@ -24,7 +24,10 @@ log = logging.getLogger(__name__)
 
 def yaw_quaternion(yaw) -> np.ndarray:
     """(qx, qy, qz, qw) of a rotation by *yaw* (rad) about z; shape ``yaw.shape + (4,)``."""
-    yaw = np.asarray(yaw, dtype=float)
+    try:
+        yaw = np.asarray(yaw, dtype=float)
+    except (TypeError, ValueError):
+        raise UsageError(f"yaw: a number or an array of numbers (rad), got {type(yaw).__name__}") from None
     q = np.zeros(yaw.shape + (4,))
     q[..., 2] = np.sin(yaw / 2.0)
     q[..., 3] = np.cos(yaw / 2.0)
@@ -35,7 +38,12 @@ def quaternion_yaw(quaternions) -> np.ndarray:
     """Heading (rad, in (-pi, pi]) of quaternions (..., 4) xyzw: the z angle of the
     z-y-x Euler decomposition, so a tilted body still gives the direction it faces.
     The quaternions need not be normalised."""
-    q = np.asarray(quaternions, dtype=float)
+    try:
+        q = np.asarray(quaternions, dtype=float)
+    except (TypeError, ValueError):
+        raise UsageError(f"quaternions: an array (..., 4) of xyzw, got {type(quaternions).__name__}") from None
+    if q.ndim == 0 or q.shape[-1] != 4:
+        raise UsageError(f"quaternions: an array (..., 4) of xyzw, got shape {q.shape}")
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
@@ -167,10 +175,17 @@ class TumTrajectory:
 
     def pose(self, i: int) -> tuple[float, ...]:
         """Pose *i* as ``(x, y, z, qx, qy, qz, qw)``."""
+        if not isinstance(i, (int, np.integer)) or isinstance(i, bool) or not -len(self) <= i < len(self):
+            raise UsageError(f"pose {i!r}: an index of the trajectory's {len(self)} poses")
         return (*self.positions[i], *self.quaternions[i])
 
     def take(self, indices) -> "TumTrajectory":
         """The poses at *indices* (an index array or a boolean mask), same source."""
+        try:
+            self.times[indices]
+        except (IndexError, TypeError, ValueError) as exc:
+            raise UsageError(f"take: indices of the trajectory's {len(self)} poses, or a mask of as many "
+                             f"booleans: {exc}") from None
         return TumTrajectory(self.times[indices], self.positions[indices], self.quaternions[indices],
                              self.source, self.lines[indices])
 

@@ -273,6 +273,22 @@ def test_evaluation_takes_trajectories_and_says_how_to_read_a_file():
             evaluate(_line(), _line(), **kwargs)
 
 
+def test_a_trajectorys_poses_and_the_quaternion_helpers_name_a_wrong_index_or_shape():
+    from radarodom.tum import quaternion_yaw, yaw_quaternion
+
+    line = _line(4)
+    assert line.pose(-1)[0] == 3.0 and len(line.take([0, 2])) == 2 and len(line.take(line.times > 1)) == 2
+    for call, words in ((lambda: line.pose(99), "pose 99: an index of the trajectory's 4 poses"),
+                        (lambda: line.pose("1"), "pose '1': an index of the trajectory's 4 poses"),
+                        (lambda: line.take([99]), "take: indices of the trajectory's 4 poses, or a mask"),
+                        (lambda: line.take("x"), "take: indices of the trajectory's 4 poses, or a mask"),
+                        (lambda: yaw_quaternion("x"), "yaw: a number or an array of numbers (rad), got str"),
+                        (lambda: quaternion_yaw(np.zeros(3)), "quaternions: an array (..., 4) of xyzw, got shape (3,)")):
+        with pytest.raises(UsageError) as info:
+            call()
+        assert words in str(info.value), str(info.value)
+
+
 def test_trajectories_take_lists_and_refuse_what_is_no_pose():
     lists = TumTrajectory([0, 1], [[0, 0, 0], [1, 0, 0]], [[0, 0, 0, 1], [0, 0, 0, 1]])
     assert lists.positions.dtype == float and len(lists) == 2
