@@ -75,7 +75,6 @@ class UartRecorder:
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
             raise CaptureError(f"cannot create recording directory {self.directory}: "
                                f"{why_not_written(exc, failed)}") from None
-        self._save()
 
     # A pipeline sink taking the frames as they came (before any processing).
     def write_raw(self, frame, stats) -> None:
