@@ -50,6 +50,8 @@ class HeatmapMaker:
         static_bins, elevation_bins, doppler_cells = _checked_arguments(processor, static_bins, elevation_bins,
                                                                         doppler_cells)
         self.proc = processor
+        #: The Doppler spectrum's shape the processor makes (doppler_fft), which the maps take.
+        self._spectrum_shape = (processor.n_doppler, *processor.cfg.cube_shape[1:3], processor.n_range)
         self.static_bins = static_bins
         self.doppler_cells = doppler_cells
         n_az = processor.n_az
@@ -148,8 +150,7 @@ class HeatmapMaker:
 
     def _check_spectrum(self, spectrum) -> None:
         """:class:`UsageError` unless *spectrum* is the processor's Doppler spectrum (doppler_fft's)."""
-        proc = self.proc
-        want = (proc.n_doppler, *proc.cfg.cube_shape[1:3], proc.n_range)
+        want = self._spectrum_shape
         if not isinstance(spectrum, np.ndarray) or spectrum.shape != want or spectrum.dtype.kind != "c":
             got = f"{spectrum.dtype} {spectrum.shape}" if isinstance(spectrum, np.ndarray) else type(spectrum).__name__
             raise UsageError(f"spectrum: the processor's Doppler spectrum (FrameProcessor.doppler_fft), complex "
