@@ -75,8 +75,8 @@ def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: st
 def _not_finite(path: str, lineno: int, text: str, tokens: list[str], values: list, count: int | None,
                 what: str) -> str:
     """The message for a line whose *values* (floats, None where not one) are not all finite: the
-    field named where *what* lists the line's fields ("'t x y z qx qy qz qw'")."""
-    names = what.strip("'").split()
+    field named where *what* is the quoted list of the line's fields ("'t x y z qx qy qz qw'")."""
+    names = what[1:-1].split() if len(what) > 1 and what[0] == what[-1] == "'" else []
     bad = next(i for i, v in enumerate(values) if v is not None and not math.isfinite(v))
     if count is not None and len(names) == count == len(tokens):
         return f"{path}:{lineno}: {names[bad]} is not a finite number ({tokens[bad][:20]!r})"
