@@ -1,9 +1,13 @@
 """What a caller gives the estimator, checked before it is used (:class:`~.odometry.RadarOdometry`'s
 inputs): a time, a point cloud, a heatmap, a velocity.  Each wrong one is a :class:`UsageError`
-(or :class:`TimeOrderError`) naming what was expected, rather than numpy's error from deep inside."""
+(or :class:`TimeOrderError`) naming what was expected, rather than numpy's error from deep inside.
+A NaN or inf where a measurement goes (a ROS point cloud pads with NaN) is no measurement: such
+points are left out and such heatmap cells hold no power (:func:`finite_points`,
+:func:`finite_heatmap`)."""
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -61,8 +65,35 @@ def check_heatmap(heatmap) -> None:
         if cells is not None and np.shape(cells) != shape:
             raise UsageError(f"heatmap: {name} {np.shape(cells)} must be the intensity's shape, (range bins, "
                              f"azimuth bins) = {shape}")
+    for name in ("range_m", "azimuth_rad"):
+        if not np.isfinite(getattr(heatmap, name)).all():
+            raise UsageError(f"heatmap: {name} holds NaN or inf; its axes must be finite")
 
 
+def finite_points(points: np.ndarray, fields: tuple[str, ...] = POINT_FIELDS) -> np.ndarray:
+    """*points* (a checked cloud, :func:`check_points`) without those whose *fields* hold NaN or
+    inf; *points* itself when there are none."""
+    keep = np.ones(len(points), bool)
+    for name in fields:
+        keep &= np.isfinite(points[name])
+    return points if keep.all() else points[keep]
+
+
+def finite_heatmap(heatmap):
+    """*heatmap* (a checked one, :func:`check_heatmap`) with the cells whose intensity or static
+    power is NaN or inf given none (0); *heatmap* itself when there are none, else a shallow copy
+    with new intensity / static arrays (the caller's arrays are left as they are)."""
+    changed = {}
+    for name in ("intensity", "static"):
+        cells = getattr(heatmap, name, None)
+        if cells is not None and not np.isfinite(cells).all():
+            changed[name] = np.where(np.isfinite(cells), cells, 0).astype(np.asarray(cells).dtype, copy=False)
+    if not changed:
+        return heatmap
+    heatmap = copy.copy(heatmap)
+    for name, cells in changed.items():
+        setattr(heatmap, name, cells)
+    return heatmap
 
 
 def check_velocity(est) -> None:

@@ -23,6 +23,7 @@ run of frames that saw nothing is measured across when the radar sees again
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -36,7 +37,8 @@ from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
 from .heading_blend import HeadingBlend
-from .inputs import POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points, check_time, check_velocity
+from .inputs import (POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points, check_time, check_velocity,
+                     finite_heatmap, finite_points)
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
@@ -46,6 +48,8 @@ from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import StepVelocity, VelocityTrack
 from .yaw_measurement import KeptFrame, YawMeasurement
 from .yaw_rate import yaw_rate_part
+
+logger = logging.getLogger(__name__)
 
 # The flags by their former module-level names, which callers use.
 FIRST_FRAME, VELOCITY_FAILED, VELOCITY_HELD = Flag.FIRST_FRAME, Flag.VELOCITY_FAILED, Flag.VELOCITY_HELD
@@ -156,6 +160,7 @@ class RadarOdometry:
         self._state: OdometryState | None = None  # this chain's, which its steps start from
         #: What add_points checks each point has: the points' yaw reads their place too.
         self._point_fields = POINT_FIELDS if self.point_yaw is None and self.blend is None else POINT_YAW_FIELDS
+        self._told_not_finite = False  # whether a NaN or inf in the inputs was logged as a warning
         self._published: OdometryState | None = None  # with point_yaw.blend, the blend's
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate rad/s) of the last measured yaw
         self._frames = 0
@@ -173,6 +178,11 @@ class RadarOdometry:
         start = time.perf_counter()
         check_time(t, "point cloud")
         check_points(points, self._point_fields)
+        n_given = len(points)
+        points = finite_points(points, self._point_fields)
+        if len(points) < n_given:
+            self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN or inf in "
+                                f"{'/'.join(self._point_fields)}: left out")
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:
             est = self.velocities.level_speed(t, points, est)
@@ -193,6 +203,14 @@ class RadarOdometry:
         if self.blend is not None:
             self.blend.add_velocity(est)
 
+    def _not_finite(self, t: float, what: str) -> None:
+        """Log *what* was not finite at *t*: a warning the first time, then at debug level (a
+        source that pads its clouds with NaN does so every frame)."""
+        level = logging.DEBUG if self._told_not_finite else logging.WARNING
+        self._told_not_finite = True
+        logger.log(level, "estimator at t=%.3f s: %s%s", t, what,
+                   "" if level == logging.DEBUG else " (said once; the rest at debug level)")
+
     def _without_slip(self, est: VelocityEstimate) -> VelocityEstimate:
         """*est* without sideways slip at the last measured yaw rate (``no_side_slip``)."""
         return self.no_side_slip(est, self._last_rate)
@@ -210,7 +228,11 @@ class RadarOdometry:
         start = time.perf_counter()
         check_time(t, "heatmap")
         check_heatmap(heatmap)
-        given, previous = heatmap, self._previous
+        finite = finite_heatmap(heatmap)
+        if finite is not heatmap:
+            self._not_finite(t, "heatmap cells whose power is NaN or inf: taken as none")
+        given, previous = finite, self._previous
+        heatmap = finite
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "
                                  "feed frames in time order")

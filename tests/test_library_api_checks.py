@@ -260,6 +260,53 @@ def test_the_estimators_inputs_are_checked_where_they_come_in(call, words):
     assert words in str(info.value), str(info.value)
 
 
+
+def test_nan_or_inf_where_a_measurement_goes_is_none_said_once(caplog):
+    """A ROS cloud pads with NaN points; a heatmap cell may come as NaN or inf: such points count
+    as absent and such cells as no power, the same odometry as without them, without numpy's
+    warnings, the caller's arrays untouched and one warning logged."""
+    from estimator_synth import Trajectory, frame, scene
+    trajectory = Trajectory([(1.0, 0.6, 0.0), (1.5, 0.6, math.radians(30)), (1.0, 0.6, 0.0)])
+    world, amplitude = scene(trajectory, 30, seed=3)
+    rng = np.random.default_rng(7)
+    frames = []
+    for i in range(36):
+        x, y, yaw = trajectory.pose(i / 10)
+        vx, vy, _ = trajectory.twist(i / 10)
+        frames.append(frame(world, amplitude, (x, y, yaw), (vx, vy), rng))
+    clean, padded = RadarOdometry(), RadarOdometry()
+    cells = (np.array([5, 9, 20]), np.array([1, 7, 3]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for i, (cloud, hm) in enumerate(frames):
+            t = i / 10
+            zeroed = dataclasses.replace(hm, intensity=hm.intensity.copy(), static=hm.static.copy())
+            zeroed.intensity[cells] = 0
+            zeroed.static[cells] = 0
+            bad = dataclasses.replace(hm, intensity=hm.intensity.copy(), static=hm.static.copy())
+            bad.intensity[cells] = [np.nan, np.inf, -np.inf]
+            bad.static[cells] = np.nan
+            nan_points = np.zeros(3, POINT_DTYPE)
+            nan_points["x"], nan_points["y"], nan_points["azimuth"] = np.nan, np.nan, np.nan
+            nan_points["velocity"][2] = np.inf
+            a = clean.step(t, cloud, zeroed)
+            with caplog.at_level("DEBUG", logger="radarodom.estimator.odometry"):
+                b = padded.step(t, np.concatenate([cloud, nan_points]), bad)
+            assert (a.x, a.y, a.yaw, a.vx, a.vy) == (b.x, b.y, b.yaw, b.vx, b.vy), i
+            assert np.isnan(bad.intensity[5, 1]) and np.isinf(bad.intensity[9, 7])
+    assert abs(b.yaw - trajectory.pose(3.5)[2]) < math.radians(3)  # a real run, not a blind one
+    said = [r for r in caplog.records if r.name == "radarodom.estimator.odometry"]
+    assert [r.levelname for r in said].count("WARNING") == 1, [r.getMessage() for r in said]
+    assert "3 of " in said[0].getMessage() and "left out" in said[0].getMessage()
+    assert len(said) == 2 * len(frames)  # the points and the heatmap each frame, at debug after the first
+
+
+def test_a_heatmap_axis_with_nan_is_refused():
+    hm = RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 3)), np.array([1.0, 2.0, np.nan, 4.0]),
+                      np.zeros(3))
+    with pytest.raises(UsageError, match="heatmap: range_m holds NaN or inf"):
+        RadarOdometry().add_heatmap(0.1, hm)
+
 # ------------------------------------------------------------------ trajectories and evaluation
 def _line(n: int = 3) -> TumTrajectory:
     return TumTrajectory.from_se2(np.arange(n, dtype=float), [[i, 0.0, 0.0] for i in range(n)])
