@@ -212,12 +212,12 @@ def read_tum(path: str | os.PathLike) -> TumTrajectory:
                 text = line.strip()
                 if not text or text.startswith("#"):
                     continue
-                if not line.endswith("\n"):
-                    log.warning("%s:%d: ignoring a last line without end of line", name, lineno)
-                    break
                 if "\0" in text or "\ufffd" in text:  # quoting the line would print its bytes
                     raise CaptureFormatError(f"{name}:{lineno}: binary data, not text: a TUM file is lines of "
                                              "'t x y z qx qy qz qw'")
+                if not line.endswith("\n"):
+                    log.warning("%s:%d: ignoring a last line without end of line", name, lineno)
+                    break
                 values = parse_numbers(name, lineno, text, 8, "'t x y z qx qy qz qw'")
                 if not any(values[4:]):
                     raise CaptureFormatError(f"{name}:{lineno}: the quaternion is zero")

@@ -124,6 +124,8 @@ def test_yaw_from_quaternions_also_when_tilted():
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1e999\n", 2, "qw is not a finite number ('1e999')"),
     ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 0\n", 2, "the quaternion is zero"),
     ("\x00\x01\xff\xfe\x10\n", 1, "binary data, not text"),  # adc_data.bin given as the ground truth
+    ("\x00\x01\xff\xfe\x10", 1, "binary data, not text"),  # ... a small one, without a newline
+    ("0 0 0 0 0 0 0 1\n\x00\x01", 2, "binary data, not text"),
 ])
 def test_read_tum_names_file_and_line_of_a_bad_line(tmp_path, text, lineno, what):
     path = tmp_path / "bad.tum"
