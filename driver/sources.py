@@ -33,11 +33,12 @@ from ..tum import TumTrajectory
 
 log = logging.getLogger(__name__)
 
-#: scheme -> "module:function" of the backend's opener.  Openers take
-#: (path, options: UrlOptions, config: RadarConfig | None) and return a Source.
-#: The schemes of a radar read live, which an emulated board cannot stream from.
+#: The schemes of a radar read live: an emulated board cannot stream from one, and none knows a
+#: ground truth (:func:`live_scheme`).
 LIVE_SCHEMES = ("dca1000", "tidemo")
 
+#: scheme -> "module:function" of the backend's opener.  Openers take
+#: (path, options: UrlOptions, config: RadarConfig | None) and return a Source.
 SCHEMES: dict[str, str] = {
     "replay": "radarodom.driver.recordings.replay:open_replay",
     "sim": "radarodom.driver.sim.source:open_sim",
@@ -55,6 +56,13 @@ REPLAY_FORMATS: dict[str, str] = {
 #: stream, which ``tidemo://`` records beside its capture.json): ``replay://DIR`` finds the
 #: format by it, and a capture directory's files include it (``--overwrite`` replaces it).
 REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
+
+
+def live_scheme(url: str) -> str | None:
+    """The scheme of *url* where it names a radar read live (:data:`LIVE_SCHEMES`), else None; told
+    from the text alone, before any radar is looked for."""
+    scheme = url.partition("://")[0]
+    return scheme if scheme in LIVE_SCHEMES else None
 
 
 def register_scheme(scheme: str, opener: str | Callable[..., "Source"]) -> None:

@@ -39,7 +39,7 @@ from ..plain_numbers import time_text
 from ..estimator.consistency import MAX_MEASURED_AT_S, odometry_consistency
 from ..estimator.evaluation import EvaluationResult, associate, evaluate
 from ..estimator.heading_metrics import drift_parts, heading_metrics
-from ..driver.sources import LIVE_SCHEMES, open_source
+from ..driver.sources import live_scheme, open_source
 from ..tum import TumTrajectory, read_tum
 from . import cli, plots
 from .eval_summary import format_covariance, format_heading, format_table
@@ -175,8 +175,8 @@ def _source_groundtruth(url: str) -> tuple[TumTrajectory, float]:
     """The ground truth a frame source knows (its frames are not read), and when after a frame's
     stamp its odometry describes the radar, s: the middle of the frame's chirps where the DSP makes
     its products from raw frames by the source's cfg (``RadarConfig.measured_at_s``), else 0."""
-    scheme = url.partition("://")[0]
-    if scheme in LIVE_SCHEMES:  # before a radar is looked for
+    scheme = live_scheme(url)
+    if scheme:  # before a radar is looked for
         raise UsageError(f"{url}: a live radar ({scheme}://) knows no ground truth; give the truth as GT.tum, "
                          f"or a source that has one (replay:// of a simulation's recording, sim://, coloradar://)")
     with open_source(url) as source:

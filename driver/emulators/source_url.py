@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ...errors import UsageError
-from ..sources import LIVE_SCHEMES
+from ..sources import live_scheme
 
 
 def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
@@ -14,8 +14,8 @@ def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
     and opens its source with ``rate=max`` (the board paces), at which the simulator would
     otherwise take its slow ``exact`` fidelity.  A live radar's URL is refused (UsageError).  Open it
     with ``open_source(..., shown_url=url)``: its messages then name the URL the user gave."""
-    scheme = url.partition("://")[0]
-    if scheme in LIVE_SCHEMES:
+    scheme = live_scheme(url)
+    if scheme:
         raise UsageError(f"{url}: a live radar ({scheme}://) cannot be emulated; give a recording (--capture "
                          f"DIR) or a sim://, replay:// or coloradar:// source")
     replaced, defaults = dict(replaced or {}), dict(defaults or {})
