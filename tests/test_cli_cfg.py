@@ -349,6 +349,12 @@ def test_list_names_the_shipped_cfgs_with_a_description():
     assert [line.split()[0] for line in lines] == shipped
     assert lines[0].split(None, 1)[1] == ("raw ADC capture on the AWR1843BOOST with a DCA1000EVM "
                                           "(mmWave SDK 3.x demo firmware)")
+    proc = run_cfg("--list", "--json")
+    assert proc.returncode == 0 and proc.stderr == ""
+    listed = json.loads(proc.stdout)
+    assert list(listed) == shipped and listed["awr1843_raw.cfg"] == lines[0].split(None, 1)[1]
+    proc = run_cfg("--copy", "awr1843_raw", "--json")
+    assert proc.returncode == 2 and "--json goes with FILEs or --list, not --copy" in proc.stderr
 
 
 def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path):

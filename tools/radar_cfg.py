@@ -50,6 +50,8 @@ class _Parser(argparse.ArgumentParser):
                        f"or --copy NAME [DEST]")
         if not given:
             self.error("give one or more FILEs, or --list, or --copy NAME [DEST]")
+        if ns.json and ns.copy is not None:
+            self.error("--json goes with FILEs or --list, not --copy")
         return ns
 
 
@@ -68,12 +70,14 @@ def build_parser() -> argparse.ArgumentParser:
                     "exit status of them). --list and --copy give the cfgs radarodom ships.")
     parser.add_argument("cfg", metavar="FILE", nargs="*", help="the .cfg files")
     parser.add_argument("--json", action="store_true",
-                        help="print JSON with stable keys (several files: an object of them by file name)")
+                        help="print JSON with stable keys (several files: an object of them by file name; with --list, "
+                             "an object of the shipped cfgs' descriptions by name)")
     parser.add_argument("--packet-delay-us", type=cli.float_in(*DCA1000_PACKET_DELAY_RANGE_US, unit="us"),
                         default=DCA1000_DEFAULT_PACKET_DELAY_US, metavar="US",
                         help="DCA1000 packet delay for the capacity figure, %g..%g us (default %%(default)g)"
                              % DCA1000_PACKET_DELAY_RANGE_US)
-    parser.add_argument("--list", action="store_true", help="list the cfgs radarodom ships, one line each")
+    parser.add_argument("--list", action="store_true",
+                        help="list the cfgs radarodom ships, one line each (with --json: a JSON object)")
     parser.add_argument("--copy", nargs="+", metavar=("NAME", "DEST"),
                         help="copy a shipped cfg to DEST (a file or a directory; default: NAME in the "
                              "current directory), a new file unless --overwrite")
@@ -94,8 +98,11 @@ def shipped_configs() -> dict[str, str]:
     return found
 
 
-def _list() -> int:
+def _list(as_json: bool) -> int:
     configs = shipped_configs()
+    if as_json:
+        sys.stdout.write(strict_json.dumps(configs, indent=2) + "\n")
+        return 0
     width = max(map(len, configs), default=0)
     for name, description in configs.items():
         print(f"{name:<{width}}  {description}")
@@ -122,7 +129,7 @@ def _copy(names: list[str], overwrite: bool) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     if args.list:
-        return _list()
+        return _list(args.json)
     if args.copy is not None:
         return _copy(args.copy, args.overwrite)
     if len(args.cfg) == 1:
