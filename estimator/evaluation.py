@@ -351,9 +351,13 @@ def _warn_if_not_planar(traj: TumTrajectory) -> None:
     q = traj.quaternions / np.linalg.norm(traj.quaternions, axis=1, keepdims=True)
     # For a unit quaternion, |(qx, qy)| = sin(tilt / 2) whatever the yaw.
     tilt = 2.0 * np.arcsin(np.clip(np.hypot(q[:, 0], q[:, 1]), 0.0, 1.0)) if len(q) else np.zeros(0)
-    if len(z) and (np.ptp(z) > _PLANAR_Z_TOL_M or tilt.max() > _PLANAR_TILT_TOL_RAD):
-        log.warning("%s: z varies by %.3g m and roll/pitch reach %.3g deg; the evaluation is planar "
-                    "and ignores them", traj.source or "a trajectory", np.ptp(z), np.degrees(tilt.max()))
+    if not len(z):
+        return
+    found = ([f"z varies by {np.ptp(z):.3g} m"] if np.ptp(z) > _PLANAR_Z_TOL_M else []) \
+        + ([f"roll/pitch reach {np.degrees(tilt.max()):.3g} deg"] if tilt.max() > _PLANAR_TILT_TOL_RAD else [])
+    if found:
+        log.warning("%s: %s; the evaluation is planar and ignores them", traj.source or "a trajectory",
+                    " and ".join(found))
 
 
 def evaluate(est: TumTrajectory, ref: TumTrajectory, *, delta_m: float = 1.0,

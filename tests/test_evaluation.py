@@ -232,7 +232,14 @@ def test_a_tilted_trajectory_is_evaluated_in_the_plane_with_a_warning(warnings_l
     tilted.positions[:, 2] = np.linspace(0.0, 0.5, 50)
     r = evaluate(tilted, traj(t, ref))
     assert np.max(r.ate_m) < 1e-9
-    assert any("tilted.tum: z varies by 0.5 m" in m for m in warning_messages(warnings_log))
+    said = [m for m in warning_messages(warnings_log) if "tilted.tum" in m]
+    assert said == ["tilted.tum: z varies by 0.5 m; the evaluation is planar and ignores them"]  # no roll/pitch
+    pitched = traj(t, ref, "pitched.tum")
+    pitched.positions[:, 2] = 1.0  # a constant height is no warning; a pitch of 5 degrees is
+    pitched.quaternions[:] = Rotation.from_euler("ZYX", [0.0, 5.0, 0.0], degrees=True).as_quat()
+    evaluate(traj(t, ref), pitched)
+    assert [m for m in warning_messages(warnings_log) if "pitched.tum" in m] == [
+        "pitched.tum: roll/pitch reach 5 deg; the evaluation is planar and ignores them"]
     # radar-coloradar evaluates several estimates against one ground truth: it warns with the first only.
     before = len(warning_messages(warnings_log))
     evaluate(traj(t, ref), tilted, warn_planar=False)
