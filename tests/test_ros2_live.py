@@ -212,6 +212,7 @@ def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store, patien
     assert counts.pop("ros2_diagnostics") >= 11, counts  # each state's, and the status every second and at the end
     assert counts == {"ros2": 10, "ros2_points": 10, "ros2_tf": 10, "ros2_tf_static": 1, "ros2_heatmap": 10,
                       "ros2_heatmap_axes": 10}
+    assert ", and to ROS 2 (domain 0) 10 on /radar/odom, 10 point clouds and 10 TF" in proc.stdout, proc.stdout
     points = [store.deserialize_cdr(p, TYPES["ros2_points"]) for _, _, p, _ in samples["ros2_points"]]
     assert {p.header.frame_id for p in points} == {"radar"} and sum(p.width for p in points) > 0
     stamps = [(t.header.stamp.sec, t.header.stamp.nanosec) for m in samples["ros2_tf"]

@@ -302,6 +302,10 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
         summary += (f"; published {counts['odom']} odometry, {counts['pointcloud']} point cloud, "
                     f"{counts['heatmap']} heatmap and {counts['status']} status messages under "
                     f"{publisher.options.key_prefix}")
+        if publisher.options.ros2:
+            summary += (f", and to ROS 2 (domain {publisher.options.ros2_domain}) {counts['ros2']} on "
+                        f"{publisher.options.ros2_topic}, {counts['ros2_points']} point clouds and "
+                        f"{counts['ros2_tf']} TF")
     if args.mcap:
         summary += f"; ROS 2 bag {args.mcap}"
     summary += view_option.summary(args, pipeline.sinks)
