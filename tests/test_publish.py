@@ -564,9 +564,9 @@ def test_keys_are_under_the_prefix():
 
 @pytest.mark.parametrize("page", ["README.md", "docs/messages.md"])
 def test_the_documented_subscriber_example_receives_odometry(run, page):
-    """The ten-line subscriber of the README and of docs/messages.md, pointed at this test's publisher."""
+    """The dozen-line subscriber of the README and of docs/messages.md, pointed at this test's publisher."""
     text = (REPO / page).read_text()
-    section = text[text.index("A subscriber in ten lines"):]
+    section = text[text.index("A subscriber in a dozen lines"):]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     assert DEFAULT_ENDPOINT in code and "time.sleep(60)" in code
     endpoint = free_endpoint()

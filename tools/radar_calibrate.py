@@ -40,7 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "on boresight at a known distance, as TI's measureRangeBiasAndRxChanPhase does.",
         epilog="Set-up: one corner reflector on the radar's boresight, at the antennas' height, 1.5-3 m away, "
                "nothing else within the search window (--search-window); the radar and the reflector still. Try "
-               "it on the simulator: radar-calibrate --source 'sim://calibration?board=uncalibrated' --distance 3")
+               "it on the simulator: radar-calibrate --source 'sim://calibration?board=uncalibrated&rate=max' "
+               "--distance 3")
     parser.add_argument("--source", metavar="URL",
                         help="raw frame source (dca1000://, replay://, sim://, coloradar://...adc; default: the "
                              "live radar if one is plugged in)")
