@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import MAX_FRAMES, Simulator
-from radarodom.driver.sources import MAX_URL_NUMBER, open_source
+from radarodom.driver.sources import open_source
+from radarodom.driver.url_options import MAX_URL_NUMBER
 from radarodom.errors import SourceError, UsageError
 from radarodom.tools import radar_capture
 

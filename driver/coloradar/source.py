@@ -43,7 +43,8 @@ from .files import STREAMS
 from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
 from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
 from ...plain_numbers import plain_float
-from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, one_of, parse_rate
+from ..sources import Frame, Pacer, Source
+from ..url_options import RATE_EXPECTED, UrlOptions, one_of, parse_rate
 
 log = logging.getLogger(__name__)
 

@@ -41,7 +41,8 @@ from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
 from .dca1000_wire import BOARD_IP, HOST_IP, AsyncStatus
 from .frame_ring import POLICIES, FrameRing
-from ..sources import Frame, Source, UrlOptions, at_least, number_in, one_of, positive_number, udp_port
+from ..sources import Frame, Source
+from ..url_options import UrlOptions, at_least, number_in, one_of, positive_number, udp_port
 
 log = logging.getLogger(__name__)
 

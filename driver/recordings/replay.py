@@ -32,7 +32,8 @@ from ...errors import CaptureFormatError, ConfigError, SourceError, quoted
 from ...plain_numbers import plain_float
 from .capture_dir import ADC_DATA, METADATA, RADAR_CFG, TIMESTAMPS, CaptureDirectory, missing_data_message
 from ..sim.board import BUILTIN_BOARDS, load_board
-from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, parse_rate
+from ..sources import Frame, Pacer, Source
+from ..url_options import RATE_EXPECTED, UrlOptions, at_least, parse_rate
 from .ti_recorder import NO_RECORDING, SERIES_PATTERN as _TI_SERIES, TiRecording
 
 log = logging.getLogger(__name__)

@@ -35,7 +35,8 @@ import numpy as np
 
 from ...cfg import RadarConfig, shipped_config_path
 from ...tum import TumTrajectory
-from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, one_of, parse_rate, positive_number
+from ..sources import Frame, Pacer, Source
+from ..url_options import RATE_EXPECTED, UrlOptions, at_least, one_of, parse_rate, positive_number
 from .board import load_board
 from .physics import FIDELITIES
 from .scene import load_scene

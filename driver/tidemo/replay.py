@@ -34,7 +34,8 @@ from ... import strict_json
 from ...cfg import RadarConfig
 from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError
 from ..recordings.capture_check import read_timestamps
-from ..sources import RATE_EXPECTED, Frame, Pacer, Source, UrlOptions, at_least, parse_rate
+from ..sources import Frame, Pacer, Source
+from ..url_options import RATE_EXPECTED, UrlOptions, at_least, parse_rate
 from .framer import FramerStats, TlvFramer
 from .layout import DemoGeometry, gui_selection
 from .products import FrameIndexer, PacketFrames

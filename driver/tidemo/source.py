@@ -45,7 +45,8 @@ from ...cfg import RadarConfig, shipped_config_path
 from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.source import FrameClock
-from ..sources import Frame, Source, UrlOptions, at_least, one_of, positive_number
+from ..sources import Frame, Source
+from ..url_options import UrlOptions, at_least, one_of, positive_number
 from .framer import TlvFramer
 from .layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, demo_config, gui_selection
 from .recording import UartRecorder
