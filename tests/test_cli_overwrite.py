@@ -130,6 +130,25 @@ def test_radar_sim_out_is_replaced_with_overwrite(tmp_path, capsys):
     assert "is a file" in capsys.readouterr().err and blocker.read_text() == "x"
 
 
+def test_radar_sim_refuses_a_recording_the_disk_has_no_room_for_before_replacing_anything(tmp_path, capsys):
+    """A --duration off by a few zeros once wrote 10 000 frames (7.8 GB) with a warning only."""
+    from radarodom.cfg import RadarConfig, shipped_config_path
+
+    out = tmp_path / "sim"
+    assert radar_sim.main(["calibration", "--duration", "0.2", "--out", str(out), "-q"]) == 0
+    before = (out / "adc_data.bin").read_bytes()
+    cfg = RadarConfig.from_file(shipped_config_path())
+    st = os.statvfs(tmp_path)
+    frames = (st.f_bavail * st.f_frsize + len(before)) // cfg.frame_bytes + 1000
+    duration = f"{frames * cfg.frame_period_s:.1f}"
+    for target, extra in ((tmp_path / "new" / "run", []), (out, ["--overwrite"])):
+        assert radar_sim.main(["calibration", "--duration", duration, "--out", str(target), "-q", *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"radar-sim: error: --out {target}: ") \
+            and f"frames of {cfg.frame_bytes} bytes" in err[0] and "is free there" in err[0], err
+    assert not (tmp_path / "new").exists() and (out / "adc_data.bin").read_bytes() == before
+
+
 def test_two_outputs_naming_one_file_are_refused_before_anything_is_written(tmp_path, capsys):
     out = tmp_path / "odom.tum"
     rc, err = capture(capsys, "--odom-out", out, "--odom-json", out)

@@ -85,6 +85,26 @@ def check_writable_directory(path: str, option: str) -> None:
         raise UsageError(f"{option} {path}: the directory {there} is not writable; {CHOOSE_WRITABLE}")
 
 
+def check_room(path: str, needed_bytes: int, option: str, what: str, reclaimed_bytes: int = 0) -> None:
+    """Refuse an output of *needed_bytes* where the file system it would be on (*path*'s, or the
+    nearest directory above it that is there) has not that much free, counting *reclaimed_bytes*
+    that replacing an earlier output frees; where the free space cannot be told, nothing is said."""
+    missing = missing_directories(path)
+    there = os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
+    try:
+        st = os.statvfs(there)
+    except (OSError, AttributeError):  # no statvfs (Windows): the write itself says so
+        return
+    free = st.f_bavail * st.f_frsize + reclaimed_bytes
+    if needed_bytes > free:
+        raise UsageError(f"{option} {path}: {what} takes {_gigabytes(needed_bytes)}, and {_gigabytes(free)} is "
+                         f"free there: ask for less, free some space, or choose another disk")
+
+
+def _gigabytes(n: int) -> str:
+    return f"{n / 1e9:,.1f} GB" if n >= 1e8 else f"{n / 1e6:,.1f} MB"
+
+
 def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[str, str]] = ()) -> None:
     """Refuse two outputs that name one path, or an output that names an input of the same run
     or one of the files of a recording or run given as an input directory (new files beside

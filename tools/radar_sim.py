@@ -53,18 +53,31 @@ def _bar(done: int, total: int, width: int = 24) -> str:
     return "[" + "#" * filled + "." * (width - filled) + "]"
 
 
+def _frames_bytes(directory: str) -> int:
+    """The size of the frame data of the recording in *directory* that --overwrite replaces, bytes."""
+    try:
+        return os.path.getsize(os.path.join(directory, "adc_data.bin"))
+    except OSError:
+        return 0
+
+
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     cfg = RadarConfig.from_file(args.cfg or shipped_config_path())
     scene = load_scene(args.scene, seed=args.seed)
     board = load_board(args.board)
     sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board, fidelity=args.fidelity)
+    replaced = 0
     if os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
         cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite)
-        if args.overwrite:
-            cli.replace_output(args.out, "capture")
+        replaced = _frames_bytes(args.out) if args.overwrite else 0
     else:
         cli.check_writable_directory(args.out, "--out")
+    # Before anything is replaced: a --duration off by a few zeros would fill the disk.
+    cli.check_room(args.out, sim.num_frames * cfg.frame_bytes, "--out",
+                   f"{sim.num_frames} frames of {cfg.frame_bytes} bytes ({sim.num_frames * sim.period:,.1f} s)", replaced)
+    if args.overwrite and os.path.exists(args.out):
+        cli.replace_output(args.out, "capture")
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
