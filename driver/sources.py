@@ -55,6 +55,12 @@ REPLAY_FORMATS: dict[str, str] = {
 #: stream, which ``tidemo://`` records beside its capture.json): ``replay://DIR`` finds the
 #: format by it, and a capture directory's files include it (``--overwrite`` replaces it).
 REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
+#: The bytes a file of another replay format holds within its first :data:`REPLAY_SNIFF_BYTES`
+#: (a demo's packets' magic word, ``tidemo/wire.MAGIC``: a serial logger's file starts mid-packet),
+#: so that ``replay://FILE`` given the cfg plays it in its format, not as raw ADC samples (a
+#: raw recording holds these 8 bytes by chance about once in 10^19 such reads).
+REPLAY_FORMAT_MAGIC: dict[str, bytes] = {"tidemo": bytes([0x02, 0x01, 0x04, 0x03, 0x06, 0x05, 0x08, 0x07])}
+REPLAY_SNIFF_BYTES = 1 << 16
 
 
 def live_scheme(url: str) -> str | None:
@@ -260,14 +266,26 @@ def _resolve(opener: str | Callable[..., Source]) -> Callable[..., Source]:
 
 def _replay_opener(path: str, options: UrlOptions, default: str | Callable[..., Source]):
     """The opener of ``replay://PATH``: by its ``format=`` option, else by the file a directory
-    of a format holds (``uart.bin``: a demo's UART stream), else *default*."""
+    of a format holds (``uart.bin``: a demo's UART stream) or the bytes a file given holds
+    (:data:`REPLAY_FORMAT_MAGIC`), else *default*."""
     kind = options.take("format", one_of("capture", *REPLAY_FORMATS), None,
                         " or ".join(("capture", *REPLAY_FORMATS)))
     if kind is None:
-        directory = os.path.expanduser(path)
-        kind = next((name for name, file in REPLAY_FORMAT_FILES.items()
-                     if os.path.isfile(os.path.join(directory, file))), "capture")
+        kind = _replay_format(os.path.expanduser(path))
     return default if kind == "capture" else REPLAY_FORMATS[kind]
+
+
+def _replay_format(path: str) -> str:
+    """The replay format of the directory or file *path*, "capture" unless it is another's."""
+    if os.path.isdir(path):
+        return next((name for name, file in REPLAY_FORMAT_FILES.items()
+                     if os.path.isfile(os.path.join(path, file))), "capture")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(REPLAY_SNIFF_BYTES)
+    except OSError:  # missing or unreadable: the capture's opener says so
+        return "capture"
+    return next((name for name, magic in REPLAY_FORMAT_MAGIC.items() if magic in head), "capture")
 
 
 def open_source(url: str, config: RadarConfig | None = None, *, shown_url: str | None = None) -> Source:

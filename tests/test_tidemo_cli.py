@@ -39,7 +39,8 @@ def test_radar_capture_on_tidemo_gives_odometry_points_heatmaps_and_messages(tmp
         inbox = Inbox()
         sub = session.declare_subscriber("test/tidemo/**", inbox)
         try:
-            proc = run_capture_cli("--source", rig.url(), "--cfg", cfg_file, "--frames", FRAMES,
+            # max_points=0: the UART budget checked for no point a frame, which every frame with one exceeds.
+            proc = run_capture_cli("--source", rig.url(max_points=0), "--cfg", cfg_file, "--frames", FRAMES,
                                    "--odom-out", tmp_path / "odom.tum", "--points-out", tmp_path / "points.csv",
                                    "--heatmap-out", tmp_path / "heatmaps", "--key-prefix", "test/tidemo",
                                    "--connect", here, "--listen", free_endpoint(), timeout=300)
@@ -54,6 +55,8 @@ def test_radar_capture_on_tidemo_gives_odometry_points_heatmaps_and_messages(tmp
     assert damaged, "the seed must damage packets"
     # The line's damage is counted where the user sees it (the source's closing line).
     assert "frames from the demo;" in proc.stderr and "packets rejected" in proc.stderr
+    assert "packets with more points than max_points=0" in proc.stderr
+    assert " over max_points=0 (the UART budget's; give a larger one)" in proc.stdout, proc.stdout
     odom = read_tum(str(tmp_path / "odom.tum"))
     assert len(odom.times) == FRAMES and np.all(np.diff(odom.times) > 0)
     intensity = sorted(n for n in os.listdir(tmp_path / "heatmaps") if n.endswith("_intensity.npy"))

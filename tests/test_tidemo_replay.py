@@ -57,6 +57,28 @@ def test_a_serial_loggers_file_plays_with_the_cfgs_period(tmp_path, cfg):
     assert about["discarded_bytes"] == len(p[1]) - 100 + len(p[5]) - 50
 
 
+def test_a_demo_stream_given_without_its_format_plays_as_one(tmp_path, cfg):
+    """A serial logger's file under any name, replayed with --cfg but without ?format=tidemo, is
+    the demo's stream (was decoded as raw ADC samples: made-up odometry and a cut-off warning);
+    a directory's capture without that magic word stays raw."""
+    from radarodom.driver.sources import REPLAY_FORMAT_MAGIC
+
+    assert REPLAY_FORMAT_MAGIC["tidemo"] == wire.MAGIC
+    p = packets(cfg, range(3, 10))
+    path = tmp_path / "log.bin"
+    path.write_bytes(p[0][50:] + b"".join(p[1:]))  # opened mid-packet
+    with open_source(f"replay://{path}?rate=max", cfg) as given, \
+            open_source(f"replay://{path}?format=tidemo&rate=max", cfg) as told:
+        assert [(f.index, f.wire) for f in given] == [(f.index, f.wire) for f in told]
+        assert type(given) is type(told)
+    with pytest.raises(ConfigError, match="give the cfg the radar ran with --cfg"):
+        open_source(f"replay://{path}")
+    raw = tmp_path / "adc.bin"
+    raw.write_bytes(bytes(cfg.frame_bytes * 2))
+    with open_source(f"replay://{raw}?rate=max", cfg) as source:
+        assert len(list(source)) == 2 and type(source).__name__ == "ReplaySource"
+
+
 def test_timestamps_beside_the_file_are_one_line_per_frame_number(tmp_path, cfg):
     p = packets(cfg, [1, 2, 4])
     (tmp_path / "uart.bin").write_bytes(b"".join(p))

@@ -134,12 +134,14 @@ def test_the_source_configures_the_radar_and_frames_what_its_data_port_sends():
     try:
         cli = radar.open_pty()
         frames = []
-        with open_source(f"tidemo://{data.path}?cli={cli}", cfg) as source:
+        # max_points=1: the UART budget checked for one point a frame, which frame 2's two exceed.
+        with open_source(f"tidemo://{data.path}?cli={cli}&max_points=1", cfg) as source:
             for frame in source:
                 frames.append(frame)
                 if frame.index == 5:
                     break
             about = source.describe()
+            said = source.summary()
         assert "guiMonitor -1 1 0 0 1 0 0" in radar.received and radar.received[-1] == "sensorStop"
         assert "lvdsStreamCfg" not in " ".join(radar.received)
         assert [f.index for f in frames] == [0, 1, 3, 5]
@@ -154,6 +156,9 @@ def test_the_source_configures_the_radar_and_frames_what_its_data_port_sends():
         assert times == sorted(times) and 3.5 * period <= times[3] - times[0] <= 5 * period + 1e-6
         assert about["frames"] == 4 and about["frames_skipped"] == 2 and about["rejected_cut_short"] == 1
         assert about["discarded_bytes"] == len(b"\r\nstale boot text\r\n") + len(p[2]) - 200
+        assert about["over_budget"] == 1 and about["max_points"] == 1
+        assert said.endswith("; 1 packets with more points than max_points=1, which the UART budget was checked "
+                             "for (give a larger max_points)"), said
     finally:
         radar.close()
         data.close()

@@ -80,6 +80,9 @@ def stream_summary(args: argparse.Namespace, source: Source, stats: PipelineStat
         text += (f"; {_counted(live['frames_skipped'], 'frame number')} skipped, "
                  f"{_counted(live['rejected_packets'], 'packet')} rejected, "
                  f"{_counted(live['discarded_bytes'], 'byte')} discarded")
+        if live.get("over_budget"):
+            text += (f", {_counted(live['over_budget'], 'packet')} over max_points={live['max_points']} (the UART "
+                     "budget's; give a larger one)")
     return text + files_text(args, stats)
 
 

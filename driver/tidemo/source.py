@@ -235,13 +235,14 @@ class TidemoSource(Source):
         never handed on: rejected or lost on the line, or dropped), ``slow_drops`` (whole frames
         the consumer was too slow for, by the policy), the framer's figures (``packets``,
         ``discarded_bytes``, ``rejected_packets`` and by reason), ``over_budget`` (packets with
-        more points than max_points), and the UART's load (packet time over the time it has); as
+        more points than ``max_points``, which the UART budget was checked for), and the UART's load (packet time over the time it has); as
         they were when the consumer left, if it did."""
         if self._when_left is not None:
             return dict(self._when_left)
         return {"url": self.url, "data_port": self.data_url, "cli": self.radar.url, "baud": self.baud,
                 "frames": self._counts["delivered"], "frames_skipped": self.frames.skipped + self._counts["dropped"],
                 "slow_drops": self._counts["dropped"], "over_budget": self._counts["over_budget"],
+                "max_points": self.budget.max_points,
                 "uart_load": round(self.budget.transmit_s / self.budget.available_s, 3),
                 **self.framer.stats.as_dict()}
 
@@ -251,7 +252,9 @@ class TidemoSource(Source):
                              if k.startswith("rejected_") and k != "rejected_packets")
         return (f"{d['frames']} frames from the demo; {d['frames_skipped']} frame numbers skipped "
                 f"({d['rejected_packets']} packets rejected{': ' + rejected if rejected else ''}; "
-                f"{d['slow_drops']} dropped by slow processing); {d['discarded_bytes']} bytes discarded")
+                f"{d['slow_drops']} dropped by slow processing); {d['discarded_bytes']} bytes discarded"
+                + (f"; {d['over_budget']} packets with more points than max_points={d['max_points']}, which the "
+                   "UART budget was checked for (give a larger max_points)" if d["over_budget"] else ""))
 
     def _stop_radar(self) -> None:
         if self.radar.is_open and self.radar.started:
@@ -273,7 +276,7 @@ class TidemoSource(Source):
             self.port.close()
         if self._reader is not None:
             d = self.describe()
-            lossy = d["frames_skipped"] or d["rejected_packets"] or d["discarded_bytes"]
+            lossy = d["frames_skipped"] or d["rejected_packets"] or d["discarded_bytes"] or d["over_budget"]
             log.log(logging.WARNING if lossy else logging.INFO, "%s", self.summary())
 
 
