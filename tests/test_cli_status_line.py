@@ -147,3 +147,15 @@ def test_the_summarys_rate_counts_from_the_first_frame_not_from_the_start():
     span = stats.last_frame_monotonic - stats.first_frame_monotonic
     assert stats.mean_rate_hz == 1 / span and stats.elapsed_s > 10.0 and stats.mean_rate_hz > 2 / stats.elapsed_s
     assert stats.stream_duration_s == 0.05
+
+
+def test_the_summary_says_where_frames_were_recorded_and_when_nothing_was(tmp_path):
+    """A run stopped before its first frame takes its empty recording with it: its summary said
+    'recorded to DIR' of a directory that was not there."""
+    stats = PipelineStats(frames=0, reason="stopped")
+    assert capture_text.summary(stats, str(tmp_path / "rec")).endswith(
+        f"stopped; nothing recorded ({tmp_path / 'rec'} not made)")
+    (tmp_path / "rec").mkdir()
+    stats.frames = 5
+    assert capture_text.summary(stats, str(tmp_path / "rec"), 3).endswith(f"; recorded 3 of them to {tmp_path / 'rec'}")
+    assert capture_text.summary(stats, str(tmp_path / "rec"), 5).endswith(f"; recorded to {tmp_path / 'rec'}")

@@ -164,6 +164,44 @@ def test_radar_emulate_refuses_what_it_would_ignore(tmp_path, capsys, argv, word
     assert words.replace("FILE", str(tmp_path / "adc_data.bin")) in capsys.readouterr().err
 
 
+def test_radar_emulate_refuses_a_recording_of_the_demos_stream_at_start(tmp_path, cfg):
+    """Such a recording has no ADC frames to stream: both boards started, printed their command,
+    and failed only when radar-capture started the radar ('streaming failed', no reason)."""
+    from conftest import console_command
+    from live_helpers import Process
+    from test_tidemo_replay import packets
+
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    (rec / "uart.bin").write_bytes(b"".join(packets(cfg, range(1, 6))))
+    (rec / "radar.cfg").write_text(TIDEMO_CFG)
+    for extra in ([], ["--uart"]):
+        emulator = Process([*console_command("radar-emulate"), "--capture", str(rec), *extra])
+        code = emulator.wait(60)  # (one that starts runs until stopped)
+        emulator.kill()
+        err = emulator.output()[1]
+        assert code == 2, err
+        assert f"replay://{rec}: its frames carry no raw ADC samples" in err and \
+            f"play it with radar-capture --source replay://{rec}" in err, err
+
+
+def test_radar_emulate_uart_hangs_on_start_when_told(tmp_path):
+    """--hang-on-start was taken with --uart and ignored: the radar answered sensorStart."""
+    from live_helpers import Emulator, Process
+
+    cfg_file = tmp_path / "tidemo.cfg"
+    cfg_file.write_text(TIDEMO_CFG)
+    with Emulator("--uart", "--source", "sim://corridor", "--cfg", cfg_file, "--hang-on-start") as emu:
+        capture = Process(emu.capture_argv("--frames", 5, "--no-publish", "--record", tmp_path / "rec",
+                                           url_extra="start_timeout=0.5"))
+        code = capture.wait(120)
+        capture.kill()
+        stdout, stderr = capture.output()
+        assert code == 1 and "sensorStart" in stderr, stderr
+        assert not (tmp_path / "rec").exists()
+        assert emu.stop() == 0
+
+
 def test_what_the_line_did_is_counted_up_to_where_the_consumer_left(cfg):
     """A consumer that leaves (a frame or duration limit) before the source closes: the reader
     keeps reading until then, and the figures counted what came after too (the summary's frame

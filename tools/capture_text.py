@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 
 import numpy as np
 
@@ -49,11 +50,15 @@ def missing_text(stats: PipelineStats) -> str:
 
 def summary(stats: PipelineStats, record: str | None, recorded: int | None = None) -> str:
     """The frames streamed and why the run ended; with *record*, where they were recorded, and how
-    many of them when that is fewer (*recorded*: a recording a failed write ended)."""
+    many of them when that is fewer (*recorded*: a recording a failed write ended), or that nothing
+    was where the directory is not there (a run stopped before its first frame takes its empty
+    recording with it)."""
     text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({missing_text(stats)}) in "
             f"{stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, {stats.stream_duration_s:.2f} s of stream; "
             f"{stats.reason}")
-    if record:
+    if record and not os.path.isdir(record):
+        text += f"; nothing recorded ({record} not made)"
+    elif record:
         some = f" {recorded} of them" if recorded is not None and recorded != stats.frames else ""
         text += f"; recorded{some} to {record}"
     return text

@@ -137,7 +137,7 @@ def _main(args: argparse.Namespace) -> int:
 
 def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args: argparse.Namespace) -> int:
     """The fake radar with the demo's data port, until Ctrl-C."""
-    from ..driver.emulators.source_url import emulated_source_url
+    from ..driver.emulators.source_url import emulated_source_url, no_raw_frames_message
     from ..driver.sources import open_source
     from ..driver.tidemo.layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, gui_selection
 
@@ -148,12 +148,14 @@ def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args
     if config is not None:  # radar-capture would refuse it: say so now
         check_uart_budget(config, DemoGeometry.from_config(config).layout(gui_selection(config)), DEFAULT_BAUD, 64)
     # The fake radar opens the source only when radar-capture starts it: its URL is checked now.
-    with open_source(emulated_source_url(url, defaults={"rate": "max", "loop": "0"}), config, shown_url=url):
-        pass
+    with open_source(emulated_source_url(url, defaults={"rate": "max", "loop": "0"}), config, shown_url=url) as source:
+        if not source.carries_raw:
+            raise UsageError(no_raw_frames_message(url))
     faults = UartFaults(garbage=args.uart_garbage, truncate=args.uart_truncate, drop=args.uart_drop, seed=args.seed)
     stop = threading.Event()
     with cli.on_stop_signals(lambda *_: stop.set()):
-        with DemoUartRig(url, faults=faults, rate="max" if args.max_rate else "paced") as rig:
+        with DemoUartRig(url, faults=faults, cli_faults=CliFaults(hang_on_start=args.hang_on_start),
+                         rate="max" if args.max_rate else "paced") as rig:
             command = ["radar-capture", "--source", rig.url()] + (["--cfg", cfg_path] if cfg_path else [])
             print(f"radar-emulate: radar CLI on {rig.cli_path}, demo data port on {rig.data_path}; streaming "
                   f"{url} as the demo's UART output")

@@ -100,8 +100,8 @@ class DataStreamer:
                     self._release_held(st, all_=True)
                 else:
                     self._pump(st)
-            except Exception:
-                log.exception("fake DCA1000: the data stream failed")
+            except Exception as exc:
+                log.exception("fake DCA1000: the data stream failed: %s", exc)
                 st.exhausted = True
             finally:
                 with self._cond:

@@ -75,13 +75,14 @@ import threading
 from typing import Any, Callable, Iterable
 
 from ...cfg import RadarConfig
+from ...errors import UsageError
 from ...rawframe import RawLayout
 from ..live.dca1000_wire import EepromConfig, FpgaConfig, FpgaVersion, PacketConfig
 from .dca1000_commands import CommandPort
 from .dca1000_faults import Faults, StreamStats
 from .dca1000_inspection import BoardInspection
 from .dca1000_streamer import DataStreamer, _frame_bytes
-from .source_url import emulated_source_url
+from .source_url import emulated_source_url, no_raw_frames_message
 
 log = logging.getLogger(__name__)
 
@@ -217,6 +218,8 @@ class FakeDca1000(CommandPort, DataStreamer, BoardInspection):
 
         source = open_source(_url_with_rate_max(url), config, shown_url=url)
         try:
+            if not source.carries_raw:
+                raise UsageError(no_raw_frames_message(url))
             kw.setdefault("frame_period_s", source.config.frame_period_s)
             board = cls(frames=lambda: (f.raw for f in source), **kw)
         except BaseException:

@@ -172,8 +172,8 @@ class FakeDemoDataPort:
                 config, generation = self.config, self._generation
             try:
                 self._stream(config, generation)
-            except Exception:  # a broken source must not kill the radar
-                log.exception("fake demo data port: streaming failed")
+            except Exception as exc:  # a broken source must not kill the radar
+                log.exception("fake demo data port: streaming failed: %s", exc)
                 with self._cond:
                     if self._generation == generation:
                         self._running = False

@@ -27,3 +27,10 @@ def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
     items += [f"{k}={v}" for k, v in defaults.items() if k not in given and k not in replaced]
     items += [f"{k}={v}" for k, v in replaced.items()]
     return base + "?" + "&".join(items) if items else base
+
+
+def no_raw_frames_message(url: str) -> str:
+    """What an emulated board says of a source *url* whose frames carry no raw ADC samples (a
+    recording of the demo's UART stream): it streams raw frames, as the radar's ADCs give them."""
+    return (f"{url}: its frames carry no raw ADC samples (a recording of the demo's UART stream holds its "
+            f"packets only), and an emulated board streams raw frames; play it with radar-capture --source {url}")
