@@ -185,3 +185,19 @@ def test_one_port_given_as_both_cli_and_data_is_refused(tmp_path):
     link.symlink_to(dev)
     with pytest.raises(SourceError, match="the CLI port and the data port are both .*USB interface 0"):
         open_source(f"tidemo://{dev}?cli={link}", RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
+
+
+def test_swapped_ports_are_told_by_a_cli_port_that_never_says_anything():
+    """The data port given as the CLI (ttyACM1 for ttyACM0): 'did not answer sensorStop' alone
+    did not say where to look; a port that answered before and then went quiet does not get it."""
+    from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
+    from radarodom.errors import DeviceTimeout
+
+    cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
+    with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
+        swapped = f"tidemo://{rig.cli_path}?cli={rig.data_path}&cli_timeout=0.3"
+        with pytest.raises(DeviceTimeout) as info:
+            open_source(swapped, cfg)
+    message = str(info.value)
+    assert f"did not answer 'sensorStop' within 0.3 s on {rig.data_path}: nothing has come back on it since it " \
+           "was opened; is it the radar's CLI port (the board's first, USB interface 0" in message, message

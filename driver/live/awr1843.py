@@ -47,6 +47,8 @@ class Awr1843Cli:
         self._framer = ReplyFramer()
         #: True between a successful sensorStart and sensorStop.
         self.started = False
+        #: Whether anything at all came back on the port since it was opened.
+        self._heard_any = False
 
     def open(self) -> "Awr1843Cli":
         try:
@@ -55,6 +57,7 @@ class Awr1843Cli:
         except (serial.SerialException, ValueError, OSError) as exc:
             raise port_open_error("CLI", self.url, exc) from None
         self._port.reset_input_buffer()
+        self._heard_any = False
         return self
 
     @property
@@ -88,6 +91,7 @@ class Awr1843Cli:
             resent = command not in REPEATABLE
             while True:
                 for text in self._framer.feed(self._port.read(self._port.in_waiting or 1)):
+                    self._heard_any = True
                     if _belongs_to(text, command):
                         reply = classify(text, command)
                         log.debug("%s -> %s %s", command, reply.outcome.value, reply.text)
@@ -104,7 +108,11 @@ class Awr1843Cli:
                     heard = " ".join(split_lines(self._framer.pending.decode("ascii", "replace")))[:200]
                     raise DeviceTimeout(f"the radar did not answer {command.split()[0]!r} within "
                                         f"{timeout_s:g} s on {self.url}"
-                                        + (f" (it said: {heard!r})" if heard else ""))
+                                        + (f" (it said: {heard!r})" if heard else "")
+                                        + ("" if heard or self._heard_any else
+                                           ": nothing has come back on it since it was opened; is it the radar's "
+                                           "CLI port (the board's first, USB interface 0; radar-devices lists "
+                                           "them), the board powered and running the demo firmware?"))
         except (serial.SerialException, OSError) as exc:
             raise DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable "
                               f"unplugged or the board reset?") from None
