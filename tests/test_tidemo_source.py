@@ -36,7 +36,13 @@ def test_a_frame_rate_the_uart_cannot_carry_is_refused_before_any_port_is_opened
     assert "the UART cannot carry this cfg's frames" in msg and "8200 static heatmap" in msg
     assert "ms at 921600 baud" in msg and "73.1 ms" in msg
     assert "frameCfg period of at least 130 ms" in msg and "numAdcSamples 128 or less" in msg
-    assert err.value.command == "frameCfg"
+    assert err.value.command == "frameCfg" and "no cfg was given" not in msg
+    # Given no cfg, the shipped one is used: the error says so, and what to give.
+    with pytest.raises(ConfigError) as err:
+        open_source("tidemo:///nonexistent-data?cli=/nonexistent-cli")
+    assert str(err.value).startswith(f"{SHIPPED}: frameCfg: the UART cannot carry") and str(err.value).endswith(
+        "(no cfg was given, so the shipped raw-capture cfg was used: give one the UART carries with --cfg; "
+        "docs/tidemo.md says how to make it)"), str(err.value)
 
 
 def test_a_slower_uart_is_refused_and_a_faster_one_takes_configdataport():
@@ -165,8 +171,11 @@ def test_the_source_configures_the_radar_and_frames_what_its_data_port_sends():
 
 
 @pytest.mark.parametrize("url, words", [
-    ("tidemo:///nonexistent/tty", "no data port /nonexistent/tty"),
-    ("tidemo:///dev/null?cli=/nonexistent/cli", "no CLI port /nonexistent/cli"),
+    ("tidemo:///nonexistent/tty", "no data port /nonexistent/tty (radar-devices lists what is connected)"),
+    ("tidemo:///dev/null?cli=/nonexistent/cli", "no CLI port /nonexistent/cli (radar-devices lists what is connected)"),
+    # Two slashes for three: the path is read relative, and was pyserial's "No such file or directory".
+    ("tidemo://dev/null?cli=/dev/null", "no data port dev/null (a device path takes a third slash: "
+                                        "tidemo:///dev/null)"),
 ])
 def test_a_port_path_that_is_not_there_is_named(url, words):
     # Once the cfg passes: the port named, not "cannot tell the radar's CLI port".
@@ -174,7 +183,7 @@ def test_a_port_path_that_is_not_there_is_named(url, words):
 
     with pytest.raises(SourceError) as info:
         open_source(url, RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
-    assert str(info.value) == f"{url}: {words} (radar-devices lists what is connected)"
+    assert str(info.value) == f"{url}: {words}"
 
 
 def test_one_port_given_as_both_cli_and_data_is_refused(tmp_path):

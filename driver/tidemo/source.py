@@ -42,7 +42,7 @@ from typing import Iterator
 import serial
 
 from ...cfg import RadarConfig, shipped_config_path
-from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
+from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.source import FrameClock
 from ..sources import Frame, Source
@@ -235,8 +235,8 @@ class TidemoSource(Source):
         never handed on: rejected or lost on the line, or dropped), ``slow_drops`` (whole frames
         the consumer was too slow for, by the policy), the framer's figures (``packets``,
         ``discarded_bytes``, ``rejected_packets`` and by reason), ``over_budget`` (packets with
-        more points than ``max_points``, which the UART budget was checked for), and the UART's load (packet time over the time it has); as
-        they were when the consumer left, if it did."""
+        more points than ``max_points``, which the UART budget was checked for), and the UART's
+        load (packet time over the time it has); as they were when the consumer left, if it did."""
         if self._when_left is not None:
             return dict(self._when_left)
         return {"url": self.url, "data_port": self.data_url, "cli": self.radar.url, "baud": self.baud,
@@ -293,10 +293,21 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
     options.finish()
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     # The UART budget and the antenna layout are checked before any port is looked for or opened.
-    check_uart_budget(cfg, DemoGeometry.from_config(cfg).layout(gui_selection(cfg)), baud, max_points)
+    try:
+        check_uart_budget(cfg, DemoGeometry.from_config(cfg).layout(gui_selection(cfg)), baud, max_points)
+    except ConfigError as exc:
+        if config is None:  # the user gave none: say it is the shipped one, and what to do
+            raise ConfigError(f"{exc.message} (no cfg was given, so the shipped raw-capture cfg was used: give one "
+                              "the UART carries with --cfg; docs/tidemo.md says how to make it)", path=exc.path,
+                              line=exc.line, command=exc.command, field=exc.field) from None
+        raise
     for what, port in (("data port", path), ("CLI port", cli)):
-        if port and port.startswith("/") and not os.path.exists(port):  # a device path, not a pyserial URL
-            raise SourceError(f"{options.url}: no {what} {port} (radar-devices lists what is connected)")
+        # A device path (not a pyserial URL, nor a bare name such as COM3) that is not there.
+        if port and "/" in port and "://" not in port and not os.path.exists(port):
+            slash = what == "data port" and not port.startswith("/") and os.path.exists("/" + port)
+            raise SourceError(f"{options.url}: no {what} {port} "
+                              + (f"(a device path takes a third slash: tidemo:///{port})" if slash
+                                 else "(radar-devices lists what is connected)"))
     cli, data = demo_ports(cli, path or None)
     same = cli == data if "://" in cli + data else os.path.realpath(cli) == os.path.realpath(data)
     if same:
