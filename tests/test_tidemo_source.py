@@ -210,3 +210,23 @@ def test_swapped_ports_are_told_by_a_cli_port_that_never_says_anything():
     message = str(info.value)
     assert f"did not answer 'sensorStop' within 0.3 s on {rig.data_path}: nothing has come back on it since it " \
            "was opened; is it the radar's CLI port (the board's first, USB interface 0" in message, message
+
+
+def test_a_data_port_that_goes_away_says_what_may_have_happened():
+    """The board unplugged mid-run: pyserial's 'device reports readiness to read but returned no
+    data' alone, where the CLI port's failure asks about the cable."""
+    from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
+    from radarodom.errors import DeviceError
+
+    cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
+    frames = 0
+    with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
+        with pytest.raises(DeviceError) as info:
+            with open_source(rig.url(), cfg) as source:
+                for frames, _ in enumerate(source, start=1):
+                    if frames == 2:
+                        rig.data.close()  # the data port's other end gone, as with the cable pulled
+    assert frames >= 2
+    message = str(info.value)
+    assert message.startswith(f"reading the radar's data port {rig.data_path} failed (") and \
+        message.endswith("): was the USB cable unplugged or the board reset?"), message

@@ -193,7 +193,8 @@ class TidemoSource(Source):
                 yield frame
                 continue
             if self._reader.error is not None:
-                raise DeviceError(f"reading the radar's data port {self.data_url} failed: {self._reader.error}")
+                raise DeviceError(f"reading the radar's data port {self.data_url} failed ({self._reader.error}): was "
+                                  "the USB cable unplugged or the board reset?")
             quiet = time.monotonic() - self._last_packet
             if quiet > self.data_timeout_s:
                 raise DeviceTimeout(
