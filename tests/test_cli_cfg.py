@@ -65,6 +65,10 @@ def test_shipped_cfg_prints_derived_quantities_with_units(shipped_cfg):
     lines = proc.stdout.splitlines()
     assert lines[0] == "configs/awr1843_raw.cfg: valid xWR18xx configuration"
     assert "note:" not in proc.stdout  # the shipped cfg streams raw ADC and fits the DCA1000
+    # ... and not TI's demo's UART (tidemo://, without a DCA1000): what that needs is said.
+    assert "  demo UART load           141.5 %  (tidemo://, without a DCA1000: 64 points a frame at 921600 " \
+           "baud)\n                           over 100 %: tidemo:// refuses it; it needs a frameCfg period of at " \
+           "least 130 ms; or fewer range bins (profileCfg's numAdcSamples 128 or less)\n" in proc.stdout, proc.stdout
     rows = _table(proc.stdout)
     cfg = shipped_cfg
     # (label, value in the printed unit, unit, tolerance: half the last printed digit)
@@ -151,8 +155,10 @@ def test_json_in_process(tmp_path, small_cfg, capsys):
     assert len(err.splitlines()) == 1
     data = json.loads(out)
     _check_stable_keys(data, small_cfg)
+    load = data.pop("demo_uart_load")  # what tidemo:// would ask of the demo's UART
     assert data == json.loads(json.dumps(small_cfg.summary()))
     assert data["frame_bytes"] == 3072 and data["frame_period_s"] == 0.05
+    assert 0 < load < 1
 
 
 def test_packet_delay_changes_capacity(tmp_path, capsys):

@@ -11,7 +11,9 @@ from importlib import resources
 from typing import Sequence
 
 from ..calibration import uncalibrated_note
-from ..errors import RadarodomError, UsageError
+from ..driver.tidemo.layout import (DEFAULT_BAUD, DEFAULT_MAX_POINTS, DemoGeometry, check_uart_budget,
+                                     gui_selection, uart_budget)
+from ..errors import ConfigError, RadarodomError, UsageError
 from .. import strict_json
 from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, DCA1000_PACKET_DELAY_RANGE_US, RAW_LVDS_LINE, RadarConfig
 from . import cli
@@ -159,6 +161,9 @@ def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
     several files, put its summary into *documents*)."""
     cfg = RadarConfig.from_file(path)
     summary = cfg.summary(args.packet_delay_us)
+    uart = _demo_uart(cfg)
+    if uart is not None:
+        summary["demo_uart_load"] = round(uart[0], 4)
     note = uncalibrated_note(cfg) if cfg.streams_raw_adc else None  # a cfg meant for a real board
     if note is not None:
         log.warning("%s", note)
@@ -195,8 +200,29 @@ def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
     if summary["dca1000_load"] > 1:
         out.append(f"  note: the raw data rate exceeds the DCA1000's capacity at "
                    f"{args.packet_delay_us:g} us packet delay")
+    if uart is not None:
+        out.append(f"  {'demo UART load':<24} {100 * uart[0]:.1f} %  (tidemo://, without a DCA1000: "
+                   f"{DEFAULT_MAX_POINTS} points a frame at {DEFAULT_BAUD} baud)")
+        if uart[1]:  # (no "note:": the cfg may well be meant for the DCA1000, which carries it)
+            out.append(f"  {'':<24} over 100 %: tidemo:// refuses it; it needs {uart[1]}")
     print("\n".join(out))
     return 0
+
+
+def _demo_uart(cfg: RadarConfig) -> tuple[float, str | None] | None:
+    """What the cfg's frames ask of TI's demo firmware's UART (``tidemo://`` by default): the
+    load (a packet's time on the line over the time between the frame's chirps and the next
+    frame) and, over 1, what to change; None where the demo's packets do not apply to the cfg."""
+    try:
+        layout = DemoGeometry.from_config(cfg).layout(gui_selection(cfg))
+    except ConfigError:
+        return None
+    budget = uart_budget(cfg, layout, DEFAULT_BAUD, DEFAULT_MAX_POINTS)
+    try:
+        check_uart_budget(cfg, layout, DEFAULT_BAUD, DEFAULT_MAX_POINTS)
+    except ConfigError as exc:
+        return budget.transmit_s / budget.available_s, exc.message.partition("Fix: ")[2] or exc.message
+    return budget.transmit_s / budget.available_s, None
 
 
 def _antennas(cfg) -> str:

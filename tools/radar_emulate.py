@@ -139,14 +139,15 @@ def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args
     """The fake radar with the demo's data port, until Ctrl-C."""
     from ..driver.emulators.source_url import emulated_source_url, no_raw_frames_message
     from ..driver.sources import open_source
-    from ..driver.tidemo.layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, gui_selection
+    from ..driver.tidemo.layout import DEFAULT_BAUD, DEFAULT_MAX_POINTS, DemoGeometry, check_uart_budget, gui_selection
 
     packet_faults = [name for name in _PACKET_FAULTS if getattr(args, name)]
     if packet_faults or args.burst_flush or args.command_port or args.data_port:
         raise UsageError("--uart has no DCA1000: its packet faults and ports do not apply (the data port's faults "
                          "are --uart-garbage, --uart-truncate, --uart-drop)")
     if config is not None:  # radar-capture would refuse it: say so now
-        check_uart_budget(config, DemoGeometry.from_config(config).layout(gui_selection(config)), DEFAULT_BAUD, 64)
+        check_uart_budget(config, DemoGeometry.from_config(config).layout(gui_selection(config)), DEFAULT_BAUD,
+                          DEFAULT_MAX_POINTS)
     # The fake radar opens the source only when radar-capture starts it: its URL is checked now.
     with open_source(emulated_source_url(url, defaults={"rate": "max", "loop": "0"}), config, shown_url=url) as source:
         if not source.carries_raw:

@@ -27,6 +27,8 @@ log = logging.getLogger(__name__)
 
 #: The data port's default baud rate (the XDS110's interface 3).
 DEFAULT_BAUD = 921600
+#: The points a frame the UART budget is checked for unless told (``tidemo://...?max_points=``).
+DEFAULT_MAX_POINTS = 64
 #: Bits on the wire per byte (8N1).
 BITS_PER_BYTE = 10
 #: Azimuth TX: TX1 and TX3 of the xWR18xx (TX2 is raised).

@@ -48,7 +48,7 @@ from ..live.source import FrameClock
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, one_of, positive_number
 from .framer import TlvFramer
-from .layout import DEFAULT_BAUD, DemoGeometry, check_uart_budget, demo_config, gui_selection
+from .layout import DEFAULT_BAUD, DEFAULT_MAX_POINTS, DemoGeometry, check_uart_budget, demo_config, gui_selection
 from .recording import UartRecorder
 from .products import PacketFrames
 from .wire import Packet
@@ -106,7 +106,7 @@ class TidemoSource(Source):
     estimator_preset = "tidemo"
 
     def __init__(self, config: RadarConfig, data_url: str, cli_url: str, *, baud: int = DEFAULT_BAUD,
-                 max_points: int = 64, policy: str = "latest", buffers: int = 8,
+                 max_points: int = DEFAULT_MAX_POINTS, policy: str = "latest", buffers: int = 8,
                  cli_timeout_s: float = COMMAND_TIMEOUT_S, start_timeout_s: float = 5.0) -> None:
         super().__init__()
         self.config = config
@@ -286,7 +286,7 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
 
     cli = options.take("cli", str, None, "the radar's CLI port (path or pyserial URL)")
     baud = options.take("baud", at_least(1200), DEFAULT_BAUD, "the data port's baud rate")
-    max_points = options.take("max_points", at_least(0), 64, "points a frame the UART must carry")
+    max_points = options.take("max_points", at_least(0), DEFAULT_MAX_POINTS, "points a frame the UART must carry")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
