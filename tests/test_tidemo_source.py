@@ -12,7 +12,7 @@ import tty
 import numpy as np
 import pytest
 from conftest import REPO
-from radarodom.cfg import RadarConfig
+from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver import open_source
 from radarodom.driver.emulators.fake_awr1843 import FakeAwr1843
 from radarodom.driver.live.discovery import SerialPortInfo
@@ -40,7 +40,7 @@ def test_a_frame_rate_the_uart_cannot_carry_is_refused_before_any_port_is_opened
     # Given no cfg, the shipped one is used: the error says so, and what to give.
     with pytest.raises(ConfigError) as err:
         open_source("tidemo:///nonexistent-data?cli=/nonexistent-cli")
-    assert str(err.value).startswith(f"{SHIPPED}: frameCfg: the UART cannot carry") and str(err.value).endswith(
+    assert str(err.value).startswith(f"{shipped_config_path()}: frameCfg: the UART cannot carry") and str(err.value).endswith(
         "(no cfg was given, so the shipped raw-capture cfg was used: give one the UART carries with --cfg; "
         "docs/tidemo.md says how to make it)"), str(err.value)
 

@@ -95,6 +95,8 @@ def check_room(path: str, needed_bytes: int, option: str, what: str, reclaimed_b
         st = os.statvfs(there)
     except (OSError, AttributeError):  # no statvfs (Windows): the write itself says so
         return
+    if st.f_blocks == 0:  # a file system of no size (/proc): the write itself says what it takes
+        return
     free = st.f_bavail * st.f_frsize + reclaimed_bytes
     if needed_bytes > free:
         raise UsageError(f"{option} {path}: {what} takes {_gigabytes(needed_bytes)}, and {_gigabytes(free)} is "
