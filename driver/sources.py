@@ -57,8 +57,8 @@ REPLAY_FORMATS: dict[str, str] = {
 REPLAY_FORMAT_FILES: dict[str, str] = {"tidemo": "uart.bin"}
 #: The bytes a file of another replay format holds within its first :data:`REPLAY_SNIFF_BYTES`
 #: (a demo's packets' magic word, ``tidemo/wire.MAGIC``: a serial logger's file starts mid-packet),
-#: so that ``replay://FILE`` given the cfg plays it in its format, not as raw ADC samples (a
-#: raw recording holds these 8 bytes by chance about once in 10^19 such reads).
+#: so that ``replay://FILE`` given the cfg plays it in its format, not as raw ADC samples (noise-like
+#: samples hold these 8 bytes at a given place with odds of 2^-64, at any of the 65536 about 4e-15).
 REPLAY_FORMAT_MAGIC: dict[str, bytes] = {"tidemo": bytes([0x02, 0x01, 0x04, 0x03, 0x06, 0x05, 0x08, 0x07])}
 REPLAY_SNIFF_BYTES = 1 << 16
 
