@@ -43,12 +43,30 @@ log = logging.getLogger(__name__)
 _DURATION_TOLERANCE_S = 1e-6
 
 
+def _check_source(source, opener: str) -> None:
+    """:class:`UsageError` unless *source* is a :class:`Source` (*opener* makes one from a URL)."""
+    if isinstance(source, (str, bytes, os.PathLike)):
+        raise UsageError(f"source: a Source, got the {type(source).__name__} {quoted(source)} "
+                         f"({opener} opens one from a URL)")
+    if not isinstance(source, Source):
+        raise UsageError(f"source: a Source (open_source(url) opens one), got {type(source).__name__}")
+
+
+def _check_estimator(config, name: str) -> None:
+    """:class:`UsageError` unless *config* is an :class:`EstimatorConfig` or None."""
+    if config is not None and not isinstance(config, EstimatorConfig):
+        raise UsageError(f"{name}: an EstimatorConfig (EstimatorConfig.from_dict makes one from a dict) or "
+                         f"None, got {type(config).__name__}")
+
+
 def source_estimator(source: Source, config: EstimatorConfig | None = None) -> EstimatorConfig:
     """The estimator settings for *source*'s frames: *config* (default the built-in ones) with the
     preset the source calls for applied (``Source.estimator_preset``: a ``tidemo://`` source's
     points and static heatmap take ``EstimatorConfig.tidemo()``'s changes).  Settings a user chose
     for the source (radar-capture's --estimator-config) are used as they are instead."""
-    config = config or EstimatorConfig()
+    _check_source(source, "open_source")
+    _check_estimator(config, "config")
+    config = EstimatorConfig() if config is None else config
     if source.estimator_preset is not None:
         log.info("estimator: the %r preset for this source's frames", source.estimator_preset)
     return config.preset(source.estimator_preset)
@@ -121,14 +139,8 @@ class Pipeline:
     def _build(self, estimator: EstimatorConfig | None, dsp: DspConfig | None, max_frames: int | None,
                max_duration_s: float | None) -> None:
         source = self.source
-        if isinstance(source, (str, bytes, os.PathLike)):
-            raise UsageError(f"source: a Source, got the {type(source).__name__} {quoted(source)} "
-                             "(Pipeline.from_url opens one from a URL)")
-        if not isinstance(source, Source):
-            raise UsageError(f"source: a Source (open_source(url) opens one), got {type(source).__name__}")
-        if estimator is not None and not isinstance(estimator, EstimatorConfig):
-            raise UsageError(f"estimator: an EstimatorConfig (EstimatorConfig.from_dict makes one from a dict) or "
-                             f"None, got {type(estimator).__name__}")
+        _check_source(source, "Pipeline.from_url")
+        _check_estimator(estimator, "estimator")
         if dsp is not None and not isinstance(dsp, DspConfig):
             raise UsageError(f"dsp: a DspConfig (DspConfig.from_dict makes one from a dict) or None, "
                              f"got {type(dsp).__name__}")

@@ -207,6 +207,22 @@ def test_a_pipeline_that_cannot_be_built_closes_the_radar_it_opened(tmp_path, sm
         assert not any(line.startswith("sensorStart") for line in rig.radar.received), rig.radar.received
 
 
+def test_source_estimator_names_a_wrong_argument():
+    """Were AttributeErrors from inside, and {} silently the defaults."""
+    from radarodom.pipeline import source_estimator
+
+    with open_source(SIM) as source:
+        for args, words in [(("sim://corridor",), "source: a Source, got the str 'sim://corridor' (open_source opens "
+                                                  "one from a URL)"),
+                            ((source, {"velocity": {}}), "config: an EstimatorConfig (EstimatorConfig.from_dict makes "
+                                                         "one from a dict) or None, got dict"),
+                            ((source, {}), "got dict"), ((source, EstimatorConfig), "got type")]:
+            with pytest.raises(UsageError) as info:
+                source_estimator(*args)
+            assert words in str(info.value), str(info.value)
+        assert source_estimator(source) == EstimatorConfig()
+
+
 def test_a_pipelines_on_frame_is_checked_before_the_first_frame():
     pipe = Pipeline.from_url(SIM, estimator=EstimatorConfig(), max_frames=2)
     with pytest.raises(UsageError, match=r"on_frame: a function of \(FrameResult, PipelineStats\) or None, got str"):
