@@ -43,6 +43,7 @@ from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig
 from ..errors import CalibrationError, ConfigError, UsageError
+from ..plain_numbers import is_number
 from ..rawframe import unusable_samples
 from .config import DspConfig
 from .points import invert_three_bins
@@ -118,6 +119,11 @@ class ChannelCalibrator:
 
     def __init__(self, cfg: RadarConfig, distance_m: float, window_m: float = 0.2, *,
                  max_azimuth_deg: float = MAX_APPARENT_AZIMUTH_DEG, coupling: RangeCoupling | None = None) -> None:
+        if not isinstance(cfg, RadarConfig):
+            raise UsageError(f"cfg: a RadarConfig (RadarConfig.from_file(path) reads one), got {type(cfg).__name__}")
+        for name, value in (("distance_m", distance_m), ("window_m", window_m), ("max_azimuth_deg", max_azimuth_deg)):
+            if not is_number(value):
+                raise UsageError(f"{name}: a number, got {type(value).__name__} {value!r}")
         if not (math.isfinite(distance_m) and distance_m > 0):
             raise UsageError(f"the reflector's distance must be a positive number of metres, got {distance_m!r}")
         if not (math.isfinite(window_m) and window_m > 0):
@@ -186,7 +192,7 @@ class ChannelCalibrator:
     def result(self) -> CalibrationMeasurement:
         """The measurement, or :class:`CalibrationError` saying what is wrong with the set-up."""
         if not self._frames:
-            raise CalibrationError("no frame to measure: the source gave no complete frame")
+            raise CalibrationError("no frame to measure: none was added (a source that gave no complete frame?)")
         data = np.stack(self._frames)  # (frames, n_doppler, slots, rx, bins)
         power = (np.abs(data) ** 2).sum(axis=(2, 3))  # (frames, n_doppler, bins)
         zero = power[:, self._zero].mean(axis=0)  # (bins,)

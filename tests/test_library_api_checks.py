@@ -207,6 +207,22 @@ def test_a_pipeline_that_cannot_be_built_closes_the_radar_it_opened(tmp_path, sm
         assert not any(line.startswith("sensorStart") for line in rig.radar.received), rig.radar.received
 
 
+def test_the_calibration_measurement_names_a_wrong_argument(shipped_cfg):
+    """Were AttributeError ('str' has no 'tx_order') and TypeError ('must be real number, not str')."""
+    from radarodom.dsp.calibrate import ChannelCalibrator, measure
+    from radarodom.errors import CalibrationError
+
+    for args, kwargs, words in [(("x.cfg", [], 3.0), {}, "cfg: a RadarConfig (RadarConfig.from_file(path) reads one), "
+                                                       "got str"),
+                                ((shipped_cfg, [], "3"), {}, "distance_m: a number, got str '3'"),
+                                ((shipped_cfg, [], 3.0), {"max_azimuth_deg": "8"}, "max_azimuth_deg: a number, got str")]:
+        with pytest.raises(UsageError) as info:
+            measure(*args, **kwargs)
+        assert words in str(info.value), str(info.value)
+    with pytest.raises(CalibrationError, match="no frame to measure: none was added"):
+        ChannelCalibrator(shipped_cfg, 3.0).result()
+
+
 def test_source_estimator_names_a_wrong_argument():
     """Were AttributeErrors from inside, and {} silently the defaults."""
     from radarodom.pipeline import source_estimator
