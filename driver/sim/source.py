@@ -29,17 +29,19 @@ The radar configuration is ``--cfg`` when given, else the shipped
 
 from __future__ import annotations
 
+import os
 from typing import Iterator
 
 import numpy as np
 
 from ...cfg import RadarConfig, shipped_config_path
+from ...errors import SourceError
 from ...tum import TumTrajectory
 from ..sources import Frame, Pacer, Source
 from ..url_options import RATE_EXPECTED, UrlOptions, at_least, one_of, parse_rate, positive_number
-from .board import load_board
+from .board import BUILTIN_BOARDS, load_board
 from .physics import FIDELITIES
-from .scene import load_scene
+from .scene import BUILTIN_SCENES, load_scene
 from .simulator import Simulator
 
 DEFAULT_SCENE = "corridor"
@@ -100,9 +102,10 @@ def pass_duration_s(sim: Simulator) -> float:
 
 
 def _board_name(text: str) -> str:
-    """``board=``'s value: a name or a file, not empty (``board=`` named no file, and no URL)."""
-    if not text.strip():
-        raise ValueError("no board named")
+    """``board=``'s value: a built-in board's name or a file that is there (``board=`` named no
+    file, and no URL; a name that is neither was a ConfigError naming neither the URL nor the option)."""
+    if not text.strip() or (text not in BUILTIN_BOARDS and not os.path.exists(os.path.expanduser(text))):
+        raise ValueError("no such board")
     return text
 
 
@@ -119,7 +122,11 @@ def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimS
     options.finish()
     if fidelity is None:
         fidelity = "exact" if rate == float("inf") else "fast"
+    name = path or DEFAULT_SCENE
+    if name not in BUILTIN_SCENES and not os.path.exists(os.path.expanduser(name)):
+        raise SourceError(f"{options.url}: no such scene {name}: use one of {', '.join(BUILTIN_SCENES)} or a "
+                          ".toml/.json scene file")
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
-    scene = load_scene(path or DEFAULT_SCENE, seed=seed)
+    scene = load_scene(name, seed=seed)
     sim = Simulator(cfg, scene, seed=seed, duration_s=duration, fidelity=fidelity, board=load_board(board))
     return SimSource(sim, rate=rate, loop=loop)
