@@ -328,8 +328,8 @@ def test_sim_url_takes_a_board(tmp_path):
         assert source.sim.board.range_bias_m == load_board("uncalibrated").range_bias_m
         frames = list(source)
     assert len(frames) == 2
-    with pytest.raises(SourceError, match="sim://calibration\\?board=nope.toml: option board='nope.toml': expected ideal, "
-                                          "uncalibrated or a board .toml file"):
+    with pytest.raises(SourceError, match="sim://calibration\\?board=nope.toml: option board='nope.toml': "
+                                          "expected ideal, uncalibrated or a board .toml file"):
         open_source("sim://calibration?board=nope.toml")
     with pytest.raises(SourceError, match="bord"):
         open_source("sim://calibration?bord=ideal")

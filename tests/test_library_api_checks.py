@@ -215,7 +215,8 @@ def test_the_calibration_measurement_names_a_wrong_argument(shipped_cfg):
     for args, kwargs, words in [(("x.cfg", [], 3.0), {}, "cfg: a RadarConfig (RadarConfig.from_file(path) reads one), "
                                                        "got str"),
                                 ((shipped_cfg, [], "3"), {}, "distance_m: a number, got str '3'"),
-                                ((shipped_cfg, [], 3.0), {"max_azimuth_deg": "8"}, "max_azimuth_deg: a number, got str")]:
+                                ((shipped_cfg, [], 3.0), {"max_azimuth_deg": "8"},
+                                 "max_azimuth_deg: a number, got str")]:
         with pytest.raises(UsageError) as info:
             measure(*args, **kwargs)
         assert words in str(info.value), str(info.value)

@@ -40,9 +40,10 @@ def test_a_frame_rate_the_uart_cannot_carry_is_refused_before_any_port_is_opened
     # Given no cfg, the shipped one is used: the error says so, and what to give.
     with pytest.raises(ConfigError) as err:
         open_source("tidemo:///nonexistent-data?cli=/nonexistent-cli")
-    assert str(err.value).startswith(f"{shipped_config_path()}: frameCfg: the UART cannot carry") and str(err.value).endswith(
+    said = str(err.value)
+    assert said.startswith(f"{shipped_config_path()}: frameCfg: the UART cannot carry") and said.endswith(
         "(no cfg was given, so the shipped raw-capture cfg was used: give one the UART carries with --cfg; "
-        "docs/tidemo.md says how to make it)"), str(err.value)
+        "docs/tidemo.md says how to make it)"), said
 
 
 def test_a_slower_uart_is_refused_and_a_faster_one_takes_configdataport():

@@ -75,7 +75,8 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         cli.check_writable_directory(args.out, "--out")
     # Before anything is replaced: a --duration off by a few zeros would fill the disk.
     cli.check_room(args.out, sim.num_frames * cfg.frame_bytes, "--out",
-                   f"{sim.num_frames} frames of {cfg.frame_bytes} bytes ({sim.num_frames * sim.period:,.1f} s)", replaced)
+                   f"{sim.num_frames} frames of {cfg.frame_bytes} bytes ({sim.num_frames * sim.period:,.1f} s)",
+                   replaced)
     if args.overwrite and os.path.exists(args.out):
         cli.replace_output(args.out, "capture")
     start = time.monotonic()
