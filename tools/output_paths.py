@@ -74,11 +74,16 @@ def missing_directories(path: str) -> list[str]:
     return missing
 
 
+def _nearest_there(path: str) -> str:
+    """*path* (absolute) when it is there, else the nearest directory above it that is."""
+    missing = missing_directories(path)
+    return os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
+
+
 def check_writable_directory(path: str, option: str) -> None:
     """Refuse a directory output (made when missing, with its parents) that could not be written
     into: itself, or the nearest directory above it that is there."""
-    missing = missing_directories(path)
-    there = os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
+    there = _nearest_there(path)
     if not os.path.isdir(there):  # a file where a directory goes (notes.txt/run)
         raise UsageError(f"{option} {path}: {no_directory(os.path.abspath(path))}")
     if not os.access(there, os.W_OK | os.X_OK):
@@ -89,10 +94,8 @@ def check_room(path: str, needed_bytes: int, option: str, what: str, reclaimed_b
     """Refuse an output of *needed_bytes* where the file system it would be on (*path*'s, or the
     nearest directory above it that is there) has not that much free, counting *reclaimed_bytes*
     that replacing an earlier output frees; where the free space cannot be told, nothing is said."""
-    missing = missing_directories(path)
-    there = os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
     try:
-        st = os.statvfs(there)
+        st = os.statvfs(_nearest_there(path))
     except (OSError, AttributeError):  # no statvfs (Windows): the write itself says so
         return
     if st.f_blocks == 0:  # a file system of no size (/proc): the write itself says what it takes

@@ -13,7 +13,7 @@ from typing import Sequence
 from urllib.parse import quote
 
 from ..cfg import RadarConfig, shipped_config_path
-from ..driver.recordings.capture_dir import CaptureWriter
+from ..driver.recordings.capture_dir import ADC_DATA, CaptureWriter
 from ..driver.sim.board import BUILTIN_BOARDS, load_board
 from ..driver.sim.scene import BUILTIN_SCENES, load_scene
 from ..driver.sim.physics import FIDELITIES
@@ -56,7 +56,7 @@ def _bar(done: int, total: int, width: int = 24) -> str:
 def _frames_bytes(directory: str) -> int:
     """The size of the frame data of the recording in *directory* that --overwrite replaces, bytes."""
     try:
-        return os.path.getsize(os.path.join(directory, "adc_data.bin"))
+        return os.path.getsize(os.path.join(directory, ADC_DATA))
     except OSError:
         return 0
 
@@ -67,10 +67,11 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     scene = load_scene(args.scene, seed=args.seed)
     board = load_board(args.board)
     sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board, fidelity=args.fidelity)
-    replaced = 0
+    replaced = 0  # the bytes --overwrite frees
     if os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
         cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite)
-        replaced = _frames_bytes(args.out) if args.overwrite else 0
+        if args.overwrite:
+            replaced = _frames_bytes(args.out)
     else:
         cli.check_writable_directory(args.out, "--out")
     # Before anything is replaced: a --duration off by a few zeros would fill the disk.
