@@ -182,12 +182,12 @@ class TumTrajectory:
     def take(self, indices) -> "TumTrajectory":
         """The poses at *indices* (an index array or a boolean mask), same source."""
         try:
-            self.times[indices]
+            times = self.times[indices]
         except (IndexError, TypeError, ValueError) as exc:
             raise UsageError(f"take: indices of the trajectory's {len(self)} poses, or a mask of as many "
                              f"booleans: {exc}") from None
-        return TumTrajectory(self.times[indices], self.positions[indices], self.quaternions[indices],
-                             self.source, self.lines[indices])
+        return TumTrajectory(times, self.positions[indices], self.quaternions[indices], self.source,
+                             self.lines[indices])
 
     def where(self, i: int) -> str:
         """``file:line`` of pose *i*, for messages."""

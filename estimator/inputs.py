@@ -60,14 +60,13 @@ def check_heatmap(heatmap) -> None:
         if not isinstance(axis, np.ndarray) or axis.ndim != 1 or axis.dtype.kind not in "fiu":
             got = f"{axis.dtype} array" if isinstance(axis, np.ndarray) else type(axis).__name__
             raise UsageError(f"heatmap: {name} must be a (n,) numpy array of numbers, got {got}")
+        if not np.isfinite(axis).all():
+            raise UsageError(f"heatmap: {name} holds NaN or inf; its axes must be finite")
     for name in ("static", "doppler_mps", "elevation_rad"):
         cells = getattr(heatmap, name, None)
         if cells is not None and np.shape(cells) != shape:
             raise UsageError(f"heatmap: {name} {np.shape(cells)} must be the intensity's shape, (range bins, "
                              f"azimuth bins) = {shape}")
-    for name in ("range_m", "azimuth_rad"):
-        if not np.isfinite(getattr(heatmap, name)).all():
-            raise UsageError(f"heatmap: {name} holds NaN or inf; its axes must be finite")
 
 
 def finite_points(points: np.ndarray, fields: tuple[str, ...] = POINT_FIELDS) -> np.ndarray:

@@ -228,11 +228,10 @@ class RadarOdometry:
         start = time.perf_counter()
         check_time(t, "heatmap")
         check_heatmap(heatmap)
-        finite = finite_heatmap(heatmap)
-        if finite is not heatmap:
+        given = finite_heatmap(heatmap)  # what the blend's points' estimator is fed too
+        if given is not heatmap:
             self._not_finite(t, "heatmap cells whose power is NaN or inf: taken as none")
-        given, previous = finite, self._previous
-        heatmap = finite
+        heatmap, previous = given, self._previous
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "
                                  "feed frames in time order")

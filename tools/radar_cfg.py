@@ -217,10 +217,10 @@ def _demo_uart(cfg: RadarConfig) -> tuple[float, str | None] | None:
         layout = DemoGeometry.from_config(cfg).layout(gui_selection(cfg))
     except ConfigError:
         return None
-    budget = uart_budget(cfg, layout, DEFAULT_BAUD, DEFAULT_MAX_POINTS)
     try:
-        check_uart_budget(cfg, layout, DEFAULT_BAUD, DEFAULT_MAX_POINTS)
-    except ConfigError as exc:
+        budget = check_uart_budget(cfg, layout, DEFAULT_BAUD, DEFAULT_MAX_POINTS)
+    except ConfigError as exc:  # (the refusal's arithmetic again, for the load it says too much)
+        budget = uart_budget(cfg, layout, DEFAULT_BAUD, DEFAULT_MAX_POINTS)
         return budget.transmit_s / budget.available_s, exc.message.partition("Fix: ")[2] or exc.message
     return budget.transmit_s / budget.available_s, None
 
