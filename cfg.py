@@ -27,7 +27,7 @@ from .cfg_physics import (  # noqa: F401  (re-exported: radarodom.cfg is where u
     DCA1000_PACKET_DELAY_RANGE_US, DCA1000_THROUGHPUT_TABLE, MAX_RF_FREQUENCY_HZ, SPEED_OF_LIGHT,
     ConfigPhysics, dca1000_capacity_mbps)
 from .cfg_text import MAX_CFG_BYTES, CfgLine, WarningSummary, read_cfg_file, tokenize
-from .errors import ConfigError, given_path
+from .errors import ConfigError, UsageError, given_path
 
 __all__ = ["RadarConfig", "CfgLine", "MAX_CFG_BYTES", "shipped_config_path", "dca1000_capacity_mbps"]
 
@@ -341,3 +341,9 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
     @property
     def extended_max_velocity(self) -> cc.ExtendedMaxVelocity | None:
         return self._value("extendedMaxVelocity")
+
+
+def require_config(value: Any, name: str = "cfg") -> None:
+    """:class:`UsageError` unless *value* (the argument *name*) is a :class:`RadarConfig`."""
+    if not isinstance(value, RadarConfig):
+        raise UsageError(f"{name}: a RadarConfig (RadarConfig.from_file(path) reads one), got {type(value).__name__}")

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ..calibration import ChannelCalibration, RangeCoupling
-from ..cfg import RadarConfig
+from ..cfg import RadarConfig, require_config
 from ..errors import CalibrationError, ConfigError, UsageError
 from ..plain_numbers import is_number
 from ..rawframe import unusable_samples
@@ -119,8 +119,7 @@ class ChannelCalibrator:
 
     def __init__(self, cfg: RadarConfig, distance_m: float, window_m: float = 0.2, *,
                  max_azimuth_deg: float = MAX_APPARENT_AZIMUTH_DEG, coupling: RangeCoupling | None = None) -> None:
-        if not isinstance(cfg, RadarConfig):
-            raise UsageError(f"cfg: a RadarConfig (RadarConfig.from_file(path) reads one), got {type(cfg).__name__}")
+        require_config(cfg)
         for name, value in (("distance_m", distance_m), ("window_m", window_m), ("max_azimuth_deg", max_azimuth_deg)):
             if not is_number(value):
                 raise UsageError(f"{name}: a number, got {type(value).__name__} {value!r}")

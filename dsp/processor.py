@@ -30,7 +30,7 @@ import numpy as np
 import scipy.fft
 
 from ..calibration import ChannelCalibration, RangeCoupling
-from ..cfg import RadarConfig
+from ..cfg import RadarConfig, require_config
 from ..errors import ConfigError, UsageError
 from ..rawframe import unusable_samples
 from .cfar import CfarParams, cfar_2d_ti
@@ -330,8 +330,7 @@ def _params_for(cfg: RadarConfig, params: DspConfig | None) -> DspConfig:
     """The DSP's settings for *cfg*: *params* (default: ``DspConfig()``), TI's own with ``ti_like``;
     :class:`UsageError` for settings of another kind, :class:`ConfigError` for a range FFT shorter than
     the cfg's ADC samples a chirp or a Doppler FFT shorter than its loops (zero padding lengthens)."""
-    if not isinstance(cfg, RadarConfig):
-        raise UsageError(f"cfg: a RadarConfig (RadarConfig.from_file(path) reads one), got {type(cfg).__name__}")
+    require_config(cfg)
     if params is None:
         params = DspConfig()
     elif not isinstance(params, DspConfig):
