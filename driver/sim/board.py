@@ -37,7 +37,7 @@ import numpy as np
 from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, VirtualArray
 from ...calibration import ChannelCalibration
 from ...errors import ConfigError
-from .scene_values import decode_utf8, toml_error
+from .scene_values import builtin_or_there, decode_utf8, toml_error
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -152,11 +152,11 @@ def load_board(name_or_path: str) -> Board:
     if name_or_path in BUILTIN_BOARDS:
         text = resources.files(__package__).joinpath("boards", f"{name_or_path}.toml").read_text(encoding="utf-8")
         return board_from_dict(tomllib.loads(text), where=f"builtin:{name_or_path}")
+    if not builtin_or_there(name_or_path, BUILTIN_BOARDS):
+        raise ConfigError(f"no such board: use one of {', '.join(BUILTIN_BOARDS)} or a .toml file", path=name_or_path)
     path = os.path.expanduser(name_or_path)
     if os.path.isdir(path):
         raise ConfigError("a directory, not a board file: give a .toml file", path=name_or_path)
-    if not os.path.isfile(path):
-        raise ConfigError(f"no such board: use one of {', '.join(BUILTIN_BOARDS)} or a .toml file", path=name_or_path)
     try:
         with open(path, "rb") as fh:
             spec = tomllib.loads(decode_utf8(fh.read(), path))

@@ -39,7 +39,7 @@ import numpy as np
 from ...errors import ConfigError, quoted_json
 from .scene_values import (MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE,
                            SCENE_KEYS, SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
-                           cross_section, read_scene_file, vec, within)
+                           builtin_or_there, cross_section, read_scene_file, vec, within)
 from .scatterers import Person, Scatterers, point_scatterers, sample_plane, sample_surface
 from .trajectory import MAX_SPEED_MPS, Trajectory, check_keys, from_spec, polyline
 
@@ -277,10 +277,10 @@ def load_scene(name_or_path: str, *, seed: int = 0) -> Scene:
         ref = resources.files(__package__).joinpath("scenes", f"{name_or_path}.toml")
         return scene_from_dict(tomllib.loads(ref.read_text(encoding="utf-8")), seed=seed,
                                where=f"builtin:{name_or_path}")
+    if not builtin_or_there(name_or_path, BUILTIN_SCENES):
+        raise ConfigError(f"no such scene: use one of {', '.join(BUILTIN_SCENES)} or a .toml/.json file",
+                          path=name_or_path)
     path = os.path.expanduser(name_or_path)
     if os.path.isdir(path):
         raise ConfigError("a directory, not a scene file: give a .toml or .json file", path=name_or_path)
-    if not os.path.isfile(path):
-        raise ConfigError(f"no such scene: use one of {', '.join(BUILTIN_SCENES)} or a .toml/.json file",
-                          path=name_or_path)
     return scene_from_dict(read_scene_file(path), seed=seed, where=path)

@@ -5,6 +5,7 @@ file's tables takes."""
 from __future__ import annotations
 
 import math
+import os
 import re
 import sys
 
@@ -126,6 +127,12 @@ MAX_RCS_M2 = 10 ** (RCS_DBSM_RANGE[1] / 10)
 
 #: The largest scene file read as JSON, bytes (the built-in scenes are a few kB).
 MAX_SCENE_BYTES = 16 * 2**20
+
+
+def builtin_or_there(name: str, builtins: tuple[str, ...]) -> bool:
+    """Whether *name* is one of *builtins* or names something on disk (a directory too: the loader
+    then says it is one); the one rule for ``sim://``'s URL check and the scene and board loaders."""
+    return name in builtins or os.path.exists(os.path.expanduser(name))
 
 
 def decode_utf8(raw: bytes, path: str) -> str:

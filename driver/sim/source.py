@@ -29,7 +29,6 @@ The radar configuration is ``--cfg`` when given, else the shipped
 
 from __future__ import annotations
 
-import os
 from typing import Iterator
 
 import numpy as np
@@ -42,6 +41,7 @@ from ..url_options import RATE_EXPECTED, UrlOptions, at_least, one_of, parse_rat
 from .board import BUILTIN_BOARDS, load_board
 from .physics import FIDELITIES
 from .scene import BUILTIN_SCENES, load_scene
+from .scene_values import builtin_or_there
 from .simulator import Simulator
 
 DEFAULT_SCENE = "corridor"
@@ -104,7 +104,7 @@ def pass_duration_s(sim: Simulator) -> float:
 def _board_name(text: str) -> str:
     """``board=``'s value: a built-in board's name or a file that is there (``board=`` named no
     file, and no URL; a name that is neither was a ConfigError naming neither the URL nor the option)."""
-    if not text.strip() or (text not in BUILTIN_BOARDS and not os.path.exists(os.path.expanduser(text))):
+    if not text.strip() or not builtin_or_there(text, BUILTIN_BOARDS):
         raise ValueError("no such board")
     return text
 
@@ -123,7 +123,7 @@ def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimS
     if fidelity is None:
         fidelity = "exact" if rate == float("inf") else "fast"
     name = path or DEFAULT_SCENE
-    if name not in BUILTIN_SCENES and not os.path.exists(os.path.expanduser(name)):
+    if not builtin_or_there(name, BUILTIN_SCENES):
         raise SourceError(f"{options.url}: no such scene {name}: use one of {', '.join(BUILTIN_SCENES)} or a "
                           ".toml/.json scene file")
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
