@@ -48,6 +48,14 @@ def quaternion_yaw(quaternions) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
 
+def refuse_binary(path: str, lineno: int, text: str, why: str) -> None:
+    """:class:`CaptureFormatError` naming ``path:lineno`` for a line of a text file holding a NUL or
+    bytes that are not UTF-8 (read with ``errors="replace"``): quoting such a line would print its
+    bytes, so the message says what the file should hold (*why*) instead."""
+    if "\0" in text or "\ufffd" in text:
+        raise CaptureFormatError(f"{path}:{lineno}: binary data, not text{why}")
+
+
 def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: str) -> list[float]:
     """The finite numbers of one line of a text file: exactly *count* of them when given,
     else at least one, each a plain decimal number (:mod:`radarodom.plain_numbers`);
@@ -212,9 +220,7 @@ def read_tum(path: str | os.PathLike) -> TumTrajectory:
                 text = line.strip()
                 if not text or text.startswith("#"):
                     continue
-                if "\0" in text or "\ufffd" in text:  # quoting the line would print its bytes
-                    raise CaptureFormatError(f"{name}:{lineno}: binary data, not text: a TUM file is lines of "
-                                             "'t x y z qx qy qz qw'")
+                refuse_binary(name, lineno, text, ": a TUM file is lines of 't x y z qx qy qz qw'")
                 if not line.endswith("\n"):
                     log.warning("%s:%d: ignoring a last line without end of line", name, lineno)
                     break

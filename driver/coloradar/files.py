@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import CaptureError, CaptureFormatError
-from ...tum import parse_numbers
+from ...tum import parse_numbers, refuse_binary
 
 log = logging.getLogger(__name__)
 
@@ -132,9 +132,7 @@ def _read_lines(path: str) -> list[tuple[int, str]]:
     except OSError as exc:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
     for n, text in lines:
-        if "\0" in text or "\ufffd" in text:  # quoting the line would print its bytes
-            raise CaptureFormatError(f"{path}:{n}: binary data, not text (the file is damaged, or another "
-                                     f"file is in its place)")
+        refuse_binary(path, n, text, " (the file is damaged, or another file is in its place)")
     return lines
 
 
