@@ -54,12 +54,11 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
 def _own_output_in(directory: str, kind: str) -> str | None:
     """What of *kind* radarodom wrote that *directory* holds, which ``--overwrite`` replaces: a
     capture of a frame or more (with its capture.json) or heatmaps; None when it holds none."""
-    from ..driver.recordings.recording_dir import ADC_DATA, holds_frames, recorded_data
+    from ..driver.recordings.recording_dir import own_recording
     from ..pipeline.sinks import HeatmapSink
 
-    if kind == "capture" and holds_frames(directory):
-        held = recorded_data(directory)
-        return f"a capture ({held})" if held == ADC_DATA else f"a recording ({held})"
+    if kind == "capture":
+        return own_recording(directory)
     if kind == "heatmaps" and os.path.exists(os.path.join(directory, HeatmapSink.INDEX)):
         return "heatmaps"
     return None

@@ -62,10 +62,21 @@ def recorded_data(directory: str) -> str | None:
     return None
 
 
+def _described(held: str) -> str:
+    return f"a capture ({held})" if held == ADC_DATA else f"a recording ({held})"
+
+
+def own_recording(directory: str) -> str | None:
+    """What a recording of radarodom's in *directory* holds, said for a message ("a capture
+    (adc_data.bin)"), None when *directory* holds no such recording with data in it."""
+    held = recorded_data(directory) if _own_metadata(directory) else None
+    return None if held is None else _described(held)
+
+
 def holds_frames(directory: str) -> bool:
     """Whether *directory* holds a recording of radarodom's with data in it, which a recording
     refuses to write over and ``--overwrite`` replaces."""
-    return _own_metadata(directory) and recorded_data(directory) is not None
+    return own_recording(directory) is not None
 
 
 def foreign_files(directory: str) -> list[str]:
@@ -89,8 +100,7 @@ def check_recording_directory(directory: str) -> None:
         raise CaptureExistsError(foreign_files_message(directory, names))
     held = recorded_data(directory)
     if held:
-        what = f"a capture ({held})" if held == ADC_DATA else f"a recording ({held})"
-        raise CaptureExistsError(f"{directory} already holds {what}; choose a new directory")
+        raise CaptureExistsError(f"{directory} already holds {_described(held)}; choose a new directory")
 
 
 def claim_recording_directory(directory: str) -> None:
