@@ -49,8 +49,9 @@ def popen_capture(*args, **kw) -> subprocess.Popen:
 def summary_re(frames, incomplete, lost, stream_s, reason, record=None) -> str:
     noun = "frame" if frames == 1 else "frames"
     causes = f": {lost} lost on the way" if lost else ""
+    rate = r"\d+\.\d Hz, " if frames >= 2 else ""  # one frame has no rate: none is said
     text = (rf"radar-capture: {frames} {noun} \({incomplete} incomplete, {lost} bytes missing{causes}\) "
-            rf"in \d+\.\d s, \d+\.\d Hz, {stream_s} s of stream; {re.escape(reason)}")
+            rf"in \d+\.\d s, {rate}{stream_s} s of stream; {re.escape(reason)}")
     if record is not None:
         text += rf"; recorded to {re.escape(str(record))}"
     # The estimator runs by default and adds where it ended.

@@ -53,9 +53,9 @@ def summary(stats: PipelineStats, record: str | None, recorded: int | None = Non
     many of them when that is fewer (*recorded*: a recording a failed write ended), or that nothing
     was where the directory is not there (a run stopped before its first frame takes its empty
     recording with it)."""
+    rate = f"{stats.mean_rate_hz:.1f} Hz, " if stats.frames >= 2 else ""  # one frame has no rate (was "0.0 Hz")
     text = (f"{stats.frames} frame{'' if stats.frames == 1 else 's'} ({missing_text(stats)}) in "
-            f"{stats.elapsed_s:.1f} s, {stats.mean_rate_hz:.1f} Hz, {stats.stream_duration_s:.2f} s of stream; "
-            f"{stats.reason}")
+            f"{stats.elapsed_s:.1f} s, {rate}{stats.stream_duration_s:.2f} s of stream; {stats.reason}")
     if record and not os.path.isdir(record):
         text += f"; nothing recorded ({record} not made)"
     elif record:
