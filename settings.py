@@ -153,7 +153,7 @@ class Settings:
                 if issubclass(nested, Settings):
                     values[key] = nested.from_dict(value, prefix=f"{prefix}{key}.")
                 else:
-                    values[key] = _nested_from_dict(nested, value, key)
+                    values[key] = _nested_from_dict(cls, nested, value, key)
             elif not isinstance(value, nested):
                 raise ConfigError(f"must be an object of {nested.__name__} settings, got {quoted_json(value)}",
                                   field=key)
@@ -196,10 +196,15 @@ class Settings:
             raise exc.located(path=path)
 
 
-def _nested_from_dict(nested: type, value: Mapping[str, Any], key: str) -> Any:
-    """A section of another type (a CFAR's parameters), its errors named by their path under
-    *key* (``cfar.guard``), as a nested :class:`Settings` section's are."""
+def _nested_from_dict(cls: type, nested: type, value: Mapping[str, Any], key: str) -> Any:
+    """A section of another type (a CFAR's parameters) given over the field's default, as a
+    nested :class:`Settings` section's keys are over its own (``{"cfar": {"threshold_db": 12}}``
+    keeps the rest of the default CFAR); its errors named by their path under *key*
+    (``cfar.guard``)."""
+    default = next(f.default_factory for f in dataclasses.fields(cls) if f.name == key)  # type: ignore[misc]
     try:
-        return nested.from_dict(value)
+        if default is dataclasses.MISSING:
+            return nested.from_dict(value)
+        return default().updated(value)
     except ConfigError as exc:
         raise exc.located(field=f"{key}.{exc.field}" if exc.field else key, command=None)

@@ -241,3 +241,16 @@ class CfarParams:
         if missing:
             raise _fail(f"missing key(s) {', '.join(missing)}")
         return cls(**dict(data))
+
+    def updated(self, data: Mapping[str, Any]) -> CfarParams:
+        """These parameters with *data*'s keys given over them (a settings file names only what it
+        changes); a ``threshold_db`` or ``pfa`` given replaces the other, and a method other than
+        ``os`` drops the ordered statistic's ``os_rank``.  Errors as :meth:`from_dict`'s."""
+        if not isinstance(data, Mapping):
+            raise _fail(f"expected a mapping, got {type(data).__name__}")
+        base = self.to_dict()
+        if "threshold_db" in data or "pfa" in data:
+            base["threshold_db"] = base["pfa"] = None
+        if data.get("method", "os") != "os":
+            base["os_rank"] = None
+        return CfarParams.from_dict({**base, **data})

@@ -1,0 +1,55 @@
+"""A settings file names only what it changes, a CFAR section too: the section's keys go over the
+field's default CFAR (they were refused as "missing key(s) method, guard, train", and once those
+were added, the other CFAR's threshold was named as missing)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from radarodom.dsp.config import DspConfig
+from radarodom.errors import ConfigError
+from radarodom.estimator.config import EstimatorConfig
+
+
+def test_a_partial_cfar_section_keeps_the_default_cfars_other_keys():
+    default = EstimatorConfig().features.cfar
+    cfar = EstimatorConfig.from_dict({"features": {"cfar": {"threshold_db": 12}}}).features.cfar
+    assert (cfar.method, cfar.guard, cfar.train, cfar.threshold_db, cfar.pfa) == \
+        (default.method, default.guard, default.train, 12.0, None)
+    assert EstimatorConfig().with_(features={"cfar": {"threshold_db": 12}}).features.cfar == cfar
+
+
+def test_a_threshold_given_replaces_the_defaults_pfa_and_the_other_way_round():
+    assert DspConfig().range_cfar.pfa is not None  # the DSP's default range CFAR is by Pfa
+    cfar = DspConfig.from_dict({"range_cfar": {"threshold_db": 13}}).range_cfar
+    assert (cfar.threshold_db, cfar.pfa, cfar.method, cfar.os_rank) == (13.0, None, "os", DspConfig().range_cfar.os_rank)
+    azimuth = EstimatorConfig.from_dict({"features": {"cfar_azimuth": {"pfa": 1e-3}}}).features.cfar_azimuth
+    assert (azimuth.pfa, azimuth.threshold_db, azimuth.guard) == (1e-3, None, EstimatorConfig().features.cfar_azimuth.guard)
+
+
+def test_another_method_drops_the_ordered_statistics_rank():
+    cfar = DspConfig.from_dict({"range_cfar": {"method": "ca"}}).range_cfar
+    assert (cfar.method, cfar.os_rank) == ("ca", None)
+
+
+@pytest.mark.parametrize("section,message", [
+    ({"guard": -1}, "features.cfar.guard: must be at least 0, got -1"),
+    ({"threshold_db": 3, "pfa": 0.1}, "features.cfar.threshold_db: give exactly one of threshold_db and pfa (both given)"),
+    ({"nope": 1}, "features.cfar: unknown key(s) nope"),
+    (5, "features.cfar: must be an object of CfarParams settings, got 5"),
+])
+def test_a_bad_key_of_a_partial_cfar_section_is_named(section, message):
+    with pytest.raises(ConfigError) as err:
+        EstimatorConfig.from_dict({"features": {"cfar": section}})
+    assert str(err.value).startswith(message), str(err.value)
+
+
+def test_a_partial_cfar_section_in_a_file_loads_and_round_trips(tmp_path):
+    path = tmp_path / "estimator.json"
+    path.write_text(json.dumps({"features": {"method": "cfar", "cfar": {"threshold_db": 12}}}))
+    config = EstimatorConfig.load(path)
+    assert config.features.method == "cfar" and config.features.cfar.threshold_db == 12.0
+    config.dump(tmp_path / "again.json")
+    assert EstimatorConfig.load(tmp_path / "again.json") == config
