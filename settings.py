@@ -127,6 +127,10 @@ class Settings:
         except ConfigError as exc:
             if prefix and exc.field and not exc.field.startswith(prefix):
                 raise exc.located(field=prefix + exc.field)
+            unknown = getattr(exc, "unknown", None)
+            if not prefix and unknown:  # the whole tree is known here: say where a misplaced key goes
+                exc.message = f"unknown {cls._what} setting(s): " + ", ".join(p + _elsewhere(cls, p) for p in unknown)
+                raise exc.located()
             raise
 
     @classmethod
@@ -141,8 +145,10 @@ class Settings:
                               + ", ".join(quoted(k) for k in unknown if not isinstance(k, str)),
                               field=prefix.rstrip(".") or None)
         if unknown:
-            raise ConfigError(f"unknown {cls._what} setting(s): "
-                              + ", ".join(prefix + k for k in sorted(unknown)))
+            paths = [prefix + k for k in sorted(unknown)]
+            error = ConfigError(f"unknown {cls._what} setting(s): " + ", ".join(paths))
+            error.unknown = paths  # type: ignore[attr-defined]  # for the top level's hint (from_dict)
+            raise error
         values = dict(data)
         hints = _hints(cls)
         for key, value in data.items():
@@ -194,6 +200,26 @@ class Settings:
             return cls.from_dict(data)
         except ConfigError as exc:
             raise exc.located(path=path)
+
+
+def _setting_paths(cls: type, prefix: str = "") -> list[str]:
+    """Every setting's and section's path in *cls*'s tree (``icp``, ``icp.iterations``, ...)."""
+    paths = []
+    for f in dataclasses.fields(cls):
+        if f.init:
+            paths.append(prefix + f.name)
+            nested = _nested_type(cls, f.name)
+            if nested is not None and issubclass(nested, Settings):
+                paths += _setting_paths(nested, f"{prefix}{f.name}.")
+    return paths
+
+
+def _elsewhere(root: type, path: str) -> str:
+    """" (it is odometry.yaw_noise_rad)" for an unknown *path* whose last name is a setting
+    elsewhere in *root*'s tree (a key put in the wrong section), else ""."""
+    name = path.rpartition(".")[2]
+    found = [p for p in _setting_paths(root) if p.rpartition(".")[2] == name and p != path]
+    return f" (it is {' or '.join(found)})" if found else ""
 
 
 def _nested_from_dict(cls: type, nested: type, value: Mapping[str, Any], key: str) -> Any:

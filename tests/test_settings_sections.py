@@ -1,12 +1,15 @@
-"""A settings file names only what it changes, a CFAR section too: the section's keys go over the
-field's default CFAR (they were refused as "missing key(s) method, guard, train", and once those
-were added, the other CFAR's threshold was named as missing)."""
+"""Settings files as users write them.  A file names only what it changes, a CFAR section too: the
+section's keys go over the field's default CFAR (they were refused as "missing key(s) method,
+guard, train", and once those were added, the other CFAR's threshold was named as missing).  A key
+put in the wrong section is named with where it goes."""
 
 from __future__ import annotations
 
 import json
+import subprocess
 
 import pytest
+from conftest import console_command
 
 from radarodom.dsp.config import DspConfig
 from radarodom.errors import ConfigError
@@ -53,3 +56,34 @@ def test_a_partial_cfar_section_in_a_file_loads_and_round_trips(tmp_path):
     assert config.features.method == "cfar" and config.features.cfar.threshold_db == 12.0
     config.dump(tmp_path / "again.json")
     assert EstimatorConfig.load(tmp_path / "again.json") == config
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"icp": {"yaw_noise_rad": 0.1}}, "unknown estimator setting(s): icp.yaw_noise_rad (it is odometry.yaw_noise_rad)"),
+    ({"blend": 0}, "unknown estimator setting(s): blend (it is point_yaw.blend)"),
+    ({"features": {"icp": {}}}, "unknown estimator setting(s): features.icp (it is icp)"),
+    ({"icp": {"nothing_like_it": 1}}, "unknown estimator setting(s): icp.nothing_like_it"),
+    ({"zzz": 1, "blend": 0}, "unknown estimator setting(s): blend (it is point_yaw.blend), zzz"),
+])
+def test_an_unknown_key_is_named_with_where_such_a_key_goes(data, message):
+    with pytest.raises(ConfigError) as err:
+        EstimatorConfig.from_dict(data)
+    assert str(err.value) == message
+
+
+def test_the_dsps_misplaced_key_is_named_too():
+    with pytest.raises(ConfigError) as err:
+        DspConfig.from_dict({"range_cfar": {"threshold_db": 13}, "cfar": {}})
+    assert "unknown DSP setting(s): cfar" in str(err.value)
+
+
+def test_radar_capture_names_the_file_and_where_the_key_goes(tmp_path):
+    path = tmp_path / "estimator.json"
+    path.write_text(json.dumps({"blend": 0}))
+    proc = subprocess.run(console_command("radar-capture") + ["--source", "sim://corridor?rate=max&duration=0.3",
+                                                              "--no-publish", "--estimator-config", str(path)],
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL, cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"radar-capture: error: {path}: unknown estimator setting(s): blend (it is point_yaw.blend)"], proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["estimator.json"]
