@@ -47,7 +47,8 @@ Status: ``<prefix>/status``, encoding ``application/json``
          "packets_lost": 2,        # data packets never received: sequence gaps (live; else 0)
          "source": {...},          # the source's own figures: for dca1000:// the packet counts
                                    # (packets, packets_lost, truncated_packets, late_packets,
-                                   # duplicate_packets, foreign_packets, malformed_packets),
+                                   # duplicate_packets, foreign_packets, malformed_packets,
+                                   # stale_packets),
                                    # frames_complete/incomplete/dropped, async_status, fpga, url
          "latency_ms": {"p50": 12.0, "p90": 15.0, "p99": 20.0, "max": 31.0},
          "estimator_ms": 4.1,      # median estimator time per frame

@@ -23,7 +23,8 @@ import time
 
 import numpy as np
 
-from radarodom.driver.live.dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
+from radarodom.driver.live.dca1000 import Dca1000Client, Dca1000Settings
+from radarodom.driver.live.dca1000_receiver import Dca1000Receiver
 from radarodom.driver.live.dca1000_wire import MAX_DATA_BYTES
 from radarodom.driver.emulators.rig import BOARD_IP, HOST_IP, free_udp_port
 from radarodom.driver.live.frame_ring import FrameRing

@@ -191,7 +191,8 @@ def test_receiver_stopping_takes_the_datagrams_already_queued():
     assembles them before it ends (here they are all queued before its thread even runs)."""
     import socket
 
-    from radarodom.driver.live.dca1000 import Dca1000Receiver, Dca1000Settings
+    from radarodom.driver.live.dca1000 import Dca1000Settings
+    from radarodom.driver.live.dca1000_receiver import Dca1000Receiver
     from radarodom.driver.live.dca1000_wire import DATA_HEADER
 
     fb, n = 5000, 3

@@ -117,6 +117,8 @@ def live_summary(live: dict, stats: PipelineStats) -> str:
             f"{live['truncated_packets']} truncated and {live['late_packets']} late "
             f"of {live['packets']} received; {live['duplicate_packets']} duplicate, {live['foreign_packets']} "
             f"foreign and {live['malformed_packets']} malformed packets ignored")
+    if live.get("stale_packets"):
+        text += f"; {live['stale_packets']} packets of an earlier recording ignored (a board left streaming)"
     headers = live.get("lost_bytes")
     counted = stats.lost_bytes + stats.unstreamed_lost_bytes
     if headers is not None and headers != counted:

@@ -130,7 +130,8 @@ def _main(args: argparse.Namespace) -> int:
             held = stats.frames_in - stats.frames_sent
             print(f"radar-emulate: sent {stats.frames_sent} frames in {stats.packets_sent} packets "
                   f"({stats.dropped} dropped, {stats.duplicates} duplicated, {stats.reordered} reordered, "
-                  f"{stats.truncated} truncated by the fault injector)"
+                  f"{stats.truncated} truncated, {stats.malformed} replaced by garbage and {stats.foreign} copied "
+                  f"from another address by the fault injector)"
                   + (f"; the tail of {held} more was held back (its recording had not ended)" if held else ""))
     return 0
 

@@ -12,9 +12,9 @@ is slower than the radar), ``buffers`` (frames in the ring, 8), ``timeout``
 ``cli_timeout`` (seconds per radar CLI command, 2) and ``stop_timeout`` (seconds to wait
 for the board's RECORD_COMPLETED after RECORD_STOP, 3).
 
-Start order (TI's CLI and xwr do the same): open and flush the data socket,
-configure the board, RECORD_START, configure the radar, sensorStart; stop in
-reverse.  ``sensorStop`` is sent on every exit, errors and Ctrl-C included.
+Start order: open and flush the data socket, configure the board, configure the
+radar, flush the data socket again (an earlier recording's packets that came
+meanwhile), RECORD_START, sensorStart; stop in reverse.  ``sensorStop`` is sent on every exit, errors and Ctrl-C included.
 A hung sensorStart is answered with the DCA1000's RESET_AR_DEV.
 
 Asked to stop (:meth:`Source.stop`), the source stops the radar and the recording, waits for
@@ -38,8 +38,9 @@ from ...cfg_physics import DCA1000_PACKET_DELAY_RANGE_US
 from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
-from .dca1000 import Dca1000Client, Dca1000Receiver, Dca1000Settings
-from .dca1000_wire import BOARD_IP, HOST_IP, AsyncStatus
+from .dca1000 import Dca1000Client, Dca1000Settings
+from .dca1000_receiver import Dca1000Receiver
+from .dca1000_wire import BOARD_IP, DATA_PORT, HOST_IP, AsyncStatus
 from .frame_ring import POLICIES, FrameRing
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, number_in, one_of, positive_number, udp_port
@@ -61,11 +62,17 @@ class FrameClock:
         self.period = period_s
         self._offsets: collections.deque[float] = collections.deque(maxlen=window)
 
+    def observe(self, index: int, receive_time: float) -> None:
+        """A packet of frame *index* received at *receive_time* (time.time())."""
+        self._offsets.append(receive_time - index * self.period)
+
     def stamp(self, index: int, receive_time: float) -> float:
+        """Frame *index*'s time; *receive_time* its first packet's (0: none came, the frame
+        wholly lost: the grid's time, which needs a packet observed before)."""
         if receive_time > 0:
-            self._offsets.append(receive_time - index * self.period)
+            self.observe(index, receive_time)
         if not self._offsets:
-            return index * self.period
+            raise DeviceError(f"frame {index} has no packet and none came before it: its time is unknown")
         return min(self._offsets) + index * self.period
 
 
@@ -85,7 +92,7 @@ class LiveSource(Source):
         self.layout = RawLayout.from_config(config)
         self.ring = FrameRing(config.frame_bytes, buffers, policy)
         self.board = Dca1000Client(settings)
-        self.receiver = Dca1000Receiver(settings, config.frame_bytes, self.ring)
+        self.receiver = Dca1000Receiver(settings, config.frame_bytes, self.ring, frame_period_s=config.frame_period_s)
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.clock = FrameClock(config.frame_period_s)
         #: Seconds without any data packet before the stream is declared dead.
@@ -132,6 +139,9 @@ class LiveSource(Source):
             return "resetting it through the DCA1000 failed too: power-cycle the radar"
 
     def __iter__(self) -> Iterator[Frame]:
+        # Packets of an earlier recording that came while the board and the radar were set up
+        # would be taken for this one's (a board left streaming by a run killed before it stopped).
+        self.receiver.flush()
         self.board.start_recording()
         self._recording = True
         self.receiver.start()
@@ -188,6 +198,8 @@ class LiveSource(Source):
             d["cut"] += frame.cut_bytes
         else:
             d["complete"] += 1
+        if frame.first_packet_time <= 0 and self.receiver.first_packet is not None:
+            self.clock.observe(*self.receiver.first_packet)  # wholly lost before the first packet came
         return Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
                      raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
                      ready_monotonic=frame.done_monotonic, cut_bytes=frame.cut_bytes)
@@ -215,13 +227,27 @@ class LiveSource(Source):
 
     def _check_data_flows(self, now: float, started: float) -> None:
         last = self.receiver.last_packet_monotonic or started
-        if now - last > self.data_timeout_s:
-            what = "no data arrived" if not self.receiver.last_packet_monotonic else "the data stopped"
-            hint = (" The board reported no LVDS data: check lvdsStreamCfg and the DCA1000's switches."
-                    if self.board.async_status.counts.get("NO_LVDS_DATA") else
-                    " Was the radar reset, or its cable moved?")
-            raise DeviceTimeout(f"{what} from the DCA1000 for {now - last:.1f} s "
-                                f"(frame period {self.config.frame_period_s:g} s).{hint}")
+        if now - last <= self.data_timeout_s:
+            return
+        s, stats = self.settings, self.receiver.stats
+        if self.board.async_status.counts.get("NO_LVDS_DATA"):
+            hint = " The board reported no LVDS data: check lvdsStreamCfg and the DCA1000's switches."
+        elif stats.packets:
+            hint = " Was the radar reset, or its cable moved?"
+        elif stats.malformed_packets or stats.stale_packets:
+            hint = (f" The board sent {stats.malformed_packets} datagrams that are not data packets and "
+                    f"{stats.stale_packets} of an earlier recording, none of this one's.")
+        elif stats.foreign_packets:
+            hint = (f" {stats.foreign_packets} datagrams came from other addresses: is the board at "
+                    f"{s.board_ip} (the URL's address)?")
+        else:  # the board answered its commands, so it sends its data elsewhere, or it is dropped
+            hint = (f" The board sends its data to the host address and port stored in its EEPROM "
+                    f"({HOST_IP}:{DATA_PORT} unless changed): check the URL's host= and data_port=, and that no "
+                    f"firewall drops UDP to port {s.data_port}.")
+        what = (f"no data from the DCA1000 for {now - last:.1f} s since its last packet" if stats.packets else
+                f"no data packet of the DCA1000's reached {s.host_ip}:{s.data_port} in {now - started:.1f} s "
+                "since the radar started")
+        raise DeviceTimeout(f"{what} (frame period {self.config.frame_period_s:g} s).{hint}")
 
     def describe(self) -> dict:
         """The live stream's accounting, where every frame and every missing byte went.
@@ -238,7 +264,8 @@ class LiveSource(Source):
         ``tail_packets_lost`` (after the last one received, sent by the board's confirmed
         end), ``truncated_packets``, ``late_packets`` (after their frame was handed on, its
         missing bytes counted in ``lost_bytes``), and ignored ones: ``duplicate_packets``,
-        ``foreign_packets`` (another address), ``malformed_packets``.  Also the board's status
+        ``foreign_packets`` (another address), ``malformed_packets``, ``stale_packets`` (an earlier
+        recording's: waiting when this one started, or beyond what it can have sent).  Also the board's status
         messages (``async_status``) and the receive buffer granted (``rcvbuf_bytes``)."""
         r, a, d = self.receiver.stats, self.receiver.assembler.stats, self._delivered
         seq_gaps = self.receiver.gaps.lost
@@ -252,7 +279,7 @@ class LiveSource(Source):
             "tail_packets_lost": a.tail_packets_lost,
             "truncated_packets": r.truncated_packets, "late_packets": a.late_packets,
             "duplicate_packets": a.duplicate_packets, "foreign_packets": r.foreign_packets,
-            "malformed_packets": r.malformed_packets,
+            "malformed_packets": r.malformed_packets, "stale_packets": r.stale_packets,
             "async_status": dict(self.board.async_status.counts), "rcvbuf_bytes": r.rcvbuf_bytes,
         }
 

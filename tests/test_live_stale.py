@@ -1,0 +1,117 @@
+"""An earlier recording's packets: a board left streaming by a run killed before it could stop
+it.  Its packets, waiting on the data port or arriving while the board and the radar are set up,
+were taken for the new recording's: frames of zeros timed near 1970 (the clock had no packet to
+place them by), the new stream's first seconds counted as late packets, and odometry in the
+billions of metres.  Now they are flushed before RECORD_START, a first packet that claims more of
+the stream than the board can have sent since it started is ignored, and both are counted
+(``stale_packets``).  Real sockets on loopback, the emulated rig."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+from live_helpers import URL_TIMEOUTS, assert_continuous, collect
+
+from radarodom.driver.emulators.rig import EmulatedRig
+from radarodom.driver.live.dca1000 import Dca1000Settings
+from radarodom.driver.live.dca1000_receiver import Dca1000Receiver
+from radarodom.driver.live.dca1000_wire import DATA_HEADER, MAX_DATA_BYTES
+from radarodom.driver.live.frame_ring import FrameRing
+from radarodom.driver.sources import open_source
+from radarodom.errors import DeviceTimeout
+
+N_SRC = 5
+STALE_SEQ = 200_000
+
+
+def stale_packet(seq: int, frame_bytes: int) -> bytes:
+    """A data packet of a recording 87 frames in: its sequence number and stream offset far on."""
+    offset = 87 * frame_bytes + (seq - STALE_SEQ) * MAX_DATA_BYTES
+    return DATA_HEADER.pack(seq, offset.to_bytes(6, "little")) + bytes(MAX_DATA_BYTES)
+
+
+def test_packets_of_an_earlier_recording_during_set_up_are_not_frames(small_capture, small_cfg):
+    directory, frames = small_capture
+    with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
+        sent = []
+        done = threading.Event()
+
+        def old_board():  # streams from the board's address until the new recording starts, and a bit on
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+                s.bind((rig.board.board_ip, 0))
+                seq = STALE_SEQ
+                while not done.is_set() and not rig.board.recording:
+                    s.sendto(stale_packet(seq, small_cfg.frame_bytes), (rig.host_ip, rig.data_port))
+                    sent.append(seq)
+                    seq += 1
+                    time.sleep(0.002)
+
+        sender = threading.Thread(target=old_board, daemon=True)
+        sender.start()
+        try:
+            with open_source(rig.url(**URL_TIMEOUTS), small_cfg) as src:
+                got = collect(src, 10, timeout=10.0)
+                described = src.describe()
+        finally:
+            done.set()
+            sender.join(5)
+    assert sent, "the old board sent nothing"
+    assert len(got) == 10
+    assert_continuous([g.index for g in got])
+    for g in got:
+        assert g.missing_bytes == 0 and g.raw == frames[g.index % N_SRC]
+    stamps = np.array([g.timestamp for g in got])
+    assert (np.abs(stamps - np.array([g.received for g in got])) < 60).all(), stamps  # this run's times
+    assert described["stale_packets"] > 0 and described["late_packets"] == 0, described
+    assert described["frames_dropped"] == 0 and described["seq_gaps"] == 0, described
+
+
+def test_a_first_packet_beyond_what_the_board_can_have_sent_is_stale(small_cfg):
+    """Packets of an earlier recording arriving after RECORD_START, before the new one's first."""
+    frame_bytes = small_cfg.frame_bytes
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    settings = Dca1000Settings(host_ip="127.0.0.1", board_ip="127.0.0.1", data_port=port)
+    ring = FrameRing(frame_bytes, 8)
+    receiver = Dca1000Receiver(settings, frame_bytes, ring, frame_period_s=small_cfg.frame_period_s).open()
+    data = np.random.default_rng(1).integers(0, 256, 3 * frame_bytes, dtype=np.uint8).tobytes()
+    try:
+        receiver.start()
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as board:
+            for seq in range(STALE_SEQ, STALE_SEQ + 5):
+                board.sendto(stale_packet(seq, frame_bytes), ("127.0.0.1", port))
+            for seq, start in enumerate(range(0, len(data), MAX_DATA_BYTES), start=1):
+                board.sendto(DATA_HEADER.pack(seq, start.to_bytes(6, "little")) + data[start:start + MAX_DATA_BYTES],
+                             ("127.0.0.1", port))
+        got = []
+        while len(got) < 2 and (frame := ring.get(timeout=5)) is not None:  # the third is open until more come
+            got.append((frame.index, bytes(frame.data), frame.missing_bytes))
+            ring.release(frame.slot)
+    finally:
+        receiver.close()
+    assert [(i, m) for i, _, m in got] == [(0, 0), (1, 0)]
+    assert [d for _, d, _ in got] == [data[:frame_bytes], data[frame_bytes:2 * frame_bytes]]
+    assert receiver.stats.stale_packets == 5
+    assert receiver.first_packet[0] == 0
+
+
+def test_data_sent_to_another_port_says_where_the_board_sends(small_capture, small_cfg):
+    """The board answers its commands, but its data goes elsewhere (a data_port= or host= that is
+    not the EEPROM's): the message said 'Was the radar reset, or its cable moved?'."""
+    directory, _ = small_capture
+    with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            probe.bind((rig.host_ip, 0))
+            elsewhere = probe.getsockname()[1]
+        url = rig.url(**URL_TIMEOUTS).replace(f"data_port={rig.data_port}", f"data_port={elsewhere}")
+        with open_source(url, small_cfg) as src:
+            with pytest.raises(DeviceTimeout) as info:
+                collect(src, 1, timeout=30.0)
+    message = str(info.value)
+    assert f"no data packet of the DCA1000's reached {rig.host_ip}:{elsewhere} in " in message, message
+    assert "EEPROM (192.168.33.30:4098 unless changed)" in message and "data_port=" in message, message
