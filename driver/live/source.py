@@ -14,7 +14,8 @@ for the board's RECORD_COMPLETED after RECORD_STOP, 3).
 
 Start order: open and flush the data socket, configure the board, configure the
 radar, flush the data socket again (an earlier recording's packets that came
-meanwhile), RECORD_START, sensorStart; stop in reverse.  ``sensorStop`` is sent on every exit, errors and Ctrl-C included.
+meanwhile), RECORD_START, sensorStart; stop in reverse.  ``sensorStop`` is sent on
+every exit, errors and Ctrl-C included.
 A hung sensorStart is answered with the DCA1000's RESET_AR_DEV.
 
 Asked to stop (:meth:`Source.stop`), the source stops the radar and the recording, waits for
