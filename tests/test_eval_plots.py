@@ -410,3 +410,14 @@ def test_the_json_may_go_into_the_plot_directory_the_run_makes(sim_run, tmp_path
                    timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert json.loads((out / "n.json").read_text())["poses"]["matched"] == 30 and (out / "report.png").exists()
+
+
+@pytest.mark.parametrize("name", ["run $x^$", "run $\\foo{$", "price $5 and $6", "bell\x07 esc\x1b"])
+def test_a_name_with_dollars_or_control_characters_is_drawn_as_written(s_bends, tmp_path, name, recwarn):
+    """'$x^$' was matplotlib's maths, and radar-eval --plot ended with 'internal error: ValueError';
+    a control character drew a missing-glyph UserWarning."""
+    paths = plots.plot_evaluation(s_bends, tmp_path, name=name)
+    assert [os.path.basename(p) for p in paths][0] == "report.png" and all(os.path.getsize(p) for p in paths)
+    shown = "".join(c if c.isprintable() else "?" for c in name)
+    assert shown in all_text(plots.evaluation_figures(s_bends, name=name)["report.png"])
+    assert not [w for w in recwarn if "Glyph" in str(w.message)], [str(w.message) for w in recwarn]
