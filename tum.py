@@ -16,7 +16,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import CaptureError, CaptureExistsError, CaptureFormatError, UsageError, given_path, why_not_written
+from .errors import CaptureError, CaptureFormatError, UsageError, given_path
+from .line_file import LineFile
 from .plain_numbers import plain_float
 
 log = logging.getLogger(__name__)
@@ -244,13 +245,9 @@ class TumWriter:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = given_path(path, CaptureError)
-        try:
-            # Line-buffered: a process killed mid-run leaves whole lines behind.
-            self._fh = open(self.path, "x", buffering=1, encoding="ascii")
-        except FileExistsError:
-            raise CaptureExistsError(f"{self.path} already exists; choose a new file") from None
-        except OSError as exc:
-            raise CaptureError(f"cannot create {self.path}: {why_not_written(exc, self.path)}") from None
+        # Each line straight to the kernel: a process killed mid-run leaves whole lines behind,
+        # and a write that fails (a full disk) is cut back to the lines before it.
+        self._file = LineFile(self.path)
 
     def write(self, t: float, x: float, y: float, yaw: float) -> None:
         """A planar pose: x, y (m) and yaw (rad) at time *t* (s); z = 0."""
@@ -258,19 +255,10 @@ class TumWriter:
 
     def write_pose(self, t: float, position: Sequence[float], quaternion: Sequence[float]) -> None:
         """A pose: position (3,) m and quaternion (4,) xyzw at time *t* (s)."""
-        line = format_tum_line(t, position, quaternion)
-        try:
-            self._fh.write(line)
-        except ValueError:  # written after close()
-            raise CaptureError(f"{self.path}: the file is closed") from None
-        except OSError as exc:
-            raise CaptureError(f"writing {self.path} failed: {exc.strerror or exc}") from None
+        self._file.write(format_tum_line(t, position, quaternion))
 
     def close(self) -> None:
-        try:
-            self._fh.close()
-        except OSError as exc:
-            raise CaptureError(f"closing {self.path} failed: {exc.strerror or exc}") from None
+        self._file.close()
 
     def __enter__(self) -> "TumWriter":
         return self

@@ -35,11 +35,11 @@ import numpy as np
 
 from .. import messages
 from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
-from ..driver.recordings.capture_writer import write_file_all
 from ..driver.sources import Frame, Source
 from ..errors import CaptureError, CaptureExistsError, given_path, why_not_written
 from ..estimator.odometry import OdometryState
 from ..products import RangeAzimuth
+from ..line_file import LineFile, write_file_all
 from ..tum import TumWriter
 
 if TYPE_CHECKING:
@@ -135,50 +135,12 @@ def remove_if_no_frame(path: str, stats: PipelineStats | None) -> None:
             os.remove(path)
 
 
-class _LineFile:
-    """A new text file (ASCII, "\\n" lines) written a frame's lines at a time, unbuffered: lines
-    whose writing fails (a full disk) are cut off again, so the file holds the frames before them
-    whole, and the error names the file (:class:`CaptureError`)."""
-
-    def __init__(self, path: str) -> None:
-        self.path = path
-        try:
-            self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o666)
-        except FileExistsError:
-            raise CaptureExistsError(f"{path} already exists; choose a new file") from None
-        except OSError as exc:
-            raise CaptureError(f"cannot create {path}: {why_not_written(exc, path)}") from None
-        self._size = 0
-
-    def write(self, text: str) -> None:
-        """*text*, one frame's whole lines."""
-        data = text.encode("ascii")
-        try:
-            write_file_all(self._fd, data)
-        except OSError as exc:
-            with contextlib.suppress(OSError):
-                os.ftruncate(self._fd, self._size)
-            raise CaptureError(f"writing {self.path} failed: {exc.strerror or exc}; the lines before are "
-                               "kept whole") from None
-        self._size += len(data)
-
-    @property
-    def closed(self) -> bool:
-        return self._fd < 0
-
-    def close(self) -> None:
-        """Close the file, once (again: nothing)."""
-        if self._fd >= 0:
-            fd, self._fd = self._fd, -1
-            os.close(fd)
-
-
 class OdometryJsonSink(Sink):
     """The odometry as a new JSON-lines file (module docstring), written line by line."""
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = given_path(path, CaptureError)
-        self._fh = _LineFile(self.path)
+        self._fh = LineFile(self.path)
 
     def write(self, result: FrameResult, stats: PipelineStats) -> None:
         if result.state is not None:
@@ -197,7 +159,7 @@ class PointsCsvSink(Sink):
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = given_path(path, CaptureError)
-        self._fh = _LineFile(self.path)
+        self._fh = LineFile(self.path)
         try:
             self._fh.write("frame,t," + ",".join(POINT_COLUMNS) + "\n")
         except CaptureError:  # an empty file left would block the same command's next run

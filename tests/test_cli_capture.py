@@ -24,6 +24,7 @@ from conftest import SMALL_CFG, console_command, make_capture, private_zenoh
 from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.recordings.capture_dir import CaptureDirectory
 from radarodom.tools import radar_capture
+from radarodom.tum import read_tum
 
 FRAME_BYTES = 3072
 PERIOD_S = 0.05
@@ -752,23 +753,29 @@ def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_pat
     assert len(summary) == 1 and f"stopped by an error; recorded 3 of them to {out}" in summary[0], proc.stdout
 
 
-@pytest.mark.parametrize("option, name", [("--points-out", "points.csv"), ("--odom-json", "odom.jsonl")])
-def test_a_text_output_that_runs_out_of_room_names_itself_and_keeps_whole_lines(tmp_path, option, name):
-    """A full disk (here the file size limit) under --points-out / --odom-json: one error line
-    naming the file, the summary, and a file of whole lines (a frame's lines written or not)."""
+@pytest.mark.parametrize("option, name, limit", [("--points-out", "points.csv", 3000),
+                                                 ("--odom-json", "odom.jsonl", 3000),
+                                                 ("--odom-out", "odom.tum", 600)])
+def test_a_text_output_that_runs_out_of_room_names_itself_and_keeps_whole_lines(tmp_path, option, name, limit):
+    """A full disk (here the file size limit) under --points-out / --odom-json / --odom-out: one
+    error line naming the file, the summary, and a file of whole lines (a frame's lines written or
+    not).  The TUM file was left with a line cut off, and a second line said its close failed."""
     out = tmp_path / name
     proc = subprocess.run(CAPTURE + ["--source", "sim://calibration?rate=max", "--frames", "20", "--no-publish",
                                      option, str(out)], stdin=subprocess.DEVNULL, capture_output=True,
-                          text=True, timeout=120, preexec_fn=_file_size_limit(3000))
+                          text=True, timeout=120, preexec_fn=_file_size_limit(limit))
     assert proc.returncode == 1, proc.stderr
     assert one_error_line(proc) == (f"radar-capture: error: writing {out} failed: File too large; the lines "
                                     "before are kept whole"), proc.stderr
     assert "stopped by an error" in proc.stdout, proc.stdout
     text = out.read_text()
-    assert 0 < len(text) <= 3000 and text.endswith("\n")
+    assert 0 < len(text) <= limit and text.endswith("\n")
     lines = text.splitlines()
     if option == "--odom-json":
         assert [json.loads(line)["frame"] for line in lines] == list(range(len(lines)))
+    elif option == "--odom-out":
+        assert all(len(line.split()) == 8 for line in lines), lines
+        assert len(read_tum(out)) == len(lines)
     else:
         assert lines[0].startswith("frame,t,") and all(len(line.split(",")) == 10 for line in lines[1:])
 

@@ -31,6 +31,7 @@ from ... import __version__, strict_json
 from ...cfg import RadarConfig
 from ...errors import (CaptureError, CaptureFormatError, add_note, given_path,
                        why_not_written)
+from ...line_file import write_file_all
 from ...tum import format_tum_line
 from . import capture_check
 from .capture_check import ADC_DATA, FORMAT_NAME, FORMAT_VERSION, GROUNDTRUTH, METADATA, RADAR_CFG, TIMESTAMPS
@@ -117,13 +118,6 @@ def _put_new(tmp: str, path: str) -> None:
 def _new_file(path: str) -> int:
     """A new file of the capture, opened for appending without buffering."""
     return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_APPEND, 0o644)
-
-
-def write_file_all(fd: int, data) -> None:
-    """All of *data* (a bytes-like object) to the file descriptor *fd*, however many writes it takes."""
-    view = memoryview(data).cast("B")
-    while view:
-        view = view[os.write(fd, view):]
 
 
 
