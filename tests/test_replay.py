@@ -378,6 +378,20 @@ def test_ti_series_gap_warns(tmp_path, small_cfg, warnings_log):
     assert any("gap" in m for m in warning_messages(warnings_log))
 
 
+def test_ti_series_without_its_first_file_is_refused(tmp_path, small_cfg):
+    """Its _Raw_1 begins mid-frame: played, every frame was misaligned (exit 0, odometry of noise)."""
+    data = RawLayout.from_config(small_cfg, iq_interleaved=True).encode(_cubes(small_cfg, 4))
+    d = tmp_path / "ti"
+    _write_split(d, data, [5000], numbers=[1, 2])
+    for path in (d / "adc_data_Raw_1.bin", d / "adc_data_Raw_2.bin", d):
+        with pytest.raises(CaptureFormatError) as info:
+            open_source(f"replay://{path}?rate=max", small_cfg)
+        assert str(info.value) == (f"{d / 'adc_data_Raw_1.bin'}: the series starts at number 1: "
+                                   f"{d / 'adc_data_Raw_0.bin'} is missing, and without the stream's start its "
+                                   "frames cannot be found (each file goes on where the one before ended); put it "
+                                   "back beside the others")
+
+
 @pytest.mark.parametrize("size", [0, 100, 3071])
 def test_ti_file_shorter_than_a_frame(tmp_path, small_cfg, size):
     d = tmp_path / "ti"

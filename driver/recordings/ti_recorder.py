@@ -51,6 +51,11 @@ def series_files(path: str) -> list[str]:
         if m and m["prefix"] == match["prefix"]:
             numbered[int(m["n"])] = os.path.join(folder, f)
     first = min(numbered)
+    if first != 0:  # TI's recorder numbers from 0, and each file goes on where the one before ended
+        missing = os.path.join(folder, f"{match['prefix']}0.bin")
+        raise CaptureFormatError(f"{numbered[first]}: the series starts at number {first}: {missing} is missing, "
+                                 "and without the stream's start its frames cannot be found (each file goes on "
+                                 "where the one before ended); put it back beside the others")
     files = []
     while first + len(files) in numbered:
         files.append(numbered[first + len(files)])
