@@ -343,6 +343,10 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     options.finish()
     for what, address in (("board address", board), ("host", host)):
         _check_ipv4(options.url, what, address)
+    if config_port and config_port == data_port:  # the one socket would hold both, and the second bind fail
+        raise SourceError(f"{options.url}: config_port and data_port are both {data_port}: this host's ports "
+                          f"for the board's answers and its data must differ (the board's defaults: "
+                          f"{defaults.config_port} and {defaults.data_port})")
     if cli is None:
         from .discovery import default_cli_port  # pyusb and sysfs only when needed
 
