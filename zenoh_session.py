@@ -281,6 +281,9 @@ def open_session(options: ZenohOptions) -> tuple[zenoh.Session, ZenohOptions]:
         return zenoh.open(options.to_config()), options
     except zenoh.ZError as exc:
         reason = zenoh_reason(exc)
+        unsupported = _unsupported_protocol(options, reason)
+        if unsupported:
+            raise PublishConfigError(unsupported) from None
         # Only the built-in default falls back: an endpoint the user chose is meant.
         if not (options.effective_listen == (DEFAULT_ENDPOINT,) and options.listen is None
                 and "already in use" in reason):
@@ -293,6 +296,21 @@ def open_session(options: ZenohOptions) -> tuple[zenoh.Session, ZenohOptions]:
         return zenoh.open(fallback.to_config()), fallback
     except zenoh.ZError as exc:
         raise PublishError(_open_failure(fallback, zenoh_reason(exc))) from None
+
+
+def _unsupported_protocol(options: ZenohOptions, reason: str) -> str | None:
+    """What to say of an endpoint whose protocol this Zenoh does not have (a typo such as tcpx/):
+    a usage error naming the option or the config file that gave it; None for other failures."""
+    found = re.search(r"not supported for (\S+) protocol", reason)
+    if not found:
+        return None
+    protocol = found.group(1)
+    given = [f"--{name} {e}" for name, endpoints in (("listen", options.listen), ("connect", options.connect))
+             for e in endpoints or () if e.split("/", 1)[0] == protocol]
+    where = ", ".join(given) or (f"zenoh config {os.fspath(options.config_file)}" if options.config_file
+                                 else "an endpoint")
+    return (f"{where}: Zenoh has no {protocol!r} protocol ({reason}); give one it has, e.g. "
+            f"tcp/192.168.1.10:7447 (tcp, udp, tls, quic, ws)")
 
 
 def _open_failure(options: ZenohOptions, reason: str) -> str:

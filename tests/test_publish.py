@@ -472,6 +472,23 @@ def test_bad_options_are_refused_with_exit_code_2(options, words):
     assert info.value.exit_code == 2
 
 
+def test_an_endpoint_protocol_zenoh_does_not_have_is_a_usage_error_naming_where(tmp_path):
+    """'tcpx/...' (a typo) opened no session: a run-time failure, exit 1, naming neither the option
+    nor the file."""
+    port = free_endpoint().rsplit(":", 1)[1]
+    for options, where in [(dict(listen=[f"tcpx/127.0.0.1:{port}"], connect=[]), f"--listen tcpx/127.0.0.1:{port}"),
+                           (dict(listen=[], connect=[f"tcpx/127.0.0.1:{port}"]), f"--connect tcpx/127.0.0.1:{port}")]:
+        with pytest.raises(PublishConfigError) as info:
+            open_session(ZenohOptions(**options))
+        assert str(info.value).startswith(f"{where}: Zenoh has no 'tcpx' protocol (") and info.value.exit_code == 2
+    config = tmp_path / "zenoh.json5"
+    config.write_text(f'{{mode: "peer", listen: {{endpoints: ["tcpx/127.0.0.1:{port}"]}}, '
+                      '"scouting": {"multicast": {"enabled": false}}}')
+    with pytest.raises(PublishConfigError) as info:
+        open_session(ZenohOptions(config_file=config))
+    assert str(info.value).startswith(f"zenoh config {config}: Zenoh has no 'tcpx' protocol (")
+
+
 def test_the_odometry_topic_is_never_another_radarodom_topic(tmp_path):
     # Before any session or file opens: the odometry on /tf would be TF messages of another type.
     pytest.importorskip("rosbags.typesys")
