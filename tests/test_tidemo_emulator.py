@@ -4,6 +4,7 @@ faults whose ground truth the tidemo:// source's accounting is checked against."
 
 from __future__ import annotations
 
+import subprocess
 import time
 
 import numpy as np
@@ -183,6 +184,23 @@ def test_radar_emulate_refuses_a_recording_of_the_demos_stream_at_start(tmp_path
         assert code == 2, err
         assert f"replay://{rec}: its frames carry no raw ADC samples" in err and \
             f"play it with radar-capture --source replay://{rec}" in err, err
+
+
+def test_radar_emulate_says_how_a_coloradar_run_gives_raw_frames(tmp_path):
+    """It said a ColoRadar run was a recording of the demo's UART stream."""
+    from coloradar_synth import write_run
+    from conftest import console_command
+
+    run = write_run(tmp_path)
+    url = f"coloradar://{run}"
+    proc = subprocess.run([*console_command("radar-emulate"), "--source", url], capture_output=True, text=True,
+                          timeout=60, stdin=subprocess.DEVNULL)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        f"radar-emulate: error: {url}: its frames carry no raw ADC samples (a ColoRadar run plays its point "
+        "clouds and heatmaps unless told otherwise), and an emulated board streams raw frames: add "
+        "velocity=single_chip_adc&heatmap=single_chip_adc to the URL (the run's single-chip ADC frames), or "
+        f"play it with radar-capture --source {url}"], proc.stderr
 
 
 def test_radar_emulate_uart_hangs_on_start_when_told(tmp_path):

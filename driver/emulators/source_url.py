@@ -31,6 +31,12 @@ def emulated_source_url(url: str, *, replaced: dict[str, str] | None = None,
 
 def no_raw_frames_message(url: str) -> str:
     """What an emulated board says of a source *url* whose frames carry no raw ADC samples (a
-    recording of the demo's UART stream): it streams raw frames, as the radar's ADCs give them."""
+    recording of the demo's UART stream; a ColoRadar run played from its point clouds and
+    heatmaps): it streams raw frames, as the radar's ADCs give them."""
+    if url.startswith("coloradar:"):
+        return (f"{url}: its frames carry no raw ADC samples (a ColoRadar run plays its point clouds and "
+                f"heatmaps unless told otherwise), and an emulated board streams raw frames: add "
+                f"velocity=single_chip_adc&heatmap=single_chip_adc to the URL (the run's single-chip ADC "
+                f"frames), or play it with radar-capture --source {url}")
     return (f"{url}: its frames carry no raw ADC samples (a recording of the demo's UART stream holds its "
             f"packets only), and an emulated board streams raw frames; play it with radar-capture --source {url}")
