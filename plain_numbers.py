@@ -21,6 +21,9 @@ FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]
 #: More digits than this is no count, port or seed anyone means (and int() of thousands of
 #: digits is slow).
 MAX_INT_DIGITS = 30
+#: The largest whole number an option takes (a command-line option's, a URL option's): a seed
+#: recorded in a URL is then one radar-sim --seed takes too.
+MAX_WHOLE_OPTION = 2**63 - 1
 
 
 def plain_int(text: str) -> int | None:

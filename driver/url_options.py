@@ -9,7 +9,7 @@ from typing import Any, Callable
 from urllib.parse import parse_qsl
 
 from ..errors import SourceError, quoted
-from ..plain_numbers import plain_float, plain_int
+from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int
 
 #: Largest number a URL option takes (seconds, factors, microseconds): far beyond any meant,
 #: small enough that arithmetic on it stays finite.
@@ -35,12 +35,13 @@ def parse_rate(text: str) -> float:
 
 
 def at_least(minimum: int) -> Callable[[str], int]:
-    """A ``UrlOptions.take`` converter: a whole number >= *minimum*."""
+    """A ``UrlOptions.take`` converter: a whole number from *minimum* to :data:`MAX_WHOLE_OPTION`."""
     def convert(text: str) -> int:
         value = plain_int(text)
-        if value is None or value < minimum:
+        if value is None or not minimum <= value <= MAX_WHOLE_OPTION:
             raise ValueError(text)
         return value
+    convert.limit = f"at most {MAX_WHOLE_OPTION}"  # type: ignore[attr-defined]
     return convert
 
 

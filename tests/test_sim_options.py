@@ -45,6 +45,21 @@ def test_url_options_take_plain_decimal_numbers_only(option):
         open_source(f"sim://corridor?{option}")
 
 
+@pytest.mark.parametrize("seed", ["9223372036854775808", "18446744073709551615", "9" * 38])
+def test_a_seed_past_the_largest_option_says_the_range_in_the_url_and_in_radar_sim(seed, tmp_path, capsys):
+    """A URL took 2**63 and recorded it, which radar-sim --seed refused; and radar-sim said of a
+    whole number too large that it was none ('expected a whole number >= 0')."""
+    with pytest.raises(SourceError) as info:
+        open_source(f"sim://corridor?seed={seed}")
+    assert f"option seed='{seed}': expected an integer >= 0 (at most 9223372036854775807)" in str(info.value)
+    from radarodom.tools import radar_sim
+
+    assert radar_sim.main(["corridor", "--seed", seed, "--out", str(tmp_path / "x")]) == 2
+    assert f"--seed: expected a whole number in 0..9223372036854775807, got '{seed}'" in capsys.readouterr().err
+    with open_source("sim://corridor?seed=9223372036854775807&duration=0.1") as src:  # the largest is taken
+        assert next(iter(src)).index == 0
+
+
 @pytest.mark.parametrize("scheme", ["sim://corridor", "replay://runs/x", "replay://runs/uart.bin?format=tidemo",
                                     "coloradar://runs/x"])
 def test_a_rate_that_would_wait_for_ever_is_refused_with_its_range(scheme):
