@@ -236,7 +236,7 @@ def _overwrite_run(program: str, out, tmp_path, capsys) -> tuple[int, str, str]:
 
     if program == "radar-capture --odom-out":
         rc = radar_capture.main(["--source", URL, "--no-publish", "-q", "--odom-out", str(out), "--overwrite"])
-    if program == "radar-cfg --copy":
+    elif program == "radar-cfg --copy":
         rc = radar_cfg.main(["--copy", "awr1843_raw", str(out), "--overwrite"])
     elif program == "radar-calibrate --write-cfg":
         rc = radar_calibrate.main(["--source", "sim://calibration?rate=max", "--distance", "3", "--frames", "4",
@@ -288,6 +288,21 @@ def test_a_file_output_that_cannot_be_made_is_one_line(tmp_path, capsys, program
     assert err.count("\n") == 1
     if program == "radar-calibrate --write-cfg":  # the measurement is not lost with the file
         assert stdout.startswith("compRangeBiasAndRxChanPhase ")
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_a_file_output_whose_path_ends_in_a_slash_is_refused_before_the_work(tmp_path, capsys, program):
+    """'nodir/' passed the checks (made on the path without its '/') and failed after the work:
+    'Is a directory' or 'Not a directory', exit 1, radar-calibrate's measurement made first."""
+    out = f"{tmp_path / 'nodir'}/"
+    rc, stdout, err = _overwrite_run(program, out, tmp_path, capsys)
+    lead = {"radar-capture --odom-out": f"--odom-out {out}", "radar-eval --json": f"--json {out}",
+            "radar-cfg --copy": f"cannot write the copy of awr1843_raw.cfg to {out}",
+            "radar-calibrate --write-cfg": f"cannot create {out}"}[program]
+    assert rc == 2 and err.endswith(f"error: {lead}: the path ends in '/', which names a directory; give a "
+                                    "file's name\n"), err
+    assert err.count("\n") == 1 and stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) in ([], ["gt.tum"])
 
 
 def test_file_outputs_may_go_into_the_directories_the_run_makes(tmp_path, capsys):

@@ -27,6 +27,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     holds ("capture", the default, or "heatmaps"): an existing one of that kind radarodom wrote is
     refused here without *overwrite*, with the option's name (its writer would refuse it without)."""
     target = f"write {what} to {path}" if what else f"create {path}"
+    if not is_dir:
+        _refuse_a_directory_name(path, f"cannot {target}")
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is a file, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
@@ -49,6 +51,13 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
         raise UsageError(f"cannot {target}: {no_directory(parent)}")
     if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
         raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
+
+
+def _refuse_a_directory_name(path: str, what: str) -> None:
+    """A file's path that ends in a separator names a directory (``runs/new/``): the checks of
+    its parent, made on the path without it, passed, and the write failed after the work."""
+    if path.endswith(tuple(sep for sep in (os.sep, os.altsep) if sep)):
+        raise UsageError(f"{what}: the path ends in '{path[-1]}', which names a directory; give a file's name")
 
 
 def _own_output_in(directory: str, kind: str) -> str | None:
@@ -210,6 +219,8 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
 
     made = {os.path.realpath(path) for path, kind, _ in outputs if kind != "file" and not os.path.exists(path)}
     for path, kind, option in outputs:
+        if kind == "file":
+            _refuse_a_directory_name(path, f"{option} {path}")
         if kind != "file" and not os.path.exists(path):
             check_writable_directory(path, option)  # the rest by its writer (which makes its parents)
             continue
