@@ -188,3 +188,54 @@ def test_each_pass_of_a_looped_replay_counts_the_files_losses_and_a_cut_selectio
         about = source.describe()
     assert about["packets"] == 6 and about["frames_skipped"] == 2 and about["rejected_packets"] == 0
     assert about["discarded_bytes"] == 2 * (len(p[1]) - 100)
+
+
+def _recorded(directory, cfg, numbers) -> None:
+    recorder = UartRecorder(directory, cfg)
+    for k, (n, data) in enumerate(zip(numbers, packets(cfg, numbers))):
+        recorder.write_packet(data, n - numbers[0], 100.0 + 0.1 * (n - numbers[0]))
+    recorder.close()
+
+
+def _edit_metadata(directory, **changes) -> None:
+    import json
+
+    meta = json.loads((directory / "capture.json").read_text())
+    meta.update(changes)
+    (directory / "capture.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize("damage, where, words", [
+    (lambda d: os.truncate(d / "uart.bin", (d / "uart.bin").stat().st_size - 200), "uart.bin",
+     "4 whole packets, but capture.json says the recording holds 5: the file was cut short or changed"),
+    (lambda d: _edit_metadata(d, packets=99), "uart.bin", "5 whole packets, but capture.json says the recording holds 99"),
+    (lambda d: (d / "timestamps.txt").write_text("100.0\n100.1\n"), "timestamps.txt",
+     "2 lines, but the stream's frame numbers need 6"),
+    (lambda d: (d / "timestamps.txt").write_text("".join(f"{100 + k / 10}\n" for k in range(8))), "timestamps.txt",
+     "8 lines, but capture.json says the recording wrote 6"),
+    (lambda d: (d / "timestamps.txt").unlink(), "timestamps.txt", "no such file: the recording's frame times are in it"),
+    (lambda d: _edit_metadata(d, baud=-5), "capture.json", "baud: expected a whole number > 0 or null, got -5"),
+    (lambda d: _edit_metadata(d, packets="5"), "capture.json", "packets: expected a whole number >= 0, got '5'"),
+])
+def test_a_damaged_recording_is_refused_naming_the_file(tmp_path, cfg, damage, where, words):
+    """A closed recording whose uart.bin was cut short played its packets left (exit 0, 'rejected'
+    in the summary); without timestamps.txt it was timed anew by the cfg; capture.json's counts
+    were not read.  The raw capture refuses the same damage."""
+    rec = tmp_path / "rec"
+    _recorded(rec, cfg, [3, 4, 5, 7, 8])  # frame number 6 lost on the line: six frame lines
+    with open_source(f"replay://{rec}?rate=max") as source:  # intact: plays
+        assert [f.index for f in source] == [0, 1, 2, 4, 5]
+    damage(rec)
+    with pytest.raises(CaptureFormatError) as info:
+        open_source(f"replay://{rec}?rate=max")
+    assert str(info.value).startswith(f"{rec / where}: ") and words in str(info.value), str(info.value)
+
+
+def test_a_recording_whose_process_died_plays_what_it_holds(tmp_path, cfg, caplog):
+    """Not closed: capture.json's counts lag its files (saved every ten packets) and are not held against them."""
+    rec = tmp_path / "rec"
+    _recorded(rec, cfg, [3, 4, 5])
+    _edit_metadata(rec, closed=False, packets=1, frame_lines=1)
+    with open_source(f"replay://{rec}?rate=max") as source:
+        assert len(list(source)) == 3
+    assert "was not closed" in caplog.text

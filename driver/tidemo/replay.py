@@ -32,7 +32,7 @@ import numpy as np
 
 from ... import strict_json
 from ...cfg import RadarConfig
-from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError
+from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError, quoted_json
 from ..recordings.capture_check import read_timestamps
 from ..sources import Frame, Pacer, Source
 from ..url_options import RATE_EXPECTED, UrlOptions, at_least, parse_rate
@@ -176,7 +176,8 @@ class TidemoReplaySource(Source):
         self._file.close()
 
 
-def _check_metadata(path: str) -> None:
+def _read_metadata(path: str) -> dict:
+    """A recording's capture.json, its format and counts checked (a hand edit, a damaged file)."""
     try:
         with open(path, "rb") as fh:
             meta = strict_json.loads(fh.read(_MAX_METADATA_BYTES + 1), max_bytes=_MAX_METADATA_BYTES)
@@ -190,8 +191,32 @@ def _check_metadata(path: str) -> None:
     version = meta.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= FORMAT_VERSION:
         raise CaptureFormatError(f"{path}: format_version {version!r}: this radarodom reads {FORMAT_VERSION}")
+    for key in ("packets", "frame_lines"):
+        value = meta.get(key)
+        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+            raise CaptureFormatError(f"{path}: {key}: expected a whole number >= 0, got {quoted_json(value)}")
+    baud = meta.get("baud")
+    if baud is not None and (not isinstance(baud, int) or isinstance(baud, bool) or baud <= 0):
+        raise CaptureFormatError(f"{path}: baud: expected a whole number > 0 or null, got {quoted_json(baud)}")
+    if not isinstance(meta.get("closed", False), bool):
+        raise CaptureFormatError(f"{path}: closed: expected true or false, got {quoted_json(meta['closed'])}")
     if not meta.get("closed", False):
         log.warning("%s: the recording was not closed (its process died): playing its whole packets", path)
+    return meta
+
+
+def _check_against_metadata(source: TidemoReplaySource, meta: dict) -> None:
+    """A closed recording's uart.bin and timestamps.txt hold what its capture.json counted: a file
+    cut short or changed since would play fewer packets, or at other times, without a word."""
+    changed = "was cut short or changed since it was recorded; record it again or play the file alone " \
+              "(replay://FILE?format=tidemo with --cfg)"
+    found = source.framer.stats.packets
+    if found != meta["packets"]:
+        raise CaptureFormatError(f"{source.path}: {found} whole packets, but {METADATA} says the recording holds "
+                                 f"{meta['packets']}: the file {changed}")
+    if len(source.stamps) != meta["frame_lines"]:
+        raise CaptureFormatError(f"{source.timestamps_path}: {len(source.stamps)} lines, but {METADATA} says the "
+                                 f"recording wrote {meta['frame_lines']}: the file {changed}")
 
 
 def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
@@ -202,10 +227,11 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
     if not path:
         raise SourceError(f"{options.url}: no path: use replay://FILE?format=tidemo")
     path = os.path.expanduser(path)
+    meta = None
     if os.path.isdir(path):
         directory, data = path, os.path.join(path, UART_DATA)
         if os.path.exists(os.path.join(directory, METADATA)):
-            _check_metadata(os.path.join(directory, METADATA))
+            meta = _read_metadata(os.path.join(directory, METADATA))
         if config is None and os.path.exists(os.path.join(directory, RADAR_CFG)):
             config = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
     else:
@@ -216,5 +242,16 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
         raise ConfigError(f"{data} holds the demo's UART stream: give the cfg the radar ran with --cfg "
                           "(open_source(url, config) in Python)", path=data)
     stamps = os.path.join(directory, TIMESTAMPS)
-    return TidemoReplaySource(data, config, timestamps=stamps if os.path.isfile(stamps) else None, rate=rate,
-                              loop=loop, frames=frames)
+    if meta is not None and not os.path.isfile(stamps):  # a serial logger's file alone is timed by the cfg
+        raise CaptureFormatError(f"{stamps}: no such file: the recording's frame times are in it (its "
+                                 f"{METADATA} says radarodom recorded it); put it back, or play {data} alone "
+                                 "(replay://FILE?format=tidemo with --cfg: timed by the cfg's frame period)")
+    source = TidemoReplaySource(data, config, timestamps=stamps if os.path.isfile(stamps) else None, rate=rate,
+                                loop=loop, frames=frames)
+    if meta is not None and meta.get("closed", False):
+        try:
+            _check_against_metadata(source, meta)
+        except BaseException:
+            source.close()
+            raise
+    return source
