@@ -45,8 +45,21 @@ def quaternion_yaw(quaternions) -> np.ndarray:
         raise UsageError(f"quaternions: an array (..., 4) of xyzw, got {type(quaternions).__name__}") from None
     if q.ndim == 0 or q.shape[-1] != 4:
         raise UsageError(f"quaternions: an array (..., 4) of xyzw, got shape {q.shape}")
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    x, y, z, w = np.moveaxis(_scaled(q), -1, 0)
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
+def _scaled(q: np.ndarray) -> np.ndarray:
+    """Quaternions (..., 4) divided by their largest component's size (none zero: left as they are),
+    so that their squares neither underflow (a TUM file's 1e-300) nor overflow."""
+    big = np.max(np.abs(q), axis=-1, keepdims=True)
+    return q / np.where(big > 0, big, 1.0)
+
+
+def unit_quaternions(quaternions: np.ndarray) -> np.ndarray:
+    """Quaternions (..., 4) made unit length, however small or large they were (none zero)."""
+    q = _scaled(np.asarray(quaternions, dtype=float))
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def refuse_binary(path: str, lineno: int, text: str, why: str) -> None:

@@ -35,7 +35,7 @@ import numpy as np
 from .. import strict_json
 from ..errors import EvaluationError
 from ..plain_numbers import is_number, time_text
-from ..tum import TumTrajectory
+from ..tum import TumTrajectory, unit_quaternions
 from .angles import wrap
 
 log = logging.getLogger(__name__)
@@ -348,7 +348,7 @@ class EvaluationResult:
 
 def _warn_if_not_planar(traj: TumTrajectory) -> None:
     z = traj.positions[:, 2]
-    q = traj.quaternions / np.linalg.norm(traj.quaternions, axis=1, keepdims=True)
+    q = unit_quaternions(traj.quaternions)
     # For a unit quaternion, |(qx, qy)| = sin(tilt / 2) whatever the yaw.
     tilt = 2.0 * np.arcsin(np.clip(np.hypot(q[:, 0], q[:, 1]), 0.0, 1.0)) if len(q) else np.zeros(0)
     if not len(z):

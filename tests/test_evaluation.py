@@ -23,7 +23,7 @@ from radarodom.estimator.evaluation import (
     se2_compose,
     umeyama_se2,
 )
-from radarodom.tum import TumTrajectory, TumWriter, quaternion_yaw, read_tum, yaw_quaternion
+from radarodom.tum import TumTrajectory, TumWriter, quaternion_yaw, read_tum, unit_quaternions, yaw_quaternion
 
 RATE_HZ = 10.0
 T0 = 1000.0
@@ -112,6 +112,20 @@ def test_yaw_from_quaternions_also_when_tilted():
     # yaw 30 deg then pitch 10 deg (z-y-x): the heading stays 30 deg; a non-unit norm does not matter.
     q = Rotation.from_euler("ZYX", [30.0, 10.0, 0.0], degrees=True).as_quat()
     assert quaternion_yaw(3.0 * q) == pytest.approx(math.radians(30), abs=1e-12)
+
+
+def test_a_quaternion_however_small_or_large_gives_its_rotation_without_numpys_warnings(tmp_path, recwarn):
+    """A TUM line's '1e-300 0 0 1e-300' squared to zero: numpy's divide-by-zero warning on stderr,
+    roll/pitch said to reach 180 degrees; its rotation is 90 degrees of roll."""
+    q = np.array([[1e-300, 0.0, 0.0, 1e-300], [0.0, 0.0, 3e-200, 3e-200], [0.0, 0.0, 1e200, 1e200]])
+    np.testing.assert_allclose(unit_quaternions(q), [[2 ** -0.5, 0, 0, 2 ** -0.5], [0, 0, 2 ** -0.5, 2 ** -0.5],
+                                                     [0, 0, 2 ** -0.5, 2 ** -0.5]])
+    np.testing.assert_allclose(quaternion_yaw(q), [0.0, math.pi / 2, math.pi / 2])
+    path = tmp_path / "tiny.tum"
+    path.write_text("0 0 0 0 0 0 1e-300 1e-300\n1 1 0 0 0 0 1e-300 1e-300\n2 2 0 0 0 0 1e-300 1e-300\n")
+    result = evaluate(read_tum(path), read_tum(path))
+    assert result.matched == 3 and result.drift_yaw_deg == 0.0
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in recwarn]
 
 
 @pytest.mark.parametrize("text, lineno, what", [
