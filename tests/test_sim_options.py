@@ -102,3 +102,15 @@ def test_a_duration_beyond_the_trajectory_is_said(warnings_log):
     assert not warning_messages(warnings_log)
     Simulator(RadarConfig.from_file(shipped_config_path()), scene, duration_s=scene.trajectory.duration_s + 5)
     assert any("longer than scene corridor's trajectory" in m and "loop=N" in m for m in warning_messages(warnings_log))
+
+
+@pytest.mark.parametrize("given, name", [("sim://room?seed=3", "room"), ("sim://", "corridor"), ("sim:lab", "lab")])
+def test_radar_sim_given_a_sim_url_says_to_give_the_scene(given, name, tmp_path, capsys):
+    """radar-capture's --source given to radar-sim was 'no such scene'."""
+    from radarodom.tools import radar_sim
+
+    assert radar_sim.main([given, "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err == (f"radar-sim: error: {given}: radar-sim takes a scene's name or file, not a "
+                                       f"sim:// URL: radar-sim {name} --out DIR (the URL's options are radar-sim's: "
+                                       "--seed, --duration, --board, --fidelity)\n")
+    assert not (tmp_path / "out").exists()

@@ -19,6 +19,7 @@ from ..driver.sim.scene import BUILTIN_SCENES, load_scene
 from ..driver.sim.physics import FIDELITIES
 from ..driver.sim.simulator import Simulator
 from ..driver.sim.source import SimSource
+from ..errors import UsageError
 from . import cli
 from .status import StatusLine, format_duration
 
@@ -63,6 +64,11 @@ def _frames_bytes(directory: str) -> int:
 
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
+    if args.scene.startswith("sim:") and not os.path.exists(args.scene):  # radar-capture's --source, given here
+        name = args.scene.removeprefix("sim:").lstrip("/").partition("?")[0] or "corridor"
+        raise UsageError(f"{args.scene}: radar-sim takes a scene's name or file, not a sim:// URL: "
+                         f"radar-sim {name} --out DIR (the URL's options are radar-sim's: --seed, --duration, "
+                         "--board, --fidelity)")
     cfg = RadarConfig.from_file(args.cfg or shipped_config_path())
     scene = load_scene(args.scene, seed=args.seed)
     board = load_board(args.board)
