@@ -329,6 +329,13 @@ def _rewrite_line(path, lineno: int, text: str) -> None:
     ("calib/single_chip/heatmap_cfg.txt", 1, "num_range_bins sixteen", "cfg", ":1: expected num_range_bins"),
     ("calib/single_chip/heatmap_cfg.txt", 1, "num_range_bins 16.5", "cfg", ":1: num_range_bins must be a positive"),
     ("calib/single_chip/heatmap_cfg.txt", 4, "# range_bin_width gone", "cfg", "heatmap_cfg.txt: missing range_bin_width"),
+    # Degrees where radians go, or an angle of -7 rad, were read as given:
+    ("calib/single_chip/heatmap_cfg.txt", 5, "azimuth_bins -76 -44 -25 -8 8 25 44 76", "cfg",
+     "heatmap_cfg.txt: azimuth_bins reach 76 rad, beyond +/- pi/2 (90 degrees): the angles are radians"),
+    ("calib/single_chip/heatmap_cfg.txt", 6, "elevation_bins -7 -0.2 0.2 0.7", "cfg",
+     "heatmap_cfg.txt: elevation_bins reach 7 rad, beyond +/- pi/2"),
+    ("calib/single_chip/heatmap_cfg.txt", 5, "azimuth_bins -1 -0.7 -0.4 -0.1 -0.1 0.4 0.7 1", "cfg",
+     "heatmap_cfg.txt: azimuth_bins are not ascending"),
     ("calib/single_chip/waveform_cfg.txt", 5, "adc_sample_frequency nan", "waveform", ":5: not a finite number"),
     ("calib/transforms/base_to_cascade.txt", 2, "0 0 0", "transform", "base_to_cascade.txt:2: expected"),
     ("calib/transforms/base_to_cascade.txt", 2, "0 0 0 0", "transform", "base_to_cascade.txt:2: the quaternion is zero"),

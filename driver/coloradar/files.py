@@ -177,7 +177,8 @@ def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> 
 
 
 def read_heatmap_config(path: str | os.PathLike) -> HeatmapConfig:
-    """Parse a ``heatmap_cfg.txt``; the angle lists must match their counts and ascend."""
+    """Parse a ``heatmap_cfg.txt``; the angle lists must match their counts, ascend and lie within
+    +/- pi/2 rad."""
     path = os.fspath(path)
     v = _read_keyed(path, _HEATMAP_KEYS, _HEATMAP_INT_KEYS)
     for key, count in (("azimuth_bins", "num_azimuth_bins"), ("elevation_bins", "num_elevation_bins")):
@@ -186,6 +187,9 @@ def read_heatmap_config(path: str | os.PathLike) -> HeatmapConfig:
             raise CaptureFormatError(f"{path}: {key} holds {len(bins)} angles but {count} is {v[count]}")
         if np.any(np.diff(bins) <= 0):
             raise CaptureFormatError(f"{path}: {key} are not ascending")
+        if np.any(np.abs(bins) > np.pi / 2 + 1e-9):  # a radar's view is within +/- 90 degrees
+            raise CaptureFormatError(f"{path}: {key} reach {np.max(np.abs(bins)):.4g} rad, beyond +/- pi/2 (90 "
+                                     "degrees): the angles are radians within the radar's view")
         bins.setflags(write=False)  # the config is frozen: so are its arrays
     if v["range_bin_width"] <= 0:
         raise CaptureFormatError(f"{path}: range_bin_width must be positive, got {v['range_bin_width']}")
