@@ -220,6 +220,8 @@ class Source(abc.ABC):
 
 #: Longest single sleep while pacing, s: bounds how late a stop request is seen.
 PACING_SLICE_S = 0.05
+#: A wait longer than this, s, for a frame is said (a gap in a recording's times: the run looked hung).
+LONG_WAIT_S = 10.0
 
 
 class Pacer:
@@ -239,6 +241,10 @@ class Pacer:
         if self.rate == float("inf"):
             return
         due = self._wall0 + stream_offset_s / self.rate
+        if due - time.monotonic() > LONG_WAIT_S:
+            log.warning("%s: the next frame is due in %.0f s, at %.1f s of stream (a gap in the recording's "
+                        "times); waiting for it (rate=max plays without waiting)", self.source.url or "the source",
+                        due - time.monotonic(), stream_offset_s)
         while not self.source.stop_requested:
             left = due - time.monotonic()
             if left <= 0:

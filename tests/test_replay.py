@@ -4,6 +4,7 @@ and the capture loop (Pipeline.run without processing)."""
 from __future__ import annotations
 
 import json
+import re
 import threading
 import time
 
@@ -597,3 +598,28 @@ def test_a_start_in_seconds_on_a_recording_without_a_whole_frame_says_it_holds_n
     (d / "capture.json").write_text(json.dumps({**meta, "closed": False, "frame_count": 0}))
     with pytest.raises(CaptureFormatError, match="holds no whole frame"):  # was an IndexError
         open_source(f"replay://{d}?start=1s")
+
+
+def test_a_long_wait_for_a_frame_is_said(tmp_path, small_cfg, warnings_log):
+    """A recording whose times jump (an hour, here 30 s) waited at rate=1 without a word: the run looked hung."""
+    d = tmp_path / "gap"
+    with CaptureWriter(d, small_cfg, source="test") as writer:
+        for t, raw in zip((100.0, 100.05, 130.0), random_frames(small_cfg, 3, 1)):
+            writer.write(raw, t, 0, None)
+    with open_source(f"replay://{d}", small_cfg) as src:
+        got = []
+
+        def take():
+            for frame in src:
+                got.append(frame.index)
+                if len(got) == 2:
+                    threading.Timer(0.3, src.stop).start()  # while it waits for the third
+
+        reader = threading.Thread(target=take)
+        reader.start()
+        reader.join(20)
+    assert not reader.is_alive() and got == [0, 1]
+    said = [m for m in warning_messages(warnings_log) if "due in" in m]
+    assert len(said) == 1 and re.fullmatch(  # the seconds left: 30 less what a loaded machine took since
+        rf"replay://{re.escape(str(d))}: the next frame is due in (29|30) s, at 30\.0 s of stream \(a gap in the "
+        r"recording's times\); waiting for it \(rate=max plays without waiting\)", said[0]), said
