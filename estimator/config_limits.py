@@ -119,7 +119,7 @@ ODOMETRY = {
     "yaw_manoeuvre_end_prob": "(0, 1)", "velocity_history": "[2, 1e6]", "held_velocity_variance_factor": "[1, 1e6]",
     "held_velocity_yaw_check": "(0, 100] (or null: off)", "held_yaw_rate_std_radps": RATE_NOISE,
     "gap_yaw_rate_radps": "[0, 100] rad/s (0: search no wider after a gap)", "gap_search_rad": WIDENING,
-    "bridge_s": "[0, 3600] s (0: off)", "unmeasured_yaw_std_rad": NOISE,
+    "bridge_s": "[0, 3600] s (0: off)", "max_step_s": "(0, 1e9] s", "unmeasured_yaw_std_rad": NOISE,
 }
 
 POINT_YAW = {

@@ -189,6 +189,11 @@ class OdometryConfig(Settings):
     #: pose moves on from there (the run's own states hold the last motion, as before).  Not with
     #: ``point_yaw.use``, which relocates on its map instead.
     bridge_s: float = 2.0
+    #: A step longer than this, s (frames lost for longer, a clock that jumped), moves the pose by
+    #: no translation: the velocities at its ends say nothing of where the platform went between
+    #: (integrated, a clock that jumped by years moved it by billions of metres).  It is flagged
+    #: ``motion_lost``; its turn is still the registration's, where the two views register.
+    max_step_s: float = 10.0
     #: A registration whose angular residuals give no variance (too few to say) is taken to
     #: have this standard deviation, rad: wide enough that the filter and the keyframe lean on
     #: their prediction.

@@ -327,6 +327,10 @@ class RadarOdometry:
         *current*, flagged in *flags*."""
         t, dt = current.t, current.t - previous.t
         velocity = self.velocities.for_step(previous.t, t, frame.heatmap, flags)
+        if dt > self.config.odometry.max_step_s:  # the motion is unknown (motion_lost), its turn too: the
+            # search's prediction and the rate filter take the turn over the step as a rate (times dt)
+            return _Measured(base, velocity, None, None, self.config.odometry.unmeasured_yaw_std_rad ** 2,
+                             False, False)
         v = velocity.velocity
         rate = self._last_rate
         predicted = -rate * dt if self.yaw.guess.uses_rate else 0.0

@@ -138,6 +138,7 @@ class VelocityTrack:
                  constrain: Callable[[VelocityEstimate], VelocityEstimate] | None = None) -> None:
         odo = config.odometry
         self._hold_s = odo.hold_s
+        self._max_step_s = odo.max_step_s
         self._held_factor = odo.held_velocity_variance_factor
         self.history = VelocityHistory(odo.velocity_history)
         self._at_mid: Callable[[float], VelocityEstimate | None] = (
@@ -177,7 +178,12 @@ class VelocityTrack:
     def for_step(self, t_prev: float, t: float, heatmap: PolarHeatmap, flags: list[Flag]) -> StepVelocity:
         """The velocity of the step from *t_prev* to *t*: the point clouds' when the latest was
         good; else the fallback's (the heatmap's Doppler, when configured); else the last good
-        one held for ``hold_s`` (covariance inflated); else zero, flagged ``motion_lost``."""
+        one held for ``hold_s`` (covariance inflated); else zero, flagged ``motion_lost``, as for
+        a step longer than ``odometry.max_step_s``."""
+        if t - t_prev > self._max_step_s:
+            if Flag.MOTION_LOST not in flags:
+                flags.append(Flag.MOTION_LOST)
+            return StepVelocity(None, np.zeros(2), np.eye(2))
         estimate = self._at_mid(0.5 * (t + t_prev))
         if estimate is not None and self._last is not None and self._last.ok:
             if self._fallback is not None:

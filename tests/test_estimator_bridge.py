@@ -162,3 +162,36 @@ def test_two_runs_one_seeing_frame_apart_are_each_bridged():
     for i in (10, 16):
         assert states[i].ok, (i, states[i].flags)
         assert states[i].yaw == pytest.approx(RATE * states[i].t, abs=1.0 * DEG)
+
+
+def _jump(gap_s: float, **odometry):
+    """Driving straight at 0.5 m/s, frames 10 and on *gap_s* s later than their place (frames lost,
+    or a clock that jumped), the scene going on where it was."""
+    odom = RadarOdometry(synth.heatmap_chain(odometry=odometry))
+    states = []
+    for i in range(16):
+        t = 0.1 * i + (gap_s if i >= 10 else 0.0)
+        hm = scene_heatmap((0.05 * i, 0.0, 0.0), velocity_xy=(0.5, 0.0))
+        states.append(odom.step(t, static_cloud((0.5, 0.0), seed=i), hm))
+    return states
+
+
+@pytest.mark.parametrize("gap_s", [30.0, 1.7e9])
+def test_a_step_longer_than_max_step_s_moves_the_pose_by_nothing(gap_s):
+    """Integrated, the velocities at its ends moved the pose by v x gap (a clock that jumped by
+    years: billions of metres) and the rate filter turned it by millions of radians."""
+    states = _jump(gap_s)
+    before, across = states[9], states[10]
+    assert (across.x, across.y, across.yaw) == (before.x, before.y, before.yaw)
+    assert Flag.MOTION_LOST in across.flags and across.yaw_rate == 0.0 and across.vx == 0.0
+    assert np.isfinite(across.pose_covariance).all() and across.pose_covariance[0, 0] > before.pose_covariance[0, 0]
+    # The odometry goes on from there, at the speed it measures.
+    assert states[-1].x - across.x == pytest.approx(0.5 * 0.5, abs=0.03) and abs(states[-1].yaw) < 0.5 * DEG
+
+
+def test_a_step_within_max_step_s_moves_by_the_velocity_at_its_ends():
+    """Frames lost for 5 s: the step goes on at the velocity measured either side (as before)."""
+    states = _jump(5.0)
+    assert states[10].x - states[9].x == pytest.approx(0.5 * 5.1, abs=0.05)
+    states = _jump(5.0, max_step_s=4.0)
+    assert states[10].x == states[9].x and Flag.MOTION_LOST in states[10].flags
