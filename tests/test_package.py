@@ -64,7 +64,8 @@ def test_version_matches_pyproject():
 
 #: The modules every layer may use: the cfg model, wire-free data types, errors, JSON, numbers.
 CORE = {"radarodom", "antenna", "calibration", "cfg", "cfg_checks", "cfg_commands", "cfg_fields", "cfg_physics",
-        "cfg_text", "errors", "line_file", "mount", "plain_numbers", "products", "rawframe", "settings", "strict_json", "tum"}
+        "cfg_text", "errors", "line_file", "mount", "plain_numbers", "products", "rawframe", "settings",
+        "strict_json", "tum"}
 DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.coloradar", "driver.emulators",
           "driver.tidemo"}
 #: Which part of the package may import which (besides itself and CORE); "ext:" names third-party
