@@ -28,9 +28,10 @@ N_SRC = 5
 STALE_SEQ = 200_000
 
 
-def stale_packet(seq: int, frame_bytes: int) -> bytes:
-    """A data packet of a recording 87 frames in: its sequence number and stream offset far on."""
-    offset = 87 * frame_bytes + (seq - STALE_SEQ) * MAX_DATA_BYTES
+def stale_packet(seq: int) -> bytes:
+    """A data packet of a recording long under way: its sequence number and stream offset far on (a
+    terabyte in: beyond what any wait of a loaded machine lets this recording's bound reach)."""
+    offset = 2**40 + (seq - STALE_SEQ) * MAX_DATA_BYTES
     return DATA_HEADER.pack(seq, offset.to_bytes(6, "little")) + bytes(MAX_DATA_BYTES)
 
 
@@ -45,7 +46,7 @@ def test_packets_of_an_earlier_recording_during_set_up_are_not_frames(small_capt
                 s.bind((rig.board.board_ip, 0))
                 seq = STALE_SEQ
                 while not done.is_set() and not rig.board.recording:
-                    s.sendto(stale_packet(seq, small_cfg.frame_bytes), (rig.host_ip, rig.data_port))
+                    s.sendto(stale_packet(seq), (rig.host_ip, rig.data_port))
                     sent.append(seq)
                     seq += 1
                     time.sleep(0.002)
@@ -84,7 +85,7 @@ def test_a_first_packet_beyond_what_the_board_can_have_sent_is_stale(small_cfg):
         receiver.start()
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as board:
             for seq in range(STALE_SEQ, STALE_SEQ + 5):
-                board.sendto(stale_packet(seq, frame_bytes), ("127.0.0.1", port))
+                board.sendto(stale_packet(seq), ("127.0.0.1", port))
             for seq, start in enumerate(range(0, len(data), MAX_DATA_BYTES), start=1):
                 board.sendto(DATA_HEADER.pack(seq, start.to_bytes(6, "little")) + data[start:start + MAX_DATA_BYTES],
                              ("127.0.0.1", port))
@@ -115,3 +116,22 @@ def test_data_sent_to_another_port_says_where_the_board_sends(small_capture, sma
     message = str(info.value)
     assert f"no data packet of the DCA1000's reached {rig.host_ip}:{elsewhere} in " in message, message
     assert "EEPROM (192.168.33.30:4098 unless changed)" in message and "data_port=" in message, message
+
+
+def test_a_frame_lost_late_in_a_drifting_stream_keeps_the_times_increasing():
+    """The first packet's offset was observed for every wholly lost frame: 25 minutes into a stream
+    whose clock drifts 60 ppm against the host's, it came back into the window and the lost frame
+    was timed 40 ms before the one before it (the estimator's TimeOrderError).  It places the
+    grid only while nothing has."""
+    from radarodom.driver.live.source import FrameClock
+
+    period, first = 0.05, (0, 1.7e9 + 0.001)
+    clock = FrameClock(period)
+    assert not clock.placed
+    stamps = []
+    for i in range(31000):
+        received = 0.0 if i in (0, 30000) else 1.7e9 + i * period * (1 + 60e-6) + 0.001
+        if received <= 0 and not clock.placed:  # as LiveSource._frame does
+            clock.observe(*first)
+        stamps.append(clock.stamp(i, received))
+    assert clock.placed and (np.diff(stamps) > 0).all()

@@ -63,6 +63,11 @@ class FrameClock:
         self.period = period_s
         self._offsets: collections.deque[float] = collections.deque(maxlen=window)
 
+    @property
+    def placed(self) -> bool:
+        """Whether a packet has placed the grid yet."""
+        return bool(self._offsets)
+
     def observe(self, index: int, receive_time: float) -> None:
         """A packet of frame *index* received at *receive_time* (time.time())."""
         self._offsets.append(receive_time - index * self.period)
@@ -199,8 +204,10 @@ class LiveSource(Source):
             d["cut"] += frame.cut_bytes
         else:
             d["complete"] += 1
-        if frame.first_packet_time <= 0 and self.receiver.first_packet is not None:
-            self.clock.observe(*self.receiver.first_packet)  # wholly lost before the first packet came
+        if frame.first_packet_time <= 0 and not self.clock.placed and self.receiver.first_packet is not None:
+            # Wholly lost before any frame's packet placed the grid: the recording's first packet
+            # places it (later, it would bring back an offset the window has let go: time going back).
+            self.clock.observe(*self.receiver.first_packet)
         return Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
                      raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
                      ready_monotonic=frame.done_monotonic, cut_bytes=frame.cut_bytes)
