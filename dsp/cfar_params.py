@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..plain_numbers import beyond_text
+from ..plain_numbers import beyond_text, is_whole_number
 from .cfar_pfa import log_pfa_go, log_pfa_os, log_pfa_so, noise_factor, solve_alpha, summed_scale
 
 #: CFAR methods :class:`CfarParams` accepts.
@@ -244,8 +244,10 @@ class CfarParams:
 
     def updated(self, data: Mapping[str, Any]) -> CfarParams:
         """These parameters with *data*'s keys given over them (a settings file names only what it
-        changes); a ``threshold_db`` or ``pfa`` given replaces the other, and a method other than
-        ``os`` drops the ordered statistic's ``os_rank``.  Errors as :meth:`from_dict`'s."""
+        changes); a ``threshold_db`` or ``pfa`` given replaces the other, a method other than ``os``
+        drops the ordered statistic's ``os_rank``, and a ``train`` given without it scales it (the
+        same quantile of the training cells: the median stays the median).  Errors as
+        :meth:`from_dict`'s."""
         if not isinstance(data, Mapping):
             raise _fail(f"expected a mapping, got {type(data).__name__}")
         base = self.to_dict()
@@ -253,4 +255,7 @@ class CfarParams:
             base["threshold_db"] = base["pfa"] = None
         if data.get("method", "os") != "os":
             base["os_rank"] = None
+        elif base["os_rank"] is not None and "os_rank" not in data and is_whole_number(data.get("train")) \
+                and data["train"] > 0:
+            base["os_rank"] = max(1, round(base["os_rank"] * data["train"] / base["train"]))
         return CfarParams.from_dict({**base, **data})

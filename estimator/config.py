@@ -329,8 +329,19 @@ class EstimatorConfig(Settings):
             if not isinstance(changes, Mapping):
                 raise ConfigError(f"the changes to a section are a dict of its settings, got {type(changes).__name__}",
                                   field=name)
-            section = data[name].to_dict()
-            section.update(changes)
+            current, section = data[name], data[name].to_dict()
+            for key, value in changes.items():
+                # A CFAR's changes go over this config's CFAR (its own rules: CfarParams.updated),
+                # not over the default CFAR that a settings file's go over.
+                here = getattr(current, key, None)
+                if not (isinstance(here, CfarParams) and isinstance(value, Mapping)):
+                    section[key] = value
+                    continue
+                try:
+                    section[key] = here.updated(value).to_dict()
+                except ConfigError as exc:
+                    where = f"{name}.{key}"
+                    raise exc.located(field=f"{where}.{exc.field}" if exc.field else where, command=None) from None
             data[name] = section
         return EstimatorConfig.from_dict(data)
 

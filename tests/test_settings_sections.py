@@ -29,7 +29,8 @@ def test_a_threshold_given_replaces_the_defaults_pfa_and_the_other_way_round():
     cfar = DspConfig.from_dict({"range_cfar": {"threshold_db": 13}}).range_cfar
     assert (cfar.threshold_db, cfar.pfa, cfar.method, cfar.os_rank) == (13.0, None, "os", DspConfig().range_cfar.os_rank)
     azimuth = EstimatorConfig.from_dict({"features": {"cfar_azimuth": {"pfa": 1e-3}}}).features.cfar_azimuth
-    assert (azimuth.pfa, azimuth.threshold_db, azimuth.guard) == (1e-3, None, EstimatorConfig().features.cfar_azimuth.guard)
+    default_guard = EstimatorConfig().features.cfar_azimuth.guard
+    assert (azimuth.pfa, azimuth.threshold_db, azimuth.guard) == (1e-3, None, default_guard)
 
 
 def test_another_method_drops_the_ordered_statistics_rank():
@@ -39,7 +40,8 @@ def test_another_method_drops_the_ordered_statistics_rank():
 
 @pytest.mark.parametrize("section,message", [
     ({"guard": -1}, "features.cfar.guard: must be at least 0, got -1"),
-    ({"threshold_db": 3, "pfa": 0.1}, "features.cfar.threshold_db: give exactly one of threshold_db and pfa (both given)"),
+    ({"threshold_db": 3, "pfa": 0.1},
+     "features.cfar.threshold_db: give exactly one of threshold_db and pfa (both given)"),
     ({"nope": 1}, "features.cfar: unknown key(s) nope"),
     (5, "features.cfar: must be an object of CfarParams settings, got 5"),
 ])
@@ -87,3 +89,26 @@ def test_radar_capture_names_the_file_and_where_the_key_goes(tmp_path):
     assert proc.stderr.strip().splitlines() == [
         f"radar-capture: error: {path}: unknown estimator setting(s): blend (it is point_yaw.blend)"], proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["estimator.json"]
+
+
+def test_a_training_window_given_alone_keeps_the_ordered_statistics_quantile():
+    """The DSP's range CFAR takes the median of its 16 training cells (os_rank 8): train 3 was
+    refused for an os_rank the user never wrote, train 16 kept rank 8 of 32 (a quartile)."""
+    default = DspConfig().range_cfar
+    assert (default.method, default.train, default.os_rank) == ("os", 8, 8)
+    assert DspConfig.from_dict({"range_cfar": {"train": 3}}).range_cfar.os_rank == 3
+    assert DspConfig.from_dict({"range_cfar": {"train": 16}}).range_cfar.os_rank == 16
+    assert DspConfig.from_dict({"range_cfar": {"train": 16, "os_rank": 5}}).range_cfar.os_rank == 5
+
+
+def test_with_changes_a_cfar_over_this_configs_cfar_not_the_default():
+    """with_ laid a CFAR's changes over the default CFAR: a config's own method and threshold were
+    lost without a word."""
+    mine = EstimatorConfig().with_(features={"cfar": {"method": "os", "guard": 3, "threshold_db": 15}})
+    cfar = mine.with_(features={"cfar": {"guard": 4}}).features.cfar
+    assert (cfar.method, cfar.guard, cfar.threshold_db) == ("os", 4, 15.0)
+    cfar = mine.with_(features={"cfar": {"pfa": 1e-4}}).features.cfar
+    assert (cfar.threshold_db, cfar.pfa, cfar.guard) == (None, 1e-4, 3)
+    with pytest.raises(ConfigError) as info:
+        mine.with_(features={"cfar": {"guard": -1}})
+    assert str(info.value) == "features.cfar.guard: must be at least 0, got -1"

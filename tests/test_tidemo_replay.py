@@ -208,7 +208,8 @@ def _edit_metadata(directory, **changes) -> None:
 @pytest.mark.parametrize("damage, where, words", [
     (lambda d: os.truncate(d / "uart.bin", (d / "uart.bin").stat().st_size - 200), "uart.bin",
      "4 whole packets, but capture.json says the recording holds 5: the file was cut short or changed"),
-    (lambda d: _edit_metadata(d, packets=99), "uart.bin", "5 whole packets, but capture.json says the recording holds 99"),
+    (lambda d: _edit_metadata(d, packets=99), "uart.bin",
+     "5 whole packets, but capture.json says the recording holds 99"),
     (lambda d: (d / "timestamps.txt").write_text("100.0\n100.1\n"), "timestamps.txt",
      "2 lines, but the stream's frame numbers need 6"),
     (lambda d: (d / "timestamps.txt").write_text("".join(f"{100 + k / 10}\n" for k in range(8))), "timestamps.txt",
