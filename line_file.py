@@ -60,4 +60,7 @@ class LineFile:
         """Close the file, once (again: nothing)."""
         if self._fd >= 0:
             fd, self._fd = self._fd, -1
-            os.close(fd)
+            try:
+                os.close(fd)
+            except OSError as exc:  # NFS reports some write errors only here
+                raise CaptureError(f"closing {self.path} failed: {exc.strerror or exc}") from None

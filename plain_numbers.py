@@ -34,6 +34,13 @@ def plain_int(text: str) -> int | None:
     return int(text, 10)
 
 
+def whole_beyond(text: str, hi: int) -> bool:
+    """Whether *text* is a plain whole number (digits, however many) greater than *hi*: what a
+    refusal then says is the range, not that it is no number."""
+    digits = text.strip().lstrip("+")
+    return digits.isascii() and digits.isdigit() and (len(digits.lstrip("0")) > len(str(hi)) or int(digits) > hi)
+
+
 def plain_float(text: str) -> float | None:
     """*text* as a float when it is a plain decimal number, else None.  The value may still be
     infinite (``1e999``)."""

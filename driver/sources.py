@@ -233,6 +233,8 @@ class Pacer:
         self.rate = rate
         self.source = source
         self._wall0: float | None = None
+        self._last_offset = 0.0
+        self._last_step: float | None = None
 
     def wait(self, stream_offset_s: float) -> None:
         """Block until *stream_offset_s* (seconds since the first frame) is due."""
@@ -241,10 +243,14 @@ class Pacer:
         if self.rate == float("inf"):
             return
         due = self._wall0 + stream_offset_s / self.rate
-        if due - time.monotonic() > LONG_WAIT_S:
-            log.warning("%s: the next frame is due in %.0f s, at %.1f s of stream (a gap in the recording's "
-                        "times); waiting for it (rate=max plays without waiting)", self.source.url or "the source",
-                        due - time.monotonic(), stream_offset_s)
+        gap, usual = stream_offset_s - self._last_offset, self._last_step
+        self._last_offset, self._last_step = stream_offset_s, gap
+        # Said for a gap in the times (ten steps and more of those before), not for every frame a
+        # slow rate spreads out.
+        if due - time.monotonic() > LONG_WAIT_S and usual and gap > 10 * usual:
+            log.warning("%s: the next frame is due in %.0f s, at %.1f s of stream (a gap of %.1f s in the "
+                        "recording's times); waiting for it (rate=max plays without waiting)",
+                        self.source.url or "the source", due - time.monotonic(), stream_offset_s, gap)
         while not self.source.stop_requested:
             left = due - time.monotonic()
             if left <= 0:

@@ -9,7 +9,7 @@ from typing import Any, Callable
 from urllib.parse import parse_qsl
 
 from ..errors import SourceError, quoted
-from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int
+from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int, whole_beyond
 
 #: Largest number a URL option takes (seconds, factors, microseconds): far beyond any meant,
 #: small enough that arithmetic on it stays finite.
@@ -37,11 +37,12 @@ def parse_rate(text: str) -> float:
 def at_least(minimum: int) -> Callable[[str], int]:
     """A ``UrlOptions.take`` converter: a whole number from *minimum* to :data:`MAX_WHOLE_OPTION`."""
     def convert(text: str) -> int:
+        if whole_beyond(text, MAX_WHOLE_OPTION):
+            raise ValueError(text, f"at most {MAX_WHOLE_OPTION}")  # the limit, said only when it is what is wrong
         value = plain_int(text)
-        if value is None or not minimum <= value <= MAX_WHOLE_OPTION:
+        if value is None or value < minimum:
             raise ValueError(text)
         return value
-    convert.limit = f"at most {MAX_WHOLE_OPTION}"  # type: ignore[attr-defined]
     return convert
 
 
@@ -107,8 +108,8 @@ class UrlOptions:
         text = self._values.pop(name)
         try:
             return convert(text)
-        except (ValueError, TypeError):
-            limit = getattr(convert, "limit", "")
+        except (ValueError, TypeError) as exc:
+            limit = exc.args[1] if len(exc.args) > 1 else getattr(convert, "limit", "")
             how = "" if getattr(convert, "words", False) else ", written as a plain decimal number"
             raise SourceError(f"{self.url}: option {name}={quoted(text)}: expected {expect}"
                               + (f" ({limit})" if limit else "") + how) from None

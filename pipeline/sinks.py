@@ -38,8 +38,8 @@ from ..driver.recordings.capture_dir import CaptureWriter, write_json_atomically
 from ..driver.sources import Frame, Source
 from ..errors import CaptureError, CaptureExistsError, given_path, why_not_written
 from ..estimator.odometry import OdometryState
-from ..products import RangeAzimuth
 from ..line_file import LineFile, write_file_all
+from ..products import RangeAzimuth
 from ..tum import TumWriter
 
 if TYPE_CHECKING:

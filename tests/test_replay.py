@@ -621,5 +621,26 @@ def test_a_long_wait_for_a_frame_is_said(tmp_path, small_cfg, warnings_log):
     assert not reader.is_alive() and got == [0, 1]
     said = [m for m in warning_messages(warnings_log) if "due in" in m]
     assert len(said) == 1 and re.fullmatch(  # the seconds left: 30 less what a loaded machine took since
-        rf"replay://{re.escape(str(d))}: the next frame is due in (29|30) s, at 30\.0 s of stream \(a gap in the "
-        r"recording's times\); waiting for it \(rate=max plays without waiting\)", said[0]), said
+        rf"replay://{re.escape(str(d))}: the next frame is due in \d+ s, at 30\.0 s of stream "
+        r"\(a gap of (29\.9|30\.0) s in the recording's times\); waiting for it \(rate=max plays without waiting\)",
+        said[0]), said
+
+
+def test_a_slow_rate_waits_long_for_every_frame_without_a_word(warnings_log):
+    """At rate=0.004 each 50 ms step is a 12.5 s wait, no gap in the times: it was said, every
+    frame.  (A source asked to stop: the pacer decides what to say, then does not wait.)"""
+    from radarodom.driver.sources import Pacer, Source
+
+    class Slow(Source):
+        def __iter__(self):
+            return iter(())
+
+    source = Slow()
+    source.url = "sim://slow"
+    source.stop()
+    pacer = Pacer(0.004, source)
+    for k in range(5):
+        pacer.wait(0.05 * k)
+    assert not [m for m in warning_messages(warnings_log) if "due in" in m]
+    pacer.wait(30.0)  # a gap, at that rate too
+    assert len([m for m in warning_messages(warnings_log) if "due in" in m]) == 1

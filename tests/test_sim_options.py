@@ -114,3 +114,11 @@ def test_radar_sim_given_a_sim_url_says_to_give_the_scene(given, name, tmp_path,
                                        f"sim:// URL: radar-sim {name} --out DIR (the URL's options are radar-sim's: "
                                        "--seed, --duration, --board, --fidelity)\n")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("option", ["loop=-1", "seed=x", "rate=max&duration=1&loop=1.5"])
+def test_a_number_below_the_minimum_or_none_is_not_told_the_upper_limit(option):
+    """Every refusal of a whole-number option ended '(at most 9223372036854775807)'."""
+    with pytest.raises(SourceError) as info:
+        open_source(f"sim://corridor?{option}")
+    assert "at most" not in str(info.value), str(info.value)

@@ -21,7 +21,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from ..errors import RadarodomError, UsageError, quoted
 from ..mount import Mount, parse_mount
-from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int
+from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int, whole_beyond
 from .output_paths import (  # noqa: F401  (the programs' output checks, re-exported: cli.check_distinct)
     check_distinct, check_files_in_directories, check_new_outputs, check_new_path, check_room,
     check_writable_directory, missing_directories, read_paths, replace_output, write_output)
@@ -39,20 +39,18 @@ class _Formatter(logging.Formatter):
         return f"{self.prog}: {record.levelname.lower()}{where}: {record.getMessage()}"
 
 
-#: Largest whole number an option takes (a count or seed beyond it is a typo).
-MAX_INT_OPTION = MAX_WHOLE_OPTION
 #: Largest number a float option takes unless it says otherwise: far beyond any duration in
 #: seconds or distance in metres, and small enough that arithmetic on it stays finite.
 MAX_FLOAT_OPTION = 1e9
 
 
-def int_in(lo: int, hi: int = MAX_INT_OPTION, what: str = "a whole number") -> Callable[[str], int]:
+def int_in(lo: int, hi: int = MAX_WHOLE_OPTION, what: str = "a whole number") -> Callable[[str], int]:
     """argparse type: a whole number (ASCII digits) in lo..hi; the error names the range."""
     def parse(text: str) -> int:
         value = plain_int(text)  # numbers as in a cfg: plain ASCII decimal
         if value is None or not lo <= value <= hi:
-            too_large = (value is not None and value > hi) or (value is None and text.strip().isdigit())
-            span = f"in {lo}..{hi}" if hi < MAX_INT_OPTION or too_large else f">= {lo}"
+            too_large = whole_beyond(text, hi)
+            span = f"in {lo}..{hi}" if hi < MAX_WHOLE_OPTION or too_large else f">= {lo}"
             raise argparse.ArgumentTypeError(f"expected {what} {span}, got {quoted(text)}")
         return value
     parse.__name__ = f"int_in_{lo}_{hi}"

@@ -79,10 +79,12 @@ def _header(fig: Any, name: str, lines: list[str], *, size: str) -> None:
     """The run's name and the summary numbers across the top of *fig* (a subfigure), as written:
     a name or a file name with ``$`` is no maths (matplotlib's mathtext raised on ``$x^$``), a
     control character is shown as ``?`` (the fonts have no glyph for it)."""
-    name = "".join(c if c.isprintable() else "?" for c in name)
-    fig.text(0.005, 0.95, name, ha="left", va="top", fontsize="x-large", weight="bold", parse_math=False)
-    fig.text(0.005, 0.95, "\n" + "\n".join(lines), ha="left", va="top", fontsize=size, linespacing=1.5,
-             family="monospace", parse_math=False)
+    def shown(text: str) -> str:
+        return "".join(c if c.isprintable() else "?" for c in text)
+
+    fig.text(0.005, 0.95, shown(name), ha="left", va="top", fontsize="x-large", weight="bold", parse_math=False)
+    fig.text(0.005, 0.95, "\n" + "\n".join(shown(line) for line in lines), ha="left", va="top", fontsize=size,
+             linespacing=1.5, family="monospace", parse_math=False)
 
 
 def evaluation_figures(result: EvaluationResult, *, name: str,

@@ -65,7 +65,7 @@ def _frames_bytes(directory: str) -> int:
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     if args.scene.startswith("sim:") and not os.path.exists(args.scene):  # radar-capture's --source, given here
-        name = args.scene.removeprefix("sim:").lstrip("/").partition("?")[0] or "corridor"
+        name = args.scene.removeprefix("sim:").removeprefix("//").partition("?")[0] or "corridor"
         raise UsageError(f"{args.scene}: radar-sim takes a scene's name or file, not a sim:// URL: "
                          f"radar-sim {name} --out DIR (the URL's options are radar-sim's: --seed, --duration, "
                          "--board, --fidelity)")

@@ -101,21 +101,25 @@ class Dca1000Receiver:
         return self._sock.getsockname()[1] if self._sock else 0
 
     def flush(self) -> int:
-        """Drop datagrams already waiting (from an earlier run: counted stale); returns how many."""
+        """Drop datagrams already waiting (from an earlier run: the board's counted stale, others
+        foreign); returns how many."""
         dropped = 0
         self._sock.setblocking(False)
         try:
             while True:
                 try:
-                    self._sock.recv(65536)
-                    dropped += 1
+                    _, addr = self._sock.recvfrom(65536)
                 except (BlockingIOError, InterruptedError):
                     break
+                dropped += 1
+                if addr[0] == self.settings.board_ip:
+                    self.stats.stale_packets += 1
+                else:
+                    self.stats.foreign_packets += 1
         finally:
             self._sock.setblocking(True)
         if dropped:
             log.info("flushed %d stale datagrams from the data port", dropped)
-        self.stats.stale_packets += dropped
         return dropped
 
     def start(self) -> None:

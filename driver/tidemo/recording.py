@@ -31,6 +31,7 @@ from typing import Any
 from ... import __version__
 from ...cfg import RadarConfig
 from ...errors import CaptureError, why_not_written
+from ...line_file import write_file_all
 from ..recordings.capture_check import TIDEMO_FORMAT_NAME
 from ..recordings.capture_dir import write_json_atomically
 from ..recordings.recording_dir import claim_recording_directory
@@ -118,9 +119,7 @@ class UartRecorder:
             step = (timestamp - last_t) / (index - last_index)
             lines = [last_t + step * k for k in range(1, index - last_index)] + lines
         try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(self._fd, view):]
+            write_file_all(self._fd, data)
             self._ts.write("".join(f"{t:.9f}\n" for t in lines))
         except OSError as exc:
             raise CaptureError(f"writing {self.directory} failed: {exc.strerror or exc}") from None
