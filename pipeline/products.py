@@ -10,6 +10,8 @@ once per frame.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..calibration import RangeCoupling
@@ -19,7 +21,7 @@ from ..dsp.config import DspConfig
 from ..dsp.heatmap import HeatmapMaker
 from ..dsp.processor import FrameProcessor, heatmap_range_bins
 from ..dsp.static_heatmap import StaticHeatmapMaker
-from ..errors import CaptureError
+from ..errors import CaptureError, ConfigError
 from ..estimator.config import FeatureConfig
 from ..products import Products, RangeAzimuth
 
@@ -103,5 +105,11 @@ def check_features_fit(source: Source, features: FeatureConfig, dsp: DspConfig |
     bins = source.heatmap_range_bins
     if bins is None and source.heatmaps_from_raw and source.config is not None:
         bins = heatmap_range_bins(source.config, dsp)
+        # (its heatmaps end at the cfg's usable range, or nearer: DspConfig.max_range_m, cfarFovCfg)
+        reach = min(source.config.max_range_m, (dsp or DspConfig()).max_range_m or math.inf)
+        if features.min_range_m >= reach:
+            raise ConfigError(f"{features.min_range_m:g} m: the heatmaps reach {reach:.2f} m at most, so no cell "
+                              f"would be a feature; features nearer than it are left out (default "
+                              f"{FeatureConfig.min_range_m:g} m)", field="features.min_range_m")
     if bins is not None:
         features.check_heatmap_range(bins)

@@ -112,3 +112,23 @@ def test_with_changes_a_cfar_over_this_configs_cfar_not_the_default():
     with pytest.raises(ConfigError) as info:
         mine.with_(features={"cfar": {"guard": -1}})
     assert str(info.value) == "features.cfar.guard: must be at least 0, got -1"
+
+
+def test_features_beyond_the_heatmaps_reach_are_refused_before_the_run(tmp_path):
+    """features.min_range_m of 100 m with a 10 m cfg ran with no feature and no word."""
+    from radarodom.pipeline import Pipeline
+
+    with pytest.raises(ConfigError) as info:
+        Pipeline.from_url("sim://corridor?rate=max&duration=0.2",
+                          estimator=EstimatorConfig().with_(features={"min_range_m": 100.0}))
+    assert str(info.value) == ("features.min_range_m: 100 m: the heatmaps reach 9.99 m at most, so no cell would "
+                               "be a feature; features nearer than it are left out (default 0.5 m)")
+    path = tmp_path / "estimator.json"
+    path.write_text(json.dumps({"features": {"min_range_m": 100}}))
+    proc = subprocess.run(console_command("radar-capture") + ["--source", "sim://corridor?rate=max&duration=0.3",
+                                                              "--no-publish", "--estimator-config", str(path),
+                                                              "--odom-out", str(tmp_path / "odom.tum")],
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL, cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"error: {path}: features.min_range_m: 100 m: the heatmaps reach 9.99 m" in proc.stderr
+    assert not (tmp_path / "odom.tum").exists()
