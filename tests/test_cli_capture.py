@@ -809,3 +809,32 @@ def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usag
     assert proc.returncode == 2 and proc.stderr.startswith("usage: radar-capture")
     assert proc.stderr.splitlines()[-1] == "radar-capture: error: unrecognized arguments: --bogus"
     assert radar_echo.main(["--count", "0"]) == 2
+
+
+def _ignores_sigint(pid: int) -> bool:
+    with open(f"/proc/{pid}/status") as fh:
+        mask = next(line.split()[1] for line in fh if line.startswith("SigIgn:"))
+    return bool(int(mask, 16) & (1 << (signal.SIGINT - 1)))
+
+
+def test_a_capture_a_script_started_in_the_background_stops_on_sigint_while_it_sets_up(tmp_path):
+    """A script's `radar-capture ... &` inherits SIGINT ignored: kill -INT was ignored until the
+    pipeline's own handler was in place, so a board that does not answer held the run through all
+    its tries (here 3 of 20 s)."""
+    from radarodom.driver.emulators.rig import free_udp_port
+
+    url = (f"dca1000://127.0.0.2?host=127.0.0.1&cli=/dev/null&config_port=0&data_port={free_udp_port('127.0.0.1')}"
+           f"&board_port={free_udp_port('127.0.0.2')}&timeout=20")
+    proc = subprocess.Popen(CAPTURE + ["--source", url, "--no-publish", "--record", str(tmp_path / "rec")],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        deadline = time.monotonic() + 20  # until the program takes SIGINT (the kernel's mask of ignored ones)
+        while time.monotonic() < deadline and proc.poll() is None and _ignores_sigint(proc.pid):
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)  # within the first try's 20 s
+    finally:
+        proc.kill()
+    assert proc.returncode == 130 and err.strip().splitlines()[-1] == "radar-capture: interrupted", err
+    assert not (tmp_path / "rec").exists()

@@ -258,16 +258,23 @@ def _raise_terminated(signum, frame) -> None:
 @contextlib.contextmanager
 def _sigterm_interrupts() -> Iterator[None]:
     """SIGTERM raises :class:`_Terminated` while the block runs (a program streaming installs
-    its own stop handler, :func:`on_stop_signals`, and this one is back after it)."""
+    its own stop handler, :func:`on_stop_signals`, and this one is back after it).  SIGINT
+    inherited ignored (a program a script started with ``&``) raises KeyboardInterrupt too: the
+    streaming handler takes it anyway, and ``kill -INT`` ignored until then looked like a hang."""
     try:
         previous = signal.signal(signal.SIGTERM, _raise_terminated)
     except ValueError:  # not the main thread (a program run from a test's or a notebook's thread)
         yield
         return
+    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    if ignored:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+        if ignored:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @contextlib.contextmanager
