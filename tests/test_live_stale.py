@@ -135,3 +135,15 @@ def test_a_frame_lost_late_in_a_drifting_stream_keeps_the_times_increasing():
             clock.observe(*first)
         stamps.append(clock.stamp(i, received))
     assert clock.placed and (np.diff(stamps) > 0).all()
+
+
+def test_frame_times_go_on_when_the_hosts_clock_is_set_back(caplog):
+    """An NTP step back of 5 s: the next frame was timed before the one before, and the recording
+    and the estimator stopped the run.  Its times go on from the last frame's on its grid."""
+    from radarodom.driver.live.source import FrameClock
+
+    clock, period = FrameClock(0.1), 0.1
+    stamps = [clock.stamp(i, 1.7e9 + i * period + (0 if i < 50 else -5.0) + 0.001) for i in range(200)]
+    assert (np.abs(np.diff(stamps) - period) < 1e-6).all()
+    said = [r.getMessage() for r in caplog.records if "set back" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("this computer's clock was set back by 5.000 s")

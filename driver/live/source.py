@@ -57,11 +57,16 @@ class FrameClock:
     last ``window`` frames is the best estimate of the grid's start, so each
     frame gets ``start + index * period``: the time its first packet would
     arrive with the least delay seen (within a millisecond of the first chirp).
+
+    The times only go forward: were the host's clock set back (an NTP step), the frames go on
+    from the last one's time on its grid (a frame timed before the one before stopped the run).
     """
 
     def __init__(self, period_s: float, window: int = 64) -> None:
         self.period = period_s
         self._offsets: collections.deque[float] = collections.deque(maxlen=window)
+        self._last: tuple[int, float] | None = None  # (index, time) of the last frame stamped
+        self._set_back = False
 
     @property
     def placed(self) -> bool:
@@ -79,7 +84,15 @@ class FrameClock:
             self.observe(index, receive_time)
         if not self._offsets:
             raise DeviceError(f"frame {index} has no packet and none came before it: its time is unknown")
-        return min(self._offsets) + index * self.period
+        t = min(self._offsets) + index * self.period
+        if self._last is not None and t <= self._last[1]:
+            if not self._set_back:
+                log.warning("this computer's clock was set back by %.3f s: the frames' times go on from the "
+                            "last one's, ahead of the clock", self._last[1] - t + (index - self._last[0]) * self.period)
+                self._set_back = True
+            t = self._last[1] + (index - self._last[0]) * self.period
+        self._last = (index, t)
+        return t
 
 
 class LiveSource(Source):
