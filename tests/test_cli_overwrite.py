@@ -469,3 +469,13 @@ def test_a_ctrl_c_python_wrapped_in_another_error_is_still_an_interruption(capsy
 
     assert cli.run(bug, parser, []) == 1
     assert "radar-test: internal error: RuntimeError: a real bug" in capsys.readouterr().err
+
+
+def test_a_directory_path_longer_than_the_system_takes_is_refused_before_any_is_made(tmp_path, capsys):
+    """25 names of 200 characters: the recording made 20 nested directories, then failed with a
+    message of some 5000 characters."""
+    long = tmp_path.joinpath(*["c" * 200] * 25)
+    rc, err = capture(capsys, "--record", long)
+    assert rc == 2 and err.count("\n") == 1 and len(err) < 400, err
+    assert "the path is longer than this system takes" in err and f"({len(str(long))} characters)" in err
+    assert list(tmp_path.iterdir()) == []

@@ -92,10 +92,26 @@ def check_writable_directory(path: str, option: str) -> None:
     """Refuse a directory output (made when missing, with its parents) that could not be written
     into: itself, or the nearest directory above it that is there."""
     there = _nearest_there(path)
+    longest = _longest_path(there)
+    if len(os.fsencode(os.path.abspath(path))) + len("/index.json.tmp") > longest:
+        # made part by part, the directories were made before the first file's name failed
+        raise UsageError(f"{option} {_shortened_path(path)}: the path is longer than this system takes "
+                         f"({longest} bytes with the files written in it); choose a shorter one")
     if not os.path.isdir(there):  # a file where a directory goes (notes.txt/run)
         raise UsageError(f"{option} {path}: {no_directory(os.path.abspath(path))}")
     if not os.access(there, os.W_OK | os.X_OK):
         raise UsageError(f"{option} {path}: the directory {there} is not writable; {CHOOSE_WRITABLE}")
+
+
+def _longest_path(directory: str) -> int:
+    try:
+        return os.pathconf(directory, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        return 4096
+
+
+def _shortened_path(path: str) -> str:
+    return path if len(path) <= 100 else f"{path[:45]}...{path[-45:]} ({len(path)} characters)"
 
 
 def check_room(path: str, needed_bytes: int, option: str, what: str, reclaimed_bytes: int = 0) -> None:
