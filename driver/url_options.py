@@ -78,6 +78,16 @@ def udp_port(text: str) -> int:
     return value
 
 
+def given_text(text: str) -> str:
+    """A ``UrlOptions.take`` converter: a path, a port or an address, not empty (``calib=``)."""
+    if not text.strip():
+        raise ValueError(text)
+    return text
+
+
+given_text.words = True  # type: ignore[attr-defined]
+
+
 def one_of(*choices: str) -> Callable[[str], str]:
     """A ``UrlOptions.take`` converter: one of *choices*."""
     def convert(text: str) -> str:

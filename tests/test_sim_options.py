@@ -122,3 +122,13 @@ def test_a_number_below_the_minimum_or_none_is_not_told_the_upper_limit(option):
     with pytest.raises(SourceError) as info:
         open_source(f"sim://corridor?{option}")
     assert "at most" not in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("url, option", [("coloradar:///tmp/run?calib=", "calib"), ("dca1000://?cli=", "cli"),
+                                         ("tidemo:///dev/ttyACM1?cli=%20", "cli"),
+                                         ("dca1000://?host=&cli=/dev/null", "host")])
+def test_an_empty_path_or_address_option_is_refused(url, option):
+    """calib= was taken as no calib= at all (sim:// refuses rate=, as every number)."""
+    with pytest.raises(SourceError) as info:
+        open_source(url)
+    assert f"option {option}=" in str(info.value) and "expected" in str(info.value), str(info.value)

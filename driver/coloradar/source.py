@@ -44,7 +44,7 @@ from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_poin
 from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
 from ...plain_numbers import plain_float
 from ..sources import Frame, Pacer, Source
-from ..url_options import RATE_EXPECTED, UrlOptions, one_of, parse_rate
+from ..url_options import RATE_EXPECTED, UrlOptions, given_text, one_of, parse_rate
 
 log = logging.getLogger(__name__)
 
@@ -230,7 +230,7 @@ def open_coloradar(path: str, options: UrlOptions, config: RadarConfig | None) -
     heatmap = options.take("heatmap", one_of(*HEATMAP_MODES), "cascade", "|".join(HEATMAP_MODES))
     rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     start = options.take("start", _seconds, 0.0, "seconds from the first frame, like 20 or 20s")
-    calib = options.take("calib", str, None, "the calib directory")
+    calib = options.take("calib", given_text, None, "the calib directory")
     options.finish()
     if not path:
         raise SourceError(f"{options.url}: no path: use coloradar://RUN_DIR")

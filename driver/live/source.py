@@ -44,7 +44,7 @@ from .dca1000_receiver import Dca1000Receiver
 from .dca1000_wire import BOARD_IP, DATA_PORT, HOST_IP, AsyncStatus
 from .frame_ring import POLICIES, FrameRing
 from ..sources import Frame, Source
-from ..url_options import UrlOptions, at_least, number_in, one_of, positive_number, udp_port
+from ..url_options import UrlOptions, at_least, given_text, number_in, one_of, positive_number, udp_port
 
 log = logging.getLogger(__name__)
 
@@ -346,8 +346,8 @@ MAX_RING_BYTES = 2**31
 def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> LiveSource:
     defaults = Dca1000Settings()
     board = path.strip("/") or defaults.board_ip
-    host = options.take("host", str, defaults.host_ip, "this host's IP address on the board's network")
-    cli = options.take("cli", str, None, "the radar's CLI port (path or pyserial URL)")
+    host = options.take("host", given_text, defaults.host_ip, "this host's IP address on the board's network")
+    cli = options.take("cli", given_text, None, "the radar's CLI port (path or pyserial URL)")
     config_port = options.take("config_port", udp_port, defaults.config_port, "a UDP port")
     data_port = options.take("data_port", udp_port, defaults.data_port, "a UDP port")
     board_port = options.take("board_port", udp_port, defaults.board_port, "a UDP port")

@@ -46,7 +46,7 @@ from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, S
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.source import FrameClock
 from ..sources import Frame, Source
-from ..url_options import UrlOptions, at_least, one_of, positive_number
+from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number
 from .framer import TlvFramer
 from .layout import DEFAULT_BAUD, DEFAULT_MAX_POINTS, DemoGeometry, check_uart_budget, demo_config, gui_selection
 from .recording import UartRecorder
@@ -284,7 +284,7 @@ class TidemoSource(Source):
 def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoSource:
     from .ports import demo_ports  # pyusb and sysfs only when needed
 
-    cli = options.take("cli", str, None, "the radar's CLI port (path or pyserial URL)")
+    cli = options.take("cli", given_text, None, "the radar's CLI port (path or pyserial URL)")
     baud = options.take("baud", at_least(1200), DEFAULT_BAUD, "the data port's baud rate")
     max_points = options.take("max_points", at_least(0), DEFAULT_MAX_POINTS, "points a frame the UART must carry")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
