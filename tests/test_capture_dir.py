@@ -464,7 +464,7 @@ BAD_METADATA = {
                                    "first_timestamp: expected null or"),
     "board-calibration-bias-400-digits": (lambda d: _meta_with(d, simulator={"board_calibration": {
         "range_bias_m": 10 ** 400, "coefficients": [[1, 0]] * 12}}),
-        "simulator.board_calibration.range_bias_m: expected a number of metres, got 1000"),
+        "simulator.board_calibration.range_bias_m: expected a number of metres within -10..10, got 1000"),
     "dropped-frames-negative": (lambda d: _meta_with(d, dropped_frames=-3), "dropped_frames: expected an integer"),
     "not-utf8": (lambda d: b"\xff\xfe{}", "not UTF-8"),
     # simulator: a replay took any value for any field without a word (a board's calibration it
@@ -486,7 +486,11 @@ BAD_METADATA = {
                                        "simulator.board_calibration.range_bias_m: missing (a required field)"),
     "board-calibration-bias-true": (lambda d: _meta_with(d, simulator={"board_calibration": {
         "range_bias_m": True, "coefficients": [[1, 0]] * 12}}),
-        "simulator.board_calibration.range_bias_m: expected a number of metres, got true"),
+        "simulator.board_calibration.range_bias_m: expected a number of metres within -10..10, got true"),
+    # Taken, and every replayed range moved by it:
+    "board-calibration-bias-1e300": (lambda d: _meta_with(d, simulator={"board_calibration": {
+        "range_bias_m": 1e300, "coefficients": [[1, 0]] * 12}}),
+        "simulator.board_calibration.range_bias_m: expected a number of metres within -10..10, got 1e+300"),
     "board-calibration-three-pairs": (lambda d: _meta_with(d, simulator={"board_calibration": {
         "range_bias_m": 0, "coefficients": [[1, 0]] * 3}}),
         "simulator.board_calibration.coefficients: expected a list of 12 [re, im] pairs"),

@@ -100,8 +100,9 @@ def _check_simulator(ck: _Checker, sim: Any) -> None:
     for key in ("range_bias_m", "coefficients"):
         if key not in cal:
             raise CaptureFormatError(f"{ck.path}: {where}.{key}: missing (a required field)")
-    if not _is_number(cal["range_bias_m"]):
-        raise ck.fail(f"{where}.range_bias_m", "a number of metres", cal["range_bias_m"])
+    if not _is_number(cal["range_bias_m"]) or not -10.0 <= cal["range_bias_m"] <= 10.0:
+        # the cfg line's own range (compRangeBiasAndRxChanPhase's rangeBias)
+        raise ck.fail(f"{where}.range_bias_m", "a number of metres within -10..10", cal["range_bias_m"])
     pairs, count = cal["coefficients"], NUM_TX_ANTENNAS * NUM_RX_ANTENNAS
     if not isinstance(pairs, list) or len(pairs) != count:
         raise ck.fail(f"{where}.coefficients", f"a list of {count} [re, im] pairs (TX1 RX1 to TX3 RX4)", pairs)
