@@ -74,6 +74,19 @@ def test_a_truncated_file_is_found_before_any_output(tmp_path, capsys, stream, n
     assert said.startswith(f"{path}: ")
 
 
+@pytest.mark.parametrize("stream, name", [("cascade/heatmaps", "heatmap_3.bin"),
+                                          ("single_chip/pointclouds", "radar_pointcloud_2.bin")])
+def test_a_directory_in_place_of_a_record_file_is_found_before_any_output(tmp_path, capsys, stream, name):
+    """A heatmap's directory whose size matched passed the check and failed mid-run (exit 1); a point
+    cloud's was '4096 bytes is not a whole number of 20-byte points'."""
+    run = write_run(tmp_path, frames=6)
+    path = run / stream / "data" / name
+    path.unlink()
+    path.mkdir()
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert said.startswith(f"{path}: not a file (a record of the run is a file of its data)"), said
+
+
 def test_a_truncated_adc_frame_is_found_before_recording(tmp_path, capsys):
     run = write_run(tmp_path, frames=6)
     path = run / "single_chip" / "adc_samples" / "data" / "frame_5.bin"

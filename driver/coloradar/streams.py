@@ -21,6 +21,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import stat
 
 import numpy as np
 
@@ -180,8 +181,10 @@ class RunStreams:
             dtype, shape, cfg_path = self._record_layout(stream)
             for path in self._data_files(stream):
                 try:
-                    size = os.stat(path).st_size
+                    info = os.stat(path)
                 except OSError as exc:
                     raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
-                check_file_size(path, size, dtype, shape, cfg_path)
+                if not stat.S_ISREG(info.st_mode):  # a directory's size says nothing of frames
+                    raise CaptureFormatError(f"{path}: not a file (a record of the run is a file of its data)")
+                check_file_size(path, info.st_size, dtype, shape, cfg_path)
         return n
