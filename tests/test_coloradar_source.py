@@ -371,3 +371,14 @@ def test_the_features_are_checked_against_the_heatmaps_the_source_gives(moving_r
         assert source.heatmap_range_bins is None and source.heatmaps_from_raw
         with pytest.raises(ConfigError, match="more than the heatmap's 205"):
             check_features_fit(source, features(100).features)
+
+
+def test_a_waveform_that_makes_no_valid_cfg_names_the_field_not_a_made_up_line(tmp_path):
+    """'waveform_cfg.txt (as a cfg):8: ...' named a line of the cfg made from the file."""
+    import dataclasses
+
+    wf = ColoRadarRun(write_run(tmp_path)).waveform_config("single_chip")
+    with pytest.raises(CaptureFormatError) as info:
+        waveform_to_config(dataclasses.replace(wf, frequency_slope=1e20))
+    assert str(info.value) == ("waveform_cfg.txt: the waveform does not make a valid AWR1843 configuration: "
+                               "profileCfg: freqSlopeConst: 100000000.0 is outside 0.001..100 MHz/us")

@@ -172,4 +172,6 @@ def waveform_to_config(wf: WaveformConfig, *, tx_order: tuple[int, ...] = TI_TX_
     try:
         return RadarConfig.from_text(text, f"{origin} (as a cfg)")
     except ConfigError as exc:
-        raise CaptureFormatError(f"{origin}: the waveform does not make a valid AWR1843 configuration: {exc}") from None
+        # The made-up cfg's line would mean nothing to the file's reader: its command and field say it.
+        what = ": ".join(part for part in (exc.command, exc.field, exc.message) if part)
+        raise CaptureFormatError(f"{origin}: the waveform does not make a valid AWR1843 configuration: {what}") from None
