@@ -61,7 +61,7 @@ OK, WARN, ERROR = 0, 1, 2
 
 
 def stamp(t: float) -> tuple[int, int]:
-    """(sec, nanosec) of *t* seconds, nanosec in [0, 1e9)."""
+    """(sec, nanosec) of *t* seconds (0 <= t < 2**31), nanosec in [0, 1e9)."""
     if not math.isfinite(t):
         raise MessageError(f"ROS 2 stamp: {t} is not a finite time")
     # Split first: t * 1e9 of a present-day time in float would lose ~100 ns.
@@ -69,7 +69,11 @@ def stamp(t: float) -> tuple[int, int]:
     nanosec = round((t - sec) * 1e9)
     if nanosec == 1_000_000_000:
         sec, nanosec = sec + 1, 0
-    if not -2**31 <= sec < 2**31:
+    if sec < 0:
+        # The message's int32 would hold it, but a C++ subscriber's rclcpp::Time(stamp) throws on it.
+        raise MessageError(f"ROS 2 stamp: time {t} s is before 0, which a ROS 2 node's time cannot hold "
+                           "(rclcpp::Time refuses a negative time point)")
+    if sec >= 2**31:
         raise MessageError(f"ROS 2 stamp: time {t} s is beyond what ROS 2's time holds (its seconds are a "
                            f"32-bit integer: up to {2**31 - 1} s, 2038-01-19)")
     return sec, nanosec

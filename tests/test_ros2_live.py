@@ -223,6 +223,31 @@ def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store, patien
             mount_tf.transform.translation.z) == (0.4, 0.1, 0.3)
 
 
+def test_a_clock_before_0_is_refused_live_as_in_a_bag(tmp_path, store):
+    """A ROS 2 stamp before 0 fits the message's int32 seconds, but a C++ subscriber's
+    rclcpp::Time(stamp) throws on it: the live output published such stamps (a replay whose
+    timestamps.txt starts before 0), while --mcap refused them. Now both: one line, exit 1."""
+    from conftest import SMALL_CFG, make_capture
+    from test_cli_capture import run_capture_cli
+
+    from radarodom.cfg import RadarConfig
+
+    rec = tmp_path / "rec"
+    make_capture(rec, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=-5.0)
+    here = free_endpoint()
+    with peer(listen=[here]) as session:
+        inbox = subscribe(session, "0/**")
+        proc = run_capture_cli("--source", f"replay://{rec}?rate=max", "--ros2", "--connect", here,
+                               "--listen", free_endpoint(), timeout=300)
+        time.sleep(0.5)  # what was published would be on its way
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        "radar-capture: error: ROS 2 stamp: time -5.0 s is before 0, which a ROS 2 node's time cannot hold "
+        "(rclcpp::Time refuses a negative time point)"], proc.stderr
+    odom = expected_key(store, "ros2")
+    assert not [s for s in inbox.samples if s[0] == odom]
+
+
 def test_the_shipped_rviz_config_shows_the_published_topics_in_odom():
     yaml = pytest.importorskip("ruamel.yaml")
     from conftest import REPO
