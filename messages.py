@@ -101,6 +101,8 @@ Heatmap: ``<prefix>/heatmap``, encoding ``application/octet-stream;radarodom/hea
         azimuth_rad  float32 (n_azimuth,), ascending, positive to the right
         intensity    float32 (n_range, n_azimuth) row-major: power over all Doppler bins, linear
         static       float32 (n_range, n_azimuth): power in the zero-Doppler bin(s), linear
+                     (coloradar:// heatmaps: a copy of intensity, the dataset keeps no
+                     zero-Doppler channel; their intensity is the dataset's own scale)
         doppler_mps  float32 (n_range, n_azimuth): radial velocity of each cell's strongest
                      Doppler bin, m/s; NaN where it was not computed
 

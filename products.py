@@ -29,7 +29,7 @@ class RangeAzimuth:
     """A polar range-azimuth heatmap; arrays (n_range, n_azimuth)."""
 
     intensity: np.ndarray  # power over all Doppler bins, linear
-    static: np.ndarray  # power in the zero-Doppler bin(s), linear
+    static: np.ndarray  # power in the zero-Doppler bin(s), linear (ColoRadar's: a copy of intensity)
     doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin, m/s
     range_m: np.ndarray  # (n_range,)
     azimuth_rad: np.ndarray  # (n_azimuth,), ascending, positive to the right
