@@ -46,6 +46,17 @@ def at_least(minimum: int) -> Callable[[str], int]:
     return convert
 
 
+def whole_in(lo: int, hi: int) -> Callable[[str], int]:
+    """A ``UrlOptions.take`` converter: a whole number from *lo* to *hi*."""
+    def convert(text: str) -> int:
+        value = None if whole_beyond(text, hi) else plain_int(text)
+        if value is None or not lo <= value <= hi:
+            raise ValueError(text)
+        return value
+    convert.limit = f"from {lo} to {hi}"  # type: ignore[attr-defined]
+    return convert
+
+
 def positive_number(text: str) -> float:
     """A ``UrlOptions.take`` converter: a plain decimal number > 0 and at most
     :data:`MAX_URL_NUMBER`."""

@@ -58,6 +58,23 @@ def test_a_slower_uart_is_refused_and_a_faster_one_takes_configdataport():
         demo_config(sent, gui, 921600)
 
 
+@pytest.mark.parametrize("baud", ["1199", "3125001", "92160000", "99999999999999999999999"])
+def test_a_baud_rate_the_data_port_does_not_take_is_refused_in_the_url(baud):
+    with pytest.raises(SourceError) as err:
+        open_source(f"tidemo:///nonexistent?cli=/nonexistent&baud={baud}", RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
+    assert f"option baud='{baud}': expected the data port's baud rate (from 1200 to 3125000)" in str(err.value)
+
+
+def test_a_cfg_whose_data_port_rate_the_demo_does_not_take_is_refused_at_its_line():
+    cfg = RadarConfig.from_text(TIDEMO_CFG.replace("sensorStart", "configDataPort 9216000 0\nsensorStart"), "t.cfg")
+    with pytest.raises(ConfigError) as err:
+        demo_config(cfg, gui_selection(cfg), 9216000)
+    assert "configDataPort" in str(err.value) and str(err.value).startswith("t.cfg:")
+    assert "sets the data port to 9216000 baud; the demo's data port takes 1200 to 3125000" in str(err.value)
+    at_top = cfg.to_text().replace("9216000", "3125000")
+    assert demo_config(RadarConfig.from_text(at_top, "t.cfg"), gui_selection(cfg), 3125000).line_of("configDataPort")
+
+
 def test_guimonitor_is_set_to_what_the_estimator_needs():
     """Points with side info and the static heatmap are switched on; what else the cfg asks for
     (here the stats) is kept; a cfg without the line gets one."""

@@ -27,6 +27,9 @@ log = logging.getLogger(__name__)
 
 #: The data port's default baud rate (the XDS110's interface 3).
 DEFAULT_BAUD = 921600
+#: The data port's baud rates the demo and the XDS110 take: TI's Demo Visualizer offers custom rates
+#: up to 3125000 (its user's guide, SWRU529C, 1.3 Serial Port Setup); 1200 is the slowest UART rate.
+MIN_BAUD, MAX_BAUD = 1200, 3_125_000
 #: The points a frame the UART budget is checked for unless told (``tidemo://...?max_points=``).
 DEFAULT_MAX_POINTS = 64
 #: Bits on the wire per byte (8N1).
@@ -88,10 +91,13 @@ def gui_selection(cfg: RadarConfig) -> GuiSelection:
 def demo_config(cfg: RadarConfig, gui: GuiSelection, baud: int = DEFAULT_BAUD) -> RadarConfig:
     """*cfg* as sent to the demo: its guiMonitor line set to *gui* (in place, or added before
     sensorStart), and a ``configDataPort <baud> 0`` line when *baud* is not the default.  A cfg
-    whose configDataPort says another baud rate is refused."""
+    whose configDataPort says another baud rate, or one the data port does not take, is refused."""
     lines = list(cfg.lines)
     wanted = CfgLine("command", "guiMonitor", tuple(gui.line().split()[1:]))
     port = cfg.line_of("configDataPort")
+    if port is not None and not MIN_BAUD <= port.value.baud_rate <= MAX_BAUD:
+        raise ConfigError(f"sets the data port to {port.value.baud_rate} baud; the demo's data port takes {MIN_BAUD} "
+                          f"to {MAX_BAUD}", path=cfg.path, line=port.line, command=str(port))
     if port is not None and port.value.baud_rate != baud:
         raise ConfigError(f"sets the data port to {port.value.baud_rate} baud, the source reads it at {baud}: give "
                           f"baud={port.value.baud_rate} in the tidemo:// URL, or change the line", path=cfg.path,

@@ -46,9 +46,9 @@ from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, S
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.source import FrameClock
 from ..sources import Frame, Source
-from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number
+from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number, whole_in
 from .framer import TlvFramer
-from .layout import DEFAULT_BAUD, DEFAULT_MAX_POINTS, DemoGeometry, check_uart_budget, demo_config, gui_selection
+from .layout import DEFAULT_BAUD, DEFAULT_MAX_POINTS, MAX_BAUD, MIN_BAUD, DemoGeometry, check_uart_budget, demo_config, gui_selection
 from .recording import UartRecorder
 from .products import PacketFrames
 from .wire import Packet
@@ -285,7 +285,7 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
     from .ports import demo_ports  # pyusb and sysfs only when needed
 
     cli = options.take("cli", given_text, None, "the radar's CLI port (path or pyserial URL)")
-    baud = options.take("baud", at_least(1200), DEFAULT_BAUD, "the data port's baud rate")
+    baud = options.take("baud", whole_in(MIN_BAUD, MAX_BAUD), DEFAULT_BAUD, "the data port's baud rate")
     max_points = options.take("max_points", at_least(0), DEFAULT_MAX_POINTS, "points a frame the UART must carry")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
