@@ -147,3 +147,36 @@ def test_frame_times_go_on_when_the_hosts_clock_is_set_back(caplog):
     assert (np.abs(np.diff(stamps) - period) < 1e-6).all()
     said = [r.getMessage() for r in caplog.records if "set back" in r.getMessage()]
     assert len(said) == 1 and said[0].startswith("this computer's clock was set back by 5.000 s")
+
+
+@pytest.mark.parametrize("period", [0.1, 1 / 30])
+def test_frame_times_follow_the_hosts_clock_set_forward_within_eight_frames(caplog, period):
+    """A chrony step forward of 30 s at frame 100 (a robot's computer syncing after boot), with a
+    few ms of jitter: the frames were timed on the old grid for a whole window (64 frames), 30 s
+    behind the robot's other sensors.  The grid follows within eight frames, once, and stays."""
+    from radarodom.driver.live.source import FrameClock
+
+    rng = np.random.default_rng(0)
+    clock = FrameClock(period)
+    received = [1.7e9 + i * period + (30.0 if i >= 100 else 0.0) + 0.001 + rng.uniform(0, 0.004) for i in range(300)]
+    stamps = np.array([clock.stamp(i, r) for i, r in enumerate(received)])
+    behind = np.array(received) - stamps
+    assert (behind[:100] < 0.01).all() and (behind[100:107] > 29.9).all() and (behind[107:] < 0.01).all()
+    assert (np.diff(stamps) > 0).all()
+    said = [r.getMessage() for r in caplog.records if "set forward" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("this computer's clock was set forward by 30.00"), said
+    assert said[0].endswith("from frame 100")
+
+
+def test_a_stall_drained_at_once_does_not_move_the_grid(caplog):
+    """The host stalled 3 s and then read the 30 frames waiting for it at once: they came late, a
+    period earlier each, and the grid (the radar's) stays where it was."""
+    from radarodom.driver.live.source import FrameClock
+
+    period, clock = 0.1, FrameClock(0.1)
+    received = [1.7e9 + i * period + 0.001 for i in range(300)]
+    for i in range(100, 130):
+        received[i] = 1.7e9 + 130 * period + 0.001 + (i - 100) * 1e-5
+    stamps = np.array([clock.stamp(i, r) for i, r in enumerate(received)])
+    assert np.allclose(stamps, 1.7e9 + np.arange(300) * period + 0.001, atol=1e-6, rtol=0)
+    assert not [r for r in caplog.records if "set forward" in r.getMessage()]

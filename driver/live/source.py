@@ -27,7 +27,6 @@ frame's bytes on the real board); lost packets are known from the stream's later
 
 from __future__ import annotations
 
-import collections
 import ipaddress
 import logging
 import time
@@ -42,57 +41,12 @@ from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Settings
 from .dca1000_receiver import Dca1000Receiver
 from .dca1000_wire import BOARD_IP, DATA_PORT, HOST_IP, AsyncStatus
+from .frame_clock import FrameClock
 from .frame_ring import POLICIES, FrameRing
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, given_text, number_in, one_of, positive_number, udp_port
 
 log = logging.getLogger(__name__)
-
-
-class FrameClock:
-    """Frame times from host receive times, smoothed onto the radar's frame grid.
-
-    The radar's frames come exactly one period apart; host receive times add a
-    positive, jittery delay.  The smallest ``receive - index * period`` over the
-    last ``window`` frames is the best estimate of the grid's start, so each
-    frame gets ``start + index * period``: the time its first packet would
-    arrive with the least delay seen (within a millisecond of the first chirp).
-
-    The times only go forward: were the host's clock set back (an NTP step), the frames go on
-    from the last one's time on its grid (a frame timed before the one before stopped the run).
-    """
-
-    def __init__(self, period_s: float, window: int = 64) -> None:
-        self.period = period_s
-        self._offsets: collections.deque[float] = collections.deque(maxlen=window)
-        self._last: tuple[int, float] | None = None  # (index, time) of the last frame stamped
-        self._set_back = False
-
-    @property
-    def placed(self) -> bool:
-        """Whether a packet has placed the grid yet."""
-        return bool(self._offsets)
-
-    def observe(self, index: int, receive_time: float) -> None:
-        """A packet of frame *index* received at *receive_time* (time.time())."""
-        self._offsets.append(receive_time - index * self.period)
-
-    def stamp(self, index: int, receive_time: float) -> float:
-        """Frame *index*'s time; *receive_time* its first packet's (0: none came, the frame
-        wholly lost: the grid's time, which needs a packet observed before)."""
-        if receive_time > 0:
-            self.observe(index, receive_time)
-        if not self._offsets:
-            raise DeviceError(f"frame {index} has no packet and none came before it: its time is unknown")
-        t = min(self._offsets) + index * self.period
-        if self._last is not None and t <= self._last[1]:
-            if not self._set_back:
-                log.warning("this computer's clock was set back by %.3f s: the frames' times go on from the "
-                            "last one's, ahead of the clock", self._last[1] - t + (index - self._last[0]) * self.period)
-                self._set_back = True
-            t = self._last[1] + (index - self._last[0]) * self.period
-        self._last = (index, t)
-        return t
 
 
 class LiveSource(Source):

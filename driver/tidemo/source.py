@@ -21,7 +21,7 @@ DCA1000 is needed.  The source:
 
 Frame indices are the demo's frame numbers from the first one seen, so frames lost on the line
 leave gaps; timestamps are the host's arrival times of each packet's first byte less the frame's
-chirping time, smoothed onto the frame grid (:class:`~radarodom.driver.live.source.FrameClock`):
+chirping time, smoothed onto the frame grid (:class:`~radarodom.driver.live.frame_clock.FrameClock`):
 the demo's processing time before it sends (a few ms, not measured) is still in them.
 
 Options: ``cli`` (the CLI port: a path or any pyserial URL), ``baud`` (the data port's, 921600;
@@ -44,7 +44,7 @@ import serial
 from ...cfg import RadarConfig, shipped_config_path
 from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
-from ..live.source import FrameClock
+from ..live.frame_clock import FrameClock
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number, whole_in
 from .framer import TlvFramer
