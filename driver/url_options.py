@@ -131,7 +131,9 @@ class UrlOptions:
             return convert(text)
         except (ValueError, TypeError) as exc:
             limit = exc.args[1] if len(exc.args) > 1 else getattr(convert, "limit", "")
-            how = "" if getattr(convert, "words", False) else ", written as a plain decimal number"
+            # (the hint only where the text is no plain number: '-1' or '1.5' is one, out of range)
+            plain = getattr(convert, "words", False) or plain_float(text) is not None
+            how = "" if plain else ", written as a plain decimal number"
             raise SourceError(f"{self.url}: option {name}={quoted(text)}: expected {expect}"
                               + (f" ({limit})" if limit else "") + how) from None
 

@@ -565,6 +565,24 @@ def test_bad_numbers_in_scene_raise_config_error(tmp_path, name):
     ('[radar]\nnoise_counts = 1e30\n' + _PAUSE, ("radar.noise_counts: must be from 0 to 32767 ADC counts",)),
     ('wall_reflection = 5\n' + _PAUSE, ("wall_reflection: must be from 0 to 1",)),
     ('name = 5\n' + _PAUSE, ("name: must be a string, got 5",)),
+    # A segment was not told by its place in the list; a misspelt key in one lost 'trajectory' too.
+    ('[trajectory]\nsegments = [{ pause = 1 }, { straight = 2 }, { straight = 1, speed = 200 }]\n',
+     (": trajectory.segments[2] (straight): speed must be at most 100 m/s",)),
+    ('[trajectory]\nsegments = [{ pause = 1 }, { straight = 1, sped = 0.5 }]\n',
+     (": trajectory.segments[1] (straight): unknown key 'sped' in a straight segment",)),
+    ('[trajectory]\nsegments = [{ pause = 1 }, { hop = 1 }]\n', (": trajectory.segments[1]: unknown segment",)),
+    ('[trajectory]\nsegments = [{ pause = 1 }, 5]\n', (": trajectory.segments[1]: a segment must be a table",)),
+    # Taken and ignored: the segments ran at their own (default) 1 m/s.
+    ('[trajectory]\nspeed = 50\nsegments = [{ straight = 1 }]\n', ("trajectory: speed goes with waypoints; with segments each segment takes its own",)),
+    ('[trajectory]\nspeed = 0.5\nturn_rate = 5\nsegments = [{ straight = 1 }]\n', ("speed and turn_rate go",)),
+    # A start, a mount or a door's recess of 1e300 m ran, with NumPy's overflow warnings, into
+    # frames of noise and a ground truth of 1e297 m (exit 0).
+    ('[trajectory]\nstart = [1e300, 0, 0]\nsegments = [{ pause = 1 }]\n', ("trajectory.start: a coordinate beyond 1e+06",)),
+    ('[trajectory]\nmount = [0, 1e300, 0]\nsegments = [{ pause = 1 }]\n', ("trajectory.mount: a coordinate beyond",)),
+    ('[trajectory]\nmount = [0.3, 0, 1e300]\nsegments = [{ pause = 1 }]\n',
+     ("trajectory.mount: yaw must be within 3600 degrees either way",)),
+    ('[[objects]]\ntype = "door"\na = [2, 0]\nb = [2, 1]\nrecess = 1e300\n' + _PAUSE,
+     ("objects[0] (door): recess: must be from -1e+06 to 1e+06 m",)),
 ])
 def test_a_typo_or_an_extreme_in_a_scene_is_named_not_ignored(tmp_path, text, words):
     # A misspelt key took its default silently; a trajectory of years or an RCS of 1e300 ran out
@@ -754,11 +772,13 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     # A segment so fast that it lasts less than the simulator's 1 ms step moved nothing: alone, the
     # trajectory was "no motion and no time"; among others, silently left out.
     ('[trajectory]\nsegments = [{ straight = 2, speed = 1e300 }]\n',
-     ("trajectory: speed must be at most 100 m/s (a robot's or a car's), got 1e+300",)),
+     ("trajectory.segments[0] (straight): speed must be at most 100 m/s (a robot's or a car's), got 1e+300",)),
     ('[trajectory]\nsegments = [{ pause = 1 }, { turn = 90, radius = 1e-9, speed = 1 }]\n',
-     ("trajectory: a turn at 1 m/s on a radius of 1e-09 m turns at 5.72958e+10 deg/s, more than 3600",
+     ("trajectory.segments[1] (turn): a turn at 1 m/s on a radius of 1e-09 m turns at 5.72958e+10 deg/s, more "
+      "than 3600",
       "a larger radius or a rotate segment")),
-    ('[trajectory]\nsegments = [{ rotate = 90, rate = 1e300 }]\n', ("trajectory: rate must be at most 3600 deg/s",)),
+    ('[trajectory]\nsegments = [{ rotate = 90, rate = 1e300 }]\n',
+     ("trajectory.segments[0] (rotate): rate must be at most 3600 deg/s",)),
     ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nturn_rate = 1e9\n', ("trajectory: turn_rate must be at most 3600",)),
     ('[trajectory]\nwaypoints = [[0, 0], [1, 1]]\nspeed = 101\n', ("trajectory: speed must be at most 100 m/s",)),
     ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\nspeed = 1e300\n' + _PAUSE,
@@ -769,7 +789,7 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ("x = " + "[" * 5000 + "]" * 5000 + "\n",
      ("cannot parse: nested more deeply than Python's TOML reader can follow",)),
     ('[trajectory]\nsegments = [{ straight = 2, speed = 1' + "0" * 400 + ' }]\n',
-     ("trajectory: speed must be a number, got 1000", "(401 characters)")),
+     ("trajectory.segments[0] (straight): speed must be a number, got 1000", "(401 characters)")),
     ('[trajectory]\nstart = [0, 0, 1' + "0" * 400 + ']\nsegments = [{ pause = 1 }]\n',
      ("trajectory: start must be [x, y, yaw_deg]",)),
     ('[[walls]]\npoints = [[0, 0], [1' + "0" * 400 + ', 0]]\n' + _PAUSE, ("walls[0]: points: must be two or more",)),
@@ -810,7 +830,7 @@ def _refused(path, out, words) -> None:
      ("cannot parse: the key 'name' appears twice in one object",)),
     ('{"x": ' + "[" * 3000 + "]" * 3000 + "}", ("cannot parse: nested 3001 deep, more than the 32 allowed",)),
     ('{"trajectory": {"segments": [{"straight": 2, "speed": 1' + "0" * 400 + '}]}}',
-     ("trajectory: speed must be a number",)),
+     ("trajectory.segments[0] (straight): speed must be a number",)),
 ])
 def test_radar_sim_refuses_a_json_scene_it_cannot_read(tmp_path, text, words):
     path = tmp_path / "scene.json"

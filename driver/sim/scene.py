@@ -138,7 +138,7 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     a = vec(need(obj, "a", w), 2, w, "a")
     b = vec(need(obj, "b", w), 2, w, "b")
     height = num(obj, "height", 2.1, w, positive=True)
-    recess = num(obj, "recess", 0.1, w)
+    recess = within(num(obj, "recess", 0.1, w), -MAX_COORDINATE_M, MAX_COORDINATE_M, w, "recess", " m")
     d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
     n = np.array([-d[1], d[0]])
     cells(height / 0.3, 2, f"a door {height:g} m high", room)  # its posts

@@ -98,7 +98,7 @@ def cells(along: float, across: float, what: str, room: int) -> tuple[int, int]:
     error names neither file nor key: :func:`scene.scene_from_dict` tells it where."""
     if not max(along, 1.0) * max(across, 1.0) <= room:  # NaN and inf too
         raise ConfigError(f"{what} would take the scene past the {MAX_SCATTERERS} scatterers it may hold "
-                          "(surfaces are sampled every 0.1 to 0.35 m; the built-in scenes hold about 10000): "
+                          "(surfaces are sampled every 0.1 to 0.35 m; the built-in scenes hold 5000 to 10000): "
                           "are its sizes in metres?")
     return max(1, math.ceil(along)), max(1, math.ceil(across))
 

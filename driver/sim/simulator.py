@@ -296,7 +296,7 @@ class Simulator:
             scale = INT16_MAX / peak
             cube *= np.float32(scale)
             if not self._clip_warned:
-                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3f (lower the scene's radar.snr_db or "
+                log.warning("frame %d would clip the 16-bit ADC; scaled by %.3g (lower the scene's radar.snr_db or "
                             "noise_counts)", i, scale)
                 self._clip_warned = True
         return SimFrame(i, t0, self.layout.encode(cube), self.groundtruth(t0), len(amp), scale)

@@ -97,6 +97,8 @@ MAX_TURN_RATE_DPS = 3600.0
 #: The keys of each kind of segment.
 SEGMENT_KEYS = {"straight": ("straight", "speed"), "turn": ("turn", "radius", "speed"),
                 "rotate": ("rotate", "rate"), "pause": ("pause",)}
+#: The largest yaw a start or a mount is given at, degrees (ten turns either way).
+MAX_YAW_DEG = 3600.0
 #: The keys of a scene file's [trajectory] table.
 TRAJECTORY_KEYS = ("start", "mount", "height", "smoothing_s", "segments", "waypoints", "speed", "turn_rate")
 
@@ -158,39 +160,45 @@ def _lasting(amount: float, rate: float) -> float:
 def _commands(segments: Sequence[dict], where: str) -> list[tuple[float, float, float]]:
     """(duration s, speed m/s, yaw rate rad/s) per segment."""
     out = []
-    for seg in segments:
-        if not isinstance(seg, dict):
-            raise _fail(f"a segment must be a table, got {seg!r}", where)
-        kind = next((k for k in SEGMENT_KEYS if k in seg), None)
-        if kind is not None:
-            check_keys(seg, SEGMENT_KEYS[kind], where, f"a {kind} segment")
-        if "straight" in seg:
-            dist = _number(seg, "straight", where, positive=True)
-            speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
-            out.append((dist / speed, speed, 0.0))
-        elif "turn" in seg:
-            angle = math.radians(_number(seg, "turn", where))
-            radius = _number(seg, "radius", where, 1.0, positive=True)
-            speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
-            rate = speed / radius
-            if math.degrees(rate) > MAX_TURN_RATE_DPS:
-                shown = beyond_text(math.degrees(rate), MAX_TURN_RATE_DPS)
-                raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at {shown} deg/s, more than "
-                            f"{MAX_TURN_RATE_DPS:g} (ten turns a second): a larger radius or a rotate segment", where)
-            out.append((_lasting(abs(angle), rate), speed, math.copysign(rate, angle)))
-        elif "rotate" in seg:
-            angle = math.radians(_number(seg, "rotate", where))
-            rate = math.radians(_number(seg, "rate", where, 45.0, positive=True, maximum=_RATE))
-            out.append((_lasting(abs(angle), rate), 0.0, math.copysign(rate, angle)))
-        elif "pause" in seg:
-            out.append((_number(seg, "pause", where, positive=True), 0.0, 0.0))
-        else:
-            raise _fail(f"unknown segment {seg!r}: use straight, turn, rotate or pause", where)
+    for i, seg in enumerate(segments):
+        kind = next((k for k in SEGMENT_KEYS if k in seg), None) if isinstance(seg, dict) else None
+        try:
+            out.append(_command(seg, kind, where))
+        except ConfigError as exc:  # told which segment of the list, counted from 0, and its kind
+            raise exc.located(field=f"trajectory.segments[{i}]" + (f" ({kind})" if kind else "")) from None
     total = sum(duration for duration, _, _ in out)
     if total > MAX_DURATION_S:
         raise _fail(f"the segments last {total:.4g} s, more than the {MAX_DURATION_S:g} s a scene's trajectory "
                     "may (a longer run repeats it: sim://SCENE?loop=0)", where)
     return out
+
+
+def _command(seg: Any, kind: str | None, where: str) -> tuple[float, float, float]:
+    """One segment's (duration s, speed m/s, yaw rate rad/s); *kind*: its first key of SEGMENT_KEYS."""
+    if not isinstance(seg, dict):
+        raise _fail(f"a segment must be a table, got {seg!r}", where)
+    if kind is None:
+        raise _fail(f"unknown segment {seg!r}: use straight, turn, rotate or pause", where)
+    check_keys(seg, SEGMENT_KEYS[kind], where, f"a {kind} segment")
+    if kind == "straight":
+        dist = _number(seg, "straight", where, positive=True)
+        speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
+        return dist / speed, speed, 0.0
+    if kind == "turn":
+        angle = math.radians(_number(seg, "turn", where))
+        radius = _number(seg, "radius", where, 1.0, positive=True)
+        speed = _number(seg, "speed", where, 1.0, positive=True, maximum=_SPEED)
+        rate = speed / radius
+        if math.degrees(rate) > MAX_TURN_RATE_DPS:
+            shown = beyond_text(math.degrees(rate), MAX_TURN_RATE_DPS)
+            raise _fail(f"a turn at {speed:g} m/s on a radius of {radius:g} m turns at {shown} deg/s, more than "
+                        f"{MAX_TURN_RATE_DPS:g} (ten turns a second): a larger radius or a rotate segment", where)
+        return _lasting(abs(angle), rate), speed, math.copysign(rate, angle)
+    if kind == "rotate":
+        angle = math.radians(_number(seg, "rotate", where))
+        rate = math.radians(_number(seg, "rate", where, 45.0, positive=True, maximum=_RATE))
+        return _lasting(abs(angle), rate), 0.0, math.copysign(rate, angle)
+    return _number(seg, "pause", where, positive=True), 0.0, 0.0
 
 
 def from_segments(segments: Sequence[dict], *, start: Sequence[float] = (0.0, 0.0, 0.0),
@@ -279,6 +287,10 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
         segments = spec.get("segments")
         if not isinstance(segments, list):
             raise _fail("needs a list of segments or waypoints", where)
+        given = [key for key in ("speed", "turn_rate") if key in spec]
+        if given:  # else left unused, the segments' own speeds (default 1 m/s) taken instead
+            raise _fail(f"{' and '.join(given)} go{'es' if len(given) == 1 else ''} with waypoints; with segments each segment takes its own "
+                        "(straight = 2, speed = 0.5; rotate = 90, rate = 30)", where)
     return from_segments(segments, start=start, smoothing_s=smoothing, height=height, mount=mount,
                          where=where)
 
@@ -288,4 +300,9 @@ def _triple(spec: dict[str, Any], key: str, where: str) -> list[float]:
     value = spec.get(key, [0.0, 0.0, 0.0])
     if not (isinstance(value, (list, tuple)) and len(value) == 3 and all(finite_float(v) is not None for v in value)):
         raise _fail(f"{key} must be [x, y, yaw_deg], got {quoted(value)}", where)
-    return [float(v) for v in value]
+    x, y, yaw = (float(v) for v in value)
+    check_coordinates(np.array([x, y]), value, where, f"trajectory.{key}")
+    if abs(yaw) > MAX_YAW_DEG:  # cos and sin of 1e300 degrees are numbers, but of no heading meant
+        raise ConfigError(f"yaw must be within {MAX_YAW_DEG:g} degrees either way, got {beyond_text(yaw, MAX_YAW_DEG)}",
+                          path=where, field=f"trajectory.{key}")
+    return [x, y, yaw]
