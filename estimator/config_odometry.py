@@ -192,7 +192,8 @@ class OdometryConfig(Settings):
     #: A step longer than this, s (frames lost for longer, a clock that jumped), moves the pose by
     #: no translation: the velocities at its ends say nothing of where the platform went between
     #: (integrated, a clock that jumped by years moved it by billions of metres).  It is flagged
-    #: ``motion_lost``; its turn is still the registration's, where the two views register.
+    #: ``motion_lost`` and turns it by nothing either (the yaw rate held or measured at its ends
+    #: says nothing of the turn between); its yaw's variance grows with it.
     max_step_s: float = 10.0
     #: A registration whose angular residuals give no variance (too few to say) is taken to
     #: have this standard deviation, rad: wide enough that the filter and the keyframe lean on

@@ -291,7 +291,9 @@ class RadarOdometry:
         v = velocity.velocity
         if step.observed is None:
             self.rate.restart()  # from the next measurement
-            dyaw = self._held_rate(t, flags) * dt
+            # A step past max_step_s turns by nothing, as it moves by nothing: a rate held (hold_s
+            # up to an hour) times a gap of minutes is no turn measured.
+            dyaw = 0.0 if dt > self.config.odometry.max_step_s else self._held_rate(t, flags) * dt
             var_yaw = (self._held_rate_std * dt) ** 2 + step.variance
         else:
             dyaw, var_yaw = self.rate(step.observed, step.variance, dt, floored=step.fused_doppler)

@@ -189,6 +189,19 @@ def test_a_step_longer_than_max_step_s_moves_the_pose_by_nothing(gap_s):
     assert states[-1].x - across.x == pytest.approx(0.5 * 0.5, abs=0.03) and abs(states[-1].yaw) < 0.5 * DEG
 
 
+@pytest.mark.parametrize("hold_s", [0.5, 3600.0])
+def test_a_step_longer_than_max_step_s_turns_the_pose_by_nothing_whatever_the_hold(hold_s):
+    """Turning in place at 20 deg/s, then 30 s lost: with the rate allowed to stand in for an hour
+    (hold_s 3600) the held rate times the gap turned the pose by 600 degrees."""
+    rate = math.radians(20.0)
+    odom = RadarOdometry(synth.heatmap_chain(odometry={"hold_s": hold_s}))
+    states = [odom.step(0.1 * i + (30.0 if i >= 10 else 0.0), static_cloud((0.0, 0.0), seed=i),
+                        scene_heatmap((0.0, 0.0, rate * 0.1 * i))) for i in range(12)]
+    before, across = states[9], states[10]
+    assert abs(before.yaw) > math.radians(10.0)  # it was turning, and the rate was measured
+    assert across.yaw == before.yaw and across.yaw_rate == 0.0 and Flag.MOTION_LOST in across.flags
+
+
 def test_a_step_within_max_step_s_moves_by_the_velocity_at_its_ends():
     """Frames lost for 5 s: the step goes on at the velocity measured either side (as before)."""
     states = _jump(5.0)
