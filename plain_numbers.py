@@ -29,16 +29,21 @@ MAX_WHOLE_OPTION = 2**63 - 1
 def plain_int(text: str) -> int | None:
     """*text* as an int when it is a plain whole number of at most :data:`MAX_INT_DIGITS`
     digits, else None."""
-    if not INT_TEXT.match(text) or len(text.lstrip("+-")) > MAX_INT_DIGITS:
+    if not INT_TEXT.match(text):
         return None
-    return int(text, 10)
+    digits = text.lstrip("+-").lstrip("0") or "0"  # leading zeros count for nothing
+    if len(digits) > MAX_INT_DIGITS:
+        return None
+    return int(digits, 10) * (-1 if text.startswith("-") else 1)
 
 
 def whole_beyond(text: str, hi: int) -> bool:
     """Whether *text* is a plain whole number (digits, however many) greater than *hi*: what a
     refusal then says is the range, not that it is no number."""
-    digits = text.strip().lstrip("+")
-    return digits.isascii() and digits.isdigit() and (len(digits.lstrip("0")) > len(str(hi)) or int(digits) > hi)
+    if not re.fullmatch(r"\+?[0-9]+", text):  # one sign at most, as plain_int takes
+        return False
+    digits = text.lstrip("+").lstrip("0") or "0"
+    return len(digits) > len(str(hi)) or int(digits) > hi
 
 
 def plain_float(text: str) -> float | None:

@@ -253,7 +253,7 @@ class CfarParams:
         base = self.to_dict()
         if "threshold_db" in data or "pfa" in data:
             base["threshold_db"] = base["pfa"] = None
-        if data.get("method", "os") != "os":
+        if str(data.get("method", "os")).lower() != "os":  # ("OS" is os too: __post_init__ takes either case)
             base["os_rank"] = None
         elif base["os_rank"] is not None and "os_rank" not in data and is_whole_number(data.get("train")) \
                 and data["train"] > 0:

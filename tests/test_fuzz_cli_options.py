@@ -137,3 +137,16 @@ def test_cli_types_take_plain_numbers_at_their_bounds():
                         (cli.port, "65536"), (cli.ros2_domain, "233"), (cli.boresight_angle, "0")):
         with pytest.raises(argparse.ArgumentTypeError):
             parse(text)
+
+
+def test_leading_zeros_and_signs_are_read_as_plain_int_reads_them():
+    """A seed of 37 digits, most of them leading zeros, was refused as no whole number >= 0; two
+    plus signs were told the range, as if they made a number too large."""
+    seed = cli.int_in(0, what="a whole number")
+    assert seed("0" * 36 + "5") == 5 and seed("+0" + "0" * 40) == 0
+    with pytest.raises(argparse.ArgumentTypeError) as err:
+        seed("++" + "9" * 25)
+    assert "expected a whole number >= 0" in str(err.value)
+    with pytest.raises(argparse.ArgumentTypeError) as err:
+        seed("0" * 5000 + "9" * 25)
+    assert "in 0..9223372036854775807" in str(err.value)

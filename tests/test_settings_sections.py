@@ -132,3 +132,11 @@ def test_features_beyond_the_heatmaps_reach_are_refused_before_the_run(tmp_path)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert f"error: {path}: features.min_range_m: 100 m: the heatmaps reach 9.99 m" in proc.stderr
     assert not (tmp_path / "odom.tum").exists()
+
+
+def test_a_method_given_in_capitals_keeps_the_ordered_statistics_quantile():
+    """'OS' is the ordered statistic as 'os' is: given with a training window it lost the median
+    (rank 24 of 32 instead of 16), alone it took 12 instead of 8."""
+    for method in ("os", "OS", "Os"):
+        assert DspConfig.from_dict({"range_cfar": {"method": method, "train": 16}}).range_cfar.os_rank == 16
+        assert DspConfig.from_dict({"range_cfar": {"method": method}}).range_cfar.os_rank == 8
