@@ -479,3 +479,21 @@ def test_a_directory_path_longer_than_the_system_takes_is_refused_before_any_is_
     assert rc == 2 and err.count("\n") == 1 and len(err) < 400, err
     assert "the path is longer than this system takes" in err and f"({len(str(long))} characters)" in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("short_of_path_max", [1, 5, 15, 16, 17, 40])
+def test_a_path_within_its_files_names_of_the_systems_limit_is_refused_before_any_is_made(tmp_path, capsys,
+                                                                                          short_of_path_max):
+    """Paths 15-17 bytes short of PATH_MAX passed the check (it allowed for '/index.json.tmp' and
+    not the NUL), made 20 nested directories and failed on '.capture.json...tmp' (exit 1)."""
+    target = os.pathconf(tmp_path, "PC_PATH_MAX") - short_of_path_max
+    parts, length = [], len(str(tmp_path))
+    while length + 201 < target:
+        parts.append("c" * 200)
+        length += 201
+    parts.append("d" * (target - length - 1))
+    long = tmp_path.joinpath(*parts)
+    assert len(os.fsencode(str(long))) == target
+    rc, err = capture(capsys, "--record", long)
+    assert rc == 2 and "the path is longer than this system takes" in err, err
+    assert list(tmp_path.iterdir()) == []

@@ -88,12 +88,18 @@ def _nearest_there(path: str) -> str:
     return os.path.dirname(missing[-1]) if missing else os.path.abspath(path)
 
 
+#: Bytes a directory output's path leaves for the names written in it: '/', the longest name (a
+#: temporary '.groundtruth.tum.XXXXXXXX.tmp' or a frame's '1000000_intensity.npy' is about 30)
+#: with room to spare; PATH_MAX counts the NUL that ends a path too (hence >=).
+ROOM_FOR_NAMES = 48
+
+
 def check_writable_directory(path: str, option: str) -> None:
     """Refuse a directory output (made when missing, with its parents) that could not be written
     into: itself, or the nearest directory above it that is there."""
     there = _nearest_there(path)
     longest = _longest_path(there)
-    if len(os.fsencode(os.path.abspath(path))) + len("/index.json.tmp") > longest:
+    if len(os.fsencode(os.path.abspath(path))) + ROOM_FOR_NAMES >= longest:
         # made part by part, the directories were made before the first file's name failed
         raise UsageError(f"{option} {_shortened_path(path)}: the path is longer than this system takes "
                          f"({longest} bytes with the files written in it); choose a shorter one")
