@@ -13,6 +13,7 @@ Every backend declares the options it takes through
 from __future__ import annotations
 
 import abc
+import collections
 import importlib
 import logging
 import os
@@ -234,7 +235,7 @@ class Pacer:
         self.source = source
         self._wall0: float | None = None
         self._last_offset = 0.0
-        self._last_step: float | None = None
+        self._steps: collections.deque[float] = collections.deque(maxlen=8)  # the last steps, s of stream
 
     def wait(self, stream_offset_s: float) -> None:
         """Block until *stream_offset_s* (seconds since the first frame) is due."""
@@ -243,11 +244,15 @@ class Pacer:
         if self.rate == float("inf"):
             return
         due = self._wall0 + stream_offset_s / self.rate
-        gap, usual = stream_offset_s - self._last_offset, self._last_step
-        self._last_offset, self._last_step = stream_offset_s, gap
-        # Said for a gap in the times (ten steps and more of those before), not for every frame a
-        # slow rate spreads out.
-        if due - time.monotonic() > LONG_WAIT_S and usual and gap > 10 * usual:
+        gap = stream_offset_s - self._last_offset
+        usual = min(self._steps, default=None)  # (the smallest: a gap after a gap is one too)
+        if gap > 0:
+            self._last_offset = stream_offset_s
+            self._steps.append(gap)
+        # Said for a gap in the times (ten usual steps and more; with none before it, longer than
+        # the wait said), not for every frame a slow rate spreads out.
+        is_gap = gap > 10 * usual if usual else gap > LONG_WAIT_S
+        if due - time.monotonic() > LONG_WAIT_S and is_gap:
             log.warning("%s: the next frame is due in %.0f s, at %.1f s of stream (a gap of %.1f s in the "
                         "recording's times); waiting for it (rate=max plays without waiting)",
                         self.source.url or "the source", due - time.monotonic(), stream_offset_s, gap)

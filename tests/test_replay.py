@@ -644,3 +644,27 @@ def test_a_slow_rate_waits_long_for_every_frame_without_a_word(warnings_log):
     assert not [m for m in warning_messages(warnings_log) if "due in" in m]
     pacer.wait(30.0)  # a gap, at that rate too
     assert len([m for m in warning_messages(warnings_log) if "due in" in m]) == 1
+
+
+@pytest.mark.parametrize("offsets, said_at", [
+    ((0.0, 20.0, 20.05, 20.1), [20.0]),  # a gap right after the first frame: no step before it
+    ((0.0, 0.05, 0.1, 20.0, 40.0, 40.05), [20.0, 40.0]),  # a gap after a gap is one too
+    ((0.0, 5.0, 5.05), []),  # 5 s of stream: no wait of 10 s at rate 1
+])
+def test_a_gap_is_said_after_the_first_frame_and_after_another_gap(warnings_log, offsets, said_at):
+    """The pacer compared a step with the one before it only: after the first frame there was none
+    (a 20 s gap waited without a word), and after a gap the gap was the usual step."""
+    from radarodom.driver.sources import Pacer, Source
+
+    class Gappy(Source):
+        def __iter__(self):
+            return iter(())
+
+    source = Gappy()
+    source.url = "replay://gappy"
+    source.stop()
+    pacer = Pacer(1.0, source)
+    for offset in offsets:
+        pacer.wait(offset)
+    said = [m for m in warning_messages(warnings_log) if "due in" in m]
+    assert [float(re.search(r"at ([\d.]+) s of stream", m).group(1)) for m in said] == said_at, said
