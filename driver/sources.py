@@ -207,6 +207,12 @@ class Source(abc.ABC):
         frames (a capture directory) or not at all."""
         return None
 
+    def time_span(self) -> tuple[float, float, str] | None:
+        """(first, last) of the frames' times, s (looped: of all passes; forever: of the first),
+        and the file they come from, where the source knows them before it streams (a
+        recording's); None otherwise (a live radar's, a simulation's from 0)."""
+        return None
+
     def groundtruth(self) -> TumTrajectory | None:
         """The true poses of the stream's pose-giving frames, where the source knows them
         (a simulation's recording, a dataset with ground truth); None otherwise."""

@@ -668,3 +668,20 @@ def test_a_gap_is_said_after_the_first_frame_and_after_another_gap(warnings_log,
         pacer.wait(offset)
     said = [m for m in warning_messages(warnings_log) if "due in" in m]
     assert [float(re.search(r"at ([\d.]+) s of stream", m).group(1)) for m in said] == said_at, said
+
+
+def test_a_replays_time_span_covers_its_passes_and_names_its_times_file(tmp_path, small_cfg):
+    """What radar-capture checks --ros2 and --mcap against before any output opens."""
+    make_capture(tmp_path / "r", small_cfg, 4, t0=10.0)
+    period = small_cfg.frame_period_s
+    times = str(tmp_path / "r" / "timestamps.txt")
+    with open_source(f"replay://{tmp_path / 'r'}", small_cfg) as src:
+        first, last, where = src.time_span()
+        assert (first, last) == pytest.approx((10.0, 10.0 + 3 * period)) and where == times
+    with open_source(f"replay://{tmp_path / 'r'}?loop=3&start=1", small_cfg) as src:
+        first, last, _ = src.time_span()
+        assert (first, last) == pytest.approx((10.0 + period, 10.0 + 3 * period + 2 * 3 * period))
+    with open_source(f"replay://{tmp_path / 'r'}?loop=0", small_cfg) as src:  # forever: its first pass
+        assert src.time_span()[1] == pytest.approx(10.0 + 3 * period)
+    with open_source("sim://corridor?duration=1", small_cfg) as src:
+        assert src.time_span() is None

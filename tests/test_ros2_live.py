@@ -223,10 +223,13 @@ def test_radar_capture_ros2_publishes_points_and_tf_with_the_mount(store, patien
             mount_tf.transform.translation.z) == (0.4, 0.1, 0.3)
 
 
-def test_a_clock_before_0_is_refused_live_as_in_a_bag(tmp_path, store):
+@pytest.mark.parametrize("ros2_option", ["--ros2", "--mcap"])
+def test_a_recording_timed_before_0_is_refused_before_any_output(tmp_path, store, ros2_option):
     """A ROS 2 stamp before 0 fits the message's int32 seconds, but a C++ subscriber's
     rclcpp::Time(stamp) throws on it: the live output published such stamps (a replay whose
-    timestamps.txt starts before 0), while --mcap refused them. Now both: one line, exit 1."""
+    timestamps.txt starts before 0); then it was refused at the first frame, mid-run (exit 1),
+    the --odom-out and --points-out written so far left behind.  Now before anything opens,
+    naming the file the times come from."""
     from conftest import SMALL_CFG, make_capture
     from test_cli_capture import run_capture_cli
 
@@ -235,15 +238,19 @@ def test_a_clock_before_0_is_refused_live_as_in_a_bag(tmp_path, store):
     rec = tmp_path / "rec"
     make_capture(rec, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=-5.0)
     here = free_endpoint()
+    outputs = ["--odom-out", str(tmp_path / "o.tum"), "--points-out", str(tmp_path / "p.csv")]
+    ros2 = ["--ros2", "--connect", here, "--listen", free_endpoint()] if ros2_option == "--ros2" else [
+        "--mcap", str(tmp_path / "b.mcap"), "--no-publish"]
     with peer(listen=[here]) as session:
         inbox = subscribe(session, "0/**")
-        proc = run_capture_cli("--source", f"replay://{rec}?rate=max", "--ros2", "--connect", here,
-                               "--listen", free_endpoint(), timeout=300)
+        proc = run_capture_cli("--source", f"replay://{rec}?rate=max", *ros2, *outputs, timeout=300)
         time.sleep(0.5)  # what was published would be on its way
-    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert proc.stderr.strip().splitlines() == [
-        "radar-capture: error: ROS 2 stamp: time -5.0 s is before 0, which a ROS 2 node's time cannot hold "
-        "(rclcpp::Time refuses a negative time point)"], proc.stderr
+        f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from -5 s to -4.9 s, and a ROS 2 "
+        "stamp holds 0 to 2147483647 s (a node's time is never negative; its seconds are 32-bit): shift the times "
+        f"into that range, or leave out {ros2_option}"], proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]
     odom = expected_key(store, "ros2")
     assert not [s for s in inbox.samples if s[0] == odom]
 

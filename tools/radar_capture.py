@@ -203,6 +203,7 @@ def _check_source_and_outputs(args: argparse.Namespace, source: Source) -> None:
         raise UsageError(f"{args.source} gives point clouds and heatmaps, not raw ADC frames only: "
                          "--record needs a raw source (for ColoRadar: velocity=single_chip_adc"
                          "&heatmap=single_chip_adc)")
+    ros_outputs.check_times(args, source)
     _check_outputs(args)
 
 

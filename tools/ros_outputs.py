@@ -10,6 +10,9 @@ from ..errors import UsageError
 from ..mount import Mount
 from .cli import mount
 
+#: The first second a ROS 2 stamp cannot hold (builtin_interfaces/Time's int32 seconds).
+ROS2_TIME_END_S = 2**31
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """--mount, --mcap, --odom-json."""
@@ -36,6 +39,20 @@ def check(args: argparse.Namespace) -> None:
 
         ros2_typestore()
         _mcap()
+
+
+def check_times(args: argparse.Namespace, source) -> None:
+    """Refuse, before any output opens, a recording whose frames' times a ROS 2 stamp cannot hold
+    (--ros2, --mcap), naming its times' file; found mid-run, the outputs before it were left."""
+    asked = [option for option, given in (("--ros2", getattr(args, "ros2", False)), ("--mcap", args.mcap)) if given]
+    span = source.time_span() if asked else None
+    if span is None:
+        return
+    first, last, where = span
+    if first < 0 or last >= ROS2_TIME_END_S:
+        raise UsageError(f"{where}: the frames' times run from {first:.6g} s to {last:.6g} s, and a ROS 2 stamp holds "
+                         f"0 to {ROS2_TIME_END_S - 1} s (a node's time is never negative; its seconds are 32-bit): "
+                         f"shift the times into that range, or leave out {' and '.join(asked)}")
 
 
 def outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:

@@ -125,6 +125,13 @@ class TidemoReplaySource(Source):
             passes += 1
             self._passes_done, self._position = passes, -1
 
+    def time_span(self) -> tuple[float, float, str]:
+        stamps = self.stamps
+        first, last = float(stamps[self.packets[0][2]]), float(stamps[self.packets[-1][2]])
+        span = last - first + self.config.frame_period_s
+        last += max(self.loop - 1, 0) * span  # (loop=0: its first pass)
+        return first, last, self.timestamps_path or self.path
+
     def recorder(self, directory: str) -> UartRecorder:
         """A sink that records the packets played (:class:`.recording.UartRecorder`), as the live
         source's does: a part of a stream cut out (``frames``) is a recording of its own."""
