@@ -166,6 +166,8 @@ class Source(abc.ABC):
     #: knows them before the first frame (a ColoRadar run's); None: the DSP makes them from
     #: ``config`` (when :attr:`heatmaps_from_raw`), or not known until the frames come.
     heatmap_range_bins: int | None = None
+    #: The farthest range those heatmaps reach, m (their last range cell's), known with them.
+    heatmap_reach_m: float | None = None
 
     def __init__(self) -> None:
         self._stop_requested = False

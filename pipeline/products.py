@@ -102,14 +102,14 @@ def check_features_fit(source: Source, features: FeatureConfig, dsp: DspConfig |
     its cfg (``Source.heatmaps_from_raw``); nothing when they are not known before the frames
     come (then the features' CFAR says so at the first).  What a pipeline checks when it is
     built, and a program before it replaces its outputs."""
-    bins = source.heatmap_range_bins
+    bins, reach = source.heatmap_range_bins, source.heatmap_reach_m
     if bins is None and source.heatmaps_from_raw and source.config is not None:
         bins = heatmap_range_bins(source.config, dsp)
         # (its heatmaps end at the cfg's usable range, or nearer: DspConfig.max_range_m, cfarFovCfg)
         reach = min(source.config.max_range_m, (dsp or DspConfig()).max_range_m or math.inf)
-        if features.min_range_m >= reach:
-            raise ConfigError(f"{features.min_range_m:g} m: the heatmaps reach {reach:.2f} m at most, so no cell "
-                              f"would be a feature; features nearer than it are left out (default "
-                              f"{FeatureConfig.min_range_m:g} m)", field="features.min_range_m")
+    if reach is not None and features.min_range_m >= reach:
+        raise ConfigError(f"{features.min_range_m:g} m: the heatmaps reach {reach:.2f} m at most, so no cell "
+                          f"would be a feature; features nearer than it are left out (default "
+                          f"{FeatureConfig.min_range_m:g} m)", field="features.min_range_m")
     if bins is not None:
         features.check_heatmap_range(bins)

@@ -382,3 +382,21 @@ def test_a_waveform_that_makes_no_valid_cfg_names_the_field_not_a_made_up_line(t
         waveform_to_config(dataclasses.replace(wf, frequency_slope=1e20))
     assert str(info.value) == ("waveform_cfg.txt: the waveform does not make a valid AWR1843 configuration: "
                                "profileCfg: freqSlopeConst: 100000000.0 is outside 0.001..100 MHz/us")
+
+
+@pytest.mark.parametrize("heatmap", ["cascade", "single_chip"])
+def test_features_beyond_the_runs_own_heatmaps_reach_are_refused_before_the_run(tmp_path, heatmap):
+    """features.min_range_m beyond a ColoRadar run's own heatmaps (their axes from its calib) ran
+    with no feature and no word, exit 0, as sim:// no longer did."""
+    from radarodom.estimator.config import EstimatorConfig
+    from radarodom.pipeline.products import check_features_fit
+
+    run = write_run(tmp_path, "ec_hallways_run0", frames=3)
+    with open_source(f"coloradar://{run}?heatmap={heatmap}&rate=max") as source:
+        reach = source.heatmap_reach_m
+        axes = ColoRadarRun(str(run)).heatmap_config(heatmap)
+        assert reach == pytest.approx(axes.range_m[-1]) and reach > 0
+        check_features_fit(source, EstimatorConfig().with_(features={"min_range_m": reach * 0.9}).features)
+        with pytest.raises(ConfigError) as err:
+            check_features_fit(source, EstimatorConfig().with_(features={"min_range_m": 100.0}).features)
+    assert str(err.value).startswith(f"features.min_range_m: 100 m: the heatmaps reach {reach:.2f} m at most")

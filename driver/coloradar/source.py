@@ -132,7 +132,8 @@ class ColoRadarSource(Source):
             raise SourceError("a radar configuration applies to ADC frames: this stream uses none "
                               "(give velocity=single_chip_adc or heatmap=single_chip_adc)")
         if heatmap != "single_chip_adc":  # the run's own heatmaps, whose axes its calib gives
-            self.heatmap_range_bins = run.heatmap_config(self.sensor).num_range_bins
+            axes = run.heatmap_config(self.sensor)
+            self.heatmap_range_bins, self.heatmap_reach_m = axes.num_range_bins, float(axes.range_m[-1])
         self._mount_offset = (run.mount_yaw("single_chip") - run.mount_yaw(self.sensor)
                               if velocity == "single_chip" and self.sensor != "single_chip" else 0.0)
         self._poses = self._truth()
