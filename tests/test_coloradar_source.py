@@ -380,8 +380,26 @@ def test_a_waveform_that_makes_no_valid_cfg_names_the_field_not_a_made_up_line(t
     wf = ColoRadarRun(write_run(tmp_path)).waveform_config("single_chip")
     with pytest.raises(CaptureFormatError) as info:
         waveform_to_config(dataclasses.replace(wf, frequency_slope=1e20))
-    assert str(info.value) == ("waveform_cfg.txt: the waveform does not make a valid AWR1843 configuration: "
-                               "profileCfg: freqSlopeConst: 100000000.0 is outside 0.001..100 MHz/us")
+    assert str(info.value) == ("waveform_cfg.txt: frequency_slope 100000000000000000000 Hz/s (the cfg's profileCfg: "
+                               "freqSlopeConst): the waveform does not make a valid AWR1843 configuration: "
+                               "100000000.0 is outside 0.001..100 MHz/us")
+    # A whole number of ksps out of range was 'expected an integer, got 1e+06' (the made-up cfg's
+    # number written with an exponent).
+    with pytest.raises(CaptureFormatError) as info:
+        waveform_to_config(dataclasses.replace(wf, adc_sample_frequency=1e9))
+    assert str(info.value).startswith("waveform_cfg.txt: adc_sample_frequency 1000000000 Hz (the cfg's profileCfg: "
+                                      "digOutSampleRate): ") and "1000000 is outside 1000..12500 ksps" in str(info.value)
+
+
+def test_a_frame_period_too_short_names_the_timestamps_it_came_from(tmp_path):
+    """The period is the ADC stream's median step: refused, it blamed waveform_cfg.txt."""
+    run = write_run(tmp_path, frames=4)
+    times = run / "single_chip" / "adc_samples" / "timestamps.txt"
+    times.write_text("".join(f"{100 + 0.0005 * i:.6f}\n" for i in range(4)))
+    with pytest.raises(CaptureFormatError) as info:
+        open_source(f"coloradar://{run}?heatmap=single_chip_adc&velocity=single_chip_adc&rate=max")
+    assert str(info.value).startswith(f"{times}: the frames' period, 0.5 ms (the median step of its times), makes "
+                                      "no valid AWR1843 frame: frameCfg: framePeriodicity: 0.5 ms is shorter"), info.value
 
 
 @pytest.mark.parametrize("heatmap", ["cascade", "single_chip"])

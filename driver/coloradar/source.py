@@ -156,7 +156,8 @@ class ColoRadarSource(Source):
         times = self.run.timestamps(ADC_STREAM)
         period = float(np.median(np.diff(times))) if len(times) > 1 else 0.1
         return waveform_to_config(wf, tx_order=tx_order, frame_period_s=round(period, 4),
-                                  origin=self.run.calib_path("single_chip", "waveform_cfg.txt"))
+                                  origin=self.run.calib_path("single_chip", "waveform_cfg.txt"),
+                                  period_origin=self.run.timestamps_file(ADC_STREAM))
 
     def _truth(self) -> tuple[TumTrajectory, np.ndarray] | None:
         """The heatmap radar's poses at the event times inside the ground truth, and each

@@ -131,18 +131,28 @@ def tx_order_from_antennas(antenna: AntennaConfig) -> tuple[int, ...]:
 
 
 def _g(value: float) -> str:
-    """A cfg number without float noise (6 significant digits, as TI's tools print)."""
-    return f"{value:.6g}"
+    """A cfg number without float noise (6 significant digits, as TI's tools print), written out
+    plain (1000000, not 1e+06, which a cfg's whole-number field does not read)."""
+    return np.format_float_positional(float(f"{value:.6g}"), trim="-")
+
+
+#: The waveform file's key (and its unit) each field of the cfg made from it comes from.
+_FILE_KEYS = {"startFreq": ("start_frequency", "Hz"), "idleTime": ("idle_time", "s"),
+              "adcStartTime": ("adc_start_time", "s"), "rampEndTime": ("ramp_end_time", "s"),
+              "freqSlopeConst": ("frequency_slope", "Hz/s"), "numAdcSamples": ("num_adc_samples_per_chirp", ""),
+              "digOutSampleRate": ("adc_sample_frequency", "Hz"), "numLoops": ("num_chirps_per_frame", "")}
 
 
 def waveform_to_config(wf: WaveformConfig, *, tx_order: tuple[int, ...] = TI_TX_ORDER,
-                       frame_period_s: float = 0.1, origin: str = "waveform_cfg.txt") -> RadarConfig:
+                       frame_period_s: float = 0.1, origin: str = "waveform_cfg.txt",
+                       period_origin: str | None = None) -> RadarConfig:
     """The radar configuration of ColoRadar frames chirped as *wf*.
 
     *tx_order*: TX number (1..3) of each TX slot in chirp order (the ADC frame's tx axis);
     *frame_period_s*: the frames' period (the dataset does not store it: take it from the
     timestamps).  The cfg's other settings are what a raw capture needs (16-bit complex 1x
-    samples, all four RX); *origin* names the source in messages and in the cfg's comments.
+    samples, all four RX); *origin* names the source in messages and in the cfg's comments,
+    *period_origin* where the period came from (a refusal of it names that file).
     """
     if wf.num_rx != NUM_RX_ANTENNAS or wf.num_tx != len(tx_order):
         raise CaptureFormatError(f"{origin}: {wf.num_tx} TX x {wf.num_rx} RX does not match the AWR1843's "
@@ -172,6 +182,14 @@ def waveform_to_config(wf: WaveformConfig, *, tx_order: tuple[int, ...] = TI_TX_
     try:
         return RadarConfig.from_text(text, f"{origin} (as a cfg)")
     except ConfigError as exc:
-        # The made-up cfg's line would mean nothing to the file's reader: its command and field say it.
-        what = ": ".join(part for part in (exc.command, exc.field, exc.message) if part)
-        raise CaptureFormatError(f"{origin}: the waveform does not make a valid AWR1843 configuration: {what}") from None
+        # The made-up cfg's line would mean nothing to the file's reader: the file's key, its value,
+        # and the cfg's command and field it became.
+        cfg_field = ": ".join(part for part in (exc.command, exc.field) if part)
+        if exc.field == "framePeriodicity" and period_origin is not None:
+            raise CaptureFormatError(f"{period_origin}: the frames' period, {_g(period_ms)} ms (the median step of "
+                                     f"its times), makes no valid AWR1843 frame: {cfg_field}: {exc.message}") from None
+        key, unit = _FILE_KEYS.get(exc.field or "", (None, ""))
+        said = f"{key} {_g(getattr(wf, key))}{' ' + unit if unit else ''} (the cfg's {cfg_field}): " if key else (
+            f"{cfg_field}: " if cfg_field else "")
+        raise CaptureFormatError(f"{origin}: {said}the waveform does not make a valid AWR1843 configuration: "
+                                 f"{exc.message}") from None
