@@ -118,11 +118,11 @@ def test_data_sent_to_another_port_says_where_the_board_sends(small_capture, sma
     assert "EEPROM (192.168.33.30:4098 unless changed)" in message and "data_port=" in message, message
 
 
-def test_a_frame_lost_late_in_a_drifting_stream_keeps_the_times_increasing():
+def test_a_frame_lost_late_in_a_drifting_stream_keeps_the_times_increasing(caplog):
     """The first packet's offset was observed for every wholly lost frame: 25 minutes into a stream
     whose clock drifts 60 ppm against the host's, it came back into the window and the lost frame
     was timed 40 ms before the one before it (the estimator's TimeOrderError).  It places the
-    grid only while nothing has."""
+    grid only while nothing has (the rule LiveSource takes, in FrameClock.stamp)."""
     from radarodom.driver.live.source import FrameClock
 
     period, first = 0.05, (0, 1.7e9 + 0.001)
@@ -131,10 +131,12 @@ def test_a_frame_lost_late_in_a_drifting_stream_keeps_the_times_increasing():
     stamps = []
     for i in range(31000):
         received = 0.0 if i in (0, 30000) else 1.7e9 + i * period * (1 + 60e-6) + 0.001
-        if received <= 0 and not clock.placed:  # as LiveSource._frame does
-            clock.observe(*first)
-        stamps.append(clock.stamp(i, received))
+        stamps.append(clock.stamp(i, received, first_packet=first))
     assert clock.placed and (np.diff(stamps) > 0).all()
+    assert stamps[0] == first[1]  # the first frame, wholly lost, placed by the stream's first packet
+    # The frame lost late lies on the grid of the frames around it, no warning of a clock set back.
+    assert stamps[30000] - stamps[29999] == pytest.approx(period, abs=1e-6)
+    assert not [r for r in caplog.records if "set back" in r.getMessage()]
 
 
 def test_frame_times_go_on_when_the_hosts_clock_is_set_back(caplog):

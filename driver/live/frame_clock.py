@@ -56,11 +56,17 @@ class FrameClock:
                         index - len(recent) + 1)
             self._offsets = collections.deque(recent, maxlen=self._offsets.maxlen)
 
-    def stamp(self, index: int, receive_time: float) -> float:
+    def stamp(self, index: int, receive_time: float,
+              first_packet: tuple[int, float] | None = None) -> float:
         """Frame *index*'s time; *receive_time* its first packet's (0: none came, the frame
-        wholly lost: the grid's time, which needs a packet observed before)."""
+        wholly lost: the grid's time, which needs a packet observed before).  *first_packet*:
+        (frame index, receive time) of the stream's first packet, which places the grid for a
+        frame wholly lost before any frame's packet has (only then: later it would bring back
+        an offset the window has let go, and time would go back)."""
         if receive_time > 0:
             self.observe(index, receive_time)
+        elif not self.placed and first_packet is not None:
+            self.observe(*first_packet)
         if not self._offsets:
             raise DeviceError(f"frame {index} has no packet and none came before it: its time is unknown")
         t = min(self._offsets) + index * self.period

@@ -171,11 +171,8 @@ class LiveSource(Source):
             d["cut"] += frame.cut_bytes
         else:
             d["complete"] += 1
-        if frame.first_packet_time <= 0 and not self.clock.placed and self.receiver.first_packet is not None:
-            # Wholly lost before any frame's packet placed the grid: the recording's first packet
-            # places it (later, it would bring back an offset the window has let go: time going back).
-            self.clock.observe(*self.receiver.first_packet)
-        return Frame(index=frame.index, timestamp=self.clock.stamp(frame.index, frame.first_packet_time),
+        stamp = self.clock.stamp(frame.index, frame.first_packet_time, first_packet=self.receiver.first_packet)
+        return Frame(index=frame.index, timestamp=stamp,
                      raw=frame.data, layout=self.layout, missing_bytes=frame.missing_bytes,
                      ready_monotonic=frame.done_monotonic, cut_bytes=frame.cut_bytes)
 
