@@ -222,6 +222,17 @@ def test_a_missing_stream_is_named(tmp_path):
     assert "cascade/heatmaps" in one_error_line(proc)
 
 
+def test_a_directory_in_place_of_a_streams_timestamps_is_named_so(tmp_path):
+    """It was 'timestamps.txt is missing', with the directory right there."""
+    run = write_run(tmp_path, "ec_hallways_run0", frames=3)
+    times = run / "cascade" / "heatmaps" / "timestamps.txt"
+    times.unlink()
+    times.mkdir()
+    with pytest.raises(SourceError) as err:
+        open_source(f"coloradar://{run}")
+    assert str(err.value).endswith(f"the run has no cascade/heatmaps ({times} is a directory, not a file)")
+
+
 def test_the_datasets_folder_given_for_a_run_lists_its_runs(tmp_path):
     for name in ("ec_hallways_run0", "aspen_run1"):
         write_run(tmp_path, name, frames=3)

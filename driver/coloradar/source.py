@@ -94,8 +94,9 @@ class ColoRadarSource(Source):
                 if runs:  # the dataset's folder given instead of one of its runs
                     shown = ", ".join(runs[:5]) + (f" and {len(runs) - 5} more" if len(runs) > 5 else "")
                     raise SourceError(f"{run.run_dir}: not a run but a folder of runs ({shown}): give one run")
-                raise SourceError(f"{run.run_dir}: the run has no {stream} "
-                                  f"({os.path.join(run.run_dir, *stream.split('/'), 'timestamps.txt')} is missing)")
+                times = os.path.join(run.run_dir, *stream.split('/'), 'timestamps.txt')
+                why = "a directory, not a file" if os.path.isdir(times) else "missing"
+                raise SourceError(f"{run.run_dir}: the run has no {stream} ({times} is {why})")
 
         events: list[_Event] = []
         if both_adc:
