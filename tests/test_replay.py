@@ -626,19 +626,26 @@ def test_a_long_wait_for_a_frame_is_said(tmp_path, small_cfg, warnings_log):
         said[0]), said
 
 
-def test_a_slow_rate_waits_long_for_every_frame_without_a_word(warnings_log):
-    """At rate=0.004 each 50 ms step is a 12.5 s wait, no gap in the times: it was said, every
-    frame.  (A source asked to stop: the pacer decides what to say, then does not wait.)"""
-    from radarodom.driver.sources import Pacer, Source
+def _stopped_source(url: str):
+    """A source of no frames, asked to stop: a Pacer given it decides what to say, then does not wait."""
+    from radarodom.driver.sources import Source
 
-    class Slow(Source):
+    class Stopped(Source):
         def __iter__(self):
             return iter(())
 
-    source = Slow()
-    source.url = "sim://slow"
+    source = Stopped()
+    source.url = url
     source.stop()
-    pacer = Pacer(0.004, source)
+    return source
+
+
+def test_a_slow_rate_waits_long_for_every_frame_without_a_word(warnings_log):
+    """At rate=0.004 each 50 ms step is a 12.5 s wait, no gap in the times: it was said, every
+    frame.  (A source asked to stop: the pacer decides what to say, then does not wait.)"""
+    from radarodom.driver.sources import Pacer
+
+    pacer = Pacer(0.004, _stopped_source("sim://slow"))
     for k in range(5):
         pacer.wait(0.05 * k)
     assert not [m for m in warning_messages(warnings_log) if "due in" in m]
@@ -654,16 +661,9 @@ def test_a_slow_rate_waits_long_for_every_frame_without_a_word(warnings_log):
 def test_a_gap_is_said_after_the_first_frame_and_after_another_gap(warnings_log, offsets, said_at):
     """The pacer compared a step with the one before it only: after the first frame there was none
     (a 20 s gap waited without a word), and after a gap the gap was the usual step."""
-    from radarodom.driver.sources import Pacer, Source
+    from radarodom.driver.sources import Pacer
 
-    class Gappy(Source):
-        def __iter__(self):
-            return iter(())
-
-    source = Gappy()
-    source.url = "replay://gappy"
-    source.stop()
-    pacer = Pacer(1.0, source)
+    pacer = Pacer(1.0, _stopped_source("replay://gappy"))
     for offset in offsets:
         pacer.wait(offset)
     said = [m for m in warning_messages(warnings_log) if "due in" in m]
