@@ -170,6 +170,35 @@ def test_frame_times_follow_the_hosts_clock_set_forward_within_eight_frames(capl
     assert said[0].endswith("from frame 100")
 
 
+@pytest.mark.parametrize("drain", [1.25, 1.1])
+def test_a_stalls_backlog_drained_slowly_is_no_clock_set_forward(caplog, drain):
+    """A 3 s stall read back at 1.25 times the frame rate: eight late frames agreed within two
+    periods and the grid jumped to the lateness, 2.9 s off for frames the window would have kept."""
+    from radarodom.driver.live.source import FrameClock
+
+    period, clock = 0.1, FrameClock(0.1)
+    received = [1.7e9 + i * period + 0.001 for i in range(100)]
+    for i in range(100, 600):
+        on_time = 1.7e9 + i * period + 0.001
+        received.append(max(on_time, (received[-1] + period / drain) if i > 100 else on_time + 3.0))
+    stamps = [clock.stamp(i, r) for i, r in enumerate(received)]
+    assert not [r for r in caplog.records if "set forward" in r.getMessage()]
+    assert stamps[-1] == pytest.approx(received[-1], abs=1e-6)  # on the radar's grid once drained
+
+
+def test_a_clock_set_forward_among_lost_frames_names_the_first_late_frame(caplog):
+    """Every other frame from the step on wholly lost: the warning named frame 107 (index less
+    seven), and the grid moved at the eighth late frame that came, frame 114."""
+    from radarodom.driver.live.source import FrameClock
+
+    period, clock = 0.1, FrameClock(0.1)
+    for i in range(200):
+        lost = 100 <= i < 140 and i % 2
+        clock.stamp(i, 0.0 if lost else 1.7e9 + i * period + (30.0 if i >= 100 else 0.0) + 0.001)
+    said = [r.getMessage() for r in caplog.records if "set forward" in r.getMessage()]
+    assert len(said) == 1 and said[0].endswith("from frame 100"), said
+
+
 def test_a_stall_drained_at_once_does_not_move_the_grid(caplog):
     """The host stalled 3 s and then read the 30 frames waiting for it at once: they came late, a
     period earlier each, and the grid (the radar's) stays where it was."""

@@ -22,10 +22,12 @@ class FrameClock:
 
     The times only go forward: were the host's clock set back (an NTP step), the frames go on
     from the last one's time on its grid (a frame timed before the one before stopped the run).
-    Set forward, the grid follows it as soon as the last :attr:`STEP_FRAMES` frames all came
-    more than :attr:`STEP_S` late on the old grid and agree with one another within two periods
-    (a stall's backlog, drained at once, comes a period earlier each frame and does not), rather
-    than a window later.
+    Set forward, the grid follows it as soon as the last :attr:`STEP_FRAMES` frames that came
+    all came more than :attr:`STEP_S` late on the old grid and agree with one another within half
+    a period, rather than a window later.  A stall's backlog comes earlier each frame as it is
+    drained and does not agree so, unless drained at less than about 1.08 times the frame rate
+    (8 frames' fall within half a period); then, as with no such rule, the grid follows the
+    lateness (here at once, else a window later).
     """
 
     #: Frames, and the lateness in s, that together say the host's clock was set forward.
@@ -34,7 +36,8 @@ class FrameClock:
     def __init__(self, period_s: float, window: int = 64) -> None:
         self.period = period_s
         self._offsets: collections.deque[float] = collections.deque(maxlen=window)
-        self._recent: collections.deque[float] = collections.deque(maxlen=self.STEP_FRAMES)
+        # (index, offset) of the last frames observed
+        self._recent: collections.deque[tuple[int, float]] = collections.deque(maxlen=self.STEP_FRAMES)
         self._last: tuple[int, float] | None = None  # (index, time) of the last frame stamped
         self._set_back = False
 
@@ -47,13 +50,14 @@ class FrameClock:
         """A packet of frame *index* received at *receive_time* (time.time())."""
         offset = receive_time - index * self.period
         self._offsets.append(offset)
-        self._recent.append(offset)
-        recent = self._recent
-        if (len(recent) == recent.maxlen and min(recent) - min(self._offsets) > self.STEP_S
-                and max(recent) - min(recent) < 2 * self.period):
+        self._recent.append((index, offset))
+        if len(self._recent) < self._recent.maxlen:
+            return
+        recent = [late for _, late in self._recent]
+        if min(recent) - min(self._offsets) > self.STEP_S and max(recent) - min(recent) < self.period / 2:
             log.warning("this computer's clock was set forward by %.3f s (or the radar's packets come that much "
                         "later): the frames' times follow it from frame %d", min(recent) - min(self._offsets),
-                        index - len(recent) + 1)
+                        self._recent[0][0])
             self._offsets = collections.deque(recent, maxlen=self._offsets.maxlen)
 
     def stamp(self, index: int, receive_time: float,
