@@ -210,9 +210,10 @@ class Source(abc.ABC):
         return None
 
     def time_span(self) -> tuple[float, float, str] | None:
-        """(first, last) of the frames' times, s (looped: of all passes; forever: of the first),
-        and the file they come from, where the source knows them before it streams (a
-        recording's); None otherwise (a live radar's, a simulation's from 0)."""
+        """(first, last) of the frames' times in a pass, s, and the file they come from, where the
+        source knows them before it streams (a recording's); None otherwise (a live radar's, a
+        simulation's from 0).  Later passes of a loop go on from the last (a run may stop long
+        before them: what they reach is checked as they come)."""
         return None
 
     def groundtruth(self) -> TumTrajectory | None:

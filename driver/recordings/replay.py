@@ -105,10 +105,8 @@ class ReplaySource(Source):
 
     def time_span(self) -> tuple[float, float, str]:
         stamps = self.store.timestamps[self.first: self.first + self.count]
-        span = float(stamps[-1] - stamps[0]) + self.config.frame_period_s
-        last = float(stamps[-1]) + max(self.loop - 1, 0) * span  # (loop=0: its first pass)
         path = os.path.join(self.store.directory, TIMESTAMPS)
-        return float(stamps[0]), last, path if os.path.isfile(path) else self.store.directory
+        return float(stamps[0]), float(stamps[-1]), path if os.path.isfile(path) else self.store.directory
 
     def groundtruth(self):
         """The recording's groundtruth.tum (TI recorder files have none)."""

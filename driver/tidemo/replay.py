@@ -127,10 +127,7 @@ class TidemoReplaySource(Source):
 
     def time_span(self) -> tuple[float, float, str]:
         stamps = self.stamps
-        first, last = float(stamps[self.packets[0][2]]), float(stamps[self.packets[-1][2]])
-        span = last - first + self.config.frame_period_s
-        last += max(self.loop - 1, 0) * span  # (loop=0: its first pass)
-        return first, last, self.timestamps_path or self.path
+        return float(stamps[self.packets[0][2]]), float(stamps[self.packets[-1][2]]), self.timestamps_path or self.path
 
     def recorder(self, directory: str) -> UartRecorder:
         """A sink that records the packets played (:class:`.recording.UartRecorder`), as the live
