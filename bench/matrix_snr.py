@@ -46,14 +46,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"),
                         help="the matrix's cache (robustness_matrix.py --data)")
-    found = rows(parser.parse_args().data)
+    data = parser.parse_args().data
+    found = rows(data)
+    if not found:
+        raise SystemExit(f"matrix_snr.py: no DSP products of base or SNR cells under {data}/seq: run "
+                         "bench/robustness_matrix.py first (--data for another cache)")
     print("| scene | scene SNR dB | cells | points a frame, median | point SNR dB, median (p10-p90) | peak over median, dB |")
     print("| --- | ---: | ---: | ---: | ---: | ---: |")
     for (scene, snr) in sorted(found, key=lambda k: (k[0], -k[1])):
         r = {key: np.concatenate(v) for key, v in found[(scene, snr)].items()}
-        p10, p50, p90 = np.percentile(r["snr_db"], [10, 50, 90])
+        snrs = "-" if not len(r["snr_db"]) else "{1:.1f} ({0:.1f}-{2:.1f})".format(
+            *np.percentile(r["snr_db"], [10, 50, 90]))  # (no detection in the whole row: none to show)
         print(f"| {scene} | {snr:g} | {len(found[(scene, snr)]['points'])} | {np.median(r['points']):.0f} | "
-              f"{p50:.1f} ({p10:.1f}-{p90:.1f}) | {np.median(r['peak_db']):.1f} |")
+              f"{snrs} | {np.median(r['peak_db']):.1f} |")
 
 
 if __name__ == "__main__":

@@ -391,15 +391,25 @@ def test_a_waveform_that_makes_no_valid_cfg_names_the_field_not_a_made_up_line(t
     wf = ColoRadarRun(write_run(tmp_path)).waveform_config("single_chip")
     with pytest.raises(CaptureFormatError) as info:
         waveform_to_config(dataclasses.replace(wf, frequency_slope=1e20))
-    assert str(info.value) == ("waveform_cfg.txt: frequency_slope 100000000000000000000 Hz/s (the cfg's profileCfg: "
+    assert str(info.value) == ("waveform_cfg.txt: frequency_slope 1e+20 Hz/s (the cfg's profileCfg: "
                                "freqSlopeConst): the waveform does not make a valid AWR1843 configuration: "
                                "100000000.0 is outside 0.001..100 MHz/us")
     # A whole number of ksps out of range was 'expected an integer, got 1e+06' (the made-up cfg's
     # number written with an exponent).
     with pytest.raises(CaptureFormatError) as info:
         waveform_to_config(dataclasses.replace(wf, adc_sample_frequency=1e9))
-    assert str(info.value).startswith("waveform_cfg.txt: adc_sample_frequency 1000000000 Hz (the cfg's profileCfg: "
+    assert str(info.value).startswith("waveform_cfg.txt: adc_sample_frequency 1e+09 Hz (the cfg's profileCfg: "
                                       "digOutSampleRate): ") and "1000000 is outside 1000..12500 ksps" in str(info.value)
+
+
+def test_a_huge_waveform_value_is_said_in_a_short_line(tmp_path):
+    """A frequency_slope of 1e300 was written out in 301 digits in the refusal."""
+    import dataclasses
+
+    wf = ColoRadarRun(write_run(tmp_path)).waveform_config("single_chip")
+    with pytest.raises(CaptureFormatError) as info:
+        waveform_to_config(dataclasses.replace(wf, frequency_slope=1e300))
+    assert "frequency_slope 1e+300 Hz/s" in str(info.value) and len(str(info.value)) < 250, info.value
 
 
 def test_a_frame_period_too_short_names_the_timestamps_it_came_from(tmp_path):

@@ -189,7 +189,7 @@ def waveform_to_config(wf: WaveformConfig, *, tx_order: tuple[int, ...] = TI_TX_
             raise CaptureFormatError(f"{period_origin}: the frames' period, {_g(period_ms)} ms (the median step of "
                                      f"its times), makes no valid AWR1843 frame: {cfg_field}: {exc.message}") from None
         key, unit = _FILE_KEYS.get(exc.field or "", (None, ""))
-        said = f"{key} {_g(getattr(wf, key))}{' ' + unit if unit else ''} (the cfg's {cfg_field}): " if key else (
+        said = f"{key} {getattr(wf, key):.6g}{' ' + unit if unit else ''} (the cfg's {cfg_field}): " if key else (
             f"{cfg_field}: " if cfg_field else "")
         raise CaptureFormatError(f"{origin}: {said}the waveform does not make a valid AWR1843 configuration: "
                                  f"{exc.message}") from None
