@@ -337,6 +337,9 @@ def _rewrite_line(path, lineno: int, text: str) -> None:
     ("calib/single_chip/heatmap_cfg.txt", 5, "azimuth_bins -1 -0.7 -0.4 -0.1 -0.1 0.4 0.7 1", "cfg",
      "heatmap_cfg.txt: azimuth_bins are not ascending"),
     ("calib/single_chip/waveform_cfg.txt", 5, "adc_sample_frequency nan", "waveform", ":5: not a finite number"),
+    # 1e300 chirps made a frame whose expected size the data file's check wrote in 300 digits.
+    ("calib/single_chip/waveform_cfg.txt", 4, "num_chirps_per_frame 1e300", "waveform",
+     ":4: num_chirps_per_frame must be a positive integer of at most 1000000"),
     ("calib/transforms/base_to_cascade.txt", 2, "0 0 0", "transform", "base_to_cascade.txt:2: expected"),
     ("calib/transforms/base_to_cascade.txt", 2, "0 0 0 0", "transform", "base_to_cascade.txt:2: the quaternion is zero"),
     ("calib/transforms/base_to_cascade.txt", 1, "v^\x00\udcff\udcfeB", "transform",

@@ -144,6 +144,11 @@ def _read_table(path: str, columns: int, what: str) -> tuple[np.ndarray, np.ndar
             np.array([n for n, _ in lines], dtype=int))
 
 
+#: The largest count (antennas, samples, chirps, bins) a calib file gives: far beyond any radar's
+#: (1e300 chirps made a frame of a 300-digit size).
+MAX_COUNT = 1_000_000
+
+
 def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> dict:
     """``key value...`` lines (``#`` comments allowed): every key in *keys* must be there.
 
@@ -165,8 +170,9 @@ def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> 
         multi = key in ("azimuth_bins", "elevation_bins")
         values = parse_numbers(path, lineno, rest, None if multi else 1, f"{key} and its value(s)")
         if key in int_keys:
-            if values[0] != int(values[0]) or values[0] <= 0:
-                raise CaptureFormatError(f"{path}:{lineno}: {key} must be a positive integer, got {rest!r}")
+            if values[0] != int(values[0]) or not 0 < values[0] <= MAX_COUNT:
+                raise CaptureFormatError(f"{path}:{lineno}: {key} must be a positive integer of at most {MAX_COUNT} "
+                                         f"(a count of antennas, samples, chirps or bins), got {rest[:40]!r}")
             out[key] = int(values[0])
         else:
             out[key] = np.array(values) if multi else values[0]
