@@ -198,15 +198,25 @@ def test_a_bag_that_cannot_be_written_on_says_what_it_keeps(tmp_path):
 def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_latency(tmp_path):
     """ROS 2 counts a stamp's seconds in 32 bits: a recording whose clock is past 2038 was an
     internal error (rosbags' "'i' format requires ..."), and the summary of a run whose first
-    frame's outputs failed said "latency p50 nan ms"."""
+    frame's outputs failed said "latency p50 nan ms".  Such a recording is now refused before any
+    output opens, naming its times; a loop's later pass that crosses 2038 mid-run is one line."""
     from conftest import SMALL_CFG, make_capture
     from radarodom.cfg import RadarConfig
 
     rec = tmp_path / "rec"
     make_capture(rec, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=3e9)
     proc = capture("--source", f"replay://{rec}?rate=max", "--mcap", tmp_path / "run.mcap")
-    assert proc.returncode != 0 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
     assert proc.stderr.strip().splitlines() == [
-        "radar-capture: error: ROS 2 stamp: time 3000000000.0 s is beyond what ROS 2's time holds (its seconds "
+        f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from 3e+09 s to 3e+09 s, and a "
+        "ROS 2 stamp holds 0 to 2147483647 s (a node's time is never negative; its seconds are 32-bit): shift the "
+        "times into that range, or leave out --mcap"], proc.stderr
+    assert not (tmp_path / "run.mcap").exists()
+    late = tmp_path / "late"
+    make_capture(late, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=2**31 - 0.12)
+    proc = capture("--source", f"replay://{late}?rate=max&loop=2", "--mcap", tmp_path / "late.mcap")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+    assert [line for line in proc.stderr.strip().splitlines() if "error" in line] == [
+        "radar-capture: error: ROS 2 stamp: time 2147483648.03 s is beyond what ROS 2's time holds (its seconds "
         "are a 32-bit integer: up to 2147483647 s, 2038-01-19)"], proc.stderr
     assert "stopped by an error" in proc.stdout and "nan" not in proc.stdout, proc.stdout
