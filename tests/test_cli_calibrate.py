@@ -8,6 +8,7 @@ written here; the library function is checked on more boards than the CLI.
 from __future__ import annotations
 
 import json
+import pathlib
 import math
 import re
 import subprocess
@@ -348,3 +349,16 @@ def test_a_coloradar_run_without_its_adc_frames_asked_for_says_how_to_ask(tmp_pa
     assert proc.stderr == (f"radar-calibrate: error: coloradar://{run_dir} gives no raw ADC frames: the measurement "
                            "needs them; a ColoRadar run's single-chip ADC frames: "
                            "coloradar://RUN?velocity=single_chip_adc&heatmap=single_chip_adc\n")
+
+
+def test_write_cfg_over_the_shipped_cfg_read_without_cfg_is_refused():
+    """With no --cfg the run reads the shipped cfg: --write-cfg there with --overwrite replaced its
+    channel line with the board's, in the install (exit 0)."""
+    shipped = pathlib.Path(shipped_config_path())
+    before = shipped.read_bytes()
+    proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--frames", 2,
+               "--write-cfg", shipped, "--overwrite")
+    assert shipped.read_bytes() == before
+    assert proc.returncode == 2 and proc.stderr.strip().splitlines() == [
+        f"radar-calibrate: error: --write-cfg {shipped} would write over the input --cfg (not given: the shipped "
+        f"cfg) {shipped}: choose another path"], proc.stderr

@@ -7,6 +7,7 @@ runs); a few call ``radarodom.tools.radar_cfg.main`` in-process with capsys.
 from __future__ import annotations
 
 import json
+import pathlib
 import os
 import re
 import subprocess
@@ -14,7 +15,7 @@ import subprocess
 import pytest
 from conftest import REPO, SMALL_CFG, console_command
 
-from radarodom.cfg import RAW_LVDS_LINE, RadarConfig
+from radarodom.cfg import RAW_LVDS_LINE, RadarConfig, shipped_config_path
 from radarodom.tools import radar_cfg
 
 SHIPPED = REPO / "configs" / "awr1843_raw.cfg"
@@ -361,6 +362,14 @@ def test_list_names_the_shipped_cfgs_with_a_description():
     assert list(listed) == shipped and listed["awr1843_raw.cfg"] == lines[0].split(None, 1)[1]
     proc = run_cfg("--copy", "awr1843_raw", "--json")
     assert proc.returncode == 2 and "--json goes with FILEs or --list, not --copy" in proc.stderr
+
+
+def test_copy_onto_the_shipped_cfg_itself_is_refused():
+    """'--copy awr1843_raw <the shipped file> --overwrite' rewrote the install's own file (exit 0)."""
+    shipped = pathlib.Path(shipped_config_path())
+    for dest in (shipped, shipped.parent):
+        proc = run_cfg("--copy", "awr1843_raw", str(dest), "--overwrite")
+        assert proc.returncode == 2 and "would write over the input the shipped cfg" in proc.stderr, proc.stderr
 
 
 def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path):

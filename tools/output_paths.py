@@ -164,12 +164,16 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
 def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None,
                source_option: str = "--source") -> list[tuple[str, str]]:
     """(option, path) of what a run reads, for :func:`check_distinct`: the files given in
-    *options* ((option, path or None)) and the recording or ColoRadar run the *source* URL
+    *options* ((option, path or None); a ``--cfg`` not given is the shipped cfg) and the recording or ColoRadar run the *source* URL
     streams (``replay://DIR``, ``coloradar://DIR``) or the scene file it simulates
     (``sim://FILE``), named *source_option*."""
+    from ..cfg import shipped_config_path
     from ..driver.sources import split_url
 
-    inputs = list(options)
+    # --cfg not given: the shipped cfg is what the run reads (a writer over it changed the install).
+    inputs = [(option, path) if path or option != "--cfg" else ("--cfg (not given: the shipped cfg)",
+                                                                str(shipped_config_path()))
+              for option, path in options]
     if source:
         scheme, path, query = split_url(source)
         path = os.path.expanduser(path or "")

@@ -122,6 +122,7 @@ def _copy(names: list[str], overwrite: bool) -> int:
     if os.path.isdir(dest):
         dest = os.path.join(dest, name)
     what = f"the copy of {name}"
+    cli.check_distinct([("DEST", dest)], [("the shipped cfg", str(shipped_config_path(name)))])
     cli.check_new_path(dest, overwrite=overwrite, what=what)
     with open(shipped_config_path(name), encoding="utf-8", newline="") as fh:
         cli.write_output(dest, fh.read(), overwrite=overwrite, what=what)
