@@ -127,8 +127,9 @@ class ChannelCalibrator:
             raise UsageError(f"the reflector's distance must be a positive number of metres, got {distance_m!r}")
         if not (math.isfinite(window_m) and window_m > 0):
             raise UsageError(f"the search window must be a positive number of metres, got {window_m!r}")
-        if not (math.isfinite(max_azimuth_deg) and 0 < max_azimuth_deg < 90):
-            raise UsageError(f"the largest apparent azimuth must be between 0 and 90 degrees, got {max_azimuth_deg!r}")
+        if not (math.isfinite(max_azimuth_deg) and 0 < max_azimuth_deg <= 90):  # (90: any direction)
+            raise UsageError(f"max_azimuth_deg: the largest apparent azimuth must be above 0 and at most 90 degrees, "
+                             f"got {max_azimuth_deg!r}")
         self.max_azimuth_deg = float(max_azimuth_deg)
         if sorted(cfg.tx_order) != [1, 2, 3] or cfg.num_rx != NUM_RX_ANTENNAS:
             line = cfg.line_of("channelCfg")

@@ -210,6 +210,9 @@ def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path):
     allowed = run("--source", url, "--distance", 3, "--frames", 3, "--max-azimuth", 20, "--json")
     assert allowed.returncode == 0, allowed.stderr
     assert json.loads(allowed.stdout)["apparent_azimuth_deg"] == pytest.approx(14.0, abs=1.0)
+    # 90, the top of what the option says it takes, was refused by the calibrator as out of range.
+    anything = run("--source", url, "--distance", 3, "--frames", 3, "--max-azimuth", 90, "--json")
+    assert anything.returncode == 0, anything.stderr
 
 
 def test_a_source_of_incomplete_frames_only_says_so(tmp_path, shipped_cfg):

@@ -425,6 +425,8 @@ def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(c
                                      odom.yaw_rates, odom.frames, read_tum(gt))
     assert got["forward_speed"]["z_rms"] < paired["forward_speed"]["z_rms"]
     for args, message in ((("--measured-at", "0.01"), "--measured-at is for the covariance check: add --odom"),
+                          # (0 was taken for not given: exit 0 without a word)
+                          (("--measured-at", "0"), "--measured-at is for the covariance check: add --odom"),
                           (("--odom", corridor_run.odom, "--measured-at", "2"), "expected a number in -1..1 s")):
         proc = run_eval(corridor_run.tum, gt, *args)
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr

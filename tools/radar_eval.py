@@ -94,7 +94,7 @@ def _main(args: argparse.Namespace) -> int:
         plots.require_matplotlib()  # before the work, not after it
     elif args.name:
         raise UsageError("--name is for the plots: add --plot DIR")
-    if args.measured_at and not args.odom:
+    if args.measured_at is not None and not args.odom:
         raise UsageError("--measured-at is for the covariance check: add --odom ODOM.jsonl")
     for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
         if not os.path.isfile(path):
