@@ -385,6 +385,21 @@ def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path):
     assert flags.read_bytes() == sim_run.flags.read_bytes() and sorted(p.name for p in out.iterdir()) == ["flags.png"]
 
 
+@pytest.mark.parametrize("kind", ["directory", "fifo"])
+def test_a_plot_whose_name_is_taken_by_no_file_is_refused_before_the_work(sim_run, tmp_path, kind):
+    """A directory (or a pipe) where yaw.png goes: the table was printed, two plots and the --json
+    written, then 'cannot write .../yaw.png: Is a directory' (exit 1), the rest left behind."""
+    out = tmp_path / "plots"
+    out.mkdir()
+    (out / "yaw.png").mkdir() if kind == "directory" else os.mkfifo(out / "yaw.png")
+    proc = run_cli("radar-eval", sim_run.tum, sim_run.rec / "groundtruth.tum", "--plot", out,
+                   "--json", tmp_path / "eval.json", timeout=120)
+    assert (proc.returncode, proc.stdout) == (2, ""), proc.stderr
+    assert proc.stderr == (f"radar-eval: error: --plot's yaw.png {out / 'yaw.png'} is there and is not a file (a "
+                           "directory, a pipe, a device): move it away or choose another --plot directory\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plots"] and [p.name for p in out.iterdir()] == ["yaw.png"]
+
+
 def test_a_plot_directory_that_cannot_be_written_is_refused_before_the_work(sim_run, tmp_path, monkeypatch, capsys):
     from radarodom.tools import radar_eval
 

@@ -159,6 +159,10 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if args.plot:
         outputs += [(f"--plot's {name}", os.path.join(args.plot, name))
                     for name in plots.file_names(flags=bool(args.odom))]
+        for what, path in outputs[bool(args.json):]:  # replaced where they are: a plot's own files only
+            if os.path.lexists(path) and not os.path.isfile(path):
+                raise UsageError(f"{what} {path} is there and is not a file (a directory, a pipe, a device): "
+                                 "move it away or choose another --plot directory")
     if not outputs:
         return
     url = "://" in args.reference  # a recording or a run the ground truth is read from
