@@ -110,6 +110,11 @@ def test_no_common_times_and_missing_files_exit_2(run_files, tmp_path):
     assert f"{gt} (200 poses, t 1000.000 .. 1019.900 s)" in proc.stderr
     proc = run_eval(tmp_path / "nope.tum", gt)
     assert (proc.returncode, proc.stderr) == (2, f"radar-eval: error: {tmp_path / 'nope.tum'}: no such file\n")
+    # --odom a pipe no one writes to waited forever, /dev/zero read until the memory ran out.
+    os.mkfifo(tmp_path / "odom.fifo")
+    for odom in (tmp_path / "odom.fifo", "/dev/zero"):
+        proc = run_eval(est, gt, "--odom", odom)
+        assert (proc.returncode, proc.stderr) == (2, f"radar-eval: error: --odom {odom}: not a file\n")
 
 
 def test_bad_options_are_usage_errors(run_files):

@@ -96,9 +96,11 @@ def _main(args: argparse.Namespace) -> int:
         raise UsageError("--name is for the plots: add --plot DIR")
     if args.measured_at is not None and not args.odom:
         raise UsageError("--measured-at is for the covariance check: add --odom ODOM.jsonl")
-    for path in (args.estimate,) if "://" in args.reference else (args.estimate, args.reference):
-        if not os.path.isfile(path):
-            raise UsageError(f"{path}: {'not a file' if os.path.exists(path) else 'no such file'}")
+    files = [(None, args.estimate)] + ([] if "://" in args.reference else [(None, args.reference)])
+    for option, path in files + ([("--odom", args.odom)] if args.odom else []):
+        if not os.path.isfile(path):  # (a pipe with no writer waited forever; /dev/zero filled the memory)
+            said = "not a file" if os.path.exists(path) else "no such file"
+            raise UsageError(f"{option + ' ' if option else ''}{path}: {said}")
     _check_outputs(args)
     estimate = read_tum(args.estimate)
     if "://" in args.reference:
