@@ -249,6 +249,8 @@ def _check_key_prefix(prefix: Any) -> None:
         raise PublishConfigError(f"key prefix must be a non-empty string, got {prefix!r}")
     if any(c in prefix for c in "*$?#"):
         raise PublishConfigError(f"key prefix {prefix!r}: wildcards and the characters $ ? # are not allowed")
+    if any(c.isspace() or not c.isprintable() for c in prefix):  # a newline split the status line in two
+        raise PublishConfigError(f"key prefix {prefix!r}: spaces and control characters are not allowed")
     try:
         zenoh.KeyExpr(prefix)
     except zenoh.ZError as exc:

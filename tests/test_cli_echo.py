@@ -153,6 +153,9 @@ def test_radar_echo_finds_a_default_publisher_without_options(run, default_endpo
     (["--connect", "tcp/192.168.1.5"], "needs HOST:PORT"),
     (["--mode", "client"], "needs --connect"),
     (["--key-prefix", "radar/*"], "wildcards"),
+    # A newline in it split the status line in two; a space went through as well.
+    (["--key-prefix", "a\nb"], "spaces and control characters are not allowed"),
+    (["--key-prefix", "a b"], "spaces and control characters are not allowed"),
 ])
 def test_radar_echo_bad_options_exit_2(capsys, args, words):
     assert radar_echo.main(args) == 2

@@ -325,6 +325,23 @@ def _rewrite_line(path, lineno: int, text: str) -> None:
         fh.write("\n".join(lines) + "\n")
 
 
+def test_a_timestamps_file_with_a_byte_order_mark_reads_and_a_directory_in_a_files_place_is_named(tmp_path):
+    """A BOM (a Windows editor's) was 'expected one timestamp (s), got '\\ufeff1608...''; a directory
+    in the ground truth's place was 'cannot read ...: Is a directory', exit 1."""
+    run = ColoRadarRun(synth.write_run(tmp_path))
+    times = tmp_path / "ec_hallways_run0" / "single_chip" / "pointclouds" / "timestamps.txt"
+    before = run.timestamps("single_chip/pointclouds").copy()
+    times.write_bytes(b"\xef\xbb\xbf" + times.read_bytes())
+    np.testing.assert_array_equal(ColoRadarRun(tmp_path / "ec_hallways_run0").timestamps("single_chip/pointclouds"),
+                                  before)
+    transform = tmp_path / "calib" / "transforms" / "base_to_cascade.txt"
+    transform.unlink()
+    transform.mkdir()
+    with pytest.raises(CaptureFormatError) as exc:
+        ColoRadarRun(tmp_path / "ec_hallways_run0").base_to_sensor("cascade")
+    assert str(exc.value) == f"{transform}: a directory, not a file (the run is damaged)"
+
+
 @pytest.mark.parametrize("relative, lineno, text, method, expect", [
     ("calib/single_chip/heatmap_cfg.txt", 1, "num_range_bins sixteen", "cfg", ":1: expected num_range_bins"),
     ("calib/single_chip/heatmap_cfg.txt", 1, "num_range_bins 16.5", "cfg", ":1: num_range_bins must be a positive"),

@@ -125,10 +125,13 @@ _WAVEFORM_KEYS = _WAVEFORM_INT_KEYS + ("adc_sample_frequency", "start_frequency"
 def _read_lines(path: str) -> list[tuple[int, str]]:
     """(1-based line number, stripped text) of the non-blank lines of *path*."""
     try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        # (utf-8-sig: a BOM, a Windows editor's, ignored, as the other text readers do)
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             lines = [(n, s) for n, line in enumerate(fh, start=1) if (s := line.strip())]
     except FileNotFoundError:
         raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
+    except IsADirectoryError:
+        raise CaptureFormatError(f"{path}: a directory, not a file (the run is damaged)") from None
     except OSError as exc:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
     for n, text in lines:
