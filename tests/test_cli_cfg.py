@@ -364,6 +364,12 @@ def test_list_names_the_shipped_cfgs_with_a_description():
     assert proc.returncode == 2 and "--json goes with FILEs or --list, not --copy" in proc.stderr
 
 
+def test_overwrite_without_copy_is_refused(tmp_path):
+    """'radar-cfg FILE --overwrite' was taken and ignored: nothing but --copy writes."""
+    proc = run_cfg(str(shipped_config_path()), "--overwrite")
+    assert proc.returncode == 2 and "--overwrite goes with --copy" in proc.stderr, proc.stderr
+
+
 def test_copy_onto_the_shipped_cfg_itself_is_refused():
     """'--copy awr1843_raw <the shipped file> --overwrite' rewrote the install's own file (exit 0)."""
     shipped = pathlib.Path(shipped_config_path())

@@ -485,3 +485,11 @@ def test_a_live_radar_as_the_truth_is_refused_before_a_radar_is_looked_for(tmp_p
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{url}: a live radar" in err[0] and "knows no ground truth; give the truth as " \
         "GT.tum" in err[0], err
+
+
+def test_a_recordings_directory_as_the_reference_is_told_its_url(run_files, tmp_path):
+    """'cap: not a file', where the recording's ground truth is read through replay://cap."""
+    est, _ = run_files
+    proc = run_eval(est, tmp_path)
+    assert (proc.returncode, proc.stderr) == (
+        2, f"radar-eval: error: {tmp_path}: not a file (a recording's ground truth: give replay://{tmp_path})\n")

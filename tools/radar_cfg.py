@@ -54,6 +54,8 @@ class _Parser(argparse.ArgumentParser):
             self.error("give one or more FILEs, or --list, or --copy NAME [DEST]")
         if ns.json and ns.copy is not None:
             self.error("--json goes with FILEs or --list, not --copy")
+        if ns.overwrite and ns.copy is None:  # nothing else writes: taken and ignored, it misled
+            self.error("--overwrite goes with --copy (FILEs and --list write nothing)")
         return ns
 
 

@@ -100,6 +100,8 @@ def _main(args: argparse.Namespace) -> int:
     for option, path in files + ([("--odom", args.odom)] if args.odom else []):
         if not os.path.isfile(path):  # (a pipe with no writer waited forever; /dev/zero filled the memory)
             said = "not a file" if os.path.exists(path) else "no such file"
+            if option is None and path == args.reference and os.path.isdir(path):  # a recording: give its URL
+                said += f" (a recording's ground truth: give replay://{path})"
             raise UsageError(f"{option + ' ' if option else ''}{path}: {said}")
     _check_outputs(args)
     estimate = read_tum(args.estimate)
