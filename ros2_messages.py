@@ -56,6 +56,8 @@ _FLOAT32 = 7  # sensor_msgs/msg/PointField.FLOAT32
 #: The heatmap image's floor: 10 log10 of the intensity, not below this (dB), so that an empty
 #: cell stays a finite number.
 HEATMAP_FLOOR_DB = -300.0
+#: The first second a ROS 2 stamp cannot hold (builtin_interfaces/Time's int32 seconds; 2038-01-19).
+ROS2_TIME_END_S = 2**31
 #: diagnostic_msgs/msg/DiagnosticStatus levels.
 OK, WARN, ERROR = 0, 1, 2
 
@@ -73,9 +75,9 @@ def stamp(t: float) -> tuple[int, int]:
         # The message's int32 would hold it, but a C++ subscriber's rclcpp::Time(stamp) throws on it.
         raise MessageError(f"ROS 2 stamp: time {t} s is before 0, which a ROS 2 node's time cannot hold "
                            "(rclcpp::Time refuses a negative time point)")
-    if sec >= 2**31:
+    if sec >= ROS2_TIME_END_S:
         raise MessageError(f"ROS 2 stamp: time {t} s is beyond what ROS 2's time holds (its seconds are a "
-                           f"32-bit integer: up to {2**31 - 1} s, 2038-01-19)")
+                           f"32-bit integer: up to {ROS2_TIME_END_S - 1} s, 2038-01-19)")
     return sec, nanosec
 
 

@@ -51,7 +51,8 @@ def main() -> None:
     if not found:
         raise SystemExit(f"matrix_snr.py: no DSP products of base or SNR cells under {data}/seq: run "
                          "bench/robustness_matrix.py first (--data for another cache)")
-    print("| scene | scene SNR dB | cells | points a frame, median | point SNR dB, median (p10-p90) | peak over median, dB |")
+    print("| scene | scene SNR dB | cells | points a frame, median | point SNR dB, median (p10-p90) "
+          "| peak over median, dB |")
     print("| --- | ---: | ---: | ---: | ---: | ---: |")
     for (scene, snr) in sorted(found, key=lambda k: (k[0], -k[1])):
         r = {key: np.concatenate(v) for key, v in found[(scene, snr)].items()}

@@ -164,9 +164,9 @@ def check_distinct(outputs: Sequence[tuple[str, str]], inputs: Sequence[tuple[st
 def read_paths(options: Sequence[tuple[str, str | None]], source: str | None = None,
                source_option: str = "--source") -> list[tuple[str, str]]:
     """(option, path) of what a run reads, for :func:`check_distinct`: the files given in
-    *options* ((option, path or None); a ``--cfg`` not given is the shipped cfg) and the recording or ColoRadar run the *source* URL
-    streams (``replay://DIR``, ``coloradar://DIR``) or the scene file it simulates
-    (``sim://FILE``), named *source_option*."""
+    *options* ((option, path or None); a ``--cfg`` not given is the shipped cfg) and the
+    recording or ColoRadar run the *source* URL streams (``replay://DIR``, ``coloradar://DIR``) or
+    the scene file it simulates (``sim://FILE``), named *source_option*."""
     from ..cfg import shipped_config_path
     from ..driver.sources import split_url
 

@@ -112,7 +112,8 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         print(f"radar-sim: interrupted at frame {written} of {sim.num_frames}; {kept}", file=sys.stderr)
         return 130
     status.clear()
-    print(f"radar-sim: {sim.num_frames} frame{'' if sim.num_frames == 1 else 's'} of {scene.name} ({sim.num_frames * sim.period:.1f} s, "
+    frames = f"{sim.num_frames} frame{'' if sim.num_frames == 1 else 's'}"
+    print(f"radar-sim: {frames} of {scene.name} ({sim.num_frames * sim.period:.1f} s, "
           f"seed {args.seed}) in {time.monotonic() - start:.1f} s -> {args.out}")
     return 0
 

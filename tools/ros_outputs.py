@@ -10,9 +10,6 @@ from ..errors import UsageError
 from ..mount import Mount
 from .cli import mount
 
-#: The first second a ROS 2 stamp cannot hold (builtin_interfaces/Time's int32 seconds).
-ROS2_TIME_END_S = 2**31
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """--mount, --mcap, --odom-json."""
@@ -48,6 +45,8 @@ def check_times(args: argparse.Namespace, source) -> None:
     span = source.time_span() if asked else None
     if span is None:
         return
+    from ..ros2_messages import ROS2_TIME_END_S  # (the ROS 2 messages only when asked for)
+
     first, last, where = span
     if first < 0 or last >= ROS2_TIME_END_S:
         raise UsageError(f"{where}: the frames' times run from {first:.6g} s to {last:.6g} s, and a ROS 2 stamp holds "

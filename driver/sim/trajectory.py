@@ -289,7 +289,8 @@ def from_spec(spec: dict[str, Any], where: str = "<scene>") -> Trajectory:
             raise _fail("needs a list of segments or waypoints", where)
         given = [key for key in ("speed", "turn_rate") if key in spec]
         if given:  # else left unused, the segments' own speeds (default 1 m/s) taken instead
-            raise _fail(f"{' and '.join(given)} go{'es' if len(given) == 1 else ''} with waypoints; with segments each segment takes its own "
+            verb = "goes" if len(given) == 1 else "go"
+            raise _fail(f"{' and '.join(given)} {verb} with waypoints; with segments each segment takes its own "
                         "(straight = 2, speed = 0.5; rotate = 90, rate = 30)", where)
     return from_segments(segments, start=start, smoothing_s=smoothing, height=height, mount=mount,
                          where=where)

@@ -48,7 +48,8 @@ from ..live.frame_clock import FrameClock
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number, whole_in
 from .framer import TlvFramer
-from .layout import DEFAULT_BAUD, DEFAULT_MAX_POINTS, MAX_BAUD, MIN_BAUD, DemoGeometry, check_uart_budget, demo_config, gui_selection
+from .layout import (DEFAULT_BAUD, DEFAULT_MAX_POINTS, MAX_BAUD, MIN_BAUD, DemoGeometry, check_uart_budget,
+                     demo_config, gui_selection)
 from .recording import UartRecorder
 from .products import PacketFrames
 from .wire import Packet
