@@ -4,12 +4,14 @@ other errors.  The view's process runs niced: on a busy machine it heard of a co
 server broke at once seconds late, and took the web server for a slow viewer.
 
 Rerun's recording is stood in for by one whose flush fails as late and in the words given; what
-listens at the address is a real socket.
+listens at the address is a real socket that answers HTTP/2's greeting (what does not answer it in
+kind is judged before any flush: test_view.py's web server and listener that closes).
 """
 
 from __future__ import annotations
 
 import socket
+import threading
 import time
 
 import pytest
@@ -37,11 +39,26 @@ class LateRecording:
 
 @pytest.fixture
 def port():
-    """Something that accepts connections on loopback (the kernel's backlog does)."""
+    """Something on loopback that answers HTTP/2's greeting as a gRPC server does (an empty
+    SETTINGS frame), so that Rerun's flush is what judges it."""
     with socket.socket() as listener:
         listener.bind(("127.0.0.1", 0))
         listener.listen()
+        held = []
+
+        def greet() -> None:
+            while True:
+                try:
+                    conn, _ = listener.accept()
+                except OSError:  # closed: the test is over
+                    return
+                held.append(conn)
+                conn.sendall(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))
+
+        threading.Thread(target=greet, daemon=True).start()
         yield listener.getsockname()[1]
+    for conn in held:
+        conn.close()
 
 
 def probe(port: int, delay_s: float, said: str) -> tuple[str | None, LateRecording]:

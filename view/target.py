@@ -165,10 +165,18 @@ def not_a_viewer(recording, target: ViewTarget) -> str | None:
     (a viewer; nothing there yet, whose data waits for one; no answer in time, which the close's
     timeout judges).  Rerun's gRPC client only logs that what it reached broke the connection (a
     web server, any other program on the port), in ANSI-coloured lines every flush tick, and the
-    view counted its frames as drawn: the flush of the view's first data raises it at once.  The
-    recording is then disconnected (nothing more is sent, nor logged by Rerun)."""
+    view counted its frames as drawn.  So the address is first greeted in HTTP/2, which a
+    viewer's gRPC server answers in kind; then the flush of the view's first data raises what
+    Rerun heard.  The recording is then disconnected (nothing more is sent, nor logged by Rerun)."""
     if viewer_missing(target, wait_s=0.0):
         return None
+    url = grpc_url(target.address)
+    verdict = _http2_verdict(target)
+    if verdict == _NO_ANSWER:
+        return None  # a viewer too slow to greet, or a program that never answers: the close's timeout judges
+    if verdict:
+        recording.disconnect()
+        return f"what answers at {url} is not a Rerun viewer: {verdict}"
     for _ in range(CONNECT_PROBE_TRIES):
         started = time.monotonic()
         try:
@@ -182,9 +190,53 @@ def not_a_viewer(recording, target: ViewTarget) -> str | None:
             if not str(exc).startswith(_SEVERED) and time.monotonic() - started >= 0.9 * CONNECT_PROBE_S:
                 continue
             recording.disconnect()
-            url = grpc_url(target.address)
             return f"what answers at {url} is not a Rerun viewer: it broke the connection ({_rerun_said(exc, url)})"
     return None
+
+
+#: What a client opens an HTTP/2 connection with when it knows the server speaks it, as gRPC over
+#: plain TCP does (RFC 9113 section 3.4): the preface and an empty SETTINGS frame.
+_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+#: An HTTP/2 frame header's length and where its type is; a server's first frame is its SETTINGS.
+_H2_FRAME_HEADER, _H2_TYPE_AT, _H2_SETTINGS = 9, 3, 4
+#: What :func:`_http2_verdict` says of an address that took the connection and said nothing in time.
+_NO_ANSWER = "no answer"
+
+
+def _http2_verdict(target: ViewTarget) -> str | None:
+    """Whether what answers at a plain ``rerun+http://`` target's address speaks HTTP/2, as a
+    viewer's gRPC server does (it answers a client's preface with its SETTINGS frame; a web server
+    with an HTTP/1 error page): None if it does or was not asked (TLS, or no connection: Rerun's
+    flush judges), :data:`_NO_ANSWER` if it said nothing in time, else how it showed it does not.
+    Asked on a connection of its own, whose answer comes whole however late: Rerun's gRPC client
+    reports its first data flushed without waiting for the server's first frame."""
+    parts = urllib.parse.urlsplit(grpc_url(target.address))
+    if parts.scheme != "rerun+http":
+        return None
+    try:
+        conn = socket.create_connection((parts.hostname, parts.port or 80),
+                                        timeout=CONNECT_PROBE_S * CONNECT_PROBE_TRIES)
+    except OSError:
+        return None
+    answer = b""
+    with conn:
+        try:
+            conn.sendall(_H2_PREFACE)
+            while len(answer) < _H2_FRAME_HEADER:
+                chunk = conn.recv(_H2_FRAME_HEADER - len(answer))
+                if not chunk:
+                    break
+                answer += chunk
+        except TimeoutError:
+            return _NO_ANSWER if not answer else None
+        except OSError:  # reset: it took the connection and threw it away
+            pass
+    if len(answer) == _H2_FRAME_HEADER and answer[_H2_TYPE_AT] == _H2_SETTINGS:
+        return None
+    if not answer:
+        return "it closed the connection when greeted in HTTP/2, which a viewer's gRPC speaks"
+    began = answer.decode("ascii", "backslashreplace")
+    return f"it does not speak HTTP/2, which a viewer's gRPC does (its answer began {began!r})"
 
 
 def lost_viewer(target: ViewTarget):
