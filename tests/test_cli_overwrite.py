@@ -488,7 +488,7 @@ def test_a_path_within_its_files_names_of_the_systems_limit_is_refused_before_an
     not the NUL), made 20 nested directories and failed on '.capture.json...tmp' (exit 1)."""
     target = os.pathconf(tmp_path, "PC_PATH_MAX") - short_of_path_max
     parts, length = [], len(str(tmp_path))
-    while length + 201 < target:
+    while target - length > 202:  # the last name gets 1 to 201 characters (an empty one added no '/')
         parts.append("c" * 200)
         length += 201
     parts.append("d" * (target - length - 1))
