@@ -22,7 +22,6 @@ Split off :mod:`radarodom.publish`, which re-exports the names here.
 from __future__ import annotations
 
 import dataclasses
-import ipaddress
 import json
 import logging
 import os
@@ -34,6 +33,7 @@ from typing import Any, Sequence
 import zenoh
 
 from .errors import PublishConfigError, PublishError
+from .zenoh_endpoints import check_config_file_settings, endpoint_list
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -56,8 +56,6 @@ CONNECT_RETRY = "{period_init_ms: 100, period_max_ms: 1000, period_increase_fact
 #: a session waits for pending handshakes, and an endpoint that accepts TCP but
 #: never answers (not Zenoh, or a dead link) would hold Ctrl-C that long.
 HANDSHAKE_TIMEOUT_MS = 2000
-#: Protocols whose address is host:port.
-_INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 _ROS_TOPIC = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+")
 
 #: The source location zenoh appends to its error messages.
@@ -93,39 +91,6 @@ def _json5_where(path: str, reason: str) -> str:
     return f"{path}: {reason}"
 
 
-def _check_endpoint(endpoint: Any, option: str) -> str:
-    if not isinstance(endpoint, str) or "/" not in endpoint:
-        raise PublishConfigError(f"{option}: {endpoint!r} is not an endpoint; expected "
-                                 "PROTOCOL/ADDRESS, e.g. tcp/192.168.1.10:7447")
-    protocol, address = endpoint.split("/", 1)
-    address = re.split(r"[?#]", address, maxsplit=1)[0]
-    if protocol in _INET_PROTOCOLS:
-        host, _, port = address.rpartition(":")
-        if not host or not port.isascii() or not port.isdigit():
-            raise PublishConfigError(f"{option}: {endpoint!r} needs HOST:PORT after {protocol}/, "
-                                     f"e.g. {protocol}/192.168.1.10:7447")
-        if int(port) > 65535:
-            raise PublishConfigError(f"{option}: {endpoint!r}: port {port} is above 65535")
-        if re.fullmatch(r"[0-9.]+", host):  # dotted digits: an IPv4 address, or a typo of one
-            try:
-                ipaddress.IPv4Address(host)
-            except ValueError:
-                raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv4 address") from None
-    return endpoint
-
-
-def _endpoints(value: Any, option: str) -> tuple[str, ...] | None:
-    if value is None:
-        return None
-    if isinstance(value, str):
-        value = (value,)
-    endpoints = tuple(_check_endpoint(e, option) for e in value)
-    twice = next((e for i, e in enumerate(endpoints) if e in endpoints[:i]), None)
-    if twice is not None:  # (Zenoh found its own first listener there: "another program listens")
-        raise PublishConfigError(f"{option}: {twice} is given twice: give each endpoint once")
-    return endpoints
-
-
 @dataclass(frozen=True)
 class ZenohOptions:
     """How to open the Zenoh session and where to publish.
@@ -147,8 +112,8 @@ class ZenohOptions:
     def __post_init__(self) -> None:
         if self.mode is not None and self.mode not in MODES:
             raise PublishConfigError(f"zenoh mode must be one of {', '.join(MODES)}, got {self.mode!r}")
-        object.__setattr__(self, "connect", _endpoints(self.connect, "connect"))
-        object.__setattr__(self, "listen", _endpoints(self.listen, "listen"))
+        object.__setattr__(self, "connect", endpoint_list(self.connect, "connect", connect=True))
+        object.__setattr__(self, "listen", endpoint_list(self.listen, "listen", connect=False))
         _check_key_prefix(self.key_prefix)
         if isinstance(self.ros2_domain, bool) or not isinstance(self.ros2_domain, int) \
                 or not 0 <= self.ros2_domain <= 232:
@@ -212,6 +177,10 @@ class ZenohOptions:
                 config = zenoh.Config.from_file(path)
             except zenoh.ZError as exc:
                 raise PublishConfigError(f"zenoh config {_json5_where(path, zenoh_reason(exc))}") from None
+            with open(path, encoding="utf-8", errors="replace") as fh:
+                text = fh.read()
+            check_config_file_settings(config.get_json, path, text, mode=self.mode, listen=self.listen,
+                                       connect=self.connect)
         else:
             config = zenoh.Config()
             # One machine, no network: no multicast; peers found by endpoint only.
@@ -317,7 +286,7 @@ def _unsupported_protocol(options: ZenohOptions, reason: str) -> str | None:
 
 def _open_failure(options: ZenohOptions, reason: str) -> str:
     text = f"cannot open the Zenoh session ({options.describe()}): {reason}"
-    if options.effective_mode == "client":
+    if options.effective_mode == "client" or (options.config_file and "Unable to connect" in reason):
         text += " (is the Zenoh router running? Without a router use --mode peer)"
     elif "already in use" in reason:
         text += " (another program listens there: choose another --listen)"

@@ -152,6 +152,7 @@ def test_radar_echo_finds_a_default_publisher_without_options(run, default_endpo
     (["--count", "0"], "expected a whole number >= 1"),
     (["--connect", "tcp/192.168.1.5"], "needs HOST:PORT"),
     (["--mode", "client"], "needs --connect"),
+    (["--listen", "tcp/0.0.0.0:17452", "--listen", "tcp/127.0.0.1:17452"], "are the same socket"),
     (["--key-prefix", "radar/*"], "wildcards"),
     # A newline in it split the status line in two; a space went through as well.
     (["--key-prefix", "a\nb"], "spaces and control characters are not allowed"),
@@ -168,6 +169,11 @@ def test_radar_echo_bad_config_file_exits_2(capsys, tmp_path):
     assert radar_echo.main(["--zenoh-config", str(path)]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"radar-echo: error: zenoh config {path}:") and len(err.splitlines()) >= 1
+    # An endpoint Zenoh cannot parse: it waited for ever on it, without a word.
+    path.write_text('{ mode: "peer", connect: { endpoints: ["tcp/127.0.0.1:99999"] } }')
+    assert radar_echo.main(["--zenoh-config", str(path), "--count", "1"]) == 2
+    assert capsys.readouterr().err == (f"radar-echo: error: zenoh config {path}:1: connect/endpoints: "
+                                       "'tcp/127.0.0.1:99999': port 99999 is above 65535\n")
 
 
 def test_format_message_lines():

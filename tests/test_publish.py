@@ -406,6 +406,28 @@ def test_an_endpoint_given_twice_is_refused():
         ZenohOptions(connect=["tcp/127.0.0.1:7002", "tcp/127.0.0.1:7002"])
 
 
+@pytest.mark.parametrize("name, endpoints", [
+    ("listen", ["tcp/0.0.0.0:7001", "tcp/127.0.0.1:7001"]),  # every interface holds 127.0.0.1:7001 already
+    ("listen", ["tcp/127.0.0.1:7001", "tcp/[::]:7001"]),
+    ("listen", ["tcp/localhost:7001", "ws/127.0.0.1:7001"]),  # ws is on TCP too
+    ("listen", ["udp/127.0.0.1:7001", "quic/127.0.0.1:7001"]),
+    ("connect", ["tcp/localhost:7002", "tcp/127.0.0.1:7002"]),
+])
+def test_two_endpoints_on_one_socket_are_refused(name, endpoints):
+    # Zenoh's second listener found the first there and said "another program listens there".
+    with pytest.raises(PublishConfigError, match=f"{name}: .* are the same socket.*: give one") as info:
+        ZenohOptions(**{name: endpoints})
+    assert info.value.exit_code == 2
+
+
+def test_endpoints_on_different_sockets_are_taken():
+    listen = ["tcp/127.0.0.1:7001", "udp/127.0.0.1:7001", "tcp/127.0.0.2:7001", "tcp/0.0.0.0:7002",
+              "tcp/127.0.0.1:0", "tcp/0.0.0.0:0"]  # port 0: a free port each
+    connect = ["tcp/10.0.0.1:7447", "tcp/10.0.0.2:7447", "tcp/[::1]:7447", "tcp/robot.local:7447",
+               "tcp/[fe80::1%eth0]:7447"]
+    assert ZenohOptions(listen=listen, connect=connect).listen == tuple(listen)
+
+
 @pytest.mark.parametrize("text, words", [
     ("{ mode: 'peer', listen: { endpoints: [ }", "zenoh config .*zenoh.json5"),
     ("{ mode: 'banana' }", r"zenoh\.json5:1:9: unknown variant 'banana', expected one of 'router', 'peer'"),
@@ -424,6 +446,38 @@ def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
     assert "Message {" not in str(info.value)  # nor the Rust error's debug form
     with pytest.raises(PublishConfigError, match="no such file"):
         ZenohOptions(config_file=tmp_path / "missing.json5").to_config()
+
+
+@pytest.mark.parametrize("text, words", [
+    # Zenoh retried a connect endpoint it could not parse for ever without a word.
+    ('{ mode: "peer",\n  connect: { endpoints: ["tcp/127.0.0.1:99999"] } }',
+     r"zenoh\.json5:2: connect/endpoints: 'tcp/127\.0\.0\.1:99999': port 99999 is above 65535"),
+    # A listen endpoint's bad port failed the session, naming no endpoint.
+    ("{ listen: { endpoints: ['tcp/127.0.0.1:70000'] } }",
+     r"zenoh\.json5:1: listen/endpoints: 'tcp/127\.0\.0\.1:70000': port 70000 is above 65535"),
+    ("{ listen: { endpoints: { peer: ['tcp/exa mple:7447'] } } }", "'exa mple' is not a host name"),
+    ("{ listen: { endpoints: ['tcp/0.0.0.0:17001', 'tcp/127.0.0.1:17001'] } }",
+     r"zenoh\.json5: listen/endpoints: tcp/0\.0\.0\.0:17001 and tcp/127\.0\.0\.1:17001 are the same socket"),
+    ("{ mode: 'client' }", r"zenoh\.json5: mode \"client\" needs a Zenoh router's endpoint to connect to"),
+    ("{ mode: 'client', connect: { endpoints: { peer: ['tcp/127.0.0.1:7447'] } } }", "needs a Zenoh router's"),
+])
+def test_a_config_files_endpoints_and_mode_are_checked_as_the_options_are(tmp_path, text, words):
+    path = tmp_path / "zenoh.json5"
+    path.write_text(text)
+    with pytest.raises(PublishConfigError, match=words) as info:
+        ZenohOptions(config_file=path).to_config()
+    assert info.value.exit_code == 2
+
+
+def test_a_config_files_endpoints_that_options_replace_are_not_checked(tmp_path):
+    path = tmp_path / "zenoh.json5"
+    path.write_text("{ mode: 'client', connect: { endpoints: ['tcp/127.0.0.1:99999'] } }")
+    config = _config(ZenohOptions(config_file=path, connect=["tcp/127.0.0.1:7447"]))
+    assert config["connect/endpoints"] == ["tcp/127.0.0.1:7447"] and config["mode"] == "client"
+    with pytest.raises(PublishConfigError, match="needs a Zenoh router's"):
+        ZenohOptions(config_file=path, connect=[]).to_config()
+    path.write_text("{ mode: 'client' }")  # a peer has no router to find
+    assert _config(ZenohOptions(config_file=path, mode="peer"))["mode"] == "peer"
 
 
 def test_a_config_file_with_a_bom_is_read(tmp_path):
@@ -455,6 +509,11 @@ def _big(path):
     (dict(listen=["tcp/127.0.0.1:99999"]), "port 99999 is above 65535"),
     (dict(listen=["tcp/999.0.0.1:17452"]), "999.0.0.1 is not an IPv4 address"),
     (dict(connect=["udp/10.0.0.256:7447"]), "10.0.0.256 is not an IPv4 address"),
+    # Zenoh took these and retried them for ever without a word.
+    (dict(connect=["tcp/exa mple:17453"]), "'exa mple' is not a host name or an IP address"),
+    (dict(connect=["tcp/[::1:17453"]), r"\[::1 is not an IPv6 address in brackets, e\.g\. tcp/\[::1\]:17453"),
+    (dict(connect=["tcp/::1:17453"]), r"an IPv6 address goes in brackets, e\.g\. tcp/\[::1\]:17453"),
+    (dict(connect=["tcp/127.0.0.1:0"]), "port 0 is no port to connect to"),
     (dict(listen=[7447]), "not an endpoint"),
     (dict(key_prefix=""), "non-empty"),
     (dict(key_prefix="radar/*"), "wildcards"),

@@ -1,0 +1,151 @@
+"""Zenoh endpoints checked before a session opens: their text (``PROTOCOL/HOST:PORT``), two
+that name one socket, and the mode and endpoints a Zenoh config file sets.
+
+Zenoh itself reports a bad endpoint late and vaguely: a connect endpoint it cannot parse is
+retried for ever without a word, a listen endpoint's bad port fails the session naming no
+endpoint, and a socket listened on twice reads "address already in use" as if another program
+held it.  Split off :mod:`radarodom.zenoh_session`.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import re
+from typing import Any, Callable
+
+from .errors import PublishConfigError
+
+#: Protocols whose address is host:port.
+INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+#: The transport under each host:port protocol: two endpoints on one port share its socket.
+_TRANSPORT = {"tcp": "tcp", "tls": "tcp", "ws": "tcp", "udp": "udp", "quic": "udp"}
+#: A host name (RFC 1123 labels; underscores, which some networks use, allowed).
+_HOST_NAME = re.compile(r"(?=.{1,253}\.?$)[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?"
+                        r"(?:\.[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?)*\.?")
+#: Addresses that listen on every interface: a socket on one of them takes the port on all.
+_EVERY_INTERFACE = ("0.0.0.0", "::")
+_LOOPBACK_NAMES = {"localhost": "127.0.0.1", "ip6-localhost": "::1"}
+
+
+def check_endpoint(endpoint: Any, option: str, *, connect: bool) -> str:
+    """*endpoint* if Zenoh can use it (PublishConfigError naming *option* otherwise); a connect
+    endpoint needs a port other than 0 (a listen endpoint on port 0 takes a free one)."""
+    if not isinstance(endpoint, str) or "/" not in endpoint:
+        raise PublishConfigError(f"{option}: {endpoint!r} is not an endpoint; expected "
+                                 "PROTOCOL/ADDRESS, e.g. tcp/192.168.1.10:7447")
+    protocol, _ = endpoint.split("/", 1)
+    if protocol not in INET_PROTOCOLS:
+        return endpoint
+    _, port = _host_port(endpoint, option)
+    if port == 0 and connect:
+        raise PublishConfigError(f"{option}: {endpoint!r}: port 0 is no port to connect to; give the "
+                                 "port the peer or router listens on, e.g. 7447")
+    return endpoint
+
+
+def _host_port(endpoint: str, option: str) -> tuple[str, int]:
+    """The host (an IP address's text, or a name) and port of a host:port endpoint."""
+    protocol, address = endpoint.split("/", 1)
+    address = re.split(r"[?#]", address, maxsplit=1)[0]
+    host, _, port = address.rpartition(":")
+    if not host or not port.isascii() or not port.isdigit():
+        raise PublishConfigError(f"{option}: {endpoint!r} needs HOST:PORT after {protocol}/, "
+                                 f"e.g. {protocol}/192.168.1.10:7447")
+    if int(port) > 65535:
+        raise PublishConfigError(f"{option}: {endpoint!r}: port {port} is above 65535")
+    if host.startswith("[") or host.endswith("]"):
+        try:
+            if not (host.startswith("[") and host.endswith("]")):
+                raise ValueError
+            return str(ipaddress.IPv6Address(host[1:-1].split("%", 1)[0])), int(port)
+        except ValueError:
+            raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv6 address in brackets, "
+                                     f"e.g. {protocol}/[::1]:{port}") from None
+    if ":" in host:
+        raise PublishConfigError(f"{option}: {endpoint!r}: an IPv6 address goes in brackets, "
+                                 f"e.g. {protocol}/[{host}]:{port}")
+    if re.fullmatch(r"[0-9.]+", host):  # dotted digits: an IPv4 address, or a typo of one
+        try:
+            return str(ipaddress.IPv4Address(host)), int(port)
+        except ValueError:
+            raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv4 address") from None
+    if not _HOST_NAME.fullmatch(host):
+        raise PublishConfigError(f"{option}: {endpoint!r}: {host!r} is not a host name or an IP address")
+    return _LOOPBACK_NAMES.get(host.lower(), host.lower()), int(port)
+
+
+def endpoint_list(value: Any, option: str, *, connect: bool) -> tuple[str, ...] | None:
+    """The endpoints of an option (a string or a sequence of them; None stays None), each
+    checked, no two on one socket."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = (value,)
+    endpoints = tuple(check_endpoint(e, option, connect=connect) for e in value)
+    check_distinct(endpoints, option, connect=connect)
+    return endpoints
+
+
+def check_distinct(endpoints: tuple[str, ...], option: str, *, connect: bool) -> None:
+    """PublishConfigError when two endpoints name one socket (the same text, localhost and
+    127.0.0.1, or, to listen on, an address and every interface on the same port): Zenoh's
+    second listener found the first there and said another program listens."""
+    seen: list[tuple[str, tuple[str, str, int] | None]] = []
+    for endpoint in endpoints:
+        place = _place(endpoint)
+        for earlier, earlier_place in seen:
+            if endpoint == earlier:
+                raise PublishConfigError(f"{option}: {endpoint} is given twice: give each endpoint once")
+            if place and earlier_place and _same_socket(place, earlier_place, listening=not connect):
+                raise PublishConfigError(f"{option}: {earlier} and {endpoint} are the same socket"
+                                         + ("" if connect else " (0.0.0.0 and [::] listen on every interface, "
+                                            "taking the port on all of them)") + ": give one")
+        seen.append((endpoint, place))
+
+
+def _place(endpoint: str) -> tuple[str, str, int] | None:
+    protocol = endpoint.split("/", 1)[0]
+    if protocol not in _TRANSPORT:
+        return None
+    host, port = _host_port(endpoint, "")
+    return _TRANSPORT[protocol], host, port
+
+
+def _same_socket(a: tuple[str, str, int], b: tuple[str, str, int], *, listening: bool) -> bool:
+    if a[0] != b[0] or a[2] != b[2] or (listening and a[2] == 0):
+        return False
+    return a[1] == b[1] or (listening and (a[1] in _EVERY_INTERFACE or b[1] in _EVERY_INTERFACE))
+
+
+def check_config_file_settings(get_json: Callable[[str], str], path: str, text: str, *, mode: str | None,
+                               listen: tuple[str, ...] | None, connect: tuple[str, ...] | None) -> None:
+    """Check what a Zenoh config file sets, as the options are checked: its endpoints (those
+    the options given replace are left alone) and a client's need of a router.  *get_json* reads
+    a key of the loaded config (``zenoh.Config.get_json``), *text* is the file's, for lines;
+    *mode*, *listen*, *connect* the options given (None: the file's)."""
+    mode = mode or json.loads(get_json("mode")) or "peer"
+    given = {"listen": listen, "connect": connect}
+    chosen: dict[str, tuple[str, ...]] = {}
+    for name in ("listen", "connect"):
+        if given[name] is not None:
+            chosen[name] = given[name]
+            continue
+        value = json.loads(get_json(f"{name}/endpoints"))
+        per_mode = value if isinstance(value, dict) else {mode: value}  # Zenoh's {router: [...], peer: [...]}
+        for endpoints in per_mode.values():
+            for endpoint in endpoints:
+                check_endpoint(endpoint, _where(path, text, endpoint, f"{name}/endpoints"), connect=name == "connect")
+        chosen[name] = tuple(per_mode.get(mode) or ())
+        check_distinct(chosen[name], f"zenoh config {path}: {name}/endpoints", connect=name == "connect")
+    if mode == "client" and not chosen["connect"]:
+        raise PublishConfigError(f"zenoh config {path}: mode \"client\" needs a Zenoh router's endpoint to connect "
+                                 "to: add connect: { endpoints: [\"tcp/192.168.1.10:7447\"] }, or give --connect")
+
+
+def _where(path: str, text: str, endpoint: str, key: str) -> str:
+    """``zenoh config PATH:LINE: KEY``: the line the endpoint's text is first on (none if not found)."""
+    found = [at for at in (text.find(f'"{endpoint}"'), text.find(f"'{endpoint}'")) if at >= 0]
+    at = min(found, default=-1)
+    line = f":{text.count(chr(10), 0, at) + 1}" if at >= 0 else ""
+    return f"zenoh config {path}{line}: {key}"
