@@ -255,6 +255,22 @@ def test_partial_last_timestamp_line_is_ignored(tmp_path, small_cfg, warnings_lo
     assert any("partly written" in m for m in warning_messages(warnings_log))
 
 
+def test_a_closed_recordings_last_timestamp_line_without_its_end_of_line_is_read(tmp_path, small_cfg,
+                                                                                 warnings_log):
+    """An editor that saves without a final newline made the closed recording's last line 'partly
+    written': ignored with a warning, then 'the files disagree' (5 lines for 6 frames)."""
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 6, t0=T0)
+    path = d / "timestamps.txt"
+    path.write_bytes(path.read_bytes().rstrip(b"\n"))
+    cap = CaptureDirectory(d)
+    np.testing.assert_allclose(cap.timestamps, T0 + PERIOD * np.arange(6), atol=1e-9)
+    assert warning_messages(warnings_log) == []
+    path.write_bytes(path.read_bytes() + b"x")  # what it holds is still checked
+    with pytest.raises(CaptureFormatError, match=r"timestamps\.txt:6: "):
+        CaptureDirectory(d)
+
+
 def test_cut_timestamp_of_last_frame_is_extrapolated(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 6, t0=T0)

@@ -195,10 +195,11 @@ def read_metadata(path: str, frames_in_data: int) -> dict[str, Any] | None:
     return check_metadata(meta, path)
 
 
-def read_timestamps(path: str, max_lines: int) -> np.ndarray:
+def read_timestamps(path: str, max_lines: int, *, closed: bool = False) -> np.ndarray:
     """The frame times in timestamps.txt: one plain decimal number per line, finite, within
     +-:data:`TIMESTAMP_LIMIT_S`, strictly increasing.  A last line without its end of line
-    (the writer cut off) is ignored with a warning; blank lines at the end (up to
+    is the writer cut off, ignored with a warning, unless the recording was *closed* (then an
+    editor saved it so, and it is read); blank lines at the end (up to
     :data:`_MAX_TRAILING_BLANK_LINES`) are ignored, a blank line before a timestamp is refused.
     More than *max_lines* timestamps (the whole frames of the data file) are refused as soon as
     they are met."""
@@ -225,8 +226,9 @@ def read_timestamps(path: str, max_lines: int) -> np.ndarray:
                 if len(line) >= _MAX_TIMESTAMP_LINE:
                     raise CaptureFormatError(f"{path}:{lineno}: a line longer than {_MAX_TIMESTAMP_LINE} "
                                              f"bytes: not a timestamp")
-                log.warning("%s:%d: ignoring a partly written last line", path, lineno)
-                break
+                if not closed:
+                    log.warning("%s:%d: ignoring a partly written last line", path, lineno)
+                    break
             if blank:
                 raise CaptureFormatError(f"{path}:{blank[0]}: a blank line among the timestamps: every "
                                          f"line is one frame's time (only the end may have blank lines)")

@@ -142,7 +142,8 @@ class CaptureDirectory:
         self.metadata: dict[str, Any] = meta or {}
         capture_check.check_data_length(self.directory, size, fb, meta)
         ts_path = os.path.join(self.directory, TIMESTAMPS)
-        stamps = (capture_check.read_timestamps(ts_path, size // fb) if os.path.exists(ts_path) else None)
+        stamps = (capture_check.read_timestamps(ts_path, size // fb, closed=bool(meta and meta["closed"]))
+                  if os.path.exists(ts_path) else None)
         whole = capture_check.frame_count(self.directory, size, fb, cfg_name, meta, stamps)
         self.timestamps = capture_check.timestamps_for(self.directory, stamps, whole, config.frame_period_s)
         self.num_frames = whole
