@@ -63,11 +63,28 @@ def read_cfg_file(path: Any) -> tuple[str, str]:
         raise ConfigError(f"larger than {MAX_CFG_BYTES // (1 << 20)} MiB, the most a cfg is read to "
                           f"(a cfg is a few KB): not a radar configuration?", path=where)
     data = data.removeprefix(codecs.BOM_UTF8)  # Windows editors save one
-    try:
-        return where, data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data[: exc.start].count(b"\n") + 1
-        raise ConfigError("not a text file (invalid UTF-8)", path=where, line=line) from None
+    if _utf16(data):
+        raise ConfigError("UTF-16 text (as some Windows editors save it): save it as UTF-8 or ASCII",
+                          path=where)
+    lines = data.split(b"\n")
+    for lineno, line in enumerate(lines, start=1):
+        try:
+            lines[lineno - 1] = line.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            if line.lstrip(b" \t").startswith(b"%"):  # a comment in another encoding (Latin-1): never sent
+                lines[lineno - 1] = line.decode("latin-1")
+                continue
+            raise ConfigError(f"column {exc.start + 1}: byte 0x{line[exc.start]:02X} is not UTF-8 text: save the "
+                              "file as UTF-8 or ASCII (commands are plain ASCII)", path=where, line=lineno) from None
+    return where, "\n".join(lines)
+
+
+def _utf16(data: bytes) -> bool:
+    """Whether *data* looks like UTF-16: its byte order mark, or ASCII with every other byte 0."""
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return True
+    head = data[:64]
+    return len(head) >= 4 and (not any(head[1::2]) or not any(head[0::2]))
 
 
 def _bad_character(stripped: str) -> tuple[int, str] | None:

@@ -480,17 +480,33 @@ def test_aoa_fov_min_above_max(args, field):
 
 
 # -------------------------------------------------------------- files
-def test_file_not_utf8(tmp_path):
+def test_a_latin1_comment_is_read_and_a_latin1_command_is_refused_with_the_fix(tmp_path):
+    """A comment in Latin-1 (never sent to the radar) made the whole cfg 'not a text file'."""
     path = tmp_path / "latin1.cfg"
     lines = SMALL_CFG.encode().splitlines(keepends=True)
-    lines[7] = b"% caf\xe9 profile\n"  # line 8 is Latin-1
+    lines.insert(7, b"% caf\xe9 profile\n")  # line 8 is Latin-1
+    path.write_bytes(b"".join(lines))
+    cfg = RadarConfig.from_file(path)
+    assert "% caf\u00e9 profile" in [line.text for line in cfg.lines]
+    assert cfg.profile == RadarConfig.from_text(SMALL_CFG).profile
+    lines[7] = b"sensorStop \xe9\n"
     path.write_bytes(b"".join(lines))
     with pytest.raises(ConfigError) as info:
         RadarConfig.from_file(path)
-    err = info.value
-    assert err.line == 8
-    assert str(err).startswith(f"{path}:8: ")
-    assert "UTF-8" in str(err)
+    assert info.value.line == 8
+    assert str(info.value) == (f"{path}:8: column 12: byte 0xE9 is not UTF-8 text: save the file as UTF-8 or "
+                               "ASCII (commands are plain ASCII)")
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be"])
+def test_a_utf16_file_is_refused_with_the_fix(tmp_path, encoding):
+    """It was 'not a text file (invalid UTF-8)' (with its byte order mark) or a NUL character at
+    line 1 column 2 (without)."""
+    path = tmp_path / "utf16.cfg"
+    path.write_bytes(SMALL_CFG.encode(encoding))
+    with pytest.raises(ConfigError) as info:
+        RadarConfig.from_file(path)
+    assert str(info.value) == f"{path}: UTF-16 text (as some Windows editors save it): save it as UTF-8 or ASCII"
 
 
 def test_missing_file(tmp_path):
