@@ -148,7 +148,10 @@ def test_radar_echo_finds_a_default_publisher_without_options(run, default_endpo
 
 
 @pytest.mark.parametrize("args, words", [
-    (["bogus"], "expected one of odom, pointcloud, heatmap, status"),
+    (["bogus"], "argument KIND: expected one of odom, pointcloud, heatmap, status, got 'bogus'"),
+    # Its value was taken as a KIND and reported as a bad one.
+    (["--duration", "2"], "unrecognized arguments: --duration"),
+    (["odom", "--duration", "2"], "unrecognized arguments: --duration"),
     (["--count", "0"], "expected a whole number >= 1"),
     (["--connect", "tcp/192.168.1.5"], "needs HOST:PORT"),
     (["--mode", "client"], "needs --connect"),

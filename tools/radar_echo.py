@@ -47,19 +47,25 @@ _MAX_BYTES = {"odom": messages.MAX_JSON_BYTES, "status": messages.MAX_JSON_BYTES
               "pointcloud": messages.MAX_BINARY_BYTES, "heatmap": messages.MAX_BINARY_BYTES}
 
 
-def _kind(text: str) -> str:
-    if text not in KINDS:
-        raise argparse.ArgumentTypeError(f"expected one of {', '.join(KINDS)}, got {text!r}")
-    return text
+class _EchoParser(argparse.ArgumentParser):
+    """Checks the KINDs after the options: an unknown option's value ('--duration 2') taken as a
+    KIND was reported as a bad KIND, not as the unknown option it follows."""
+
+    def parse_args(self, args=None, namespace=None):  # type: ignore[override]
+        parsed = super().parse_args(args, namespace)
+        bad = [kind for kind in parsed.kinds if kind not in KINDS]
+        if bad:
+            self.error(f"argument KIND: expected one of {', '.join(KINDS)}, got {bad[0]!r}")
+        return parsed
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _EchoParser(
         prog="radar-echo",
         description="Print what radarodom publishes over Zenoh, live, one line per message: odometry "
                     "(t, frame, x, y, yaw, speed, flags), status (JSON), point clouds (frame, t, count), "
                     "heatmaps (frame, t, shape).")
-    parser.add_argument("kinds", nargs="*", type=_kind, metavar="KIND",
+    parser.add_argument("kinds", nargs="*", metavar="KIND",
                         help=f"what to print: {', '.join(KINDS)} (default: {' '.join(DEFAULT_KINDS)})")
     parser.add_argument("--count", type=cli.positive_int, metavar="N", help="exit after N messages")
     parser.add_argument("--json", action="store_true",
