@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import os
 import re
+import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -198,8 +200,15 @@ class HeatmapSink(Sink):
         return (name in (cls.INDEX, cls.INDEX + ".tmp")
                 or re.fullmatch(rf"\d{{6,}}_({'|'.join(cls.FILES)})\.npy", name) is not None)
 
-    def __init__(self, directory: str | os.PathLike) -> None:
+    #: The index is written again when this much time has passed since it was last (s): a run
+    #: killed outright leaves at most about this long of frames unlisted, and a long run rewrites
+    #: its growing index once a second, never once a frame.
+    INDEX_EVERY_S = 1.0
+
+    def __init__(self, directory: str | os.PathLike, *, clock: Callable[[], float] = time.monotonic) -> None:
         self.directory = given_path(directory, CaptureError, "directory path")
+        self._clock = clock
+        self._index_at = -math.inf
         try:
             os.makedirs(self.directory, exist_ok=True)
         except OSError as exc:
@@ -229,8 +238,10 @@ class HeatmapSink(Sink):
                                f"{exc.strerror or exc}; the {len(self._index['frames'])} frames before are kept"
                                ) from None
         self._index["frames"].append({"frame": frame, "t": t})
-        if len(self._index["frames"]) % 50 == 1:
+        now = self._clock()
+        if now - self._index_at >= self.INDEX_EVERY_S:
             self._write_index()
+            self._index_at = now
 
     def _write_index(self) -> None:
         path = os.path.join(self.directory, self.INDEX)

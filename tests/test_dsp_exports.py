@@ -205,3 +205,22 @@ def test_failed_heatmap_export_leaves_no_csv_behind(tmp_path):
                        "--heatmap-out", hm_dir)
     assert proc.returncode == 2, proc.stderr
     assert not csv_path.exists(), csv_path.read_text()
+
+
+def test_the_heatmap_index_lists_all_but_the_last_second_of_frames_before_the_end(tmp_path):
+    """What a run killed outright (SIGKILL) leaves: the index as last written.  It was written
+    every 50 frames: killed after 4 s at 10 Hz, 28 frames' files and an index listing 1."""
+    from radarodom.pipeline.sinks import HeatmapSink
+    from radarodom.products import RangeAzimuth
+
+    ticks = iter(np.arange(100) * 0.1)  # a frame every 0.1 s
+    sink = HeatmapSink(tmp_path / "maps", clock=lambda: float(next(ticks)))
+    cells = np.ones((4, 3), np.float32)
+    for frame in range(35):
+        sink.write_heatmap(frame, frame * 0.1, RangeAzimuth(cells, cells, cells, np.arange(4.0),
+                                                            np.linspace(-0.5, 0.5, 3)))
+    listed = [e["frame"] for e in json.loads((tmp_path / "maps" / "index.json").read_text())["frames"]]
+    assert listed == list(range(len(listed))) and 35 - len(listed) <= 10  # a second at most unlisted
+    assert all((tmp_path / "maps" / f"{frame:06d}_intensity.npy").exists() for frame in range(35))
+    sink.close()
+    assert len(json.loads((tmp_path / "maps" / "index.json").read_text())["frames"]) == 35
