@@ -58,7 +58,8 @@ def read_cfg_file(path: Any) -> tuple[str, str]:
         with open(where, "rb") as fh:
             data = fh.read(MAX_CFG_BYTES + 1)
     except OSError as exc:
-        raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=where) from None
+        hint = "; for standard input give /dev/stdin" if where == "-" else ""
+        raise ConfigError(f"cannot read the file: {exc.strerror or exc}{hint}", path=where) from None
     if len(data) > MAX_CFG_BYTES:
         raise ConfigError(f"larger than {MAX_CFG_BYTES // (1 << 20)} MiB, the most a cfg is read to "
                           f"(a cfg is a few KB): not a radar configuration?", path=where)

@@ -82,12 +82,15 @@ def _json5_where(path: str, reason: str) -> str:
     what = re.search(r"^\s*=\s*(.+)$", reason, re.MULTILINE)
     if where and what:
         return f"{path}:{where.group(1)}:{where.group(2)}: {what.group(1).strip()}"
-    # A value the config's schema refuses comes as the Rust error's debug form:
-    # Message { msg: "...", location: Some(Location { line: L, column: C }) }.
-    rust = re.search(r'msg: "((?:[^"\\]|\\.)*)", location: Some\(Location \{ line: (\d+), column: (\d+)', reason)
-    if rust:
-        message = rust.group(1).replace('\\"', '"').replace("`", "'")
-        return f"{path}:{rust.group(2)}:{rust.group(3)}: {message}"
+    # A value the config's schema refuses comes as the Rust error's debug form, JSON5's
+    # Message { msg: "...", location: Some(Location { line: L, column: C }) } and YAML's
+    # Error("...", line: L, column: C).
+    for form in (r'msg: "((?:[^"\\]|\\.)*)", location: Some\(Location \{ line: (\d+), column: (\d+)',
+                 r'Error\("((?:[^"\\]|\\.)*)", line: (\d+), column: (\d+)\)'):
+        found = re.search(form, reason)
+        if found:
+            message = found.group(1).replace('\\"', '"').replace("`", "'")
+            return f"{path}:{found.group(2)}:{found.group(3)}: {message}"
     return f"{path}: {reason}"
 
 

@@ -218,6 +218,14 @@ def test_cut_off_frame_of_a_crashed_capture_is_ignored_with_warning(tmp_path, sm
                for m in warnings), warnings
 
 
+def test_a_crashed_capture_of_one_frame_says_frame(tmp_path, small_cfg, warnings_log):
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 1)
+    _crashed(d)
+    assert CaptureDirectory(d).num_frames == 1
+    assert any(m.endswith("playing its 1 whole frame") for m in warning_messages(warnings_log))  # was "frames"
+
+
 def test_cut_off_frame_without_capture_json_is_ignored_with_warning(tmp_path, small_cfg, warnings_log):
     d = tmp_path / "cap"
     frames = make_capture(d, small_cfg, 6)

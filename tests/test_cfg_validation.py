@@ -518,6 +518,13 @@ def test_missing_file(tmp_path):
     assert "cannot read" in str(info.value)
 
 
+def test_a_dash_for_standard_input_is_told_the_file_that_is(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ConfigError) as info:
+        RadarConfig.from_file("-")
+    assert str(info.value) == "-: cannot read the file: No such file or directory; for standard input give /dev/stdin"
+
+
 def test_directory_instead_of_file(tmp_path):
     with pytest.raises(ConfigError) as info:
         RadarConfig.from_file(tmp_path)

@@ -438,6 +438,19 @@ def test_endpoints_on_different_sockets_are_taken():
 ])
 def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
     path = tmp_path / "zenoh.json5"
+    _check_bad_config_file(path, text, words)
+
+
+@pytest.mark.parametrize("text, words", [  # they came as Rust's debug form: YAML error: Error("...", line: 1, ...)
+    ("mode: [peer\n", r"zenoh\.yaml:1:7: mode: invalid type: sequence, expected either 'router', 'peer'"),
+    ("mode: banana\n", r"zenoh\.yaml:1:7: mode: unknown variant 'banana', expected one of 'router', 'peer'"),
+])
+def test_a_bad_yaml_config_file_is_named_by_line_and_column(tmp_path, text, words):
+    _check_bad_config_file(tmp_path / "zenoh.yaml", text, words)
+
+
+def _check_bad_config_file(path, text, words):
+    tmp_path = path.parent
     path.write_text(text)
     with pytest.raises(PublishConfigError, match=words) as info:
         ZenohOptions(config_file=path).to_config()

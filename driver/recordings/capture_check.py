@@ -326,7 +326,7 @@ def frame_count(directory: str, data_bytes: int, frame_bytes: int, cfg_name: str
             f"(a recording cut by a crash lacks at most the last one)")
     if meta is not None:
         log.warning("%s: the recording was not closed (its process was killed or crashed); playing "
-                    "its %d whole frames%s", directory, whole,
+                    "its %d whole frame%s%s", directory, whole, "" if whole == 1 else "s",
                     f", ignoring {tail} bytes of a cut-off frame" if tail else "")
     elif tail:
         log.warning("%s: adc_data.bin ends with %d bytes of a cut-off frame after frame %d of %s; they "
