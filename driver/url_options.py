@@ -35,25 +35,23 @@ def parse_rate(text: str) -> float:
 
 
 def at_least(minimum: int) -> Callable[[str], int]:
-    """A ``UrlOptions.take`` converter: a whole number from *minimum* to :data:`MAX_WHOLE_OPTION`."""
-    def convert(text: str) -> int:
-        if whole_beyond(text, MAX_WHOLE_OPTION):
-            raise ValueError(text, f"at most {MAX_WHOLE_OPTION}")  # the limit, said only when it is what is wrong
-        value = plain_int(text)
-        if value is None or value < minimum:
-            raise ValueError(text)
-        return value
-    return convert
+    """A ``UrlOptions.take`` converter: a whole number from *minimum* to :data:`MAX_WHOLE_OPTION`
+    (the limit said only when it is what is wrong)."""
+    return _whole(minimum, MAX_WHOLE_OPTION, None)
 
 
 def whole_in(lo: int, hi: int) -> Callable[[str], int]:
     """A ``UrlOptions.take`` converter: a whole number from *lo* to *hi*."""
+    return _whole(lo, hi, f"from {lo} to {hi}")
+
+
+def _whole(lo: int, hi: int, limit: str | None) -> Callable[[str], int]:
     def convert(text: str) -> int:
-        value = None if whole_beyond(text, hi) else plain_int(text)
+        beyond = whole_beyond(text, hi)
+        value = None if beyond else plain_int(text)
         if value is None or not lo <= value <= hi:
-            raise ValueError(text)
+            raise ValueError(text, limit or (f"at most {hi}" if beyond else ""))
         return value
-    convert.limit = f"from {lo} to {hi}"  # type: ignore[attr-defined]
     return convert
 
 
