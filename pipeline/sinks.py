@@ -201,14 +201,16 @@ class HeatmapSink(Sink):
                 or re.fullmatch(rf"\d{{6,}}_({'|'.join(cls.FILES)})\.npy", name) is not None)
 
     #: The index is written again when this much time has passed since it was last (s): a run
-    #: killed outright leaves at most about this long of frames unlisted, and a long run rewrites
-    #: its growing index once a second, never once a frame.
+    #: killed outright leaves about this long of frames unlisted.  A long run's index grows, and
+    #: once writing it takes longer than a tenth of this the wait grows to ten times the write, so
+    #: rewriting it never takes more than a tenth of the run, on any disk.
     INDEX_EVERY_S = 1.0
 
     def __init__(self, directory: str | os.PathLike, *, clock: Callable[[], float] = time.monotonic) -> None:
         self.directory = given_path(directory, CaptureError, "directory path")
         self._clock = clock
         self._index_at = -math.inf
+        self._index_every = self.INDEX_EVERY_S
         try:
             os.makedirs(self.directory, exist_ok=True)
         except OSError as exc:
@@ -238,10 +240,11 @@ class HeatmapSink(Sink):
                                f"{exc.strerror or exc}; the {len(self._index['frames'])} frames before are kept"
                                ) from None
         self._index["frames"].append({"frame": frame, "t": t})
-        now = self._clock()
-        if now - self._index_at >= self.INDEX_EVERY_S:
+        began = self._clock()
+        if began - self._index_at >= self._index_every:
             self._write_index()
-            self._index_at = now
+            self._index_at = self._clock()
+            self._index_every = max(self.INDEX_EVERY_S, 10 * (self._index_at - began))
 
     def _write_index(self) -> None:
         path = os.path.join(self.directory, self.INDEX)

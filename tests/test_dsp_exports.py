@@ -224,3 +224,24 @@ def test_the_heatmap_index_lists_all_but_the_last_second_of_frames_before_the_en
     assert all((tmp_path / "maps" / f"{frame:06d}_intensity.npy").exists() for frame in range(35))
     sink.close()
     assert len(json.loads((tmp_path / "maps" / "index.json").read_text())["frames"]) == 35
+
+
+def test_a_slow_index_write_is_not_repeated_every_frame(tmp_path):
+    """On a disk where writing the index takes 1.5 s, it was written again with every frame
+    (its time was taken before the write); the wait now grows to ten times the write's."""
+    from radarodom.pipeline.sinks import HeatmapSink
+    from radarodom.products import RangeAzimuth
+
+    ticks = iter(np.arange(1000) * 1.5)  # every look at the clock, 1.5 s later: frames and writes alike
+    sink = HeatmapSink(tmp_path / "maps", clock=lambda: float(next(ticks)))
+    cells = np.ones((4, 3), np.float32)
+    index = tmp_path / "maps" / "index.json"
+    writes, last = 0, None
+    for frame in range(40):
+        sink.write_heatmap(frame, frame * 0.1, RangeAzimuth(cells, cells, cells, np.arange(4.0),
+                                                            np.linspace(-0.5, 0.5, 3)))
+        inode = index.stat().st_ino, index.stat().st_mtime_ns  # each write replaces the file
+        writes, last = writes + (inode != last), inode
+    assert 1 < writes <= 5, writes  # about every 10 frames (15 s), not 40 times
+    sink.close()
+    assert len(json.loads(index.read_text())["frames"]) == 40
