@@ -12,6 +12,7 @@ from __future__ import annotations
 import ipaddress
 import json
 import re
+import socket
 from typing import Any, Callable
 
 from .errors import PublishConfigError
@@ -23,8 +24,9 @@ _TRANSPORT = {"tcp": "tcp", "tls": "tcp", "ws": "tcp", "udp": "udp", "quic": "ud
 #: A host name (RFC 1123 labels; underscores, which some networks use, allowed).
 _HOST_NAME = re.compile(r"(?=.{1,253}\.?$)[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?"
                         r"(?:\.[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?)*\.?")
-#: Addresses that listen on every interface: a socket on one of them takes the port on all.
-_EVERY_INTERFACE = ("0.0.0.0", "::")
+#: Addresses that listen on every interface: ``0.0.0.0`` takes the port on every IPv4 address,
+#: ``::`` on every address (Linux's IPv6 sockets take IPv4 too unless told otherwise).
+_EVERY_IPV4, _EVERY_ADDRESS = "0.0.0.0", "::"
 _LOOPBACK_NAMES = {"localhost": "127.0.0.1", "ip6-localhost": "::1"}
 
 
@@ -58,10 +60,14 @@ def _host_port(endpoint: str, option: str) -> tuple[str, int]:
         try:
             if not (host.startswith("[") and host.endswith("]")):
                 raise ValueError
-            return str(ipaddress.IPv6Address(host[1:-1].split("%", 1)[0])), int(port)
+            address, _, scope = host[1:-1].partition("%")
+            address = str(ipaddress.IPv6Address(address))
         except ValueError:
             raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv6 address in brackets, "
                                      f"e.g. {protocol}/[::1]:{port}") from None
+        if scope and not scope.isdigit():
+            raise PublishConfigError(f"{option}: {endpoint!r}: {_scope_by_number(protocol, address, scope, port)}")
+        return address, int(port)
     if ":" in host:
         raise PublishConfigError(f"{option}: {endpoint!r}: an IPv6 address goes in brackets, "
                                  f"e.g. {protocol}/[{host}]:{port}")
@@ -73,6 +79,18 @@ def _host_port(endpoint: str, option: str) -> tuple[str, int]:
     if not _HOST_NAME.fullmatch(host):
         raise PublishConfigError(f"{option}: {endpoint!r}: {host!r} is not a host name or an IP address")
     return _LOOPBACK_NAMES.get(host.lower(), host.lower()), int(port)
+
+
+def _scope_by_number(protocol: str, address: str, scope: str, port: str) -> str:
+    """What to write instead of an interface's name after an IPv6 address's ``%``: Zenoh looks the
+    whole text up as a host name, which fails, and retries a connect endpoint for ever."""
+    try:
+        number = socket.if_nametoindex(scope)
+    except OSError:
+        return (f"Zenoh takes the interface by its number, not its name, and this machine has no interface "
+                f"named {scope!r}; `ip link` lists them with their numbers: {protocol}/[{address}%NUMBER]:{port}")
+    return (f"Zenoh takes the interface by its number, not its name: {protocol}/[{address}%{number}]:{port} "
+            f"({scope} is interface {number} here)")
 
 
 def endpoint_list(value: Any, option: str, *, connect: bool) -> tuple[str, ...] | None:
@@ -88,19 +106,21 @@ def endpoint_list(value: Any, option: str, *, connect: bool) -> tuple[str, ...] 
 
 
 def check_distinct(endpoints: tuple[str, ...], option: str, *, connect: bool) -> None:
-    """PublishConfigError when two endpoints name one socket (the same text, localhost and
-    127.0.0.1, or, to listen on, an address and every interface on the same port): Zenoh's
-    second listener found the first there and said another program listens."""
+    """PublishConfigError when an endpoint is given twice or, to listen on, two name one socket
+    (localhost and 127.0.0.1, or an address and every interface on the same port): Zenoh's
+    second listener found the first there and said another program listens.  Two connect
+    endpoints to one peer are two links (``?prio=`` ranges, say), so only their text is compared."""
     seen: list[tuple[str, tuple[str, str, int] | None]] = []
     for endpoint in endpoints:
-        place = _place(endpoint)
+        place = None if connect else _place(endpoint)
         for earlier, earlier_place in seen:
             if endpoint == earlier:
                 raise PublishConfigError(f"{option}: {endpoint} is given twice: give each endpoint once")
-            if place and earlier_place and _same_socket(place, earlier_place, listening=not connect):
+            if place and earlier_place and _same_socket(place, earlier_place):
+                wildcard = {place[1], earlier_place[1]} & {_EVERY_IPV4, _EVERY_ADDRESS}
                 raise PublishConfigError(f"{option}: {earlier} and {endpoint} are the same socket"
-                                         + ("" if connect else " (0.0.0.0 and [::] listen on every interface, "
-                                            "taking the port on all of them)") + ": give one")
+                                         + (" (0.0.0.0 listens on every IPv4 address, [::] on every address, "
+                                            "taking the port on all of them)" if wildcard else "") + ": give one")
         seen.append((endpoint, place))
 
 
@@ -112,10 +132,22 @@ def _place(endpoint: str) -> tuple[str, str, int] | None:
     return _TRANSPORT[protocol], host, port
 
 
-def _same_socket(a: tuple[str, str, int], b: tuple[str, str, int], *, listening: bool) -> bool:
-    if a[0] != b[0] or a[2] != b[2] or (listening and a[2] == 0):
+def _same_socket(a: tuple[str, str, int], b: tuple[str, str, int]) -> bool:
+    """Whether listening on *a* and on *b* (transport, host, port) takes one socket twice."""
+    if a[0] != b[0] or a[2] != b[2] or a[2] == 0:
         return False
-    return a[1] == b[1] or (listening and (a[1] in _EVERY_INTERFACE or b[1] in _EVERY_INTERFACE))
+    hosts = {a[1], b[1]}
+    if a[1] == b[1] or _EVERY_ADDRESS in hosts:
+        return True
+    return _EVERY_IPV4 in hosts and all(_is_ipv4(host) for host in hosts)
+
+
+def _is_ipv4(host: str) -> bool:
+    try:
+        ipaddress.IPv4Address(host)
+    except ValueError:
+        return False
+    return True
 
 
 def check_config_file_settings(get_json: Callable[[str], str], path: str, text: str, *, mode: str | None,
@@ -132,20 +164,29 @@ def check_config_file_settings(get_json: Callable[[str], str], path: str, text: 
             chosen[name] = given[name]
             continue
         value = json.loads(get_json(f"{name}/endpoints"))
-        per_mode = value if isinstance(value, dict) else {mode: value}  # Zenoh's {router: [...], peer: [...]}
-        for endpoints in per_mode.values():
+        per_mode = value if isinstance(value, dict) else {None: value}  # Zenoh's {router: [...], peer: [...]}
+        for each_mode, endpoints in per_mode.items():
+            keys = (name, "endpoints") + ((each_mode,) if each_mode else ())
             for endpoint in endpoints:
-                check_endpoint(endpoint, _where(path, text, endpoint, f"{name}/endpoints"), connect=name == "connect")
-        chosen[name] = tuple(per_mode.get(mode) or ())
+                check_endpoint(endpoint, _where(path, text, endpoint, keys), connect=name == "connect")
+        chosen[name] = tuple(per_mode.get(mode if isinstance(value, dict) else None) or ())
         check_distinct(chosen[name], f"zenoh config {path}: {name}/endpoints", connect=name == "connect")
-    if mode == "client" and not chosen["connect"]:
-        raise PublishConfigError(f"zenoh config {path}: mode \"client\" needs a Zenoh router's endpoint to connect "
-                                 "to: add connect: { endpoints: [\"tcp/192.168.1.10:7447\"] }, or give --connect")
+    # A client finds a router by multicast scouting, Zenoh's default, unless the file turns it off.
+    if mode == "client" and not chosen["connect"] and json.loads(get_json("scouting/multicast/enabled")) is False:
+        raise PublishConfigError(f"zenoh config {path}: mode \"client\" with multicast scouting off needs a Zenoh "
+                                 "router's endpoint to connect to: add connect: { endpoints: "
+                                 "[\"tcp/192.168.1.10:7447\"] }, give --connect, or turn scouting/multicast on")
 
 
-def _where(path: str, text: str, endpoint: str, key: str) -> str:
-    """``zenoh config PATH:LINE: KEY``: the line the endpoint's text is first on (none if not found)."""
-    found = [at for at in (text.find(f'"{endpoint}"'), text.find(f"'{endpoint}'")) if at >= 0]
-    at = min(found, default=-1)
-    line = f":{text.count(chr(10), 0, at) + 1}" if at >= 0 else ""
-    return f"zenoh config {path}{line}: {key}"
+def _where(path: str, text: str, endpoint: str, keys: tuple[str, ...]) -> str:
+    """``zenoh config PATH:LINE: KEY``: the line of the endpoint's text that follows its keys
+    (``connect``, ``endpoints``, a mode) outside comments, quoted or (YAML) bare; none if not found."""
+    code = re.sub(r"(?m)^[ \t]*(?://|#).*$", lambda comment: " " * len(comment.group()), text)
+    at = 0
+    for key in keys:
+        found = re.compile(rf"(?<![\w-])[\"']?{re.escape(key)}[\"']?\s*:").search(code, at)
+        at = found.end() if found else at
+    bare = re.escape(endpoint)
+    found = re.compile(rf"([\"']){bare}\1|(?<=[\s\[,-]){bare}(?=[ \t]*(?:$|[,\]#]))", re.M).search(code, at)
+    line = f":{text.count(chr(10), 0, found.start()) + 1}" if found else ""
+    return f"zenoh config {path}{line}: {'/'.join(keys)}"

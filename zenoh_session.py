@@ -91,6 +91,14 @@ def _json5_where(path: str, reason: str) -> str:
         if found:
             message = found.group(1).replace('\\"', '"').replace("`", "'")
             return f"{path}:{found.group(2)}:{found.group(3)}: {message}"
+    # YAML syntax: Error { kind: SCANNER, problem: "...", problem_mark: Mark { line: L, column: C },
+    # context: "while ...", context_mark: Mark { ... } }
+    mark = r'Mark \{ line: (\d+), column: (\d+) \}'
+    found = re.search(rf'problem: "((?:[^"\\]|\\.)*)", problem_mark: {mark}', reason)
+    if found:
+        context = re.search(rf'context: "((?:[^"\\]|\\.)*)", context_mark: {mark}', reason)
+        started = f" {context.group(1)} begun at {context.group(2)}:{context.group(3)}" if context else ""
+        return f"{path}:{found.group(2)}:{found.group(3)}: {found.group(1)}{started}"
     return f"{path}: {reason}"
 
 

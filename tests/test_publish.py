@@ -411,21 +411,35 @@ def test_an_endpoint_given_twice_is_refused():
     ("listen", ["tcp/127.0.0.1:7001", "tcp/[::]:7001"]),
     ("listen", ["tcp/localhost:7001", "ws/127.0.0.1:7001"]),  # ws is on TCP too
     ("listen", ["udp/127.0.0.1:7001", "quic/127.0.0.1:7001"]),
-    ("connect", ["tcp/localhost:7002", "tcp/127.0.0.1:7002"]),
 ])
 def test_two_endpoints_on_one_socket_are_refused(name, endpoints):
     # Zenoh's second listener found the first there and said "another program listens there".
     with pytest.raises(PublishConfigError, match=f"{name}: .* are the same socket.*: give one") as info:
         ZenohOptions(**{name: endpoints})
     assert info.value.exit_code == 2
+    wildcard = any(w in e for e in endpoints for w in ("0.0.0.0", "[::]"))
+    assert ("every IPv4 address" in str(info.value)) == wildcard  # the note only where it explains
 
 
 def test_endpoints_on_different_sockets_are_taken():
     listen = ["tcp/127.0.0.1:7001", "udp/127.0.0.1:7001", "tcp/127.0.0.2:7001", "tcp/0.0.0.0:7002",
-              "tcp/127.0.0.1:0", "tcp/0.0.0.0:0"]  # port 0: a free port each
+              "tcp/127.0.0.1:0", "tcp/0.0.0.0:0",  # port 0: a free port each
+              "tcp/[::1]:7002"]  # 0.0.0.0 takes IPv4 addresses only
     connect = ["tcp/10.0.0.1:7447", "tcp/10.0.0.2:7447", "tcp/[::1]:7447", "tcp/robot.local:7447",
-               "tcp/[fe80::1%eth0]:7447"]
+               "tcp/[fe80::1%1]:7447",
+               "tcp/10.0.0.1:7447?prio=1-3", "tcp/10.0.0.1:7447?prio=4-7"]  # two links to one peer
     assert ZenohOptions(listen=listen, connect=connect).listen == tuple(listen)
+    assert ZenohOptions(connect=["tcp/localhost:7002", "tcp/127.0.0.1:7002"]).connect
+
+
+def test_a_link_local_address_names_its_interface_by_number():
+    # Zenoh looked "fe80::1%lo" up as a host name and retried the connect endpoint for ever.
+    number = socket.if_nametoindex("lo")
+    expected = re.escape(f"tcp/[fe80::1%{number}]:7447 (lo is interface {number} here)")
+    with pytest.raises(PublishConfigError, match=expected):
+        ZenohOptions(connect=["tcp/[fe80::1%lo]:7447"])
+    with pytest.raises(PublishConfigError, match="no interface named 'nosuch0'; `ip link` lists them"):
+        ZenohOptions(listen=["tcp/[fe80::1%nosuch0]:7447"])
 
 
 @pytest.mark.parametrize("text, words", [
@@ -444,6 +458,8 @@ def test_a_bad_config_file_is_an_option_error_naming_it(tmp_path, text, words):
 @pytest.mark.parametrize("text, words", [  # they came as Rust's debug form: YAML error: Error("...", line: 1, ...)
     ("mode: [peer\n", r"zenoh\.yaml:1:7: mode: invalid type: sequence, expected either 'router', 'peer'"),
     ("mode: banana\n", r"zenoh\.yaml:1:7: mode: unknown variant 'banana', expected one of 'router', 'peer'"),
+    ('mode: peer\nconnect:\n  endpoints:\n   - "tcp/127.0.0.1:7447\n',  # Error { kind: SCANNER, problem: ...
+     r"zenoh\.yaml:5:1: found unexpected end of stream while scanning a quoted scalar begun at 4:6"),
 ])
 def test_a_bad_yaml_config_file_is_named_by_line_and_column(tmp_path, text, words):
     _check_bad_config_file(tmp_path / "zenoh.yaml", text, words)
@@ -471,8 +487,15 @@ def _check_bad_config_file(path, text, words):
     ("{ listen: { endpoints: { peer: ['tcp/exa mple:7447'] } } }", "'exa mple' is not a host name"),
     ("{ listen: { endpoints: ['tcp/0.0.0.0:17001', 'tcp/127.0.0.1:17001'] } }",
      r"zenoh\.json5: listen/endpoints: tcp/0\.0\.0\.0:17001 and tcp/127\.0\.0\.1:17001 are the same socket"),
-    ("{ mode: 'client' }", r"zenoh\.json5: mode \"client\" needs a Zenoh router's endpoint to connect to"),
-    ("{ mode: 'client', connect: { endpoints: { peer: ['tcp/127.0.0.1:7447'] } } }", "needs a Zenoh router's"),
+    ("{ mode: 'client', scouting: { multicast: { enabled: false } } }",
+     r"zenoh\.json5: mode \"client\" with multicast scouting off needs a Zenoh router's endpoint to connect to"),
+    ("{ mode: 'client', scouting: { multicast: { enabled: false } },\n"
+     "  connect: { endpoints: { peer: ['tcp/127.0.0.1:7447'] } } }", "needs a Zenoh router's"),
+    # The line is that of the endpoint under its key, not of its text in a comment or another key.
+    ("{ // once 'tcp/127.0.0.1:99999'\n  listen: { endpoints: ['tcp/127.0.0.1:99999'] },\n"
+     "  connect: { endpoints: ['tcp/127.0.0.1:99999'] } }", r"zenoh\.json5:2: listen/endpoints: "),
+    ("{ connect: { endpoints: { router: ['tcp/127.0.0.1:7447'],\n  peer: ['tcp/127.0.0.1:0'] } } }",
+     r"zenoh\.json5:2: connect/endpoints/peer: 'tcp/127\.0\.0\.1:0': port 0 is no port"),
 ])
 def test_a_config_files_endpoints_and_mode_are_checked_as_the_options_are(tmp_path, text, words):
     path = tmp_path / "zenoh.json5"
@@ -487,9 +510,11 @@ def test_a_config_files_endpoints_that_options_replace_are_not_checked(tmp_path)
     path.write_text("{ mode: 'client', connect: { endpoints: ['tcp/127.0.0.1:99999'] } }")
     config = _config(ZenohOptions(config_file=path, connect=["tcp/127.0.0.1:7447"]))
     assert config["connect/endpoints"] == ["tcp/127.0.0.1:7447"] and config["mode"] == "client"
+    _config(ZenohOptions(config_file=path, connect=[]))  # it finds its router by multicast scouting
+    path.write_text("{ mode: 'client', scouting: { multicast: { enabled: false } } }")
     with pytest.raises(PublishConfigError, match="needs a Zenoh router's"):
         ZenohOptions(config_file=path, connect=[]).to_config()
-    path.write_text("{ mode: 'client' }")  # a peer has no router to find
+    # a peer has no router to find
     assert _config(ZenohOptions(config_file=path, mode="peer"))["mode"] == "peer"
 
 
