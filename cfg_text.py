@@ -24,6 +24,7 @@ MAX_CFG_BYTES = 1 << 20
 WARNINGS_SHOWN = 5
 
 _LINE_END = re.compile(r"\r\n|\r|\n")
+_LINE_END_BYTES = re.compile(rb"(\r\n|\r|\n)")
 _SEPARATORS = re.compile(r"[ \t]+")
 #: Anything but printable ASCII and tab: only these need a closer look.
 _NOT_PLAIN = re.compile(r"[^ -~\t]")
@@ -64,28 +65,44 @@ def read_cfg_file(path: Any) -> tuple[str, str]:
         raise ConfigError(f"larger than {MAX_CFG_BYTES // (1 << 20)} MiB, the most a cfg is read to "
                           f"(a cfg is a few KB): not a radar configuration?", path=where)
     data = data.removeprefix(codecs.BOM_UTF8)  # Windows editors save one
-    if _utf16(data):
-        raise ConfigError("UTF-16 text (as some Windows editors save it): save it as UTF-8 or ASCII",
-                          path=where)
-    lines = data.split(b"\n")
-    for lineno, line in enumerate(lines, start=1):
+    wide = _wide_encoding(data)
+    if wide:
+        raise ConfigError(f"{wide} text (as some Windows editors save it): save it as UTF-8 or ASCII", path=where)
+    # Split at CR, LF or CRLF, as the radar and tokenize do, keeping the ends so the text is unchanged.
+    pieces = _LINE_END_BYTES.split(data)
+    for index in range(0, len(pieces), 2):
+        line = pieces[index]
         try:
-            lines[lineno - 1] = line.decode("utf-8")
+            pieces[index] = line.decode("utf-8")
         except UnicodeDecodeError as exc:
             if line.lstrip(b" \t").startswith(b"%"):  # a comment in another encoding (Latin-1): never sent
-                lines[lineno - 1] = line.decode("latin-1")
+                pieces[index] = line.decode("latin-1")
                 continue
-            raise ConfigError(f"column {exc.start + 1}: byte 0x{line[exc.start]:02X} is not UTF-8 text: save the "
-                              "file as UTF-8 or ASCII (commands are plain ASCII)", path=where, line=lineno) from None
-    return where, "\n".join(lines)
+            column = len(line[:exc.start].decode("utf-8")) + 1
+            raise ConfigError(f"column {column}: byte 0x{line[exc.start]:02X} is not UTF-8 text: save the "
+                              "file as UTF-8 or ASCII (commands are plain ASCII)", path=where,
+                              line=index // 2 + 1) from None
+    return where, "".join(piece if isinstance(piece, str) else piece.decode("ascii") for piece in pieces)
 
 
-def _utf16(data: bytes) -> bool:
-    """Whether *data* looks like UTF-16: its byte order mark, or ASCII with every other byte 0."""
+def _wide_encoding(data: bytes) -> str | None:
+    """"UTF-32" or "UTF-16" if *data* looks like it (its byte order mark, or text that is mostly
+    ASCII, whose wide form has zero bytes in fixed places), else None."""
+    if data.startswith((codecs.BOM_UTF32_LE, codecs.BOM_UTF32_BE)):
+        return "UTF-32"
     if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
-        return True
-    head = data[:64]
-    return len(head) >= 4 and (not any(head[1::2]) or not any(head[0::2]))
+        return "UTF-16"
+    head = data[:256]
+    if len(head) < 4:
+        return None
+
+    def mostly_zero(step: int, start: int) -> bool:
+        picked = head[start::step]
+        return picked.count(0) >= 0.9 * len(picked)
+
+    if any(mostly_zero(4, k) and mostly_zero(4, (k + 1) % 4) and mostly_zero(4, (k + 2) % 4) for k in range(4)):
+        return "UTF-32"
+    return "UTF-16" if mostly_zero(2, 0) or mostly_zero(2, 1) else None
 
 
 def _bad_character(stripped: str) -> tuple[int, str] | None:

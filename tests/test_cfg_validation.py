@@ -509,6 +509,32 @@ def test_a_utf16_file_is_refused_with_the_fix(tmp_path, encoding):
     assert str(info.value) == f"{path}: UTF-16 text (as some Windows editors save it): save it as UTF-8 or ASCII"
 
 
+@pytest.mark.parametrize("encoding, text, called", [
+    ("utf-32", SMALL_CFG, "UTF-32"),  # its byte order mark begins as UTF-16's: it was called UTF-16
+    ("utf-32-le", SMALL_CFG, "UTF-32"),
+    ("utf-16-le", "% \u96f7\u9054 \u8a2d\u5b9a\n" + SMALL_CFG, "UTF-16"),  # a CJK comment first: it was missed
+])
+def test_wide_encodings_are_named_right(tmp_path, encoding, text, called):
+    path = tmp_path / "wide.cfg"
+    path.write_bytes(text.encode(encoding))
+    with pytest.raises(ConfigError, match=f"{path}: {called} text .*: save it as UTF-8 or ASCII"):
+        RadarConfig.from_file(path)
+
+
+def test_a_bad_byte_is_placed_by_character_and_lines_end_at_cr_too(tmp_path):
+    path = tmp_path / "cr.cfg"
+    lines = SMALL_CFG.encode().splitlines()
+    lines.insert(1, b"% caf\xe9")  # Latin-1 comment, in a file whose lines end with CR alone
+    path.write_bytes(b"\r".join(lines) + b"\r")
+    cfg = RadarConfig.from_file(path)  # the whole file was read as one Latin-1 comment line
+    assert cfg.profile == RadarConfig.from_text(SMALL_CFG).profile
+    lines[2] = b"% \xc3\xa9t\xc3\xa9\rsensorStop \xc3\xa9\xff"  # UTF-8 characters before the bad byte
+    path.write_bytes(b"\r\n".join(lines))
+    with pytest.raises(ConfigError) as info:
+        RadarConfig.from_file(path)
+    assert info.value.line == 4 and "column 13: byte 0xFF" in str(info.value)  # it said column 14, in bytes
+
+
 def test_missing_file(tmp_path):
     path = tmp_path / "nope.cfg"
     with pytest.raises(ConfigError) as info:
