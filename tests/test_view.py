@@ -309,6 +309,17 @@ def test_spawn_without_a_display_says_what_to_do_instead(capture, tmp_path, caps
     assert not (tmp_path / "odom.tum").exists()  # refused before anything opened
 
 
+@pytest.mark.parametrize("switch", ["off", "0", "False"])
+def test_rerun_turned_off_by_the_environment_is_said_before_anything_opens(capture, tmp_path, capsys, monkeypatch,
+                                                                          switch):
+    # RERUN=off made Rerun drop everything: --view save: left an empty file and the run exited 0.
+    monkeypatch.setenv("RERUN", switch)
+    view = tmp_path / "view.rrd"
+    rc, out, err = capture_main(["--source", capture, "--no-publish", "--view", f"save:{view}"], capsys)
+    assert rc == 2 and f"the environment turns Rerun off (RERUN={switch})" in err and "unset RERUN" in err
+    assert not view.exists()
+
+
 def _taken_port_after_a_free_one():
     """A listening socket on a port whose port below is free (on a busy machine the one below an
     ephemeral port may be someone else's: then another pair is drawn)."""

@@ -82,7 +82,11 @@ _SEVERED = "gRPC connection "
 
 
 def check(target: ViewTarget) -> None:
-    """What can be known before Rerun starts: a display to spawn a viewer on, free ports."""
+    """What can be known before Rerun starts: Rerun turned on, a display to spawn a viewer on,
+    free ports."""
+    if os.environ.get("RERUN", "").strip().lower() in ("0", "off", "false"):  # Rerun's own switch
+        raise UsageError(f"the environment turns Rerun off (RERUN={os.environ['RERUN']}), so the view would "
+                         "show and save nothing: unset RERUN (or set RERUN=on), or leave --view out")
     if target.kind == "spawn" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UsageError("spawn opens a viewer window, and this session has no display (neither DISPLAY nor "
                          "WAYLAND_DISPLAY is set): serve the web viewer instead (--view web[:PORT]) and open it "
