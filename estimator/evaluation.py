@@ -147,6 +147,22 @@ def _span(traj: TumTrajectory) -> str:
     return f"{name} ({len(traj)} poses, t {time_text(traj.times[0])} .. {time_text(traj.times[-1])} s)"
 
 
+def _unit_hint(est: TumTrajectory, ref: TumTrajectory) -> str | None:
+    """Where one trajectory's times span a thousand, a million or a billion times the other's:
+    that it was written in milli-, micro- or nanoseconds (TUM's are seconds)."""
+    spans = [float(traj.times[-1] - traj.times[0]) for traj in (est, ref)]
+    if min(spans) <= 0:
+        return None
+    longer, shorter = (est, ref) if spans[0] > spans[1] else (ref, est)
+    ratio = max(spans) / min(spans)
+    for factor, times, unit in ((1e9, "a billion", "nanoseconds"), (1e6, "a million", "microseconds"),
+                                (1e3, "a thousand", "milliseconds")):
+        if factor / 2 <= ratio <= factor * 2:
+            return (f"{longer.source or 'a trajectory'}'s times span about {times} times "
+                    f"{shorter.source or 'the other'}'s: written in {unit}? TUM times are seconds")
+    return None
+
+
 def check_increasing(traj: TumTrajectory) -> None:
     bad = np.flatnonzero(np.diff(traj.times) <= 0)
     if len(bad):
@@ -180,6 +196,10 @@ def associate(est: TumTrajectory, ref: TumTrajectory, max_diff: float = 0.01
         check_trajectory(name, traj)
     for traj in (est, ref):
         check_increasing(traj)
+        if len(traj) < 2:
+            raise EvaluationError(f"{traj.source or '<trajectory>'} holds "
+                                  + ("no poses (an empty file, or only comments)" if not len(traj) else "1 pose")
+                                  + ": at least 2 are needed")
     # evo iterates over the shorter trajectory (the estimate when they are equally long).
     est_short = len(est) <= len(ref)
     short, long_ = (est, ref) if est_short else (ref, est)
@@ -206,7 +226,7 @@ def associate(est: TumTrajectory, ref: TumTrajectory, max_diff: float = 0.01
     if len(idx_short) < 2:
         raise EvaluationError(
             f"only {len(idx_short)} pose(s) of {_span(est)} and {_span(ref)} match in time within "
-            f"{max_diff:g} s; at least 2 are needed (same clock? --max-diff?)")
+            f"{max_diff:g} s; at least 2 are needed ({_unit_hint(est, ref) or 'same clock? --max-diff?'})")
     if len(idx_short) < len(short):
         log.info("%d of %d poses of %s matched", len(idx_short), len(short), short.source or "the shorter trajectory")
     pair = (short.take(idx_short), long_.take(idx_long))

@@ -289,8 +289,20 @@ def test_associate_refuses_trajectories_that_do_not_overlap_in_time():
     msg = str(info.value)
     assert "only 0 pose(s) of est.tum (30 poses, t 100.000 .. 102.900 s)" in msg
     assert "gt.tum (30 poses, t 1000.000 .. 1002.900 s)" in msg and "within 0.01 s" in msg
-    with pytest.raises(EvaluationError, match=r"empty\.tum \(no poses\)"):
+    # These were 'only 0 pose(s) of empty.tum (no poses) and ... match in time'.
+    with pytest.raises(EvaluationError, match=r"^empty\.tum holds no poses \(an empty file, or only comments\): "
+                                              r"at least 2 are needed$"):
         associate(traj([], np.zeros((0, 3)), "empty.tum"), traj(t, ref, "gt.tum"))
+    with pytest.raises(EvaluationError, match=r"^gt\.tum holds 1 pose: at least 2 are needed$"):
+        associate(traj(t, est, "est.tum"), traj(t[:1], ref[:1], "gt.tum"))
+
+
+@pytest.mark.parametrize("factor, unit", [(1e9, "nanoseconds"), (1e6, "microseconds"), (1e3, "milliseconds")])
+def test_times_in_another_unit_are_named_as_such(factor, unit):
+    t, ref, est = drive(30)
+    with pytest.raises(EvaluationError, match=f"est.tum's times span about a .* times gt.tum's: written in {unit}\\? "
+                                              "TUM times are seconds"):
+        associate(traj((t - t[0]) * factor, est, "est.tum"), traj(t - t[0], ref, "gt.tum"))
 
 
 def test_timestamps_must_increase_and_the_message_says_where(tmp_path):
