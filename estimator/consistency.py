@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import EvaluationError
 from ..plain_numbers import is_number, time_text
 from ..tum import TumTrajectory
-from .evaluation import check_increasing, check_trajectory
+from .association import check_increasing, check_trajectory
 
 #: The largest offset between a message's stamp and the time it describes: a frame's chirps last
 #: tens of milliseconds.
