@@ -182,6 +182,10 @@ def test_overwrite_replaces_only_a_regular_file(tmp_path, capsys):
     os.mkfifo(fifo)
     rc, err = capture(capsys, "--odom-out", fifo, "--overwrite")
     assert rc == 2 and "is not a regular file" in err and stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    # Without --overwrite it said 'already exists; choose a new file (or --overwrite)', which --overwrite refused.
+    for device in (fifo, "/dev/null"):
+        rc, err = capture(capsys, "--odom-out", device)
+        assert rc == 2 and "is not a regular file" in err and "leave the option out" in err and "already" not in err
 
 
 @pytest.mark.parametrize("option", ["--record", "--odom-out", "--cfg", "--estimator-config", "--source"])

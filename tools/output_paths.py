@@ -35,10 +35,12 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     if not is_dir and os.path.lexists(path):
         if os.path.isdir(path):  # --overwrite would not help: said before it is tried
             raise CaptureExistsError(f"{path} is a directory; choose a file's name (--overwrite replaces only a file)")
+        if not os.path.isfile(path):  # a device (/dev/null), a pipe, a socket, a dangling link
+            raise CaptureExistsError(f"{path} is not a regular file: outputs are written to files, new ones or, "
+                                     "with --overwrite, files replaced; choose a file's name (to write nothing, "
+                                     "leave the option out)")
         if not overwrite:
             raise CaptureExistsError(f"{path} already exists; choose a new file (or --overwrite)")
-        if not os.path.isfile(path):  # a device, a pipe, a socket, a dangling link
-            raise CaptureExistsError(f"{path} is not a regular file; --overwrite replaces only a file")
     if is_dir and os.path.isdir(path):  # an existing directory: written into, whatever is above it
         if not os.access(path, os.W_OK | os.X_OK):
             raise UsageError(f"cannot write into {path}: the directory is not writable; {CHOOSE_WRITABLE}")
