@@ -335,6 +335,21 @@ def test_the_no_peer_hint_is_given_only_when_nothing_came():
         for proc in procs:
             proc.kill()
     assert [proc.returncode for proc in procs] == [0, 0], errs
-    assert "no Zenoh peer reached yet" in errs[0], errs[0]
+    # It said 'is radar-capture publishing on this machine? (otherwise give --connect ...)', which
+    # a listener need not do: it is told what its publisher needs.
+    assert f"no Zenoh peer has connected yet to {alone}: give the publisher --connect {alone}" in errs[0], errs[0]
     assert "ignored a malformed message" in errs[1], errs[1]
-    assert "no Zenoh peer reached yet" not in errs[1], errs[1]
+    assert "no Zenoh peer" not in errs[1], errs[1]
+
+
+@pytest.mark.parametrize("options, hint", [
+    (ZenohOptions(), "is radar-capture publishing on this machine? (otherwise give --connect with its endpoint)"),
+    (ZenohOptions(connect=["tcp/10.0.0.5:7447"]),
+     "no Zenoh peer reached yet at tcp/10.0.0.5:7447: is a publisher listening there "
+     "(radar-capture --listen tcp/10.0.0.5:7447)?"),
+    (ZenohOptions(listen=["tcp/0.0.0.0:7447"]),
+     "no Zenoh peer has connected yet to tcp/0.0.0.0:7447: give the publisher --connect tcp/THIS_MACHINE:7447"),
+])
+def test_the_no_peer_hint_says_where_this_session_looks(options, hint):
+    # With --connect given it still said 'otherwise give --connect with its endpoint'.
+    assert hint in radar_echo._no_peer_hint(options.for_subscriber())

@@ -20,6 +20,7 @@ import argparse
 import logging
 import math
 import queue
+import re
 import sys
 import threading
 import time
@@ -27,7 +28,7 @@ from typing import Any, Callable, Sequence
 
 from .. import messages, strict_json
 from ..errors import MessageError
-from ..publish import KINDS, open_session
+from ..publish import DEFAULT_ENDPOINT, KINDS, open_session
 from . import cli
 from .zenoh_args import add_zenoh_arguments, options_from_args
 
@@ -168,14 +169,30 @@ def _main(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"radar-echo: {', '.join(options.key(k) for k in kinds)} via {options.describe()}; "
                   "Ctrl-C stops", file=sys.stderr, flush=True)
-        return _print_loop(args, session, inbox)
+        return _print_loop(args, session, inbox, _no_peer_hint(options))
     except KeyboardInterrupt:
         return 0  # Ctrl-C is how a live listing ends: a normal exit
     finally:
         session.close()
 
 
-def _print_loop(args: argparse.Namespace, session, inbox: _Inbox) -> int:
+def _no_peer_hint(options) -> str:
+    """What to check when no peer is reached, for where this session looks for one."""
+    connect, listen = tuple(options.effective_connect or ()), tuple(options.effective_listen or ())
+    if options.config_file:
+        return f"no Zenoh peer or router reached yet (config {options.config_file}): is the publisher running?"
+    if connect == (DEFAULT_ENDPOINT,):
+        return ("no Zenoh peer reached yet: is radar-capture publishing on this machine? "
+                "(otherwise give --connect with its endpoint)")
+    if connect:
+        return (f"no Zenoh peer reached yet at {' '.join(connect)}: is a publisher listening there "
+                f"(radar-capture --listen {connect[0]})?")
+    # A publisher connects to this machine's address where this one listens on every interface.
+    target = re.sub(r"/(0\.0\.0\.0|\[::\]):", "/THIS_MACHINE:", listen[0]) if listen else "ENDPOINT"
+    return f"no Zenoh peer has connected yet to {' '.join(listen)}: give the publisher --connect {target}"
+
+
+def _print_loop(args: argparse.Namespace, session, inbox: _Inbox, no_peer_hint: str) -> int:
     printed = received = 0
     started = time.monotonic()
     hinted = False
@@ -189,8 +206,7 @@ def _print_loop(args: argparse.Namespace, session, inbox: _Inbox) -> int:
             if not hinted and not received and time.monotonic() - started > _QUIET_HINT_S:
                 hinted = True
                 if not list(session.info.peers_zid()) and not list(session.info.routers_zid()):
-                    log.warning("no Zenoh peer reached yet: is radar-capture publishing on this machine? "
-                                "(otherwise give --connect with its endpoint)")
+                    log.warning("%s", no_peer_hint)
             continue
         received += 1
         try:
