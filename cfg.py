@@ -43,6 +43,9 @@ RAW_LVDS_LINE = "lvdsStreamCfg -1 0 1 0"
 
 #: The radar configuration shipped in ``configs/`` and used when none is given.
 DEFAULT_CONFIG_NAME = "awr1843_raw.cfg"
+#: The one ``tidemo://`` uses when none is given: the same radar with 128 samples, whose frames
+#: the demo's UART carries at 10 frames/s, and the chip's CFAR at 10 dB.
+TIDEMO_CONFIG_NAME = "awr1843_tidemo.cfg"
 
 
 def _path_text(path: Any) -> str:

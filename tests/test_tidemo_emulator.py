@@ -134,10 +134,16 @@ def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp
         assert "5 frames (0 incomplete, 0 bytes missing)" in stdout
         assert emu.stop() == 0
     assert "radar-emulate: sent" in emu.output()[0]
-    with Emulator("--uart", "--source", "sim://corridor") as emu:  # radar-capture is told to give a cfg
+    # Without --cfg, radar-capture's tidemo:// sends its own shipped cfg, which the fake demo runs
+    # (it had to be told to give one: the raw-capture cfg it used was refused).
+    with Emulator("--uart", "--source", "sim://corridor") as emu:
         assert "--cfg" not in emu.command
-    # Read once it has stopped: output() waits for the end of its pipes (5 s each while it runs).
-    assert "needs a cfg whose frames the UART carries" in emu.output()[0]
+        capture = Process(emu.capture_argv("--frames", 3, "--no-publish"))
+        code = capture.wait(120)
+        capture.kill()
+        stdout, stderr = capture.output()
+        assert code == 0, stderr
+        assert "3 frames (0 incomplete, 0 bytes missing)" in stdout
     shipped = Process([*console_command("radar-emulate"), "--uart", "--source", "sim://corridor", "--cfg",
                        str(REPO / "configs" / "awr1843_raw.cfg")])
     assert shipped.wait(60) == 2

@@ -37,13 +37,31 @@ def test_a_frame_rate_the_uart_cannot_carry_is_refused_before_any_port_is_opened
     assert "ms at 921600 baud" in msg and "73.1 ms" in msg
     assert "frameCfg period of at least 130 ms" in msg and "numAdcSamples 128 or less" in msg
     assert err.value.command == "frameCfg" and "no cfg was given" not in msg
-    # Given no cfg, the shipped one is used: the error says so, and what to give.
-    with pytest.raises(ConfigError) as err:
+    # Given no cfg, the shipped tidemo cfg is used, which the default 921600 baud carries (the
+    # raw-capture cfg was, and refused: every tidemo:// user had to make a cfg first) and a
+    # slower rate does not: the error says so, and what to give.
+    with pytest.raises(SourceError, match="no data port /nonexistent-data"):
         open_source("tidemo:///nonexistent-data?cli=/nonexistent-cli")
+    with pytest.raises(ConfigError) as err:
+        open_source("tidemo:///nonexistent-data?cli=/nonexistent-cli&baud=115200")
     said = str(err.value)
-    assert said.startswith(f"{shipped_config_path()}: frameCfg: the UART cannot carry") and said.endswith(
-        "(no cfg was given, so the shipped raw-capture cfg was used: give one the UART carries with --cfg; "
+    tidemo_cfg = shipped_config_path("awr1843_tidemo.cfg")
+    assert said.startswith(f"{tidemo_cfg}: frameCfg: the UART cannot carry") and said.endswith(
+        "(no cfg was given, so the shipped awr1843_tidemo.cfg was used: give one the UART carries with --cfg; "
         "docs/tidemo.md says how to make it)"), said
+
+
+def test_the_shipped_tidemo_cfg_is_the_raw_one_as_the_uart_needs_it():
+    """configs/awr1843_tidemo.cfg: the raw-capture cfg's radar with 128 samples (its monitors'
+    slices fitted to the shorter ADC window), the chip's CFAR at 10 dB, LVDS off; nothing else."""
+    raw = RadarConfig.from_file(SHIPPED)
+    demo = RadarConfig.from_file(shipped_config_path("awr1843_tidemo.cfg"))
+    assert demo.profile.num_adc_samples == 128 and raw.profile.num_adc_samples == 256
+    changed = {str(a) for a in demo.lines if a.kind == "command"} - {str(a) for a in raw.lines if a.kind == "command"}
+    assert changed == {"profileCfg 0 77 100 6 40 0 0 96 1 128 8000 0 0 30", "cfarCfg -1 0 2 8 4 3 0 10 1",
+                       "cfarCfg -1 1 0 8 4 4 1 10 1", "lvdsStreamCfg -1 0 0 0", "CQRxSatMonitor 0 3 4 49 0",
+                       "CQSigImgMonitor 0 63 4"}
+    assert demo.frame == raw.frame and demo.channel == raw.channel
 
 
 def test_a_slower_uart_is_refused_and_a_faster_one_takes_configdataport():

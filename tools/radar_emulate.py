@@ -5,7 +5,7 @@ streaming a recording or the simulator, to try the live path without hardware; o
 
     radar-emulate --capture DIR [--loss P] [--reorder P] ...
     radar-emulate --source sim://lab [--command-port 4096 --data-port 4098]
-    radar-emulate --uart --source sim://corridor --cfg my_tidemo.cfg [--uart-drop P] ...
+    radar-emulate --uart --source sim://corridor [--cfg my_tidemo.cfg] [--uart-drop P] ...
 
 It prints the --source URL (and --cfg) to give to radar-capture (and, with --command-port,
 the settings for xwr), then runs until Ctrl-C.  docs/live.md describes the emulators' timings,
@@ -57,8 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                        "(default: the source's own)")
     parser.add_argument("--uart", action="store_true",
                         help="no DCA1000: the fake radar runs TI's demo firmware and streams its points and static "
-                             "heatmap on its data port (a second pty) for tidemo:// (docs/tidemo.md); give --cfg a "
-                             "cfg whose frames the UART carries")
+                             "heatmap on its data port (a second pty) for tidemo:// (docs/tidemo.md); it runs the "
+                             "cfg radar-capture sends (--cfg, passed on; without it tidemo://'s own, "
+                             "configs/awr1843_tidemo.cfg)")
     faults = parser.add_argument_group(
         "faults", "Each P is a probability per data packet, 0 to 1, drawn independently (--seed reproduces a "
                   "run); what radar-capture should then report is in docs/live.md.")
@@ -161,9 +162,6 @@ def _serve_uart(url: str, cfg_path: str | None, config: RadarConfig | None, args
             command = ["radar-capture", "--source", rig.url()] + (["--cfg", cfg_path] if cfg_path else [])
             print(f"radar-emulate: radar CLI on {rig.cli_path}, demo data port on {rig.data_path}; streaming "
                   f"{url} as the demo's UART output")
-            if not cfg_path:
-                print("radar-emulate: note: radar-capture needs a cfg whose frames the UART carries (the shipped one's "
-                      "do not at 10 frames/s): add --cfg FILE (docs/tidemo.md)")
             print(shlex.join(command), flush=True)
             while not stop.wait(0.5):
                 pass

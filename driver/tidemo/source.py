@@ -41,7 +41,7 @@ from typing import Iterator
 
 import serial
 
-from ...cfg import RadarConfig, shipped_config_path
+from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
 from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.frame_clock import FrameClock
@@ -293,14 +293,14 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
     start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
     options.finish()
-    cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
+    cfg = config if config is not None else RadarConfig.from_file(shipped_config_path(TIDEMO_CONFIG_NAME))
     # The UART budget and the antenna layout are checked before any port is looked for or opened.
     try:
         check_uart_budget(cfg, DemoGeometry.from_config(cfg).layout(gui_selection(cfg)), baud, max_points)
     except ConfigError as exc:
         if config is None:  # the user gave none: say it is the shipped one, and what to do
-            raise ConfigError(f"{exc.message} (no cfg was given, so the shipped raw-capture cfg was used: give one "
-                              "the UART carries with --cfg; docs/tidemo.md says how to make it)", path=exc.path,
+            raise ConfigError(f"{exc.message} (no cfg was given, so the shipped {TIDEMO_CONFIG_NAME} was used: give "
+                              "one the UART carries with --cfg; docs/tidemo.md says how to make it)", path=exc.path,
                               line=exc.line, command=exc.command, field=exc.field) from None
         raise
     for what, port in (("data port", path), ("CLI port", cli)):
