@@ -473,3 +473,25 @@ def test_radar_devices_json_runs_and_finds_nothing_here():
 def test_radar_devices_usage_error_exits_2(capsys):
     assert radar_devices.main(["--bogus"]) == 2
     assert "usage: radar-devices" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- the default source
+
+def test_a_radar_without_a_dca1000_streams_over_its_uart_by_default(tree, warnings_log):
+    """radar-capture without --source chose dca1000:// for any radar found, which without a
+    DCA1000 failed asking for the board network's address: the board alone now goes tidemo://."""
+    from radarodom.driver.live.default_source import live_source_url
+
+    tree.xds110("1-2", bus=1, address=5, serial="R0061004", cli="ttyACM0", data="ttyACM1")
+    cli = str(tree.dev / "ttyACM0")
+    # 192.0.2.1 (TEST-NET-1) is no address of this machine: no sign of a DCA1000 at all.
+    url = live_source_url(cli, usb_find=no_usb, host_ip="192.0.2.1", **tree.roots())
+    assert url == f"tidemo://?cli={cli}"
+    (msg,) = warning_messages(warnings_log)
+    assert f"radar found on {cli}, and no DCA1000" in msg and "--source dca1000://" in msg
+    warnings_log.clear()
+    # This computer holding the board's host address is a DCA1000 set up (its USB need not be in).
+    assert live_source_url(cli, usb_find=no_usb, host_ip="127.0.0.1", **tree.roots()) == f"dca1000://?cli={cli}"
+    tree.usb_device("1-3", DCA1000, bus=1, address=6, serial="FT1234", product="DCA1000")
+    assert live_source_url(cli, usb_find=no_usb, host_ip="192.0.2.1", **tree.roots()) == f"dca1000://?cli={cli}"
+    assert warning_messages(warnings_log) == []

@@ -44,16 +44,11 @@ DEFAULT_SIM_URL = "sim://corridor"
 
 
 def _default_source() -> str:
-    """The live radar when one is plugged in (standard addresses), else the simulator."""
-    from ..driver.live.discovery import default_cli_port, no_radar_message
+    """The live radar when one is plugged in (through its DCA1000, or its UART without one), else
+    the simulator."""
+    from ..driver.live.default_source import default_source_url
 
-    port = default_cli_port()
-    if port is not None:
-        log.info("radar found on %s: streaming it through the DCA1000 at the standard addresses", port)
-        return f"dca1000://?cli={port}"
-    log.warning("%s. Streaming the simulator meanwhile: %s (choose a source with --source)",
-                no_radar_message(), DEFAULT_SIM_URL)
-    return DEFAULT_SIM_URL
+    return default_source_url(DEFAULT_SIM_URL)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,14 +62,17 @@ def build_parser() -> argparse.ArgumentParser:
                "simulates a scene (corridor, room, lab, calibration, or a .toml/.json file). "
                "dca1000://[BOARD_IP][?cli=PORT&host=IP&delay=US&policy=latest|queue] streams the live "
                "radar. coloradar://RUN_DIR[?velocity=single_chip|single_chip_adc&heatmap=cascade|single_chip|"
-               "single_chip_adc&rate=1.0|max&start=S&calib=DIR] plays a ColoRadar run. Without --source: the live radar when one is plugged in, else "
-               f"{DEFAULT_SIM_URL}.")
+               "single_chip_adc&rate=1.0|max&start=S&calib=DIR] plays a ColoRadar run. tidemo://[DATA_PORT][?cli=PORT] "
+               "streams the radar alone, its demo firmware's points and heatmap (no DCA1000). Without --source: "
+               "the live radar when one is plugged in (dca1000:// where a DCA1000 is attached, else tidemo://), "
+               f"else {DEFAULT_SIM_URL}.")
     parser.add_argument("--cfg", metavar="FILE",
                         help="radar configuration (TI .cfg); for replay:// of a capture directory "
                              "it defaults to the directory's radar.cfg")
     parser.add_argument("--source", metavar="URL",
                         help=f"frame source ({', '.join(s + '://' for s in sorted(SCHEMES))}; default: "
-                             f"the live radar if one is plugged in, else {DEFAULT_SIM_URL})")
+                             f"the live radar if one is plugged in, through its DCA1000 or without one over "
+                             f"its UART, else {DEFAULT_SIM_URL})")
     parser.add_argument("--record", metavar="DIR", help="record the frames to this new capture directory")
     parser.add_argument("--points-out", metavar="FILE.csv",
                         help="run the DSP and write every frame's point cloud to this new CSV file")
