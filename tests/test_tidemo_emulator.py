@@ -117,6 +117,18 @@ def test_a_packet_the_uart_cannot_carry_stops_the_demo_with_its_exception(cfg):
     assert ASSERT_LINE.encode() in heard
 
 
+def _capture_through(emu, frames: int) -> None:
+    """radar-capture, as the emulator printed it, takes *frames* whole frames from it."""
+    from live_helpers import Process
+
+    capture = Process(emu.capture_argv("--frames", frames, "--no-publish"))
+    code = capture.wait(120)
+    capture.kill()
+    stdout, stderr = capture.output()
+    assert code == 0, stderr
+    assert f"{frames} frames (0 incomplete, 0 bytes missing)" in stdout
+
+
 def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp_path):
     from conftest import REPO, console_command
     from live_helpers import Emulator, Process
@@ -126,24 +138,14 @@ def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp
     with Emulator("--uart", "--source", "sim://corridor", "--cfg", cfg_file) as emu:
         assert emu.command[:2] == ["radar-capture", "--source"] and emu.command[2].startswith("tidemo:///dev/")
         assert emu.command[3:] == ["--cfg", str(cfg_file)]
-        capture = Process(emu.capture_argv("--frames", 5, "--no-publish"))
-        code = capture.wait(120)
-        capture.kill()
-        stdout, stderr = capture.output()
-        assert code == 0, stderr
-        assert "5 frames (0 incomplete, 0 bytes missing)" in stdout
+        _capture_through(emu, 5)
         assert emu.stop() == 0
     assert "radar-emulate: sent" in emu.output()[0]
     # Without --cfg, radar-capture's tidemo:// sends its own shipped cfg, which the fake demo runs
     # (it had to be told to give one: the raw-capture cfg it used was refused).
     with Emulator("--uart", "--source", "sim://corridor") as emu:
         assert "--cfg" not in emu.command
-        capture = Process(emu.capture_argv("--frames", 3, "--no-publish"))
-        code = capture.wait(120)
-        capture.kill()
-        stdout, stderr = capture.output()
-        assert code == 0, stderr
-        assert "3 frames (0 incomplete, 0 bytes missing)" in stdout
+        _capture_through(emu, 3)
     shipped = Process([*console_command("radar-emulate"), "--uart", "--source", "sim://corridor", "--cfg",
                        str(REPO / "configs" / "awr1843_raw.cfg")])
     assert shipped.wait(60) == 2
