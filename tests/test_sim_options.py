@@ -7,7 +7,7 @@ import math
 from urllib.parse import quote
 
 import pytest
-from conftest import warning_messages
+from conftest import REPO, warning_messages
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -143,3 +143,18 @@ def test_an_empty_path_or_address_option_is_refused(url, option):
     with pytest.raises(SourceError) as info:
         open_source(url)
     assert f"option {option}=" in str(info.value) and "expected" in str(info.value), str(info.value)
+
+
+def test_a_path_faster_than_the_cfg_measures_is_said(tmp_path, warnings_log):
+    # 5 m/s past the shipped cfg's +/-2.28 m/s was simulated in silence: every static point's
+    # Doppler folded over, and the odometry's velocity with it.
+    text = (REPO / "driver" / "sim" / "scenes" / "corridor.toml").read_text()
+    fast = tmp_path / "fast.toml"
+    fast.write_text(text.replace("{ straight = 14.5, speed = 1.2 }", "{ straight = 14.5, speed = 5.0 }"))
+    cfg = RadarConfig.from_file(shipped_config_path())
+    Simulator(cfg, load_scene("corridor"), duration_s=1.0)
+    assert not warning_messages(warnings_log)
+    Simulator(cfg, load_scene(str(fast)), duration_s=1.0)
+    (message,) = warning_messages(warnings_log)
+    assert ("drives the radar at up to 5.00 m/s, beyond the cfg's unambiguous radial velocity of "
+            f"+/-{cfg.max_velocity_mps:.2f} m/s") in message

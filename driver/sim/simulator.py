@@ -155,6 +155,7 @@ class Simulator:
             log.warning("duration %g s is longer than scene %s's trajectory (%.1f s): the sensor stands at its end "
                         "for the rest (shorten it, or loop a sim:// stream with loop=N)", duration_s,
                         scene.name, scene.trajectory.duration_s)
+        self._warn_if_too_fast(cfg, scene)
         self.max_range_m = cfg.unambiguous_range_m
         amp_ref = scene.noise_counts * math.sqrt(2.0) * 10 ** (scene.snr_db / 20.0)
         #: ADC counts of a 1 m^2 target at 1 m on boresight.
@@ -169,6 +170,19 @@ class Simulator:
         x0, y0, yaw0 = scene.trajectory.pose(0.0)
         self._origin = (float(x0), float(y0), float(yaw0))
         self._clip_warned = False
+
+    @staticmethod
+    def _warn_if_too_fast(cfg: RadarConfig, scene: Scene) -> None:
+        """A path faster than the cfg's unambiguous radial velocity folds the static world's
+        Doppler over: the frames are right for that cfg, and no velocity can be measured from them."""
+        trajectory = scene.trajectory
+        vx, vy, _ = trajectory.velocity(trajectory.times)
+        fastest = float(np.max(np.hypot(vx, vy), initial=0.0))
+        if fastest > cfg.max_velocity_mps:
+            log.warning("scene %s drives the radar at up to %.2f m/s, beyond the cfg's unambiguous radial velocity "
+                        "of +/-%.2f m/s: the static world's Doppler folds over and its velocity cannot be measured "
+                        "(slow the path, or give a cfg with a shorter chirp period)", scene.name, fastest,
+                        cfg.max_velocity_mps)
 
     def frame_time(self, i: int) -> float:
         return i * self.period
