@@ -394,7 +394,7 @@ def format_args(command: Any) -> tuple[str, ...]:
 
 def cli_name(command: Any) -> str:
     """The CLI name of a typed command object."""
-    for name, cls in TYPED_COMMANDS.items():
+    for name, cls in (*TYPED_COMMANDS.items(), *CHECKED_COMMANDS.items()):
         if type(command) is cls:
             return name
     raise UsageError(f"not a typed cfg command: {quoted(command)} (a command is one of radarodom.cfg_commands' "

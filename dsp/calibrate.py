@@ -91,12 +91,17 @@ class CalibrationMeasurement:
     rank_one_residual_deg: float
     #: The azimuth row's plane-wave direction, degrees (positive right).
     apparent_azimuth_deg: float
+    #: Frames averaged (measured on the chip: the demo's measurements combined).
     frames: int
+    #: Who measured the reflector's samples: "radarodom" (raw frames) or "demo firmware" (TI's
+    #: measureRangeBiasAndRxChanPhase on the chip, :mod:`.demo_calibration`).
+    measured_by: str = "radarodom"
 
     def describe(self) -> dict:
         """JSON-ready: ``range_bias_m``, ``coefficients`` (12 [re, im], TI's order), ``cfg_line``,
         ``snr_db``, ``residual_phase_deg``, and ``gain_db``, ``phase_deg``, ``distance_m``,
-        ``measured_range_m``, ``frames``, ``rank_one_residual_deg``, ``apparent_azimuth_deg``."""
+        ``measured_range_m``, ``frames``, ``rank_one_residual_deg``, ``apparent_azimuth_deg``,
+        ``measured_by``."""
         cal = self.calibration.describe()
         return {"range_bias_m": cal["range_bias_m"], "coefficients": cal["coefficients"],
                 "cfg_line": cal["cfg_line"], "snr_db": self.snr_db,
@@ -104,7 +109,7 @@ class CalibrationMeasurement:
                 "phase_deg": cal["phase_deg"], "distance_m": self.distance_m,
                 "measured_range_m": self.measured_range_m, "frames": self.frames,
                 "rank_one_residual_deg": self.rank_one_residual_deg,
-                "apparent_azimuth_deg": self.apparent_azimuth_deg}
+                "apparent_azimuth_deg": self.apparent_azimuth_deg, "measured_by": self.measured_by}
 
 
 class ChannelCalibrator:
@@ -227,13 +232,24 @@ class ChannelCalibrator:
         response = np.empty((NUM_TX_ANTENNAS, NUM_RX_ANTENNAS), np.complex128)
         response[self._tx_of_slot[:, None], np.array(self.cfg.rx_indices)[None, :]] = \
             response_elements.reshape(len(self._tx_of_slot), -1)
+        calibration, rank_one, azimuth = self.line_of_response(response, measured)
+        corrected = samples * calibration.for_array(self.cfg.virtual_array).ravel()[None, :]
+        common = np.sum(corrected, axis=1, keepdims=True)
+        residual = float(np.degrees(np.sqrt(np.mean(np.angle(corrected * np.conj(common)) ** 2))))
+        return CalibrationMeasurement(calibration, self.distance_m, measured, snr_db, residual, rank_one,
+                                      azimuth, len(self._frames))
+
+    def line_of_response(self, response: np.ndarray, measured: float) -> tuple[ChannelCalibration, float, float]:
+        """The line correcting the paths' *response* to the reflector, complex (3, 4) [TX - 1, RX],
+        measured at range *measured* (m), with the response's rank-one residual and apparent
+        azimuth (degrees); :class:`CalibrationError` when it is not one point on boresight."""
         rank_one = _rank_one_residual_deg(response)
         if rank_one > MAX_RANK_ONE_RESIDUAL_DEG:
             raise CalibrationError(
                 f"the reflector at {measured:.2f} m does not answer as one point: its 12 antenna phases are "
                 f"{rank_one:.1f} deg RMS from any TX-times-RX pattern (more than {MAX_RANK_ONE_RESIDUAL_DEG:g}); another "
                 "reflector at the same range or a reflection off something nearby; clear the area around it")
-        azimuth = self._apparent_azimuth_deg(response_elements)
+        azimuth = self._apparent_azimuth_deg(self.cfg.virtual_array.per_element(response).ravel())
         if abs(azimuth) > self.max_azimuth_deg:
             side = "right" if azimuth > 0 else "left"
             raise CalibrationError(
@@ -246,11 +262,7 @@ class ChannelCalibrator:
             log.warning("the reflector reads %.3f m, %.0f cm from the distance given (%g m): a board's range bias "
                         "is a few centimetres; check the distance (to the reflector's corner, from the antennas)",
                         measured, 100 * abs(measured - self.distance_m), self.distance_m)
-        corrected = samples * calibration.for_array(self.cfg.virtual_array).ravel()[None, :]
-        common = np.sum(corrected, axis=1, keepdims=True)
-        residual = float(np.degrees(np.sqrt(np.mean(np.angle(corrected * np.conj(common)) ** 2))))
-        return CalibrationMeasurement(calibration, self.distance_m, measured, snr_db, residual, rank_one,
-                                      azimuth, len(self._frames))
+        return calibration, rank_one, azimuth
 
     def _check_alone(self, zero: np.ndarray, k: int, range_of) -> None:
         peaks = [j for j in np.flatnonzero(self._inside) if 0 < j < len(zero) - 1

@@ -248,21 +248,44 @@ def test_swapped_ports_are_told_by_a_cli_port_that_never_says_anything():
            "was opened; is it the radar's CLI port (the board's first, USB interface 0" in message, message
 
 
-def test_a_data_port_that_goes_away_says_what_may_have_happened():
-    """The board unplugged mid-run: pyserial's 'device reports readiness to read but returned no
-    data' alone, where the CLI port's failure asks about the cable."""
+def _broken_after_two_frames(break_it, error) -> tuple[str, str]:
+    """Stream the fake demo, call *break_it(rig)* after its second frame, and expect *error*:
+    (the error's message, the rig's data port)."""
     from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
-    from radarodom.errors import DeviceError
 
     cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
     frames = 0
     with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
-        with pytest.raises(DeviceError) as info:
+        with pytest.raises(error) as info:
             with open_source(rig.url(), cfg) as source:
                 for frames, _ in enumerate(source, start=1):
                     if frames == 2:
-                        rig.data.close()  # the data port's other end gone, as with the cable pulled
+                        break_it(rig)
     assert frames >= 2
-    message = str(info.value)
-    assert message.startswith(f"reading the radar's data port {rig.data_path} failed (") and \
+    return str(info.value), rig.data_path
+
+
+def test_a_data_port_that_goes_away_says_what_may_have_happened():
+    """The board unplugged mid-run: pyserial's 'device reports readiness to read but returned no
+    data' alone, where the CLI port's failure asks about the cable."""
+    from radarodom.errors import DeviceError
+
+    # The data port's other end gone, as with the cable pulled.
+    message, data_path = _broken_after_two_frames(lambda rig: rig.data.close(), DeviceError)
+    assert message.startswith(f"reading the radar's data port {data_path} failed (") and \
         message.endswith("): was the USB cable unplugged or the board reset?"), message
+
+
+def test_a_demo_that_stops_streaming_is_reported_with_what_its_cli_said(caplog):
+    """The demo's exception report on its CLI port (a packet that outlasted the frame period) was
+    never read: the source only guessed at the cause when the data stopped."""
+    from radarodom.driver.emulators.fake_demo_uart import ASSERT_LINE
+    from radarodom.errors import DeviceTimeout
+
+    def assert_and_stop(rig) -> None:
+        rig.data.stop()
+        rig.radar.announce(ASSERT_LINE)
+
+    message, _ = _broken_after_two_frames(assert_and_stop, DeviceTimeout)
+    assert f"its CLI port said {ASSERT_LINE!r}: the demo stopped, as it does when a packet outlasts" in message, message
+    assert caplog.text.count(f"the radar's CLI port says: {ASSERT_LINE}") == 1

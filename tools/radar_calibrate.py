@@ -5,7 +5,8 @@
 
 A corner reflector on the radar's boresight, at the antennas' height, alone, at a known
 distance; the radar and the reflector still.  Works on any raw source: the live radar, a
-recording, the simulator (``sim://calibration?board=uncalibrated`` has one at 3 m).
+recording, the simulator (``sim://calibration?board=uncalibrated`` has one at 3 m); and on a
+board without a DCA1000 (``tidemo://``), whose demo firmware measures on the chip.
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ log = logging.getLogger("radarodom.tools.radar_calibrate")
 
 #: Frames averaged by default: a second at 10 Hz.
 DEFAULT_FRAMES = 10
+#: Frames of tidemo:// without a measurement line before the demo is taken not to measure.
+DEMO_SILENCE_FRAMES = 10
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,8 +46,9 @@ def build_parser() -> argparse.ArgumentParser:
                "it on the simulator: radar-calibrate --source 'sim://calibration?board=uncalibrated&rate=max' "
                "--distance 3")
     parser.add_argument("--source", metavar="URL",
-                        help="raw frame source (dca1000://, replay://, sim://, coloradar://...adc; default: the "
-                             "live radar if one is plugged in)")
+                        help="raw frame source (dca1000://, replay://, sim://, coloradar://...adc), or tidemo:// "
+                             "(a board without a DCA1000: its demo firmware measures; default: the live radar if "
+                             "one is plugged in, through the DCA1000 if one shows)")
     parser.add_argument("--distance", type=cli.positive_float, required=True, metavar="M",
                         help="the reflector's true distance from the radar, m")
     parser.add_argument("--search-window", type=cli.positive_float, default=0.2, metavar="M",
@@ -70,19 +74,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _default_source() -> str:
+    from ..driver.live.default_source import live_source_url
     from ..driver.live.discovery import default_cli_port, no_radar_message
 
     port = default_cli_port()
     if port is None:
         raise UsageError(f"{no_radar_message()}; give --source (for instance "
                          "'sim://calibration?board=uncalibrated' to try it on the simulator)")
-    return f"dca1000://?cli={port}"
+    return live_source_url(port)
 
 
 def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
     from ..driver.sources import open_source
     from ..dsp.calibrate import ChannelCalibrator
 
+    if args.source.split(":", 1)[0].lower() == "tidemo":
+        return _measure_on_chip(args, cfg)
     with open_source(args.source, cfg) as source:
         if not source.carries_raw or source.config is None:
             hint = ("; a ColoRadar run's single-chip ADC frames: coloradar://RUN?velocity=single_chip_adc&"
@@ -109,6 +116,39 @@ def _measure(args: argparse.Namespace, cfg: RadarConfig | None):
         return calibrator.result(), source.config
 
 
+def _measure_on_chip(args: argparse.Namespace, cfg: RadarConfig | None):
+    """tidemo://: the demo firmware measures (measureRangeBiasAndRxChanPhase 1 in the cfg sent)
+    and prints a line a frame on its CLI port; the lines are combined."""
+    from ..cfg import TIDEMO_CONFIG_NAME, shipped_config_path
+    from ..cfg_commands import MeasureRangeBiasAndRxChanPhase
+    from ..driver.sources import open_source
+    from ..dsp.calibrate import ChannelCalibrator
+    from ..dsp.demo_calibration import LINE_PREFIX, combine_demo_measurements
+
+    base = cfg if cfg is not None else RadarConfig.from_file(shipped_config_path(TIDEMO_CONFIG_NAME))
+    options = {} if args.max_azimuth is None else {"max_azimuth_deg": args.max_azimuth}
+    ChannelCalibrator(base, args.distance, args.search_window, **options)  # the cfg and window, before the radar
+    searched = 2 * args.search_window  # TI's searchWin is the whole width
+    asked = base.replace(MeasureRangeBiasAndRxChanPhase(1, args.distance, searched))
+    lines: list[str] = []
+    frames = 0
+    with open_source(args.source, asked) as source:
+        for frames, _ in enumerate(source, start=1):
+            lines = [ln for ln in source.cli_lines if ln.startswith(LINE_PREFIX)]
+            if len(lines) >= args.frames or frames >= 2 * args.frames + DEMO_SILENCE_FRAMES:
+                break
+            if not lines and frames >= DEMO_SILENCE_FRAMES:
+                raise CalibrationError(
+                    f"the demo printed no {LINE_PREFIX} line on its CLI port in {frames} frames, though the cfg "
+                    f"sent asked for it (measureRangeBiasAndRxChanPhase 1 {args.distance:g} {searched:g}): its "
+                    "firmware does not measure (TI's mmWave SDK 3.x out-of-box demo does); measure with a DCA1000 "
+                    "(--source dca1000://) instead")
+    if len(lines) < args.frames:
+        log.warning("the demo printed %d measurement(s) in %d frames, of the %d asked", len(lines), frames, args.frames)
+    result = combine_demo_measurements(asked, lines[:args.frames], args.distance, args.search_window, **options)
+    return result, asked.replace(MeasureRangeBiasAndRxChanPhase(0, args.distance, searched))
+
+
 def _main(args: argparse.Namespace) -> int:
     if args.write_cfg:  # never over what it reads (the cfg, the replayed recording's own files)
         cli.check_distinct([("--write-cfg", args.write_cfg)], cli.read_paths([("--cfg", args.cfg)], args.source))
@@ -127,9 +167,14 @@ def _main(args: argparse.Namespace) -> int:
     if args.json:
         print(json_report(result))
         return 0
-    out = [f"reflector at {result.measured_range_m:.3f} m ({result.distance_m:g} m true), "
-           f"SNR {result.snr_db:.1f} dB, {result.frames} frame{'' if result.frames == 1 else 's'}; "
-           f"residual phase after correction {result.residual_phase_deg:.2f} deg RMS",
+    frames = f"{result.frames} frame{'' if result.frames == 1 else 's'}"
+    if result.measured_by == "radarodom":
+        head = (f"SNR {result.snr_db:.1f} dB, {frames}; residual phase after correction "
+                f"{result.residual_phase_deg:.2f} deg RMS")
+    else:
+        head = (f"measured by the demo firmware, {frames}; its measurements scatter by "
+                f"{result.residual_phase_deg:.2f} deg RMS about their mean")
+    out = [f"reflector at {result.measured_range_m:.3f} m ({result.distance_m:g} m true), {head}",
            "channel response corrected (relative to TX1 RX1):"]
     out += ["  " + text for text in result.calibration.table()]
     if args.write_cfg:

@@ -18,6 +18,13 @@ aoaFovCfg and cfarFovCfg), on the demo's FFT sizes (samples and loops rounded up
 - range profile, noise profile and range-Doppler map (when guiMonitor asks): the log2 magnitude of
   the power summed over the antennas, in Q9 (uint16), Doppler bin 0 first as the chip's matrix.
 
+With ``measureRangeBiasAndRxChanPhase 1 <targetDistance> <searchWin>`` in the cfg, each frame also
+gives the line the demo prints on its CLI port (:meth:`DemoFrameMaker.measurement_line`), measured
+as TI's DPC does (``DPC_ObjDet_rangeBiasRxChPhaseMeasure``): the first chirp of each TX, the peak of
+the power summed over the 12 antennas within targetDistance +/- searchWin / 2, a parabola through
+its magnitude for the range bias, and ``conj(x) * min|x| / |x|^2`` of each antenna's sample x,
+printed in physical TX, RX order with the demo's decimals (``MmwDemo_measurementResultOutput``).
+
 The chip's own quirks beyond these (its fixed-point CFAR, its exact windows) are not modelled.
 """
 
@@ -25,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ...calibration import ChannelCalibration
 from ...cfg import RadarConfig
 from ...dsp.config import DspConfig
@@ -61,11 +69,18 @@ class DemoFrameMaker:
                          ).astype(np.complex64)
         #: Heatmap values clipped to int16 so far.
         self.saturated = 0
+        measure = config.line_of("measureRangeBiasAndRxChanPhase")
+        self._measure = measure.value if measure is not None and measure.value.enabled else None
+        #: The measurement line of the last frame made (None when the cfg does not ask for it).
+        self.measurement: str | None = None
 
     def packet(self, raw, frame_number: int, time_s: float) -> tuple[bytes, int]:
         """The packet of the raw frame *raw* (bytes of the DCA1000 layout) and its point count."""
         g, p = self.geometry, self.processor
-        result = p.process(self.raw_layout.decode(np.frombuffer(raw, np.uint8), self._cube))
+        cube = self.raw_layout.decode(np.frombuffer(raw, np.uint8), self._cube)
+        if self._measure is not None:
+            self.measurement = self.measurement_line(cube)
+        result = p.process(cube)
         pts = result.points
         points = np.zeros(len(pts), wire.POINT_DTYPE)
         for name in ("x", "y", "z", "velocity"):
@@ -89,6 +104,28 @@ class DemoFrameMaker:
         packet = wire.encode_packet(self.layout, frame_number, points, side, heat, log_magnitude=log_mag,
                                     time_cpu_cycles=int(time_s * DSP_CLOCK_HZ))
         return packet, len(points)
+
+
+    def measurement_line(self, cube: np.ndarray) -> str:
+        """The ``compRangeBiasAndRxChanPhase ...`` line the demo prints for the raw cube *cube*,
+        complex (loops, tx_slots, rx, samples); see the module docstring."""
+        g, m = self.geometry, self._measure
+        first = np.fft.fft(cube[0] * self.processor.w_range, n=g.range_bins, axis=-1)  # (slots, rx, bins)
+        power = (np.abs(first) ** 2).sum(axis=(0, 1))
+        lo = max(int(np.ceil((m.target_distance_m - m.search_window_m / 2) / g.range_step_m)), 1)
+        hi = min(int(np.floor((m.target_distance_m + m.search_window_m / 2) / g.range_step_m)), g.range_bins - 2)
+        k = lo + int(np.argmax(power[lo:hi + 1])) if hi >= lo else lo
+        y0, y1, y2 = np.sqrt(power[k - 1:k + 2])
+        curve = y0 - 2 * y1 + y2
+        offset = 0.5 * (y0 - y2) / curve if curve < 0 else 0.0
+        bias = (k + offset) * g.range_step_m - m.target_distance_m
+        x = first[:, :, k].astype(np.complex128)
+        mag2 = np.abs(x) ** 2
+        coefficients = np.conj(x) * np.sqrt(mag2.min()) / mag2
+        table = np.ones((NUM_TX_ANTENNAS, NUM_RX_ANTENNAS), np.complex128)
+        table[np.array(self.config.tx_order)[:, None] - 1, np.array(self.config.rx_indices)[None, :]] = coefficients
+        parts = [f"{v:.5f}" for c in table.ravel() for v in (c.real, c.imag)]
+        return f"compRangeBiasAndRxChanPhase {bias:.7f} " + " ".join(parts)
 
 
 def _int16(values: np.ndarray) -> np.ndarray:

@@ -96,6 +96,8 @@ class FakeDemoDataPort:
         if rate not in ("paced", "max"):
             raise ValueError(f"rate={rate!r}: expected 'paced' or 'max'")
         self.frames, self.rate, self.on_assert = frames, rate, on_assert
+        #: Called with each frame's measurement line, when the cfg asks for one (the CLI prints it).
+        self.on_measurement: Callable[[str], None] | None = None
         self.faults = faults if faults is not None else UartFaults()
         self.stats = UartStats()
         self.path: str | None = None
@@ -205,6 +207,8 @@ class FakeDemoDataPort:
                         warned = True
                         log.warning("fake demo data port: frames come late: its source makes them slower than the "
                                     "%.1f ms frame period on this computer's CPU", period * 1e3)
+                if maker.measurement is not None and self.on_measurement is not None:
+                    self.on_measurement(maker.measurement)  # the demo prints it just before it sends the packet
                 self._send_packet(packet, number, byte_rate, generation)
                 if len(packet) / byte_rate > period - active:
                     self._assert(generation)
@@ -285,7 +289,7 @@ class DemoUartRig:
         self.data = FakeDemoDataPort(frames, faults=faults, rate=rate)
         self.radar = FakeAwr1843(cli_faults, on_sensor_start=self.data.start, on_sensor_stop=self.data.stop,
                                  boot_time_s=boot_time_s, expects_lvds=False)
-        self.data.on_assert = self.radar.announce
+        self.data.on_assert = self.data.on_measurement = self.radar.announce
         try:
             self.cli_path = self.radar.open_pty()
             self.data_path = self.data.open_pty()

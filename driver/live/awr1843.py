@@ -117,6 +117,30 @@ class Awr1843Cli:
             raise DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable "
                               f"unplugged or the board reset?") from None
 
+    def unsolicited_lines(self) -> list[str]:
+        """The whole lines the firmware printed unasked since the last call, without waiting:
+        while the sensor runs, the demo prints its measurements (``compRangeBiasAndRxChanPhase
+        ...``) and its exceptions (``Obj Det DPC Exception: ...``) on this port.  A line still
+        coming is kept for the next call.  Call it only between commands."""
+        if self._port is None:
+            return []
+        try:
+            waiting = self._port.in_waiting
+            data = self._port.read(waiting) if waiting else b""
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable "
+                              f"unplugged or the board reset?") from None
+        lines = [ln for text in self._framer.feed(data) for ln in split_lines(text)]
+        pending = self._framer.pending
+        end = max(pending.rfind(b"\n"), pending.rfind(b"\r"))
+        if end >= 0:
+            lines += split_lines(pending[:end + 1].decode("ascii", errors="replace"))
+            self._framer.clear()
+            self._framer.feed(pending[end + 1:])
+        if lines:
+            self._heard_any = True
+        return lines
+
     def configure(self, cfg: RadarConfig) -> None:
         """sensorStop, flushCfg, then every cfg command; raises on the first refusal."""
         self.stop()

@@ -41,6 +41,7 @@ from typing import Iterator
 
 import serial
 
+from ...calibration import uncalibrated_note
 from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
 from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
@@ -56,6 +57,9 @@ from .wire import Packet
 
 log = logging.getLogger(__name__)
 
+#: How the demo's measurement line starts (MmwDemo_measurementResultOutput, mss_main.c): the
+#: cfg line that corrects what it measured.
+MEASUREMENT_PREFIX = "compRangeBiasAndRxChanPhase"
 #: Seconds a read of the data port waits; a read that gets nothing means the line is quiet.
 READ_TIMEOUT_S = 0.02
 POLICIES = ("latest", "queue")
@@ -110,6 +114,10 @@ class TidemoSource(Source):
                  max_points: int = DEFAULT_MAX_POINTS, policy: str = "latest", buffers: int = 8,
                  cli_timeout_s: float = COMMAND_TIMEOUT_S, start_timeout_s: float = 5.0) -> None:
         super().__init__()
+        measuring = config.line_of("measureRangeBiasAndRxChanPhase")
+        note = uncalibrated_note(config)
+        if note is not None and not (measuring is not None and measuring.value.enabled):  # radar-calibrate's own
+            log.warning("%s", note)
         self.config = config
         self.data_url, self.baud, self.policy = data_url, baud, policy
         self.geometry = DemoGeometry.from_config(config)
@@ -133,6 +141,9 @@ class TidemoSource(Source):
         self._when_left: dict | None = None
         self._last_packet = time.monotonic()
         self._closed = False
+        #: The lines the demo printed on its CLI port while streaming (its exceptions, the
+        #: measurements a cfg's measureRangeBiasAndRxChanPhase asks for), in order.
+        self.cli_lines: list[str] = []
         try:
             self._open()
         except BaseException:
@@ -187,9 +198,17 @@ class TidemoSource(Source):
             self._when_left = self.describe()
             raise
 
+    def _read_cli(self) -> None:
+        """Take in what the demo printed on its CLI port; an exception report is warned of."""
+        for line in self.radar.unsolicited_lines():
+            if not line.startswith(MEASUREMENT_PREFIX) and line not in self.cli_lines:
+                log.warning("the radar's CLI port says: %s", line)
+            self.cli_lines.append(line)
+
     def _frames(self) -> Iterator[Frame]:
         while not self.stop_requested:
             frame = self._next(0.1)
+            self._read_cli()
             if frame is not None:
                 yield frame
                 continue
@@ -197,6 +216,12 @@ class TidemoSource(Source):
                 raise DeviceError(f"reading the radar's data port {self.data_url} failed ({self._reader.error}): was "
                                   "the USB cable unplugged or the board reset?")
             quiet = time.monotonic() - self._last_packet
+            said = [ln for ln in self.cli_lines if not ln.startswith(MEASUREMENT_PREFIX)]
+            if quiet > self.data_timeout_s and said:
+                why = (f": the demo stopped, as it does when a packet outlasts the frame period (more points than "
+                       f"max_points={self.budget.max_points}?)" if "Exception" in said[-1] else "")
+                raise DeviceTimeout(f"no packet from the demo on {self.data_url} for {quiet:.1f} s; its CLI port said "
+                                    f"{said[-1]!r}{why}")
             if quiet > self.data_timeout_s:
                 raise DeviceTimeout(
                     f"no packet from the demo on {self.data_url} for {quiet:.1f} s (frame period "
