@@ -12,7 +12,8 @@ refuses where a line can tell it (:class:`CalibrationError`):
   :data:`MAX_MEAN_PHASE_ERROR_DEG` (a weak reflector, something moving in the window: the chip
   measures whatever is strongest there, and says nothing of its SNR);
 - a range that changes by more than :data:`~.calibrate.MAX_RANGE_SPREAD_BINS` of a bin over the
-  lines (the reflector or the radar moves);
+  lines (the reflector or the radar moves), or by more than :data:`WANDERING_BINS` (no steady
+  reflector in the window: the chip measures whatever is strongest there);
 - a mean response that is not one point's, or looks off boresight (the raw path's checks,
   :meth:`.calibrate.ChannelCalibrator.line_of_response`).
 
@@ -38,6 +39,9 @@ log = logging.getLogger(__name__)
 
 #: What a measurement line starts with: the cfg command it is.
 LINE_PREFIX = "compRangeBiasAndRxChanPhase"
+#: The lines' ranges spread over more than this many bins: no steady peak in the window at all
+#: (noise, or something passing), rather than a reflector that creeps.
+WANDERING_BINS = 2.0
 #: The lines' mean phase per path, its standard error (scatter / sqrt(lines)), degrees, at most:
 #: the raw path's ten frames at its weakest allowed SNR (25 dB) leave about 0.7.
 MAX_MEAN_PHASE_ERROR_DEG = 1.0
@@ -80,6 +84,12 @@ def combine_demo_measurements(cfg: RadarConfig, lines: Sequence[str], distance_m
     biases = np.array([c.range_bias_m for c in measured])
     ranges = checker.distance_m + biases
     spread = float(biases.max() - biases.min())
+    if spread > WANDERING_BINS * checker.bin_m:  # the chip takes whatever is strongest in the window
+        raise CalibrationError(
+            f"no still reflector within {checker.distance_m:g} m +/- {checker.window_m:g} m: the demo's {n} "
+            f"measurements put the strongest return anywhere from {ranges.min():.2f} m to {ranges.max():.2f} m; "
+            "nothing strong is there (check --distance; use a larger corner reflector or bring it closer) or it "
+            "moves (keep the reflector and the radar still)")
     if spread > MAX_RANGE_SPREAD_BINS * checker.bin_m:
         raise CalibrationError(
             f"the reflector at {ranges.mean():.2f} m moves: its range changed by {spread * 100:.1f} cm over the demo's "

@@ -164,8 +164,11 @@ def test_garbled_lines_are_left_out_and_said(tidemo_cfg, caplog):
 @pytest.mark.parametrize("case, lines, message", [
     ("noisy", dict(n=4, phase_noise_deg=8.0), r"the demo's 4 measurements of the reflector at 3\.\d\d m disagree by "
                                               r"\d+\.\d deg RMS, so their mean is uncertain by \d\.\d deg"),
-    ("moving", dict(n=10, bias_noise_m=0.05), r"the reflector at 3\.\d\d m moves: its range changed by \d+\.\d cm over "
+    ("moving", dict(n=10, bias_noise_m=0.02), r"the reflector at 3\.\d\d m moves: its range changed by \d+\.\d cm over "
                                               r"the demo's 10 measurements"),
+    ("nothing there", dict(n=10, bias_noise_m=0.2), r"^no still reflector within 3 m \+/- 0\.2 m: the demo's 10 "
+                                                    r"measurements put the strongest return anywhere from \d\.\d\d m to "
+                                                    r"\d\.\d\d m; nothing strong is there \(check --distance"),
 ])
 def test_lines_that_disagree_are_refused(tidemo_cfg, case, lines, message):
     with pytest.raises(CalibrationError, match=message):
