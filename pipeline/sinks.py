@@ -236,9 +236,11 @@ class HeatmapSink(Sink):
             for path in paths:
                 with contextlib.suppress(OSError):
                     os.remove(path)
+            done = len(self._index["frames"])
+            kept = {0: "no frame's heatmaps were written", 1: "the frame before is kept"}.get(
+                done, f"the {done} frames before are kept")
             raise CaptureError(f"{self.directory}: writing frame {frame}'s heatmaps failed: "
-                               f"{exc.strerror or exc}; the {len(self._index['frames'])} frames before are kept"
-                               ) from None
+                               f"{exc.strerror or exc}; {kept}") from None
         self._index["frames"].append({"frame": frame, "t": t})
         began = self._clock()
         if began - self._index_at >= self._index_every:

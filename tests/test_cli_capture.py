@@ -753,6 +753,20 @@ def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_pat
     assert len(summary) == 1 and f"stopped by an error; recorded 3 of them to {out}" in summary[0], proc.stdout
 
 
+def test_a_recording_with_no_room_for_its_first_frame_says_nothing_was_recorded(tmp_path):
+    # It said "the 0 frames before it are kept".
+    out = tmp_path / "rec"
+    frame_bytes = RadarConfig.from_file(shipped_config_path()).frame_bytes
+    proc = subprocess.run(CAPTURE + ["--source", "sim://calibration?rate=max", "--frames", "5", "--no-publish",
+                                     "--no-odom", "--record", str(out)], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(frame_bytes // 2))
+    assert proc.returncode == 1
+    assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 0 failed: File too large; "
+                                    "no frame was recorded"), proc.stderr
+    assert f"nothing recorded ({out} not made)" in proc.stdout, proc.stdout
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("option, name, limit", [("--points-out", "points.csv", 3000),
                                                  ("--odom-json", "odom.jsonl", 3000),
                                                  ("--odom-out", "odom.tum", 600)])
@@ -787,7 +801,7 @@ def test_heatmaps_that_run_out_of_room_name_the_frame_and_leave_no_part_of_it(tm
                           capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(30000))
     assert proc.returncode == 1, proc.stderr
     assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 0's heatmaps failed: File too "
-                                    "large; the 0 frames before are kept"), proc.stderr
+                                    "large; no frame's heatmaps were written"), proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["index.json"]
     assert json.loads((out / "index.json").read_text())["frames"] == []
 

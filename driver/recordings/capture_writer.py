@@ -227,8 +227,10 @@ class CaptureWriter:
                 if fd is not None:
                     with contextlib.suppress(OSError):
                         os.ftruncate(fd, length)
+            kept = {0: "no frame was recorded", 1: "the frame before it is kept"}.get(
+                self._frames, f"the {self._frames} frames before it are kept")
             raise CaptureError(f"{self.directory}: writing frame {self._frames} failed: {exc.strerror or exc}; "
-                               f"the {self._frames} frames before it are kept") from None
+                               f"{kept}") from None
         self._ts_bytes += len(ts_line)
         self._gt_bytes += 0 if gt_line is None else len(gt_line)
         index = self._frames
