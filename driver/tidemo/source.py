@@ -60,6 +60,8 @@ log = logging.getLogger(__name__)
 #: How the demo's measurement line starts (MmwDemo_measurementResultOutput, mss_main.c): the
 #: cfg line that corrects what it measured.
 MEASUREMENT_PREFIX = "compRangeBiasAndRxChanPhase"
+#: Lines of the demo's own CLI output kept (TidemoSource.cli_lines): a few minutes of measurements.
+CLI_LINES_KEPT = 2000
 #: Seconds a read of the data port waits; a read that gets nothing means the line is quiet.
 READ_TIMEOUT_S = 0.02
 POLICIES = ("latest", "queue")
@@ -142,8 +144,9 @@ class TidemoSource(Source):
         self._last_packet = time.monotonic()
         self._closed = False
         #: The lines the demo printed on its CLI port while streaming (its exceptions, the
-        #: measurements a cfg's measureRangeBiasAndRxChanPhase asks for), in order.
-        self.cli_lines: list[str] = []
+        #: measurements a cfg's measureRangeBiasAndRxChanPhase asks for, one a frame), in order:
+        #: the last CLI_LINES_KEPT.
+        self.cli_lines: collections.deque[str] = collections.deque(maxlen=CLI_LINES_KEPT)
         try:
             self._open()
         except BaseException:
