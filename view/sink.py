@@ -169,9 +169,11 @@ class Drawing:
         except Exception as exc:  # noqa: BLE001 (what the radar recorded matters more than the view)
             self.close_error = exc
             said = f"the view did not close cleanly: {type(exc).__name__}: {exc}" if lost is None else lost(exc)
-            log.warning("%s", said)
             if self.failure is None:  # (a file's writer that failed, a full disk, says so only here)
-                self.failure = said
+                self.failure = said  # said by the view's summary (and a saved file's error): once
+                log.debug("%s", said)
+            else:
+                log.warning("%s", said)
 
 
 class ThreadDrawer:
