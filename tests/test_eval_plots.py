@@ -413,6 +413,30 @@ def test_a_plot_directory_that_cannot_be_written_is_refused_before_the_work(sim_
                                  "is not writable; choose a writable destination\n")
 
 
+def test_a_figure_that_runs_out_of_room_leaves_no_cut_png_and_the_old_one_whole(sim_run, tmp_path):
+    """A full disk (here the process's file-size limit) under --plot: report.png was left cut
+    short (0 bytes), the last run's report replaced by nothing."""
+    import resource
+    import signal
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+    out = tmp_path / "plots"
+    out.mkdir()
+    (out / "report.png").write_bytes(b"the last run's report")
+    proc = subprocess.run(console_command("radar-eval") + [str(sim_run.tum), str(sim_run.rec / "groundtruth.tum"),
+                                                           "--plot", str(out)],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120, preexec_fn=small_files)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr == (f"radar-eval: error: cannot write {out / 'report.png'}: File too large; free some space, or "
+                           "choose another disk; no figure was "
+                           "written\n"), proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["report.png"]
+    assert (out / "report.png").read_bytes() == b"the last run's report"
+
+
 def test_a_flags_file_with_a_byte_order_mark_reads(tmp_path):
     path = tmp_path / "flags.jsonl"
     path.write_bytes(b"\xef\xbb\xbf" + (odom_line(1.0, 0) + odom_line(1.1, 1)).encode())

@@ -11,6 +11,7 @@ plot is asked for.
 from __future__ import annotations
 
 import logging
+import contextlib
 import os
 from typing import Any, Callable
 
@@ -153,10 +154,16 @@ def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, n
     written = []
     for filename in file_names(flags=flags is not None):
         path = os.path.join(directory, filename)
+        part = path + ".part"  # a write that fails (a full disk) leaves no cut PNG, nor replaces a whole one
         try:
-            figures[filename].savefig(path)
+            figures[filename].savefig(part, format="png")
+            os.replace(part, path)
         except OSError as exc:
-            raise CaptureError(f"cannot write {path}: {why_not_written(exc, path)}") from None
+            with contextlib.suppress(OSError):
+                os.remove(part)
+            kept = (f"the figures before it are written ({', '.join(os.path.basename(p) for p in written)})"
+                    if written else "no figure was written")
+            raise CaptureError(f"cannot write {path}: {why_not_written(exc, path)}; {kept}") from None
         log.debug("wrote %s", path)
         written.append(path)
     return written
