@@ -240,7 +240,7 @@ class HeatmapSink(Sink):
             kept = {0: "no frame's heatmaps were written", 1: "the frame before is kept"}.get(
                 done, f"the {done} frames before are kept")
             raise CaptureError(f"{self.directory}: writing frame {frame}'s heatmaps failed: "
-                               f"{exc.strerror or exc}; {kept}") from None
+                               f"{why_not_written(exc, self.directory)}; {kept}") from None
         self._index["frames"].append({"frame": frame, "t": t})
         began = self._clock()
         if began - self._index_at >= self._index_every:

@@ -741,7 +741,7 @@ def test_a_recording_that_runs_out_of_room_keeps_its_whole_frames_closed(tmp_pat
     assert proc.returncode == 1
     # The write's own failure is the one said (closing it failed too and had masked it).
     assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 3 failed: File too large; "
-                                    "the 3 frames before it are kept")
+                                    "free some space, or choose another disk; the 3 frames before it are kept")
     meta = json.loads((out / "capture.json").read_text())
     assert (meta["frame_count"], meta["closed"]) == (3, True)
     assert (out / "adc_data.bin").stat().st_size == 3 * frame_bytes  # the cut frame's part taken back
@@ -762,8 +762,21 @@ def test_a_recording_with_no_room_for_its_first_frame_says_nothing_was_recorded(
                           capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(frame_bytes // 2))
     assert proc.returncode == 1
     assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 0 failed: File too large; "
-                                    "no frame was recorded"), proc.stderr
+                                    "free some space, or choose another disk; no frame was recorded"), proc.stderr
     assert f"nothing recorded ({out} not made)" in proc.stdout, proc.stdout
+    assert not out.exists()
+
+
+def test_a_recording_with_no_room_for_its_cfg_leaves_nothing(tmp_path):
+    # capture.json and a cut radar.cfg were left, and the error was the cfg's (exit 2).
+    out = tmp_path / "rec"
+    proc = subprocess.run(CAPTURE + ["--source", "sim://calibration?rate=max", "--frames", "5", "--no-publish",
+                                     "--no-odom", "--record", str(out)], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(2000))
+    assert len(RadarConfig.from_file(shipped_config_path()).to_text()) > 2000
+    assert proc.returncode == 1
+    assert one_error_line(proc) == (f"radar-capture: error: cannot create capture directory {out}: File too large; "
+                                    "free some space, or choose another disk"), proc.stderr
     assert not out.exists()
 
 
@@ -801,7 +814,8 @@ def test_heatmaps_that_run_out_of_room_name_the_frame_and_leave_no_part_of_it(tm
                           capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(30000))
     assert proc.returncode == 1, proc.stderr
     assert one_error_line(proc) == (f"radar-capture: error: {out}: writing frame 0's heatmaps failed: File too "
-                                    "large; no frame's heatmaps were written"), proc.stderr
+                                    "large; free some space, or choose another disk; no frame's heatmaps were "
+                                    "written"), proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["index.json"]
     assert json.loads((out / "index.json").read_text())["frames"] == []
 

@@ -4,6 +4,8 @@ logger's file of it, through replay:// (driver/tidemo/replay.py)."""
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -188,6 +190,70 @@ def test_each_pass_of_a_looped_replay_counts_the_files_losses_and_a_cut_selectio
         about = source.describe()
     assert about["packets"] == 6 and about["frames_skipped"] == 2 and about["rejected_packets"] == 0
     assert about["discarded_bytes"] == 2 * (len(p[1]) - 100)
+
+
+_RECORD_SCRIPT = """
+import os, sys
+from radarodom.cfg import RadarConfig
+from radarodom.driver.tidemo.recording import UartRecorder
+from radarodom.errors import CaptureError
+src, out, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+try:
+    recorder = UartRecorder(out, RadarConfig.from_file(os.path.join(src, "radar.cfg")))
+except CaptureError as exc:
+    sys.exit(str(exc))
+try:
+    for i in range(n):
+        with open(os.path.join(src, f"{i}.bin"), "rb") as fh:
+            recorder.write_packet(fh.read(), i, 100.0 + 0.1 * i)
+except CaptureError as exc:
+    print(exc)
+recorder.close()
+"""
+
+
+def _record_with_room_for(tmp_path, cfg, n: int, limit: int) -> subprocess.CompletedProcess:
+    """UartRecorder records *n* packets into tmp_path/rec in a process whose files may hold at
+    most *limit* bytes (a full disk, as the process's file-size limit)."""
+    import resource
+    import signal
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "radar.cfg").write_text(cfg.to_text())
+    for i, data in enumerate(packets(cfg, range(1, n + 1))):
+        (src / f"{i}.bin").write_bytes(data)
+    return subprocess.run([sys.executable, "-c", _RECORD_SCRIPT, str(src), str(tmp_path / "rec"), str(n)],
+                          capture_output=True, text=True, timeout=120, preexec_fn=small_files)
+
+
+def test_a_recording_that_runs_out_of_room_keeps_whole_packets_and_plays(tmp_path, cfg):
+    """A full disk mid-packet left the packet's first part in uart.bin (and said only 'No space
+    left on device')."""
+    sizes = [len(data) for data in packets(cfg, range(1, 9))]
+    proc = _record_with_room_for(tmp_path, cfg, 8, sum(sizes[:3]) + sizes[3] // 2)
+    out = tmp_path / "rec"
+    assert proc.stdout == (f"{out}: writing frame 3's packet failed: File too large; free some space, or choose "
+                           "another disk; the 3 frames before it are kept\n"), proc.stdout + proc.stderr
+    assert (out / "uart.bin").stat().st_size == sum(sizes[:3])
+    with open_source(f"replay://{out}?rate=max") as replay:
+        played = list(replay)
+        assert replay.describe()["rejected_packets"] == 0
+    assert [f.index for f in played] == [0, 1, 2]
+
+
+def test_a_recording_that_cannot_start_leaves_nothing(tmp_path, cfg):
+    """No room for the cfg: capture.json and a cut radar.cfg were left (and the error was a
+    ConfigError, exit 2)."""
+    proc = _record_with_room_for(tmp_path, cfg, 2, 500)
+    assert len(cfg.to_text()) > 500
+    assert proc.returncode == 1 and proc.stderr.startswith(f"cannot create recording directory {tmp_path / 'rec'}: "
+                                                           "File too large; free some space"), proc.stderr
+    assert not (tmp_path / "rec").exists()
 
 
 def _recorded(directory, cfg, numbers) -> None:

@@ -36,7 +36,8 @@ from ...tum import format_tum_line
 from . import capture_check
 from .capture_check import ADC_DATA, FORMAT_NAME, FORMAT_VERSION, GROUNDTRUTH, METADATA, RADAR_CFG, TIMESTAMPS
 from .recording_dir import (  # noqa: F401 (RECORDING_FILES, holds_frames re-exported: they were defined here)
-    RECORDING_FILES, claim_recording_directory, holds_frames, remove_capture_files)
+    RECORDING_FILES, abandon_recording, claim_recording_directory, frames_kept, holds_frames,
+    remove_capture_files)
 
 log = logging.getLogger(__name__)
 
@@ -154,14 +155,16 @@ class CaptureWriter:
         self._last_meta = 0.0
         self._first_ts: float | None = None
         self._last_ts: float | None = None
+        claimed = False
         try:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
             claim_recording_directory(self.directory)
+            claimed = True  # from here on, what is in the directory is this recording's
             # capture.json first: whatever a run killed from here on leaves is then known to be
             # a recording's, which the next recording clears (one of no frame) or keeps.
             self._write_metadata()
-            config.write(os.path.join(self.directory, RADAR_CFG))
+            write_text_atomically(os.path.join(self.directory, RADAR_CFG), config.to_text())
             # Unbuffered, each file's length counted: a frame whose writing fails is taken back
             # from all three, and nothing of it is left pending to be flushed at close.
             self._data_fd = _new_file(os.path.join(self.directory, ADC_DATA))
@@ -170,6 +173,8 @@ class CaptureWriter:
             self._ts_bytes = self._gt_bytes = 0
         except OSError as exc:  # the directory, or a file in it (exc.filename): why, and the fix
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
+            if claimed:
+                abandon_recording(self.directory, self._made_directory)
             raise CaptureError(f"cannot create capture directory {self.directory}: "
                                f"{why_not_written(exc, failed)}") from None
 
@@ -227,10 +232,8 @@ class CaptureWriter:
                 if fd is not None:
                     with contextlib.suppress(OSError):
                         os.ftruncate(fd, length)
-            kept = {0: "no frame was recorded", 1: "the frame before it is kept"}.get(
-                self._frames, f"the {self._frames} frames before it are kept")
-            raise CaptureError(f"{self.directory}: writing frame {self._frames} failed: {exc.strerror or exc}; "
-                               f"{kept}") from None
+            raise CaptureError(f"{self.directory}: writing frame {self._frames} failed: "
+                               f"{why_not_written(exc, self.directory)}; {frames_kept(self._frames)}") from None
         self._ts_bytes += len(ts_line)
         self._gt_bytes += 0 if gt_line is None else len(gt_line)
         index = self._frames

@@ -12,6 +12,7 @@ and a recording refuses the directory before touching it rather than replace or 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 
@@ -111,6 +112,22 @@ def claim_recording_directory(directory: str) -> None:
     if _recording_files_in(directory):
         log.info("%s holds a recording of no frame; recording over it", directory)
         remove_capture_files(directory)
+
+
+def frames_kept(count: int) -> str:
+    """What a recording whose next frame failed keeps, said: its *count* frames before."""
+    return {0: "no frame was recorded", 1: "the frame before it is kept"}.get(
+        count, f"the {count} frames before it are kept")
+
+
+def abandon_recording(directory: str, made_directory: bool) -> None:
+    """A recording that could not start (a full disk, say): the files it began are removed, and
+    its directory if it made it, so that nothing half-made is left in the user's way."""
+    with contextlib.suppress(OSError):
+        remove_capture_files(directory)
+    if made_directory:
+        with contextlib.suppress(OSError):  # something else was put there: leave it
+            os.rmdir(directory)
 
 
 def remove_capture_files(directory: str) -> None:

@@ -34,7 +34,8 @@ from ...errors import CaptureError, why_not_written
 from ...line_file import write_file_all
 from ..recordings.capture_check import TIDEMO_FORMAT_NAME
 from ..recordings.capture_dir import write_json_atomically
-from ..recordings.recording_dir import claim_recording_directory
+from ..recordings.capture_writer import write_text_atomically
+from ..recordings.recording_dir import abandon_recording, claim_recording_directory, frames_kept
 
 log = logging.getLogger(__name__)
 
@@ -64,16 +65,23 @@ class UartRecorder:
         self._last: tuple[int, float] | None = None  # (index, timestamp) of the last packet
         self._closed = False
         data = os.path.join(self.directory, UART_DATA)
+        claimed = False
         try:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
             claim_recording_directory(self.directory)
+            claimed = True  # from here on, what is in the directory is this recording's
             self._save()  # first: the files written next are then known to be a recording's
-            config.write(os.path.join(self.directory, RADAR_CFG))
+            write_text_atomically(os.path.join(self.directory, RADAR_CFG), config.to_text())
+            # Unbuffered, each file's length counted: a packet whose writing fails is taken back.
             self._fd = os.open(data, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
-            self._ts = open(os.path.join(self.directory, TIMESTAMPS), "w", buffering=1, encoding="ascii")
+            self._ts = os.open(os.path.join(self.directory, TIMESTAMPS), os.O_WRONLY | os.O_CREAT | os.O_TRUNC
+                               | os.O_APPEND, 0o644)
+            self._bytes = self._ts_bytes = 0
         except OSError as exc:  # the directory, or a file in it (exc.filename)
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
+            if claimed:
+                abandon_recording(self.directory, self._made_directory)
             raise CaptureError(f"cannot create recording directory {self.directory}: "
                                f"{why_not_written(exc, failed)}") from None
 
@@ -90,7 +98,7 @@ class UartRecorder:
         self._closed = True
         try:
             os.close(self._fd)
-            self._ts.close()
+            os.close(self._ts)
             if self._meta["packets"]:
                 self._meta["closed"] = True
                 self._save()
@@ -118,11 +126,19 @@ class UartRecorder:
                                    f"{last_index} at {last_t:.9f} s; recording stops here")
             step = (timestamp - last_t) / (index - last_index)
             lines = [last_t + step * k for k in range(1, index - last_index)] + lines
+        text = "".join(f"{t:.9f}\n" for t in lines).encode("ascii")
         try:
             write_file_all(self._fd, data)
-            self._ts.write("".join(f"{t:.9f}\n" for t in lines))
-        except OSError as exc:
-            raise CaptureError(f"writing {self.directory} failed: {exc.strerror or exc}") from None
+            write_file_all(self._ts, text)
+        except OSError as exc:  # a full disk: the packet's part taken back, the recording whole
+            for fd, length in ((self._fd, self._bytes), (self._ts, self._ts_bytes)):
+                with contextlib.suppress(OSError):
+                    os.ftruncate(fd, length)
+            raise CaptureError(f"{self.directory}: writing frame {index}'s packet failed: "
+                               f"{why_not_written(exc, self.directory)}; {frames_kept(self._meta['packets'])}"
+                               ) from None
+        self._bytes += len(data)
+        self._ts_bytes += len(text)
         self._last = (index, timestamp)
         meta = self._meta
         meta["packets"] += 1
