@@ -44,7 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Set-up: one corner reflector on the radar's boresight, at the antennas' height, 1.5-3 m away, "
                "nothing else within the search window (--search-window); the radar and the reflector still. Try "
                "it on the simulator: radar-calibrate --source 'sim://calibration?board=uncalibrated&rate=max' "
-               "--distance 3")
+               "--distance 3; on a fake board without a DCA1000, whose firmware measures: radar-emulate --uart "
+               "--source 'sim://calibration?board=uncalibrated', then radar-calibrate --source with the tidemo:// "
+               "URL it prints, --distance 3")
     parser.add_argument("--source", metavar="URL",
                         help="raw frame source (dca1000://, replay://, sim://, coloradar://...adc), or tidemo:// "
                              "(a board without a DCA1000: its demo firmware measures; default: the live radar if "
