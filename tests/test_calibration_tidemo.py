@@ -141,6 +141,17 @@ def test_the_emulated_chips_lines_recover_the_boards_line(board, tidemo_cfg):
     assert result.residual_phase_deg < 1.0 and result.frames == 10
 
 
+def test_the_fake_demo_measures_a_window_past_its_range_as_the_chip_would(tidemo_cfg):
+    """A cfg's window beyond the last range bin (radar-capture sends any cfg): the fake's frame
+    maker raised and its data port stopped streaming; the chip prints a line of its window's edge."""
+    cfg = tidemo_cfg.replace(MeasureRangeBiasAndRxChanPhase(1, 50.0, 0.4))
+    sim = Simulator(cfg, load_scene("calibration"), seed=3)
+    maker = DemoFrameMaker(cfg)
+    maker.packet(sim.frame(0).raw, 1, 0.0)
+    name, *values = maker.measurement.split()
+    assert name == "compRangeBiasAndRxChanPhase" and len(values) == 25 and float(values[0]) < -30
+
+
 # ------------------------------------------------------------------ combining the demo's lines
 def _lines(n: int, *, phase_noise_deg: float = 0.0, bias_noise_m: float = 0.0, seed: int = 0,
            response: np.ndarray | None = None) -> list[str]:

@@ -112,7 +112,8 @@ class DemoFrameMaker:
         g, m = self.geometry, self._measure
         first = np.fft.fft(cube[0] * self.processor.w_range, n=g.range_bins, axis=-1)  # (slots, rx, bins)
         power = (np.abs(first) ** 2).sum(axis=(0, 1))
-        lo = max(int(np.ceil((m.target_distance_m - m.search_window_m / 2) / g.range_step_m)), 1)
+        lo = min(max(int(np.ceil((m.target_distance_m - m.search_window_m / 2) / g.range_step_m)), 1),
+                 g.range_bins - 2)  # a window past the last bins: the chip reads its edge
         hi = min(int(np.floor((m.target_distance_m + m.search_window_m / 2) / g.range_step_m)), g.range_bins - 2)
         k = lo + int(np.argmax(power[lo:hi + 1])) if hi >= lo else lo
         y0, y1, y2 = np.sqrt(power[k - 1:k + 2])
