@@ -8,6 +8,7 @@ chirp of each TX: :mod:`.calibrate` has it).  One such line carries one chirp's 
 :func:`combine_demo_measurements` averages the lines' responses and refuses what the raw path
 refuses where a line can tell it (:class:`CalibrationError`):
 
+- fewer than :data:`MIN_LINES` whole lines (their scatter could not be told);
 - lines that scatter so much that their mean's phases are uncertain by more than
   :data:`MAX_MEAN_PHASE_ERROR_DEG` (a weak reflector, something moving in the window: the chip
   measures whatever is strongest there, and says nothing of its SNR);
@@ -39,6 +40,9 @@ log = logging.getLogger(__name__)
 
 #: What a measurement line starts with: the cfg command it is.
 LINE_PREFIX = "compRangeBiasAndRxChanPhase"
+#: Lines combined, at least: their scatter is what says how far their mean can be trusted (one
+#: chirp's line alone can be several degrees off, and nothing would say so).
+MIN_LINES = 5
 #: The lines' ranges spread over more than this many bins: no steady peak in the window at all
 #: (noise, or something passing), rather than a reflector that creeps.
 WANDERING_BINS = 2.0
@@ -50,9 +54,9 @@ MAX_MEAN_PHASE_ERROR_DEG = 1.0
 def parse_measurement(line: str) -> ChannelCalibration:
     """One line the demo printed, as the calibration it measured; :class:`ConfigError` when it
     is not a whole ``compRangeBiasAndRxChanPhase`` line (cut or garbled on the UART)."""
-    name, *tokens = line.split()
+    name, *tokens = line.split() or [""]
     if name != LINE_PREFIX:
-        raise ConfigError(f"not a {LINE_PREFIX} line: {line[:60]!r}", command=name)
+        raise ConfigError(f"not a {LINE_PREFIX} line: {line[:60]!r}", command=name or None)
     return ChannelCalibration.from_command(cc.parse_args(LINE_PREFIX, tokens))
 
 
@@ -75,6 +79,11 @@ def combine_demo_measurements(cfg: RadarConfig, lines: Sequence[str], distance_m
         raise CalibrationError("no measurement to combine: the demo printed no whole compRangeBiasAndRxChanPhase "
                                "line" + (f" ({len(lines)} unreadable)" if lines else ""))
     n = len(measured)
+    if n < MIN_LINES:  # one line's noise cannot be told from the board's own errors
+        raise CalibrationError(
+            f"only {n} whole measurement line(s) from the demo" + (f" ({len(unreadable)} unreadable)" if unreadable
+                                                                  else "")
+            + f": at least {MIN_LINES} are needed to tell their noise from the board's errors; average more --frames")
     # Each line's response up to a scale and a phase common to its paths (the chip's frame, the
     # reflector's phase), brought to the first line's by all twelve paths, not by TX1 RX1 alone.
     responses = np.stack([1.0 / c.coefficients for c in measured])  # (n, 3, 4)
@@ -107,4 +116,4 @@ def combine_demo_measurements(cfg: RadarConfig, lines: Sequence[str], distance_m
                                   azimuth, n, measured_by="demo firmware")
 
 
-__all__ = ["LINE_PREFIX", "MAX_MEAN_PHASE_ERROR_DEG", "combine_demo_measurements", "parse_measurement"]
+__all__ = ["LINE_PREFIX", "MAX_MEAN_PHASE_ERROR_DEG", "MIN_LINES", "combine_demo_measurements", "parse_measurement"]

@@ -93,12 +93,12 @@ def test_the_chip_measures_the_board_and_its_line_puts_the_reflector_on_boresigh
 
 def test_json_says_the_demo_measured(tmp_path):
     with DemoUartRig(SCENE, boot_time_s=0.05, rate="max") as rig:
-        proc = calibrate(rig.url(), "--frames", 4, "--json")
+        proc = calibrate(rig.url(), "--frames", 5, "--json")
     assert proc.returncode == 0, proc.stderr
     import json
 
     data = json.loads(proc.stdout)
-    assert data["measured_by"] == "demo firmware" and data["frames"] == 4 and data["snr_db"] is None
+    assert data["measured_by"] == "demo firmware" and data["frames"] == 5 and data["snr_db"] is None
     assert data["range_bias_m"] == pytest.approx(0.065, abs=0.01) and data["residual_phase_deg"] < 2.0
 
 
@@ -111,6 +111,40 @@ def test_a_demo_that_does_not_measure_is_said_to(tmp_path):
     assert proc.returncode != 0 and "Traceback" not in proc.stderr
     assert "the demo printed no compRangeBiasAndRxChanPhase line on its CLI port in 10 frames" in proc.stderr
     assert "--source dca1000://" in proc.stderr
+
+
+def test_a_cfg_with_clutter_removal_is_measured_without_it_and_written_with_it(tmp_path, tidemo_cfg):
+    """The DPC takes the static clutter out of the cube before it measures, so a still reflector
+    measured as noise ("no still reflector"); the measurement now runs with it off."""
+    on = tmp_path / "clutter.cfg"
+    on.write_text(tidemo_cfg.to_text().replace("clutterRemoval -1 0", "clutterRemoval -1 1"))
+    out = tmp_path / "board.cfg"
+    with DemoUartRig(SCENE, boot_time_s=0.05, rate="max") as rig:
+        proc = calibrate(rig.url(), "--cfg", on, "--write-cfg", out)
+    assert proc.returncode == 0, proc.stderr
+    written = RadarConfig.from_file(out)
+    assert written.clutter_removal.enabled == 1
+    gain, phase, bias = errors_against(written.channel_calibration, load_board("uncalibrated"))
+    assert gain <= 0.1 and phase <= 1.0 and bias <= 0.01, (gain, phase, bias)
+    # What the chip measures with it on: the reflector is gone from its cube.
+    cfg = RadarConfig.from_file(on).replace(MeasureRangeBiasAndRxChanPhase(1, 3.0, 0.4))
+    sim = Simulator(cfg, load_scene("calibration"), seed=3, board=load_board("uncalibrated"))
+    maker = DemoFrameMaker(cfg)
+    lines = []
+    for i in range(10):
+        maker.packet(sim.frame(i).raw, i + 1, 0.1 * i)
+        lines.append(maker.measurement)
+    with pytest.raises(CalibrationError):
+        combine_demo_measurements(cfg, lines, 3.0)
+
+
+def test_too_few_or_too_many_frames_are_refused_before_the_radar_starts():
+    with DemoUartRig(SCENE, boot_time_s=0.05) as rig:
+        for frames in (1, 4, 1001):
+            proc = calibrate(rig.url(), "--frames", frames)
+            assert proc.returncode == 2 and f"--frames {frames}: the demo's lines are combined 5 to 1000 at a time" \
+                in proc.stderr, proc.stderr
+        assert rig.data.stats.packets == 0
 
 
 def test_a_cfg_without_every_path_is_refused_before_the_radar_starts(tmp_path, tidemo_cfg):
@@ -182,19 +216,23 @@ def test_lines_combine_to_the_boards_line(tidemo_cfg):
 
 
 def test_garbled_lines_are_left_out_and_said(tidemo_cfg, caplog):
-    lines = _lines(6)
+    lines = _lines(8)
     lines[2] = lines[2][:80]  # cut on the line
     lines[4] = lines[4].replace("compRangeBiasAndRxChanPhase", "compRangeBiasAndRxChanPhas")
     result = combine_demo_measurements(tidemo_cfg, lines, 3.0)
-    assert result.frames == 4
-    assert "2 of the demo's 6 measurement line(s) could not be read" in caplog.text
+    assert result.frames == 6
+    assert "2 of the demo's 8 measurement line(s) could not be read" in caplog.text
+    # Too few whole lines to tell their noise: one chirp's line alone can be degrees off unseen.
+    with pytest.raises(CalibrationError, match=r"^only 4 whole measurement line\(s\) from the demo \(2 unreadable\): at "
+                                               r"least 5 are needed"):
+        combine_demo_measurements(tidemo_cfg, lines[:6], 3.0)
     with pytest.raises(CalibrationError, match=r"^no measurement to combine: the demo printed no whole "
                                                r"compRangeBiasAndRxChanPhase line \(2 unreadable\)$"):
         combine_demo_measurements(tidemo_cfg, [lines[2], lines[4]], 3.0)
 
 
 @pytest.mark.parametrize("case, lines, message", [
-    ("noisy", dict(n=4, phase_noise_deg=8.0), r"the demo's 4 measurements of the reflector at 3\.\d\d m disagree by "
+    ("noisy", dict(n=5, phase_noise_deg=8.0), r"the demo's 5 measurements of the reflector at 3\.\d\d m disagree by "
                                               r"\d+\.\d deg RMS, so their mean is uncertain by \d\.\d deg"),
     ("moving", dict(n=10, bias_noise_m=0.02), r"the reflector at 3\.\d\d m moves: its range changed by \d+\.\d cm over "
                                               r"the demo's 10 measurements"),
@@ -223,7 +261,8 @@ def test_a_reflector_off_boresight_is_refused_as_on_the_raw_path(tidemo_cfg):
 def test_a_line_that_is_no_measurement_is_a_config_error():
     from radarodom.dsp.demo_calibration import parse_measurement
 
-    with pytest.raises(ConfigError, match="not a compRangeBiasAndRxChanPhase line"):
-        parse_measurement("Obj Det DPC Exception: objectdetection.c, line 428.")
+    for text in ("Obj Det DPC Exception: objectdetection.c, line 428.", "", "  \r"):
+        with pytest.raises(ConfigError, match="not a compRangeBiasAndRxChanPhase line"):
+            parse_measurement(text)
     assert parse_measurement(_lines(1)[0]).matches(load_board("uncalibrated").calibration(), bias_m=1e-6)
     assert isinstance(parse_measurement(_lines(1)[0]), ChannelCalibration)

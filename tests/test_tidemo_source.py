@@ -284,8 +284,30 @@ def test_a_demo_that_stops_streaming_is_reported_with_what_its_cli_said(caplog):
 
     def assert_and_stop(rig) -> None:
         rig.data.stop()
+        time.sleep(0.3)  # the packet on the line finished: the exception comes after the last packet
         rig.radar.announce(ASSERT_LINE)
 
     message, _ = _broken_after_two_frames(assert_and_stop, DeviceTimeout)
     assert f"its CLI port said {ASSERT_LINE!r}: the demo stopped, as it does when a packet outlasts" in message, message
     assert caplog.text.count(f"the radar's CLI port says: {ASSERT_LINE}") == 1
+
+
+def test_the_cli_lines_printed_unasked_are_whole_lines_however_they_arrive():
+    """Awr1843Cli.unsolicited_lines, on a loopback port: a line cut across reads is kept until its
+    end comes, line ends of either kind, and a prompt split across reads."""
+    from radarodom.driver.live.awr1843 import Awr1843Cli
+
+    cli = Awr1843Cli("loop://").open()
+    port = cli._port
+    steps = [(b"compRangeBiasAndRxChanPhase 0.01 0.5", []),
+             (b" 0.2\n\r", ["compRangeBiasAndRxChanPhase 0.01 0.5 0.2"]),
+             (b"line A\n\rline B", ["line A"]),
+             (b"\n", ["line B"]),
+             (b"xx mmwDemo:/", []),
+             (b">yy\n", ["xx", "yy"]),
+             (b"", [])]
+    for data, lines in steps:
+        port.write(data)
+        assert cli.unsolicited_lines() == lines, data
+    cli.close()
+

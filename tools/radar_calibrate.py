@@ -122,16 +122,26 @@ def _measure_on_chip(args: argparse.Namespace, cfg: RadarConfig | None):
     """tidemo://: the demo firmware measures (measureRangeBiasAndRxChanPhase 1 in the cfg sent)
     and prints a line a frame on its CLI port; the lines are combined."""
     from ..cfg import TIDEMO_CONFIG_NAME, shipped_config_path
-    from ..cfg_commands import MeasureRangeBiasAndRxChanPhase
+    from ..cfg_commands import ClutterRemoval, MeasureRangeBiasAndRxChanPhase
     from ..driver.sources import open_source
+    from ..driver.tidemo.source import CLI_LINES_KEPT
     from ..dsp.calibrate import ChannelCalibrator
-    from ..dsp.demo_calibration import LINE_PREFIX, combine_demo_measurements
+    from ..dsp.demo_calibration import LINE_PREFIX, MIN_LINES, combine_demo_measurements
 
+    MAX_DEMO_FRAMES = CLI_LINES_KEPT // 2  # the source keeps its last CLI_LINES_KEPT lines
+
+    if not MIN_LINES <= args.frames <= MAX_DEMO_FRAMES:
+        raise UsageError(f"--frames {args.frames}: the demo's lines are combined {MIN_LINES} to {MAX_DEMO_FRAMES} at "
+                         f"a time (one chirp's line alone carries noise nothing would tell)")
     base = cfg if cfg is not None else RadarConfig.from_file(shipped_config_path(TIDEMO_CONFIG_NAME))
     options = {} if args.max_azimuth is None else {"max_azimuth_deg": args.max_azimuth}
     ChannelCalibrator(base, args.distance, args.search_window, **options)  # the cfg and window, before the radar
     searched = 2 * args.search_window  # TI's searchWin is the whole width
     asked = base.replace(MeasureRangeBiasAndRxChanPhase(1, args.distance, searched))
+    clutter = base.clutter_removal
+    if clutter is not None and clutter.enabled:  # the chip would take the still reflector out of what it measures
+        log.info("%s: clutterRemoval is on; sent off while the demo measures (the cfg written keeps it)", base.path)
+        asked = asked.replace(ClutterRemoval(clutter.subframe, 0))
     lines: list[str] = []
     frames = 0
     with open_source(args.source, asked) as source:
@@ -148,7 +158,7 @@ def _measure_on_chip(args: argparse.Namespace, cfg: RadarConfig | None):
     if len(lines) < args.frames:
         log.warning("the demo printed %d measurement(s) in %d frames, of the %d asked", len(lines), frames, args.frames)
     result = combine_demo_measurements(asked, lines[:args.frames], args.distance, args.search_window, **options)
-    return result, asked.replace(MeasureRangeBiasAndRxChanPhase(0, args.distance, searched))
+    return result, base.replace(MeasureRangeBiasAndRxChanPhase(0, args.distance, searched))
 
 
 def _main(args: argparse.Namespace) -> int:

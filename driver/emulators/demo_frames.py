@@ -24,6 +24,8 @@ as TI's DPC does (``DPC_ObjDet_rangeBiasRxChPhaseMeasure``): the first chirp of 
 the power summed over the 12 antennas within targetDistance +/- searchWin / 2, a parabola through
 its magnitude for the range bias, and ``conj(x) * min|x| / |x|^2`` of each antenna's sample x,
 printed in physical TX, RX order with the demo's decimals (``MmwDemo_measurementResultOutput``).
+With ``clutterRemoval`` on, the static clutter is taken out of the cube before the measurement,
+as the DPC runs it first (a still reflector then measures as noise).
 
 The chip's own quirks beyond these (its fixed-point CFAR, its exact windows) are not modelled.
 """
@@ -71,6 +73,8 @@ class DemoFrameMaker:
         self.saturated = 0
         measure = config.line_of("measureRangeBiasAndRxChanPhase")
         self._measure = measure.value if measure is not None and measure.value.enabled else None
+        clutter = config.clutter_removal
+        self._clutter_removed = clutter is not None and bool(clutter.enabled)
         #: The measurement line of the last frame made (None when the cfg does not ask for it).
         self.measurement: str | None = None
 
@@ -110,7 +114,10 @@ class DemoFrameMaker:
         """The ``compRangeBiasAndRxChanPhase ...`` line the demo prints for the raw cube *cube*,
         complex (loops, tx_slots, rx, samples); see the module docstring."""
         g, m = self.geometry, self._measure
-        first = np.fft.fft(cube[0] * self.processor.w_range, n=g.range_bins, axis=-1)  # (slots, rx, bins)
+        chirp = cube[0]
+        if self._clutter_removed:  # the DPC takes each cell's mean over the chirps out of the cube first
+            chirp = chirp - cube.mean(axis=0)
+        first = np.fft.fft(chirp * self.processor.w_range, n=g.range_bins, axis=-1)  # (slots, rx, bins)
         power = (np.abs(first) ** 2).sum(axis=(0, 1))
         lo = min(max(int(np.ceil((m.target_distance_m - m.search_window_m / 2) / g.range_step_m)), 1),
                  g.range_bins - 2)  # a window past the last bins: the chip reads its edge

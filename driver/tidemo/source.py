@@ -147,6 +147,7 @@ class TidemoSource(Source):
         #: measurements a cfg's measureRangeBiasAndRxChanPhase asks for, one a frame), in order:
         #: the last CLI_LINES_KEPT.
         self.cli_lines: collections.deque[str] = collections.deque(maxlen=CLI_LINES_KEPT)
+        self._said: tuple[float, str] | None = None  # (time.monotonic(), line) of its last line not a measurement
         try:
             self._open()
         except BaseException:
@@ -204,8 +205,10 @@ class TidemoSource(Source):
     def _read_cli(self) -> None:
         """Take in what the demo printed on its CLI port; an exception report is warned of."""
         for line in self.radar.unsolicited_lines():
-            if not line.startswith(MEASUREMENT_PREFIX) and line not in self.cli_lines:
-                log.warning("the radar's CLI port says: %s", line)
+            if not line.startswith(MEASUREMENT_PREFIX):
+                if line not in self.cli_lines:
+                    log.warning("the radar's CLI port says: %s", line)
+                self._said = (time.monotonic(), line)
             self.cli_lines.append(line)
 
     def _frames(self) -> Iterator[Frame]:
@@ -219,12 +222,13 @@ class TidemoSource(Source):
                 raise DeviceError(f"reading the radar's data port {self.data_url} failed ({self._reader.error}): was "
                                   "the USB cable unplugged or the board reset?")
             quiet = time.monotonic() - self._last_packet
-            said = [ln for ln in self.cli_lines if not ln.startswith(MEASUREMENT_PREFIX)]
-            if quiet > self.data_timeout_s and said:
+            # What the CLI said since the last packet (a line from before it is not why the data stopped).
+            said = self._said[1] if self._said is not None and self._said[0] >= self._last_packet else None
+            if quiet > self.data_timeout_s and said is not None:
                 why = (f": the demo stopped, as it does when a packet outlasts the frame period (more points than "
-                       f"max_points={self.budget.max_points}?)" if "Exception" in said[-1] else "")
+                       f"max_points={self.budget.max_points}?)" if "Exception" in said else "")
                 raise DeviceTimeout(f"no packet from the demo on {self.data_url} for {quiet:.1f} s; its CLI port said "
-                                    f"{said[-1]!r}{why}")
+                                    f"{said!r}{why}")
             if quiet > self.data_timeout_s:
                 raise DeviceTimeout(
                     f"no packet from the demo on {self.data_url} for {quiet:.1f} s (frame period "
