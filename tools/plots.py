@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import contextlib
 import os
+import tempfile
 from typing import Any, Callable
 
 from ..errors import CaptureError, UsageError, why_not_written
@@ -154,13 +155,16 @@ def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, n
     written = []
     for filename in file_names(flags=flags is not None):
         path = os.path.join(directory, filename)
-        part = path + ".part"  # a write that fails (a full disk) leaves no cut PNG, nor replaces a whole one
+        part = None  # a write that fails (a full disk) leaves no cut PNG, nor replaces a whole one
         try:
-            figures[filename].savefig(part, format="png")
+            fd, part = tempfile.mkstemp(prefix=f".{filename}.", suffix=".tmp", dir=directory)  # a name of its own
+            with os.fdopen(fd, "wb") as fh:
+                figures[filename].savefig(fh, format="png")
             os.replace(part, path)
         except OSError as exc:
-            with contextlib.suppress(OSError):
-                os.remove(part)
+            if part is not None:
+                with contextlib.suppress(OSError):
+                    os.remove(part)
             kept = (f"the figures before it are written ({', '.join(os.path.basename(p) for p in written)})"
                     if written else "no figure was written")
             raise CaptureError(f"cannot write {path}: {why_not_written(exc, path)}; {kept}") from None

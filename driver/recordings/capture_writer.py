@@ -156,6 +156,7 @@ class CaptureWriter:
         self._first_ts: float | None = None
         self._last_ts: float | None = None
         claimed = False
+        self._data_fd = self._ts_fd = self._gt_fd = None
         try:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
@@ -169,10 +170,13 @@ class CaptureWriter:
             # from all three, and nothing of it is left pending to be flushed at close.
             self._data_fd = _new_file(os.path.join(self.directory, ADC_DATA))
             self._ts_fd = _new_file(os.path.join(self.directory, TIMESTAMPS))
-            self._gt_fd: int | None = None
             self._ts_bytes = self._gt_bytes = 0
         except OSError as exc:  # the directory, or a file in it (exc.filename): why, and the fix
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
+            for fd in (self._data_fd, self._ts_fd):
+                if fd is not None:
+                    with contextlib.suppress(OSError):
+                        os.close(fd)
             if claimed:
                 abandon_recording(self.directory, self._made_directory)
             raise CaptureError(f"cannot create capture directory {self.directory}: "

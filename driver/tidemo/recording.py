@@ -66,6 +66,7 @@ class UartRecorder:
         self._closed = False
         data = os.path.join(self.directory, UART_DATA)
         claimed = False
+        self._fd = self._ts = None
         try:
             self._made_directory = not os.path.isdir(self.directory)
             os.makedirs(self.directory, exist_ok=True)
@@ -80,6 +81,10 @@ class UartRecorder:
             self._bytes = self._ts_bytes = 0
         except OSError as exc:  # the directory, or a file in it (exc.filename)
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
+            for fd in (self._fd, self._ts):
+                if fd is not None:
+                    with contextlib.suppress(OSError):
+                        os.close(fd)
             if claimed:
                 abandon_recording(self.directory, self._made_directory)
             raise CaptureError(f"cannot create recording directory {self.directory}: "
