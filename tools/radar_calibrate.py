@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "%g: a board's own errors rarely look larger; raise it only with the reflector "
                              "surely on boresight)" % MAX_APPARENT_AZIMUTH_DEG)
     parser.add_argument("--frames", type=cli.positive_int, default=DEFAULT_FRAMES, metavar="N",
-                        help="frames to average (default %(default)d)")
+                        help="frames to average (default %(default)d; tidemo://: the demo's lines, 5 to 1000)")
     parser.add_argument("--cfg", metavar="FILE",
                         help="radar configuration (TI .cfg); for replay:// of a capture directory it defaults "
                              "to the directory's radar.cfg")
