@@ -173,12 +173,8 @@ class CaptureWriter:
             self._ts_bytes = self._gt_bytes = 0
         except OSError as exc:  # the directory, or a file in it (exc.filename): why, and the fix
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
-            for fd in (self._data_fd, self._ts_fd):
-                if fd is not None:
-                    with contextlib.suppress(OSError):
-                        os.close(fd)
-            if claimed:
-                abandon_recording(self.directory, self._made_directory)
+            if claimed:  # (the files are opened after the claim)
+                abandon_recording(self.directory, self._made_directory, (self._data_fd, self._ts_fd))
             raise CaptureError(f"cannot create capture directory {self.directory}: "
                                f"{why_not_written(exc, failed)}") from None
 

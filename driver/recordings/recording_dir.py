@@ -120,9 +120,14 @@ def frames_kept(count: int) -> str:
         count, f"the {count} frames before it are kept")
 
 
-def abandon_recording(directory: str, made_directory: bool) -> None:
-    """A recording that could not start (a full disk, say): the files it began are removed, and
-    its directory if it made it, so that nothing half-made is left in the user's way."""
+def abandon_recording(directory: str, made_directory: bool, open_fds=()) -> None:
+    """A recording that could not start (a full disk, say): the files it opened (*open_fds*, None
+    for one not opened) closed, those it began removed, and its directory if it made it, so that
+    nothing half-made is left in the user's way."""
+    for fd in open_fds:
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(fd)
     with contextlib.suppress(OSError):
         remove_capture_files(directory)
     if made_directory:

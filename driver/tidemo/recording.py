@@ -81,12 +81,8 @@ class UartRecorder:
             self._bytes = self._ts_bytes = 0
         except OSError as exc:  # the directory, or a file in it (exc.filename)
             failed = os.fsdecode(exc.filename) if isinstance(exc.filename, (str, bytes)) else self.directory
-            for fd in (self._fd, self._ts):
-                if fd is not None:
-                    with contextlib.suppress(OSError):
-                        os.close(fd)
-            if claimed:
-                abandon_recording(self.directory, self._made_directory)
+            if claimed:  # (the files are opened after the claim)
+                abandon_recording(self.directory, self._made_directory, (self._fd, self._ts))
             raise CaptureError(f"cannot create recording directory {self.directory}: "
                                f"{why_not_written(exc, failed)}") from None
 
