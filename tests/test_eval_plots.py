@@ -437,6 +437,20 @@ def test_a_figure_that_runs_out_of_room_leaves_no_cut_png_and_the_old_one_whole(
     assert (out / "report.png").read_bytes() == b"the last run's report"
 
 
+def test_figures_get_the_umasks_permissions_and_a_replaced_one_keeps_its_own(s_bends, tmp_path):
+    # Written through a temporary file of their own (for a full disk), they came out 0600.
+    (tmp_path / "report.png").write_bytes(b"old")
+    os.chmod(tmp_path / "report.png", 0o640)
+    old_umask = os.umask(0o022)
+    try:
+        paths = plots.plot_evaluation(s_bends, tmp_path, name="x")
+    finally:
+        os.umask(old_umask)
+    modes = {os.path.basename(p): os.stat(p).st_mode & 0o777 for p in paths}
+    assert modes.pop("report.png") == 0o640 and set(modes.values()) == {0o644}, modes
+    assert sorted(os.listdir(tmp_path)) == sorted(os.path.basename(p) for p in paths)
+
+
 def test_a_flags_file_with_a_byte_order_mark_reads(tmp_path):
     path = tmp_path / "flags.jsonl"
     path.write_bytes(b"\xef\xbb\xbf" + (odom_line(1.0, 0) + odom_line(1.1, 1)).encode())

@@ -10,12 +10,12 @@ plot is asked for.
 
 from __future__ import annotations
 
+import io
 import logging
-import contextlib
 import os
-import tempfile
 from typing import Any, Callable
 
+from ..driver.recordings.capture_writer import write_bytes_atomically
 from ..errors import CaptureError, UsageError, why_not_written
 from ..estimator.evaluation import EvaluationResult
 from . import plot_panels as panels
@@ -155,16 +155,11 @@ def plot_evaluation(result: EvaluationResult, directory: str | os.PathLike, *, n
     written = []
     for filename in file_names(flags=flags is not None):
         path = os.path.join(directory, filename)
-        part = None  # a write that fails (a full disk) leaves no cut PNG, nor replaces a whole one
-        try:
-            fd, part = tempfile.mkstemp(prefix=f".{filename}.", suffix=".tmp", dir=directory)  # a name of its own
-            with os.fdopen(fd, "wb") as fh:
-                figures[filename].savefig(fh, format="png")
-            os.replace(part, path)
+        png = io.BytesIO()
+        figures[filename].savefig(png, format="png")
+        try:  # a write that fails (a full disk) leaves no cut PNG, nor replaces a whole one
+            write_bytes_atomically(path, png.getvalue())
         except OSError as exc:
-            if part is not None:
-                with contextlib.suppress(OSError):
-                    os.remove(part)
             kept = (f"the figures before it are written ({', '.join(os.path.basename(p) for p in written)})"
                     if written else "no figure was written")
             raise CaptureError(f"cannot write {path}: {why_not_written(exc, path)}; {kept}") from None

@@ -68,17 +68,22 @@ def write_json_atomically(path: str, obj: Any) -> None:
 
 
 def write_text_atomically(path: str, text: str, *, replace: bool = True) -> None:
-    """Write *text* to a user's output *path* whole or not at all, through a new file of its own
+    """Write *text* (UTF-8, its line ends as they are) to *path* as :func:`write_bytes_atomically`."""
+    write_bytes_atomically(path, text.encode("utf-8"), replace=replace)
+
+
+def write_bytes_atomically(path: str, data: bytes, *, replace: bool = True) -> None:
+    """Write *data* to a user's output *path* whole or not at all, through a new file of its own
     beside it (``.NAME.XXXXXXXX.tmp``, never another file's: made exclusively, links not followed),
     renamed over *path*: a symbolic link at *path* is replaced itself, the file it named left as
-    it was; a file replaced keeps its permissions.  Unless *replace*, a file that appeared at
-    *path* meanwhile is not replaced (FileExistsError)."""
+    it was; a file replaced keeps its permissions, a new one gets the umask's.  Unless *replace*,
+    a file that appeared at *path* meanwhile is not replaced (FileExistsError)."""
     directory, name = os.path.split(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=directory)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+        with os.fdopen(fd, "wb") as fh:
             os.fchmod(fh.fileno(), _mode_for(path))
-            fh.write(text)
+            fh.write(data)
         if replace:
             os.replace(tmp, path)
         else:
