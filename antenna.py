@@ -96,6 +96,16 @@ class VirtualArray:
         tx = np.array(self.tx_order) - 1
         return np.asarray(paths)[tx[:, None], np.array(self.rx)[None, :]]
 
+    def per_path(self, elements: np.ndarray, fill: complex = 0) -> np.ndarray:
+        """The inverse of :meth:`per_element`: a value per element, *elements* (tx_slots * rx,
+        or shaped so), as one per physical path (3, 4) [TX number - 1, RX index]; *fill* on the
+        paths this array does not use."""
+        values = np.asarray(elements)
+        out = np.full((NUM_TX_ANTENNAS, NUM_RX_ANTENNAS), fill, dtype=np.result_type(values, fill))
+        tx = np.array(self.tx_order) - 1
+        out[tx[:, None], np.array(self.rx)[None, :]] = values.reshape(len(tx), -1)
+        return out
+
     def _row(self, v: int) -> np.ndarray:
         flat_h, flat_v = self.h.ravel(), self.v.ravel()
         idx = np.flatnonzero(flat_v == v)

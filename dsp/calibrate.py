@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
+from ..antenna import NUM_RX_ANTENNAS
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig, require_config
 from ..errors import CalibrationError, ConfigError, UsageError
@@ -167,8 +167,6 @@ class ChannelCalibrator:
         # One bin more either side, to tell a peak at the window's edge from a slope.
         self._bins = np.arange(max(bins[0] - 1, 0), min(bins[-1] + 2, self.proc.n_range))
         self._inside = (self._bins >= bins[0]) & (self._bins <= bins[-1])
-        # Each slot's TX and each RX, for the (3, 4) matrix of physical paths.
-        self._tx_of_slot = np.array(cfg.tx_order) - 1
         self._zero = self.proc.n_doppler // 2
         self._frames: list[np.ndarray] = []  # (n_doppler, slots, rx, window bins) per frame
         self._table = three_bin_response(self.proc.w_range, self.proc.n_range, "range_window",
@@ -229,9 +227,7 @@ class ChannelCalibrator:
         samples = data[:, self._zero, :, :, k].reshape(len(data), -1)  # (frames, elements)
         turn = np.exp(-1j * np.angle(samples @ np.conj(samples[0])))
         response_elements = (samples * turn[:, None]).mean(axis=0)
-        response = np.empty((NUM_TX_ANTENNAS, NUM_RX_ANTENNAS), np.complex128)
-        response[self._tx_of_slot[:, None], np.array(self.cfg.rx_indices)[None, :]] = \
-            response_elements.reshape(len(self._tx_of_slot), -1)
+        response = self.cfg.virtual_array.per_path(response_elements.astype(np.complex128))
         calibration, rank_one, azimuth = self.line_of_response(response, measured)
         corrected = samples * calibration.for_array(self.cfg.virtual_array).ravel()[None, :]
         common = np.sum(corrected, axis=1, keepdims=True)

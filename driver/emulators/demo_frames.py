@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ...calibration import ChannelCalibration
 from ...cfg import RadarConfig
 from ...dsp.config import DspConfig
@@ -130,8 +129,7 @@ class DemoFrameMaker:
         x = first[:, :, k].astype(np.complex128)
         mag2 = np.abs(x) ** 2
         coefficients = np.conj(x) * np.sqrt(mag2.min()) / mag2
-        table = np.ones((NUM_TX_ANTENNAS, NUM_RX_ANTENNAS), np.complex128)
-        table[np.array(self.config.tx_order)[:, None] - 1, np.array(self.config.rx_indices)[None, :]] = coefficients
+        table = self.config.virtual_array.per_path(coefficients, fill=1.0)
         parts = [f"{v:.5f}" for c in table.ravel() for v in (c.real, c.imag)]
         return f"compRangeBiasAndRxChanPhase {bias:.7f} " + " ".join(parts)
 

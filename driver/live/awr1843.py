@@ -114,8 +114,11 @@ class Awr1843Cli:
                                            "CLI port (the board's first, USB interface 0; radar-devices lists "
                                            "them), the board powered and running the demo firmware?"))
         except (serial.SerialException, OSError) as exc:
-            raise DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable "
-                              f"unplugged or the board reset?") from None
+            raise self._port_failed(exc) from None
+
+    def _port_failed(self, exc: BaseException) -> DeviceError:
+        return DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable unplugged or the "
+                           "board reset?")
 
     def unsolicited_lines(self) -> list[str]:
         """The whole lines the firmware printed unasked since the last call, without waiting:
@@ -128,8 +131,7 @@ class Awr1843Cli:
             waiting = self._port.in_waiting
             data = self._port.read(waiting) if waiting else b""
         except (serial.SerialException, OSError) as exc:
-            raise DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable "
-                              f"unplugged or the board reset?") from None
+            raise self._port_failed(exc) from None
         lines = [ln for text in self._framer.feed(data) for ln in split_lines(text)]
         pending = self._framer.pending
         end = max(pending.rfind(b"\n"), pending.rfind(b"\r"))
