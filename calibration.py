@@ -33,6 +33,9 @@ from . import cfg_commands as cc
 from .antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, VirtualArray
 from .errors import ConfigError
 
+#: The cfg command that carries a board's channel calibration; TI's SDK 3.x demo prints what it
+#: measured as one such line (MmwDemo_measurementResultOutput, mss_main.c).
+CALIBRATION_COMMAND = "compRangeBiasAndRxChanPhase"
 #: Decimals of the coefficients in a written line: 1e-5 is a third of a Q15 step (3.05e-5), as
 #: TI's measurement prints them.
 COEFFICIENT_DECIMALS = 5
@@ -54,13 +57,13 @@ class ChannelCalibration:
         c = np.asarray(self.coefficients, dtype=np.complex128)
         if c.shape != (NUM_TX_ANTENNAS, NUM_RX_ANTENNAS):
             raise ConfigError(f"coefficients must be shaped ({NUM_TX_ANTENNAS}, {NUM_RX_ANTENNAS}), got "
-                              f"{c.shape}", command="compRangeBiasAndRxChanPhase")
+                              f"{c.shape}", command=CALIBRATION_COMMAND)
         if not np.all(np.isfinite(c)) or not math.isfinite(self.range_bias_m):
-            raise ConfigError("coefficients and range bias must be finite", command="compRangeBiasAndRxChanPhase")
+            raise ConfigError("coefficients and range bias must be finite", command=CALIBRATION_COMMAND)
         if np.any(c == 0):
             tx, rx = np.argwhere(c == 0)[0]
             raise ConfigError(f"the coefficient of TX{tx + 1} RX{rx + 1} is 0: that antenna would be "
-                              "switched off", command="compRangeBiasAndRxChanPhase")
+                              "switched off", command=CALIBRATION_COMMAND)
         c.setflags(write=False)
         object.__setattr__(self, "coefficients", c)
         object.__setattr__(self, "range_bias_m", float(self.range_bias_m))
@@ -86,7 +89,7 @@ class ChannelCalibration:
         try:
             return cls.from_command(command)
         except ConfigError as exc:  # the parser accepted each value; say which line holds them
-            at = cfg.line_of("compRangeBiasAndRxChanPhase")
+            at = cfg.line_of(CALIBRATION_COMMAND)
             raise ConfigError(exc.message, path=cfg.path, line=None if at is None else at.line,
                               command=exc.command, field=exc.field) from None
 
@@ -97,14 +100,14 @@ class ChannelCalibration:
             pairs = np.array(description["coefficients"], dtype=float)
             bias = float(description["range_bias_m"])
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError(f"not a channel calibration: {exc}", command="compRangeBiasAndRxChanPhase") from None
+            raise ConfigError(f"not a channel calibration: {exc}", command=CALIBRATION_COMMAND) from None
         if pairs.shape != (NUM_TX_ANTENNAS * NUM_RX_ANTENNAS, 2):
             raise ConfigError(f"12 [re, im] coefficients expected, got shape {pairs.shape}",
-                              command="compRangeBiasAndRxChanPhase")
+                              command=CALIBRATION_COMMAND)
         # The cfg line's own rule (each part within -1..1, not both 0), and a finite bias.
         if not (np.all(cc.coefficient_ok(pairs[:, 0], pairs[:, 1])) and math.isfinite(bias)):
             raise ConfigError("the coefficients' parts must be within -1..1, none 0 + 0j, and the bias finite",
-                              command="compRangeBiasAndRxChanPhase")
+                              command=CALIBRATION_COMMAND)
         return cls(bias, (pairs[:, 0] + 1j * pairs[:, 1]).reshape(NUM_TX_ANTENNAS, NUM_RX_ANTENNAS))
 
     @classmethod
@@ -246,7 +249,7 @@ class RangeCoupling:
 def uncalibrated_note(cfg) -> str | None:
     """A warning for a cfg (:class:`radarodom.cfg.RadarConfig`) whose compRangeBiasAndRxChanPhase
     is the identity or missing, when it is meant for a real board; None otherwise."""
-    command_line = cfg.line_of("compRangeBiasAndRxChanPhase")
+    command_line = cfg.line_of(CALIBRATION_COMMAND)
     if command_line is not None and not ChannelCalibration.from_config(cfg).is_identity:
         return None
     where = f"{cfg.path}:{command_line.line}" if command_line is not None and command_line.line else cfg.path

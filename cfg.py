@@ -334,6 +334,13 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
         return self._value("compRangeBiasAndRxChanPhase")
 
     @property
+    def channel_measurement(self) -> cc.MeasureRangeBiasAndRxChanPhase | None:
+        """The measureRangeBiasAndRxChanPhase command when it is enabled (TI's SDK 3.x demo then
+        measures its channel calibration on the chip every frame and prints the line), else None."""
+        line = self.line_of("measureRangeBiasAndRxChanPhase")  # a checked command, sent as written
+        return line.value if line is not None and line.value.enabled else None
+
+    @property
     def channel_calibration(self):
         """The compRangeBiasAndRxChanPhase line as numbers (:class:`radarodom.calibration.
         ChannelCalibration`: range bias, gain and phase per path); the identity without the line."""

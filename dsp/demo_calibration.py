@@ -31,7 +31,7 @@ from typing import Sequence
 import numpy as np
 
 from .. import cfg_commands as cc
-from ..calibration import ChannelCalibration
+from ..calibration import CALIBRATION_COMMAND, ChannelCalibration
 from ..cfg import RadarConfig
 from ..errors import CalibrationError, ConfigError
 from .calibrate import MAX_APPARENT_AZIMUTH_DEG, MAX_RANGE_SPREAD_BINS, CalibrationMeasurement, ChannelCalibrator
@@ -39,7 +39,7 @@ from .calibrate import MAX_APPARENT_AZIMUTH_DEG, MAX_RANGE_SPREAD_BINS, Calibrat
 log = logging.getLogger(__name__)
 
 #: What a measurement line starts with: the cfg command it is.
-LINE_PREFIX = "compRangeBiasAndRxChanPhase"
+LINE_PREFIX = CALIBRATION_COMMAND
 #: Lines combined, at least: their scatter is what says how far their mean can be trusted (one
 #: chirp's line alone can be several degrees off, and nothing would say so).
 MIN_LINES = 5

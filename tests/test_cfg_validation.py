@@ -646,3 +646,13 @@ def test_commands_to_send_excludes_session_commands():
 def test_commands_to_send_with_sensor_start_argument():
     cfg = RadarConfig.from_text(edit(SENSOR_START, "sensorStart 0"), NAME)
     assert "sensorStart" not in {ln.text for ln in cfg.commands_to_send()}
+
+
+@pytest.mark.parametrize("line, measures", [(None, False), ("measureRangeBiasAndRxChanPhase 0 1.5 0.2", False),
+                                            ("measureRangeBiasAndRxChanPhase 1 1.5 0.2", True)])
+def test_channel_measurement_only_when_enabled(line, measures):
+    cfg = RadarConfig.from_text(SMALL_CFG if line is None else SMALL_CFG.replace("sensorStart", f"{line}\nsensorStart"))
+    measure = cfg.channel_measurement
+    assert (measure is not None) is measures
+    if measures:
+        assert (measure.target_distance_m, measure.search_window_m) == (1.5, 0.2)

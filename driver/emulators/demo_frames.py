@@ -70,8 +70,7 @@ class DemoFrameMaker:
                          ).astype(np.complex64)
         #: Heatmap values clipped to int16 so far.
         self.saturated = 0
-        measure = config.line_of("measureRangeBiasAndRxChanPhase")
-        self._measure = measure.value if measure is not None and measure.value.enabled else None
+        self._measure = config.channel_measurement
         clutter = config.clutter_removal
         self._clutter_removed = clutter is not None and bool(clutter.enabled)
         #: The measurement line of the last frame made (None when the cfg does not ask for it).

@@ -41,7 +41,7 @@ from typing import Iterator
 
 import serial
 
-from ...calibration import uncalibrated_note
+from ...calibration import CALIBRATION_COMMAND, uncalibrated_note
 from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
 from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
@@ -57,9 +57,6 @@ from .wire import Packet
 
 log = logging.getLogger(__name__)
 
-#: How the demo's measurement line starts (MmwDemo_measurementResultOutput, mss_main.c): the
-#: cfg line that corrects what it measured.
-MEASUREMENT_PREFIX = "compRangeBiasAndRxChanPhase"
 #: Lines of the demo's own CLI output kept (TidemoSource.cli_lines): a few minutes of measurements.
 CLI_LINES_KEPT = 2000
 #: Seconds a read of the data port waits; a read that gets nothing means the line is quiet.
@@ -116,9 +113,8 @@ class TidemoSource(Source):
                  max_points: int = DEFAULT_MAX_POINTS, policy: str = "latest", buffers: int = 8,
                  cli_timeout_s: float = COMMAND_TIMEOUT_S, start_timeout_s: float = 5.0) -> None:
         super().__init__()
-        measuring = config.line_of("measureRangeBiasAndRxChanPhase")
         note = uncalibrated_note(config)
-        if note is not None and not (measuring is not None and measuring.value.enabled):  # radar-calibrate's own
+        if note is not None and config.channel_measurement is None:  # not radar-calibrate's own measuring
             log.warning("%s", note)
         self.config = config
         self.data_url, self.baud, self.policy = data_url, baud, policy
@@ -205,7 +201,7 @@ class TidemoSource(Source):
     def _read_cli(self) -> None:
         """Take in what the demo printed on its CLI port; an exception report is warned of."""
         for line in self.radar.unsolicited_lines():
-            if not line.startswith(MEASUREMENT_PREFIX):
+            if not line.startswith(CALIBRATION_COMMAND):
                 if line not in self.cli_lines:
                     log.warning("the radar's CLI port says: %s", line)
                 self._said = (time.monotonic(), line)
