@@ -501,3 +501,56 @@ def test_a_path_within_its_files_names_of_the_systems_limit_is_refused_before_an
     rc, err = capture(capsys, "--record", long)
     assert rc == 2 and "the path is longer than this system takes" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def _tree(folder) -> dict:
+    """Every file under *folder* (hidden ones too) and its bytes."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_overwrite_keeps_every_old_output_when_the_run_fails_before_its_first_frame(tmp_path, capsys):
+    # It removed them all first: a later output that could not be made lost the earlier run's.
+    rec, odom, points = tmp_path / "rec", tmp_path / "odom.tum", tmp_path / "points.csv"
+    assert radar_sim.main(["calibration", "--duration", "0.2", "--out", str(rec), "-q"]) == 0
+    (rec / "notes.txt").write_text("mine")
+    odom.write_text("the earlier run's\n")
+    points.write_text("the earlier run's points\n")
+    before = _tree(tmp_path)
+    rc, err = capture(capsys, "--record", rec, "--odom-out", odom, "--points-out", points,
+                      "--odom-json", "/proc/radarodom-test.jsonl", "--overwrite")
+    assert rc == 1 and "cannot create /proc/radarodom-test.jsonl" in err, err
+    assert _tree(tmp_path) == before  # byte for byte, and nothing hidden left beside them
+    rc, err = capture(capsys, "--record", rec, "--odom-out", odom, "--points-out", points, "--overwrite")
+    assert rc == 0, err
+    after = _tree(tmp_path)
+    assert sorted(after) == sorted(before) and not any(name.startswith(".") or "/." in name for name in after)
+    assert after["odom.tum"] != before["odom.tum"] and after["rec/adc_data.bin"] != before["rec/adc_data.bin"]
+    assert after["rec/notes.txt"] == b"mine"
+
+
+@pytest.mark.parametrize("kind", ["capture", "heatmaps"])
+def test_replaced_outputs_are_set_aside_and_put_back_or_removed(tmp_path, kind):
+    from radarodom.tools.replaced_outputs import ReplacedOutputs
+
+    out = tmp_path / "out"
+    if kind == "capture":
+        assert radar_sim.main(["calibration", "--duration", "0.2", "--out", str(out), "-q"]) == 0
+    else:
+        assert capture_heatmaps(out) == 0
+    (out / "notes.txt").write_text("mine")
+    single = tmp_path / "odom.tum"
+    single.write_text("old\n")
+    before = _tree(tmp_path)
+    for kept in (False, True):
+        aside = ReplacedOutputs([(str(out), kind), (str(single), "file"), (str(tmp_path / "absent.tum"), "file")])
+        visible = [p.name for p in tmp_path.rglob("*") if not any(part.startswith(".") for part in p.parts[-2:])]
+        assert sorted(visible) == ["notes.txt", "out"]  # only what radarodom wrote went
+        aside.settle(kept=kept)
+        if not kept:
+            assert _tree(tmp_path) == before
+    assert _tree(tmp_path) == {"out/notes.txt": b"mine"}
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+
+
+def capture_heatmaps(out) -> int:
+    return radar_capture.main(["--source", URL, "--no-publish", "--no-odom", "-q", "--heatmap-out", str(out)])

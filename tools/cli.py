@@ -24,7 +24,7 @@ from ..mount import Mount, parse_mount
 from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int, whole_beyond
 from .output_paths import (  # noqa: F401  (the programs' output checks, re-exported: cli.check_distinct)
     check_distinct, check_files_in_directories, check_new_outputs, check_new_path, check_room,
-    check_writable_directory, missing_directories, read_paths, replace_output, write_output)
+    check_writable_directory, missing_directories, read_paths, write_output)
 from .status import StatusAwareHandler, StatusLine
 
 

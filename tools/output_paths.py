@@ -20,9 +20,10 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     directory): radarodom never overwrites what a user has.
 
     With *overwrite* (the programs' ``--overwrite``) an existing file is accepted, and
-    :func:`replace_output` then removes it (and radarodom's own files from a capture or heatmap
-    directory it wrote).  A directory in place of a file is still refused, and so is, by its
-    writer, a directory that holds data radarodom did not write.  *what*: what is written there,
+    :class:`.replaced_outputs.ReplacedOutputs` then sets it aside (and radarodom's own files
+    from a capture or heatmap directory it wrote), removed once the run has written a frame.  A
+    directory in place of a file is still refused, and so is, by its writer, a directory that
+    holds data radarodom did not write.  *what*: what is written there,
     for the message ("cannot write the copy of NAME to PATH").  *kind*: what a directory output
     holds ("capture", the default, or "heatmaps"): an existing one of that kind radarodom wrote is
     refused here without *overwrite*, with the option's name (its writer would refuse it without)."""
@@ -219,7 +220,7 @@ def _recordings_own(directory: str, path: str) -> bool:
 def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
     """Refuse a file output that names a file a directory output of the same run writes (a
     recording's ``timestamps.txt``, a heatmap directory's ``index.json``); each (path, kind,
-    option), *kind* as :func:`replace_output` takes it."""
+    option), *kind* as :class:`.replaced_outputs.ReplacedOutputs` takes it."""
     for directory, kind, option in outputs:
         if kind == "file":
             continue
@@ -238,7 +239,7 @@ def check_files_in_directories(outputs: Sequence[tuple[str, str, str]]) -> None:
 def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: bool,
                       what: Mapping[str, str] | None = None) -> None:
     """Each output new, or with *overwrite* replaceable (:func:`check_new_path`); each (path,
-    kind, option), *kind* as :func:`replace_output` takes it; *what*: what an option writes, by
+    kind, option), *kind* as :class:`.replaced_outputs.ReplacedOutputs` takes it; *what*: what an option writes, by
     option, for its messages ("cannot write the view to PATH").  A file may go into a directory
     output the run makes (its writer is opened after the directory's); a recording directory
     holding files of a recording's names that radarodom did not write is refused here, before
@@ -265,30 +266,6 @@ def _heatmaps_own(name: str) -> bool:
     from ..pipeline.sinks import HeatmapSink
 
     return HeatmapSink.owns(name)
-
-
-def replace_output(path: str, kind: str = "file") -> None:
-    """Remove an output ``--overwrite`` replaces (checked by :func:`check_new_path`): a file
-    (*kind* "file"); of a capture directory radarodom wrote (its capture.json there; *kind*
-    "capture") or a heatmap directory (its index.json; "heatmaps"), only the files radarodom
-    writes there (a source's own stream file too: ``uart.bin``), so that anything else in it
-    stays.  Nothing else is touched."""
-    from ..driver.recordings.capture_dir import remove_capture_files
-
-    try:
-        if kind == "file":
-            if os.path.lexists(path) and not os.path.isdir(path):
-                os.remove(path)
-        elif os.path.isdir(path):
-            names = os.listdir(path)
-            if kind == "capture" and "capture.json" in names:
-                remove_capture_files(path)
-            elif kind == "heatmaps" and "index.json" in names:
-                for name in names:
-                    if _heatmaps_own(name):
-                        os.remove(os.path.join(path, name))
-    except OSError as exc:
-        raise CaptureError(f"cannot replace {path}: {exc.strerror or exc}") from None
 
 
 def write_output(path: str, text: str, *, overwrite: bool, what: str | None = None) -> None:

@@ -33,6 +33,7 @@ from ..pipeline.products import check_features_fit
 from ..pipeline import CaptureSink, HeatmapSink, Pipeline, PipelineStats, PointsCsvSink, TumSink, source_estimator
 from . import cli, ros_outputs, view_option
 from .capture_text import odometry_fields, status_fields, stream_summary
+from .replaced_outputs import ReplacedOutputs
 from .status import StatusLine
 from .zenoh_args import add_zenoh_arguments, options_given
 
@@ -215,7 +216,7 @@ def _recording_sink(args: argparse.Namespace, source: Source):
 
 
 def _outputs(args: argparse.Namespace) -> list[tuple[str, str, str]]:
-    """(path, kind, option) of every output asked for; kind as :func:`cli.replace_output` takes it."""
+    """(path, kind, option) of every output asked for; kind as :class:`.replaced_outputs.ReplacedOutputs` takes it."""
     outputs = [(args.record, "capture", "--record"), (args.heatmap_out, "heatmaps", "--heatmap-out"),
                (args.points_out, "file", "--points-out"),
                (None if args.no_odom else args.odom_out, "file", "--odom-out")]
@@ -276,25 +277,18 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
             check_features_fit(source, estimator.features)
         except ConfigError as exc:
             raise exc.located(path=args.estimator_config or "the estimator's settings") from None
-    if args.overwrite:
-        for path, kind, _ in _outputs(args):
-            cli.replace_output(path, kind)
-    pipeline = Pipeline(source, estimator=None if args.no_odom else estimator,
-                        sinks=_sinks(args, source, publisher), max_frames=args.frames, max_duration_s=args.duration)
-
-    def on_frame(result, stats: PipelineStats) -> None:
-        status.update(status_fields(stats, args.record is not None, source) + odometry_fields(stats))
-
-    with _stop_on_signals(pipeline):
-        try:
-            stats = pipeline.run(on_frame)
-        except RadarodomError:
-            status.clear()
-            if pipeline.stats.frames:  # what was kept and lost, then the error (a board that died, a cable)
-                print(f"radar-capture: {stream_summary(args, source, pipeline.stats, pipeline.sinks)}")
-            raise
-        finally:
-            status.clear()
+    # What --overwrite replaces is set aside, and removed only once the run has recorded a frame.
+    replaced = ReplacedOutputs([(path, kind) for path, kind, _ in _outputs(args)] if args.overwrite else [])
+    pipeline = None
+    try:
+        pipeline = Pipeline(source, estimator=None if args.no_odom else estimator,
+                            sinks=_sinks(args, source, publisher), max_frames=args.frames,
+                            max_duration_s=args.duration)
+        stats = _stream(args, source, pipeline, status)
+    except BaseException:
+        replaced.settle_after_error(kept=pipeline is not None and pipeline.stats.frames > 0)
+        raise
+    replaced.settle(kept=stats.frames > 0)
     summary = stream_summary(args, source, stats, pipeline.sinks)
     if publisher is not None:
         counts = publisher.counts
@@ -313,6 +307,23 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
         print(f"radar-capture: {summary}")
         raise CaptureError(problem)
     return summary
+
+
+def _stream(args: argparse.Namespace, source: Source, pipeline: Pipeline, status: StatusLine) -> PipelineStats:
+    """Run *pipeline*, its status shown; on an error after frames, what was kept is said first."""
+    def on_frame(result, stats: PipelineStats) -> None:
+        status.update(status_fields(stats, args.record is not None, source) + odometry_fields(stats))
+
+    with _stop_on_signals(pipeline):
+        try:
+            return pipeline.run(on_frame)
+        except RadarodomError:
+            status.clear()
+            if pipeline.stats.frames:  # what was kept and lost, then the error (a board that died, a cable)
+                print(f"radar-capture: {stream_summary(args, source, pipeline.stats, pipeline.sinks)}")
+            raise
+        finally:
+            status.clear()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -37,6 +37,7 @@ from ..pipeline import FrameResult, OdometryFeed, Pipeline, Sink
 from ..products import Products
 from ..tum import TumTrajectory, TumWriter
 from . import cli
+from .replaced_outputs import ReplacedOutputs
 
 #: The paper's numbers (Tables III and IV), by run name.
 PAPER = {
@@ -210,9 +211,19 @@ def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, s
     data = RunData(run, args.heatmap, args.velocity)
     if data.kept.sum() < 2:
         raise UsageError(f"{run.run_dir}: fewer than two {args.heatmap} heatmaps fall inside the ground truth")
-    if args.overwrite:
-        for _, path in outputs:
-            cli.replace_output(path)
+    # What --overwrite replaces is set aside, and removed once every output is written.
+    aside = ReplacedOutputs([(path, "file") for _, path in outputs] if args.overwrite else [])
+    try:
+        _evaluate(args, run, data)
+    except BaseException:
+        aside.settle_after_error(kept=False)
+        raise
+    aside.settle(kept=True)
+    return 0
+
+
+def _evaluate(args: argparse.Namespace, run: ColoRadarRun, data: RunData) -> None:
+    """Each variant's estimate on *data*: the tables printed, the outputs written."""
     results = {}
     if args.out:
         with TumWriter(os.path.join(args.out, "groundtruth.tum")) as gt:
@@ -235,7 +246,6 @@ def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, s
                                                        "velocity": args.velocity, "results": results,
                                                        "paper": _paper_numbers(run.name)}, indent=2),
                          overwrite=args.overwrite)
-    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

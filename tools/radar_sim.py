@@ -21,6 +21,7 @@ from ..driver.sim.simulator import Simulator
 from ..driver.sim.source import SimSource
 from ..errors import UsageError
 from . import cli
+from .replaced_outputs import ReplacedOutputs
 from .status import StatusLine, format_duration
 
 
@@ -84,8 +85,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     cli.check_room(args.out, sim.num_frames * cfg.frame_bytes, "--out",
                    f"{sim.num_frames} frames of {cfg.frame_bytes} bytes ({sim.num_frames * sim.period:,.1f} s)",
                    replaced)
-    if args.overwrite and os.path.exists(args.out):
-        cli.replace_output(args.out, "capture")
+    aside = ReplacedOutputs([(args.out, "capture")] if args.overwrite else [])  # removed once a frame is in
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
@@ -93,19 +93,24 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     # Ctrl-C and SIGTERM stop between frames, so that the recording closes on a whole frame.
     stopped: list[int] = []
     written = 0
-    with cli.on_stop_signals(lambda signum, _: stopped.append(signum)):
-        with CaptureWriter(args.out, cfg, source=url, extra=SimSource(sim).recording_metadata()) as writer:
-            for i in range(sim.num_frames):
-                if stopped:
-                    break
-                f = sim.frame(i)
-                writer.write(f.raw, f.timestamp, 0, f.pose)
-                written = i + 1
-                elapsed = time.monotonic() - start
-                eta = elapsed / (i + 1) * (sim.num_frames - i - 1)
-                status.update(f"{_bar(i + 1, sim.num_frames)} {i + 1}/{sim.num_frames} frames  "
-                              f"{f.num_paths} paths  elapsed {format_duration(elapsed)}  "
-                              f"left {format_duration(eta)}", force=(i + 1 == sim.num_frames))
+    try:
+        with cli.on_stop_signals(lambda signum, _: stopped.append(signum)):
+            with CaptureWriter(args.out, cfg, source=url, extra=SimSource(sim).recording_metadata()) as writer:
+                for i in range(sim.num_frames):
+                    if stopped:
+                        break
+                    f = sim.frame(i)
+                    writer.write(f.raw, f.timestamp, 0, f.pose)
+                    written = i + 1
+                    elapsed = time.monotonic() - start
+                    eta = elapsed / (i + 1) * (sim.num_frames - i - 1)
+                    status.update(f"{_bar(i + 1, sim.num_frames)} {i + 1}/{sim.num_frames} frames  "
+                                  f"{f.num_paths} paths  elapsed {format_duration(elapsed)}  "
+                                  f"left {format_duration(eta)}", force=(i + 1 == sim.num_frames))
+    except BaseException:
+        aside.settle_after_error(kept=written > 0)
+        raise
+    aside.settle(kept=written > 0)
     if stopped and written < sim.num_frames:
         status.clear()
         kept = f"the {written} frames before it are kept in {args.out}" if written else "nothing was recorded"
