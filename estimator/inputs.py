@@ -20,6 +20,10 @@ from .velocity import VelocityEstimate
 POINT_FIELDS = ("azimuth", "elevation", "velocity")
 #: ... and what the points' yaw (``point_yaw``, the blend's) reads too.
 POINT_YAW_FIELDS = (*POINT_FIELDS, "x", "y")
+#: A point's position (m) or radial velocity (m/s) larger than this is no measurement: no radar
+#: the estimator reads sees so far or so fast, and the points' map's covariances of such a point
+#: cannot be inverted (a garbled packet's 1e30 m stopped the run).
+MAX_POINT_VALUE = 1e4
 
 
 def check_time(t: float, what: str) -> None:
@@ -71,10 +75,11 @@ def check_heatmap(heatmap) -> None:
 
 def finite_points(points: np.ndarray, fields: tuple[str, ...] = POINT_FIELDS) -> np.ndarray:
     """*points* (a checked cloud, :func:`check_points`) without those whose *fields* hold NaN or
-    inf; *points* itself when there are none."""
+    inf, or a position or velocity past :data:`MAX_POINT_VALUE`; *points* itself when there are none."""
     keep = np.ones(len(points), bool)
     for name in fields:
-        keep &= np.isfinite(points[name])
+        values = points[name]
+        keep &= np.abs(values) <= MAX_POINT_VALUE if name in ("x", "y", "velocity") else np.isfinite(values)
     return points if keep.all() else points[keep]
 
 

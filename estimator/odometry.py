@@ -37,8 +37,8 @@ from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
 from .heading_blend import HeadingBlend
-from .inputs import (POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points, check_time, check_velocity,
-                     finite_heatmap, finite_points)
+from .inputs import (MAX_POINT_VALUE, POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points, check_time,
+                     check_velocity, finite_heatmap, finite_points)
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
@@ -181,7 +181,7 @@ class RadarOdometry:
         n_given = len(points)
         points = finite_points(points, self._point_fields)
         if len(points) < n_given:
-            self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN or inf in "
+            self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN, inf or values past {MAX_POINT_VALUE:g} in "
                                 f"{'/'.join(self._point_fields)}: left out")
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:

@@ -319,9 +319,12 @@ def test_nan_or_inf_where_a_measurement_goes_is_none_said_once(caplog):
             bad = dataclasses.replace(hm, intensity=hm.intensity.copy(), static=hm.static.copy())
             bad.intensity[cells] = [np.nan, np.inf, -np.inf]
             bad.static[cells] = np.nan
-            nan_points = np.zeros(3, POINT_DTYPE)
+            nan_points = np.zeros(5, POINT_DTYPE)
             nan_points["x"], nan_points["y"], nan_points["azimuth"] = np.nan, np.nan, np.nan
             nan_points["velocity"][2] = np.inf
+            # A garbled packet's number: finite, but its map covariance could not be inverted.
+            nan_points["x"][3:], nan_points["y"][3:], nan_points["azimuth"][3:] = [1e30, 3.0], [2.0, 1e30], 0.5
+            nan_points["velocity"][4] = -1e20
             a = clean.step(t, cloud, zeroed)
             with caplog.at_level("DEBUG", logger="radarodom.estimator.odometry"):
                 b = padded.step(t, np.concatenate([cloud, nan_points]), bad)
@@ -330,7 +333,7 @@ def test_nan_or_inf_where_a_measurement_goes_is_none_said_once(caplog):
     assert abs(b.yaw - trajectory.pose(3.5)[2]) < math.radians(3)  # a real run, not a blind one
     said = [r for r in caplog.records if r.name == "radarodom.estimator.odometry"]
     assert [r.levelname for r in said].count("WARNING") == 1, [r.getMessage() for r in said]
-    assert "3 of " in said[0].getMessage() and "left out" in said[0].getMessage()
+    assert "5 of " in said[0].getMessage() and "left out" in said[0].getMessage()
     assert len(said) == 2 * len(frames)  # the points and the heatmap each frame, at debug after the first
 
 

@@ -306,3 +306,44 @@ def test_a_recording_whose_process_died_plays_what_it_holds(tmp_path, cfg, caplo
     with open_source(f"replay://{rec}?rate=max") as source:
         assert len(list(source)) == 3
     assert "was not closed" in caplog.text
+
+
+def test_a_garbled_frame_number_continues_the_indices(tmp_path, cfg, caplog):
+    # A flipped byte read as frame 4 000 000 005 made the replay ask for 30 GB of timestamps.
+    p = packets(cfg, [3, 4, 5, 6, 7, 60])
+    garbled = bytearray(p[2])
+    garbled[20:24] = (4_000_000_005).to_bytes(4, "little")  # the header's frameNumber
+    path = tmp_path / "uart.bin"
+    path.write_bytes(p[0] + p[1] + bytes(garbled) + p[3] + p[4] + p[5])
+    with caplog.at_level("WARNING"), open_source(f"replay://{path}?format=tidemo&rate=max", cfg) as source:
+        frames = list(source)
+        about = source.describe()
+    assert [f.index for f in frames] == [0, 1, 2, 3, 4, 57]  # a real gap (52 frames lost) still counts
+    assert about["frames_skipped"] == 52
+    said = [r.getMessage() for r in caplog.records if "frame number" in r.getMessage()]
+    assert said[0] == ("frame number 4000000005 after 4: a leap of more than 1048576 frames: a garbled header or "
+                       "another run; indices continue") and "after 4000000005: the radar restarted" in said[1]
+
+
+def test_points_the_chip_cannot_have_measured_are_left_out_naming_the_packet(tmp_path, cfg, caplog):
+    import warnings
+
+    g = DemoGeometry.from_config(cfg)
+    pts = np.zeros(4, wire.POINT_DTYPE)
+    pts["y"], pts["velocity"] = [1.0, 2.0, 3.0, 4.0], [0.5, -0.5, 0.25, 0.0]
+    pts["x"][1], pts["y"][2], pts["velocity"][3] = 1e30, np.nan, np.inf
+    side = np.zeros(4, wire.SIDE_INFO_DTYPE)
+    side["snr"] = [100, 200, 300, 400]
+    heat = np.zeros((g.range_bins, 8), wire.HEATMAP_DTYPE)
+    first = packets(cfg, [1])[0]
+    path = tmp_path / "uart.bin"
+    path.write_bytes(first + wire.encode_packet(g.layout(gui_selection(cfg)), 2, pts, side, heat))
+    with warnings.catch_warnings(), caplog.at_level("WARNING"):
+        warnings.simplefilter("error")  # numpy's overflow and cast warnings were printed with a source line
+        with open_source(f"replay://{path}?format=tidemo&rate=max", cfg) as source:
+            frames = list(source)
+    kept = frames[1].points
+    assert kept["y"].tolist() == [1.0] and kept["snr_db"].tolist() == [10.0]
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and said[0].startswith(f"frame 2 (the packet at byte {len(first)} of its stream): 3 of 4 "
+                                                 "points hold NaN, inf or values past"), said

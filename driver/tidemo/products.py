@@ -29,10 +29,31 @@ from .layout import DemoGeometry
 log = logging.getLogger(__name__)
 
 
+#: A point past this many times the cfg's range or Doppler span was not measured by the chip
+#: (its header has no checksum: a garbled byte on the line reads as any float).
+PLAUSIBLE_SPAN = 2.0
+
+
 def points(packet: wire.Packet, geometry: DemoGeometry) -> np.ndarray:
-    """The packet's points as POINT_DTYPE (n,) (none: an empty array)."""
+    """The packet's points as POINT_DTYPE (n,) (none: an empty array); those the chip cannot have
+    measured (NaN, inf, past :data:`PLAUSIBLE_SPAN` times the cfg's range or Doppler span) are
+    left out, with a warning naming the frame and the packet's place in its stream."""
     chip = packet.array(wire.Tlv.DETECTED_POINTS, wire.POINT_DTYPE)
-    n = 0 if chip is None else len(chip)
+    if chip is None or not len(chip):
+        return np.zeros(0, POINT_DTYPE)
+    reach = PLAUSIBLE_SPAN * geometry.range_bins * geometry.range_step_m
+    speed = PLAUSIBLE_SPAN * geometry.doppler_bins * geometry.doppler_step_mps
+    with np.errstate(over="ignore", invalid="ignore"):
+        kept = ((np.abs(chip["x"]) <= reach) & (np.abs(chip["y"]) <= reach) & (np.abs(chip["z"]) <= reach)
+                & (np.abs(chip["velocity"]) <= speed))
+    side = packet.array(wire.Tlv.DETECTED_POINTS_SIDE_INFO, wire.SIDE_INFO_DTYPE)
+    if not kept.all():
+        log.warning("frame %d (the packet at byte %d of its stream): %d of %d points hold NaN, inf or values past "
+                    "%.3g m or %.3g m/s, which the cfg's chip cannot have measured (a garbled packet): left out",
+                    packet.frame_number, packet.offset, int((~kept).sum()), len(chip), reach, speed)
+        chip = chip[kept]
+        side = None if side is None or len(side) != len(kept) else side[kept]
+    n = len(chip)
     out = np.zeros(n, POINT_DTYPE)
     if not n:
         return out
@@ -42,7 +63,6 @@ def points(packet: wire.Packet, geometry: DemoGeometry) -> np.ndarray:
     out["range"] = r
     out["azimuth"] = np.arctan2(chip["x"], chip["y"])
     out["elevation"] = np.arcsin(np.clip(np.divide(chip["z"], r, out=np.zeros(n), where=r > 0), -1.0, 1.0))
-    side = packet.array(wire.Tlv.DETECTED_POINTS_SIDE_INFO, wire.SIDE_INFO_DTYPE)
     out["snr_db"] = np.nan if side is None else side["snr"] / 10.0
     out["noise_db"] = np.nan if side is None else side["noise"] / 10.0
     out["range_bin"] = np.clip(np.round((r + geometry.range_bias_m) / geometry.range_step_m), 0, 32767)
@@ -67,10 +87,15 @@ def static_antennas(packet: wire.Packet, geometry: DemoGeometry) -> np.ndarray |
     return values.reshape(geometry.range_bins, n_ant)
 
 
+#: A frame number more than this far past the last is not frames lost but a garbled header (the
+#: packet has no checksum) or another run of the radar: over a day of frames at 10 Hz.
+MAX_FRAME_JUMP = 1 << 20
+
+
 class FrameIndexer:
     """Stream indices from the demo's frame numbers: the first seen is 0, a skipped number
-    skips an index, and a number that does not increase (a restarted radar) continues the
-    indices."""
+    skips an index, and a number that does not increase (a restarted radar) or leaps more than
+    :data:`MAX_FRAME_JUMP` ahead (a garbled one) continues the indices."""
 
     def __init__(self) -> None:
         self._base: int | None = None
@@ -80,10 +105,11 @@ class FrameIndexer:
         self.skipped = 0
 
     def __call__(self, number: int) -> int:
-        if self._base is None or number <= self._last_number:
+        if self._base is None or not 0 < number - self._last_number <= MAX_FRAME_JUMP:
             if self._base is not None:
-                log.warning("frame number %d after %d: the radar restarted; indices continue", number,
-                            self._last_number)
+                why = ("the radar restarted" if number <= self._last_number else
+                       f"a leap of more than {MAX_FRAME_JUMP} frames: a garbled header or another run")
+                log.warning("frame number %d after %d: %s; indices continue", number, self._last_number, why)
             self._base = number - self._last_index - 1
         index = number - self._base
         self.skipped += index - self._last_index - 1
