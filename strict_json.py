@@ -110,7 +110,7 @@ def loads(data: bytes | bytearray | memoryview | str, *, max_bytes: int, max_dep
     :class:`ValueError` saying which bound or rule failed."""
     size = len(data)
     if size > max_bytes:
-        raise ValueError(f"{size} bytes, more than the {max_bytes} allowed")
+        raise ValueError(f"more than {max_bytes} bytes, the most allowed")  # callers read no more than one past it
     if isinstance(data, str):
         text = data.removeprefix("\ufeff")
     else:

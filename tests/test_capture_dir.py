@@ -551,7 +551,7 @@ def test_capture_json_size_is_bounded(tmp_path, small_cfg):
     d = tmp_path / "cap"
     make_capture(d, small_cfg, 2)
     _set_meta_text(d, _meta_with(d, padding="x" * (2 << 20)))
-    with pytest.raises(CaptureFormatError, match=r"capture.json: \d+ bytes, more than the \d+ allowed"):
+    with pytest.raises(CaptureFormatError, match=r"capture.json: more than \d+ bytes, the most allowed"):
         CaptureDirectory(d)
 
 
@@ -595,6 +595,20 @@ def test_bad_timestamp_is_refused_with_file_and_line(tmp_path, small_cfg, case):
     message = str(info.value)
     assert message.startswith(f"{d / 'timestamps.txt'}:3: "), message
     assert expected in message, message
+
+
+def test_timestamps_ended_by_a_carriage_return_alone_are_named_so(tmp_path, small_cfg):
+    # It said "a line longer than 256 bytes: not a timestamp" of a classic Mac's line ends.
+    d = tmp_path / "cap"
+    make_capture(d, small_cfg, 4, t0=T0)
+    (d / "timestamps.txt").write_bytes((d / "timestamps.txt").read_bytes().replace(b"\n", b"\r"))
+    with pytest.raises(CaptureFormatError) as info:
+        CaptureDirectory(d)
+    assert str(info.value) == (f"{d / 'timestamps.txt'}:1: a line ended by a carriage return alone (an old Mac's "
+                               "line ends): one timestamp a line, ended by LF or CR LF; convert the file (tr '\\r' "
+                               "'\\n')")
+    (d / "timestamps.txt").write_bytes((d / "timestamps.txt").read_bytes().replace(b"\r", b"\r\n"))
+    assert len(CaptureDirectory(d).timestamps) == 4  # CR LF reads
 
 
 def test_bad_timestamp_is_refused_before_the_first_frame(tmp_path, small_cfg):

@@ -247,7 +247,7 @@ def test_a_recording_timed_before_0_is_refused_before_any_output(tmp_path, store
         time.sleep(0.5)  # what was published would be on its way
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert proc.stderr.strip().splitlines() == [
-        f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from -5 s to -4.9 s, and a ROS 2 "
+        f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from -5.000 s to -4.900 s, and a ROS 2 "
         "stamp holds 0 to 2147483647 s (a node's time is never negative; its seconds are 32-bit): shift the times "
         f"into that range, or leave out {ros2_option}"], proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec"]

@@ -21,7 +21,7 @@ from radarodom import strict_json
     ('{"t": 1e999}', "out of range"),
     ("[1, 2", "not JSON"),
     (b"\xff\xfe", "not UTF-8"),
-    ("x" * 2000, "2000 bytes"),
+    ("x" * 2000, "more than 1024 bytes, the most allowed"),
     ('{"icp": {"a": 1}, "icp": {"b": 2}}', "the key 'icp' appears twice in one object"),  # json kept the last
     ('[{"t": 1, "x": 2, "t": 3}]', "the key 't' appears twice"),
 ])

@@ -283,6 +283,16 @@ def _edit_metadata(directory, **changes) -> None:
     (lambda d: (d / "timestamps.txt").unlink(), "timestamps.txt", "no such file: the recording's frame times are in it"),
     (lambda d: _edit_metadata(d, baud=-5), "capture.json", "baud: expected a whole number > 0 or null, got -5"),
     (lambda d: _edit_metadata(d, packets="5"), "capture.json", "packets: expected a whole number >= 0, got '5'"),
+    # Each named for what it is (the raw capture's words were said of a demo recording's files).
+    (lambda d: (d / "uart.bin").unlink(), "", "no uart.bin: the demo UART recording's stream is missing"),
+    (lambda d: ((d / "uart.bin").unlink(), (d / "uart.bin").mkdir()), "uart.bin", "is a directory"),
+    (lambda d: ((d / "capture.json").unlink(), (d / "capture.json").mkdir()), "capture.json", "is a directory"),
+    (lambda d: ((d / "timestamps.txt").unlink(), (d / "timestamps.txt").mkdir()), "timestamps.txt",
+     "is a directory"),
+    (lambda d: (d / "capture.json").write_text("[]"), "capture.json", "expected a JSON object, got list"),
+    (lambda d: (d / "capture.json").write_text('{"packets": 5}'), "capture.json", "format: missing"),
+    (lambda d: (d / "capture.json").write_text('{"format": '), "capture.json", "repair it or move it away"),
+    (lambda d: _edit_metadata(d, format_version=10 ** 300), "capture.json", "format_version 10000000000000000"),
 ])
 def test_a_damaged_recording_is_refused_naming_the_file(tmp_path, cfg, damage, where, words):
     """A closed recording whose uart.bin was cut short played its packets left (exit 0, 'rejected'
@@ -295,7 +305,21 @@ def test_a_damaged_recording_is_refused_naming_the_file(tmp_path, cfg, damage, w
     damage(rec)
     with pytest.raises(CaptureFormatError) as info:
         open_source(f"replay://{rec}?rate=max")
-    assert str(info.value).startswith(f"{rec / where}: ") and words in str(info.value), str(info.value)
+    assert str(info.value).startswith(f"{rec / where}: " if where else f"{rec}: ") and words in str(info.value), \
+        str(info.value)
+    assert len(str(info.value)) < 400
+
+
+def test_a_recording_without_its_cfg_says_so(tmp_path, cfg):
+    rec = tmp_path / "rec"
+    _recorded(rec, cfg, [3, 4])
+    (rec / "radar.cfg").unlink()
+    with pytest.raises(ConfigError) as info:
+        open_source(f"replay://{rec}?rate=max")
+    assert str(info.value) == (f"{rec}: no radar.cfg: the recording's cfg is missing; put it back, or give the cfg "
+                               "the radar ran with --cfg (open_source(url, config) in Python)")
+    with open_source(f"replay://{rec}?rate=max", cfg) as source:
+        assert len(list(source)) == 2
 
 
 def test_a_recording_whose_process_died_plays_what_it_holds(tmp_path, cfg, caplog):

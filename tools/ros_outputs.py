@@ -49,7 +49,7 @@ def check_times(args: argparse.Namespace, source) -> None:
 
     first, last, where = span
     if first < 0 or last >= ROS2_TIME_END_S:
-        raise UsageError(f"{where}: the frames' times run from {first:.6g} s to {last:.6g} s, and a ROS 2 stamp holds "
+        raise UsageError(f"{where}: the frames' times run from {first:.3f} s to {last:.3f} s, and a ROS 2 stamp holds "
                          f"0 to {ROS2_TIME_END_S - 1} s (a node's time is never negative; its seconds are 32-bit): "
                          f"shift the times into that range, or leave out {' and '.join(asked)}")
 

@@ -216,6 +216,10 @@ def read_timestamps(path: str, max_lines: int, *, closed: bool = False) -> np.nd
             if not line:
                 break
             lineno += 1
+            if b"\r" in line.rstrip(b"\r\n"):
+                raise CaptureFormatError(f"{path}:{lineno}: a line ended by a carriage return alone (an old Mac's line "
+                                         "ends): one timestamp a line, ended by LF or CR LF; convert the file "
+                                         "(tr '\\r' '\\n')")
             if not line.strip(_LINE_SPACE):
                 blank.append(lineno)
                 if len(blank) > _MAX_TRAILING_BLANK_LINES:

@@ -82,9 +82,29 @@ from .capture_writer import (  # noqa: F401 (re-exported: they were defined here
 log = logging.getLogger(__name__)
 
 
+def _metadata_format(directory: str) -> Any:
+    """The "format" *directory*'s capture.json names, None when it names none or cannot be read."""
+    from ... import strict_json
+
+    try:
+        with open(os.path.join(directory, METADATA), "rb") as fh:
+            meta = strict_json.loads(fh.read(1 << 20), max_bytes=1 << 20)
+    except (OSError, ValueError):
+        return None
+    return meta.get("format") if isinstance(meta, dict) else None
+
+
 def missing_data_message(directory: str) -> str:
     """Why *directory* cannot be played for want of its frame data."""
     present = [name for name in (RADAR_CFG, TIMESTAMPS, METADATA) if os.path.exists(os.path.join(directory, name))]
+    if _metadata_format(directory) == capture_check.TIDEMO_FORMAT_NAME:  # its stream file is the one missing
+        from ..sources import REPLAY_FORMAT_FILES
+        stream = REPLAY_FORMAT_FILES["tidemo"]
+        if os.path.isdir(os.path.join(directory, stream)):
+            return (f"{os.path.join(directory, stream)}: is a directory: a demo recording's {stream} is a file; "
+                    "put the recording's own back in its place")
+        return (f"{directory}: no {stream}: the demo UART recording's stream is missing "
+                f"(the directory holds {', '.join(present)})")
     if present:
         return (f"{directory}: no {ADC_DATA}: the capture's frame data is missing "
                 f"(the directory holds {', '.join(present)})")

@@ -201,4 +201,7 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
                               f"{span:.2f} s after its first")
     else:  # a frame number (or a recording without a whole frame, which ReplaySource refuses)
         first = int(value)
+        if store.num_frames and first >= store.num_frames:
+            raise SourceError(f"{options.url}: start={first} is past the recording's last frame "
+                              f"({store.num_frames} frames, numbered from 0)")
     return ReplaySource(store, rate=rate, loop=loop, start=first, frames=frames)

@@ -188,13 +188,19 @@ def _read_metadata(path: str) -> dict:
     except OSError as exc:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
     except ValueError as exc:
-        raise CaptureFormatError(f"{path}: {exc}") from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT_NAME:
+        raise CaptureFormatError(f"{path}: {exc}; repair it or move it away (without it the stream plays "
+                                 "unchecked)") from None
+    if not isinstance(meta, dict):
+        raise CaptureFormatError(f"{path}: expected a JSON object, got {type(meta).__name__}")
+    if "format" not in meta:
+        raise CaptureFormatError(f"{path}: format: missing (a required field; {FORMAT_NAME} here)")
+    if meta["format"] != FORMAT_NAME:
         raise CaptureFormatError(f"{path}: not a {FORMAT_NAME} recording's metadata (format "
-                                 f"{meta.get('format') if isinstance(meta, dict) else None!r})")
+                                 f"{quoted_json(meta['format'])})")
     version = meta.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= FORMAT_VERSION:
-        raise CaptureFormatError(f"{path}: format_version {version!r}: this radarodom reads {FORMAT_VERSION}")
+        raise CaptureFormatError(f"{path}: format_version {quoted_json(version)}: this radarodom reads "
+                                 f"{FORMAT_VERSION}")
     for key in ("packets", "frame_lines"):
         value = meta.get(key)
         if not isinstance(value, int) or isinstance(value, bool) or value < 0:
@@ -223,6 +229,17 @@ def _check_against_metadata(source: TidemoReplaySource, meta: dict) -> None:
                                  f"recording wrote {meta['frame_lines']}: the file {changed}")
 
 
+def _check_parts_are_files(directory: str) -> None:
+    """Each of a recording's files that is there is a file (a directory in its place was read as
+    missing, or failed to open)."""
+    for name in (UART_DATA, METADATA, TIMESTAMPS, RADAR_CFG):
+        part = os.path.join(directory, name)
+        if os.path.exists(part) and not os.path.isfile(part):
+            what = "a directory" if os.path.isdir(part) else "not a regular file"
+            raise CaptureFormatError(f"{part}: is {what}: a demo recording's {name} is a file; put the "
+                                     "recording's own back in its place")
+
+
 def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
     rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
@@ -234,16 +251,20 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
     meta = None
     if os.path.isdir(path):
         directory, data = path, os.path.join(path, UART_DATA)
+        _check_parts_are_files(directory)
         if os.path.exists(os.path.join(directory, METADATA)):
             meta = _read_metadata(os.path.join(directory, METADATA))
         if config is None and os.path.exists(os.path.join(directory, RADAR_CFG)):
             config = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
+        if config is None:
+            raise ConfigError(f"no {RADAR_CFG}: the recording's cfg is missing; put it back, or give the cfg the "
+                              "radar ran with --cfg (open_source(url, config) in Python)", path=directory)
     else:
         directory, data = os.path.dirname(path) or ".", path
     if not os.path.isfile(data):
         raise SourceError(f"{options.url}: {data}: no such file")
     if config is None:
-        raise ConfigError(f"{data} holds the demo's UART stream: give the cfg the radar ran with --cfg "
+        raise ConfigError("the file holds the demo's UART stream: give the cfg the radar ran with --cfg "
                           "(open_source(url, config) in Python)", path=data)
     stamps = os.path.join(directory, TIMESTAMPS)
     if meta is not None and not os.path.isfile(stamps):  # a serial logger's file alone is timed by the cfg
