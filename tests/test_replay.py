@@ -393,6 +393,14 @@ def test_ti_series_without_its_first_file_is_refused(tmp_path, small_cfg):
                                    "back beside the others")
 
 
+def test_a_ti_series_file_that_is_a_directory_is_named_so(tmp_path, small_cfg):
+    (tmp_path / "ti" / "adc_data_Raw_0.bin").mkdir(parents=True)  # it said "no such file", exit 1
+    with pytest.raises(CaptureFormatError) as info:
+        open_source(f"replay://{tmp_path / 'ti'}?rate=max", small_cfg)
+    assert str(info.value) == f"{tmp_path / 'ti' / 'adc_data_Raw_0.bin'}: is a directory: a TI recording's " \
+                              "adc_data_Raw_0.bin is a file"
+
+
 @pytest.mark.parametrize("size", [0, 100, 3071])
 def test_ti_file_shorter_than_a_frame(tmp_path, small_cfg, size):
     d = tmp_path / "ti"

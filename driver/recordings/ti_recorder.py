@@ -39,6 +39,8 @@ def series_files(path: str) -> list[str]:
                 raise CaptureFormatError(f"{path}: {NO_RECORDING}")
             raise CaptureFormatError(f"{path}: expected one *_Raw_<n>.bin series, found {', '.join(sorted(prefixes))}")
         path = os.path.join(path, heads[0])
+    if os.path.isdir(path):
+        raise CaptureFormatError(f"{path}: is a directory: a TI recording's {os.path.basename(path)} is a file")
     if not os.path.isfile(path):
         raise CaptureError(f"{path}: no such file")
     match = SERIES_PATTERN.match(os.path.basename(path))
