@@ -193,3 +193,49 @@ def test_nan_in_a_data_file_is_one_error_naming_the_file_in_both_programs(tmp_pa
     assert len(odom.read_text().splitlines()) >= 2  # the frames before it are kept
     assert radar_coloradar.main([str(run)]) == 2
     assert _error_line(capsys, "radar-coloradar") == said
+
+
+@pytest.mark.parametrize("part", ["groundtruth/groundtruth_poses.txt", "groundtruth/timestamps.txt",
+                                  "cascade/heatmaps/data/heatmap_1.bin", "cascade/heatmaps/timestamps.txt",
+                                  "../calib/cascade/heatmap_cfg.txt", "../calib/transforms/base_to_cascade.txt"])
+@pytest.mark.parametrize("kind", ["pipe", "device", "directory"])
+def test_a_pipe_a_device_or_a_directory_in_place_of_a_runs_file_is_named_so(tmp_path, capsys, part, kind):
+    # A pipe waited forever, a link to /dev/zero read until memory ran out; directories were
+    # "no such file" or "missing".
+    import os
+
+    run = write_run(tmp_path / "data", frames=4)
+    path = pathlib.Path(os.path.normpath(run / part))
+    path.unlink()
+    {"pipe": lambda: os.mkfifo(path), "device": lambda: path.symlink_to("/dev/zero"), "directory": path.mkdir}[kind]()
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    what = ("a directory, not a file" if kind == "directory" else "not a regular file (a pipe or a device"
+            ) if not part.endswith(".bin") else "not a file (a record of the run is a file of its data)"
+    assert str(path) in said and what in said, said
+
+
+def test_a_timestamp_out_of_any_recordings_range_is_refused_where_it_is(tmp_path, capsys):
+    # 1e300 s passed the checks and overflowed the estimator's steps: "internal error: OverflowError".
+    run = write_run(tmp_path / "data", frames=4)
+    times = run / "cascade" / "heatmaps" / "timestamps.txt"
+    lines = times.read_text().splitlines()
+    times.write_text("\n".join(lines[:-1] + ["1e300"]) + "\n")
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert said == f"{times}:{len(lines)}: timestamp 1e+300 s is out of range (at most 1e+10 s from 1970)"
+
+
+def test_a_run_that_fails_part_way_leaves_no_new_output_and_puts_replaced_ones_back(tmp_path, capsys):
+    # Its groundtruth.tum stayed behind, and the same command then said "already exists".
+    run = write_run(tmp_path / "data", frames=6)  # 16 range bins: the paper's CFAR window fails late
+    out = tmp_path / "tables"
+    argv = [str(run), "--heatmap", "single_chip", "--out", str(out), "--json", str(tmp_path / "t.json")]
+    assert radar_coloradar.main(argv) == 2
+    assert "spans 21 range cells, more than the heatmap's 16" in _error_line(capsys, "radar-coloradar")
+    assert not out.exists() and not (tmp_path / "t.json").exists()
+    out.mkdir()
+    (out / "groundtruth.tum").write_text("an earlier run's\n")
+    (tmp_path / "t.json").write_text("{}\n")
+    assert radar_coloradar.main([*argv, "--overwrite"]) == 2
+    capsys.readouterr()
+    assert sorted(p.name for p in out.iterdir()) == ["groundtruth.tum"]
+    assert (out / "groundtruth.tum").read_text() == "an earlier run's\n" and (tmp_path / "t.json").read_text() == "{}\n"

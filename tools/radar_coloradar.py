@@ -17,6 +17,7 @@ radarodom's default estimator beside them.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -216,6 +217,9 @@ def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, s
     try:
         _evaluate(args, run, data)
     except BaseException:
+        for _, path in outputs:  # what this run wrote of them (any earlier one is set aside): the rerun may write it
+            with contextlib.suppress(OSError):
+                os.remove(path)
         aside.settle_after_error(kept=False)
         raise
     aside.settle(kept=True)

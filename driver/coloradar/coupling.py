@@ -26,7 +26,8 @@ import os
 import numpy as np
 
 from ...calibration import RangeCoupling
-from ...errors import CaptureFormatError
+from ...errors import CaptureError, CaptureFormatError
+from .files import check_run_file
 
 _KEYS = ("num_tx", "num_rx", "num_range_bins", "num_doppler_bins", "data")
 #: Range-FFT bin of the first value (the official processing skips the DC bin).
@@ -41,11 +42,12 @@ def periodic_blackman(n: int) -> np.ndarray:
 def read_coupling(path: str | os.PathLike, num_samples: int) -> RangeCoupling:
     """The coupling of a radar whose chirps have *num_samples* samples; errors name the file."""
     path = os.fspath(path)
+    check_run_file(path)
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
             lines = [(n, line.strip()) for n, line in enumerate(fh, start=1) if line.strip()]
-    except FileNotFoundError:
-        raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
+    except OSError as exc:
+        raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
     fields: dict[str, tuple[int, str]] = {}
     for lineno, text in lines:
         key, sep, rest = text.partition(":")

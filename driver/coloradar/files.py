@@ -11,6 +11,7 @@ import logging
 import math
 import os
 import re
+import stat
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,16 +123,28 @@ _WAVEFORM_KEYS = _WAVEFORM_INT_KEYS + ("adc_sample_frequency", "start_frequency"
 # Text files
 
 
+def check_run_file(path: str) -> None:
+    """Refuse a run's or calibration's file that is missing or is no regular file: a directory,
+    or a pipe or device, which a read would wait on or never finish (a link to /dev/zero)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
+    except OSError as exc:
+        raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode):
+        raise CaptureFormatError(f"{path}: a directory, not a file (the run is damaged)")
+    if not stat.S_ISREG(mode):
+        raise CaptureFormatError(f"{path}: not a regular file (a pipe or a device; the run is damaged)")
+
+
 def _read_lines(path: str) -> list[tuple[int, str]]:
     """(1-based line number, stripped text) of the non-blank lines of *path*."""
+    check_run_file(path)
     try:
         # (utf-8-sig: a BOM, a Windows editor's, ignored, as the other text readers do)
         with open(path, encoding="utf-8-sig", errors="replace") as fh:
             lines = [(n, s) for n, line in enumerate(fh, start=1) if (s := line.strip())]
-    except FileNotFoundError:
-        raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
-    except IsADirectoryError:
-        raise CaptureFormatError(f"{path}: a directory, not a file (the run is damaged)") from None
     except OSError as exc:
         raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
     for n, text in lines:

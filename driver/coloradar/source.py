@@ -39,7 +39,7 @@ from ...cfg import RadarConfig
 from ...errors import CaptureFormatError, SourceError
 from ...rawframe import RawLayout
 from ...tum import TumTrajectory
-from .files import STREAMS
+from .files import STREAMS, check_run_file
 from .run import ColoRadarRun, adc_to_cube, heatmap_to_polar, pointcloud_to_points, points_in_frame
 from .waveform import TI_TX_ORDER, read_antenna_config, tx_order_from_antennas, waveform_to_config
 from ...plain_numbers import plain_float
@@ -95,7 +95,8 @@ class ColoRadarSource(Source):
                     shown = ", ".join(runs[:5]) + (f" and {len(runs) - 5} more" if len(runs) > 5 else "")
                     raise SourceError(f"{run.run_dir}: not a run but a folder of runs ({shown}): give one run")
                 times = os.path.join(run.run_dir, *stream.split('/'), 'timestamps.txt')
-                why = "a directory, not a file" if os.path.isdir(times) else "missing"
+                why = ("a directory, not a file" if os.path.isdir(times) else
+                       "not a regular file (a pipe or a device)" if os.path.exists(times) else "missing")
                 raise SourceError(f"{run.run_dir}: the run has no {stream} ({times} is {why})")
 
         events: list[_Event] = []
@@ -165,6 +166,8 @@ class ColoRadarSource(Source):
         event's row among them (-1: outside); None when the run has no ground truth."""
         if not self.run.has("groundtruth"):
             times = self.run.timestamps_file("groundtruth")
+            if os.path.exists(times):  # there, but no file
+                check_run_file(times)
             if os.path.isdir(os.path.dirname(times)):  # a folder without its times: a run cut short
                 raise CaptureFormatError(f"{times}: no such file (the run is incomplete: its ground truth "
                                          f"has no timestamps)")

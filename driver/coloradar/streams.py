@@ -26,6 +26,7 @@ import stat
 import numpy as np
 
 from ...errors import CaptureError, CaptureFormatError, UsageError
+from ..recordings.capture_check import TIMESTAMP_LIMIT_S
 from .files import (
     _LAYOUT,
     ADC_SAMPLE,
@@ -37,6 +38,7 @@ from .files import (
     _read_table,
     _StreamLayout,
     check_file_size,
+    check_run_file,
 )
 
 log = logging.getLogger(__name__)
@@ -70,6 +72,10 @@ class RunStreams:
             path = self._path(self._layout(stream).timestamps)
             table, lines = _read_table(path, 1, "one timestamp (s)")
             times = table[:, 0]
+            far = np.flatnonzero(np.abs(times) > TIMESTAMP_LIMIT_S)
+            if len(far):  # (past the year 2286: no time of a recording; the estimator's steps overflowed)
+                raise CaptureFormatError(f"{path}:{lines[far[0]]}: timestamp {float(times[far[0]])!r} s is out of "
+                                         f"range (at most {TIMESTAMP_LIMIT_S:.0e} s from 1970)")
             back = np.flatnonzero(np.diff(times) < 0)
             if len(back):
                 # Data files are matched to lines by position: a step back means a broken file.
@@ -90,6 +96,8 @@ class RunStreams:
                 names = os.listdir(folder)
             except FileNotFoundError:
                 raise CaptureFormatError(f"{folder}: no such folder (the run is incomplete)") from None
+            except NotADirectoryError:
+                raise CaptureFormatError(f"{folder}: a file, not a folder (the run is damaged)") from None
             except OSError as exc:
                 raise CaptureError(f"cannot list {folder}: {exc.strerror or exc}") from None
             indices = sorted(int(m.group(1)) for name in names if (m := pattern.fullmatch(name)))
@@ -127,11 +135,10 @@ class RunStreams:
 
     @staticmethod
     def _read_bytes(path: str) -> bytes:
+        check_run_file(path)
         try:
             with open(path, "rb") as fh:
                 return fh.read()
-        except FileNotFoundError:
-            raise CaptureFormatError(f"{path}: no such file (the run is incomplete)") from None
         except OSError as exc:
             raise CaptureError(f"cannot read {path}: {exc.strerror or exc}") from None
 
