@@ -199,6 +199,9 @@ class HeatmapMaker:
         cov = np.matmul(x, xc)  # (n_range, row, row)
         nr, n_row = cov.shape[:2]
         intensity = cov.view(np.float32).reshape(nr, 2 * n_row * n_row) @ self._az_quad  # (n_range, n_az)
+        # A quadratic form of a covariance is >= 0, but in float32 a cell next to a huge one (a
+        # saturated frame's DC) can come out a rounding step below (-8 beside 5e16).
+        np.maximum(intensity, 0, out=intensity)
         zero = self._row[:, :, self._static_rows]  # (row, n_range, static Doppler bins)
         # One matrix product for all ranges and static bins (not one per range bin).
         zero_az = np.matmul(dft, zero.reshape(n_row, -1)).reshape(len(dft), nr, -1)  # (n_az, n_range, bins)
@@ -246,7 +249,7 @@ class HeatmapMaker:
         cov = x @ np.conj(np.transpose(x, (0, 2, 1)))  # (n_range, elements, elements)
         a = self._steer  # (cells, elements)
         # a^H R a for every cell and range, as matrix products.
-        intensity = np.einsum("ce,ref,cf->rc", np.conj(a), cov, a, optimize=True).real
+        intensity = np.maximum(np.einsum("ce,ref,cf->rc", np.conj(a), cov, a, optimize=True).real, 0)  # (as above)
         xs = data[self._static_rows].sum(axis=0).T  # (n_range, elements)
         static = np.abs(xs @ np.conj(a).T) ** 2  # (n_range, cells)
         shape = (len(self.range_m), len(self.elevation_rad), len(self.azimuth_rad))

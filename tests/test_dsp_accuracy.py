@@ -973,3 +973,17 @@ def test_calibration_scene_points_consistent(shipped_cfg):
     assert len(pts) == 5
     assert np.all(pts["doppler_bin"] == 0)
     assert np.all(np.abs(pts["velocity"]) <= SUB_BIN_TOL * shipped_cfg.velocity_resolution_mps)
+
+
+def test_a_saturated_frame_makes_a_heatmap_of_no_negative_power(shipped_cfg):
+    # Every sample at full scale (an ADC clipped by a reflector at the antennas): float32 rounding
+    # left a cell beside the huge DC one at -8, which CFAR refused ("power holds negative values").
+    from radarodom.dsp.heatmap import HeatmapMaker
+
+    proc = FrameProcessor(shipped_cfg)
+    cube = np.full(shipped_cfg.cube_shape, 32767 + 32767j, np.complex64)
+    spectrum = proc.process(cube).spectrum
+    for maker in (HeatmapMaker(proc, doppler_cells=400), HeatmapMaker(proc)):  # the estimator's, the full one
+        heatmap = maker.range_azimuth(spectrum)
+        assert heatmap.intensity.min() >= 0 and heatmap.static.min() >= 0
+    assert HeatmapMaker(proc, elevation_bins=8).range_azimuth_elevation(spectrum).intensity.min() >= 0
