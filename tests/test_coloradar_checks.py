@@ -239,3 +239,30 @@ def test_a_run_that_fails_part_way_leaves_no_new_output_and_puts_replaced_ones_b
     capsys.readouterr()
     assert sorted(p.name for p in out.iterdir()) == ["groundtruth.tum"]
     assert (out / "groundtruth.tum").read_text() == "an earlier run's\n" and (tmp_path / "t.json").read_text() == "{}\n"
+
+
+def test_negative_heatmap_intensities_are_taken_as_none_and_said_once_naming_the_file(tmp_path, capsys):
+    # The paper's CFAR features stopped the run on them: "power holds negative values", no file named.
+    from coloradar_synth import write_moving_run
+
+    run = write_moving_run(tmp_path / "data")
+    files = sorted((run / "cascade" / "heatmaps" / "data").iterdir())
+    for path in files[2:4]:
+        cells = np.fromfile(path, "<f4").reshape(-1, 2)
+        cells[::2, 0] = -5.0
+        cells.tofile(path)
+    rc = radar_capture.main(["--source", f"coloradar://{run}?rate=max", "--no-publish", "--estimator-config",
+                             str(_paper_cfar_settings(tmp_path)), "--odom-out", str(tmp_path / "o.tum")])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    said = [ln for ln in err.splitlines() if "intensities are negative" in ln]
+    assert len(said) == 1 and str(files[2]) in said[0] and "taken as 0 (said once a run)" in said[0], err
+
+
+def _paper_cfar_settings(tmp_path) -> pathlib.Path:
+    """The paper's settings (CFAR features), as radar-coloradar runs them."""
+    from radarodom.estimator.config import paper_variants
+
+    path = tmp_path / "paper.json"
+    next(iter(paper_variants().values()))[1].dump(path)
+    return path

@@ -139,6 +139,7 @@ class ColoRadarRun(RunStreams):
             self.calib_dir = found_calibration(self.run_dir)
             if self.calib_dir is None:
                 log.info("%s: no calib/ beside or inside the run", self.run_dir)
+        self._said_negative = False  # a heatmap's negative intensities, warned of once
         self._times: dict[str, np.ndarray] = {}
         self._time_lines: dict[str, np.ndarray] = {}  # the line of each time in its file
         self._files: dict[str, list[str]] = {}
@@ -214,7 +215,15 @@ class ColoRadarRun(RunStreams):
         path = self._file(f"{sensor}/heatmaps", i)
         cells = self._read_fixed(path, HEATMAP_CELL, cfg.shape[:3],
                                  self.calib_path(sensor, "heatmap_cfg.txt"))
-        return finite_values(path, cells.view("<f4").reshape(cfg.shape))
+        values = finite_values(path, cells.view("<f4").reshape(cfg.shape))
+        negative = values[..., 0] < 0
+        if negative.any():  # (the estimator's CFAR stopped on them, naming neither file nor frame)
+            (log.debug if self._said_negative else log.warning)(
+                "%s: %d of %d intensities are negative (a power is >= 0): taken as 0 (said once a run)", path,
+                int(negative.sum()), negative.size)
+            self._said_negative = True
+            values[..., 0][negative] = 0
+        return values
 
     def adc(self, sensor: str, i: int) -> np.ndarray:
         """ADC frame *i* of *sensor*: complex64 (tx, rx, chirp, sample) as stored, I real and Q
