@@ -266,3 +266,14 @@ def _paper_cfar_settings(tmp_path) -> pathlib.Path:
     path = tmp_path / "paper.json"
     next(iter(paper_variants().values()))[1].dump(path)
     return path
+
+
+def test_times_that_do_not_overlap_the_ground_truth_are_refused_with_both_spans(tmp_path, capsys):
+    run = write_run(tmp_path / "data", frames=4)
+    truth = run / "groundtruth" / "timestamps.txt"
+    truth.write_text("".join(f"{float(t) + 1000:.6f}\n" for t in truth.read_text().split()))
+    assert radar_coloradar.main([str(run)]) == 2
+    said = _error_line(capsys, "radar-coloradar")
+    assert said.startswith(f"{run}: fewer than two cascade heatmaps fall inside the ground truth: the heatmaps run "
+                           "from "), said
+    assert ", the ground truth run from 160859" in said and said.endswith("(s; each timestamps.txt in seconds?)"), said

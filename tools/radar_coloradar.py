@@ -208,10 +208,18 @@ def _main(args: argparse.Namespace) -> int:
         raise
 
 
+def _span(what: str, times: np.ndarray) -> str:
+    """"the heatmaps run from 1.000 to 9.000" (or "... hold none")."""
+    return f"{what} run from {times[0]:.3f} to {times[-1]:.3f}" if len(times) else f"{what} hold none"
+
+
 def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, str]]) -> int:
     data = RunData(run, args.heatmap, args.velocity)
     if data.kept.sum() < 2:
-        raise UsageError(f"{run.run_dir}: fewer than two {args.heatmap} heatmaps fall inside the ground truth")
+        times, truth = data.heatmap_times, run.timestamps("groundtruth")
+        raise UsageError(f"{run.run_dir}: fewer than two {args.heatmap} heatmaps fall inside the ground truth: "
+                         f"{_span('the heatmaps', times)}, {_span('the ground truth', truth)} (s; each "
+                         f"timestamps.txt in seconds?)")
     # What --overwrite replaces is set aside, and removed once every output is written.
     aside = ReplacedOutputs([(path, "file") for _, path in outputs] if args.overwrite else [])
     try:
