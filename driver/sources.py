@@ -52,6 +52,9 @@ SCHEMES: dict[str, str] = {
 REPLAY_FORMATS: dict[str, str] = {
     "tidemo": "radarodom.driver.tidemo.replay:open_tidemo_replay",
 }
+#: Timestamps are seconds (Unix time or from the start of a stream); larger magnitudes are
+#: no time any recording was made at (1e10 s is the year 2286).
+TIMESTAMP_LIMIT_S = 1e10
 #: The stream file a recording of another replay format keeps in its directory (a demo's UART
 #: stream, which ``tidemo://`` records beside its capture.json): ``replay://DIR`` finds the
 #: format by it, and a capture directory's files include it (``--overwrite`` replaces it).

@@ -26,7 +26,7 @@ import stat
 import numpy as np
 
 from ...errors import CaptureError, CaptureFormatError, UsageError
-from ..recordings.capture_check import TIMESTAMP_LIMIT_S
+from ..sources import TIMESTAMP_LIMIT_S
 from .files import (
     _LAYOUT,
     ADC_SAMPLE,

@@ -25,6 +25,7 @@ from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS
 from ...cfg_commands import coefficient_ok, coefficient_part_ok
 from ...errors import CaptureError, CaptureFormatError, named_character, quoted, quoted_json
 from ...plain_numbers import finite_float, plain_float
+from ..sources import TIMESTAMP_LIMIT_S
 
 log = logging.getLogger(__name__)
 
@@ -38,9 +39,6 @@ ADC_DATA = "adc_data.bin"
 TIMESTAMPS = "timestamps.txt"
 METADATA = "capture.json"
 GROUNDTRUTH = "groundtruth.tum"
-#: Timestamps are seconds (Unix time or from the start of a stream); larger magnitudes are
-#: no time any recording was made at (1e10 s is the year 2286).
-TIMESTAMP_LIMIT_S = 1e10
 #: capture.json without its list of incomplete frames is a few hundred bytes; the list adds
 #: well under this much per frame of the data file.
 _METADATA_BASE_BYTES = 1 << 20
