@@ -277,3 +277,17 @@ def test_times_that_do_not_overlap_the_ground_truth_are_refused_with_both_spans(
     assert said.startswith(f"{run}: fewer than two cascade heatmaps fall inside the ground truth: the heatmaps run "
                            "from "), said
     assert ", the ground truth run from 160859" in said and said.endswith("(s; each timestamps.txt in seconds?)"), said
+
+
+def test_radar_coloradar_says_each_warning_once_not_once_a_variant(tmp_path, capsys):
+    # Seven variants estimate the same frames: the same warning came seven times.
+    from coloradar_synth import write_moving_run
+
+    run = write_moving_run(tmp_path / "data")
+    path = sorted((run / "single_chip" / "pointclouds" / "data").iterdir())[2]
+    points = np.fromfile(path, "<f4").reshape(-1, 5)
+    points[:, 4] = 3e38  # a Doppler no radar measures: the estimator leaves the points out, saying so
+    points.tofile(path)
+    assert radar_coloradar.main([str(run)]) == 0
+    warnings = [ln for ln in capsys.readouterr().err.splitlines() if ": warning: " in ln]
+    assert warnings and len(warnings) == len(set(warnings)), warnings

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import math
 import os
 import sys
@@ -234,8 +235,37 @@ def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, s
     return 0
 
 
+class _SaidOnce(logging.Filter):
+    """Each warning once: the variants estimate the same frames, and each said what the last had."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.said: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno < logging.WARNING:
+            return True
+        text = record.getMessage()
+        if text in self.said:
+            return False
+        self.said.add(text)
+        return True
+
+
 def _evaluate(args: argparse.Namespace, run: ColoRadarRun, data: RunData) -> None:
-    """Each variant's estimate on *data*: the tables printed, the outputs written."""
+    """Each variant's estimate on *data*, each warning said once: the tables printed, the outputs written."""
+    handlers = logging.getLogger("radarodom").handlers
+    once = _SaidOnce()
+    for handler in handlers:
+        handler.addFilter(once)
+    try:
+        _evaluate_variants(args, run, data)
+    finally:
+        for handler in handlers:
+            handler.removeFilter(once)
+
+
+def _evaluate_variants(args: argparse.Namespace, run: ColoRadarRun, data: RunData) -> None:
     results = {}
     if args.out:
         with TumWriter(os.path.join(args.out, "groundtruth.tum")) as gt:
