@@ -291,3 +291,32 @@ def test_radar_coloradar_says_each_warning_once_not_once_a_variant(tmp_path, cap
     assert radar_coloradar.main([str(run)]) == 0
     warnings = [ln for ln in capsys.readouterr().err.splitlines() if ": warning: " in ln]
     assert warnings and len(warnings) == len(set(warnings)), warnings
+
+
+def test_numbers_too_large_for_metres_are_refused_where_they_are_and_quaternions_of_any_scale_read(tmp_path):
+    # 1e300 m went on into the metrics: numpy's overflow warnings and an RPE of inf; a quaternion
+    # of 1e-300 parts was "zero", one of 1e300 parts overflowed.
+    import warnings
+
+    run = write_run(tmp_path / "data", frames=4)
+    poses = run / "groundtruth" / "groundtruth_poses.txt"
+    rows = [line.split() for line in poses.read_text().splitlines()]
+    mount = tmp_path / "data" / "calib" / "transforms" / "base_to_cascade.txt"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for scale in ("1e300", "1e-300"):
+            rows[1][3:] = ["0", "0", scale, scale]
+            poses.write_text("".join(" ".join(r) + "\n" for r in rows))
+            truth = ColoRadarRun(run).groundtruth()
+            np.testing.assert_allclose(truth.quaternions[1], [0, 0, 2 ** -0.5, 2 ** -0.5])
+        rows[2][0] = "1e300"
+        poses.write_text("".join(" ".join(r) + "\n" for r in rows))
+        with pytest.raises(CaptureFormatError) as info:
+            ColoRadarRun(run).groundtruth()
+        assert str(info.value) == (f"{poses}:3: a position 1e+300 m from the origin (at most 1e+08 m; metres "
+                                   "expected)")
+        mount.write_text("1e300 0 0\n0 0 0 1\n")
+        with pytest.raises(CaptureFormatError) as info:
+            ColoRadarRun(run).base_to_sensor("cascade")
+        assert str(info.value) == (f"{mount}:1: a sensor 1e+300 m from its base is no mounting (at most 1000 m; "
+                                   "metres expected)")

@@ -70,6 +70,8 @@ def test_file_round_trip(tmp_path):
     (lambda t: t.replace("num_doppler_bins: 128\n", ""), "missing num_doppler_bins"),
     (lambda t: t + "gain: 3\n", "expected one of"),
     (lambda t: t.replace("data: ", "data: nan,").replace(",0.0\n", "\n", 1), "not finite"),
+    # It overflowed the DSP's float32, and the error blamed the ADC frame's samples.
+    (lambda t: t.replace("data: 0.0,", "data: 1e300,"), r"data's number 1 is 1e\+300, more than 1e\+09"),
 ])
 def test_file_errors_name_the_file(tmp_path, edit, words):
     path = tmp_path / "coupling_calib.txt"

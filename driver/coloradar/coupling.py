@@ -39,6 +39,11 @@ def periodic_blackman(n: int) -> np.ndarray:
     return np.blackman(n + 1)[:-1]
 
 
+#: A coupling value's part larger than this is no range FFT of a chirp of 16-bit samples (the
+#: largest, 32768 times the samples, is some 1e7 for the 256 a chirp takes at most here).
+MAX_COUPLING = 1e9
+
+
 def read_coupling(path: str | os.PathLike, num_samples: int) -> RangeCoupling:
     """The coupling of a radar whose chirps have *num_samples* samples; errors name the file."""
     path = os.fspath(path)
@@ -78,6 +83,10 @@ def read_coupling(path: str | os.PathLike, num_samples: int) -> RangeCoupling:
                                  f"num_range_bins is {expected}")
     if not np.all(np.isfinite(data)):
         raise CaptureFormatError(f"{path}:{lineno}: data holds a number that is not finite")
+    too_large = np.flatnonzero(np.abs(data) > MAX_COUPLING)
+    if len(too_large):  # (it overflowed the DSP's float32, and the error blamed the ADC frame)
+        raise CaptureFormatError(f"{path}:{lineno}: data's number {too_large[0] + 1} is {data[too_large[0]]:g}, more "
+                                 f"than {MAX_COUPLING:g}: no range FFT of a 16-bit ADC's chirp comes near it")
     if FIRST_BIN + sizes["num_range_bins"] > num_samples:
         raise CaptureFormatError(f"{path}: {sizes['num_range_bins']} range bins from bin {FIRST_BIN} do not fit "
                                  f"a {num_samples}-point range FFT (waveform_cfg.txt's samples per chirp)")

@@ -232,11 +232,27 @@ def read_transform(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     if len(lines) < 2:
         raise CaptureFormatError(f"{path}: expected 'tx ty tz' and 'qx qy qz qw' lines, found {len(lines)} line(s)")
     t = np.array(parse_numbers(path, lines[0][0], lines[0][1], 3, "'tx ty tz'"))
+    if np.abs(t).max() > MAX_MOUNT_M:
+        raise CaptureFormatError(f"{path}:{lines[0][0]}: a sensor {np.abs(t).max():g} m from its base is no "
+                                 f"mounting (at most {MAX_MOUNT_M:g} m; metres expected)")
     q = np.array(parse_numbers(path, lines[1][0], lines[1][1], 4, "'qx qy qz qw'"))
-    norm = np.linalg.norm(q)
-    if norm == 0:
-        raise CaptureFormatError(f"{path}:{lines[1][0]}: the quaternion is zero")
-    return t, q / norm
+    return t, unit_quaternions(q[None], path, np.array([lines[1][0]]))[0]
+
+
+#: A sensor farther than this from its base's origin is no mounting, m.
+MAX_MOUNT_M = 1000.0
+#: A ground-truth position farther than this from its frame's origin is no place on Earth, m.
+MAX_POSITION_M = 1e8
+
+
+def unit_quaternions(q: np.ndarray, path: str, lines: np.ndarray) -> np.ndarray:
+    """Quaternions (n, 4) scaled to unit length (their largest part first, so that neither 1e300 nor
+    1e-300 overflows or underflows), *path*:*lines* (n,) named for one that is zero."""
+    largest = np.abs(q).max(axis=1)
+    if np.any(largest == 0):
+        raise CaptureFormatError(f"{path}:{lines[np.argmax(largest == 0)]}: the quaternion is zero")
+    q = q / largest[:, None]
+    return q / np.linalg.norm(q, axis=1)[:, None]
 
 
 def check_file_size(path: str, size: int, dtype: np.dtype, shape: tuple[int, ...] | None = None,

@@ -43,6 +43,7 @@ from .files import (  # noqa: F401
     HEATMAP_CELL,
     LIDAR_POINT,
     RADAR_POINT,
+    MAX_POSITION_M,
     RADARS,
     STREAMS,
     HeatmapConfig,
@@ -53,6 +54,7 @@ from .files import (  # noqa: F401
     read_heatmap_config,
     read_transform,
     read_waveform_config,
+    unit_quaternions,
 )
 from .geometry import (
     adc_to_cube,
@@ -264,11 +266,12 @@ class ColoRadarRun(RunStreams):
             self.check("groundtruth")
             times = self.timestamps("groundtruth")
             rows, lines = _read_table(path, 7, "'x y z qx qy qz qw'")
-            norms = np.linalg.norm(rows[:, 3:], axis=1)
-            if np.any(norms == 0):
-                raise CaptureFormatError(f"{path}:{lines[np.argmax(norms == 0)]}: the quaternion is zero")
-            self._groundtruth = TumTrajectory(np.array(times), rows[:, :3], rows[:, 3:] / norms[:, None],
-                                              path, lines)
+            far = np.flatnonzero(np.abs(rows[:, :3]).max(axis=1) > MAX_POSITION_M)
+            if len(far):  # (squared on the way to the metrics: inf and numpy's warnings)
+                raise CaptureFormatError(f"{path}:{lines[far[0]]}: a position {np.abs(rows[far[0], :3]).max():g} m "
+                                         f"from the origin (at most {MAX_POSITION_M:g} m; metres expected)")
+            self._groundtruth = TumTrajectory(np.array(times), rows[:, :3],
+                                              unit_quaternions(rows[:, 3:], path, lines), path, lines)
         gt = self._groundtruth
         return TumTrajectory(gt.times.copy(), gt.positions.copy(), gt.quaternions.copy(), gt.source, gt.lines.copy())
 
