@@ -224,13 +224,18 @@ def test_a_timestamp_out_of_any_recordings_range_is_refused_where_it_is(tmp_path
     assert said == f"{times}:{len(lines)}: timestamp 1e+300 s is out of range (at most 1e+10 s from 1970)"
 
 
-def test_a_run_that_fails_part_way_leaves_no_new_output_and_puts_replaced_ones_back(tmp_path, capsys):
+def test_a_run_that_fails_leaves_no_new_output_and_puts_replaced_ones_back(tmp_path, capsys):
     # Its groundtruth.tum stayed behind, and the same command then said "already exists".
-    run = write_run(tmp_path / "data", frames=6)  # 16 range bins: the paper's CFAR window fails late
+    run = write_run(tmp_path / "data", frames=6)  # 16 range bins: too few for the paper's CFAR window
     out = tmp_path / "tables"
     argv = [str(run), "--heatmap", "single_chip", "--out", str(out), "--json", str(tmp_path / "t.json")]
     assert radar_coloradar.main(argv) == 2
-    assert "spans 21 range cells, more than the heatmap's 16" in _error_line(capsys, "radar-coloradar")
+    said = _error_line(capsys, "radar-coloradar")
+    # Said before the run is read, of the file that sets the heatmaps (it came after, of the settings).
+    calib = tmp_path / "data" / "calib" / "single_chip" / "heatmap_cfg.txt"
+    assert said == (f"{calib}: the 'CFAR' variant cannot run on these heatmaps: a window of guard 2 and train 8 "
+                    "spans 21 range cells, more than the heatmap's 16 (radar-coloradar runs the paper's settings as "
+                    "they are; radar-capture --source coloradar://RUN --estimator-config FILE runs others)"), said
     assert not out.exists() and not (tmp_path / "t.json").exists()
     out.mkdir()
     (out / "groundtruth.tum").write_text("an earlier run's\n")
@@ -239,6 +244,13 @@ def test_a_run_that_fails_part_way_leaves_no_new_output_and_puts_replaced_ones_b
     capsys.readouterr()
     assert sorted(p.name for p in out.iterdir()) == ["groundtruth.tum"]
     assert (out / "groundtruth.tum").read_text() == "an earlier run's\n" and (tmp_path / "t.json").read_text() == "{}\n"
+    # Part-way: the tables' TUM files written, then --json into a place that takes no file.
+    good = write_run(tmp_path / "good", frames=6)
+    assert radar_coloradar.main([str(good), "--out", str(out), "--json", "/proc/radarodom-test.json",
+                                 "--overwrite"]) == 1
+    assert "cannot write /proc/radarodom-test.json" in _error_line(capsys, "radar-coloradar")
+    assert sorted(p.name for p in out.iterdir()) == ["groundtruth.tum"]
+    assert (out / "groundtruth.tum").read_text() == "an earlier run's\n"
 
 
 def test_negative_heatmap_intensities_are_taken_as_none_and_said_once_naming_the_file(tmp_path, capsys):

@@ -30,12 +30,13 @@ import numpy as np
 from .. import strict_json
 from ..driver.coloradar.run import ColoRadarRun
 from ..driver.coloradar.source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
-from ..errors import CaptureError, SourceError, UsageError, why_not_written
+from ..errors import CaptureError, ConfigError, SourceError, UsageError, why_not_written
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
 from ..driver.sources import Frame
 from ..pipeline import FrameResult, OdometryFeed, Pipeline, Sink
+from ..pipeline.products import check_features_fit
 from ..products import Products
 from ..tum import TumTrajectory, TumWriter
 from . import cli
@@ -69,6 +70,21 @@ class _Collected(Sink):
                            Products(result.points, result.heatmap)))
 
 
+def _check_variants_fit(source: ColoRadarSource, run: ColoRadarRun) -> None:
+    """Every variant's features can run on the source's heatmaps: said before the run is read, of
+    the file that sets them (a CFAR window wider than the heatmaps stopped it after)."""
+    for name, (_, config) in variants().items():
+        try:
+            check_features_fit(source, config.features)
+        except ConfigError as exc:
+            where = (run.calib_path("single_chip", "waveform_cfg.txt") if source.heatmaps_from_raw
+                     else run.calib_path(source.sensor, "heatmap_cfg.txt"))
+            why = exc.message.split(": choose ")[0]  # (the settings' own fix is not this program's)
+            raise UsageError(f"{where}: the {name!r} variant cannot run on these heatmaps: {why} "
+                             "(radar-coloradar runs the paper's settings as they are; radar-capture --source "
+                             "coloradar://RUN --estimator-config FILE runs others)") from None
+
+
 class RunData:
     """A run's two streams, read once through the ``coloradar://`` source: point clouds
     (velocity, in the heatmap radar's frame) and polar heatmaps (yaw); ADC frames go through
@@ -80,6 +96,7 @@ class RunData:
         except SourceError as exc:
             raise UsageError(str(exc)) from None
         self.run, self.sensor = run, source.sensor
+        _check_variants_fit(source, run)
         # Through radar-capture's pipeline, so both give the same trajectory on the same frames.
         collected = _Collected()
         with source:
