@@ -332,3 +332,13 @@ def test_numbers_too_large_for_metres_are_refused_where_they_are_and_quaternions
             ColoRadarRun(run).base_to_sensor("cascade")
         assert str(info.value) == (f"{mount}:1: a sensor 1e+300 m from its base is no mounting (at most 1000 m; "
                                    "metres expected)")
+
+
+def test_velocity_frames_outside_the_heatmaps_span_are_refused_with_both_spans(tmp_path, capsys):
+    # Shifted by 1000 s, no velocity reached any heatmap: the odometry ran blind, exit 0, nothing said.
+    run = write_run(tmp_path / "data", frames=4)
+    times = run / "single_chip" / "pointclouds" / "timestamps.txt"
+    times.write_text("".join(f"{float(t) + 1000:.6f}\n" for t in times.read_text().split()))
+    said = _both_refuse(run, capsys, tmp_path / "out")
+    assert said.startswith(f"{run}: the velocity stream's frames run from "), said
+    assert said.endswith("they do not overlap (is each timestamps.txt in seconds of the same clock?)"), said

@@ -64,6 +64,17 @@ class _Event:
     role: str
 
 
+def _check_overlap(run: ColoRadarRun, velocity: list[float], heatmap: list[float]) -> None:
+    """Refuse velocity frames that all lie outside the heatmaps' span (a timestamps.txt shifted, or
+    not in seconds): the estimator would have no velocity for any heatmap, and said nothing."""
+    if not velocity or not heatmap:
+        return
+    if max(velocity) < min(heatmap) or min(velocity) > max(heatmap):
+        raise SourceError(f"{run.run_dir}: the velocity stream's frames run from {min(velocity):.3f} to "
+                          f"{max(velocity):.3f} s, the heatmaps' from {min(heatmap):.3f} to {max(heatmap):.3f} s: "
+                          "they do not overlap (is each timestamps.txt in seconds of the same clock?)")
+
+
 class ColoRadarSource(Source):
     """Plays a ColoRadar run's velocity and heatmap streams, interleaved in time."""
 
@@ -111,6 +122,9 @@ class ColoRadarSource(Source):
                 events += self._events(ADC_STREAM, 1, "heatmap")
             else:
                 events += self._events(f"{heatmap}/heatmaps", 1, "heatmap")
+        if not both_adc:
+            _check_overlap(run, [e.t for e in events if e.role == "velocity"],
+                           [e.t for e in events if e.role == "heatmap"])
         events.sort(key=lambda e: (e.t, e.order))
         if not events:
             raise SourceError(f"{run.run_dir}: the chosen streams hold no frames")
