@@ -302,7 +302,7 @@ def _call(run: ColoRadarRun, what: str):
     ("bad_timestamp", "cascade_times", CaptureFormatError, ["cascade/heatmaps/timestamps.txt:2:", "12x.5"]),
     ("bad_pose", "groundtruth", CaptureFormatError, ["groundtruth/groundtruth_poses.txt:3:", "x y z qx qy qz qw"]),
     ("bad_heatmap_cfg", "single_chip_cfg", CaptureFormatError,
-     ["calib/single_chip/heatmap_cfg.txt", "azimuth_bins holds 7 angles but num_azimuth_bins is 8"]),
+     ["calib/single_chip/heatmap_cfg.txt:5: azimuth_bins holds 7 angles but num_azimuth_bins (line 3) is 8"]),
 ])
 def test_each_fault_gives_one_clear_error(tmp_path, base, fault, call, error, names):
     run = ColoRadarRun(synth.write_run(tmp_path, numbering_base=base, faults=[fault]))
@@ -348,11 +348,14 @@ def test_a_timestamps_file_with_a_byte_order_mark_reads_and_a_directory_in_a_fil
     ("calib/single_chip/heatmap_cfg.txt", 4, "# range_bin_width gone", "cfg", "heatmap_cfg.txt: missing range_bin_width"),
     # Degrees where radians go, or an angle of -7 rad, were read as given:
     ("calib/single_chip/heatmap_cfg.txt", 5, "azimuth_bins -76 -44 -25 -8 8 25 44 76", "cfg",
-     "heatmap_cfg.txt: azimuth_bins reach 76 rad, beyond +/- pi/2 (90 degrees): the angles are radians"),
+     "heatmap_cfg.txt:5: azimuth_bins reach 76 rad, beyond +/- pi/2 (90 degrees): the angles are radians"),
     ("calib/single_chip/heatmap_cfg.txt", 6, "elevation_bins -7 -0.2 0.2 0.7", "cfg",
-     "heatmap_cfg.txt: elevation_bins reach 7 rad, beyond +/- pi/2"),
+     "heatmap_cfg.txt:6: elevation_bins reach 7 rad, beyond +/- pi/2"),
     ("calib/single_chip/heatmap_cfg.txt", 5, "azimuth_bins -1 -0.7 -0.4 -0.1 -0.1 0.4 0.7 1", "cfg",
-     "heatmap_cfg.txt: azimuth_bins are not ascending"),
+     "heatmap_cfg.txt:5: azimuth_bins are not ascending"),
+    # A bin of 1e300 m went on into the registration's overflow warnings.
+    ("calib/single_chip/heatmap_cfg.txt", 4, "range_bin_width 1e300", "cfg",
+     "heatmap_cfg.txt:4: range_bin_width must be a positive number of metres, at most 10, got 1e+300"),
     ("calib/single_chip/waveform_cfg.txt", 5, "adc_sample_frequency nan", "waveform", ":5: not a finite number"),
     # 1e300 chirps made a frame whose expected size the data file's check wrote in 300 digits.
     ("calib/single_chip/waveform_cfg.txt", 4, "num_chirps_per_frame 1e300", "waveform",

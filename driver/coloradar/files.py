@@ -165,13 +165,16 @@ def _read_table(path: str, columns: int, what: str) -> tuple[np.ndarray, np.ndar
 MAX_COUNT = 1_000_000
 
 
-def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> dict:
-    """``key value...`` lines (``#`` comments allowed): every key in *keys* must be there.
+def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...],
+                lines: dict[str, int] | None = None) -> dict:
+    """``key value...`` lines (``#`` comments allowed): every key in *keys* must be there; each
+    key's line number put in *lines* when given.
 
     Integer keys take one integer; other keys one float, or a list for the angle bins.
     Unknown keys are logged and skipped: the dataset's cfg files may grow.
     """
     out: dict = {}
+    lines = {} if lines is None else lines
     for lineno, text in _read_lines(path):
         if text.startswith("#"):
             continue
@@ -183,6 +186,7 @@ def _read_keyed(path: str, keys: tuple[str, ...], int_keys: tuple[str, ...]) -> 
             continue
         if key in out:
             raise CaptureFormatError(f"{path}:{lineno}: {key} given twice")
+        lines[key] = lineno
         multi = key in ("azimuth_bins", "elevation_bins")
         values = parse_numbers(path, lineno, rest, None if multi else 1, f"{key} and its value(s)")
         if key in int_keys:
@@ -202,20 +206,27 @@ def read_heatmap_config(path: str | os.PathLike) -> HeatmapConfig:
     """Parse a ``heatmap_cfg.txt``; the angle lists must match their counts, ascend and lie within
     +/- pi/2 rad."""
     path = os.fspath(path)
-    v = _read_keyed(path, _HEATMAP_KEYS, _HEATMAP_INT_KEYS)
+    at: dict[str, int] = {}
+    v = _read_keyed(path, _HEATMAP_KEYS, _HEATMAP_INT_KEYS, at)
     for key, count in (("azimuth_bins", "num_azimuth_bins"), ("elevation_bins", "num_elevation_bins")):
         bins = v[key]
         if len(bins) != v[count]:
-            raise CaptureFormatError(f"{path}: {key} holds {len(bins)} angles but {count} is {v[count]}")
+            raise CaptureFormatError(f"{path}:{at[key]}: {key} holds {len(bins)} angles but {count} (line "
+                                     f"{at[count]}) is {v[count]}")
         if np.any(np.diff(bins) <= 0):
-            raise CaptureFormatError(f"{path}: {key} are not ascending")
+            raise CaptureFormatError(f"{path}:{at[key]}: {key} are not ascending")
         if np.any(np.abs(bins) > np.pi / 2 + 1e-9):  # a radar's view is within +/- 90 degrees
-            raise CaptureFormatError(f"{path}: {key} reach {np.max(np.abs(bins)):.4g} rad, beyond +/- pi/2 (90 "
-                                     "degrees): the angles are radians within the radar's view")
+            raise CaptureFormatError(f"{path}:{at[key]}: {key} reach {np.max(np.abs(bins)):.4g} rad, beyond +/- pi/2 "
+                                     "(90 degrees): the angles are radians within the radar's view")
         bins.setflags(write=False)  # the config is frozen: so are its arrays
-    if v["range_bin_width"] <= 0:
-        raise CaptureFormatError(f"{path}: range_bin_width must be positive, got {v['range_bin_width']}")
+    if not 0 < v["range_bin_width"] <= MAX_RANGE_BIN_M:
+        raise CaptureFormatError(f"{path}:{at['range_bin_width']}: range_bin_width must be a positive number of "
+                                 f"metres, at most {MAX_RANGE_BIN_M:g}, got {v['range_bin_width']:g}")
     return HeatmapConfig(**v)
+
+
+#: A heatmap's range bin wider than this is no radar's, m (ColoRadar's are a few centimetres).
+MAX_RANGE_BIN_M = 10.0
 
 
 def read_waveform_config(path: str | os.PathLike) -> WaveformConfig:
