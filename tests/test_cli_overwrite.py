@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import signal
 import stat
 import json
 import re
@@ -529,7 +530,7 @@ def test_overwrite_keeps_every_old_output_when_the_run_fails_before_its_first_fr
 
 
 @pytest.mark.parametrize("kind", ["capture", "heatmaps"])
-def test_replaced_outputs_are_set_aside_and_put_back_or_removed(tmp_path, kind):
+def test_replaced_outputs_wait_aside_until_new_ones_hold_data(tmp_path, kind):
     from radarodom.tools.replaced_outputs import ReplacedOutputs
 
     out = tmp_path / "out"
@@ -540,16 +541,52 @@ def test_replaced_outputs_are_set_aside_and_put_back_or_removed(tmp_path, kind):
     (out / "notes.txt").write_text("mine")
     single = tmp_path / "odom.tum"
     single.write_text("old\n")
+    # A killed run's leftover (a container gives every run the same PID): never touched.
+    leftover = tmp_path / ".radarodom-replaced-1"
+    leftover.mkdir()
+    (leftover / "odom.tum").write_text("a killed run's\n")
     before = _tree(tmp_path)
-    for kept in (False, True):
-        aside = ReplacedOutputs([(str(out), kind), (str(single), "file"), (str(tmp_path / "absent.tum"), "file")])
-        visible = [p.name for p in tmp_path.rglob("*") if not any(part.startswith(".") for part in p.parts[-2:])]
-        assert sorted(visible) == ["notes.txt", "out"]  # only what radarodom wrote went
-        aside.settle(kept=kept)
-        if not kept:
-            assert _tree(tmp_path) == before
-    assert _tree(tmp_path) == {"out/notes.txt": b"mine"}
-    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+    outputs = [(str(out), kind), (str(single), "file"), (str(tmp_path / "absent.tum"), "file")]
+    aside = ReplacedOutputs(outputs)
+    visible = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file()
+                     and not any(part.startswith(".radarodom-replaced-") and part != leftover.name
+                                 for part in p.relative_to(tmp_path).parts))
+    assert visible == [".radarodom-replaced-1/odom.tum", "out/notes.txt"]  # only what radarodom wrote went
+    aside.settle()  # the run wrote nothing: each put back
+    assert _tree(tmp_path) == before
+    aside = ReplacedOutputs(outputs)
+    single.write_text("")  # an empty new file holds nothing ...
+    aside.drop_replaced()
+    single.write_text("new\n")  # ... one with a byte does: its old one goes at once
+    aside.drop_replaced()
+    assert [p.name for p in tmp_path.glob(".radarodom-replaced-*")] == [leftover.name]  # its own went with it
+    aside.settle()
+    after = _tree(tmp_path)
+    assert after == {**before, "odom.tum": b"new\n"}  # the directory put back, the file replaced
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs a POSIX file-size limit to make the write fail")
+def test_overwrite_puts_the_old_recording_back_when_the_first_frame_cannot_be_written(tmp_path):
+    # The run counted the frame before its recording failed to write it: the old recording was
+    # removed and the new one, empty, too; both runs lost.
+    import resource
+    import subprocess
+    import sys
+
+    rec = tmp_path / "rec"
+    assert radar_sim.main(["calibration", "--duration", "0.3", "--out", str(rec), "-q"]) == 0
+    (tmp_path / "odom.tum").write_text("the earlier run's\n")
+    before = _tree(tmp_path)
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails instead of killing
+        resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))  # less than one frame (786 kB)
+
+    proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source", URL, "--no-publish",
+                           "--record", str(rec), "--odom-out", str(tmp_path / "odom.tum"), "--overwrite"],
+                          capture_output=True, text=True, timeout=300, preexec_fn=small_files)
+    assert proc.returncode == 1 and "writing frame 0" in proc.stderr, proc.stderr
+    assert _tree(tmp_path) == before
 
 
 def capture_heatmaps(out) -> int:

@@ -277,18 +277,18 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
             check_features_fit(source, estimator.features)
         except ConfigError as exc:
             raise exc.located(path=args.estimator_config or "the estimator's settings") from None
-    # What --overwrite replaces is set aside, and removed only once the run has recorded a frame.
+    # What --overwrite replaces is set aside, each removed once its new output holds data.
     replaced = ReplacedOutputs([(path, kind) for path, kind, _ in _outputs(args)] if args.overwrite else [])
     pipeline = None
     try:
         pipeline = Pipeline(source, estimator=None if args.no_odom else estimator,
                             sinks=_sinks(args, source, publisher), max_frames=args.frames,
                             max_duration_s=args.duration)
-        stats = _stream(args, source, pipeline, status)
+        stats = _stream(args, source, pipeline, status, replaced)
     except BaseException:
-        replaced.settle_after_error(kept=pipeline is not None and pipeline.stats.frames > 0)
+        replaced.settle_after_error()
         raise
-    replaced.settle(kept=stats.frames > 0)
+    replaced.settle()
     summary = stream_summary(args, source, stats, pipeline.sinks)
     if publisher is not None:
         counts = publisher.counts
@@ -309,9 +309,12 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
     return summary
 
 
-def _stream(args: argparse.Namespace, source: Source, pipeline: Pipeline, status: StatusLine) -> PipelineStats:
-    """Run *pipeline*, its status shown; on an error after frames, what was kept is said first."""
+def _stream(args: argparse.Namespace, source: Source, pipeline: Pipeline, status: StatusLine,
+            replaced: ReplacedOutputs) -> PipelineStats:
+    """Run *pipeline*, its status shown, the outputs it replaces removed as the new ones hold data;
+    on an error after frames, what was kept is said first."""
     def on_frame(result, stats: PipelineStats) -> None:
+        replaced.drop_replaced()
         status.update(status_fields(stats, args.record is not None, source) + odometry_fields(stats))
 
     with _stop_on_signals(pipeline):

@@ -238,7 +238,7 @@ def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, s
         raise UsageError(f"{run.run_dir}: fewer than two {args.heatmap} heatmaps fall inside the ground truth: "
                          f"{_span('the heatmaps', times)}, {_span('the ground truth', truth)} (s; each "
                          f"timestamps.txt in seconds?)")
-    # What --overwrite replaces is set aside, and removed once every output is written.
+    # What --overwrite replaces is set aside: removed once written anew, put back if the run fails.
     aside = ReplacedOutputs([(path, "file") for _, path in outputs] if args.overwrite else [])
     try:
         _evaluate(args, run, data)
@@ -246,9 +246,9 @@ def _run(args: argparse.Namespace, run: ColoRadarRun, outputs: list[tuple[str, s
         for _, path in outputs:  # what this run wrote of them (any earlier one is set aside): the rerun may write it
             with contextlib.suppress(OSError):
                 os.remove(path)
-        aside.settle_after_error(kept=False)
+        aside.settle_after_error()
         raise
-    aside.settle(kept=True)
+    aside.settle()
     return 0
 
 

@@ -85,7 +85,7 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     cli.check_room(args.out, sim.num_frames * cfg.frame_bytes, "--out",
                    f"{sim.num_frames} frames of {cfg.frame_bytes} bytes ({sim.num_frames * sim.period:,.1f} s)",
                    replaced)
-    aside = ReplacedOutputs([(args.out, "capture")] if args.overwrite else [])  # removed once a frame is in
+    aside = ReplacedOutputs([(args.out, "capture")] if args.overwrite else [])  # removed once a frame is in it
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
@@ -102,15 +102,16 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
                     f = sim.frame(i)
                     writer.write(f.raw, f.timestamp, 0, f.pose)
                     written = i + 1
+                    aside.drop_replaced()  # the old recording's room, once this one holds a frame
                     elapsed = time.monotonic() - start
                     eta = elapsed / (i + 1) * (sim.num_frames - i - 1)
                     status.update(f"{_bar(i + 1, sim.num_frames)} {i + 1}/{sim.num_frames} frames  "
                                   f"{f.num_paths} paths  elapsed {format_duration(elapsed)}  "
                                   f"left {format_duration(eta)}", force=(i + 1 == sim.num_frames))
     except BaseException:
-        aside.settle_after_error(kept=written > 0)
+        aside.settle_after_error()
         raise
-    aside.settle(kept=written > 0)
+    aside.settle()
     if stopped and written < sim.num_frames:
         status.clear()
         kept = f"the {written} frames before it are kept in {args.out}" if written else "nothing was recorded"

@@ -256,6 +256,8 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
             meta = _read_metadata(os.path.join(directory, METADATA))
         if config is None and os.path.exists(os.path.join(directory, RADAR_CFG)):
             config = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
+        if not os.path.isfile(data):  # the stream first: without it the cfg is no help
+            raise SourceError(f"{options.url}: {data}: no such file")
         if config is None:
             raise ConfigError(f"no {RADAR_CFG}: the recording's cfg is missing; put it back, or give the cfg the "
                               "radar ran with --cfg (open_source(url, config) in Python)", path=directory)
