@@ -230,6 +230,7 @@ class Pipeline:
                 break
             stats.count(frame.timestamp, frame.missing_bytes, frame.cut_bytes)
             result = self.process(frame)
+            stats.frames_written += 1
             stats.rate.tick()
             if on_frame is not None:
                 on_frame(result, stats)

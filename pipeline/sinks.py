@@ -129,10 +129,11 @@ class TumSink(Sink):
 
 
 def remove_if_no_frame(path: str, stats: PipelineStats | None) -> None:
-    """Take back an output file of a run that saw no frame (a source that failed to start, an
-    output after it that could not be opened): it holds nothing, and left there it would block
-    the same command's next run, as the recording's directory, removed then, would not."""
-    if stats is not None and stats.frames == 0:
+    """Take back an output file of a run that wrote no whole frame (a source that failed to
+    start, an output after it that could not be opened, a first frame the disk had no room for):
+    it holds nothing whole, and left there it would block the same command's next run, as the
+    recording's directory, removed then, would not."""
+    if stats is not None and stats.frames_written == 0:
         with contextlib.suppress(OSError):
             os.remove(path)
 

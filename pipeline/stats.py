@@ -61,6 +61,9 @@ class PipelineStats:
     """What a run did so far (updated frame by frame) and, at its end, why it ended."""
 
     frames: int = 0
+    #: Of ``frames``, those every sink took (a frame whose writing failed, a full disk, is counted
+    #: in ``frames`` only): an output file of a run with none holds no whole frame.
+    frames_written: int = 0
     incomplete_frames: int = 0
     #: Zero-filled bytes of the frames streamed; of them, ``cut_bytes`` were never sent before
     #: the stream stopped, the rest were lost on the way (:attr:`lost_bytes`).

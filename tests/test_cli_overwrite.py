@@ -591,3 +591,24 @@ def test_overwrite_puts_the_old_recording_back_when_the_first_frame_cannot_be_wr
 
 def capture_heatmaps(out) -> int:
     return radar_capture.main(["--source", URL, "--no-publish", "--no-odom", "-q", "--heatmap-out", str(out)])
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs a POSIX file-size limit to make the write fail")
+def test_a_first_frame_that_cannot_be_written_leaves_no_output_file_behind(tmp_path):
+    # The frame was counted before its recording failed: the other outputs, holding nothing
+    # whole, stayed (an empty odom.tum, a header-only CSV) and blocked the same command's rerun.
+    import resource
+    import subprocess
+    import sys
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))  # less than one frame (786 kB)
+
+    argv = [sys.executable, "-m", "radarodom.tools.radar_capture", "--source", URL, "--no-publish",
+            "--record", str(tmp_path / "rec"), "--odom-out", str(tmp_path / "odom.tum"),
+            "--points-out", str(tmp_path / "points.csv"), "--odom-json", str(tmp_path / "odom.jsonl")]
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=300, preexec_fn=small_files)
+    assert proc.returncode == 1 and "writing frame 0" in proc.stderr, proc.stderr
+    assert list(tmp_path.iterdir()) == []
+    assert subprocess.run(argv, capture_output=True, text=True, timeout=300).returncode == 0  # the rerun
