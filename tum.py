@@ -86,8 +86,9 @@ def parse_numbers(path: str, lineno: int, text: str, count: int | None, what: st
             raise CaptureFormatError(f"{path}:{lineno}: {odd[0][:20]!r} is not a plain decimal number "
                                      f"(expected {what})")
         if count is not None and len(tokens) != count and not odd:  # the count is what is wrong: say so
-            raise CaptureFormatError(f"{path}:{lineno}: expected {count} number{'' if count == 1 else 's'} ({what}), got {len(tokens)}: "
-                                     f"{_shortened(text)!r}")
+            plural = "" if count == 1 else "s"
+            raise CaptureFormatError(f"{path}:{lineno}: expected {count} number{plural} ({what}), got "
+                                     f"{len(tokens)}: {_shortened(text)!r}")
         raise CaptureFormatError(f"{path}:{lineno}: expected {what}, got {text[:60]!r}")
     if not all(math.isfinite(v) for v in values):
         raise CaptureFormatError(_not_finite(path, lineno, text, tokens, values, count, what))

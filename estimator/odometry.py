@@ -181,7 +181,8 @@ class RadarOdometry:
         n_given = len(points)
         points = finite_points(points, self._point_fields)
         if len(points) < n_given:
-            self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN, inf or values past {MAX_POINT_VALUE:g} in "
+            self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN, inf or values past "
+                                f"{MAX_POINT_VALUE:g} in "
                                 f"{'/'.join(self._point_fields)}: left out")
         est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
         if self.velocities.level_speed is not None:

@@ -208,8 +208,8 @@ def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_la
     proc = capture("--source", f"replay://{rec}?rate=max", "--mcap", tmp_path / "run.mcap")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
     assert proc.stderr.strip().splitlines() == [
-        f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from 3000000000.000 s to 3000000000.100 s, and a "
-        "ROS 2 stamp holds 0 to 2147483647 s (a node's time is never negative; its seconds are 32-bit): shift the "
+        f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from 3000000000.000 s to "
+        "3000000000.100 s, and a ROS 2 stamp holds 0 to 2147483647 s (a node's time is never negative; its seconds are 32-bit): shift the "
         "times into that range, or leave out --mcap"], proc.stderr
     assert not (tmp_path / "run.mcap").exists()
     late = tmp_path / "late"
