@@ -493,3 +493,19 @@ def test_a_recordings_directory_as_the_reference_is_told_its_url(run_files, tmp_
     proc = run_eval(est, tmp_path)
     assert (proc.returncode, proc.stderr) == (
         2, f"radar-eval: error: {tmp_path}: not a file (a recording's ground truth: give replay://{tmp_path})\n")
+
+
+def test_odom_messages_too_large_to_compute_with_are_warned_of(corridor_run, tmp_path):
+    # A message's x of 1e308 gave a position and speed RMS of inf without a word (the TUM path warns).
+    import json
+
+    lines = corridor_run.odom.read_text().splitlines(keepends=True)
+    message = json.loads(lines[5])
+    message["x"] = 1e308
+    huge = tmp_path / "huge.jsonl"
+    huge.write_text("".join(lines[:5]) + json.dumps(message) + "\n" + "".join(lines[6:]))
+    proc = run_eval(corridor_run.tum, corridor_run.rec / "groundtruth.tum", "--odom", huge)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.startswith("radar-eval: warning: the coordinates are too large to compute with: lengths "
+                                  "overflow, so figures show as inf or nan"), proc.stderr
+    assert "Warning" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr

@@ -126,7 +126,8 @@ def _main(args: argparse.Namespace) -> int:
             measured_at_s=measured_at)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
-        overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
+        overflow = (not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
+                    or (covariance is not None and _not_finite_in(covariance[0])))
         # (json_text writes standard JSON: an undefined figure becomes null)
         data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts},
                 **({} if covariance is None else {"covariance": covariance[0]})} if args.json else None
@@ -213,6 +214,15 @@ def _on_the_evaluation_clock(flags: plots.OdometryLog, estimate: TumTrajectory, 
         log.info("%s: %d of %d odometry messages fall outside the evaluated poses", flags.source,
                  len(flags) - len(inside), len(flags))
     return inside
+
+
+def _not_finite_in(figures) -> bool:
+    """Whether a nested dict (or list) of figures holds an inf or a nan (None is "not computed")."""
+    if isinstance(figures, dict):
+        return any(_not_finite_in(v) for v in figures.values())
+    if isinstance(figures, (list, tuple)):
+        return any(_not_finite_in(v) for v in figures)
+    return isinstance(figures, float) and not math.isfinite(figures)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
