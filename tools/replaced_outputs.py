@@ -57,8 +57,8 @@ def holds_data(path: str, kind: str) -> bool:
             return os.path.isfile(path) and os.path.getsize(path) > 0
         if kind == "capture":
             return os.path.isdir(path) and own_recording(path) is not None
-        return os.path.isdir(path) and any(HeatmapSink.owns(n) and n != HeatmapSink.INDEX and
-                                           not n.startswith(HeatmapSink.INDEX) for n in os.listdir(path))
+        return os.path.isdir(path) and any(HeatmapSink.owns(n) and not n.startswith(HeatmapSink.INDEX)
+                                           for n in os.listdir(path))
     except OSError:
         return False
 

@@ -16,6 +16,7 @@ timestamps' bound), so that the writer (:mod:`.capture_writer`) and the reader
 from __future__ import annotations
 
 import logging
+import os
 from typing import Any
 
 import numpy as np
@@ -191,6 +192,17 @@ def read_metadata(path: str, frames_in_data: int) -> dict[str, Any] | None:
         raise CaptureFormatError(f"{path}: {exc}; repair it or move it away (without it every frame "
                                  f"of the data file is played, as complete)") from None
     return check_metadata(meta, path)
+
+
+def check_parts_are_files(directory: str, names, whose: str) -> None:
+    """Each of a recording's files *names* that is in *directory* is a file (a directory in its
+    place was read as missing, or failed to open); *whose*: "a capture's", "a demo recording's"."""
+    for name in names:
+        part = os.path.join(directory, name)
+        if os.path.exists(part) and not os.path.isfile(part):
+            what = "a directory" if os.path.isdir(part) else "not a regular file"
+            raise CaptureFormatError(f"{part}: is {what}: {whose} {name} is a file; put the recording's own back "
+                                     "in its place")
 
 
 def read_timestamps(path: str, max_lines: int, *, closed: bool = False) -> np.ndarray:

@@ -78,31 +78,19 @@ from .capture_writer import (  # noqa: F401 (re-exported: they were defined here
     remove_capture_files,
     write_json_atomically,
 )
+from .recording_dir import metadata_format
 
 log = logging.getLogger(__name__)
 
 
-def _metadata_format(directory: str) -> Any:
-    """The "format" *directory*'s capture.json names, None when it names none or cannot be read."""
-    from ... import strict_json
-
-    try:
-        with open(os.path.join(directory, METADATA), "rb") as fh:
-            meta = strict_json.loads(fh.read(1 << 20), max_bytes=1 << 20)
-    except (OSError, ValueError):
-        return None
-    return meta.get("format") if isinstance(meta, dict) else None
-
-
 def missing_data_message(directory: str) -> str:
-    """Why *directory* cannot be played for want of its frame data."""
+    """Why *directory* cannot be played for want of its frame data (raised instead, as
+    :class:`CaptureFormatError`, when the demo recording's stream file is there but no file)."""
     present = [name for name in (RADAR_CFG, TIMESTAMPS, METADATA) if os.path.exists(os.path.join(directory, name))]
-    if _metadata_format(directory) == capture_check.TIDEMO_FORMAT_NAME:  # its stream file is the one missing
+    if metadata_format(directory) == capture_check.TIDEMO_FORMAT_NAME:  # its stream file is the one missing
         from ..sources import REPLAY_FORMAT_FILES
         stream = REPLAY_FORMAT_FILES["tidemo"]
-        if os.path.isdir(os.path.join(directory, stream)):
-            return (f"{os.path.join(directory, stream)}: is a directory: a demo recording's {stream} is a file; "
-                    "put the recording's own back in its place")
+        capture_check.check_parts_are_files(directory, (stream,), "a demo recording's")  # a directory there
         return (f"{directory}: no {stream}: the demo UART recording's stream is missing "
                 f"(the directory holds {', '.join(present)})")
     if present:
@@ -130,12 +118,8 @@ class CaptureDirectory:
             what = "a directory" if os.path.isdir(data_path) else "not a regular file"
             raise CaptureFormatError(f"{data_path}: is {what}: a capture's {ADC_DATA} is the file of its "
                                      f"recorded frames")
-        for name in (RADAR_CFG, METADATA, TIMESTAMPS, GROUNDTRUTH):
-            part = os.path.join(self.directory, name)
-            if os.path.exists(part) and not os.path.isfile(part):
-                what = "a directory" if os.path.isdir(part) else "not a regular file"
-                raise CaptureFormatError(f"{part}: is {what}: a capture's {name} is a file; put the "
-                                         "recording's own back in its place")
+        capture_check.check_parts_are_files(self.directory, (RADAR_CFG, METADATA, TIMESTAMPS, GROUNDTRUTH),
+                                            "a capture's")
         if config is None:
             if not os.path.exists(cfg_path):
                 raise ConfigError(f"missing {RADAR_CFG}: give the radar configuration with --cfg "

@@ -35,14 +35,19 @@ _OWN_FORMATS = (FORMAT_NAME, TIDEMO_FORMAT_NAME)
 _METADATA_MAX_BYTES = 256 << 20
 
 
-def _own_metadata(directory: str) -> bool:
-    """Whether *directory*'s capture.json is one radarodom wrote (its format one of radarodom's)."""
+def metadata_format(directory: str):
+    """The "format" *directory*'s capture.json names; None when it names none or cannot be read."""
     try:
         with open(os.path.join(directory, METADATA), "rb") as fh:
             meta = strict_json.loads(fh.read(_METADATA_MAX_BYTES + 1), max_bytes=_METADATA_MAX_BYTES)
     except (OSError, ValueError):
-        return False
-    return isinstance(meta, dict) and meta.get("format") in _OWN_FORMATS
+        return None
+    return meta.get("format") if isinstance(meta, dict) else None
+
+
+def _own_metadata(directory: str) -> bool:
+    """Whether *directory*'s capture.json is one radarodom wrote (its format one of radarodom's)."""
+    return metadata_format(directory) in _OWN_FORMATS
 
 
 def _recording_files_in(directory: str) -> list[str]:

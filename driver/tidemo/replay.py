@@ -33,7 +33,7 @@ import numpy as np
 from ... import strict_json
 from ...cfg import RadarConfig
 from ...errors import CaptureError, CaptureFormatError, ConfigError, SourceError, quoted_json
-from ..recordings.capture_check import read_timestamps
+from ..recordings.capture_check import check_parts_are_files, read_timestamps
 from ..sources import Frame, Pacer, Source
 from ..url_options import RATE_EXPECTED, UrlOptions, at_least, parse_rate
 from .framer import FramerStats, TlvFramer
@@ -229,17 +229,6 @@ def _check_against_metadata(source: TidemoReplaySource, meta: dict) -> None:
                                  f"recording wrote {meta['frame_lines']}: the file {changed}")
 
 
-def _check_parts_are_files(directory: str) -> None:
-    """Each of a recording's files that is there is a file (a directory in its place was read as
-    missing, or failed to open)."""
-    for name in (UART_DATA, METADATA, TIMESTAMPS, RADAR_CFG):
-        part = os.path.join(directory, name)
-        if os.path.exists(part) and not os.path.isfile(part):
-            what = "a directory" if os.path.isdir(part) else "not a regular file"
-            raise CaptureFormatError(f"{part}: is {what}: a demo recording's {name} is a file; put the "
-                                     "recording's own back in its place")
-
-
 def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
     rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
@@ -249,22 +238,21 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
         raise SourceError(f"{options.url}: no path: use replay://FILE?format=tidemo")
     path = os.path.expanduser(path)
     meta = None
-    if os.path.isdir(path):
+    recording = os.path.isdir(path)  # a directory UartRecorder wrote, else a serial logger's file
+    if recording:
         directory, data = path, os.path.join(path, UART_DATA)
-        _check_parts_are_files(directory)
+        check_parts_are_files(directory, (UART_DATA, METADATA, TIMESTAMPS, RADAR_CFG), "a demo recording's")
         if os.path.exists(os.path.join(directory, METADATA)):
             meta = _read_metadata(os.path.join(directory, METADATA))
         if config is None and os.path.exists(os.path.join(directory, RADAR_CFG)):
             config = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
-        if not os.path.isfile(data):  # the stream first: without it the cfg is no help
-            raise SourceError(f"{options.url}: {data}: no such file")
-        if config is None:
-            raise ConfigError(f"no {RADAR_CFG}: the recording's cfg is missing; put it back, or give the cfg the "
-                              "radar ran with --cfg (open_source(url, config) in Python)", path=directory)
     else:
         directory, data = os.path.dirname(path) or ".", path
-    if not os.path.isfile(data):
+    if not os.path.isfile(data):  # the stream first: without it the cfg is no help
         raise SourceError(f"{options.url}: {data}: no such file")
+    if config is None and recording:
+        raise ConfigError(f"no {RADAR_CFG}: the recording's cfg is missing; put it back, or give the cfg the "
+                          "radar ran with --cfg (open_source(url, config) in Python)", path=directory)
     if config is None:
         raise ConfigError("the file holds the demo's UART stream: give the cfg the radar ran with --cfg "
                           "(open_source(url, config) in Python)", path=data)
