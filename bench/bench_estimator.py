@@ -3,9 +3,10 @@
     python bench/bench_estimator.py [--data DIR] [--scenes corridor room lab] [--seed 0]
                                     [--rounds 3] [--json FILE]
 
-Runs :class:`radarodom.estimator.odometry.RadarOdometry` with the defaults and with the
-paper's method on simulated sequences (recorded with ``radar-sim`` and put through the DSP
-once, as ``paper_experiment.py`` does, cached in --data) and reports the median and 90th
+Runs :class:`radarodom.estimator.odometry.RadarOdometry` with the defaults (and with some of them
+off: the map of wall directions, ``wall_map.use``, the points' registration, the heading options)
+and with the paper's method on simulated sequences (recorded with ``radar-sim`` and put through
+the DSP once, as ``paper_experiment.py`` does, cached in --data) and reports the median and 90th
 percentile of ``OdometryState.compute_s`` (everything the estimator does for a frame: the
 velocity, the features, the registrations, the integration).
 
@@ -72,12 +73,15 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     default = EstimatorConfig()
     configs = {"default": default,
-               # The heatmaps' registration alone (issue 20's item 30 off), for the points' cost.
-               "default, the heatmaps' registration alone": default.with_(point_yaw={"blend": 0.0}),
+               # The map of wall directions off (the defaults before 2026-12-04), for its cost.
+               "default without the wall map": default.with_(wall_map={"use": False}),
+               # The heatmaps' registration alone (issue 20's items 30 and 35 off), for the points' cost.
+               "default, the heatmaps' registration alone": default.with_(point_yaw={"blend": 0.0},
+                                                                          wall_map={"use": False}),
                # Issue 20's four heading options off: the defaults of 2026-11-25, for their cost.
                "default before the heading options": default.with_(
                    icp={"score_support": "inside", "reject_moving_mps": None}, features={"elevation": "ignore"},
-                   odometry={"rectification": "velocity"}, point_yaw={"blend": 0.0}),
+                   odometry={"rectification": "velocity"}, point_yaw={"blend": 0.0}, wall_map={"use": False}),
                "paper (Top-k, sampling + mwICP)": EstimatorConfig.paper()}
     seqs = []
     for scene in args.scenes:

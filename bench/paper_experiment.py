@@ -87,6 +87,7 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default, field sampled on the heatmap's bins (before 2026-11-28)": d.with_(icp={"field_upsampling": 1}),
         "default, a keyframe taken in a turn kept after it (before 2026-11-29)": d.with_(
             odometry={"keyframe_turn_renew_radps": None}),
+        "default without the wall map (before 2026-12-04)": d.with_(wall_map={"use": False}),
         "default without the four heading options (2026-11-25)": d.with_(
             icp={"score_support": "inside", "reject_moving_mps": None}, features={"elevation": "ignore"},
             odometry={"rectification": "velocity"}),

@@ -22,6 +22,7 @@ from .config_limits import CFAR, FEATURES, ICP, MAX_SMOOTHING_BINS, check_limits
 from .config_odometry import (  # noqa: F401  (re-exported)
     KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig)
 from .config_velocity import PROJECTIONS, VelocityConfig  # noqa: F401  (re-exported)
+from .config_wall_map import WallMapConfig  # noqa: F401  (re-exported)
 
 FEATURE_METHODS = ("topk", "raymax", "cfar")
 DOPPLER_ELEVATIONS = ("off", "turns", "always")
@@ -274,6 +275,10 @@ class IcpConfig(Settings):
         check_choice(self.scan_structure, ("one_way", "two_way"), "scan_structure")
 
 
+#: The sections of a settings file, in its order.
+SECTIONS = ("velocity", "features", "icp", "odometry", "point_yaw", "wall_map")
+
+
 @dataclass
 class EstimatorConfig(Settings):
     _what = "estimator"
@@ -283,6 +288,7 @@ class EstimatorConfig(Settings):
     icp: IcpConfig = field(default_factory=IcpConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
     point_yaw: PointYawConfig = field(default_factory=PointYawConfig)
+    wall_map: WallMapConfig = field(default_factory=WallMapConfig)
 
     def __post_init__(self) -> None:
         self.check_types()
@@ -298,7 +304,7 @@ class EstimatorConfig(Settings):
                    odometry=OdometryConfig(yaw_rate_filter=False, keyframe_distance_m=0.0,
                                            velocity_fallback="hold", rectification="velocity", bridge_s=0.0,
                                            yaw_walk_per_sqrt_m=0.0, yaw_walk_per_sqrt_rad=0.0),
-                   point_yaw=PointYawConfig(blend=0.0))
+                   point_yaw=PointYawConfig(blend=0.0), wall_map=WallMapConfig(use=False))
 
     @classmethod
     def tidemo(cls) -> "EstimatorConfig":
@@ -308,8 +314,9 @@ class EstimatorConfig(Settings):
         past a robot turning in place is a larger share of a handful of points), fitted unweighted
         (of 6-12 points on the chip's bins, those across the motion fix the sideways speed), its
         heatmap's cells not weighed by their peak's shape (docs/tidemo.md: the chip's static
-        heatmap is not the raw one those weights were measured on) and its speed not scaled to the
-        level reflectors' edge (its Doppler on the chip's bins: not measured there)."""
+        heatmap is not the raw one those weights were measured on), its speed not scaled to the
+        level reflectors' edge (its Doppler on the chip's bins: not measured there) and no map of
+        wall directions (not measured on the chip's few points)."""
         return cls().preset("tidemo")
 
     def preset(self, name: str | None) -> "EstimatorConfig":
@@ -322,7 +329,7 @@ class EstimatorConfig(Settings):
 
     def with_(self, **sections) -> "EstimatorConfig":
         """A copy with fields of sections replaced: ``cfg.with_(icp={"two_way": False})``."""
-        data = {name: getattr(self, name) for name in ("velocity", "features", "icp", "odometry", "point_yaw")}
+        data = {name: getattr(self, name) for name in SECTIONS}
         for name, changes in sections.items():
             if name not in data:
                 raise ConfigError(f"unknown estimator section {name!r}")
@@ -350,7 +357,7 @@ class EstimatorConfig(Settings):
 TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bearing_noise_rad": 0.0,
                               "level_edge_quantile": None},
                  "icp": {"field_shape_width": None},
-                 "point_yaw": {"use": True}}
+                 "point_yaw": {"use": True}, "wall_map": {"use": False}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).
 PRESETS = {"tidemo": TIDEMO_PRESET}

@@ -46,6 +46,7 @@ from .point_yaw import point_yaw_part
 from .quality import Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import StepVelocity, VelocityTrack
+from .wall_map import WallMap
 from .yaw_measurement import KeptFrame, YawMeasurement
 from .yaw_rate import yaw_rate_part
 
@@ -144,9 +145,11 @@ class RadarOdometry:
         #: what this one publishes (None: not run).
         self.blend = None
         if self.point_yaw is None and self.config.point_yaw.blend:
-            points = RadarOdometry(self.config.with_(point_yaw={"use": True, "blend": 0.0}))
+            points = RadarOdometry(self.config.with_(point_yaw={"use": True, "blend": 0.0}, wall_map={"use": False}))
             self.blend = HeadingBlend(points, self.config.point_yaw.blend, self._walk_var_rad,
                                       self.config.point_yaw.lag_frames)
+        #: wall_map.use: the published heading corrected by the walls seen again (None: not).
+        self.walls = WallMap(self.config.wall_map) if self.config.wall_map.use else None
         self._held_rate_std = odo.held_yaw_rate_std_radps
         # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess
         # without the rate's prediction would start the step across a run from no turn.
@@ -159,7 +162,8 @@ class RadarOdometry:
         self._previous: KeptFrame | None = None
         self._state: OdometryState | None = None  # this chain's, which its steps start from
         #: What add_points checks each point has: the points' yaw reads their place too.
-        self._point_fields = POINT_FIELDS if self.point_yaw is None and self.blend is None else POINT_YAW_FIELDS
+        self._point_fields = POINT_FIELDS if self.point_yaw is None and self.blend is None and self.walls is None \
+            else POINT_YAW_FIELDS
         self._told_not_finite = False  # whether a NaN or inf in the inputs was logged as a warning
         self._published: OdometryState | None = None  # with point_yaw.blend, the blend's
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate rad/s) of the last measured yaw
@@ -193,6 +197,8 @@ class RadarOdometry:
         self._velocity_s += time.perf_counter() - start
         if self.blend is not None:
             self.blend.add_points(t, points)
+        if self.walls is not None:
+            self.walls.add_points(points)
         return est
 
     def add_velocity(self, est: VelocityEstimate) -> None:
@@ -262,6 +268,10 @@ class RadarOdometry:
         state.compute_s = time.perf_counter() - start + self._velocity_s
         self._velocity_s = 0.0
         self._published = state if self.blend is None else self.blend(state, t, given, frame.products)
+        if self.walls is not None:
+            start = time.perf_counter()
+            self._published = self.walls(self._published)
+            self._published.compute_s += time.perf_counter() - start
         return self._published
 
     def _step(self, previous: KeptFrame, current: KeptFrame, frame: CurrentFrame, index: int) -> OdometryState:

@@ -20,10 +20,11 @@ from radarodom.estimator.odometry import RadarOdometry
 
 def heatmap_chain(**changes) -> EstimatorConfig:
     """The default settings with *changes* (by section, as ``EstimatorConfig.with_``) and the
-    heatmaps' registration alone (``point_yaw.blend`` 0): for the tests of that chain's ways whose
-    point clouds are random static points (:func:`static_cloud`), not their scene's, in which the
-    points' registration, blended by default, would see the radar never turn."""
-    return EstimatorConfig().with_(**changes).with_(point_yaw={"blend": 0.0})
+    heatmaps' registration alone (``point_yaw.blend`` 0, ``wall_map.use`` off): for the tests of
+    that chain's ways whose point clouds are random static points (:func:`static_cloud`), not their
+    scene's, in which the points' registration, blended by default, would see the radar never turn,
+    and the map of wall directions would take chance alignments of them for walls."""
+    return EstimatorConfig().with_(**changes).with_(point_yaw={"blend": 0.0}, wall_map={"use": False})
 
 
 #: The AWR1843 heatmap axes: 64 azimuth bins at sin(az) = 2k/64, 256 range bins of 5 cm.

@@ -242,8 +242,8 @@ def test_odom_out_onto_an_existing_file_is_refused(sim_run, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old.tum"]
 
 
-@pytest.mark.parametrize("extra", [["--odom-out", "x.tum"], ["--estimator-config", "e.json"], ["--wheeled"]],
-                         ids=["odom-out", "estimator-config", "wheeled"])
+@pytest.mark.parametrize("extra", [["--odom-out", "x.tum"], ["--estimator-config", "e.json"], ["--wheeled"],
+                                   ["--no-wall-map"]], ids=["odom-out", "estimator-config", "wheeled", "no-wall-map"])
 def test_no_odom_with_an_estimator_option_is_a_usage_error(sim_run, tmp_path, extra):
     (tmp_path / "e.json").write_text("{}")
     before = sorted(os.listdir(tmp_path))
@@ -334,6 +334,29 @@ def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path):
     path.write_text(json.dumps({"odometry": {"mount_x_m": 0.3}}))
     proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path, "--wheeled")
     assert proc.returncode == 0, proc.stderr
+
+
+def test_the_wall_map_corrects_the_heading_unless_turned_off(sim_run, tmp_path):
+    """The map of wall directions (``wall_map.use``, on by default; docs/estimator.md): the
+    corridor's walls, seen while it drives straight, move the heading by their points' noise;
+    --no-wall-map and a settings file's ``"use": false`` publish the odometry's own."""
+    config = tmp_path / "no-walls.json"
+    config.write_text(json.dumps({"wall_map": {"use": False}}))
+    outputs = {name: tmp_path / f"{name}.jsonl" for name in ("walls", "flag", "file")}
+    procs = run_together(*(dict(args=console_command("radar-capture") + [
+        "--source", replay_url(sim_run), "--no-publish", "--odom-json", outputs[name], *extra],
+        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120) for name, extra in
+        (("walls", []), ("flag", ["--no-wall-map"]), ("file", ["--estimator-config", config]))))
+    for proc in procs:
+        assert proc.returncode == 0, proc.stderr
+    states = {name: [{k: v for k, v in json.loads(line).items() if k != "compute_ms"}
+                     for line in path.read_text().splitlines()] for name, path in outputs.items()}
+    plain = states["flag"]
+    assert states["file"] == plain
+    assert len(states["walls"]) == len(plain) >= 20
+    changed = [a["yaw"] != b["yaw"] for a, b in zip(states["walls"], plain)]
+    assert any(changed) and not any(changed[:10])  # not before a window of frames has seen a wall
+    assert [a["yaw"] for a in states["walls"]] == pytest.approx([b["yaw"] for b in plain], abs=math.radians(0.5))
 
 
 def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, tmp_path):

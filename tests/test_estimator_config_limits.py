@@ -59,7 +59,8 @@ PARTNERS = {"features.max_range_m": {"min_range_m": 0.0}, "icp.eps_max": {"eps_m
             "point_yaw.step_rad": {"search_rad": math.pi}, "point_yaw.min_noise_rad": {"max_noise_rad": 1.0},
             "point_yaw.max_noise_rad": {"min_noise_rad": 1e-6}}
 SECTIONS = {"velocity": config_limits.VELOCITY, "features": config_limits.FEATURES, "icp": config_limits.ICP,
-            "odometry": config_limits.ODOMETRY, "point_yaw": config_limits.POINT_YAW}
+            "odometry": config_limits.ODOMETRY, "point_yaw": config_limits.POINT_YAW,
+            "wall_map": config_limits.WALL_MAP}
 #: The CFAR sections' numbers the CFAR's own checks bound (pfa in (0, 1), os_rank up to 2 train, threshold_db in [0, 200]
 #: dB).
 CFAR_OWN = ("pfa", "os_rank", "threshold_db")
@@ -113,8 +114,8 @@ def _settings(path: str, value) -> dict:
             cfar["method"] = "os"
         return {"features": {"method": "cfar", rest[0]: cfar}}
     settings = {section: {name: value}}
-    if section == "point_yaw":
-        settings["point_yaw"]["use"] = True
+    if section in ("point_yaw", "wall_map"):
+        settings[section]["use"] = True
     if section == "odometry" and name in WHEELED:
         settings["odometry"] = {"base": "wheeled", "mount_x_m": 0.3, "axis_learn_frames": 3, name: value}
     return settings

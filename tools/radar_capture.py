@@ -92,6 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "mecanum or skid-steered): with --mount off its rotation axis the radar's Doppler "
                              "measures the yaw rate in turns, on the axis the radar's velocity is taken to have no "
                              "sideways part, along the forward axis learnt from straight drives (docs/cli.md)")
+    parser.add_argument("--no-wall-map", action="store_true",
+                        help="publish the odometry's own heading, not corrected by the walls seen again (the map "
+                             "of wall directions, on by default: docs/estimator.md)")
     ros_outputs.add_arguments(parser)
     view_option.add_view_argument(parser)
     cli.add_overwrite(parser)
@@ -126,9 +129,10 @@ def _stop_on_signals(pipeline: Pipeline) -> Iterator[None]:
 
 
 def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
-    """--estimator-config's settings (or the defaults) with --mount's place of the radar and,
-    with --wheeled, a base that cannot slide sideways (off its rotation axis the radar's Doppler
-    then measures the yaw rate; on it, the radar does not slide)."""
+    """--estimator-config's settings (or the defaults) with --mount's place of the radar, with
+    --wheeled a base that cannot slide sideways (off its rotation axis the radar's Doppler then
+    measures the yaw rate; on it, the radar does not slide) and with --no-wall-map the heading
+    not corrected by the walls seen again."""
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     mount = args.mount
     # Only what the options say: --wheeled alone keeps the settings file's mount.
@@ -137,13 +141,16 @@ def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
         odometry["base"] = "wheeled"
     if odometry:
         config = config.with_(odometry=odometry)
+    if args.no_wall_map:
+        config = config.with_(wall_map={"use": False})
     return config
 
 
 def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.enabled = not args.quiet
     estimator_options = [option for option, given in (("--odom-out", args.odom_out), ("--estimator-config",
-                         args.estimator_config), ("--wheeled", args.wheeled)) if given]
+                         args.estimator_config), ("--wheeled", args.wheeled), ("--no-wall-map", args.no_wall_map))
+                         if given]
     if args.no_odom and estimator_options:
         raise UsageError(f"--no-odom turns the estimator off: it cannot also take {estimator_options[0]}")
     # --ros2-topic names the bag's odometry topic too: an offline conversion may take it.

@@ -1,0 +1,290 @@
+"""Beyond the paper: the heading held by the walls' directions (``wall_map``; docs/estimator.md, "A
+map of wall directions"; docs/heading.md item 35).
+
+A long straight wall's direction does not depend on which part of it the radar sees, nor from
+where, so a wall seen again says how far the heading has drifted since.  Every frame, the static
+points of the last ``window_frames`` frames, placed by the odometry's own poses in the latest
+frame's axes, are searched for straight lines (a Hough vote, then a total-least-squares fit of each
+line's points).  Each line is matched to a wall seen before by its direction and place, while the
+heading turned by at most ``match_span_rad`` over those frames (the line the less certain the more
+it turned: ``span_noise``), or, while it held (``steady_rad`` over ``settle_frames``), starts a new
+wall.  A small Kalman filter holds the heading and every wall's direction in the world: the
+odometry's turn over each frame moves the heading and grows its variance (``turn_noise``,
+``distance_noise_rad_per_m``, ``frame_noise_rad``); a wall seen again measures their difference.
+What is published is the odometry's state with the filter's heading and its position integrated
+again from the odometry's own steps along it: the velocities, the yaw rate and the covariances stay
+the odometry's.
+
+A wall seen again corrects a turn's error during the turn where the window's frames still see it,
+else in the frames after the turn (docs/heading.md says what that does to the straight drives'
+figures); where no wall is seen the heading is the odometry's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import Protocol, TypeVar
+
+import numpy as np
+
+from .config_wall_map import WallMapConfig
+from .point_yaw import static_points
+
+#: The Hough vote's grid: directions every this, rad, ...
+_HOUGH_STEP_RAD = math.radians(0.5)
+#: ... offsets every this, m (a vote counts in its bin and the two beside it).
+_HOUGH_BIN_M = 0.05
+#: A line's points are taken again within ``band_m`` of its fit this many times.
+_REFITS = 3
+#: A line's spread across it is at least this, m (the points are placed to a range bin or so).
+_MIN_SPREAD_M = 0.02
+#: A line is a wall seen before only within this many standard deviations of its direction.
+_GATE_SIGMAS = 3.0
+
+
+class _State(Protocol):
+    """What the map reads of an odometry state (estimator.odometry.OdometryState)."""
+
+    t: float
+    x: float
+    y: float
+    yaw: float
+    vx: float
+    vy: float
+    yaw_increment: float
+
+
+_S = TypeVar("_S", bound=_State)
+
+
+@dataclass(frozen=True)
+class WallLine:
+    """A straight line through static points, in the axes they are given in."""
+
+    #: Its direction, rad in [-pi/2, pi/2) (a line has no sense).
+    direction: float
+    #: The middle of its points, (2,) m.
+    middle: np.ndarray
+    #: The direction's standard deviation from the points' spread across it, rad.
+    std: float
+
+
+def _rot(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def _line_angle(angle):
+    """*angle* (rad; a float or an array) as a line's direction difference, in [-pi/2, pi/2)."""
+    return (angle + math.pi / 2) % math.pi - math.pi / 2
+
+
+def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
+    """The straight lines the points (n, 2) m draw, the most points first: each with at least
+    ``min_points`` within ``band_m`` of it over at least ``min_length_m``, ``max_lines`` at most."""
+    found: list[WallLine] = []
+    points = np.asarray(points, float).reshape(-1, 2)
+    if len(points) < config.min_points:
+        return found
+    thetas = np.arange(0.0, math.pi, _HOUGH_STEP_RAD)
+    normals = np.stack([np.cos(thetas), np.sin(thetas)])  # (2, T)
+    # Every point's vote (direction, offset bin) once, as one index into the (T, width) grid: a
+    # line's points leave the vote, the grid stays.
+    offsets = np.round(points @ normals / _HOUGH_BIN_M).astype(np.int64)  # (n, T) bins
+    low = int(offsets.min())
+    width = int(offsets.max()) - low + 3
+    votes_at = offsets - low + 1 + np.arange(len(thetas)) * width
+    voting = np.ones(len(points), bool)
+    for _ in range(config.max_lines):
+        if voting.sum() < config.min_points:
+            break
+        counts = np.bincount(votes_at[voting].ravel(), minlength=len(thetas) * width).reshape(len(thetas), width)
+        votes = counts.copy()
+        votes[:, 1:] += counts[:, :-1]
+        votes[:, :-1] += counts[:, 1:]
+        best_theta, best_bin = np.unravel_index(int(np.argmax(votes)), votes.shape)
+        if votes[best_theta, best_bin] < config.min_points:
+            break
+        left = points[voting]
+        normal = normals[:, best_theta]
+        near = np.abs(left @ normal - (best_bin - 1 + low) * _HOUGH_BIN_M) < config.band_m
+        for _ in range(_REFITS):
+            if near.sum() < config.min_points:
+                break
+            middle = left[near].mean(axis=0)
+            normal = np.linalg.svd(left[near] - middle, full_matrices=False)[2][1]
+            near = np.abs((left - middle) @ normal) < config.band_m
+        on = left[near]
+        voting[np.flatnonzero(voting)[near]] = False
+        if len(on) < config.min_points:
+            break
+        on = _longest_run(on, config.max_gap_m)
+        if len(on) < config.min_points:
+            continue
+        middle = on.mean(axis=0)
+        along, normal = np.linalg.svd(on - middle, full_matrices=False)[2]
+        spread = (on - middle) @ along
+        length = float(spread.max() - spread.min())
+        if length < config.min_length_m:
+            continue
+        across = max(float(((on - middle) @ normal).std()), _MIN_SPREAD_M)
+        found.append(WallLine(_line_angle(math.atan2(along[1], along[0])), middle,
+                              across * math.sqrt(12.0 / len(on)) / length))
+    return found
+
+
+def _longest_run(points: np.ndarray, max_gap_m: float) -> np.ndarray:
+    """Of *points* (n, 2) m near a line, those of its longest stretch without a gap wider than
+    *max_gap_m* along it: a piece of furniture and a stray point in line with it are no wall."""
+    middle = points.mean(axis=0)
+    along = np.linalg.svd(points - middle, full_matrices=False)[2][0]
+    order = np.argsort((points - middle) @ along)
+    position = (points[order] - middle) @ along
+    breaks = np.flatnonzero(np.diff(position) > max_gap_m) + 1
+    runs = np.split(order, breaks)
+    return points[max(runs, key=len)]
+
+
+class WallMap:
+    """The odometry's states with the heading the walls correct (:meth:`__call__`), fed each
+    frame's point clouds first (:meth:`add_points`)."""
+
+    def __init__(self, config: WallMapConfig) -> None:
+        self.config = config
+        self._clouds: list[np.ndarray] = []  # the point clouds since the last frame
+        #: The last frames' odometry poses (x, y, yaw) and static points (n, 2) m in their axes.
+        self._window: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.window_frames)
+        #: The odometry's heading over the last ``settle_frames`` frames, rad.
+        self._headings: deque[float] = deque(maxlen=max(config.settle_frames, config.window_frames))
+        self._last: np.ndarray | None = None  # the odometry's last pose
+        self._position = np.zeros(2)  # m, the published position
+        #: The filter: the heading, then each wall's direction (rad, world), and their covariance.
+        self._x = np.zeros(1)
+        self._p = np.zeros((1, 1))
+        self._wall_points = np.zeros((0, 2))  # a point on each wall, m (world), ...
+        self._wall_seen = np.zeros(0)  # ... and when it was last seen, s
+        # Consecutive windows share all their frames but one: each fit's information is counted
+        # once over the window.
+        self._shared = float(config.window_frames)
+        self._steps = (config.turn_noise, config.distance_noise_rad_per_m, config.frame_noise_rad)
+
+    @property
+    def walls(self) -> int:
+        """The walls held."""
+        return len(self._wall_seen)
+
+    @property
+    def heading_variance(self) -> float:
+        """The filter's variance of the heading, rad^2 (since the first frame)."""
+        return float(self._p[0, 0])
+
+    def add_points(self, points: np.ndarray) -> None:
+        """A point cloud (TI frame fields x, y, elevation, velocity) taken since the last frame."""
+        self._clouds.append(points)
+
+    def __call__(self, state: _S) -> _S:
+        """*state* with its heading corrected by the walls and its position integrated along it."""
+        clouds, self._clouds = self._clouds, []
+        cloud = np.concatenate(clouds) if clouds else None
+        static = np.zeros((0, 2)) if cloud is None or not len(cloud) else \
+            static_points(cloud, np.array([state.vx, state.vy]), self.config.static_threshold_mps)
+        pose = np.array([state.x, state.y, state.yaw])
+        previous_yaw, first = float(self._x[0]), self._last is None
+        if first:
+            self._position, self._x[0] = pose[:2].copy(), pose[2]
+        else:
+            self._predict(self._last, pose)
+        self._last = pose
+        self._window.append((pose, static))
+        self._headings.append(pose[2])
+        span = self._span(self.config.window_frames)
+        if span <= self.config.match_span_rad:
+            settled = self._span(self._headings.maxlen) <= self.config.steady_rad
+            self._observe(state.t, pose, span, may_start=settled)
+        heading = float(self._x[0])
+        return replace(state, x=float(self._position[0]), y=float(self._position[1]), yaw=heading,
+                       yaw_increment=state.yaw_increment if first else heading - previous_yaw)
+
+    def _predict(self, last: np.ndarray, pose: np.ndarray) -> None:
+        """Move the heading and the position by the odometry's step from *last* to *pose*."""
+        turn = pose[2] - last[2]
+        step = _rot(-last[2]) @ (pose[:2] - last[:2])
+        self._position = self._position + _rot(self._x[0]) @ step
+        self._x[0] += turn
+        per_turn, per_metre, per_frame = self._steps
+        self._p[0, 0] += (per_turn * turn) ** 2 + (per_metre * float(np.hypot(*step))) ** 2 + per_frame ** 2
+
+    def _span(self, frames: int) -> float:
+        """How far the heading turned over the last *frames* frames, rad (inf: fewer frames yet)."""
+        if len(self._headings) < frames:
+            return math.inf
+        last = list(self._headings)[-frames:]
+        return max(last) - min(last)
+
+    def _observe(self, t: float, pose: np.ndarray, span: float, may_start: bool) -> None:
+        """Fit lines to the window's static points, over which the heading turned by *span* (rad),
+        and match each to a wall or, if *may_start*, start one."""
+        placed = [(_rot(p[2]) @ pts.T).T + p[:2] for p, pts in self._window if len(pts)]
+        if not placed:
+            return
+        here = (np.concatenate(placed) - pose[:2]) @ _rot(pose[2])  # in this frame's axes
+        used = np.zeros(self.walls, bool)
+        for line in wall_lines(here, self.config):
+            variance = (max(line.std, self.config.direction_floor_rad) ** 2
+                        + (self.config.span_noise * span) ** 2) * self._shared
+            middle = self._position + _rot(self._x[0]) @ line.middle
+            wall = self._match(line.direction, middle, variance, used)
+            if wall is None:
+                if may_start:
+                    self._add_wall(line.direction, middle, variance / self._shared, t)
+                    used = np.append(used, True)
+            else:
+                self._update(wall, line.direction, variance)
+                self._wall_seen[wall], used[wall] = t, True
+        while self.walls > self.config.max_walls:
+            self._forget(int(np.argmin(self._wall_seen)))
+
+    def _match(self, direction: float, middle: np.ndarray, variance: float, used: np.ndarray) -> int | None:
+        """The wall (index) a line of *direction* (rad, this frame's axes) through *middle* (world)
+        is, the nearest in standard deviations among those within the gates; None: a new one."""
+        if not self.walls:
+            return None
+        heading, walls = self._x[0], self._x[1:]
+        innovation = _line_angle(direction - (walls - heading))
+        p = self._p
+        spread = np.diagonal(p)[1:] + p[0, 0] - 2.0 * p[0, 1:] + variance
+        normals = np.stack([-np.sin(walls), np.cos(walls)], 1)
+        off = np.abs(np.sum(normals * (middle - self._wall_points), axis=1))
+        score = innovation ** 2 / spread
+        fits = ~used & (np.abs(innovation) < self.config.gate_rad) & (score < _GATE_SIGMAS ** 2) \
+            & (off < self.config.distance_gate_m)
+        return int(np.argmin(np.where(fits, score, np.inf))) if fits.any() else None
+
+    def _update(self, wall: int, direction: float, variance: float) -> None:
+        """The filter given that wall *wall* lies at *direction* from the heading (rad)."""
+        j = wall + 1
+        innovation = _line_angle(direction - (self._x[j] - self._x[0]))
+        h_p = self._p[j] - self._p[0]  # H P with H = e_j - e_0
+        gain = h_p / (h_p[j] - h_p[0] + variance)
+        self._x = self._x + gain * innovation
+        self._p = self._p - np.outer(gain, h_p)
+
+    def _add_wall(self, direction: float, middle: np.ndarray, variance: float, t: float) -> None:
+        """A wall first seen at *direction* from the heading (rad), through *middle* (world)."""
+        n = len(self._x)
+        p = np.zeros((n + 1, n + 1))
+        p[:n, :n] = self._p
+        p[n, :n] = p[:n, n] = self._p[0]
+        p[n, n] = self._p[0, 0] + variance
+        self._x, self._p = np.append(self._x, self._x[0] + direction), p
+        self._wall_points = np.vstack([self._wall_points, middle])
+        self._wall_seen = np.append(self._wall_seen, t)
+
+    def _forget(self, wall: int) -> None:
+        """Drop wall *wall* from the filter (its direction's information about the heading goes)."""
+        keep = np.arange(len(self._x)) != wall + 1
+        self._x, self._p = self._x[keep], self._p[np.ix_(keep, keep)]
+        self._wall_points = np.delete(self._wall_points, wall, axis=0)
+        self._wall_seen = np.delete(self._wall_seen, wall)

@@ -1,0 +1,180 @@
+"""The map of wall directions (``wall_map``, estimator/wall_map.py; docs/heading.md, "A map of wall
+directions"): lines found in static points, and an odometry whose turns err corrected by the walls
+seen again, in a synthetic room whose walls' returns are the points of each frame."""
+
+from __future__ import annotations
+
+import math
+
+import estimator_synth as synth
+import numpy as np
+import pytest
+
+from radarodom.errors import ConfigError
+from radarodom.estimator.config import EstimatorConfig, WallMapConfig
+from radarodom.estimator.odometry import OdometryState, RadarOdometry
+from radarodom.estimator.wall_map import WallMap, wall_lines
+
+#: The room's walls, each from one end to the other (m, world): 10 by 6 m.
+ROOM = [((-2.0, -3.0), (8.0, -3.0)), ((8.0, -3.0), (8.0, 3.0)), ((8.0, 3.0), (-2.0, 3.0)),
+        ((-2.0, 3.0), (-2.0, -3.0))]
+#: Drive 2 s, turn in place a whole turn, drive on 3 s: the side walls are seen again after it.
+LOOP = synth.Trajectory([(2.0, 1.0, 0.0), (4.0, 0.0, math.radians(90.0)), (3.0, 1.0, 0.0)])
+#: The same at 30 degrees a second: the window of frames spans 30 degrees of the turn.
+SLOW_TURN = synth.Trajectory([(2.0, 1.0, 0.0), (12.0, 0.0, math.radians(30.0)), (3.0, 1.0, 0.0)])
+
+
+def _wall_points(pose, rng, *, spacing=0.1, noise=0.02, reach=8.0):
+    """The walls' points a radar at *pose* sees within *reach* and 60 degrees of its axis, (n, 2) m
+    in its axes."""
+    out = []
+    for a, b in ROOM:
+        a, b = np.array(a), np.array(b)
+        n = int(np.linalg.norm(b - a) / spacing)
+        out.append(a + (b - a) * (np.arange(n)[:, None] + 0.5) / n)
+    body = synth.world_to_body(np.concatenate(out), pose)
+    r, bearing = np.hypot(body[:, 0], body[:, 1]), np.arctan2(body[:, 1], body[:, 0])
+    seen = body[(r < reach) & (r > 0.5) & (np.abs(bearing) < math.radians(60.0))]
+    return seen + noise * rng.standard_normal(seen.shape)
+
+
+def _odometry(turn_scale, *, seed=0, walls=True, jump=(None, 0.0), trajectory=LOOP):
+    """The true poses and the odometry's states along *trajectory* at 10 Hz, whose turns are *turn_scale*
+    times the true ones (and whose heading jumps by *jump* = (frame, rad)), and the clouds of each
+    frame (the walls' points; none without *walls*)."""
+    rng = np.random.default_rng(seed)
+    truths, states, clouds = [], [], []
+    yaw = 0.0
+    position = np.zeros(2)
+    previous = None
+    for i in range(round(trajectory.duration * 10) + 1):
+        t = i / 10
+        pose = trajectory.pose(t)
+        vx, vy, _ = trajectory.twist(t)
+        if previous is not None:
+            step = synth.rot(-previous[2]) @ (np.array(pose[:2]) - previous[:2])
+            position = position + synth.rot(yaw) @ step
+            yaw += turn_scale * (pose[2] - previous[2]) + (jump[1] if i == jump[0] else 0.0)
+        previous = np.array(pose)
+        truths.append(pose)
+        states.append(OdometryState(t=t, frame=i, x=float(position[0]), y=float(position[1]), yaw=yaw, vx=vx, vy=vy))
+        clouds.append(synth.points(_wall_points(pose, rng), (vx, vy)) if walls else synth.points(np.zeros((0, 2)),
+                                                                                             (vx, vy)))
+    return truths, states, clouds
+
+
+def _run(config, states, clouds):
+    walls = WallMap(config)
+    out = []
+    for state, cloud in zip(states, clouds):
+        walls.add_points(cloud)
+        out.append(walls(state))
+    return walls, out
+
+
+def test_lines_are_the_walls_the_points_draw():
+    rng = np.random.default_rng(1)
+    along = np.column_stack([np.linspace(1.0, 5.0, 60), np.full(60, 2.0)])  # 4 m along x at y = 2
+    across = np.column_stack([np.full(40, 6.0), np.linspace(-1.0, 1.5, 40)])  # 2.5 m along y at x = 6
+    short = np.column_stack([np.linspace(2.0, 2.8, 30), np.full(30, -1.5)])  # 0.8 m: furniture
+    clutter = rng.uniform(-4.0, 4.0, (20, 2))
+    points = np.concatenate([along, across, short, clutter]) + 0.01 * rng.standard_normal((150, 2))
+    lines = wall_lines(points, WallMapConfig())
+    assert [round(math.degrees(line.direction)) % 180 for line in lines] == [0, 90]
+    assert lines[0].middle == pytest.approx([3.0, 2.0], abs=0.05)
+    assert lines[1].middle == pytest.approx([6.0, 0.25], abs=0.05)
+    assert all(0 < line.std < math.radians(0.5) for line in lines)
+    # Fewer points than a wall needs: none.
+    assert wall_lines(along[:10], WallMapConfig()) == []
+    assert wall_lines(np.zeros((0, 2)), WallMapConfig()) == []
+
+
+def test_walls_seen_again_correct_a_turn_that_erred():
+    truths, states, clouds = _odometry(1.004)
+    walls, out = _run(WallMapConfig(use=True), states, clouds)
+    final_truth = truths[-1][2]
+    odometry_error = math.degrees(states[-1].yaw - final_truth)
+    assert odometry_error == pytest.approx(1.44, abs=0.01)  # 0.4 % of a whole turn
+    assert abs(math.degrees(out[-1].yaw - final_truth)) < 0.3
+    assert 2 <= walls.walls <= 6  # the room's four walls, one seen from both sides at most twice
+    # Before the turn the walls are only being learnt (each seen again from the straight moves the
+    # heading by its points' noise alone): the odometry's heading, within a thousandth of a degree.
+    before = round(2.0 * 10)
+    assert [s.yaw for s in out[:before]] == pytest.approx([s.yaw for s in states[:before]], abs=math.radians(1e-3))
+    # The published position follows the corrected heading: the last straight nearer the truth.
+    assert np.hypot(out[-1].x - truths[-1][0], out[-1].y - truths[-1][1]) < \
+        np.hypot(states[-1].x - truths[-1][0], states[-1].y - truths[-1][1])
+    # Each state's increment is its change of heading.
+    assert [s.yaw_increment for s in out[1:]] == pytest.approx(np.diff([s.yaw for s in out]), abs=1e-12)
+
+
+def test_without_walls_the_odometry_passes_through():
+    _, states, clouds = _odometry(1.004, walls=False)
+    walls, out = _run(WallMapConfig(use=True), states, clouds)
+    assert walls.walls == 0
+    assert np.array([s.pose for s in out]) == pytest.approx(np.array([s.pose for s in states]), abs=1e-9)
+
+
+def test_a_turn_that_erred_is_corrected_while_it_turns_and_no_wall_starts_in_it():
+    """Lines fitted while the heading turns (up to ``match_span_rad``, 45 degrees, over the window:
+    here 30) are matched to the walls seen before it: a turn 1.5 % off (5.4 degrees over a whole
+    turn) is mostly corrected by its end, and no new wall is started while turning."""
+    truths, states, clouds = _odometry(1.015, trajectory=SLOW_TURN)
+    walls = WallMap(WallMapConfig())
+    counts, out = [], []
+    for state, cloud in zip(states, clouds):
+        walls.add_points(cloud)
+        out.append(walls(state))
+        counts.append(walls.walls)
+    turn = slice(round(2.0 * 10) + 1, round(14.0 * 10) + 1)
+    assert counts[turn][-1] == counts[turn][0]
+    end = turn.stop - 1
+    assert math.degrees(states[end].yaw - truths[end][2]) == pytest.approx(5.4, abs=0.05)
+    assert abs(math.degrees(out[end].yaw - truths[end][2])) < 3.0
+    assert abs(math.degrees(out[-1].yaw - truths[-1][2])) < 1.5
+    # Matched only while the heading holds, the walls seen after the turn are past the gates.
+    _, late = _run(WallMapConfig(match_span_rad=math.radians(3.0)), states, clouds)
+    assert math.degrees(late[-1].yaw - truths[-1][2]) == pytest.approx(5.4, abs=0.1)
+
+
+def test_a_heading_that_jumped_past_the_gate_starts_new_walls():
+    """An odometry heading off by 8 degrees at once (a wrong registration) is past ``gate_rad``: the
+    walls seen after it are new ones, and the heading stays the odometry's."""
+    truths, states, clouds = _odometry(1.0, jump=(75, math.radians(8.0)))
+    walls, out = _run(WallMapConfig(), states, clouds)
+    assert out[-1].yaw == pytest.approx(states[-1].yaw, abs=math.radians(0.2))
+    assert walls.walls >= 4
+
+
+def test_the_walls_kept_are_bounded():
+    _, states, clouds = _odometry(1.004)
+    walls, out = _run(WallMapConfig(use=True, max_walls=1), states, clouds)
+    assert walls.walls == 1
+    assert len(out) == len(states)
+
+
+def test_the_estimator_publishes_the_corrected_heading():
+    """RadarOdometry with ``wall_map.use`` (the default): its states are the map's of its own
+    odometry; the blend's points' estimator runs without one, and the paper's method too."""
+    config = EstimatorConfig()
+    assert config.wall_map.use and not EstimatorConfig.paper().wall_map.use
+    odom = RadarOdometry(config)
+    assert odom.walls is not None and odom.blend is not None and odom.blend.points.walls is None
+    plain = RadarOdometry(EstimatorConfig().with_(wall_map={"use": False}))
+    walls = WallMap(config.wall_map)
+    _, states, clouds = _odometry(1.0, seed=3)
+    for (t, cloud), truth in zip([(s.t, c) for s, c in zip(states, clouds)], [LOOP.pose(s.t) for s in states]):
+        heatmap = synth.scene_heatmap(truth)
+        got = odom.step(t, cloud, heatmap)
+        walls.add_points(cloud)
+        expected = walls(plain.step(t, cloud, heatmap))
+        assert got.pose == pytest.approx(expected.pose, abs=1e-12)
+        assert got.compute_s > 0
+
+
+def test_settings_are_checked():
+    assert EstimatorConfig.from_dict({"wall_map": {"use": True}}).wall_map.use
+    with pytest.raises(ConfigError, match=r"wall_map\.window_frames: must be in \[2, 1000\], got 1"):
+        EstimatorConfig.from_dict({"wall_map": {"window_frames": 1}})
+    with pytest.raises(ConfigError, match=r"wall_map\.gate_rad"):
+        EstimatorConfig.from_dict({"wall_map": {"gate_rad": 2.0}})
