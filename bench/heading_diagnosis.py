@@ -9,7 +9,8 @@ or bench/robustness_matrix.py record), every step is classified by the truth (st
 driving straight, a moving turn left or right, a turn in place) and the yaw increment is
 compared with the truth at each stage:
 
-- ``estimate``: the estimator's increment (after the yaw-rate filter and the keyframe);
+- ``estimate``: the estimator's increment (after the yaw-rate filter, the keyframe and the map of
+  wall directions; a settings file with ``{"wall_map": {"use": false}}`` leaves the map out);
 - ``field, true translation``: the likelihood-field search of the two frames (the estimator's
   features and fields) moved by the TRUE translation and centred on the true rotation: what the
   registration alone gives when everything before it is right;

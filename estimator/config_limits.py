@@ -139,11 +139,12 @@ POINT_YAW = {
 }
 
 WALL_MAP = {
-    "window_frames": "[2, 1000]", "settle_frames": "[1, 10000]", "steady_rad": ANGLE, "match_span_rad": ANGLE,
-    "span_noise": "[0, 1]", "static_threshold_mps": SPEED, "min_points": "[3, 1e6]", "band_m": "(0, 10] m",
-    "min_length_m": "(0, 1000] m", "max_gap_m": "(0, 1000] m", "max_lines": "[1, 100]", "turn_noise": "[0, 1]",
-    "distance_noise_rad_per_m": "[0, 1] rad/m", "frame_noise_rad": "[0, 1] rad", "direction_floor_rad": NOISE,
-    "gate_rad": "(0, pi/2] rad", "distance_gate_m": "(0, 1000] m", "max_walls": "[1, 10000]",
+    "window_frames": "[2, 100]", "settle_frames": "[1, 10000]", "steady_rad": ANGLE, "match_span_rad": ANGLE,
+    "span_noise": "[0, 1]", "static_threshold_mps": SPEED, "max_range_m": "(0, 200] m", "min_points": "[3, 1e6]",
+    "band_m": "(0, 10] m", "min_length_m": "(0, 1000] m", "max_gap_m": "(0, 1000] m", "max_lines": "[1, 100]",
+    "turn_noise": "[0, 1]", "distance_noise_rad_per_m": "[0, 1] rad/m", "frame_noise_rad": "[0, 1] rad",
+    "direction_floor_rad": NOISE, "gate_rad": "(0, pi/2] rad", "distance_gate_m": "(0, 1000] m",
+    "max_walls": "[1, 1000]",
 }
 
 

@@ -35,8 +35,13 @@ class WallMapConfig(Settings):
     #: ... over this many last frames (``window_frames`` if more): a wall's direction is kept as
     #: first seen, and after a turn the odometry's heading still moves by what its keyframes correct.
     settle_frames: int = 10
-    #: A point is static when its radial velocity is within this of a static reflector's, m/s.
+    #: A point counts when it is static, its radial velocity within this of a static reflector's,
+    #: m/s, ...
     static_threshold_mps: float = 0.1
+    #: ... and within this of the radar where the latest frame places it, m (the Hough vote's grid
+    #: spans the points: a stray point kilometres off would make it gigabytes; at most 200 m, some
+    #: 50 MB).
+    max_range_m: float = 30.0
     #: A wall: at least this many points within ``band_m`` of a line, ...
     min_points: int = 20
     band_m: float = 0.08
@@ -61,7 +66,7 @@ class WallMapConfig(Settings):
     #: ... and within three standard deviations, and its middle within this of the wall's line, m.
     distance_gate_m: float = 0.25
     #: The walls kept: past this many the one seen longest ago is forgotten (the filter's cost grows
-    #: with the square of their number).
+    #: with the square of their number: at most 1000, 8 MB and some milliseconds an update).
     max_walls: int = 200
 
     def __post_init__(self) -> None:

@@ -90,23 +90,26 @@ def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
         return found
     thetas = np.arange(0.0, math.pi, _HOUGH_STEP_RAD)
     normals = np.stack([np.cos(thetas), np.sin(thetas)])  # (2, T)
-    # Every point's vote (direction, offset bin) once, as one index into the (T, width) grid: a
-    # line's points leave the vote, the grid stays.
+    # Every point's vote (direction, offset bin) once, as one index into the (T, width) grid; a
+    # line's points take theirs back.
     offsets = np.round(points @ normals / _HOUGH_BIN_M).astype(np.int64)  # (n, T) bins
     low = int(offsets.min())
     width = int(offsets.max()) - low + 3
-    votes_at = offsets - low + 1 + np.arange(len(thetas)) * width
+    votes_at = offsets - low + 1 + np.arange(len(thetas)) * width  # (n, T) into the flat grid
+    counts = np.bincount(votes_at.ravel(), minlength=len(thetas) * width)
+    # Each bin with its two neighbours along the offset (the first and last columns are never
+    # voted in, so no row reaches into the next).
+    votes = counts.copy()
+    votes[1:] += counts[:-1]
+    votes[:-1] += counts[1:]
     voting = np.ones(len(points), bool)
     for _ in range(config.max_lines):
         if voting.sum() < config.min_points:
             break
-        counts = np.bincount(votes_at[voting].ravel(), minlength=len(thetas) * width).reshape(len(thetas), width)
-        votes = counts.copy()
-        votes[:, 1:] += counts[:, :-1]
-        votes[:, :-1] += counts[:, 1:]
-        best_theta, best_bin = np.unravel_index(int(np.argmax(votes)), votes.shape)
-        if votes[best_theta, best_bin] < config.min_points:
+        best = int(np.argmax(votes))
+        if votes[best] < config.min_points:
             break
+        best_theta, best_bin = divmod(best, width)
         left = points[voting]
         normal = normals[:, best_theta]
         near = np.abs(left @ normal - (best_bin - 1 + low) * _HOUGH_BIN_M) < config.band_m
@@ -117,7 +120,11 @@ def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
             normal = np.linalg.svd(left[near] - middle, full_matrices=False)[2][1]
             near = np.abs((left - middle) @ normal) < config.band_m
         on = left[near]
-        voting[np.flatnonzero(voting)[near]] = False
+        gone = np.flatnonzero(voting)[near]
+        voting[gone] = False
+        taken = votes_at[gone].ravel()
+        for beside in (-1, 0, 1):  # the smoothed votes they gave
+            np.subtract.at(votes, taken + beside, 1)
         if len(on) < config.min_points:
             break
         on = _longest_run(on, config.max_gap_m)
@@ -230,6 +237,9 @@ class WallMap:
         if not placed:
             return
         here = (np.concatenate(placed) - pose[:2]) @ _rot(pose[2])  # in this frame's axes
+        # The vote's grid spans the points: those of frames the odometry placed far off (a
+        # velocity of kilometres a second) would make it gigabytes.
+        here = here[np.hypot(here[:, 0], here[:, 1]) <= self.config.max_range_m]
         used = np.zeros(self.walls, bool)
         for line in wall_lines(here, self.config):
             variance = (max(line.std, self.config.direction_floor_rad) ** 2

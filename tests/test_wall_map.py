@@ -4,6 +4,7 @@ seen again, in a synthetic room whose walls' returns are the points of each fram
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import estimator_synth as synth
@@ -146,6 +147,40 @@ def test_a_heading_that_jumped_past_the_gate_starts_new_walls():
     assert walls.walls >= 4
 
 
+def test_points_beyond_the_range_are_left_out():
+    """Static points past ``max_range_m`` (30 m) are left out: a wall 45 m ahead is none (the
+    vote's grid spans the points, and a stray point kilometres off would make it gigabytes)."""
+    truths, states, clouds = _odometry(1.004)
+    wall = np.column_stack([np.full(30, 45.0), np.linspace(-2.0, 2.0, 30)])
+    far = [np.concatenate([cloud, synth.points(synth.world_to_body(wall, pose), (s.vx, s.vy))])
+           for s, cloud, pose in zip(states, clouds, truths)]
+    walls, near_only = _run(WallMapConfig(), states, clouds)
+    walls_far, with_far = _run(WallMapConfig(), states, far)
+    assert walls_far.walls == walls.walls
+    assert np.array([s.pose for s in with_far]) == pytest.approx(np.array([s.pose for s in near_only]), abs=1e-12)
+    # Within the range, the same wall is one.
+    more, _ = _run(WallMapConfig(max_range_m=60.0), states, far)
+    assert more.walls > walls.walls
+
+
+def test_a_window_the_odometry_spread_far_stays_small():
+    """An odometry that jumps 500 m a frame (a garbled velocity) places the window's earlier points
+    kilometres off: they are left out (``max_range_m`` in the latest frame's axes), and the vote's
+    grid stays megabytes, not gigabytes."""
+    import tracemalloc
+
+    _, states, clouds = _odometry(1.0)
+    jumped = [dataclasses.replace(s, x=s.x + 500.0 * i) for i, s in enumerate(states[:30])]
+    tracemalloc.start()
+    try:
+        walls, out = _run(WallMapConfig(), jumped, clouds[:30])
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert len(out) == 30 and all(math.isfinite(s.yaw) for s in out)
+    assert peak < 50e6
+
+
 def test_the_walls_kept_are_bounded():
     _, states, clouds = _odometry(1.004)
     walls, out = _run(WallMapConfig(use=True, max_walls=1), states, clouds)
@@ -174,7 +209,7 @@ def test_the_estimator_publishes_the_corrected_heading():
 
 def test_settings_are_checked():
     assert EstimatorConfig.from_dict({"wall_map": {"use": True}}).wall_map.use
-    with pytest.raises(ConfigError, match=r"wall_map\.window_frames: must be in \[2, 1000\], got 1"):
+    with pytest.raises(ConfigError, match=r"wall_map\.window_frames: must be in \[2, 100\], got 1"):
         EstimatorConfig.from_dict({"wall_map": {"window_frames": 1}})
     with pytest.raises(ConfigError, match=r"wall_map\.gate_rad"):
         EstimatorConfig.from_dict({"wall_map": {"gate_rad": 2.0}})
