@@ -29,6 +29,7 @@ from typing import Protocol, TypeVar
 
 import numpy as np
 
+from .angles import wrap_line
 from .config_wall_map import WallMapConfig
 from .point_yaw import static_points
 
@@ -74,11 +75,6 @@ class WallLine:
 def _rot(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s], [s, c]])
-
-
-def _line_angle(angle):
-    """*angle* (rad; a float or an array) as a line's direction difference, in [-pi/2, pi/2)."""
-    return (angle + math.pi / 2) % math.pi - math.pi / 2
 
 
 def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
@@ -137,7 +133,7 @@ def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
         if length < config.min_length_m:
             continue
         across = max(float(((on - middle) @ normal).std()), _MIN_SPREAD_M)
-        found.append(WallLine(_line_angle(math.atan2(along[1], along[0])), middle,
+        found.append(WallLine(wrap_line(math.atan2(along[1], along[0])), middle,
                               across * math.sqrt(12.0 / len(on)) / length))
     return found
 
@@ -161,8 +157,8 @@ class WallMap:
     def __init__(self, config: WallMapConfig) -> None:
         self.config = config
         self._clouds: list[np.ndarray] = []  # the point clouds since the last frame
-        #: The last frames' odometry poses (x, y, yaw) and static points (n, 2) m in their axes.
-        self._window: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.window_frames)
+        #: The last frames' static points (n, 2) m, placed in the world by the odometry's poses.
+        self._window: deque[np.ndarray] = deque(maxlen=config.window_frames)
         #: The odometry's heading over the last ``settle_frames`` frames, rad.
         self._headings: deque[float] = deque(maxlen=max(config.settle_frames, config.window_frames))
         self._last: np.ndarray | None = None  # the odometry's last pose
@@ -172,20 +168,11 @@ class WallMap:
         self._p = np.zeros((1, 1))
         self._wall_points = np.zeros((0, 2))  # a point on each wall, m (world), ...
         self._wall_seen = np.zeros(0)  # ... and when it was last seen, s
-        # Consecutive windows share all their frames but one: each fit's information is counted
-        # once over the window.
-        self._shared = float(config.window_frames)
-        self._steps = (config.turn_noise, config.distance_noise_rad_per_m, config.frame_noise_rad)
 
     @property
     def walls(self) -> int:
         """The walls held."""
         return len(self._wall_seen)
-
-    @property
-    def heading_variance(self) -> float:
-        """The filter's variance of the heading, rad^2 (since the first frame)."""
-        return float(self._p[0, 0])
 
     def add_points(self, points: np.ndarray) -> None:
         """A point cloud (TI frame fields x, y, elevation, velocity) taken since the last frame."""
@@ -204,7 +191,7 @@ class WallMap:
         else:
             self._predict(self._last, pose)
         self._last = pose
-        self._window.append((pose, static))
+        self._window.append((_rot(pose[2]) @ static.T).T + pose[:2])
         self._headings.append(pose[2])
         span = self._span(self.config.window_frames)
         if span <= self.config.match_span_rad:
@@ -220,8 +207,9 @@ class WallMap:
         step = _rot(-last[2]) @ (pose[:2] - last[:2])
         self._position = self._position + _rot(self._x[0]) @ step
         self._x[0] += turn
-        per_turn, per_metre, per_frame = self._steps
-        self._p[0, 0] += (per_turn * turn) ** 2 + (per_metre * float(np.hypot(*step))) ** 2 + per_frame ** 2
+        c = self.config
+        self._p[0, 0] += ((c.turn_noise * turn) ** 2 + (c.distance_noise_rad_per_m * float(np.hypot(*step))) ** 2
+                          + c.frame_noise_rad ** 2)
 
     def _span(self, frames: int) -> float:
         """How far the heading turned over the last *frames* frames, rad (inf: fewer frames yet)."""
@@ -233,7 +221,7 @@ class WallMap:
     def _observe(self, t: float, pose: np.ndarray, span: float, may_start: bool) -> None:
         """Fit lines to the window's static points, over which the heading turned by *span* (rad),
         and match each to a wall or, if *may_start*, start one."""
-        placed = [(_rot(p[2]) @ pts.T).T + p[:2] for p, pts in self._window if len(pts)]
+        placed = [points for points in self._window if len(points)]
         if not placed:
             return
         here = (np.concatenate(placed) - pose[:2]) @ _rot(pose[2])  # in this frame's axes
@@ -241,14 +229,17 @@ class WallMap:
         # velocity of kilometres a second) would make it gigabytes.
         here = here[np.hypot(here[:, 0], here[:, 1]) <= self.config.max_range_m]
         used = np.zeros(self.walls, bool)
+        # Consecutive windows share all their frames but one: each fit's information is counted
+        # once over the window.
+        shared = self.config.window_frames
         for line in wall_lines(here, self.config):
             variance = (max(line.std, self.config.direction_floor_rad) ** 2
-                        + (self.config.span_noise * span) ** 2) * self._shared
+                        + (self.config.span_noise * span) ** 2) * shared
             middle = self._position + _rot(self._x[0]) @ line.middle
             wall = self._match(line.direction, middle, variance, used)
             if wall is None:
                 if may_start:
-                    self._add_wall(line.direction, middle, variance / self._shared, t)
+                    self._add_wall(line.direction, middle, variance / shared, t)
                     used = np.append(used, True)
             else:
                 self._update(wall, line.direction, variance)
@@ -262,7 +253,7 @@ class WallMap:
         if not self.walls:
             return None
         heading, walls = self._x[0], self._x[1:]
-        innovation = _line_angle(direction - (walls - heading))
+        innovation = wrap_line(direction - (walls - heading))
         p = self._p
         spread = np.diagonal(p)[1:] + p[0, 0] - 2.0 * p[0, 1:] + variance
         normals = np.stack([-np.sin(walls), np.cos(walls)], 1)
@@ -275,7 +266,7 @@ class WallMap:
     def _update(self, wall: int, direction: float, variance: float) -> None:
         """The filter given that wall *wall* lies at *direction* from the heading (rad)."""
         j = wall + 1
-        innovation = _line_angle(direction - (self._x[j] - self._x[0]))
+        innovation = wrap_line(direction - (self._x[j] - self._x[0]))
         h_p = self._p[j] - self._p[0]  # H P with H = e_j - e_0
         gain = h_p / (h_p[j] - h_p[0] + variance)
         self._x = self._x + gain * innovation
