@@ -26,6 +26,7 @@ from radarodom.driver.live.dca1000_wire import (
     Status,
     WireError,
 )
+from radarodom.driver.emulators.dca1000_streamer import PACING_BATCH_S
 from radarodom.driver.emulators.fake_dca1000 import FakeDca1000, Faults
 from radarodom.driver.emulators.source_url import emulated_source_url
 from radarodom.driver.recordings.pcap import read_udp
@@ -641,13 +642,16 @@ def test_paced_frames_start_on_the_period_and_take_the_link_time(client, receive
     assert len(stamps) == n * 50
     first = [stamps[k * size] for k in range(n)]
     last = [stamps[k * size + 49 * 1456] for k in range(n)]
-    # Paced, not bursted: each frame's packets take at least (most of) the link time, and the
-    # frames keep at least the frame period on average.  A loaded machine can only stretch
-    # either, so no upper bound is asserted.
+    # Paced, not bursted: frame k leaves on its slot of the period grid and its last packet
+    # no earlier than the link time after that slot (the streamer may run PACING_BATCH_S
+    # ahead).  These are bounds on when, from the start, which a loaded machine can only
+    # make later; a frame's own span is not asserted, since a streamer that fell behind
+    # catches up in a burst and a receiver woken late stamps queued packets together.
     for k in range(n):
-        assert last[k] - first[k] > 0.7 * link_s, (k, last[k] - first[k], link_s)
-        # Frame k leaves on its slot of the period grid, never before (received later still).
-        assert first[k] - started >= k * period - 1e-3, (k, np.array(first) - started)
+        slot = k * period
+        assert first[k] - started >= slot - PACING_BATCH_S, (k, np.array(first) - started)
+        assert last[k] - started >= slot + 49 / 50 * link_s - PACING_BATCH_S, \
+            (k, np.array(last) - started, link_s)
 
 
 # ------------------------------------------------------------------ URL sources
