@@ -33,6 +33,7 @@ from typing import Any, Sequence
 import zenoh
 
 from .errors import PublishConfigError, PublishError
+from .json5_brackets import unbalanced
 from .zenoh_endpoints import check_config_file_settings, endpoint_list
 
 log = logging.getLogger(__name__)
@@ -187,10 +188,12 @@ class ZenohOptions:
             try:
                 config = zenoh.Config.from_file(path)
             except zenoh.ZError as exc:
-                raise PublishConfigError(f"zenoh config {_json5_where(path, zenoh_reason(exc))}") from None
-            with open(path, encoding="utf-8", errors="replace") as fh:
-                text = fh.read()
-            check_config_file_settings(config.get_json, path, text, mode=self.mode, listen=self.listen,
+                # A text cut short, zenoh reports as a value expected elsewhere.
+                broken = _read_text(path) if path.endswith((".json", ".json5")) else None
+                where = unbalanced(broken) if broken is not None else None
+                raise PublishConfigError(f"zenoh config {path}:{where}" if where else
+                                         f"zenoh config {_json5_where(path, zenoh_reason(exc))}") from None
+            check_config_file_settings(config.get_json, path, _read_text(path), mode=self.mode, listen=self.listen,
                                        connect=self.connect)
         else:
             config = zenoh.Config()
@@ -204,6 +207,11 @@ class ZenohOptions:
             if endpoints is not None:
                 _insert(config, f"{name}/endpoints", json.dumps(list(endpoints)))
         return config
+
+
+def _read_text(path: str) -> str:
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        return fh.read()
 
 
 def _check_config_file(path: str) -> None:
