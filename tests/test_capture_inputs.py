@@ -75,7 +75,7 @@ def test_adc_data_that_is_a_directory_says_so(tmp_path, small_cfg):
     os.remove(d / "adc_data.bin")
     os.mkdir(d / "adc_data.bin")
     with pytest.raises(CaptureFormatError, match=f"^{d / 'adc_data.bin'}: is a directory: a capture's "
-                                                 "adc_data.bin is the file of its recorded frames$"):
+                                                 "adc_data.bin is a file; put the recording's own back in its place$"):
         CaptureDirectory(d)
     os.rmdir(d / "adc_data.bin")
     os.mkfifo(d / "adc_data.bin")

@@ -114,11 +114,7 @@ class CaptureDirectory:
         data_path = os.path.join(self.directory, ADC_DATA)
         if not os.path.exists(data_path):
             raise CaptureFormatError(missing_data_message(self.directory))
-        if not os.path.isfile(data_path):
-            what = "a directory" if os.path.isdir(data_path) else "not a regular file"
-            raise CaptureFormatError(f"{data_path}: is {what}: a capture's {ADC_DATA} is the file of its "
-                                     f"recorded frames")
-        capture_check.check_parts_are_files(self.directory, (RADAR_CFG, METADATA, TIMESTAMPS, GROUNDTRUTH),
+        capture_check.check_parts_are_files(self.directory, (ADC_DATA, RADAR_CFG, METADATA, TIMESTAMPS, GROUNDTRUTH),
                                             "a capture's")
         if config is None:
             if not os.path.exists(cfg_path):
