@@ -77,6 +77,17 @@ def _rot(angle: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def _axes(centred: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unit vectors (2,) along and across the line through *centred* points (n, 2) m, their
+    mean at 0: the total-least-squares fit, the principal axis of their 2 x 2 scatter in closed
+    form (an SVD of the (n, 2) points per fit cost a fifth of the map's time)."""
+    sxx, syy = np.einsum("ij,ij->j", centred, centred)
+    sxy = float(centred[:, 0] @ centred[:, 1])
+    angle = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+    along = np.array([math.cos(angle), math.sin(angle)])
+    return along, np.array([-along[1], along[0]])
+
+
 def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
     """The straight lines the points (n, 2) m draw, the most points first: each with at least
     ``min_points`` within ``band_m`` of it over at least ``min_length_m``, ``max_lines`` at most."""
@@ -113,21 +124,22 @@ def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
             if near.sum() < config.min_points:
                 break
             middle = left[near].mean(axis=0)
-            normal = np.linalg.svd(left[near] - middle, full_matrices=False)[2][1]
+            normal = _axes(left[near] - middle)[1]
             near = np.abs((left - middle) @ normal) < config.band_m
         on = left[near]
         gone = np.flatnonzero(voting)[near]
         voting[gone] = False
-        taken = votes_at[gone].ravel()
-        for beside in (-1, 0, 1):  # the smoothed votes they gave
-            np.subtract.at(votes, taken + beside, 1)
+        taken = np.bincount(votes_at[gone].ravel(), minlength=len(votes))
+        votes -= taken  # the smoothed votes they gave
+        votes[1:] -= taken[:-1]
+        votes[:-1] -= taken[1:]
         if len(on) < config.min_points:
             break
         on = _longest_run(on, config.max_gap_m)
         if len(on) < config.min_points:
             continue
         middle = on.mean(axis=0)
-        along, normal = np.linalg.svd(on - middle, full_matrices=False)[2]
+        along, normal = _axes(on - middle)
         spread = (on - middle) @ along
         length = float(spread.max() - spread.min())
         if length < config.min_length_m:
@@ -142,7 +154,7 @@ def _longest_run(points: np.ndarray, max_gap_m: float) -> np.ndarray:
     """Of *points* (n, 2) m near a line, those of its longest stretch without a gap wider than
     *max_gap_m* along it: a piece of furniture and a stray point in line with it are no wall."""
     middle = points.mean(axis=0)
-    along = np.linalg.svd(points - middle, full_matrices=False)[2][0]
+    along = _axes(points - middle)[0]
     order = np.argsort((points - middle) @ along)
     position = (points[order] - middle) @ along
     breaks = np.flatnonzero(np.diff(position) > max_gap_m) + 1
