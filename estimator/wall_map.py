@@ -80,7 +80,7 @@ def _rot(angle: float) -> np.ndarray:
 def _axes(centred: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The unit vectors (2,) along and across the line through *centred* points (n, 2) m, their
     mean at 0: the total-least-squares fit, the principal axis of their 2 x 2 scatter in closed
-    form (an SVD of the (n, 2) points per fit cost a fifth of the map's time)."""
+    form (an SVD of the (n, 2) points per fit was much of the map's time: docs/benchmarks.md)."""
     sxx, syy = np.einsum("ij,ij->j", centred, centred)
     sxy = float(centred[:, 0] @ centred[:, 1])
     angle = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
