@@ -90,6 +90,23 @@ def test_lines_are_the_walls_the_points_draw():
     assert wall_lines(np.zeros((0, 2)), WallMapConfig()) == []
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_a_lines_fit_is_the_total_least_squares_one(seed):
+    # The closed form of the scatter's principal axis replaced an SVD per fit: the same axes.
+    from radarodom.estimator.wall_map import _axes
+
+    rng = np.random.default_rng(seed)
+    points = rng.standard_normal((int(rng.integers(2, 200)), 2)) * rng.uniform(0.01, 5.0, 2)
+    angle = rng.uniform(-math.pi, math.pi)
+    points = points @ np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]]).T
+    centred = points - points.mean(axis=0)
+    along, normal = _axes(centred)
+    svd_along, svd_normal = np.linalg.svd(centred, full_matrices=False)[2]
+    assert abs(along @ svd_along) == pytest.approx(1.0, abs=1e-9)
+    assert abs(normal @ svd_normal) == pytest.approx(1.0, abs=1e-9)
+    assert along @ normal == pytest.approx(0.0, abs=1e-12)
+
+
 def test_walls_seen_again_correct_a_turn_that_erred():
     truths, states, clouds = _odometry(1.004)
     walls, out = _run(WallMapConfig(use=True), states, clouds)
