@@ -62,7 +62,7 @@ class WallMapConfig(Settings):
     #: returns are the points of a few beams, not of a surface.
     direction_floor_rad: float = math.radians(0.5)
     #: A line is a wall seen before when its direction is within this of the wall's, rad, ...
-    gate_rad: float = math.radians(3.0)
+    gate_rad: float = math.radians(5.0)
     #: ... and within three standard deviations, and its middle within this of the wall's line, m.
     distance_gate_m: float = 0.25
     #: The walls kept: past this many the one seen longest ago is forgotten (the filter's cost grows
