@@ -126,7 +126,7 @@ def test_no_publish_opens_no_session(recording):
 
 def test_a_bad_zenoh_option_fails_before_the_source_opens(recording, tmp_path):
     bad = tmp_path / "zenoh.json5"
-    bad.write_text("{ this is not json5")
+    bad.write_text("{ this is not json5 }")  # closed: an unclosed '{' is named where it opens instead
     proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--zenoh-config", bad)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and str(bad) in proc.stderr
