@@ -25,6 +25,7 @@ from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int, whole_beyo
 from .output_paths import (  # noqa: F401  (the programs' output checks, re-exported: cli.check_distinct)
     check_distinct, check_files_in_directories, check_new_outputs, check_new_path, check_room,
     check_writable_directory, missing_directories, read_paths, write_output)
+from .standard_output import StdoutFailed, flush_stdout, stdout_failure, watched_stdout
 from .status import StatusAwareHandler, StatusLine
 
 
@@ -178,18 +179,33 @@ def run(
     handler: logging.Handler | None = None,
 ) -> int:
     """Parse *argv*, run *main*, and turn what it raises into an exit code."""
+    with watched_stdout():
+        try:
+            return _run(main, parser, argv, handler)
+        except StdoutFailed as failed:  # what is printed goes to a full disk: said, not a bug
+            print(stdout_failure(parser.prog, failed), file=sys.stderr)
+            return 1
+
+
+def _run(main: Callable[[argparse.Namespace], int | None], parser: argparse.ArgumentParser,
+         argv: Sequence[str] | None, handler: logging.Handler | None) -> int:
     parser.error = _option_error(parser)  # type: ignore[method-assign]
     try:
         args = parser.parse_args(_attach_negative_lists(parser, sys.argv[1:] if argv is None else list(argv)))
         _refuse_empty_values(parser, args)
     except SystemExit as exc:  # argparse: --help (0) or a usage error (2)
+        flush_stdout()
         return int(exc.code or 0)
     prog = parser.prog
     setup_logging(prog, args, handler)
     verbose = getattr(args, "verbose", False)
     try:
         with _sigterm_interrupts():
-            return int(main(args) or 0)
+            status = int(main(args) or 0)
+            flush_stdout()
+            return status
+    except StdoutFailed:
+        raise
     except _Terminated as exc:  # a service manager's stop: what Ctrl-C does (the radar stopped), then 143
         print(f"{prog}: terminated", file=sys.stderr)
         _print_notes(prog, exc)
