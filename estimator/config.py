@@ -18,7 +18,7 @@ from ..dsp.cfar import CfarParams
 from ..errors import ConfigError
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
-from .config_limits import CFAR, FEATURES, ICP, MAX_SMOOTHING_BINS, check_limits  # noqa: F401  (re-exported)
+from .config_limits import CFAR, FEATURES, ICP, MAX_SMOOTHING_BINS, check_limits, check_search_size  # noqa: F401
 from .config_odometry import (  # noqa: F401  (re-exported)
     KEYFRAME_STARTS, MIN_SEARCH_STEP_RAD, VELOCITY_FALLBACKS, OdometryConfig, PointYawConfig)
 from .config_velocity import PROJECTIONS, VelocityConfig  # noqa: F401  (re-exported)
@@ -266,6 +266,9 @@ class IcpConfig(Settings):
         self.check_types()
         check_limits(self, ICP)
         _check(self.eps_min < self.eps_max, "need 0 <= eps_min < eps_max", "eps_min")
+        points = ("scan_points", self.scan_points)
+        check_search_size(("max_rotation_rad", self.max_rotation_rad), ("scan_step_rad", self.scan_step_rad), points)
+        check_search_size(("field_search_rad", self.field_search_rad), ("field_step_rad", self.field_step_rad), points)
         check_choice(self.weight, ("source", "product"), "weight")
         check_choice(self.initial_guess, INITIAL_GUESSES, "initial_guess")
         check_choice(self.refinement, REFINEMENTS, "refinement")
@@ -292,6 +295,9 @@ class EstimatorConfig(Settings):
 
     def __post_init__(self) -> None:
         self.check_types()
+        # The keyframe's scan search: the odometry's window at the ICP section's step.
+        check_search_size(("odometry.keyframe_search_rad", self.odometry.keyframe_search_rad),
+                          ("icp.scan_step_rad", self.icp.scan_step_rad), ("icp.scan_points", self.icp.scan_points))
 
     @classmethod
     def paper(cls, *, method: str = "topk", sampling: bool = True, two_way: bool = True) -> "EstimatorConfig":

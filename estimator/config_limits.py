@@ -22,6 +22,39 @@ from ..plain_numbers import beyond_text, is_number
 #: half a turn, a grid of at most some 63 000 rotations (a finer step is a typo, and its grid
 #: would not fit in memory).
 MIN_SEARCH_STEP_RAD = 1e-4
+#: The most (rotation, point) scores one rotation search holds at once: its grid's rotations
+#: times the points it turns (the defaults: some 12 000; the limit keeps a search's arrays within
+#: a few hundred MB, where a fine step over a wide window with many points ran out of memory).
+MAX_SEARCH_SCORES = 2e7
+#: The most rotations one pass of the points' search scores at once, each against every
+#: (point, map point) pair (a few thousand): the defaults some 30.
+MAX_POINT_SEARCH_ROTATIONS = 2000
+
+
+def search_rotations(span_rad: float, step_rad: float) -> int:
+    """The rotations of a search over +/- *span_rad* every *step_rad*."""
+    return 2 * max(1, math.ceil(span_rad / step_rad)) + 1
+
+
+def check_search_size(span: tuple[str, float], step: tuple[str, float], points: tuple[str, int] | None = None) -> None:
+    """Refuse a rotation search too large to hold: over +/- *span* every *step* (each a field's
+    name and value, rad), times *points* (its name and count; else the points' search's own
+    limit on the rotations alone).  The message names the fields and what to change."""
+    rotations = search_rotations(span[1], step[1])
+    if points is None:
+        if rotations > MAX_POINT_SEARCH_ROTATIONS:
+            raise ConfigError(f"+/- {span[0]} {span[1]:g} every {step[1]:g} is {rotations} rotations, each "
+                              f"scored against every point pair at once: at most {MAX_POINT_SEARCH_ROTATIONS}; "
+                              f"a coarser {step[0]} or a narrower {span[0]}", field=step[0])
+        return
+    scores = rotations * points[1]
+    if scores > MAX_SEARCH_SCORES:
+        raise ConfigError(f"+/- {span[0]} {span[1]:g} every {step[1]:g} is {rotations} rotations of "
+                          f"{points[1]} points ({points[0]}): {scores:.3g} scores at once, at most "
+                          f"{MAX_SEARCH_SCORES:g}; a coarser {step[0]}, a narrower {span[0]} "
+                          f"or fewer {points[0]}", field=step[0])
+
+
 #: The widest smoothing of the likelihood field, bins (a sigma beyond it spreads a cell over
 #: more of the heatmap than its 64 azimuth bins hold).
 MAX_SMOOTHING_BINS = 64.0

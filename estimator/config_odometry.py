@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
-from .config_limits import MIN_SEARCH_STEP_RAD, ODOMETRY, POINT_YAW, check_limits  # noqa: F401  (re-exported)
+from .config_limits import MIN_SEARCH_STEP_RAD, ODOMETRY, POINT_YAW, check_limits, check_search_size  # noqa: F401  (re-exported)
 
 KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
 VELOCITY_FALLBACKS = ("hold", "heatmap")
@@ -338,5 +338,11 @@ class PointYawConfig(Settings):
         self.check_types()
         check_limits(self, POINT_YAW)
         _check(self.step_rad < self.search_rad, "must be below search_rad", "step_rad")
+        step = ("step_rad", self.step_rad)
+        coarse = ("coarse_step_rad", self.coarse_step_rad) if self.coarse_step_rad else step
+        check_search_size(("search_rad", self.search_rad), coarse)  # the first pass
+        if coarse is not step:
+            check_search_size(("coarse_step_rad", self.coarse_step_rad), step)  # about its best
+        check_search_size(("search_rad", self.search_rad), ("relocate_step_rad", self.relocate_step_rad))
         _check(self.max_noise_rad >= self.min_noise_rad, "must be at least min_noise_rad", "max_noise_rad")
         check_choice(self.heatmap_use, HEATMAP_USES, "heatmap_use")

@@ -277,3 +277,33 @@ def test_radar_capture_names_the_file_the_field_and_its_range(tmp_path):
     assert proc.returncode == 2, proc.stderr
     message = "odometry.yaw_noise_rad: must be in [1e-6, 1] rad, got 1e+308"
     assert proc.stderr == f"radar-capture: error: {path}: {message}\n"
+
+
+@pytest.mark.parametrize("settings,message", [
+    # Each ran out of memory ("internal error: MemoryError") or took a gigabyte and a second a frame.
+    ({"icp": {"scan_step_rad": 1e-4, "max_rotation_rad": math.pi, "scan_points": 100000}},
+     "icp.scan_step_rad: +/- max_rotation_rad 3.14159 every 0.0001 is 62833 rotations of 100000 points "
+     "(scan_points): 6.28e+09 scores at once, at most 2e+07; a coarser scan_step_rad, a narrower "
+     "max_rotation_rad or fewer scan_points"),
+    ({"icp": {"field_step_rad": 1e-4, "field_search_rad": 3.0}}, "icp.field_step_rad: +/- field_search_rad 3 "
+     "every 0.0001 is 60001 rotations of 400 points (scan_points)"),
+    ({"odometry": {"keyframe_search_rad": 3.0}, "icp": {"scan_step_rad": 1e-4}},
+     "icp.scan_step_rad: +/- odometry.keyframe_search_rad 3 every 0.0001 is 60001 rotations of 400 points "
+     "(icp.scan_points)"),
+    ({"point_yaw": {"search_rad": 3.0, "step_rad": 1e-4, "coarse_step_rad": None}},
+     "point_yaw.step_rad: +/- search_rad 3 every 0.0001 is 60001 rotations, each scored against every point "
+     "pair at once: at most 2000; a coarser step_rad or a narrower search_rad"),
+    ({"point_yaw": {"coarse_step_rad": 0.5, "step_rad": 1e-4}}, "point_yaw.step_rad: +/- coarse_step_rad 0.5 "
+     "every 0.0001 is 10001 rotations"),
+    ({"point_yaw": {"relocate_step_rad": 1e-4}}, "point_yaw.relocate_step_rad: +/- search_rad 0.139626 every "
+     "0.0001 is 2795 rotations"),
+])
+def test_a_rotation_search_too_large_to_hold_is_refused_naming_its_fields(settings, message):
+    with pytest.raises(ConfigError) as info:
+        EstimatorConfig.from_dict(settings)
+    assert str(info.value).startswith(message)
+
+
+def test_a_fine_search_that_fits_is_taken():
+    config = EstimatorConfig.from_dict({"icp": {"scan_step_rad": 1e-3}, "point_yaw": {"coarse_step_rad": None}})
+    assert config.icp.scan_step_rad == 1e-3 and config.point_yaw.coarse_step_rad is None
