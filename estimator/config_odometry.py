@@ -9,7 +9,9 @@ from dataclasses import dataclass
 
 from ..settings import Settings, check_choice
 from ..settings import check_field as _check
-from .config_limits import MIN_SEARCH_STEP_RAD, ODOMETRY, POINT_YAW, check_limits, check_search_size  # noqa: F401  (re-exported)
+from .config_limits import (  # noqa: F401  (re-exported)
+    MIN_SEARCH_STEP_RAD, ODOMETRY, POINT_YAW, check_limits, check_search_size,
+)
 
 KEYFRAME_STARTS = ("scan", "predicted", "predicted_and_scan")
 VELOCITY_FALLBACKS = ("hold", "heatmap")
