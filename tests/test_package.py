@@ -75,8 +75,9 @@ ALLOWED = {
     "message_format": set(),
     "messages": {"message_format"},
     "publish": {"messages", "ros2", "zenoh_session", "ext:zenoh", "ext:rosbags"},
-    "zenoh_session": {"zenoh_endpoints", "ext:zenoh"},
+    "zenoh_session": {"zenoh_endpoints", "json5_brackets", "ext:zenoh"},
     "zenoh_endpoints": set(),
+    "json5_brackets": set(),
     "ros2": {"messages", "ros2_messages", "ext:zenoh", "ext:rosbags"},
     # The ROS 2 messages (from a rosbags typestore given), the frames' arithmetic, the MCAP bag.
     "ros2_messages": {"ros2_frames"},
