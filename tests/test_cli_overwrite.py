@@ -226,6 +226,19 @@ def test_an_output_the_system_will_not_take_says_why_in_one_line(capsys, option)
                                     "system says: No such file or directory); choose a writable destination\n"), err
 
 
+@pytest.mark.parametrize("option", ["--odom-out", "--points-out", "--odom-json"])
+def test_a_file_name_too_long_for_the_file_system_is_refused_before_the_work(tmp_path, capsys, option):
+    # It was "File name too long" with exit 1 once the source had opened.
+    longest = os.pathconf(tmp_path, "PC_NAME_MAX")
+    name = "x" * (longest + 1)
+    rc, err = capture(capsys, option, tmp_path / name)
+    assert rc == 2 and err.endswith(f"its name is {len(name)} bytes, more than the {longest} this file "
+                                    "system takes; choose a shorter name\n"), err
+    assert list(tmp_path.iterdir()) == []
+    rc, err = capture(capsys, option, tmp_path / name[1:], "--frames", "1")
+    assert rc == 0, err
+
+
 def test_an_output_directory_is_made_with_its_parents(tmp_path, capsys):
     rc, err = capture(capsys, "--heatmap-out", tmp_path / "a" / "b" / "maps", "--record", tmp_path / "c" / "rec",
                       "--frames", "1")

@@ -54,6 +54,11 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
         raise UsageError(f"cannot {target}: {no_directory(parent)}")
     if not os.access(parent, os.W_OK | os.X_OK):  # before the work, not after (a replacement is a new file too)
         raise UsageError(f"cannot {target}: the directory {parent} is not writable; {CHOOSE_WRITABLE}")
+    if not is_dir:
+        name_bytes, longest = len(os.fsencode(os.path.basename(path))), _longest_name(parent)
+        if name_bytes > longest:  # it failed after the source had opened
+            raise UsageError(f"cannot {target}: its name is {name_bytes} bytes, more than the {longest} this "
+                             "file system takes; choose a shorter name")
 
 
 def _refuse_a_directory_name(path: str, what: str) -> None:
@@ -110,6 +115,13 @@ def check_writable_directory(path: str, option: str) -> None:
         raise UsageError(f"{option} {path}: {no_directory(os.path.abspath(path))}")
     if not os.access(there, os.W_OK | os.X_OK):
         raise UsageError(f"{option} {path}: the directory {there} is not writable; {CHOOSE_WRITABLE}")
+
+
+def _longest_name(directory: str) -> int:
+    try:
+        return os.pathconf(directory, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
 
 
 def _longest_path(directory: str) -> int:
