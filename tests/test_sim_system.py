@@ -754,8 +754,14 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
      ("surfaces.min: a coordinate beyond",)),
     ('[[objects]]\ntype = "cylinder"\ncenter = [2, 0]\nradius = 1e300\n' + _PAUSE,
      ("a cylinder of radius 1e+300 m and 2.7 m high would take",)),
-    ('[[objects]]\ntype = "door"\na = [1, 0]\nb = [1, 0]\nheight = 1e300\n' + _PAUSE,
+    ('[[objects]]\ntype = "door"\na = [1, 0]\nb = [1, 1]\nheight = 1e300\n' + _PAUSE,
      ("a door 1e+300 m high would take",)),
+    # A door of no width and a wall's segment of no length were simulated without a word.
+    ('[[objects]]\ntype = "door"\na = [1, 0]\nb = [1, 0]\n' + _PAUSE,
+     ("objects[0] (door): b: is a, [1, 0]: a door spans from a to b; give b its other post",)),
+    ('[[walls]]\npoints = [[0, -2], [5, -2], [5, -2], [5, 2]]\n' + _PAUSE,
+     ("walls[0]: points: points 2 and 3 (counted from 1) are both [5.0, -2.0]: a wall runs from each point to "
+      "the next; leave the repeat out",)),
     ('[[objects]]\ntype = "box"\ncenter = [2, 0]\nsize = [1e30, 1, 1]\n' + _PAUSE, ("a box's face 1e+30 m long",)),
     # Each wall alone fits; together they would not.
     ('[[walls]]\npoints = [[0, 0], [3000, 0]]\nheight = 20\n' * 3 + _PAUSE, ("a wall's segment 3000 m long",)),

@@ -137,6 +137,8 @@ def _object(obj: dict, rng: np.random.Generator, where: str, walls_out: list, ro
     # a door, the one type left
     a = vec(need(obj, "a", w), 2, w, "a")
     b = vec(need(obj, "b", w), 2, w, "b")
+    if np.array_equal(a, b):
+        raise ConfigError(f"is a, {obj['a']!r}: a door spans from a to b; give b its other post", path=w, field="b")
     height = num(obj, "height", 2.1, w, positive=True)
     recess = within(num(obj, "recess", 0.1, w), -MAX_COORDINATE_M, MAX_COORDINATE_M, w, "recess", " m")
     d = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
@@ -181,6 +183,12 @@ def _static_parts(spec: dict[str, Any], rng: np.random.Generator, where: str, se
                 raise ConfigError(f"a wall must be a table, got {wall!r}", path=where)
             check_keys(wall, WALL_KEYS, where, "walls")
             pts = polyline(need(wall, "points", where), where, "points")
+            same = np.flatnonzero((pts[1:] == pts[:-1]).all(axis=1))
+            if len(same):
+                raise ConfigError(f"points {same[0] + 1} and {same[0] + 2} (counted from 1) are both "
+                                  f"{pts[same[0]].tolist()}: a wall runs from each point to the next; leave "
+                                  "the repeat out",
+                                  path=where, field="points")
             height = num(wall, "height", 2.7, where, positive=True)
             sigma0 = cross_section(wall, "sigma0", 0.1, where)
             for a, b in zip(pts[:-1], pts[1:]):
