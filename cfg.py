@@ -263,6 +263,20 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
         and ``sensorStart``."""
         return [ln for ln in self.commands() if ln.text not in SESSION_COMMANDS]
 
+    def session_order_note(self) -> str | None:
+        """A warning when ``sensorStart`` comes before a command that configures the radar: radarodom
+        sends its own after every command, but TI's tools send the file in order, and the radar
+        would start unconfigured; None otherwise."""
+        commands = list(self.commands())
+        start = next((i for i, ln in enumerate(commands) if ln.text == "sensorStart"), None)
+        later = None if start is None else next(
+            (ln for ln in commands[start + 1:] if ln.text not in SESSION_COMMANDS), None)
+        if later is None:
+            return None
+        return (f"{self.path}:{commands[start].line}: sensorStart comes before {later.text} (line {later.line}): "
+                "radarodom sends its own sensorStart after every command, but TI's tools send the file in "
+                "order and would start the radar unconfigured; put sensorStart last")
+
     def line_of(self, name: str) -> CfgLine | None:
         """The (first) line of command *name*, or None."""
         return next((ln for ln in self.commands() if ln.text == name), None)

@@ -452,3 +452,17 @@ def test_commands_given_together_or_none_are_named(tmp_path, capsys, argv, words
     assert radar_cfg.main([str(cfg) if a == "FILE" else a for a in argv]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"radar-cfg: error: {words}" + (
         ": give one or more FILEs to check, or --list, or --copy NAME [DEST]" if "together" in words else "")
+
+
+def test_a_sensor_start_before_the_radars_configuration_is_warned_of(tmp_path, capsys):
+    # It validated without a word: radarodom sends its own sensorStart last, TI's tools do not.
+    lines = SHIPPED.read_text().splitlines()
+    moved = tmp_path / "early.cfg"
+    moved.write_text("\n".join(["sensorStart"] + [ln for ln in lines if ln.strip() != "sensorStart"]) + "\n")
+    assert radar_cfg.main([str(moved)]) == 0
+    err = capsys.readouterr().err
+    assert re.search(rf"warning: {re.escape(str(moved))}:1: sensorStart comes before \w+ \(line \d+\): .*put "
+                     r"sensorStart last", err), err
+    assert RadarConfig.from_file(moved).commands_to_send() == RadarConfig.from_file(SHIPPED).commands_to_send()
+    assert radar_cfg.main([str(SHIPPED)]) == 0
+    assert "sensorStart comes" not in capsys.readouterr().err

@@ -171,9 +171,9 @@ def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
     if note is not None:
         log.warning("%s", note)
     line = cfg.comp_range_bias_and_rx_chan_phase
-    note = cfg.range_fov_note(line.range_bias_m if line is not None else 0.0)
-    if note is not None:
-        log.warning("%s", note)
+    for note in (cfg.range_fov_note(line.range_bias_m if line is not None else 0.0), cfg.session_order_note()):
+        if note is not None:
+            log.warning("%s", note)
     if documents is not None:
         documents[path] = summary
         return 0
