@@ -139,7 +139,7 @@ ICP = {
 
 ODOMETRY = {
     "hold_s": "[0, 3600] s", "fallback_cells": "[2, 1e6]", "min_features": "[2, 1e6]", "yaw_noise_rad": NOISE,
-    "yaw_accel_std_radps2": "(0, 1000] rad/s^2",
+    "yaw_accel_std_radps2": "(0, 1000] rad/s^2", "yaw_filter_max_lag_rad": "[0, 1] rad (or null: no bound)",
     "yaw_manoeuvre_accel_std_radps2": "(0, 1000] rad/s^2 (or null: one model)",
     "keyframe_distance_m": "[0, 1000] m (0: off)", "keyframe_angle_rad": "(0, 2pi] rad",
     "keyframe_search_rad": ANGLE, "keyframe_noise_rad": "[1e-6, 1] rad (or null: yaw_noise_rad)",

@@ -67,6 +67,12 @@ class OdometryConfig(Settings):
     #: those by degrees a frame, one loose enough to follow them lets registration noise
     #: through (docs/estimator.md, "Why the defaults").  None: the one model.
     yaw_manoeuvre_accel_std_radps2: float | None = math.radians(300.0)
+    #: When set, the filter holds back at most this much of the measured turn, rad, and gives the
+    #: rest at once (its lag at a turn's start, which it made up at the turn's end after the keyframes
+    #: had).  None (the default): no bound.  Over the robustness matrix 1 degree lowered the drift
+    #: but let a weak scene's outlying frames into its turns in place (docs/heading.md, "Measured and
+    #: not adopted", 2026-12-04).
+    yaw_filter_max_lag_rad: float | None = None
     #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
     #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken
     #: when the sensor is this far (m) or has turned this much (rad) from the last (0: off,

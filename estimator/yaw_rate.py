@@ -66,6 +66,10 @@ class FilteredYaw:
             start, end = config.yaw_manoeuvre_start_prob, config.yaw_manoeuvre_end_prob
             self._switch = ((1.0 - start, start), (end, 1.0 - end))
         self._filter: YawRateFilter | None = None
+        self._max_lag = config.yaw_filter_max_lag_rad
+        #: The measured increments less those given since the restart, rad (within
+        #: ``yaw_filter_max_lag_rad``).
+        self._debt = 0.0
 
     def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
         """The filtered increment (rad) and its variance (rad^2) for the measured *dyaw* of
@@ -75,10 +79,19 @@ class FilteredYaw:
         if self._filter is None:
             self._filter = YawRateFilter(self._accel, self._switch)
         rate, p = self._filter.update(dyaw / dt, r, dt)
-        return rate * dt, p * dt * dt
+        delivered = rate * dt
+        if self._max_lag is not None:
+            # What the heading has yet to be given of the measured turn: held back while within
+            # the bound (the filter's smoothing), the rest given at once.
+            debt = self._debt + dyaw - delivered
+            held = min(max(debt, -self._max_lag), self._max_lag)
+            delivered += debt - held
+            self._debt = held
+        return delivered, p * dt * dt
 
     def restart(self) -> None:
         self._filter = None
+        self._debt = 0.0
 
 
 class UnfilteredYaw:

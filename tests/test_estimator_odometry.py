@@ -26,7 +26,7 @@ from radarodom.estimator import odometry as odo_mod
 from radarodom.estimator.keyframe import ChainStep
 from radarodom.estimator.velocity_track import VelocityHistory
 from radarodom.estimator.yaw_measurement import CurrentFrame
-from radarodom.estimator.yaw_rate import YawRateFilter
+from radarodom.estimator.yaw_rate import FilteredYaw, YawRateFilter
 from radarodom.estimator.config import (
     EstimatorConfig,
     FeatureConfig,
@@ -821,6 +821,28 @@ class TestYawRateFilter:
         assert lag["two"] < 0.6 * lag["one"]
         steady = {k: np.sqrt(np.mean((v[10:40] - truth[10:40]) ** 2)) for k, v in out.items()}
         assert steady["two"] < 1.5 * steady["one"] < np.sqrt(np.mean((z[10:40] - truth[10:40]) ** 2))
+
+    def test_the_filter_holds_back_no_more_than_its_lag_bound(self):
+        # A turn in place of 90 deg/s starting and ending: the filter's heading lags the measured
+        # turn by more than a degree all through it and makes that up after it ends; with
+        # yaw_filter_max_lag_rad (an option: docs/heading.md, "Measured and not adopted") it holds
+        # back at most that at any frame, and still smooths a straight's noise.
+        dt = 0.1
+        turn = np.r_[np.zeros(10), np.full(20, math.radians(90.0) * dt), np.zeros(20)]
+        noise = math.radians(0.3)
+        straight = noise * np.random.default_rng(2).standard_normal(40)
+        bound = math.radians(1.0)
+        debt = {}
+        for name, config in (("bounded", OdometryConfig(yaw_filter_max_lag_rad=bound)), ("default", OdometryConfig())):
+            f = FilteredYaw(config)
+            delivered = np.array([f(v, noise ** 2, dt)[0] for v in turn])
+            debt[name] = np.cumsum(turn) - np.cumsum(delivered)
+            f.restart()
+            smoothed = np.array([f(v, noise ** 2, dt)[0] for v in straight])
+            assert np.std(smoothed[10:]) < 0.7 * np.std(straight[10:])
+        assert np.max(np.abs(debt["bounded"])) <= bound + 1e-12
+        assert np.max(debt["default"][10:30]) > 1.3 * bound  # the turn's start, held back
+        assert abs(debt["bounded"][-1]) < 0.5 * bound and abs(debt["default"][-1]) < 1e-3  # each catches up
 
     def test_huge_innovation_does_not_break_the_filter(self):
         f = YawRateFilter((0.8, 5.0), SWITCH[2])
