@@ -39,7 +39,7 @@ def test_packets_of_an_earlier_recording_during_set_up_are_not_frames(small_capt
     directory, frames = small_capture
     with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
         sent = []
-        done = threading.Event()
+        done, streaming = threading.Event(), threading.Event()
 
         def old_board():  # streams from the board's address until the new recording starts, and a bit on
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
@@ -48,11 +48,15 @@ def test_packets_of_an_earlier_recording_during_set_up_are_not_frames(small_capt
                 while not done.is_set() and not rig.board.recording:
                     s.sendto(stale_packet(seq), (rig.host_ip, rig.data_port))
                     sent.append(seq)
+                    streaming.set()
                     seq += 1
                     time.sleep(0.002)
 
         sender = threading.Thread(target=old_board, daemon=True)
         sender.start()
+        # On a busy machine the thread may first run once the set-up is through: the old board is
+        # streaming before the new recording is opened, as a board left running is.
+        assert streaming.wait(10), "the old board sent nothing"
         try:
             with open_source(rig.url(**URL_TIMEOUTS), small_cfg) as src:
                 got = collect(src, 10, timeout=10.0)
