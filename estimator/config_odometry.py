@@ -70,8 +70,8 @@ class OdometryConfig(Settings):
     #: When set, the filter holds back at most this much of the measured turn, rad, and gives the
     #: rest at once (its lag at a turn's start, which it made up at the turn's end after the keyframes
     #: had).  None (the default): no bound.  Over the robustness matrix 1 degree lowered the drift
-    #: but let a weak scene's outlying frames into its turns in place (docs/heading.md, "Measured and
-    #: not adopted", 2026-12-04).
+    #: but put a weak scene's turns in place further off (docs/heading.md, "Measured and not
+    #: adopted", 2026-12-04).
     yaw_filter_max_lag_rad: float | None = None
     #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
     #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken

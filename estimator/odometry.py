@@ -308,7 +308,9 @@ class RadarOdometry:
             var_yaw = (self._held_rate_std * dt) ** 2 + step.variance
         else:
             dyaw, var_yaw = self.rate(step.observed, step.variance, dt, floored=step.fused_doppler)
-            self._good_rate = (t, dyaw / dt)
+            # The next search's prediction follows the filter's rate, not the increment given: with
+            # yaw_filter_max_lag_rad that carries the measurements' noise (docs/heading.md).
+            self._good_rate = (t, self.rate.filtered / dt)
             if not bridged:  # (the keyframe is a frame of the run: a new one starts here)
                 dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame,
                                                        registered=step.registered)

@@ -70,6 +70,8 @@ class FilteredYaw:
         #: The measured increments less those given since the restart, rad (within
         #: ``yaw_filter_max_lag_rad``).
         self._debt = 0.0
+        #: The filter's own increment of the last call, rad (the increment given but for the bound).
+        self.filtered = 0.0
 
     def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
         """The filtered increment (rad) and its variance (rad^2) for the measured *dyaw* of
@@ -79,7 +81,7 @@ class FilteredYaw:
         if self._filter is None:
             self._filter = YawRateFilter(self._accel, self._switch)
         rate, p = self._filter.update(dyaw / dt, r, dt)
-        delivered = rate * dt
+        delivered = self.filtered = rate * dt
         if self._max_lag is not None:
             # What the heading has yet to be given of the measured turn: held back while within
             # the bound (the filter's smoothing), the rest given at once.
@@ -97,7 +99,11 @@ class FilteredYaw:
 class UnfilteredYaw:
     """The measured yaw increment as it is (``yaw_rate_filter`` off)."""
 
+    #: The last increment given, rad.
+    filtered = 0.0
+
     def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
+        self.filtered = dyaw
         return dyaw, var_yaw
 
     def restart(self) -> None:

@@ -832,15 +832,17 @@ class TestYawRateFilter:
         noise = math.radians(0.3)
         straight = noise * np.random.default_rng(2).standard_normal(40)
         bound = math.radians(1.0)
-        debt = {}
+        debt, rates = {}, {}
         for name, config in (("bounded", OdometryConfig(yaw_filter_max_lag_rad=bound)), ("default", OdometryConfig())):
             f = FilteredYaw(config)
-            delivered = np.array([f(v, noise ** 2, dt)[0] for v in turn])
+            delivered, rates[name] = np.array([(f(v, noise ** 2, dt)[0], f.filtered) for v in turn]).T
             debt[name] = np.cumsum(turn) - np.cumsum(delivered)
             f.restart()
             smoothed = np.array([f(v, noise ** 2, dt)[0] for v in straight])
             assert np.std(smoothed[10:]) < 0.7 * np.std(straight[10:])
         assert np.max(np.abs(debt["bounded"])) <= bound + 1e-12
+        # The filter itself is the same either way: the next search's prediction follows it.
+        np.testing.assert_array_equal(rates["bounded"], rates["default"])
         assert np.max(debt["default"][10:30]) > 1.3 * bound  # the turn's start, held back
         assert abs(debt["bounded"][-1]) < 0.5 * bound and abs(debt["default"][-1]) < 1e-3  # each catches up
 
