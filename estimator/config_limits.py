@@ -31,9 +31,15 @@ MAX_SEARCH_SCORES = 2e7
 MAX_POINT_SEARCH_ROTATIONS = 2000
 
 
+def search_reach(span_rad: float, step_rad: float) -> int:
+    """The steps each side of a search over +/- *span_rad* every *step_rad* (at least one): the
+    grid the searches use (icp.py) and the size the checks here refuse."""
+    return max(1, math.ceil(span_rad / step_rad))
+
+
 def search_rotations(span_rad: float, step_rad: float) -> int:
     """The rotations of a search over +/- *span_rad* every *step_rad*."""
-    return 2 * max(1, math.ceil(span_rad / step_rad)) + 1
+    return 2 * search_reach(span_rad, step_rad) + 1
 
 
 def check_search_size(span: tuple[str, float], step: tuple[str, float], points: tuple[str, int] | None = None) -> None:

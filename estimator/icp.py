@@ -24,6 +24,7 @@ import numpy as np
 
 from .angles import wrap
 from .config import IcpConfig
+from .config_limits import search_reach
 from .features import Features
 from .log_heatmap import LogHeatmap
 from .quality import TextEnum
@@ -343,7 +344,7 @@ def field_rotation(source: Features, target: Features, source_field: LogHeatmap,
 
 def _offsets(max_rad: float, step_rad: float) -> np.ndarray:
     """A search grid every *step_rad* over +/- *max_rad* (at least one step each side), rad."""
-    reach = max(1, math.ceil(max_rad / step_rad))
+    reach = search_reach(max_rad, step_rad)
     return step_rad * np.arange(-reach, reach + 1)
 
 
