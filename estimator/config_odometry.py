@@ -98,6 +98,15 @@ class OdometryConfig(Settings):
     #: noise measured against ground truth (docs/estimator.md, "Why the defaults"); weighted as less,
     #: every keyframe's error goes into one frame's increment.
     keyframe_noise_rad: float | None = math.radians(1.3)
+    #: Whether the part of a keyframe's correction toward the yaw-rate filter's lag counts as that
+    #: lag given, so that the filter does not give it again as it catches up (its increments sum to
+    #: the measured turn): given twice, the lag a turn's start held back overshoots its end, and the
+    #: straight after takes it back.  The heatmaps' keyframes only, not the points' map
+    #: (``point_yaw``): its raw moving turns come out about 1 % short, which the lag given twice
+    #: makes up on average (docs/heading.md, "Measured and not adopted", 2026-12-04).  With ``yaw_filter_max_lag_rad`` 1 degree it lowered
+    #: the robustness matrix's drift by a third; off by default (turns in place within 2 % in four
+    #: cells fewer).
+    keyframe_pays_lag: bool = False
     #: A keyframe taken while the step turned faster than this, rad/s, is renewed at the first
     #: measured frame whose step turns less than half as fast: the chain lags a turn by the
     #: filter's delay, so that keyframe's pose carries the lag, and the drive after the turn

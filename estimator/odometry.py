@@ -151,6 +151,7 @@ class RadarOdometry:
         #: wall_map.use: the published heading corrected by the walls seen again (None: not).
         self.walls = WallMap(self.config.wall_map) if self.config.wall_map.use else None
         self._held_rate_std = odo.held_yaw_rate_std_radps
+        self._pays_lag = odo.keyframe_pays_lag and self.point_yaw is None
         # The points' yaw has its own way across unmeasured steps (point_yaw.relocate_*); a guess
         # without the rate's prediction would start the step across a run from no turn.
         self._bridge_s = odo.bridge_s if self.point_yaw is None and self.yaw.guess.uses_rate else 0.0
@@ -312,8 +313,11 @@ class RadarOdometry:
             # yaw_filter_max_lag_rad that carries the measurements' noise (docs/heading.md).
             self._good_rate = (t, self.rate.filtered / dt)
             if not bridged:  # (the keyframe is a frame of the run: a new one starts here)
+                given = dyaw
                 dyaw, var_yaw = self.keyframes.correct(ChainStep(last.pose, v, dt, dyaw, var_yaw), current, frame,
                                                        registered=step.registered)
+                if self._pays_lag:
+                    self.rate.pay(dyaw - given)
         # Where the keyframes bound each frame's noise, what stays in the heading is each straight's
         # and each turn's error (docs/heading.md, item 28).  A measured step the keyframe measurement
         # failed on is bounded too: the next one corrects the chain against the same keyframe.

@@ -4,6 +4,8 @@ interacting-multiple-model filter; or no filter.  Chosen once from the config.""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .config import OdometryConfig
@@ -70,6 +72,10 @@ class FilteredYaw:
         #: The measured increments less those given since the restart, rad (within
         #: ``yaw_filter_max_lag_rad``).
         self._debt = 0.0
+        #: The measured increments less the filter's own since the restart (its lag), rad, and the
+        #: part of that lag a keyframe's correction gave already (``keyframe_pays_lag``): of the same
+        #: sign as the lag and no larger.
+        self._lag = self._prepaid = 0.0
         #: The filter's own increment of the last call, rad (the increment given but for the bound).
         self.filtered = 0.0
 
@@ -82,6 +88,13 @@ class FilteredYaw:
             self._filter = YawRateFilter(self._accel, self._switch)
         rate, p = self._filter.update(dyaw / dt, r, dt)
         delivered = self.filtered = rate * dt
+        self._lag += dyaw - delivered
+        if self._prepaid:
+            # What the lag no longer holds of the part given already is not given again.
+            kept = math.copysign(min(abs(self._prepaid), abs(self._lag)), self._prepaid) \
+                if self._prepaid * self._lag > 0 else 0.0
+            delivered -= self._prepaid - kept
+            self._prepaid = kept
         if self._max_lag is not None:
             # What the heading has yet to be given of the measured turn: held back while within
             # the bound (the filter's smoothing), the rest given at once.
@@ -91,9 +104,17 @@ class FilteredYaw:
             self._debt = held
         return delivered, p * dt * dt
 
+    def pay(self, amount: float) -> None:
+        """A keyframe's correction of the heading, *amount* rad: its part toward the filter's lag,
+        up to what of the lag was not given yet, counts as given, and the filter does not give it
+        again as it catches up."""
+        room = self._lag - self._prepaid
+        if amount * room > 0:
+            self._prepaid += math.copysign(min(abs(amount), abs(room)), room)
+
     def restart(self) -> None:
         self._filter = None
-        self._debt = 0.0
+        self._debt = self._lag = self._prepaid = 0.0
 
 
 class UnfilteredYaw:
@@ -101,6 +122,9 @@ class UnfilteredYaw:
 
     #: The last increment given, rad.
     filtered = 0.0
+
+    def pay(self, amount: float) -> None:
+        """Nothing is held back, so nothing is given again."""
 
     def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
         self.filtered = dyaw

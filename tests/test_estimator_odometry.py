@@ -336,6 +336,18 @@ class TestTrajectory:
         assert abs(states[-1].yaw - truths[-1][2]) < tolerance_deg * DEG
         assert all(finite_state(s) for s in states)
 
+    def test_the_keyframes_paying_the_filters_lag_follows_the_trajectory(self):
+        # keyframe_pays_lag (an option: docs/heading.md, "Measured and not adopted"), alone and with
+        # the filter's lag bounded at a degree: the heading still follows, and the option acts (the
+        # keyframes correct the arc's and the turn's starts, which the filter then does not repeat).
+        # The bound gives up a degree here (1.2 -> 2.3 degrees at the end), as it does alone.
+        default, _ = run_sequence(EstimatorConfig(), STRAIGHT_ARC_TURN)
+        for extra, tolerance_deg in (({}, 2.0), ({"yaw_filter_max_lag_rad": math.radians(1.0)}, 3.0)):
+            cfg = EstimatorConfig().with_(odometry={"keyframe_pays_lag": True, **extra})
+            states, truths = run_sequence(cfg, STRAIGHT_ARC_TURN)
+            assert abs(states[-1].yaw - truths[-1][2]) < tolerance_deg * DEG
+            assert any(a.yaw != b.yaw for a, b in zip(states, default))
+
 
 class TestFlags:
     def test_first_frame_flag_and_velocity(self):
@@ -845,6 +857,32 @@ class TestYawRateFilter:
         np.testing.assert_array_equal(rates["bounded"], rates["default"])
         assert np.max(debt["default"][10:30]) > 1.3 * bound  # the turn's start, held back
         assert abs(debt["bounded"][-1]) < 0.5 * bound and abs(debt["default"][-1]) < 1e-3  # each catches up
+
+    def test_a_keyframes_correction_toward_the_lag_is_not_given_again(self):
+        # A turn in place of 90 deg/s; after each frame a keyframe that measures the turn so far
+        # exactly corrects half of the heading's error.  The filter lags the turn's start, the
+        # keyframe makes that up, and the filter then gives its lag again as it catches up: the
+        # heading overshoots the turn at its end.  With keyframe_pays_lag (an option: docs/heading.md,
+        # "Measured and not adopted") the part given by the keyframe is not given again.
+        dt, noise = 0.1, math.radians(0.3)
+        turn = np.r_[np.zeros(10), np.full(20, math.radians(90.0) * dt), np.zeros(30)]
+        overshoot, rates = {}, {}
+        for pays in (False, True):
+            f, heading, ahead, rates[pays] = FilteredYaw(OdometryConfig()), 0.0, [], []
+            for k, v in enumerate(turn):
+                heading += f(v, noise ** 2, dt)[0]
+                rates[pays].append(f.filtered)
+                correction = 0.5 * (turn[:k + 1].sum() - heading)
+                heading += correction
+                if pays:
+                    f.pay(correction)
+                ahead.append(heading - turn[:k + 1].sum())
+            overshoot[pays] = max(ahead[30:])
+            assert abs(ahead[-1]) < 1e-4  # either way the keyframes bring it back at last
+        assert overshoot[False] > math.radians(0.3)
+        assert overshoot[True] < 0.05 * overshoot[False]
+        # The filter's own rate, the next search's prediction, is the same either way.
+        np.testing.assert_array_equal(rates[True], rates[False])
 
     def test_huge_innovation_does_not_break_the_filter(self):
         f = YawRateFilter((0.8, 5.0), SWITCH[2])
