@@ -73,6 +73,11 @@ class OdometryConfig(Settings):
     #: but put a weak scene's turns in place further off (docs/heading.md, "Measured and not
     #: adopted", 2026-12-04).
     yaw_filter_max_lag_rad: float | None = None
+    #: With ``yaw_filter_max_lag_rad``: what a step whose velocity was not measured (the point
+    #: cloud's fit failed, held or lost: a weak frame, braking hard) leaves of its measured turn is
+    #: not given at once beyond the bound but at the filter's own pace, so that such a frame's
+    #: outlying turn stays smoothed (docs/heading.md, "Measured and not adopted", 2026-12-04).
+    yaw_filter_max_lag_trusted_only: bool = False
     #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
     #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken
     #: when the sensor is this far (m) or has turned this much (rad) from the last (0: off,

@@ -69,9 +69,13 @@ class FilteredYaw:
             self._switch = ((1.0 - start, start), (end, 1.0 - end))
         self._filter: YawRateFilter | None = None
         self._max_lag = config.yaw_filter_max_lag_rad
+        self._trusted_only = config.yaw_filter_max_lag_trusted_only
         #: The measured increments less those given since the restart, rad (within
-        #: ``yaw_filter_max_lag_rad``).
+        #: ``yaw_filter_max_lag_rad``, but for the part weak steps left, ``_weak``).
         self._debt = 0.0
+        #: Of that, what the weak steps' measurements left, rad (``yaw_filter_max_lag_trusted_only``):
+        #: of the same sign as the whole and no larger, given at the filter's own pace.
+        self._weak = 0.0
         #: The measured increments less the filter's own since the restart (its lag), rad, and the
         #: part of that lag a keyframe's correction gave already (``keyframe_pays_lag``): of the same
         #: sign as the lag and no larger.
@@ -79,10 +83,12 @@ class FilteredYaw:
         #: The filter's own increment of the last call, rad (the increment given but for the bound).
         self.filtered = 0.0
 
-    def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
+    def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False,
+                 weak: bool = False) -> tuple[float, float]:
         """The filtered increment (rad) and its variance (rad^2) for the measured *dyaw* of
         variance *var_yaw* (taken as at least the configured per-frame noise unless *floored*:
-        a fusion of measurements floored each) over *dt* s."""
+        a fusion of measurements floored each) over *dt* s; *weak*: measured on a step whose
+        velocity was not (``yaw_filter_max_lag_trusted_only``)."""
         r = (var_yaw if floored else max(var_yaw, self._noise_rad ** 2)) / (dt * dt)  # rate measurement variance
         if self._filter is None:
             self._filter = YawRateFilter(self._accel, self._switch)
@@ -97,11 +103,16 @@ class FilteredYaw:
             self._prepaid = kept
         if self._max_lag is not None:
             # What the heading has yet to be given of the measured turn: held back while within
-            # the bound (the filter's smoothing), the rest given at once.
+            # the bound (the filter's smoothing), the rest given at once; but a weak step's part,
+            # which a braking frame's outlying turn may be, only as the filter gives it.
             debt = self._debt + dyaw - delivered
-            held = min(max(debt, -self._max_lag), self._max_lag)
-            delivered += debt - held
-            self._debt = held
+            if weak and self._trusted_only:
+                self._weak += dyaw - delivered
+            self._weak = math.copysign(min(abs(self._weak), abs(debt)), self._weak) if self._weak * debt > 0 else 0.0
+            bounded = debt - self._weak
+            held = min(max(bounded, -self._max_lag), self._max_lag)
+            delivered += bounded - held
+            self._debt = held + self._weak
         return delivered, p * dt * dt
 
     def pay(self, amount: float) -> None:
@@ -114,7 +125,7 @@ class FilteredYaw:
 
     def restart(self) -> None:
         self._filter = None
-        self._debt = self._lag = self._prepaid = 0.0
+        self._debt = self._lag = self._prepaid = self._weak = 0.0
 
 
 class UnfilteredYaw:
@@ -126,7 +137,8 @@ class UnfilteredYaw:
     def pay(self, amount: float) -> None:
         """Nothing is held back, so nothing is given again."""
 
-    def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False) -> tuple[float, float]:
+    def __call__(self, dyaw: float, var_yaw: float, dt: float, floored: bool = False,
+                 weak: bool = False) -> tuple[float, float]:
         self.filtered = dyaw
         return dyaw, var_yaw
 

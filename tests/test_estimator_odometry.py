@@ -884,6 +884,27 @@ class TestYawRateFilter:
         # The filter's own rate, the next search's prediction, is the same either way.
         np.testing.assert_array_equal(rates[True], rates[False])
 
+    def test_a_weak_steps_turn_stays_smoothed_past_the_lag_bound(self):
+        # Standing, three weak steps (no velocity of their own: frames braking hard) measure 3 degrees
+        # each, as the lab's braking frames at -15 dB err (docs/heading.md).  Bounded at a degree, all
+        # but the bound goes into the heading at once, and the filter's catching up then gives a
+        # degree more than was measured; with yaw_filter_max_lag_trusted_only (an option) the weak
+        # steps' part stays at the filter's pace.  Steps not weak are bounded the same either way.
+        dt, noise, bound = 0.1, math.radians(0.3), math.radians(1.0)
+        z = np.r_[np.zeros(10), np.full(3, math.radians(3.0)), np.zeros(30)]
+        given = {}
+        for trusted_only in (False, True):
+            config = OdometryConfig(yaw_filter_max_lag_rad=bound, yaw_filter_max_lag_trusted_only=trusted_only)
+            for weak in (False, True):
+                f = FilteredYaw(config)
+                marks = np.r_[np.zeros(10, bool), np.full(3, weak), np.zeros(30, bool)]
+                given[trusted_only, weak] = np.cumsum([f(v, noise ** 2, dt, weak=w)[0] for v, w in zip(z, marks)])
+        np.testing.assert_array_equal(given[True, False], given[False, False])
+        np.testing.assert_array_equal(given[False, True], given[False, False])
+        assert given[False, True][12] >= z.sum() - bound - 1e-12
+        assert given[True, True][12] < given[False, True][12] - math.radians(0.5)
+        assert abs(given[True, True][-1] - z.sum()) < 0.5 * abs(given[False, True][-1] - z.sum())
+
     def test_huge_innovation_does_not_break_the_filter(self):
         f = YawRateFilter((0.8, 5.0), SWITCH[2])
         f.update(0.0, 1e-4, 0.1)
