@@ -108,9 +108,9 @@ class OdometryConfig(Settings):
     #: the measured turn): given twice, the lag a turn's start held back overshoots its end, and the
     #: straight after takes it back.  The heatmaps' keyframes only, not the points' map
     #: (``point_yaw``): its raw moving turns come out about 1 % short, which the lag given twice
-    #: makes up on average (docs/heading.md, "Measured and not adopted", 2026-12-04).  With ``yaw_filter_max_lag_rad`` 1 degree it lowered
-    #: the robustness matrix's drift by a third; off by default (turns in place within 2 % in four
-    #: cells fewer).
+    #: makes up on average (docs/heading.md, "Measured and not adopted", 2026-12-04).  With
+    #: ``yaw_filter_max_lag_rad`` 1 degree it lowered the robustness matrix's drift by a third; off
+    #: by default (turns in place within 2 % in four cells fewer).
     keyframe_pays_lag: bool = False
     #: A keyframe taken while the step turned faster than this, rad/s, is renewed at the first
     #: measured frame whose step turns less than half as fast: the chain lags a turn by the

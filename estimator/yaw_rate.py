@@ -11,6 +11,11 @@ import numpy as np
 from .config import OdometryConfig
 
 
+def _within(part: float, whole: float) -> float:
+    """*part* kept of the same sign as *whole* and no larger (0 when their signs differ), rad."""
+    return math.copysign(min(abs(part), abs(whole)), part) if part * whole > 0 else 0.0
+
+
 class YawRateFilter:
     """Kalman filter(s) of the yaw rate, constant rate with white yaw acceleration: one model,
     or several of different acceleration mixed as an interacting-multiple-model filter (each
@@ -97,8 +102,7 @@ class FilteredYaw:
         self._lag += dyaw - delivered
         if self._prepaid:
             # What the lag no longer holds of the part given already is not given again.
-            kept = math.copysign(min(abs(self._prepaid), abs(self._lag)), self._prepaid) \
-                if self._prepaid * self._lag > 0 else 0.0
+            kept = _within(self._prepaid, self._lag)
             delivered -= self._prepaid - kept
             self._prepaid = kept
         if self._max_lag is not None:
@@ -108,7 +112,7 @@ class FilteredYaw:
             debt = self._debt + dyaw - delivered
             if weak and self._trusted_only:
                 self._weak += dyaw - delivered
-            self._weak = math.copysign(min(abs(self._weak), abs(debt)), self._weak) if self._weak * debt > 0 else 0.0
+            self._weak = _within(self._weak, debt)
             bounded = debt - self._weak
             held = min(max(bounded, -self._max_lag), self._max_lag)
             delivered += bounded - held
@@ -119,9 +123,7 @@ class FilteredYaw:
         """A keyframe's correction of the heading, *amount* rad: its part toward the filter's lag,
         up to what of the lag was not given yet, counts as given, and the filter does not give it
         again as it catches up."""
-        room = self._lag - self._prepaid
-        if amount * room > 0:
-            self._prepaid += math.copysign(min(abs(amount), abs(room)), room)
+        self._prepaid += _within(amount, self._lag - self._prepaid)
 
     def restart(self) -> None:
         self._filter = None
