@@ -88,6 +88,8 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default, a keyframe taken in a turn kept after it (before 2026-11-29)": d.with_(
             odometry={"keyframe_turn_renew_radps": None}),
         "default without the wall map (before 2026-12-04)": d.with_(wall_map={"use": False}),
+        "default, the filter's lag unbounded and given twice (before item 36)": d.with_(odometry={
+            "yaw_filter_max_lag_rad": None, "keyframe_pays_lag": False, "yaw_filter_max_lag_trusted_only": False}),
         "default without the four heading options (2026-11-25)": d.with_(
             icp={"score_support": "inside", "reject_moving_mps": None}, features={"elevation": "ignore"},
             odometry={"rectification": "velocity"}),

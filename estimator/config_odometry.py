@@ -69,15 +69,14 @@ class OdometryConfig(Settings):
     yaw_manoeuvre_accel_std_radps2: float | None = math.radians(300.0)
     #: When set, the filter holds back at most this much of the measured turn, rad, and gives the
     #: rest at once (its lag at a turn's start, which it made up at the turn's end after the keyframes
-    #: had).  None (the default): no bound.  Over the robustness matrix 1 degree lowered the drift
-    #: but put a weak scene's turns in place further off (docs/heading.md, "Measured and not
-    #: adopted", 2026-12-04).
-    yaw_filter_max_lag_rad: float | None = None
+    #: had).  None: no bound.  With ``keyframe_pays_lag`` and ``yaw_filter_max_lag_trusted_only``,
+    #: 1 degree lowered the robustness matrix's drift by a third (docs/heading.md, item 36).
+    yaw_filter_max_lag_rad: float | None = math.radians(1.0)
     #: With ``yaw_filter_max_lag_rad``: what a step whose velocity was not measured (the point
     #: cloud's fit failed, held or lost: a weak frame, braking hard) leaves of its measured turn is
     #: not given at once beyond the bound but at the filter's own pace, so that such a frame's
-    #: outlying turn stays smoothed (docs/heading.md, "Measured and not adopted", 2026-12-04).
-    yaw_filter_max_lag_trusted_only: bool = False
+    #: outlying turn stays smoothed (docs/heading.md, item 36).
+    yaw_filter_max_lag_trusted_only: bool = True
     #: Beyond the paper: also register each frame to a keyframe and correct the yaw with it,
     #: so that registration noise does not accumulate frame by frame.  A new keyframe is taken
     #: when the sensor is this far (m) or has turned this much (rad) from the last (0: off,
@@ -108,10 +107,9 @@ class OdometryConfig(Settings):
     #: the measured turn): given twice, the lag a turn's start held back overshoots its end, and the
     #: straight after takes it back.  The heatmaps' keyframes only, not the points' map
     #: (``point_yaw``): its raw moving turns come out about 1 % short, which the lag given twice
-    #: makes up on average (docs/heading.md, "Measured and not adopted", 2026-12-04).  With
-    #: ``yaw_filter_max_lag_rad`` 1 degree it lowered the robustness matrix's drift by a third; off
-    #: by default (turns in place within 2 % in four cells fewer).
-    keyframe_pays_lag: bool = False
+    #: makes up on average (docs/heading.md, item 36).  With ``yaw_filter_max_lag_rad`` 1 degree it
+    #: lowered the robustness matrix's drift by a third.
+    keyframe_pays_lag: bool = True
     #: A keyframe taken while the step turned faster than this, rad/s, is renewed at the first
     #: measured frame whose step turns less than half as fast: the chain lags a turn by the
     #: filter's delay, so that keyframe's pose carries the lag, and the drive after the turn

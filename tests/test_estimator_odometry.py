@@ -325,9 +325,11 @@ class TestTrajectory:
 
     # Frame to frame alone (no keyframes) the 30 deg/s turn in place is measured some 3 % short
     # (5.0 of 150 degrees; 0.8 with keyframes, the default): a LIMITATION the keyframe
-    # registration removes most of.
+    # registration removes most of.  With keyframes, the default's bound on the filter's lag (1
+    # degree, docs/heading.md item 36) ends this sequence 2.3 degrees off, 1.2 unbounded: bounded, the
+    # heading is 0.7 degrees ahead at the arc's end (unbounded 0.0) and the turn in place adds 1.4.
     @pytest.mark.parametrize(("keyframes", "tolerance_deg"), [
-        pytest.param(0.5, 2.0, id="default"),
+        pytest.param(0.5, 3.0, id="default"),
         pytest.param(0.0, 6.0, id="no-keyframes"),
     ])
     def test_default_config_follows_the_trajectory(self, keyframes, tolerance_deg):
@@ -337,16 +339,16 @@ class TestTrajectory:
         assert all(finite_state(s) for s in states)
 
     def test_the_keyframes_paying_the_filters_lag_follows_the_trajectory(self):
-        # keyframe_pays_lag (an option: docs/heading.md, "Measured and not adopted"), alone and with
-        # the filter's lag bounded at a degree: the heading still follows, and the option acts (the
+        # keyframe_pays_lag (the default: docs/heading.md, item 36), unbounded and with the default's
+        # bound of a degree on the filter's lag: the heading still follows, and the option acts (the
         # keyframes correct the arc's and the turn's starts, which the filter then does not repeat).
-        # The bound gives up a degree here (1.2 -> 2.3 degrees at the end), as it does alone.
-        default, _ = run_sequence(EstimatorConfig(), STRAIGHT_ARC_TURN)
-        for extra, tolerance_deg in (({}, 2.0), ({"yaw_filter_max_lag_rad": math.radians(1.0)}, 3.0)):
+        unpaid = EstimatorConfig().with_(odometry={"keyframe_pays_lag": False, "yaw_filter_max_lag_rad": None})
+        before, _ = run_sequence(unpaid, STRAIGHT_ARC_TURN)
+        for extra, tolerance_deg in (({"yaw_filter_max_lag_rad": None}, 2.0), ({}, 3.0)):
             cfg = EstimatorConfig().with_(odometry={"keyframe_pays_lag": True, **extra})
             states, truths = run_sequence(cfg, STRAIGHT_ARC_TURN)
             assert abs(states[-1].yaw - truths[-1][2]) < tolerance_deg * DEG
-            assert any(a.yaw != b.yaw for a, b in zip(states, default))
+            assert any(a.yaw != b.yaw for a, b in zip(states, before))
 
 
 class TestFlags:
@@ -837,7 +839,7 @@ class TestYawRateFilter:
     def test_the_filter_holds_back_no_more_than_its_lag_bound(self):
         # A turn in place of 90 deg/s starting and ending: the filter's heading lags the measured
         # turn by more than a degree all through it and makes that up after it ends; with
-        # yaw_filter_max_lag_rad (an option: docs/heading.md, "Measured and not adopted") it holds
+        # yaw_filter_max_lag_rad (the default, 1 degree: docs/heading.md, item 36) it holds
         # back at most that at any frame, and still smooths a straight's noise.
         dt = 0.1
         turn = np.r_[np.zeros(10), np.full(20, math.radians(90.0) * dt), np.zeros(20)]
@@ -845,7 +847,7 @@ class TestYawRateFilter:
         straight = noise * np.random.default_rng(2).standard_normal(40)
         bound = math.radians(1.0)
         debt, rates = {}, {}
-        for name, config in (("bounded", OdometryConfig(yaw_filter_max_lag_rad=bound)), ("default", OdometryConfig())):
+        for name, config in (("bounded", OdometryConfig()), ("unbounded", OdometryConfig(yaw_filter_max_lag_rad=None))):
             f = FilteredYaw(config)
             delivered, rates[name] = np.array([(f(v, noise ** 2, dt)[0], f.filtered) for v in turn]).T
             debt[name] = np.cumsum(turn) - np.cumsum(delivered)
@@ -854,21 +856,21 @@ class TestYawRateFilter:
             assert np.std(smoothed[10:]) < 0.7 * np.std(straight[10:])
         assert np.max(np.abs(debt["bounded"])) <= bound + 1e-12
         # The filter itself is the same either way: the next search's prediction follows it.
-        np.testing.assert_array_equal(rates["bounded"], rates["default"])
-        assert np.max(debt["default"][10:30]) > 1.3 * bound  # the turn's start, held back
-        assert abs(debt["bounded"][-1]) < 0.5 * bound and abs(debt["default"][-1]) < 1e-3  # each catches up
+        np.testing.assert_array_equal(rates["bounded"], rates["unbounded"])
+        assert np.max(debt["unbounded"][10:30]) > 1.3 * bound  # the turn's start, held back
+        assert abs(debt["bounded"][-1]) < 0.5 * bound and abs(debt["unbounded"][-1]) < 1e-3  # each catches up
 
     def test_a_keyframes_correction_toward_the_lag_is_not_given_again(self):
         # A turn in place of 90 deg/s; after each frame a keyframe that measures the turn so far
         # exactly corrects half of the heading's error.  The filter lags the turn's start, the
         # keyframe makes that up, and the filter then gives its lag again as it catches up: the
-        # heading overshoots the turn at its end.  With keyframe_pays_lag (an option: docs/heading.md,
-        # "Measured and not adopted") the part given by the keyframe is not given again.
+        # heading overshoots the turn at its end.  With keyframe_pays_lag (the default: docs/heading.md,
+        # item 36) the part given by the keyframe is not given again.
         dt, noise = 0.1, math.radians(0.3)
         turn = np.r_[np.zeros(10), np.full(20, math.radians(90.0) * dt), np.zeros(30)]
         overshoot, rates = {}, {}
         for pays in (False, True):
-            f, heading, ahead, rates[pays] = FilteredYaw(OdometryConfig()), 0.0, [], []
+            f, heading, ahead, rates[pays] = FilteredYaw(OdometryConfig(yaw_filter_max_lag_rad=None)), 0.0, [], []
             for k, v in enumerate(turn):
                 heading += f(v, noise ** 2, dt)[0]
                 rates[pays].append(f.filtered)
@@ -888,7 +890,7 @@ class TestYawRateFilter:
         # Standing, three weak steps (no velocity of their own: frames braking hard) measure 3 degrees
         # each, as the lab's braking frames at -15 dB err (docs/heading.md).  Bounded at a degree, all
         # but the bound goes into the heading at once, and the filter's catching up then gives a
-        # degree more than was measured; with yaw_filter_max_lag_trusted_only (an option) the weak
+        # degree more than was measured; with yaw_filter_max_lag_trusted_only (the default) the weak
         # steps' part stays at the filter's pace.  Steps not weak are bounded the same either way.
         dt, noise, bound = 0.1, math.radians(0.3), math.radians(1.0)
         z = np.r_[np.zeros(10), np.full(3, math.radians(3.0)), np.zeros(30)]
