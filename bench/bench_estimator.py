@@ -76,10 +76,10 @@ def main(argv=None) -> int:
     configs = {"default": default,
                # The yaw-rate filter's lag unbounded and given again after the keyframes (issue 20's
                # item 36 off: the defaults before the fifth session of 2026-12-04), for its cost.
-               "default with the filter's lag unbounded": default.with_(odometry={
+               "default, the filter's lag unbounded and given twice": default.with_(odometry={
                    "yaw_filter_max_lag_rad": None, "keyframe_pays_lag": False,
                    "yaw_filter_max_lag_trusted_only": False}),
-               # The map of wall directions off (the defaults before 2026-12-04), for its cost.
+               # The map of wall directions off (the rest of the defaults as they are), for its cost.
                "default without the wall map": default.with_(wall_map={"use": False}),
                # The heatmaps' registration alone (issue 20's items 30 and 35 off), for the points' cost.
                "default, the heatmaps' registration alone": default.with_(point_yaw={"blend": 0.0},

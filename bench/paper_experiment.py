@@ -87,6 +87,7 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default, field sampled on the heatmap's bins (before 2026-11-28)": d.with_(icp={"field_upsampling": 1}),
         "default, a keyframe taken in a turn kept after it (before 2026-11-29)": d.with_(
             odometry={"keyframe_turn_renew_radps": None}),
+        # (Named for the run that compared it; it keeps the defaults made since, item 36's too.)
         "default without the wall map (before 2026-12-04)": d.with_(wall_map={"use": False}),
         "default, the filter's lag unbounded and given twice (before item 36)": d.with_(odometry={
             "yaw_filter_max_lag_rad": None, "keyframe_pays_lag": False, "yaw_filter_max_lag_trusted_only": False}),

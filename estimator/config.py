@@ -321,8 +321,11 @@ class EstimatorConfig(Settings):
         (of 6-12 points on the chip's bins, those across the motion fix the sideways speed), its
         heatmap's cells not weighed by their peak's shape (docs/tidemo.md: the chip's static
         heatmap is not the raw one those weights were measured on), its speed not scaled to the
-        level reflectors' edge (its Doppler on the chip's bins: not measured there) and no map of
-        wall directions (not measured on the chip's few points)."""
+        level reflectors' edge (its Doppler on the chip's bins: not measured there), no map of
+        wall directions (not measured on the chip's few points) and no bound on the yaw-rate
+        filter's lag (made the default with the keyframes' payments of the lag, which the points'
+        yaw does not make: alone, on the demo's sequences, it raised the yaw RMSE and a lab run's
+        drift to 5.0 %, docs/tidemo.md)."""
         return cls().preset("tidemo")
 
     def preset(self, name: str | None) -> "EstimatorConfig":
@@ -363,6 +366,7 @@ class EstimatorConfig(Settings):
 TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bearing_noise_rad": 0.0,
                               "level_edge_quantile": None},
                  "icp": {"field_shape_width": None},
+                 "odometry": {"yaw_filter_max_lag_rad": None},
                  "point_yaw": {"use": True}, "wall_map": {"use": False}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).

@@ -323,14 +323,14 @@ class TestTrajectory:
         states, truths = run_sequence(EstimatorConfig.paper(), STRAIGHT_ARC_TURN)
         assert abs(states[-1].yaw - truths[-1][2]) < 5 * DEG
 
-    # Frame to frame alone (no keyframes) the 30 deg/s turn in place is measured some 3 % short
-    # (5.0 of 150 degrees; 0.8 with keyframes, the default): a LIMITATION the keyframe
-    # registration removes most of.  With keyframes, the default's bound on the filter's lag (1
-    # degree, docs/heading.md item 36) ends this sequence 2.3 degrees off, 1.2 unbounded: bounded, the
-    # heading is 0.7 degrees ahead at the arc's end (unbounded 0.0) and the turn in place adds 1.4.
+    # With the default's bound on the yaw-rate filter's lag (1 degree, docs/heading.md item 36) this
+    # sequence (150 degrees in all) ends 2.3 degrees off with keyframes and 1.6 frame to frame alone;
+    # unbounded, 1.2 and -0.7.  Bounded, the heading is 0.9 degrees ahead at the arc's end (0.2
+    # unbounded) and the turn in place adds 1.45 (1.0): a LIMITATION, the bounded heading turns a
+    # percent and a half long on these point reflectors (why less unbounded was not measured).
     @pytest.mark.parametrize(("keyframes", "tolerance_deg"), [
         pytest.param(0.5, 3.0, id="default"),
-        pytest.param(0.0, 6.0, id="no-keyframes"),
+        pytest.param(0.0, 3.0, id="no-keyframes"),
     ])
     def test_default_config_follows_the_trajectory(self, keyframes, tolerance_deg):
         cfg = EstimatorConfig().with_(odometry={"keyframe_distance_m": keyframes})
@@ -340,8 +340,9 @@ class TestTrajectory:
 
     def test_the_keyframes_paying_the_filters_lag_follows_the_trajectory(self):
         # keyframe_pays_lag (the default: docs/heading.md, item 36), unbounded and with the default's
-        # bound of a degree on the filter's lag: the heading still follows, and the option acts (the
-        # keyframes correct the arc's and the turn's starts, which the filter then does not repeat).
+        # bound of a degree on the filter's lag: the heading still follows, and the option changes it
+        # (on this sequence by little: the end 2.35 -> 2.34 degrees off with the bound; what it does
+        # is tested on the filter, test_a_keyframes_correction_toward_the_lag_is_not_given_again).
         unpaid = EstimatorConfig().with_(odometry={"keyframe_pays_lag": False, "yaw_filter_max_lag_rad": None})
         before, _ = run_sequence(unpaid, STRAIGHT_ARC_TURN)
         for extra, tolerance_deg in (({"yaw_filter_max_lag_rad": None}, 2.0), ({}, 3.0)):
@@ -860,7 +861,13 @@ class TestYawRateFilter:
         assert np.max(debt["unbounded"][10:30]) > 1.3 * bound  # the turn's start, held back
         assert abs(debt["bounded"][-1]) < 0.5 * bound and abs(debt["unbounded"][-1]) < 1e-3  # each catches up
 
-    def test_a_keyframes_correction_toward_the_lag_is_not_given_again(self):
+    @pytest.mark.parametrize(("config", "share"), [
+        pytest.param(OdometryConfig(yaw_filter_max_lag_rad=None), 0.05, id="unbounded"),
+        # The default's bound gives the lag beyond a degree at once, and with it part of what the
+        # keyframe had given (docs/heading.md item 36: counting the payments in the bound too did worse).
+        pytest.param(OdometryConfig(), 0.5, id="default"),
+    ])
+    def test_a_keyframes_correction_toward_the_lag_is_not_given_again(self, config, share):
         # A turn in place of 90 deg/s; after each frame a keyframe that measures the turn so far
         # exactly corrects half of the heading's error.  The filter lags the turn's start, the
         # keyframe makes that up, and the filter then gives its lag again as it catches up: the
@@ -870,7 +877,7 @@ class TestYawRateFilter:
         turn = np.r_[np.zeros(10), np.full(20, math.radians(90.0) * dt), np.zeros(30)]
         overshoot, rates = {}, {}
         for pays in (False, True):
-            f, heading, ahead, rates[pays] = FilteredYaw(OdometryConfig(yaw_filter_max_lag_rad=None)), 0.0, [], []
+            f, heading, ahead, rates[pays] = FilteredYaw(config), 0.0, [], []
             for k, v in enumerate(turn):
                 heading += f(v, noise ** 2, dt)[0]
                 rates[pays].append(f.filtered)
@@ -882,7 +889,7 @@ class TestYawRateFilter:
             overshoot[pays] = max(ahead[30:])
             assert abs(ahead[-1]) < 1e-4  # either way the keyframes bring it back at last
         assert overshoot[False] > math.radians(0.3)
-        assert overshoot[True] < 0.05 * overshoot[False]
+        assert overshoot[True] < share * overshoot[False]
         # The filter's own rate, the next search's prediction, is the same either way.
         np.testing.assert_array_equal(rates[True], rates[False])
 

@@ -390,8 +390,11 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
     # The chip's static heatmap is not the raw one the field's peak-shape weights were measured on.
     assert preset.icp.field_shape_width is None and default.icp.field_shape_width is not None
     assert same["icp"] == {**default.to_dict()["icp"], "field_shape_width": None}
-    for section in ("features", "odometry"):
-        assert same[section] == default.to_dict()[section]
+    assert same["features"] == default.to_dict()["features"]
+    # The yaw-rate filter's lag bound came with the keyframes' payments of it (docs/heading.md item
+    # 36), which the points' yaw does not make: alone it did worse on the demo's sequences.
+    assert preset.odometry.yaw_filter_max_lag_rad is None and default.odometry.yaw_filter_max_lag_rad is not None
+    assert same["odometry"] == {**default.to_dict()["odometry"], "yaw_filter_max_lag_rad": None}
     assert EstimatorConfig.from_dict(same) == preset
 
 
