@@ -33,6 +33,7 @@ import scipy.fft
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
+from heading_variants import FOUR_OPTIONS_OFF, HEATMAPS_ALONE, LAG_GIVEN_TWICE, NO_WALL_MAP  # noqa: E402
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
@@ -63,6 +64,22 @@ def frame_times(seq: sequences.Sequence, config: EstimatorConfig) -> np.ndarray:
     return 1e3 * out[1:]
 
 
+def timed_configs() -> dict[str, EstimatorConfig]:
+    """The estimator configs timed: the defaults, each of issue 20's heading changes off for its cost, the paper's."""
+    default = EstimatorConfig()
+    return {"default": default,
+            # Each for its cost: the yaw-rate filter's lag unbounded and given again after the
+            # keyframes (issue 20's item 36 off), ...
+            "default, the filter's lag unbounded and given twice": default.with_(**LAG_GIVEN_TWICE),
+            # ... the map of wall directions off (item 35), ...
+            "default without the wall map": default.with_(**NO_WALL_MAP),
+            # ... the heatmaps' registration alone (items 30 and 35 off: the points' cost), ...
+            "default, the heatmaps' registration alone": default.with_(**HEATMAPS_ALONE),
+            # ... and besides, issue 20's four first heading options off: the defaults of 2026-11-25.
+            "default before the heading options": default.with_(**FOUR_OPTIONS_OFF, **HEATMAPS_ALONE),
+            "paper (Top-k, sampling + mwICP)": EstimatorConfig.paper()}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/sim"),
@@ -72,23 +89,7 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--json", help="write the results here too")
     args = parser.parse_args(argv)
-    default = EstimatorConfig()
-    configs = {"default": default,
-               # The yaw-rate filter's lag unbounded and given again after the keyframes (issue 20's
-               # item 36 off: the defaults before the fifth session of 2026-12-04), for its cost.
-               "default, the filter's lag unbounded and given twice": default.with_(odometry={
-                   "yaw_filter_max_lag_rad": None, "keyframe_pays_lag": False,
-                   "yaw_filter_max_lag_trusted_only": False}),
-               # The map of wall directions off (the rest of the defaults as they are), for its cost.
-               "default without the wall map": default.with_(wall_map={"use": False}),
-               # The heatmaps' registration alone (issue 20's items 30 and 35 off), for the points' cost.
-               "default, the heatmaps' registration alone": default.with_(point_yaw={"blend": 0.0},
-                                                                          wall_map={"use": False}),
-               # Issue 20's four heading options off: the defaults of 2026-11-25, for their cost.
-               "default before the heading options": default.with_(
-                   icp={"score_support": "inside", "reject_moving_mps": None}, features={"elevation": "ignore"},
-                   odometry={"rectification": "velocity"}, point_yaw={"blend": 0.0}, wall_map={"use": False}),
-               "paper (Top-k, sampling + mwICP)": EstimatorConfig.paper()}
+    configs = timed_configs()
     seqs = []
     for scene in args.scenes:
         directory = os.path.join(args.data, f"{scene}_s{args.seed}")

@@ -30,6 +30,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
+from heading_variants import FOUR_OPTIONS_OFF, LAG_GIVEN_TWICE, NO_WALL_MAP  # noqa: E402
 
 from radarodom.estimator.config import EstimatorConfig, paper_variants  # noqa: E402
 from radarodom.estimator.evaluation import evaluate  # noqa: E402
@@ -88,12 +89,9 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default, a keyframe taken in a turn kept after it (before 2026-11-29)": d.with_(
             odometry={"keyframe_turn_renew_radps": None}),
         # (Named for the run that compared it; it keeps the defaults made since, item 36's too.)
-        "default without the wall map (before 2026-12-04)": d.with_(wall_map={"use": False}),
-        "default, the filter's lag unbounded and given twice (before item 36)": d.with_(odometry={
-            "yaw_filter_max_lag_rad": None, "keyframe_pays_lag": False, "yaw_filter_max_lag_trusted_only": False}),
-        "default without the four heading options (2026-11-25)": d.with_(
-            icp={"score_support": "inside", "reject_moving_mps": None}, features={"elevation": "ignore"},
-            odometry={"rectification": "velocity"}),
+        "default without the wall map (before 2026-12-04)": d.with_(**NO_WALL_MAP),
+        "default, the filter's lag unbounded and given twice (before item 36)": d.with_(**LAG_GIVEN_TWICE),
+        "default without the four heading options (2026-11-25)": d.with_(**FOUR_OPTIONS_OFF),
     }
     return {k: ("beyond", v) for k, v in out.items()}
 
