@@ -25,7 +25,8 @@ term (the earlier frame's points in the later frame's field), the backward term 
 separately: a bias that is the same at every baseline is an offset of each registration, one
 that grows with the baseline comes from the motion; and, over moving turns and turns in place,
 the two-way registration's turn ratio at each baseline (what a keyframe that many frames back
-measures, given the true motion).
+measures, given the true motion) and each of its two terms' alone (in the simulator's turns in
+place they err by up to a fifth each way and cancel in their sum: docs/heading.md).
 
 ``--straights K`` takes each straight drive apart (a loop's straights turn opposite ways and
 cancel in the bias): the estimate's heading error over it and the field search's with the true
@@ -169,9 +170,21 @@ def trace(steps: list[Step], first: int, last: int) -> list[str]:
     return lines
 
 
+def _terms(a, b, translation: np.ndarray, dyaw: float, deltas: np.ndarray, common: bool) -> dict[str, float | None]:
+    """The field search of kept frames *a* and *b* given the true motion (*translation* (2,) m in
+    a's axes, *dyaw* rad), centred on the true rotation: the peak's offset from it (rad; None where
+    no score is finite) on the grid *deltas* of its forward term (a's points in b's field), its
+    backward term (b's points in a's field) and their sum (the two-way search)."""
+    forward = _scores(a.points.shifted(translation), b.smoothed, -dyaw + deltas, common)
+    backward = _scores(b.points.turned(dyaw).shifted(-translation), a.smoothed, -deltas, common)
+    return {name: _peak_at(scores, deltas)
+            for name, scores in (("forward", forward), ("backward", backward), ("two-way", forward + backward))}
+
+
 def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, steps: list[int]) -> list[str]:
     """Forward, backward and two-way field registration of straight-drive frames *steps* apart,
-    and the two-way registration's turn ratio over frames *steps* apart within a turn."""
+    and over frames *steps* apart within a turn the two-way registration's turn ratio and each
+    of its two terms' alone."""
     poses = truth(seq)
     kinds = [""] + [kind(*step_motion(poses, m - 1, m), seq.times[m] - seq.times[m - 1]) for m in range(1, len(seq))]
     icp = config.icp
@@ -180,7 +193,8 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
     lines = []
     for k in steps:
         errors: dict[str, list] = {"forward": [], "backward": [], "two-way": []}
-        turns: dict[str, list] = {name: [] for name in KINDS[2:]}
+        turns: dict[str, dict[str, list]] = {name: {"two-way": [], "forward": [], "backward": []}
+                                             for name in KINDS[2:]}
         for j in range(k, len(seq)):
             between = set(kinds[j - k + 1:j + 1])
             a, b = kept[j - k].field, kept[j].field
@@ -188,20 +202,25 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
                 continue
             t, dyaw = step_motion(poses, j - k, j)
             if between <= set(turns):
+                found = turns[between.pop()]
                 r = field_rotation(a.points, b.points, a.smoothed, b.smoothed, t, -dyaw, icp.field_search_rad,
                                    icp.field_step_rad, common)
                 if r is not None:
-                    turns[between.pop()].append((-r, dyaw))
+                    found["two-way"].append((-r, dyaw))
+                terms = _terms(a, b, t, dyaw, deltas, common)
+                for name in ("forward", "backward"):
+                    if terms[name] is not None:
+                        found[name].append((dyaw - terms[name], dyaw))
                 continue
             if between != {"straight"}:
                 continue
-            forward = _scores(a.points.shifted(t), b.smoothed, -dyaw + deltas, common)
-            backward = _scores(b.points.turned(dyaw).shifted(-t), a.smoothed, -deltas, common)
-            for name, scores in (("forward", forward), ("backward", backward), ("two-way", forward + backward)):
-                peak = _peak_at(scores, deltas)
+            for name, peak in _terms(a, b, t, dyaw, deltas, common).items():
                 if peak is not None:
                     errors[name].append(-math.degrees(peak))
-        ratios = [f"{name} ratio {_ratio(np.array(v)):.3f} (n={len(v)})" for name, v in turns.items() if v]
+        ratios = [f"{name} ratio {_ratio(np.array(v['two-way'])):.3f} (forward "
+                  + ", backward ".join("-" if not v[term] else f"{_ratio(np.array(v[term])):.3f}"
+                                       for term in ("forward", "backward"))
+                  + f"; n={len(v['two-way'])})" for name, v in turns.items() if v["two-way"]]
         lines.append(f"  {k} frame(s) apart, n={len(errors['two-way'])}: " + ", ".join(
             f"{name} {np.mean(v):+.3f}" for name, v in errors.items() if v) + " deg"
             + "".join("; " + r for r in ratios))

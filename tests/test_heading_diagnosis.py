@@ -4,6 +4,7 @@ each step's truth, estimate and error, summed, one line a frame."""
 from __future__ import annotations
 
 import os
+import re
 import sys
 
 import numpy as np
@@ -55,3 +56,43 @@ def test_the_trace_of_frames_outside_the_run_is_only_its_header(recording, capsy
     out = capsys.readouterr().out.splitlines()
     header = next(i for i, line in enumerate(out) if line.split()[:2] == ["frame", "t"])
     assert out[header + 1].startswith("  drift parts")
+
+
+def test_the_baselines_give_each_turns_two_terms_apart(recording, capsys):
+    # Each turn's field search given the true motion: its two-way ratio (the report's "field, true
+    # translation" stage, for consecutive frames) and each of its terms' alone, which the straights'
+    # forward and backward terms already had.
+    assert hd.main([recording, "--baselines", "1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    line = next(line for line in out if line.strip().startswith("1 frame(s) apart"))
+    seq = sequences.load(recording)
+    config = hd.EstimatorConfig()
+    _, kept, _, _ = hd.diagnose(seq, config)
+    poses = hd.truth(seq)
+    deltas = hd._offsets(np.radians(3.0), np.radians(0.25))
+    icp = config.icp
+    for kind in hd.KINDS[2:]:
+        m = re.search(re.escape(kind) + r" ratio ([\d.]+) \(forward ([\d.]+), backward ([\d.]+); n=(\d+)\)", line)
+        assert m, kind
+        two_way, forward, backward, n = float(m[1]), float(m[2]), float(m[3]), int(m[4])
+        stage = next(row for row in out if row.strip().startswith(kind))
+        assert two_way == pytest.approx(float(re.search(r"field, true translation: ratio ([\d.]+)", stage)[1]),
+                                        abs=0.0006)
+        # The terms again from the kept frames: the two-way peak where the search itself finds
+        # the turn, each term's turns summed as the line has them.
+        terms = {"forward": [], "backward": []}
+        for j in range(1, len(seq)):
+            t, dyaw = hd.step_motion(poses, j - 1, j)
+            if hd.kind(t, dyaw, seq.times[j] - seq.times[j - 1]) != kind:
+                continue
+            a, b = kept[j - 1].field, kept[j].field
+            found = hd._terms(a, b, t, dyaw, deltas, True)
+            r = hd.field_rotation(a.points, b.points, a.smoothed, b.smoothed, t, -dyaw, icp.field_search_rad,
+                                  icp.field_step_rad, True)
+            assert np.degrees(abs(-dyaw + found["two-way"] - r)) < 0.05
+            for name in terms:
+                terms[name].append((dyaw - found[name], dyaw))
+        assert len(terms["forward"]) == n
+        assert forward == pytest.approx(hd._ratio(np.array(terms["forward"])), abs=0.0006)
+        assert backward == pytest.approx(hd._ratio(np.array(terms["backward"])), abs=0.0006)
+        assert 0.8 < forward < 1.25 and 0.8 < backward < 1.25
