@@ -217,10 +217,9 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
             for name, peak in _terms(a, b, t, dyaw, deltas, common).items():
                 if peak is not None:
                     errors[name].append(-math.degrees(peak))
-        ratios = [f"{name} ratio {_ratio(np.array(v['two-way'])):.3f} (forward "
-                  + ", backward ".join("-" if not v[term] else f"{_ratio(np.array(v[term])):.3f}"
-                                       for term in ("forward", "backward"))
-                  + f"; n={len(v['two-way'])})" for name, v in turns.items() if v["two-way"]]
+        ratios = [f"{name} ratio {_ratio(np.array(v['two-way'])):.3f} (forward {_shown_ratio(v['forward'])}, "
+                  f"backward {_shown_ratio(v['backward'])}; n={len(v['two-way'])})"
+                  for name, v in turns.items() if v["two-way"]]
         lines.append(f"  {k} frame(s) apart, n={len(errors['two-way'])}: " + ", ".join(
             f"{name} {np.mean(v):+.3f}" for name, v in errors.items() if v) + " deg"
             + "".join("; " + r for r in ratios))
@@ -284,6 +283,11 @@ def _ratio(pairs: np.ndarray) -> float:
     """Estimated over true turned angle of (estimated, true) increments (n, 2), each taken in
     its turn's direction (a loop's left and right turns would otherwise cancel)."""
     return float((pairs[:, 0] * np.sign(pairs[:, 1])).sum() / np.abs(pairs[:, 1]).sum())
+
+
+def _shown_ratio(pairs: list) -> str:
+    """:func:`_ratio` of (estimated, true) increments to three decimals, "-" without any."""
+    return f"{_ratio(np.array(pairs)):.3f}" if pairs else "-"
 
 
 def report(name: str, found: dict) -> list[str]:
