@@ -1,7 +1,8 @@
 """Stage-by-stage heading diagnosis against the ground truth (issue 20).
 
     python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
-                                      [--baselines 1 2 4 8] [--straights 6] [--trace 100 120]
+                                      [--baselines 1 2 4 8] [--straights 6 [--min-straight-m 1]]
+                                      [--trace 100 120]
                                       [--turned-translation 0 0.1 -0.1]
 
 For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
@@ -28,10 +29,12 @@ the two-way registration's turn ratio at each baseline (what a keyframe that man
 measures, given the true motion) and each of its two terms' alone (in the simulator's turns in
 place they err by up to a fifth each way and cancel in their sum: docs/heading.md).
 
-``--straights K`` takes each straight drive apart (a loop's straights turn opposite ways and
-cancel in the bias): the estimate's heading error over it and the field search's with the true
-motion between frames K apart along it, in degrees a metre (docs/heading.md, "Each straight
+``--straights K`` takes each straight drive apart (at least ``--min-straight-m`` long; a loop's
+straights turn opposite ways and cancel in the bias): the estimate's heading error over it, each
+blended chain's (the heatmaps' registration's and the points'), and the field search's with the
+true motion between frames K apart along it, in degrees a metre (docs/heading.md, "Each straight
 apart": the field has the straights' error too, so it is the registration's, not the chain's).
+bench/scene_edits.py records a matrix cell with objects of its scene left out, to run this on.
 
 ``--trace FIRST LAST`` prints the steps into frames FIRST to LAST one by one: the truth's speed
 and turn, the estimate's, its error and the error summed from FIRST, the field search's error
@@ -119,9 +122,10 @@ class Step:
     flags: tuple[str, ...]
 
 
-def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray, list]:
+def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray, list, np.ndarray]:
     """Per kind of step, per stage: lists of (estimated, true) increments; the kept frames; the
-    estimated poses (n, 3); and each step's (into frame i >= 1) :class:`Step`."""
+    estimated poses (n, 3); each step's (into frame i >= 1) :class:`Step`; and the two blended
+    chains' headings, the heatmaps' and the points' (n, 2) rad (NaN without the blend)."""
     poses = truth(seq)
     odom = RadarOdometry(config)
     icp = config.icp
@@ -129,9 +133,12 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
     out: dict[str, dict[str, list]] = {}
     kept, previous, steps = [], None, []
     estimated = np.zeros((len(seq), 3))
+    chains = np.full((len(seq), 2), np.nan)
     for i in range(len(seq)):
         state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
         estimated[i] = state.pose
+        if odom.blend is not None and odom.blend.chains is not None:
+            chains[i] = [chain.yaw for chain in odom.blend.chains]
         current = odom._previous  # what the estimator keeps of the frame (features, field)
         kept.append(current)
         if i > 0:
@@ -151,7 +158,7 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
             steps.append(Step(i, seq.times[i] - seq.times[0], float(np.hypot(*t)) / (seq.times[i] - seq.times[i - 1]),
                               dyaw, state.yaw_increment, field, tuple(str(f) for f in state.flags)))
         previous = current
-    return out, kept, estimated, steps
+    return out, kept, estimated, steps, chains
 
 
 def trace(steps: list[Step], first: int, last: int) -> list[str]:
@@ -227,10 +234,11 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
 
 
 def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config: EstimatorConfig,
-              steps: int) -> list[str]:
-    """Each straight drive apart (heading_metrics.straight_runs): its length and the estimate's
-    heading error over it, and the field search's with the true motion between frames *steps*
-    apart along it (mean error a hop over the mean hop), both in degrees a metre."""
+              steps: int, chains: np.ndarray | None = None, min_m: float = 1.0) -> list[str]:
+    """Each straight drive at least *min_m* long apart (heading_metrics.straight_runs): its length
+    and the estimate's heading error over it (in degrees a metre and in all), each blended chain's
+    (*chains*, :func:`diagnose`'s) beside it, and the field search's with the true motion between
+    frames *steps* apart along it (mean error a hop over the mean hop, degrees a metre)."""
     poses = truth(seq)
     dt = np.diff(seq.times)
     steps_m = np.hypot(*np.diff(poses[:, :2], axis=0).T)
@@ -239,7 +247,7 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
     err = _wrap(_wrap(np.diff(estimated[:, 2])) - d_ref)
     icp = config.icp
     lines = []
-    for i, j, length, error in straight_runs(straight, steps_m, err, 1.0):
+    for i, j, length, error in straight_runs(straight, steps_m, err, min_m):
         hops = []
         for a in range(i, j + 1 - steps):  # frames i..j: the run's steps i..j-1
             t, dyaw = step_motion(poses, a, a + steps)
@@ -251,7 +259,13 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
             if r is not None:
                 hops.append((math.degrees(-r - dyaw), float(np.hypot(*t))))
         field = f"{np.mean([h[0] for h in hops]) / np.mean([h[1] for h in hops]):+.2f}" if hops else "-"
-        lines.append(f"  straight from frame {i}, {length:.1f} m: estimate {math.degrees(error) / length:+.2f}, "
+        own = f"estimate {math.degrees(error) / length:+.2f} deg/m ({math.degrees(error):+.2f} deg)"
+        if chains is not None and not np.isnan(chains[i:j + 1]).any():
+            errors = [math.degrees(float(np.sum(_wrap(_wrap(np.diff(chains[i:j + 1, k])) - d_ref[i:j]))))
+                      for k in range(2)]
+            own += (f", heatmaps' chain {errors[0] / length:+.2f} ({errors[0]:+.2f} deg), points' chain "
+                    f"{errors[1] / length:+.2f} ({errors[1]:+.2f} deg)")
+        lines.append(f"  straight from frame {i}, {length:.1f} m: {own}, "
                      f"field with the true motion ({steps} frames apart) {field} deg/m")
     return lines
 
@@ -316,6 +330,8 @@ def main(argv=None) -> int:
     parser.add_argument("--baselines", nargs="*", type=int, default=[], metavar="K")
     parser.add_argument("--straights", type=int, default=None, metavar="K",
                         help="each straight apart, the field's hops K frames long")
+    parser.add_argument("--min-straight-m", type=float, default=1.0, metavar="M",
+                        help="--straights: the shortest straight taken apart (default 1 m)")
     parser.add_argument("--trace", nargs=2, type=int, default=None, metavar=("FIRST", "LAST"),
                         help="the steps into frames FIRST to LAST, one by one")
     parser.add_argument("--turned-translation", nargs="+", type=float, default=None, metavar="DEG",
@@ -324,14 +340,14 @@ def main(argv=None) -> int:
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     for directory in args.sequences:
         seq = sequences.load(directory)
-        found, kept, estimated, steps = diagnose(seq, config)
+        found, kept, estimated, steps, chains = diagnose(seq, config)
         print("\n".join(report(seq.name, found)))
         if args.trace:
             print("\n".join(trace(steps, *args.trace)))
         if args.baselines:
             print("\n".join(baselines(seq, kept, config, args.baselines)))
         if args.straights:
-            print("\n".join(straights(seq, kept, estimated, config, args.straights)))
+            print("\n".join(straights(seq, kept, estimated, config, args.straights, chains, args.min_straight_m)))
         if args.turned_translation:
             print(turned_translation(seq, kept, config, args.turned_translation))
         parts = drift_parts(seq.times, truth(seq), estimated)

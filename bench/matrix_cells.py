@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from dataclasses import dataclass
 
@@ -38,6 +39,13 @@ LAYOUT = {
 CLEARANCE_M = 0.25
 
 
+_NUMBER = r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?"
+#: :attr:`SimCell.name`'s pattern.
+_NAME = re.compile(rf"(?P<scene>[a-z]+)_s(?P<seed>\d+)_(?P<cfg>\w+?)_snr(?P<snr>{_NUMBER})_v(?P<speed>{_NUMBER})"
+                   rf"_w(?P<turn>{_NUMBER})_(?P<movers>scene|none|people)_L(?P<straight>{_NUMBER})"
+                   rf"(?:_m(?P<mount>{_NUMBER}))?(?P<exact>_exact)?")
+
+
 @dataclass(frozen=True)
 class SimCell:
     """One simulated sequence of the matrix."""
@@ -63,6 +71,19 @@ class SimCell:
         return (f"{self.scene}_s{self.seed}_{self.cfg}_snr{self.snr_db:g}_v{self.speed_mps:g}"
                 f"_w{self.turn_rate_dps:g}_{self.movers}_L{self.straight_m:g}"
                 + (f"_m{self.mount_m:g}" if self.mount_m else "") + ("_exact" if self.fidelity == "exact" else ""))
+
+    @classmethod
+    def from_name(cls, name: str) -> "SimCell":
+        """The cell :attr:`name` names (``room_s0_shipped_snr0_v0.8_w45_scene_L3``); ValueError
+        when *name* is not one."""
+        m = _NAME.fullmatch(name)
+        if m is None or m["scene"] not in LAYOUT or m["cfg"] not in CFGS:
+            raise ValueError(f"{name!r} is not a simulated cell's name: SCENE_sSEED_CFG_snrDB_vMPS_wDPS_MOVERS_LM"
+                             f"[_mM][_exact], SCENE one of {', '.join(LAYOUT)}, CFG one of {', '.join(CFGS)}")
+        return cls(scene=m["scene"], seed=int(m["seed"]), cfg=m["cfg"], snr_db=float(m["snr"]),
+                   speed_mps=float(m["speed"]), turn_rate_dps=float(m["turn"]), movers=m["movers"],
+                   straight_m=float(m["straight"]), mount_m=float(m["mount"] or 0.0),
+                   fidelity="exact" if m["exact"] else "fast")
 
 
 @dataclass(frozen=True)

@@ -123,15 +123,23 @@ def record(cell: SimCell, data: str) -> str:
         return directory
     shutil.rmtree(directory, ignore_errors=True)
     os.makedirs(os.path.join(data, "seq"), exist_ok=True)
+    simulate(scene_spec(cell), cell, directory)
+    return directory
+
+
+def simulate(spec: dict, cell: SimCell, directory: str) -> None:
+    """Record the scene table *spec* with radar-sim at the cell's seed, cfg and fidelity into
+    *directory* (replaced), its scene file beside it as DIRECTORY.scene.json; through a temporary
+    directory first, so that a recording cut short never passes for a whole one."""
     scene_file = directory + ".scene.json"
     with open(scene_file, "w", encoding="utf-8") as fh:
-        json.dump(scene_spec(cell), fh, indent=1)
+        json.dump(spec, fh, indent=1)
     tmp = directory + ".tmp"
     subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene_file, "--seed", str(cell.seed),
                     "--cfg", CFGS[cell.cfg], "--fidelity", cell.fidelity, "--out", tmp, "--overwrite", "-q"], check=True,
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+    shutil.rmtree(directory, ignore_errors=True)
     os.replace(tmp, directory)
-    return directory
 
 
 def drop_adc(directory: str) -> None:

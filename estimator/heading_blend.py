@@ -54,6 +54,12 @@ class HeadingBlend:
         self._period = math.inf  # the shortest step yet, s: the frame period
         self._last: tuple | None = None  # (the heatmap chain's state, the points', the published)
 
+    @property
+    def chains(self) -> tuple | None:
+        """The heatmap chain's and the points' chain's states of the last frame blended (None before
+        the first): what a diagnosis holds the published heading against."""
+        return None if self._last is None else self._last[:2]
+
     def add_points(self, t: float, points: np.ndarray) -> None:
         self.points.add_points(t, points)
 

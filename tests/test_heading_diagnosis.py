@@ -67,7 +67,7 @@ def test_the_baselines_give_each_turns_two_terms_apart(recording, capsys):
     line = next(line for line in out if line.strip().startswith("1 frame(s) apart"))
     seq = sequences.load(recording)
     config = hd.EstimatorConfig()
-    _, kept, _, _ = hd.diagnose(seq, config)
+    _, kept, _, _, _ = hd.diagnose(seq, config)
     poses = hd.truth(seq)
     deltas = hd._offsets(np.radians(3.0), np.radians(0.25))
     icp = config.icp

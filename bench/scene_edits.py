@@ -1,0 +1,83 @@
+"""A robustness-matrix cell's scene with some of its objects left out, recorded with the cell's own
+seed, cfg, loop and fidelity: which object of a scene turns a straight or a turn (issue 20;
+docs/heading.md, "Driving close past furniture").
+
+    python bench/scene_edits.py room_s0_shipped_snr0_v0.8_w45_scene_L3 --list
+    python bench/scene_edits.py CELL --without 4 --out DIR   # every object but number 4
+    python bench/scene_edits.py CELL --only 4 --out DIR      # the walls and number 4 alone
+    python bench/scene_edits.py CELL --only --out DIR        # the walls alone
+    python bench/heading_diagnosis.py DIR --straights 1      # then each straight, chain by chain
+
+CELL is a simulated cell's name as bench/robustness_matrix.py writes it. The edited scene file is
+written beside the recording (DIR.scene.json). Nothing is left out but what is named: the
+recording is the cell's own, value for value, when no object is left out (radar-sim is
+deterministic for a seed), so the differences are the objects'.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from matrix_cells import SimCell, scene_spec  # noqa: E402  (bench/ is not a package)
+from robustness_matrix import simulate  # noqa: E402
+
+
+def describe(index: int, obj: dict) -> str:
+    """One line naming a scene object: its number, its type and where it stands (m)."""
+    where = ", ".join(f"{key} {obj[key]}" for key in ("center", "a", "b", "size", "radius", "height", "yaw")
+                      if key in obj)
+    return f"{index:3d}  {obj.get('type', '?'):9s} {where}" + ("  (occludes)" if obj.get("occludes") else "")
+
+
+def edited(spec: dict, without: list[int] | None = None, only: list[int] | None = None) -> dict:
+    """*spec* (a scene table) with the objects numbered in *without* left out, or all but those in
+    *only* (an empty list: the walls alone); ValueError naming a number the scene has no object for."""
+    objects = spec.get("objects", [])
+    named = (without or []) + (only or [])
+    wrong = [i for i in named if not 0 <= i < len(objects)]
+    if wrong:
+        raise ValueError(f"no object numbered {', '.join(map(str, wrong))}: the scene's objects are "
+                         f"0-{len(objects) - 1} (--list shows them)")
+    if only is not None:
+        keep = set(only)
+    else:
+        keep = set(range(len(objects))) - set(without or [])
+    return {**spec, "objects": [obj for i, obj in enumerate(objects) if i in keep]}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("cell", metavar="CELL",
+                        help="a simulated cell's name, e.g. room_s0_shipped_snr0_v0.8_w45_scene_L3")
+    parser.add_argument("--list", action="store_true", help="list the scene's objects with their numbers")
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--without", nargs="+", type=int, default=None, metavar="N", help="leave these objects out")
+    group.add_argument("--only", nargs="*", type=int, default=None, metavar="N",
+                       help="keep only these objects (none named: the walls alone)")
+    parser.add_argument("--out", metavar="DIR", help="the recording's directory (replaced)")
+    args = parser.parse_args(argv)
+    try:
+        cell = SimCell.from_name(args.cell)
+    except ValueError as exc:
+        parser.error(str(exc))
+    spec = scene_spec(cell)
+    if args.list:
+        print("\n".join(describe(i, obj) for i, obj in enumerate(spec.get("objects", []))))
+        return 0
+    if not args.out:
+        parser.error("--out DIR is needed to record (or --list to see the objects)")
+    try:
+        spec = edited(spec, args.without, args.only)
+    except ValueError as exc:
+        parser.error(str(exc))
+    simulate(spec, cell, os.path.abspath(args.out))
+    print(f"{args.out}: {cell.name} with {len(spec['objects'])} object(s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""bench/scene_edits.py: a matrix cell named as the matrix names it, its scene's objects listed, and
+the cell recorded again with objects left out (the same recording, byte for byte, with none left
+out); and heading_diagnosis.py --straights on such recordings, chain by chain."""
+
+from __future__ import annotations
+
+import argparse
+import filecmp
+import json
+import os
+import re
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
+import heading_diagnosis as hd  # noqa: E402
+import matrix_cells as mc  # noqa: E402
+import robustness_matrix as rm  # noqa: E402
+import scene_edits  # noqa: E402
+
+#: The short loop of tests/test_heading_diagnosis.py (turns at 90 deg/s, straights of 0.5 m).
+CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
+
+
+def test_every_cell_of_the_matrix_is_found_again_by_its_name():
+    parser = argparse.ArgumentParser()
+    rm.add_cell_arguments(parser)
+    cells = rm.selected_cells(parser.parse_args([]))
+    assert len(cells) == 252
+    assert all(mc.SimCell.from_name(c.name) == c for c in cells)
+    for cell in (CELL, mc.SimCell("lab", 3, "2tx", -15.0, 1.5, 30.0, "people", 2.5, 0.3, "exact")):
+        assert mc.SimCell.from_name(cell.name) == cell
+    for wrong in ("kitchen_s0_shipped_snr0_v0.8_w45_scene_L3", "room_s0_3tx_snr0_v0.8_w45_scene_L3",
+                  "room_s0_shipped_snr0_v0.8_w45_cats_L3", "room_s0", ""):
+        with pytest.raises(ValueError, match="not a simulated cell's name"):
+            mc.SimCell.from_name(wrong)
+
+
+def test_objects_are_left_out_by_number():
+    spec = mc.scene_spec(CELL)
+    objects = spec["objects"]
+    assert len(objects) == 10
+    assert scene_edits.edited(spec)["objects"] == objects
+    assert scene_edits.edited(spec, without=[4, 0])["objects"] == [o for i, o in enumerate(objects) if i not in (0, 4)]
+    assert scene_edits.edited(spec, only=[4])["objects"] == [objects[4]]
+    assert scene_edits.edited(spec, only=[])["objects"] == []
+    # Only the objects change: the walls, the loop and the radar stay the cell's.
+    assert {k: v for k, v in scene_edits.edited(spec, only=[]).items() if k != "objects"} == \
+        {k: v for k, v in spec.items() if k != "objects"}
+    with pytest.raises(ValueError, match="no object numbered 10, -1: the scene's objects are 0-9"):
+        scene_edits.edited(spec, without=[10, -1])
+
+
+def test_the_list_numbers_the_objects_and_bad_input_exits_2(capsys):
+    assert scene_edits.main([CELL.name, "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [int(line.split()[0]) for line in lines] == list(range(10))
+    assert lines[4].split()[1] == "box" and "center [6.4, 3.1]" in lines[4]
+    assert lines[5].endswith("(occludes)")
+    for argv, message in (([CELL.name, "--only", "11", "--out", "x"], "no object numbered 11"),
+                          (["room_s9", "--list"], "not a simulated cell's name"),
+                          ([CELL.name, "--only"], "--out DIR is needed")):
+        with pytest.raises(SystemExit) as exc:
+            scene_edits.main(argv)
+        assert exc.value.code == 2
+        assert message in capsys.readouterr().err
+
+
+def test_a_cell_recorded_again_is_its_own_recording_and_edited_differs(tmp_path, capsys):
+    own = rm.record(CELL, str(tmp_path / "data"))
+    same = tmp_path / "same"
+    rm.simulate(scene_edits.edited(mc.scene_spec(CELL)), CELL, str(same))
+    assert filecmp.cmp(os.path.join(own, "adc_data.bin"), same / "adc_data.bin", shallow=False)
+    walls = tmp_path / "walls"
+    walls.mkdir()
+    (walls / "stale").write_text("an earlier recording's")  # replaced, not refused
+    assert scene_edits.main([CELL.name, "--only", "--out", str(walls)]) == 0
+    assert capsys.readouterr().out.strip() == f"{walls}: {CELL.name} with 0 object(s)"
+    with open(f"{walls}.scene.json", encoding="utf-8") as fh:
+        assert json.load(fh)["objects"] == []
+    assert not os.path.exists(f"{walls}.tmp") and not (walls / "stale").exists()
+    assert os.path.getsize(walls / "adc_data.bin") == os.path.getsize(same / "adc_data.bin")
+    assert not filecmp.cmp(walls / "adc_data.bin", same / "adc_data.bin", shallow=False)
+
+    # Each straight chain by chain: without the map of wall directions the estimate's heading is
+    # the two chains' blended half and half, so over each straight its error is their mean.
+    settings = tmp_path / "no_wall_map.json"
+    settings.write_text(json.dumps({"wall_map": {"use": False}}))
+    assert hd.main([str(same), "--straights", "1", "--min-straight-m", "0.3", "--estimator-config", str(settings)]) == 0
+    found = re.findall(r"straight from frame \d+, [\d.]+ m: estimate [-+\d.]+ deg/m \(([-+\d.]+) deg\), heatmaps' "
+                       r"chain [-+\d.]+ \(([-+\d.]+) deg\), points' chain [-+\d.]+ \(([-+\d.]+) deg\)",
+                       capsys.readouterr().out)
+    assert len(found) >= 2
+    for estimate, heatmaps, points in found:
+        assert float(estimate) == pytest.approx(0.5 * (float(heatmaps) + float(points)), abs=0.011)
+    assert any(abs(float(h) - float(p)) > 0.05 for _, h, p in found)
