@@ -160,22 +160,30 @@ def loop_clearance(table: dict, trajectory) -> tuple[float, str]:
             f = np.clip((path - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
             found.append((float(np.min(np.hypot(*(path - a - f[:, None] * ab).T))), f"the wall {a.tolist()}-{b.tolist()}"))
     for obj in table.get("objects", []):
-        centre = np.asarray(obj.get("center", (math.nan, math.nan)), float)
-        if obj.get("type") == "cylinder":
-            distance = np.hypot(*(path - centre).T) - obj.get("radius", 0.2)
-        elif obj.get("type") == "box":
-            yaw = math.radians(obj.get("yaw", 0.0))
-            c, s = math.cos(yaw), math.sin(yaw)
-            rel = path - centre
-            along, across = np.abs(c * rel[:, 0] + s * rel[:, 1]), np.abs(-s * rel[:, 0] + c * rel[:, 1])
-            half = np.asarray(obj["size"][:2], float) / 2
-            outside = np.hypot(np.maximum(along - half[0], 0.0), np.maximum(across - half[1], 0.0))
-            distance = np.where((along < half[0]) & (across < half[1]),
-                                -np.minimum(half[0] - along, half[1] - across), outside)
-        else:
-            continue
-        found.append((float(np.min(distance)), f"the {obj['type']} at {centre.tolist()}"))
+        distance = object_distance(obj, path)
+        if distance is not None:
+            found.append((distance, f"the {obj['type']} at {np.asarray(obj['center'], float).tolist()}"))
     return min(found, key=lambda item: item[0])
+
+
+def object_distance(obj: dict, path: np.ndarray) -> float | None:
+    """The least distance (m; negative: inside) from the points *path* (k, 2) m to the footprint
+    of the scene object *obj* (a box's or a cylinder's; None for other objects)."""
+    centre = np.asarray(obj.get("center", (math.nan, math.nan)), float)
+    if obj.get("type") == "cylinder":
+        distance = np.hypot(*(path - centre).T) - obj.get("radius", 0.2)
+    elif obj.get("type") == "box":
+        yaw = math.radians(obj.get("yaw", 0.0))
+        c, s = math.cos(yaw), math.sin(yaw)
+        rel = path - centre
+        along, across = np.abs(c * rel[:, 0] + s * rel[:, 1]), np.abs(-s * rel[:, 0] + c * rel[:, 1])
+        half = np.asarray(obj["size"][:2], float) / 2
+        outside = np.hypot(np.maximum(along - half[0], 0.0), np.maximum(across - half[1], 0.0))
+        distance = np.where((along < half[0]) & (across < half[1]),
+                            -np.minimum(half[0] - along, half[1] - across), outside)
+    else:
+        return None
+    return float(np.min(distance))
 
 
 def scene_spec(cell: SimCell) -> dict:

@@ -22,15 +22,27 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from matrix_cells import SimCell, scene_spec  # noqa: E402  (bench/ is not a package)
+import numpy as np  # noqa: E402
+
+from matrix_cells import SimCell, object_distance, scene_spec  # noqa: E402  (bench/ is not a package)
 from robustness_matrix import simulate  # noqa: E402
 
 
-def describe(index: int, obj: dict) -> str:
-    """One line naming a scene object: its number, its type and where it stands (m)."""
+def describe(index: int, obj: dict, path: np.ndarray | None = None) -> str:
+    """One line naming a scene object: its number, its type, where it stands (m) and, given the
+    radar's *path* (k, 2) m, how near the path passes it."""
     where = ", ".join(f"{key} {obj[key]}" for key in ("center", "a", "b", "size", "radius", "height", "yaw")
                       if key in obj)
-    return f"{index:3d}  {obj.get('type', '?'):9s} {where}" + ("  (occludes)" if obj.get("occludes") else "")
+    line = f"{index:3d}  {obj.get('type', '?'):9s} {where}" + ("  (occludes)" if obj.get("occludes") else "")
+    distance = None if path is None else object_distance(obj, path)
+    return line if distance is None else f"{line}; the loop passes {distance:.2f} m from it"
+
+
+def radar_path(spec: dict) -> np.ndarray:
+    """The radar's positions (k, 2) m along the scene table *spec*'s trajectory, as radar-sim drives it."""
+    from radarodom.driver.sim.trajectory import from_spec
+    trajectory = from_spec(spec["trajectory"])
+    return np.column_stack([trajectory.x, trajectory.y])[::10]
 
 
 def edited(spec: dict, without: list[int] | None = None, only: list[int] | None = None) -> dict:
@@ -66,7 +78,8 @@ def main(argv=None) -> int:
         parser.error(str(exc))
     spec = scene_spec(cell)
     if args.list:
-        print("\n".join(describe(i, obj) for i, obj in enumerate(spec.get("objects", []))))
+        path = radar_path(spec)
+        print("\n".join(describe(i, obj, path) for i, obj in enumerate(spec.get("objects", []))))
         return 0
     if not args.out:
         parser.error("--out DIR is needed to record (or --list to see the objects)")

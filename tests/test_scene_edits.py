@@ -57,7 +57,15 @@ def test_the_list_numbers_the_objects_and_bad_input_exits_2(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert [int(line.split()[0]) for line in lines] == list(range(10))
     assert lines[4].split()[1] == "box" and "center [6.4, 3.1]" in lines[4]
-    assert lines[5].endswith("(occludes)")
+    assert re.search(r"; the loop passes (\d\.\d\d) m from it$", lines[4])
+    assert "(occludes)" in lines[5]
+    assert lines[9].split()[1] == "door" and "passes" not in lines[9]
+    path = scene_edits.radar_path(mc.scene_spec(CELL))
+    for line, obj in zip(lines, mc.scene_spec(CELL)["objects"]):
+        distance = mc.object_distance(obj, path)
+        if distance is not None:
+            assert line.endswith(f"passes {distance:.2f} m from it")
+            assert distance >= mc.CLEARANCE_M  # the matrix's loops keep clear of everything
     for argv, message in (([CELL.name, "--only", "11", "--out", "x"], "no object numbered 11"),
                           (["room_s9", "--list"], "not a simulated cell's name"),
                           ([CELL.name, "--only"], "--out DIR is needed")):
