@@ -6,12 +6,16 @@ docs/heading.md, "Driving close past furniture").
     python bench/scene_edits.py CELL --without 4 --out DIR   # every object but number 4
     python bench/scene_edits.py CELL --only 4 --out DIR      # the walls and number 4 alone
     python bench/scene_edits.py CELL --only --out DIR        # the walls alone
+    python bench/scene_edits.py CELL --flat --out DIR        # every scatterer at the radar's height
+    python bench/scene_edits.py CELL --azimuth-hpbw 130 --out DIR   # a wider beam in azimuth
     python bench/heading_diagnosis.py DIR --straights 1      # then each straight, chain by chain
 
 CELL is a simulated cell's name as bench/robustness_matrix.py writes it. The edited scene file is
 written beside the recording (DIR.scene.json). Nothing is left out but what is named: the
 recording is the cell's own, value for value, when no object is left out (radar-sim is
-deterministic for a seed), so the differences are the objects'.
+deterministic for a seed), so the differences are the objects'. ``--flat`` and the beam widths
+edit the scene's radar instead (docs/heading.md, "The turns in place's length"): the scene file's
+``flat`` and ``[radar]`` ``azimuth_hpbw_deg`` / ``elevation_hpbw_deg``.
 """
 
 from __future__ import annotations
@@ -45,9 +49,12 @@ def radar_path(spec: dict) -> np.ndarray:
     return np.column_stack([trajectory.x, trajectory.y])[::10]
 
 
-def edited(spec: dict, without: list[int] | None = None, only: list[int] | None = None) -> dict:
+def edited(spec: dict, without: list[int] | None = None, only: list[int] | None = None, *, flat: bool = False,
+           beam: dict[str, float] | None = None) -> dict:
     """*spec* (a scene table) with the objects numbered in *without* left out, or all but those in
-    *only* (an empty list: the walls alone); ValueError naming a number the scene has no object for."""
+    *only* (an empty list: the walls alone); *flat*: every scatterer at the radar's height; *beam*:
+    the ``[radar]`` table's beam widths to set (azimuth_hpbw_deg, elevation_hpbw_deg). ValueError
+    naming a number the scene has no object for."""
     objects = spec.get("objects", [])
     named = (without or []) + (only or [])
     wrong = [i for i in named if not 0 <= i < len(objects)]
@@ -58,7 +65,12 @@ def edited(spec: dict, without: list[int] | None = None, only: list[int] | None 
         keep = set(only)
     else:
         keep = set(range(len(objects))) - set(without or [])
-    return {**spec, "objects": [obj for i, obj in enumerate(objects) if i in keep]}
+    out = {**spec, "objects": [obj for i, obj in enumerate(objects) if i in keep]}
+    if flat:
+        out["flat"] = True
+    if beam:
+        out["radar"] = {**spec.get("radar", {}), **beam}
+    return out
 
 
 def main(argv=None) -> int:
@@ -70,6 +82,12 @@ def main(argv=None) -> int:
     group.add_argument("--without", nargs="+", type=int, default=None, metavar="N", help="leave these objects out")
     group.add_argument("--only", nargs="*", type=int, default=None, metavar="N",
                        help="keep only these objects (none named: the walls alone)")
+    parser.add_argument("--flat", action="store_true",
+                        help="every scatterer at the radar's height: no elevation anywhere")
+    parser.add_argument("--azimuth-hpbw", type=float, metavar="DEG",
+                        help="the antennas' half-power beam width in azimuth (the simulator's: 100)")
+    parser.add_argument("--elevation-hpbw", type=float, metavar="DEG",
+                        help="the same in elevation (the simulator's: 40)")
     parser.add_argument("--out", metavar="DIR", help="the recording's directory (replaced)")
     args = parser.parse_args(argv)
     try:
@@ -84,11 +102,14 @@ def main(argv=None) -> int:
     if not args.out:
         parser.error("--out DIR is needed to record (or --list to see the objects)")
     try:
-        spec = edited(spec, args.without, args.only)
+        beam = {key: value for key, value in (("azimuth_hpbw_deg", args.azimuth_hpbw),
+                                              ("elevation_hpbw_deg", args.elevation_hpbw)) if value is not None}
+        spec = edited(spec, args.without, args.only, flat=args.flat, beam=beam)
     except ValueError as exc:
         parser.error(str(exc))
     simulate(spec, cell, os.path.abspath(args.out))
-    print(f"{args.out}: {cell.name} with {len(spec['objects'])} object(s)")
+    radar = "".join([", flat" if args.flat else ""] + [f", {key} {value:g}" for key, value in beam.items()])
+    print(f"{args.out}: {cell.name} with {len(spec['objects'])} object(s){radar}")
     return 0
 
 

@@ -14,6 +14,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(
 import heading_diagnosis as hd  # noqa: E402
 import robustness_matrix as rm  # noqa: E402
 import sequences  # noqa: E402
+import turn_phases  # noqa: E402
 
 #: A short loop (turns at 90 deg/s, straights of 0.5 m): a few seconds to record.
 CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
@@ -96,3 +97,50 @@ def test_the_baselines_give_each_turns_two_terms_apart(recording, capsys):
         assert forward == pytest.approx(hd._ratio(np.array(terms["forward"])), abs=0.0006)
         assert backward == pytest.approx(hd._ratio(np.array(terms["backward"])), abs=0.0006)
         assert 0.8 < forward < 1.25 and 0.8 < backward < 1.25
+
+
+def _driven(speed: np.ndarray, turn: np.ndarray, dt: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """Frame times and true poses (n + 1, 3) of steps at *speed* (m/s) turning *turn* (rad) each."""
+    yaw = np.concatenate([[0.0], np.cumsum(turn)])
+    step = speed * dt
+    xy = np.vstack([[0.0, 0.0], np.cumsum(np.column_stack([step * np.cos(yaw[:-1]), step * np.sin(yaw[:-1])]), 0)])
+    return np.arange(len(yaw)) * dt, np.column_stack([xy, yaw])
+
+
+def test_turn_phases_split_each_turn_in_place_by_the_truths_speed():
+    # A turn in place of 10 steps: braking in (moving, turning), 6 at rest, starting off; a straight
+    # step; then a moving turn, which is not one; at 10 Hz, turning right (negative) 0.1 rad a step.
+    speed = np.array([0.0, 0.3, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1, 0.3, 0.5, 0.5, 0.5, 0.5, 0.5, 0.0])
+    true = np.array([0.0, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, -0.1, 0.0, -0.1, -0.1, -0.1, 0.0, 0.0])
+    times, ref = _driven(speed, true)
+    estimates = np.column_stack([true * 1.1, true, true * 0.9])  # too long, right, too short
+    estimates[12, :] += 0.05  # the moving turn's error is no turn in place's
+    table = turn_phases.phase_errors(times, ref, estimates)
+    np.testing.assert_allclose(table[:, -1], [0.2, 0.6, 0.2])  # truth: braking in 2, at rest 6, starting off 2
+    np.testing.assert_allclose(table[:, 0], 0.1 * table[:, -1])  # in the turn's direction: too long is positive
+    np.testing.assert_allclose(table[:, 1], 0.0, atol=1e-15)
+    np.testing.assert_allclose(table[:, 2], -0.1 * table[:, -1])
+    # Mostly moving (its median speed 0.1 m/s): a moving turn's slow passage, not a turn in place.
+    slow = speed.copy()
+    slow[4:9] = 0.1
+    times, ref = _driven(slow, true)
+    assert not turn_phases.phase_errors(times, ref, estimates).any()
+
+
+def test_turn_phases_of_a_recording_sum_to_its_turn_in_place(recording, tmp_path, capsys):
+    settings = tmp_path / "no_wall_map.json"
+    settings.write_text('{"wall_map": {"use": false}}')
+    assert turn_phases.main([recording, "--estimator-config", str(settings)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(os.path.basename(recording) + ": turns in place")
+    rows = [re.fullmatch(r"  (braking in|at rest|starting off) +([-+\d.]+) / ([-+\d.]+) / ([-+\d.]+)  of (\d+) "
+                         r"turned", line) for line in out[1:4]]
+    assert all(rows) and [r[1] for r in rows] == list(turn_phases.PHASES)
+    turned = [int(r[5]) for r in rows]
+    # The loop's one turn in place is 180 degrees, most of it standing.
+    assert 178 <= sum(turned) <= 182 and turned[1] > 120
+    for r in rows:  # without the wall map the published heading is the chains' mean
+        assert float(r[2]) == pytest.approx(0.5 * (float(r[3]) + float(r[4])), abs=0.011)
+    ratios = [float(v) for v in re.findall(r"\d\.\d{4}", out[4])]
+    sums = [sum(float(r[k]) for r in rows) for k in (2, 3, 4)]
+    assert ratios == pytest.approx([1 + s / sum(turned) for s in sums], abs=0.003)

@@ -103,3 +103,22 @@ def test_a_cell_recorded_again_is_its_own_recording_and_edited_differs(tmp_path,
     for estimate, heatmaps, points in found:
         assert float(estimate) == pytest.approx(0.5 * (float(heatmaps) + float(points)), abs=0.011)
     assert any(abs(float(h) - float(p)) > 0.05 for _, h, p in found)
+
+
+def test_the_radar_is_edited_flat_and_its_beam_widened(tmp_path, capsys):
+    from radarodom.driver.sim.scene import scene_from_dict
+    spec = mc.scene_spec(CELL)
+    flat = scene_edits.edited(spec, flat=True, beam={"azimuth_hpbw_deg": 80.0})
+    assert flat["objects"] == spec["objects"] and flat["trajectory"] == spec["trajectory"]
+    assert flat["flat"] is True and flat["radar"] == {**spec.get("radar", {}), "azimuth_hpbw_deg": 80.0}
+    scene = scene_from_dict(flat)
+    assert scene.flat and scene.pattern.azimuth_hpbw_deg == 80.0 and scene.pattern.elevation_hpbw_deg == 40.0
+    assert "flat" not in scene_edits.edited(spec) and scene_edits.edited(spec).get("radar") == spec.get("radar")
+    out = tmp_path / "flat"
+    assert scene_edits.main([CELL.name, "--flat", "--elevation-hpbw", "60", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == (f"{out}: {CELL.name} with 10 object(s), flat, "
+                                               "elevation_hpbw_deg 60")
+    with open(f"{out}.scene.json", encoding="utf-8") as fh:
+        written = json.load(fh)
+    assert written["flat"] is True and written["radar"]["elevation_hpbw_deg"] == 60.0
+    assert os.path.getsize(out / "adc_data.bin") > 0

@@ -30,16 +30,17 @@ import contextlib
 import math
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
 import numpy as np
 
 from ...errors import ConfigError, quoted_json
-from .scene_values import (MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS, RCS_DBSM_RANGE,
-                           SCENE_KEYS, SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells, flag, need, num,
-                           builtin_or_there, cross_section, read_scene_file, vec, within)
+from .physics import AntennaPattern
+from .scene_values import (HPBW_DEG_RANGE, MAX_COORDINATE_M, MAX_SCATTERERS, MOVER_KEYS, OBJECT_KEYS, RADAR_KEYS,
+                           RCS_DBSM_RANGE, SCENE_KEYS, SNR_DB_RANGE, MAX_NOISE_COUNTS, SURFACE_KEYS, WALL_KEYS, cells,
+                           flag, need, num, builtin_or_there, cross_section, read_scene_file, vec, within)
 from .scatterers import Person, Scatterers, point_scatterers, sample_plane, sample_surface
 from .trajectory import MAX_SPEED_MPS, Trajectory, check_keys, from_spec, polyline
 
@@ -62,12 +63,16 @@ class Scene:
     wall_b: np.ndarray
     movers: list[Person]
     multipath: bool = False
+    #: Every scatterer seen at the sensor's height, none above or below it (a diagnosis).
+    flat: bool = False
     #: Amplitude reflection coefficient of a wall for multipath.
     wall_reflection: float = 0.3
     #: Per-sample SNR of a 1 m^2 target 5 m away on boresight, dB.
     snr_db: float = 0.0
     #: Thermal noise, ADC counts RMS per I and Q component.
     noise_counts: float = 5.0
+    #: The antennas' gain over azimuth and elevation (``[radar]`` azimuth_hpbw_deg, elevation_hpbw_deg).
+    pattern: AntennaPattern = field(default_factory=AntennaPattern)
     source: str = "<scene>"
 
     @property
@@ -269,14 +274,25 @@ def scene_from_dict(spec: dict[str, Any], *, seed: int = 0, where: str = "<scene
         wall_b=wall_b,
         movers=movers,
         multipath=flag(spec, "multipath", False, where),
+        flat=flag(spec, "flat", False, where),
         wall_reflection=within(num(spec, "wall_reflection", 0.3, where), 0.0, 1.0, where, "wall_reflection",
                                 " (an amplitude reflection coefficient)"),
         snr_db=within(num(radar, "snr_db", 0.0, where, name="radar.snr_db"), *SNR_DB_RANGE, where, "radar.snr_db",
                       " dB"),
         noise_counts=within(num(radar, "noise_counts", 5.0, where, positive=True, name="radar.noise_counts"), 0.0,
                             MAX_NOISE_COUNTS, where, "radar.noise_counts", " ADC counts"),
+        pattern=_pattern(radar, where),
         source=where,
     )
+
+
+def _pattern(radar: dict, where: str) -> AntennaPattern:
+    """The ``[radar]`` table's antenna pattern: its half-power beam widths, the defaults' where not given."""
+    widths = {}
+    for key in ("azimuth_hpbw_deg", "elevation_hpbw_deg"):
+        value = num(radar, key, getattr(AntennaPattern, key), where, name=f"radar.{key}")
+        widths[key] = within(value, *HPBW_DEG_RANGE, where, f"radar.{key}", " degrees")
+    return AntennaPattern(**widths)
 
 
 def load_scene(name_or_path: str, *, seed: int = 0) -> Scene:

@@ -107,12 +107,16 @@ def cells(along: float, across: float, what: str, room: int) -> tuple[int, int]:
 SNR_DB_RANGE = (-100.0, 100.0)
 #: Thermal noise, ADC counts RMS: the 16-bit ADC's full scale at most.
 MAX_NOISE_COUNTS = 32767.0
+#: An antenna pattern's half-power beam width, degrees: a pencil beam's to all but flat (at 180 the
+#: cos^n pattern would be flat behind the array too).
+HPBW_DEG_RANGE = (1.0, 179.0)
 
 #: The keys of a scene file's tables, and of each kind of object.
-SCENE_KEYS = ("name", "walls", "objects", "movers", "surfaces", "trajectory", "radar", "multipath", "wall_reflection")
+SCENE_KEYS = ("name", "walls", "objects", "movers", "surfaces", "trajectory", "radar", "multipath", "wall_reflection",
+              "flat")
 WALL_KEYS = ("points", "height", "sigma0")
 SURFACE_KEYS = ("min", "max", "floor", "floor_sigma0", "ceiling", "ceiling_sigma0")
-RADAR_KEYS = ("snr_db", "noise_counts")
+RADAR_KEYS = ("snr_db", "noise_counts", "azimuth_hpbw_deg", "elevation_hpbw_deg")
 MOVER_KEYS = ("type", "path", "speed", "rcs")
 OBJECT_KEYS = {"point": ("position", "rcs"), "corner_reflector": ("position", "rcs_dbsm"),
                "box": ("center", "size", "yaw", "sigma0", "z", "edge_rcs", "occludes"),

@@ -142,7 +142,7 @@ class Simulator:
             carrier = np.exp(2j * np.pi * self.synth.f_c * tau)
             tone = self.synth.beat_tone(np.array([tau]))[0] * carrier * self.board.leakage_counts * math.sqrt(2.0)
             self._leakage = (gains[:, :, None] * tone[None, None, :]).astype(np.complex64)[None]
-        self.pattern = pattern or AntennaPattern()
+        self.pattern = pattern or scene.pattern
         self.layout = RawLayout.from_config(cfg)
         self.period = cfg.frame_period_s
         span = scene.trajectory.duration_s if duration_s is None else duration_s
@@ -196,6 +196,15 @@ class Simulator:
         q = yaw_quaternion(yaw - yaw0)
         return (c * dx + s * dy, -s * dx + c * dy, 0.0, *map(float, q))
 
+    def _to_sensor(self, points: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray,
+                   out: np.ndarray | None = None) -> np.ndarray:
+        """:func:`world_to_sensor` at the trajectory's height; in a flat scene every point at that
+        height (no elevation anywhere: a diagnosis of what the elevation does)."""
+        rel = world_to_sensor(points, x, y, yaw, self.scene.trajectory.height, out=out)
+        if self.scene.flat:
+            rel[2] = 0.0
+        return rel
+
     def paths(self, t0: float):
         """Propagation paths of the frame starting at *t0*: (p_tx, p_rx, amp) as
         :meth:`FmcwSynthesizer.synthesize` takes them (p_rx None: all direct);
@@ -216,7 +225,7 @@ class Simulator:
         normal = np.concatenate([st.normal] + [np.zeros((len(m.BODY), 3)) for m in scene.movers])
         expo = np.concatenate([st.exponent] + [np.zeros(len(m.BODY)) for m in scene.movers])
         pointlike = np.concatenate([st.pointlike] + [np.ones(len(m.BODY), bool) for m in scene.movers])
-        rel = world_to_sensor(pts_mid, *centre, traj.height)[:, 0]  # (3, K)
+        rel = self._to_sensor(pts_mid, *centre)[:, 0]  # (3, K)
         r = np.sqrt((rel**2).sum(axis=0))
         az = np.arctan2(rel[0], rel[1])
         el = np.arcsin(np.clip(rel[2] / np.maximum(r, 1e-9), -1, 1))
@@ -243,10 +252,10 @@ class Simulator:
         n_static = len(st.rcs)
         s_idx, m_idx = idx[idx < n_static], idx[idx >= n_static] - n_static
         p = np.empty((3, len(times), len(idx)), np.float32)
-        world_to_sensor(st.pos[s_idx], x, y, yaw, traj.height, out=p[:, :, :len(s_idx)])
+        self._to_sensor(st.pos[s_idx], x, y, yaw, out=p[:, :, :len(s_idx)])
         moving = np.concatenate(movers, axis=1)[:, m_idx] if movers else np.zeros((len(times), 0, 3))
         if movers:
-            world_to_sensor(moving, x, y, yaw, traj.height, out=p[:, :, len(s_idx):])
+            self._to_sensor(moving, x, y, yaw, out=p[:, :, len(s_idx):])
         if not scene.multipath or len(scene.wall_a) == 0:
             return p, None, amp
 
@@ -265,7 +274,7 @@ class Simulator:
             sel = strong[ok]
             img_world = self._world_at_chirps(sel, s_idx, moving, len(times))
             img_world[..., :2] = _mirror(img_world[..., :2], a, b)
-            p_img = world_to_sensor(img_world, x, y, yaw, traj.height)
+            p_img = self._to_sensor(img_world, x, y, yaw)
             rel_img = p_img[:, mid]
             r_img = np.sqrt((rel_img**2).sum(axis=0))
             g_img = self.pattern.amplitude(np.arctan2(rel_img[0], rel_img[1]),

@@ -1,0 +1,102 @@
+"""Where a turn in place's error lies (issue 20; docs/heading.md, "The turns in place's length").
+
+    python bench/turn_phases.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
+
+A matrix loop's turn in place (a turn of the truth's whose median speed is below 0.05 m/s, as the
+matrix's metrics take it) is three phases by the truth's speed: braking into it while the turn
+starts (the radar still moving), at rest (below 0.02 m/s), and starting off while the turn ends.
+For each turn in place of each simulated sequence (a capture directory with groundtruth.tum:
+bench/robustness_matrix.py or bench/scene_edits.py records them), each phase's heading error is
+summed, in degrees and taken in the turn's direction (positive: the turn measured too long), for
+the published estimate and each blended chain (the heatmaps' registration's and the points'),
+beside the degrees the truth turned in it; then each sequence's sums, the whole turn's ratio
+(estimated / true) per estimate and chain, and with several sequences their mean. A cause in
+what both chains are given shows in both; one of a registration's own, in its chain alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import sequences  # noqa: E402  (bench/ is not a package)
+from heading_diagnosis import _wrap, diagnose, truth  # noqa: E402
+
+from radarodom.estimator.config import EstimatorConfig  # noqa: E402
+from radarodom.estimator.heading_metrics import segment_turns  # noqa: E402
+
+PHASES = ("braking in", "at rest", "starting off")
+#: Below this speed (m/s) the radar stands.
+REST_MPS = 0.02
+ESTIMATES = ("published", "heatmaps' chain", "points' chain")
+
+
+def phase_errors(times: np.ndarray, ref: np.ndarray, estimates: np.ndarray) -> np.ndarray:
+    """Summed over every turn in place of the truth *ref* ((n, 3) x, y, yaw at *times* (n,); the
+    matrix's turns, heading_metrics.segment_turns), per phase (PHASES) and estimate (the columns
+    of *estimates*, (n - 1, E) rad a step): the error in the turn's direction (rad) and, last
+    column, the truth's turn (rad); (3, E + 1)."""
+    dt = np.diff(times)
+    true_rad = _wrap(np.diff(ref[:, 2]))
+    speed = np.hypot(*np.diff(ref[:, :2], axis=0).T) / dt
+    out = np.zeros((len(PHASES), estimates.shape[1] + 1))
+    for i, j, in_place in segment_turns(times, ref):
+        turn = np.arange(i, j)
+        rest = turn[speed[turn] < REST_MPS]
+        if not in_place or len(rest) == 0:
+            continue
+        sign = np.sign(true_rad[turn].sum())
+        parts = (turn < rest[0], (turn >= rest[0]) & (turn <= rest[-1]), turn > rest[-1])
+        for k, part in enumerate(parts):
+            steps = turn[part]
+            out[k, :-1] += sign * (estimates[steps] - true_rad[steps, None]).sum(axis=0)
+            out[k, -1] += abs(true_rad[steps].sum())
+    return out
+
+
+def sequence_phases(directory: str, config: EstimatorConfig) -> np.ndarray:
+    """:func:`phase_errors` of the recording in *directory* with the estimator *config*: the
+    published increments and each blended chain's (NaN where the estimator has no blend)."""
+    seq = sequences.load(directory)
+    _, _, estimated, _, chains = diagnose(seq, config)
+    headings = np.column_stack([estimated[:, 2], chains])
+    return phase_errors(seq.times, truth(seq), _wrap(np.diff(headings, axis=0)))
+
+
+def lines(name: str, table: np.ndarray) -> list[str]:
+    """*table* (:func:`phase_errors`' shape) as text, degrees."""
+    deg = np.degrees(table)
+    out = [f"{name}: turns in place, error summed in the turn's direction, degrees ("
+           + " / ".join(ESTIMATES) + ")"]
+    for phase, row in zip(PHASES, deg):
+        out.append(f"  {phase:13s} " + " / ".join(f"{v:+.2f}" for v in row[:-1]) + f"  of {row[-1]:.0f} turned")
+    turned = deg[:, -1].sum()
+    if turned > 0:
+        ratios = 1.0 + deg[:, :-1].sum(axis=0) / turned
+        out.append("  whole turn ratio " + " / ".join("-" if math.isnan(r) else f"{r:.4f}" for r in ratios))
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("sequences", nargs="+", metavar="SEQUENCE_DIR")
+    parser.add_argument("--estimator-config", metavar="FILE.json", help="default: the defaults")
+    args = parser.parse_args(argv)
+    config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
+    tables = []
+    for directory in args.sequences:
+        tables.append(sequence_phases(directory, config))
+        print("\n".join(lines(os.path.basename(os.path.normpath(directory)), tables[-1])), flush=True)
+    if len(tables) > 1:
+        print("\n".join(lines(f"mean of {len(tables)}", np.mean(tables, axis=0))))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
