@@ -58,6 +58,7 @@ import dataclasses
 import math
 import os
 import sys
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -122,24 +123,32 @@ class Step:
     flags: tuple[str, ...]
 
 
+def run(seq: sequences.Sequence, config: EstimatorConfig) -> Iterator[tuple[int, object, object, np.ndarray]]:
+    """Each frame of *seq* through the estimator of *config*: its index, the published state, what
+    the estimator keeps of the frame (features, field) and the two blended chains' headings, the
+    heatmaps' and the points' (2,) rad (NaN without the blend)."""
+    odom = RadarOdometry(config)
+    for i in range(len(seq)):
+        state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        chains = np.full(2, np.nan)
+        if odom.blend is not None and odom.blend.chains is not None:
+            chains = np.array([chain.yaw for chain in odom.blend.chains])
+        yield i, state, odom._previous, chains
+
+
 def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray, list, np.ndarray]:
     """Per kind of step, per stage: lists of (estimated, true) increments; the kept frames; the
     estimated poses (n, 3); each step's (into frame i >= 1) :class:`Step`; and the two blended
     chains' headings, the heatmaps' and the points' (n, 2) rad (NaN without the blend)."""
     poses = truth(seq)
-    odom = RadarOdometry(config)
     icp = config.icp
     common = icp.score_support == "common"
     out: dict[str, dict[str, list]] = {}
     kept, previous, steps = [], None, []
     estimated = np.zeros((len(seq), 3))
     chains = np.full((len(seq), 2), np.nan)
-    for i in range(len(seq)):
-        state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
-        estimated[i] = state.pose
-        if odom.blend is not None and odom.blend.chains is not None:
-            chains[i] = [chain.yaw for chain in odom.blend.chains]
-        current = odom._previous  # what the estimator keeps of the frame (features, field)
+    for i, state, current, headings in run(seq, config):
+        estimated[i], chains[i] = state.pose, headings
         kept.append(current)
         if i > 0:
             t, dyaw = step_motion(poses, i - 1, i)
@@ -245,6 +254,7 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
     d_ref = _wrap(np.diff(poses[:, 2]))
     straight = _straight(dt, d_ref, poses, STRAIGHT_RATE_DPS, MOVING_MPS)
     err = _wrap(_wrap(np.diff(estimated[:, 2])) - d_ref)
+    chain_err = None if chains is None else np.degrees(_wrap(_wrap(np.diff(chains, axis=0)) - d_ref[:, None]))
     icp = config.icp
     lines = []
     for i, j, length, error in straight_runs(straight, steps_m, err, min_m):
@@ -260,9 +270,8 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
                 hops.append((math.degrees(-r - dyaw), float(np.hypot(*t))))
         field = f"{np.mean([h[0] for h in hops]) / np.mean([h[1] for h in hops]):+.2f}" if hops else "-"
         own = f"estimate {math.degrees(error) / length:+.2f} deg/m ({math.degrees(error):+.2f} deg)"
-        if chains is not None and not np.isnan(chains[i:j + 1]).any():
-            errors = [math.degrees(float(np.sum(_wrap(_wrap(np.diff(chains[i:j + 1, k])) - d_ref[i:j]))))
-                      for k in range(2)]
+        if chain_err is not None and not np.isnan(chains[i:j + 1]).any():
+            errors = chain_err[i:j].sum(axis=0)
             own += (f", heatmaps' chain {errors[0] / length:+.2f} ({errors[0]:+.2f} deg), points' chain "
                     f"{errors[1] / length:+.2f} ({errors[1]:+.2f} deg)")
         lines.append(f"  straight from frame {i}, {length:.1f} m: {own}, "

@@ -101,9 +101,9 @@ def main(argv=None) -> int:
         return 0
     if not args.out:
         parser.error("--out DIR is needed to record (or --list to see the objects)")
+    beam = {key: value for key, value in (("azimuth_hpbw_deg", args.azimuth_hpbw),
+                                          ("elevation_hpbw_deg", args.elevation_hpbw)) if value is not None}
     try:
-        beam = {key: value for key, value in (("azimuth_hpbw_deg", args.azimuth_hpbw),
-                                              ("elevation_hpbw_deg", args.elevation_hpbw)) if value is not None}
         spec = edited(spec, args.without, args.only, flat=args.flat, beam=beam)
     except ValueError as exc:
         parser.error(str(exc))

@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
-from heading_diagnosis import _wrap, diagnose, truth  # noqa: E402
+from heading_diagnosis import _wrap, run, truth  # noqa: E402
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.heading_metrics import segment_turns  # noqa: E402
@@ -64,8 +64,7 @@ def sequence_phases(directory: str, config: EstimatorConfig) -> np.ndarray:
     """:func:`phase_errors` of the recording in *directory* with the estimator *config*: the
     published increments and each blended chain's (NaN where the estimator has no blend)."""
     seq = sequences.load(directory)
-    _, _, estimated, _, chains = diagnose(seq, config)
-    headings = np.column_stack([estimated[:, 2], chains])
+    headings = np.array([(state.yaw, *chains) for _, state, _, chains in run(seq, config)])
     return phase_errors(seq.times, truth(seq), _wrap(np.diff(headings, axis=0)))
 
 
