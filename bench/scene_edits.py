@@ -31,6 +31,9 @@ import numpy as np  # noqa: E402
 from matrix_cells import SimCell, object_distance, scene_spec  # noqa: E402  (bench/ is not a package)
 from robustness_matrix import simulate  # noqa: E402
 
+from radarodom.driver.sim.scene import scene_from_dict  # noqa: E402
+from radarodom.errors import ConfigError  # noqa: E402
+
 
 def describe(index: int, obj: dict, path: np.ndarray | None = None) -> str:
     """One line naming a scene object: its number, its type, where it stands (m) and, given the
@@ -106,6 +109,10 @@ def main(argv=None) -> int:
     try:
         spec = edited(spec, args.without, args.only, flat=args.flat, beam=beam)
     except ValueError as exc:
+        parser.error(str(exc))
+    try:  # radar-sim's own check, before it runs: a beam width out of range, named
+        scene_from_dict(spec, where=f"the edited scene of {cell.name}")
+    except ConfigError as exc:
         parser.error(str(exc))
     simulate(spec, cell, os.path.abspath(args.out))
     radar = "".join([", flat" if args.flat else ""] + [f", {key} {value:g}" for key, value in beam.items()])

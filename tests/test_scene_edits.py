@@ -52,7 +52,8 @@ def test_objects_are_left_out_by_number():
         scene_edits.edited(spec, without=[10, -1])
 
 
-def test_the_list_numbers_the_objects_and_bad_input_exits_2(capsys):
+def test_the_list_numbers_the_objects_and_bad_input_exits_2(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     assert scene_edits.main([CELL.name, "--list"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert [int(line.split()[0]) for line in lines] == list(range(10))
@@ -68,11 +69,14 @@ def test_the_list_numbers_the_objects_and_bad_input_exits_2(capsys):
             assert distance >= mc.CLEARANCE_M  # the matrix's loops keep clear of everything
     for argv, message in (([CELL.name, "--only", "11", "--out", "x"], "no object numbered 11"),
                           (["room_s9", "--list"], "not a simulated cell's name"),
-                          ([CELL.name, "--only"], "--out DIR is needed")):
+                          ([CELL.name, "--only"], "--out DIR is needed"),
+                          ([CELL.name, "--azimuth-hpbw", "0", "--out", "x"],
+                           "radar.azimuth_hpbw_deg: must be from 1 to 179 degrees, got 0")):
         with pytest.raises(SystemExit) as exc:
             scene_edits.main(argv)
         assert exc.value.code == 2
         assert message in capsys.readouterr().err
+    assert not os.listdir(tmp_path)  # nothing recorded nor written for a refused edit
 
 
 def test_a_cell_recorded_again_is_its_own_recording_and_edited_differs(tmp_path, capsys):
