@@ -21,6 +21,9 @@ CFGS = {
     "2tx": os.path.join(HERE, "cfgs", "awr1843_2tx.cfg"),
     "128loops": os.path.join(HERE, "cfgs", "awr1843_128loops.cfg"),
     "slope60": os.path.join(HERE, "cfgs", "awr1843_slope60.cfg"),
+    # TI's SDK demo profiles' chirps: frames of 3-4 ms, Doppler bins of half a metre a second.
+    "sdk2d": os.path.join(HERE, "cfgs", "awr1843_sdk2d.cfg"),
+    "sdk3d": os.path.join(HERE, "cfgs", "awr1843_sdk3d.cfg"),
 }
 
 #: Where the loop fits in each built-in scene: its first straight runs along y = y0 toward +x and

@@ -1,7 +1,7 @@
 """Heading robustness matrix (issue 20): the default estimator on many simulated sequences.
 
     python bench/robustness_matrix.py [--smoke] [--design star|product] [--scenes corridor room lab]
-        [--seeds 0 1 2 3 4 5] [--cfgs shipped 2tx 128loops slope60] [--snr 0 -5 -10 -15]
+        [--seeds 0 1 2 3 4 5] [--cfgs shipped 2tx 128loops slope60 sdk2d sdk3d] [--snr 0 -5 -10 -15]
         [--speeds 0.3 0.8 1.5] [--turn-rates 30 60 90] [--movers none people] [--mounts 0 0.3] [--straight 3]
         [--coloradar RUN_DIR ...] [--workers N | --cluster ADDRESS] [--data DIR] [--out DIR]
 

@@ -1,9 +1,13 @@
 """Heatmaps: range-azimuth (and range-azimuth-elevation) intensity with Doppler.
 
-Like ColoRadar's heatmaps, each cell has an intensity and the radial velocity
-of its dominant Doppler bin; with a raised antenna row (3 TX on the xWR18xx), also the
-elevation of its power: the phase between the raised row's and the azimuth row's beams at the
-cell's azimuth, over all Doppler bins, as the point cloud's elevation is taken per detection.  Two intensities: over all Doppler bins, and over
+Like ColoRadar's heatmaps, each cell has an intensity and the radial velocity of its dominant
+Doppler bin, placed between bins from that bin's magnitude and its neighbours' as the points' are
+(``DspConfig.doppler_interpolation``: a cfg of short frames, such as TI's SDK profiles, has Doppler
+bins of 0.4-0.7 m/s, whose centres misplace a static cell's Doppler by up to a third of a metre a
+second, and the estimator tells static cells from moving ones by it); with a raised antenna row (3
+TX on the xWR18xx), also the elevation of its power: the phase between the raised row's and the
+azimuth row's beams at the cell's azimuth, over all Doppler bins, as the point cloud's elevation is
+taken per detection.  Two intensities: over all Doppler bins, and over
 the static (zero-Doppler) bins only, which is what scan registration wants.
 
 - Range-azimuth: for every Doppler and range bin the TDM-compensated azimuth
@@ -28,6 +32,7 @@ import scipy.ndimage
 from ..errors import UsageError, quoted
 from ..plain_numbers import is_whole_number
 from ..products import RangeAzimuth, RangeAzimuthElevation
+from .points import invert_three_bins, three_bin_response
 from .processor import FrameProcessor
 
 #: Doppler bins per block of the azimuth row's transposing copy (8 complex64: 64 bytes, a
@@ -57,6 +62,10 @@ class HeatmapMaker:
         n_az = processor.n_az
         k = np.arange(n_az) - n_az // 2  # after fftshift: ascending signed bins
         self.azimuth_rad = np.arcsin(np.clip(2.0 * k / n_az, -1.0, 1.0))
+        #: The Doppler window's three-bin response (points.three_bin_response) that places each
+        #: cell's dominant Doppler between bins; None: bin centres (doppler_interpolation off).
+        self._doppler_table = (three_bin_response(processor.w_doppler, processor.n_doppler)
+                               if processor.params.doppler_interpolation else None)
         centre = processor.n_doppler // 2
         self._static_rows = slice(centre - static_bins, centre + static_bins + 1)
         weights = processor.angle_weights
@@ -169,6 +178,7 @@ class HeatmapMaker:
         intensity = np.empty((n_az, nr), np.float32)
         static = np.empty((n_az, nr), np.float32)
         best = np.empty((n_az, nr), np.intp)
+        offset = np.zeros((n_az, nr), np.float32)
         raised = self._raised_row(spectrum)  # (row_el, n_range, n_doppler) or None
         cross = None if raised is None else np.empty((n_az, nr), np.complex64)
         for r0 in range(0, nr, rb):
@@ -183,10 +193,12 @@ class HeatmapMaker:
             p.sum(axis=-1, out=intensity[:, r0:r0 + m])
             p[..., self._static_rows].sum(axis=-1, out=static[:, r0:r0 + m])
             p.argmax(axis=-1, out=best[:, r0:r0 + m])
+            if self._doppler_table is not None:
+                offset[:, r0:r0 + m] = self._doppler_offsets(p, best[:, r0:r0 + m])
             if raised is not None:
                 el = np.matmul(self._el_dft, raised[:, r0:r0 + m].reshape(len(raised), m * nd)).reshape(n_az, m, nd)
                 np.einsum("abd,abd->ab", a, np.conj(el), out=cross[:, r0:r0 + m])
-        dominant = proc.velocity_mps[best.T].astype(np.float32)
+        dominant = (proc.velocity_mps[best.T] + offset.T * self._doppler_step).astype(np.float32)
         return RangeAzimuth(np.ascontiguousarray(intensity.T), np.ascontiguousarray(static.T), dominant,
                             self.range_m, self.azimuth_rad, None if cross is None else _elevation(cross.T))
 
@@ -220,8 +232,11 @@ class HeatmapMaker:
         spectra = np.empty((n, x.shape[2]), np.complex64)  # (cells, n_doppler)
         for i, j in zip(first.tolist(), last.tolist()):
             np.matmul(steer[i:j], self._row[:, r[i], :], out=spectra[i:j])
-        best = (spectra.real**2 + spectra.imag**2).argmax(axis=1)
+        power = spectra.real**2 + spectra.imag**2
+        best = power.argmax(axis=1)
         dominant[r, a] = proc.velocity_mps[best]
+        if self._doppler_table is not None:
+            dominant[r, a] += self._doppler_offsets(power, best) * self._doppler_step
         elevation = None
         raised = self._raised_row(spectrum)
         if raised is not None:
@@ -229,6 +244,22 @@ class HeatmapMaker:
             r_cross = np.matmul(x, np.conj(np.transpose(raised, (1, 2, 0))))
             elevation = _elevation(r_cross.reshape(nr, -1) @ self._el_cross)
         return RangeAzimuth(intensity, static, dominant, self.range_m, self.azimuth_rad, elevation)
+
+    @property
+    def _doppler_step(self) -> float:
+        """The Doppler bins' spacing, m/s."""
+        v = self.proc.velocity_mps
+        return float(v[1] - v[0]) if len(v) > 1 else 0.0
+
+    def _doppler_offsets(self, power: np.ndarray, best: np.ndarray) -> np.ndarray:
+        """Sub-bin offsets (-0.5 .. 0.5 bins) of the peaks at Doppler bins *best* (...) of the
+        Doppler power spectra *power* (..., n_doppler), from the peak's magnitude and its
+        neighbours' (the spectrum is periodic in Doppler) against the window's three-bin response."""
+        nd = power.shape[-1]
+        at = best[..., None]
+        centre, below, above = (np.sqrt(np.take_along_axis(power, (at + step) % nd, axis=-1)[..., 0])
+                                for step in (0, -1, 1))
+        return invert_three_bins(below, centre, above, self._doppler_table)
 
     def _raised_row(self, spectrum: np.ndarray) -> np.ndarray | None:
         """The raised row's Doppler spectra, TDM-compensated and calibrated: complex64

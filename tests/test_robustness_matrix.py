@@ -25,6 +25,10 @@ def test_the_matrix_cfgs_are_valid_and_differ_as_named():
     assert shapes["2tx"].cube_shape == (64, 2, 4, 256)
     assert shapes["128loops"].cube_shape == (128, 3, 4, 256)
     assert shapes["slope60"].slope_hz_per_s == pytest.approx(60e12)
+    # TI's SDK demo profiles: 32 loops of 7 us idle, Doppler bins six times the shipped cfg's.
+    assert shapes["sdk2d"].cube_shape == (32, 2, 4, 256) and shapes["sdk3d"].cube_shape == (32, 3, 4, 256)
+    for name in ("sdk2d", "sdk3d"):
+        assert shapes[name].velocity_resolution_mps > 6 * shapes["shipped"].velocity_resolution_mps
 
 
 @pytest.mark.parametrize("scene", sorted(rm.LAYOUT))
