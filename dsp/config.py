@@ -63,6 +63,13 @@ class DspConfig(Settings):
     #: (cos is flat around the heading), so its rounding errors do not average out: a straight
     #: drive at 0.6 m/s (8.5 bins on the shipped cfg) came out 2.2 % slow (tests/test_estimator_e2e.py).
     doppler_interpolation: bool = True
+    #: Place each heatmap cell's dominant Doppler between bins too (the strongest bin's magnitude
+    #: and its neighbours' at the cell's azimuth, against the window's three-bin response) where
+    #: the Doppler bins are wider than this, m/s (None: never; 0: always).  A heatmap cell mixes
+    #: every reflector of its beam, whose radial velocities differ by a tenth of a metre a second
+    #: at walking speed: with bins of 0.07-0.11 m/s a bin's centre is the nearer, with TI's SDK
+    #: demo profiles' 0.43-0.64 m/s the interpolation (docs/heading.md item 37).
+    heatmap_doppler_between_bins_mps: float | None = 0.2
     #: Remove static returns (after windowing, so no false zero-Doppler detection appears).
     #: Keep it off where the Doppler ego-velocity estimator needs the static world.
     clutter_removal: bool = False
@@ -135,6 +142,11 @@ class DspConfig(Settings):
         check_choice(self.fft, BACKENDS, "fft")
         if self.second_peak_threshold is not None and not 0 < self.second_peak_threshold <= 1:
             raise ConfigError("must be in (0, 1]", field="second_peak_threshold")
+        between = self.heatmap_doppler_between_bins_mps
+        if between is not None and (isinstance(between, bool) or not isinstance(between, (int, float))
+                                    or not 0 <= between < math.inf):
+            raise ConfigError(f"must be a finite number of m/s >= 0 (or null: never), got {between!r}",
+                              field="heatmap_doppler_between_bins_mps")
         if self.min_range_m < 0:
             raise ConfigError(f"must be >= 0, got {self.min_range_m}", field="min_range_m")
         if self.max_range_m is not None and not self.max_range_m > self.min_range_m:

@@ -9,7 +9,6 @@ import pytest
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import Simulator
 from radarodom.dsp.heatmap import HeatmapMaker
-from radarodom.dsp.points import invert_three_bins, three_bin_response
 from radarodom.dsp.processor import FrameProcessor
 from radarodom.errors import UsageError
 
@@ -47,9 +46,8 @@ def test_strong_cells_mode_with_more_cells_than_the_map(spectrum_and_processor):
 def _reference_range_azimuth(proc, spectrum, static_bins):
     """Cell by cell, from the definition: each range bin's TDM-compensated azimuth row
     through the zero-padded azimuth FFT (fftshifted), power summed over Doppler (all),
-    over the static rows, and the radial velocity of the strongest power's Doppler bin, placed
-    between bins by its and its neighbours' magnitudes (the window's three-bin response, as the
-    points'); range bins up to the processor's detection range."""
+    over the static rows, and the Doppler bin of the strongest power; range bins up to the
+    processor's detection range."""
     nd, slots, nrx, _ = spectrum.shape
     nr = proc.heatmap_range_bins
     flat = spectrum[..., :nr].reshape(nd, slots * nrx, nr).astype(np.complex128)
@@ -65,12 +63,7 @@ def _reference_range_azimuth(proc, spectrum, static_bins):
     # Cells whose strongest Doppler bin leads the next by 0.1 % or more: float32 must agree.
     top2 = np.sort(power, axis=0)[-2:]
     clear = (top2[1] > 1.001 * top2[0]).T
-    best = power.argmax(axis=0)  # (n_az, n_range)
-    magnitude = np.sqrt(power)
-    below, centre, above = (np.take_along_axis(magnitude, ((best + step) % nd)[None], axis=0)[0] for step in (-1, 0, 1))
-    offset = invert_three_bins(below, centre, above, three_bin_response(proc.w_doppler, nd))
-    step = proc.velocity_mps[1] - proc.velocity_mps[0]
-    return power.sum(axis=0).T, static, (proc.velocity_mps[best] + offset * step).T, clear
+    return power.sum(axis=0).T, static, proc.velocity_mps[power.argmax(axis=0).T], clear
 
 
 @pytest.mark.parametrize("tx_masks, doppler_size", [((1, 4, 2), None), ((1, 2, 4), 67)])
@@ -102,12 +95,10 @@ def test_both_modes_match_the_definition(tx_masks, doppler_size):
         np.testing.assert_allclose(heatmap.static, static, rtol=1e-4, atol=1e-6 * static.max())
         assert heatmap.intensity.dtype == heatmap.static.dtype == heatmap.doppler_mps.dtype == np.float32
         assert heatmap.intensity.flags.c_contiguous and heatmap.static.flags.c_contiguous
-    # float32's magnitudes against float64's: the sub-bin place to a thousandth of a bin.
-    tol = 1e-3 * (proc.velocity_mps[1] - proc.velocity_mps[0])
-    np.testing.assert_allclose(full.doppler_mps[clear], dominant[clear], rtol=0, atol=tol)
+    np.testing.assert_array_equal(full.doppler_mps[clear], dominant[clear].astype(np.float32))
     known = ~np.isnan(fast.doppler_mps)
     assert known.sum() == 300
-    np.testing.assert_allclose(fast.doppler_mps[known & clear], dominant[known & clear], rtol=0, atol=tol)
+    np.testing.assert_array_equal(fast.doppler_mps[known & clear], dominant[known & clear].astype(np.float32))
 
 
 @pytest.mark.parametrize("doppler_cells", [None, 300], ids=["full", "strong cells"])
