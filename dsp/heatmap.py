@@ -65,12 +65,14 @@ class HeatmapMaker:
         #: The Doppler window's three-bin response (points.three_bin_response) that places each
         #: cell's dominant Doppler between bins; None: bin centres (bins no wider than
         #: heatmap_doppler_between_bins_mps).
+        velocity = processor.velocity_mps  # ascending
+        #: The Doppler bins' spacing, m/s.
+        self._doppler_step = float(velocity[1] - velocity[0]) if len(velocity) > 1 else 0.0
         between = processor.params.heatmap_doppler_between_bins_mps
-        step = abs(float(processor.velocity_mps[1] - processor.velocity_mps[0])) if processor.n_doppler > 1 else 0.0
         self._doppler_table = (three_bin_response(processor.w_doppler, processor.n_doppler,
                                                   setting="heatmap_doppler_between_bins_mps",
                                                   fix="set heatmap_doppler_between_bins_mps null")
-                               if between is not None and step > between else None)
+                               if between is not None and self._doppler_step > between else None)
         centre = processor.n_doppler // 2
         self._static_rows = slice(centre - static_bins, centre + static_bins + 1)
         weights = processor.angle_weights
@@ -183,7 +185,7 @@ class HeatmapMaker:
         intensity = np.empty((n_az, nr), np.float32)
         static = np.empty((n_az, nr), np.float32)
         best = np.empty((n_az, nr), np.intp)
-        offset = np.zeros((n_az, nr), np.float32)
+        offset = None if self._doppler_table is None else np.empty((n_az, nr), np.float32)
         raised = self._raised_row(spectrum)  # (row_el, n_range, n_doppler) or None
         cross = None if raised is None else np.empty((n_az, nr), np.complex64)
         for r0 in range(0, nr, rb):
@@ -198,12 +200,15 @@ class HeatmapMaker:
             p.sum(axis=-1, out=intensity[:, r0:r0 + m])
             p[..., self._static_rows].sum(axis=-1, out=static[:, r0:r0 + m])
             p.argmax(axis=-1, out=best[:, r0:r0 + m])
-            if self._doppler_table is not None:
+            if offset is not None:
                 offset[:, r0:r0 + m] = self._doppler_offsets(p, best[:, r0:r0 + m])
             if raised is not None:
                 el = np.matmul(self._el_dft, raised[:, r0:r0 + m].reshape(len(raised), m * nd)).reshape(n_az, m, nd)
                 np.einsum("abd,abd->ab", a, np.conj(el), out=cross[:, r0:r0 + m])
-        dominant = (proc.velocity_mps[best.T] + offset.T * self._doppler_step).astype(np.float32)
+        dominant = proc.velocity_mps[best.T]
+        if offset is not None:
+            dominant = dominant + offset.T * self._doppler_step
+        dominant = dominant.astype(np.float32)
         return RangeAzimuth(np.ascontiguousarray(intensity.T), np.ascontiguousarray(static.T), dominant,
                             self.range_m, self.azimuth_rad, None if cross is None else _elevation(cross.T))
 
@@ -249,12 +254,6 @@ class HeatmapMaker:
             r_cross = np.matmul(x, np.conj(np.transpose(raised, (1, 2, 0))))
             elevation = _elevation(r_cross.reshape(nr, -1) @ self._el_cross)
         return RangeAzimuth(intensity, static, dominant, self.range_m, self.azimuth_rad, elevation)
-
-    @property
-    def _doppler_step(self) -> float:
-        """The Doppler bins' spacing, m/s."""
-        v = self.proc.velocity_mps
-        return float(v[1] - v[0]) if len(v) > 1 else 0.0
 
     def _doppler_offsets(self, power: np.ndarray, best: np.ndarray) -> np.ndarray:
         """Sub-bin offsets (-0.5 .. 0.5 bins) of the peaks at Doppler bins *best* (...) of the
