@@ -68,17 +68,22 @@ def sequence_phases(directory: str, config: EstimatorConfig) -> np.ndarray:
     return phase_errors(seq.times, truth(seq), _wrap(np.diff(headings, axis=0)))
 
 
+def _shown(value: float, spec: str) -> str:
+    """*value* formatted by *spec*, or "-" where it is undefined (an estimator without a blend)."""
+    return "-" if math.isnan(value) else format(value, spec)
+
+
 def lines(name: str, table: np.ndarray) -> list[str]:
     """*table* (:func:`phase_errors`' shape) as text, degrees."""
     deg = np.degrees(table)
     out = [f"{name}: turns in place, error summed in the turn's direction, degrees ("
            + " / ".join(ESTIMATES) + ")"]
     for phase, row in zip(PHASES, deg):
-        out.append(f"  {phase:13s} " + " / ".join(f"{v:+.2f}" for v in row[:-1]) + f"  of {row[-1]:.0f} turned")
+        out.append(f"  {phase:13s} " + " / ".join(_shown(v, "+.2f") for v in row[:-1]) + f"  of {row[-1]:.0f} turned")
     turned = deg[:, -1].sum()
     if turned > 0:
         ratios = 1.0 + deg[:, :-1].sum(axis=0) / turned
-        out.append("  whole turn ratio " + " / ".join("-" if math.isnan(r) else f"{r:.4f}" for r in ratios))
+        out.append("  whole turn ratio " + " / ".join(_shown(r, ".4f") for r in ratios))
     return out
 
 

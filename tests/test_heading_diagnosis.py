@@ -127,6 +127,16 @@ def test_turn_phases_split_each_turn_in_place_by_the_truths_speed():
     assert not turn_phases.phase_errors(times, ref, estimates).any()
 
 
+def test_turn_phases_show_a_chain_the_estimator_lacks_as_a_dash():
+    # Without the blend (point_yaw.blend off) the chains' columns are NaN: "-", as in the ratio line,
+    # not "+nan".
+    table = np.array([[0.01, np.nan, np.nan, 0.2], [0.0, np.nan, np.nan, 2.8], [-0.02, np.nan, np.nan, 0.1]])
+    text = turn_phases.lines("run", table)
+    assert "nan" not in "\n".join(text).lower()
+    assert text[1] == "  braking in    +0.57 / - / -  of 11 turned"
+    assert text[-1] == "  whole turn ratio 0.9968 / - / -"
+
+
 def test_turn_phases_of_a_recording_sum_to_its_turn_in_place(recording, tmp_path, capsys):
     settings = tmp_path / "no_wall_map.json"
     settings.write_text('{"wall_map": {"use": false}}')
