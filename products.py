@@ -30,7 +30,7 @@ class RangeAzimuth:
 
     intensity: np.ndarray  # power over all Doppler bins, linear
     static: np.ndarray  # power in the zero-Doppler bin(s), linear (ColoRadar's: a copy of intensity)
-    doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin (between bins with doppler_interpolation), m/s
+    doppler_mps: np.ndarray  # radial velocity of the strongest Doppler bin, m/s (between bins where they are wide)
     range_m: np.ndarray  # (n_range,)
     azimuth_rad: np.ndarray  # (n_azimuth,), ascending, positive to the right
     #: The elevation of each cell's power, rad, positive up (from the raised antennas' phase);

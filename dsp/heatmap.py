@@ -1,14 +1,14 @@
 """Heatmaps: range-azimuth (and range-azimuth-elevation) intensity with Doppler.
 
 Like ColoRadar's heatmaps, each cell has an intensity and the radial velocity of its dominant
-Doppler bin, placed between bins where the bins are wide (``DspConfig.heatmap_doppler_between_bins_mps``:
-TI's SDK demo profiles' 3-4 ms frames make bins of 0.43-0.64 m/s, whose centres misplace a static
-cell's Doppler by up to a third of a metre a second, and the estimator tells static cells from
-moving ones by it); with a raised antenna row (3 TX on the xWR18xx), also the elevation of its
-power: the phase between the raised row's and the azimuth row's beams at the cell's azimuth, over
-all Doppler bins, as the point cloud's elevation is taken per detection.  Two intensities: over
-all Doppler bins, and over
-the static (zero-Doppler) bins only, which is what scan registration wants.
+Doppler bin, placed between bins where the bins are wide
+(``DspConfig.heatmap_doppler_between_bins_mps``: TI's SDK demo profiles' 3-4 ms frames make bins
+of 0.43-0.64 m/s, whose centres misplace a static cell's Doppler by up to a third of a metre a
+second, and the estimator tells static cells from moving ones by it); with a raised antenna row
+(3 TX on the xWR18xx), also the elevation of its power: the phase between the raised row's and
+the azimuth row's beams at the cell's azimuth, over all Doppler bins, as the point cloud's
+elevation is taken per detection.  Two intensities: over all Doppler bins, and over the static
+(zero-Doppler) bins only, which is what scan registration wants.
 
 - Range-azimuth: for every Doppler and range bin the TDM-compensated azimuth
   row goes through the zero-padded azimuth DFT, as one matrix product with a
@@ -62,13 +62,13 @@ class HeatmapMaker:
         n_az = processor.n_az
         k = np.arange(n_az) - n_az // 2  # after fftshift: ascending signed bins
         self.azimuth_rad = np.arcsin(np.clip(2.0 * k / n_az, -1.0, 1.0))
-        #: The Doppler window's three-bin response (points.three_bin_response) that places each
-        #: cell's dominant Doppler between bins; None: bin centres (bins no wider than
-        #: heatmap_doppler_between_bins_mps).
         velocity = processor.velocity_mps  # ascending
         #: The Doppler bins' spacing, m/s.
         self._doppler_step = float(velocity[1] - velocity[0]) if len(velocity) > 1 else 0.0
         between = processor.params.heatmap_doppler_between_bins_mps
+        #: The Doppler window's three-bin response (points.three_bin_response) that places each
+        #: cell's dominant Doppler between bins; None: bin centres (bins no wider than
+        #: heatmap_doppler_between_bins_mps).
         self._doppler_table = (three_bin_response(processor.w_doppler, processor.n_doppler,
                                                   setting="heatmap_doppler_between_bins_mps",
                                                   fix="set heatmap_doppler_between_bins_mps null")

@@ -867,30 +867,19 @@ def test_range_azimuth_heatmap_moving_target(shipped_cfg, point):
     assert ra.static.max() < 1e-3 * ra.intensity.max()
 
 
-def _short_frames(cfg):
-    """*cfg* with TI's SDK demo profiles' chirp timing (7 us idle, 32 loops): Doppler bins of 0.43 m/s."""
-    text = cfg.to_text()
-    for key, fields in (("profileCfg", {3: "7"}), ("frameCfg", {3: "32"})):
-        old = next(ln for ln in text.splitlines() if ln.startswith(key + " "))
-        parts = old.split()
-        for i, value in fields.items():
-            parts[i] = value
-        text = text.replace(old, " ".join(parts))
-    return RadarConfig.from_text(text)
-
-
 @pytest.mark.parametrize("doppler_cells", [None, 50], ids=["full", "strong cells"])
 @pytest.mark.parametrize("offset", [-0.4, 0.0, 0.3])
-@pytest.mark.parametrize("frames", ["shipped, forced", "short, by default"])
+@pytest.mark.parametrize("frames", ["shipped, forced", "TI's profile_3d chirps, by default"])
 def test_heatmap_doppler_between_bins(shipped_cfg, doppler_cells, offset, frames):
     """A point ahead approached at 2 + offset Doppler bins: the heatmap cell at it carries its
     radial velocity within a tenth of a bin of the truth, as the point cloud does, in both of the
     heatmap's modes, where the bins are wider than heatmap_doppler_between_bins_mps (by default
-    with short frames' 0.43 m/s bins; with the shipped cfg's 0.07 when the setting is 0); at the
-    bin's centre, |offset| bins off, where they are not.  (With bins of half a metre a second,
-    centres made the estimator take a third of the static world for moving: docs/heading.md
-    item 37.)"""
-    cfg = shipped_cfg if frames.startswith("shipped") else _short_frames(shipped_cfg)
+    with the 0.43 m/s bins of TI's SDK profile_3d chirps, the matrix's cfg sdk3d; with the shipped
+    cfg's 0.07 when the setting is 0); at the bin's centre, |offset| bins off, where they are not.
+    (With bins of half a metre a second, centres made the estimator take a third of the static
+    world for moving: docs/heading.md item 37.)"""
+    cfg = shipped_cfg if frames.startswith("shipped") else RadarConfig.from_file(REPO / "bench" / "cfgs" /
+                                                                               "awr1843_sdk3d.cfg")
     res = cfg.velocity_resolution_mps
     point = [6.0, 0.0, 0.4]
     scene = point_scene([point], [{"straight": 8.0, "speed": (2 + offset) * res}])
