@@ -248,16 +248,16 @@ def test_swapped_ports_are_told_by_a_cli_port_that_never_says_anything():
            "was opened; is it the radar's CLI port (the board's first, USB interface 0" in message, message
 
 
-def _broken_after_two_frames(break_it, error) -> tuple[str, str]:
-    """Stream the fake demo, call *break_it(rig)* after its second frame, and expect *error*:
-    (the error's message, the rig's data port)."""
+def _broken_after_two_frames(break_it, error, **url_options) -> tuple[str, str]:
+    """Stream the fake demo (its URL given *url_options*), call *break_it(rig)* after its second
+    frame, and expect *error*: (the error's message, the rig's data port)."""
     from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
 
     cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
     frames = 0
     with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
         with pytest.raises(error) as info:
-            with open_source(rig.url(), cfg) as source:
+            with open_source(rig.url(**url_options), cfg) as source:
                 for frames, _ in enumerate(source, start=1):
                     if frames == 2:
                         break_it(rig)
@@ -290,6 +290,19 @@ def test_a_demo_that_stops_streaming_is_reported_with_what_its_cli_said(caplog):
     message, _ = _broken_after_two_frames(assert_and_stop, DeviceTimeout)
     assert f"its CLI port said {ASSERT_LINE!r}: the demo stopped, as it does when a packet outlasts" in message, message
     assert caplog.text.count(f"the radar's CLI port says: {ASSERT_LINE}") == 1
+
+
+def test_a_demo_that_goes_quiet_is_given_up_on_after_data_timeout():
+    """The stream's stall limit is the URL's data_timeout where given (10 frame periods, at least
+    2 s, otherwise): a host whose demo or emulator may pause longer can allow it; the error names
+    the limit it applied."""
+    from radarodom.errors import DeviceTimeout, SourceError
+
+    message, data_path = _broken_after_two_frames(lambda rig: rig.data.stop(), DeviceTimeout, data_timeout=0.5)
+    assert message.startswith(f"no packet from the demo on {data_path} for "), message
+    assert "s (data_timeout=0.5, frame period 0.1 s): is the data port the radar's (USB interface 3)" in message
+    with pytest.raises(SourceError, match=r"option data_timeout='0': expected seconds without a packet"):
+        open_source("tidemo:///dev/null?cli=/dev/null&data_timeout=0", RadarConfig.from_text(TIDEMO_CFG, "t.cfg"))
 
 
 def test_the_cli_lines_printed_unasked_are_whole_lines_however_they_arrive():

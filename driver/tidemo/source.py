@@ -27,7 +27,8 @@ the demo's processing time before it sends (a few ms, not measured) is still in 
 Options: ``cli`` (the CLI port: a path or any pyserial URL), ``baud`` (the data port's, 921600;
 another one adds ``configDataPort`` to the cfg), ``max_points`` (points a frame the UART budget
 allows for, 64), ``policy``, ``buffers`` (8), ``cli_timeout`` (s a CLI command, 2),
-``start_timeout`` (s for sensorStart, 5).
+``start_timeout`` (s for sensorStart, 5), ``data_timeout`` (s without a packet before the stream is
+declared dead; 10 frame periods, at least 2).
 """
 
 from __future__ import annotations
@@ -111,7 +112,8 @@ class TidemoSource(Source):
 
     def __init__(self, config: RadarConfig, data_url: str, cli_url: str, *, baud: int = DEFAULT_BAUD,
                  max_points: int = DEFAULT_MAX_POINTS, policy: str = "latest", buffers: int = 8,
-                 cli_timeout_s: float = COMMAND_TIMEOUT_S, start_timeout_s: float = 5.0) -> None:
+                 cli_timeout_s: float = COMMAND_TIMEOUT_S, start_timeout_s: float = 5.0,
+                 data_timeout_s: float | None = None) -> None:
         super().__init__()
         note = uncalibrated_note(config)
         if note is not None and config.channel_measurement is None:  # not radar-calibrate's own measuring
@@ -126,7 +128,7 @@ class TidemoSource(Source):
         self.clock = FrameClock(config.frame_period_s)
         self.frames = PacketFrames(self.geometry, self._stamp)
         #: Seconds without a packet before the stream is declared dead.
-        self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
+        self.data_timeout_s = max(2.0, 10 * config.frame_period_s) if data_timeout_s is None else data_timeout_s
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.port: serial.SerialBase | None = None
         self._ring: collections.deque[Frame] = collections.deque()
@@ -223,14 +225,15 @@ class TidemoSource(Source):
             if quiet > self.data_timeout_s and said is not None:
                 why = (f": the demo stopped, as it does when a packet outlasts the frame period (more points than "
                        f"max_points={self.budget.max_points}?)" if "Exception" in said else "")
-                raise DeviceTimeout(f"no packet from the demo on {self.data_url} for {quiet:.1f} s; its CLI port said "
-                                    f"{said!r}{why}")
+                raise DeviceTimeout(f"no packet from the demo on {self.data_url} for {quiet:.1f} s "
+                                    f"(data_timeout={self.data_timeout_s:g}); its CLI port said {said!r}{why}")
             if quiet > self.data_timeout_s:
                 raise DeviceTimeout(
-                    f"no packet from the demo on {self.data_url} for {quiet:.1f} s (frame period "
-                    f"{self.config.frame_period_s:g} s): is the data port the radar's (USB interface 3), its baud "
-                    f"rate {self.baud}?  A demo whose packet outlasts the frame period stops with 'Obj Det DPC "
-                    f"Exception' on its CLI port (more points than max_points={self.budget.max_points}?)")
+                    f"no packet from the demo on {self.data_url} for {quiet:.1f} s (data_timeout="
+                    f"{self.data_timeout_s:g}, frame period {self.config.frame_period_s:g} s): is the data port the "
+                    f"radar's (USB interface 3), its baud rate {self.baud}?  A demo whose packet outlasts the frame "
+                    f"period stops with 'Obj Det DPC Exception' on its CLI port (more points than "
+                    f"max_points={self.budget.max_points}?)")
         # Asked to stop: the radar's last packet may still be on the line.
         self._finish()
         while (frame := self._next(0)) is not None:
@@ -320,6 +323,7 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
     buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
     start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
+    data_timeout = options.take("data_timeout", positive_number, None, "seconds without a packet")
     options.finish()
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path(TIDEMO_CONFIG_NAME))
     # The UART budget and the antenna layout are checked before any port is looked for or opened.
@@ -344,4 +348,4 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
         raise SourceError(f"{options.url}: the CLI port and the data port are both {data}: the board has two (the "
                           "CLI on USB interface 0, the data on interface 3; radar-devices lists them)")
     return TidemoSource(cfg, data, cli, baud=baud, max_points=max_points, policy=policy, buffers=buffers,
-                        cli_timeout_s=cli_timeout, start_timeout_s=start_timeout)
+                        cli_timeout_s=cli_timeout, start_timeout_s=start_timeout, data_timeout_s=data_timeout)
