@@ -3,7 +3,7 @@
     python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
                                       [--baselines 1 2 4 8] [--straights 6 [--min-straight-m 1]]
                                       [--trace 100 120]
-                                      [--turned-translation 0 0.1 -0.1]
+                                      [--turned-translation 0 0.1 -0.1] [--true-velocity]
 
 For each simulated sequence (a capture directory with groundtruth.tum, such as bench/sequences.py
 or bench/robustness_matrix.py record), every step is classified by the truth (standing still,
@@ -45,6 +45,13 @@ consecutive frames given the true translation turned by each DEG (positive: to t
 much a straight's bias moves with the direction of the translation the registration is given,
 the Doppler velocity's direction error's share in it (docs/heading.md, item 27).
 
+``--true-velocity`` runs the estimator with each frame's velocity taken from the ground truth
+(the radar's, by its poses before and after) instead of its point cloud's fit, the points still
+given to the points' yaw and the map of walls: every figure above then says what is left once
+the Doppler velocity is right, the rectification, the static-cell tests and the 2-TX array's
+elevation from the Doppler included (the drift part ``translation`` falls to the truth's
+sampling); against a run without it, what the velocity's errors make.
+
 Last, what makes the drift (``drift parts``,
 :func:`radarodom.estimator.heading_metrics.drift_parts`): the estimate's drift, and the drift that
 each kind of frame's yaw errors (straight, the first frames after a turn, moving turns, turns in
@@ -72,6 +79,7 @@ from radarodom.estimator.heading_metrics import (  # noqa: E402
     MOVING_MPS, STRAIGHT_RATE_DPS, _straight, drift_parts, straight_runs)
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
+from radarodom.estimator.velocity import VelocityEstimate, VelocityStatus  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
 
 STAGES = ("estimate", "field, true translation", "field, no translation")
@@ -123,23 +131,46 @@ class Step:
     flags: tuple[str, ...]
 
 
-def run(seq: sequences.Sequence, config: EstimatorConfig) -> Iterator[tuple[int, object, object, np.ndarray]]:
-    """Each frame of *seq* through the estimator of *config*: its index, the published state, what
-    the estimator keeps of the frame (features, field) and the two blended chains' headings, the
-    heatmaps' and the points' (2,) rad (NaN without the blend)."""
+def true_velocities(seq: sequences.Sequence, config: EstimatorConfig) -> list[VelocityEstimate]:
+    """The radar's velocity at each frame by the ground truth (whose poses are the radar's), body
+    frame, as velocity estimates: the central difference of the poses before and after (one-sided
+    at the ends), turned into the frame's heading; ``zero_velocity`` under the fit's threshold."""
+    poses = truth(seq)
+    t = np.asarray(seq.times, dtype=float)
+    out = []
+    for i in range(len(seq)):
+        a, b = max(i - 1, 0), min(i + 1, len(seq) - 1)
+        world = (poses[b, :2] - poses[a, :2]) / (t[b] - t[a]) if b > a else np.zeros(2)
+        c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
+        vx, vy = c * world[0] + s * world[1], -s * world[0] + c * world[1]
+        still = math.hypot(vx, vy) < config.velocity.zero_velocity_threshold_mps
+        out.append(VelocityEstimate(t=float(t[i]), vx=vx, vy=vy, covariance=np.eye(2) * 1e-6,
+                                    status=VelocityStatus.ZERO if still else VelocityStatus.OK))
+    return out
+
+
+def run(seq: sequences.Sequence, config: EstimatorConfig, velocities: list[VelocityEstimate] | None = None
+        ) -> Iterator[tuple[int, object, object, np.ndarray]]:
+    """Each frame of *seq* through the estimator of *config* (given *velocities*, each frame's
+    kept instead of its points' fit): its index, the published state, what the estimator keeps of
+    the frame (features, field) and the two blended chains' headings, the heatmaps' and the
+    points' (2,) rad (NaN without the blend)."""
     odom = RadarOdometry(config)
     for i in range(len(seq)):
-        state = odom.step(seq.times[i], seq.points[i], seq.heatmap(i))
+        odom.add_points(seq.times[i], seq.points[i], velocity=None if velocities is None else velocities[i])
+        state = odom.add_heatmap(seq.times[i], seq.heatmap(i))
         chains = np.full(2, np.nan)
         if odom.blend is not None and odom.blend.chains is not None:
             chains = np.array([chain.yaw for chain in odom.blend.chains])
         yield i, state, odom._previous, chains
 
 
-def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, list, np.ndarray, list, np.ndarray]:
+def diagnose(seq: sequences.Sequence, config: EstimatorConfig, velocities: list[VelocityEstimate] | None = None
+             ) -> tuple[dict, list, np.ndarray, list, np.ndarray]:
     """Per kind of step, per stage: lists of (estimated, true) increments; the kept frames; the
     estimated poses (n, 3); each step's (into frame i >= 1) :class:`Step`; and the two blended
-    chains' headings, the heatmaps' and the points' (n, 2) rad (NaN without the blend)."""
+    chains' headings, the heatmaps' and the points' (n, 2) rad (NaN without the blend).
+    *velocities*: as :func:`run`."""
     poses = truth(seq)
     icp = config.icp
     common = icp.score_support == "common"
@@ -147,7 +178,7 @@ def diagnose(seq: sequences.Sequence, config: EstimatorConfig) -> tuple[dict, li
     kept, previous, steps = [], None, []
     estimated = np.zeros((len(seq), 3))
     chains = np.full((len(seq), 2), np.nan)
-    for i, state, current, headings in run(seq, config):
+    for i, state, current, headings in run(seq, config, velocities):
         estimated[i], chains[i] = state.pose, headings
         kept.append(current)
         if i > 0:
@@ -345,12 +376,15 @@ def main(argv=None) -> int:
                         help="the steps into frames FIRST to LAST, one by one")
     parser.add_argument("--turned-translation", nargs="+", type=float, default=None, metavar="DEG",
                         help="straight drives: the field given the true translation turned by each DEG")
+    parser.add_argument("--true-velocity", action="store_true",
+                        help="the estimator given each frame's true velocity instead of its points' fit")
     args = parser.parse_args(argv)
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     for directory in args.sequences:
         seq = sequences.load(directory)
-        found, kept, estimated, steps, chains = diagnose(seq, config)
-        print("\n".join(report(seq.name, found)))
+        velocities = true_velocities(seq, config) if args.true_velocity else None
+        found, kept, estimated, steps, chains = diagnose(seq, config, velocities)
+        print("\n".join(report(seq.name + (" (the estimator given the true velocity)" if velocities else ""), found)))
         if args.trace:
             print("\n".join(trace(steps, *args.trace)))
         if args.baselines:

@@ -29,7 +29,7 @@ _LOST = 1.5
 class _Odometry(Protocol):
     """What the blend needs of the points' estimator (a RadarOdometry with ``point_yaw.use``)."""
 
-    def add_points(self, t: float, points: np.ndarray): ...
+    def add_points(self, t: float, points: np.ndarray, *, velocity=None): ...
 
     def add_velocity(self, est) -> None: ...
 
@@ -60,8 +60,8 @@ class HeadingBlend:
         the first): what a diagnosis holds the published heading against."""
         return None if self._last is None else self._last[:2]
 
-    def add_points(self, t: float, points: np.ndarray) -> None:
-        self.points.add_points(t, points)
+    def add_points(self, t: float, points: np.ndarray, *, velocity=None) -> None:
+        self.points.add_points(t, points, velocity=velocity)
 
     def add_velocity(self, est) -> None:
         self.points.add_velocity(est)

@@ -178,10 +178,13 @@ class RadarOdometry:
         return self._published
 
     # ------------------------------------------------------------------ velocity stream
-    def add_points(self, t: float, points: np.ndarray) -> VelocityEstimate:
+    def add_points(self, t: float, points: np.ndarray, *, velocity: VelocityEstimate | None = None
+                   ) -> VelocityEstimate:
         """Estimate the velocity from one point cloud (TI frame fields azimuth, elevation,
         velocity) taken at *t* and keep it for the heatmap frames around it; the estimate kept
-        (a wheeled base's on its axis without sideways slip: ``odometry.base``)."""
+        (a wheeled base's on its axis without sideways slip: ``odometry.base``).  *velocity*: one
+        measured otherwise at *t* (the ground truth's, in a diagnosis) kept instead of the fit; the
+        points still serve the points' yaw and the map of walls."""
         start = time.perf_counter()
         check_time(t, "point cloud")
         check_points(points, self._point_fields)
@@ -191,15 +194,21 @@ class RadarOdometry:
             self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN, inf or values past "
                                 f"{MAX_POINT_VALUE:g} in "
                                 f"{'/'.join(self._point_fields)}: left out")
-        est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
-        if self.velocities.level_speed is not None:
-            est = self.velocities.level_speed(t, points, est)
+        if velocity is not None:
+            check_velocity(velocity)
+            if velocity.t != t:
+                raise UsageError(f"velocity at t={velocity.t} given with the point cloud at t={t}")
+            est = velocity
+        else:
+            est = estimate_velocity(points, t, self.config.velocity, self.rng, self.velocities.reachable(t))
+            if self.velocities.level_speed is not None:
+                est = self.velocities.level_speed(t, points, est)
         est = self.velocities.add(est)
         if self.point_yaw is not None:
             self.point_yaw.add_points(t, points, est)
         self._velocity_s += time.perf_counter() - start
         if self.blend is not None:
-            self.blend.add_points(t, points)
+            self.blend.add_points(t, points, velocity=velocity)
         if self.walls is not None:
             self.walls.add_points(points)
         return est

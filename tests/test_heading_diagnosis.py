@@ -59,6 +59,36 @@ def test_the_trace_of_frames_outside_the_run_is_only_its_header(recording, capsy
     assert out[header + 1].startswith("  drift parts")
 
 
+def test_the_true_velocity_is_what_the_estimator_is_given_in_place_of_the_fit(recording, capsys):
+    """--true-velocity: each frame's velocity by the truth's poses (the radar's), body frame, fed
+    with the frame's points; every step's velocity is then the truth's at its middle, and the
+    drift the estimate's translation makes alone is the truth's sampling's."""
+    seq = sequences.load(recording)
+    config = hd.EstimatorConfig()
+    given = hd.true_velocities(seq, config)
+    assert [v.t for v in given] == list(seq.times)
+    speeds = np.hypot([v.vx for v in given], [v.vy for v in given])
+    # The loop drives at 0.8 m/s, forward (the radar on the axis does not slide), and stands.
+    moving = speeds > 0.75
+    assert moving.sum() > 10 and all(abs(v.vy) < 0.02 and v.vx > 0 for v, m in zip(given, moving) if m)
+    assert all(v.status == ("zero_velocity" if s < config.velocity.zero_velocity_threshold_mps else "ok")
+               for v, s in zip(given, speeds))
+    assert any(v.status == "zero_velocity" for v in given)
+    steps = 0
+    for i, state, _, _ in hd.run(seq, config, given):
+        if i and state.velocity is not None:
+            a, b = given[i - 1], given[i]
+            assert (state.velocity.vx, state.velocity.vy) == (pytest.approx(0.5 * (a.vx + b.vx), abs=1e-9),
+                                                              pytest.approx(0.5 * (a.vy + b.vy), abs=1e-9))
+            steps += 1
+    assert steps > 0.9 * len(seq)
+    assert hd.main([recording, "--true-velocity"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == os.path.basename(recording) + " (the estimator given the true velocity)"
+    parts = dict(item.rsplit(" ", 1) for item in out[-1].split(": ", 1)[1].split(", "))
+    assert float(parts["translation"]) < 0.5, out[-1]
+
+
 def test_the_baselines_give_each_turns_two_terms_apart(recording, capsys):
     # Each turn's field search given the true motion: its two-way ratio (the report's "field, true
     # translation" stage, for consecutive frames) and each of its terms' alone, which the straights'

@@ -22,6 +22,7 @@ from radarodom.errors import CaptureError, ConfigError, EvaluationError, SourceE
 from radarodom.estimator.config import EstimatorConfig, FeatureConfig, IcpConfig
 from radarodom.estimator.evaluation import evaluate
 from radarodom.estimator.odometry import RadarOdometry
+from radarodom.estimator.velocity import VelocityEstimate
 from radarodom.pipeline import HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, Sink, TumSink
 from radarodom.pipeline.sinks import OdometryJsonSink
 from radarodom.products import POINT_DTYPE, RangeAzimuth
@@ -286,6 +287,11 @@ def test_a_pipeline_runs_once(tmp_path):
                                               ("x", "f4"), ("y", "f4")])),
      "points: field velocity must be a real number a point (float), got <U8"),
     (lambda o: o.add_velocity(None), "velocity: a VelocityEstimate (radarodom.estimator.velocity), got NoneType"),
+    # A velocity measured otherwise, given with the points in place of their fit.
+    (lambda o: o.add_points(0.1, np.zeros(3, POINT_DTYPE), velocity=0.8),
+     "velocity: a VelocityEstimate (radarodom.estimator.velocity), got float"),
+    (lambda o: o.add_points(0.1, np.zeros(3, POINT_DTYPE), velocity=VelocityEstimate(t=0.2, vx=0.8, status="ok")),
+     "velocity at t=0.2 given with the point cloud at t=0.1"),
 ])
 def test_the_estimators_inputs_are_checked_where_they_come_in(call, words):
     with pytest.raises(UsageError) as info:
