@@ -48,9 +48,12 @@ the Doppler velocity's direction error's share in it (docs/heading.md, item 27).
 ``--true-velocity`` runs the estimator with each frame's velocity taken from the ground truth
 (the radar's, by its poses before and after) instead of its point cloud's fit, the points still
 given to the points' yaw and the map of walls: every figure above then says what is left once
-the Doppler velocity is right, the rectification, the static-cell tests and the 2-TX array's
-elevation from the Doppler included (the drift part ``translation`` falls to the truth's
-sampling); against a run without it, what the velocity's errors make.
+the Doppler velocity is right, in the steps' translation, the rectification and the static-cell
+tests (the drift part ``translation`` falls to the truth's sampling); against a run without it,
+what the velocity's errors make.  For a cloud without elevation (2 TX) the Doppler's elevation
+still reads the cells against the level fit's forward speed, as it is made to (given the true
+one, every cell reads farther off level and the turns in place of TI's profile_2d came out 1-3 %
+long).
 
 Last, what makes the drift (``drift parts``,
 :func:`radarodom.estimator.heading_metrics.drift_parts`): the estimate's drift, and the drift that
@@ -79,7 +82,7 @@ from radarodom.estimator.heading_metrics import (  # noqa: E402
     MOVING_MPS, STRAIGHT_RATE_DPS, _straight, drift_parts, straight_runs)
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
-from radarodom.estimator.velocity import VelocityEstimate, VelocityStatus  # noqa: E402
+from radarodom.estimator.velocity import VelocityEstimate, VelocityStatus, estimate_velocity  # noqa: E402
 from radarodom.tum import TumTrajectory  # noqa: E402
 
 STAGES = ("estimate", "field, true translation", "field, no translation")
@@ -134,9 +137,13 @@ class Step:
 def true_velocities(seq: sequences.Sequence, config: EstimatorConfig) -> list[VelocityEstimate]:
     """The radar's velocity at each frame by the ground truth (whose poses are the radar's), body
     frame, as velocity estimates: the central difference of the poses before and after (one-sided
-    at the ends), turned into the frame's heading; ``zero_velocity`` under the fit's threshold."""
+    at the ends), turned into the frame's heading; ``zero_velocity`` under the fit's threshold.
+    A cloud without elevation (every point's 0: a 2-TX array) keeps its level fit's forward speed
+    as the estimate's level velocity (``level_scale``: the truth's over the fit's), which is what
+    the Doppler's elevation reads cells against (docs/heading.md item 26)."""
     poses = truth(seq)
     t = np.asarray(seq.times, dtype=float)
+    rng = np.random.default_rng(config.velocity.seed)
     out = []
     for i in range(len(seq)):
         a, b = max(i - 1, 0), min(i + 1, len(seq) - 1)
@@ -144,8 +151,14 @@ def true_velocities(seq: sequences.Sequence, config: EstimatorConfig) -> list[Ve
         c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
         vx, vy = c * world[0] + s * world[1], -s * world[0] + c * world[1]
         still = math.hypot(vx, vy) < config.velocity.zero_velocity_threshold_mps
-        out.append(VelocityEstimate(t=float(t[i]), vx=vx, vy=vy, covariance=np.eye(2) * 1e-6,
-                                    status=VelocityStatus.ZERO if still else VelocityStatus.OK))
+        est = VelocityEstimate(t=float(t[i]), vx=vx, vy=vy, covariance=np.eye(2) * 1e-6,
+                               status=VelocityStatus.ZERO if still else VelocityStatus.OK)
+        points = seq.points[i]
+        if points is not None and len(points) and not np.any(points["elevation"]):
+            level = estimate_velocity(points, est.t, config.velocity, rng)
+            if level.ok and min(abs(level.vx), abs(vx)) > config.features.doppler_elevation_min_mps:
+                est.level_scale = vx / level.vx
+        out.append(est)
     return out
 
 

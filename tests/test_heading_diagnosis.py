@@ -3,6 +3,7 @@ each step's truth, estimate and error, summed, one line a frame."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import sys
@@ -74,6 +75,18 @@ def test_the_true_velocity_is_what_the_estimator_is_given_in_place_of_the_fit(re
     assert all(v.status == ("zero_velocity" if s < config.velocity.zero_velocity_threshold_mps else "ok")
                for v, s in zip(given, speeds))
     assert any(v.status == "zero_velocity" for v in given)
+    # This cfg's clouds measure elevation: nothing to keep of a level fit.
+    assert all(v.level_scale == 1.0 for v in given)
+    # Without elevation (as a 2-TX array's), each moving frame keeps its level fit's forward speed.
+    level = [p.copy() for p in seq.points]
+    for p in level:
+        p["elevation"] = 0.0
+    flat = hd.true_velocities(dataclasses.replace(seq, points=level), config)
+    fits = [hd.estimate_velocity(p, v.t, config.velocity, np.random.default_rng(config.velocity.seed))
+            for p, v in zip(level, flat)]
+    kept = [(v, f) for v, f in zip(flat, fits) if v.level_scale != 1.0]
+    assert len(kept) > 10 and all(v.level_velocity[0] == pytest.approx(f.vx, rel=0.05) for v, f in kept)
+    assert [(v.vx, v.vy) for v in flat] == [(v.vx, v.vy) for v in given]
     steps = 0
     for i, state, _, _ in hd.run(seq, config, given):
         if i and state.velocity is not None:
