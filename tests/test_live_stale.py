@@ -107,18 +107,20 @@ def test_a_first_packet_beyond_what_the_board_can_have_sent_is_stale(small_cfg):
 
 def test_data_sent_to_another_port_says_where_the_board_sends(small_capture, small_cfg):
     """The board answers its commands, but its data goes elsewhere (a data_port= or host= that is
-    not the EEPROM's): the message said 'Was the radar reset, or its cable moved?'."""
+    not the EEPROM's): the message said 'Was the radar reset, or its cable moved?'.  It comes after
+    the URL's data_timeout, which it names."""
     directory, _ = small_capture
     with EmulatedRig(f"replay://{directory}", config=small_cfg) as rig:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
             probe.bind((rig.host_ip, 0))
             elsewhere = probe.getsockname()[1]
-        url = rig.url(**URL_TIMEOUTS).replace(f"data_port={rig.data_port}", f"data_port={elsewhere}")
+        url = rig.url(**URL_TIMEOUTS, data_timeout=0.5).replace(f"data_port={rig.data_port}", f"data_port={elsewhere}")
         with open_source(url, small_cfg) as src:
             with pytest.raises(DeviceTimeout) as info:
                 collect(src, 1, timeout=30.0)
     message = str(info.value)
     assert f"no data packet of the DCA1000's reached {rig.host_ip}:{elsewhere} in " in message, message
+    assert "s since the radar started (data_timeout=0.5, frame period " in message, message
     assert "EEPROM (192.168.33.30:4098 unless changed)" in message and "data_port=" in message, message
 
 

@@ -8,9 +8,10 @@ URL; default found automatically), ``config_port`` / ``data_port`` (host ports,
 4096 / 4098), ``board_port`` (4096), ``delay`` (packet delay in us, 25),
 ``policy`` (``latest`` or ``queue``: which frames to drop when the consumer
 is slower than the radar), ``buffers`` (frames in the ring, 8), ``timeout``
-(seconds per board command, 1), ``start_timeout`` (seconds for sensorStart, 5) and
-``cli_timeout`` (seconds per radar CLI command, 2) and ``stop_timeout`` (seconds to wait
-for the board's RECORD_COMPLETED after RECORD_STOP, 3).
+(seconds per board command, 1), ``start_timeout`` (seconds for sensorStart, 5),
+``cli_timeout`` (seconds per radar CLI command, 2), ``stop_timeout`` (seconds to wait
+for the board's RECORD_COMPLETED after RECORD_STOP, 3) and ``data_timeout`` (seconds without a
+data packet before the stream is declared dead; 10 frame periods, at least 2).
 
 Start order: open and flush the data socket, configure the board, configure the
 radar, flush the data socket again (an earlier recording's packets that came
@@ -54,7 +55,7 @@ class LiveSource(Source):
 
     def __init__(self, config: RadarConfig, settings: Dca1000Settings, cli_url: str, *,
                  policy: str = "latest", buffers: int = 8, start_timeout_s: float = 5.0,
-                 cli_timeout_s: float = COMMAND_TIMEOUT_S) -> None:
+                 cli_timeout_s: float = COMMAND_TIMEOUT_S, data_timeout_s: float | None = None) -> None:
         super().__init__()
         config.check_raw_capture()
         note = uncalibrated_note(config)
@@ -69,7 +70,7 @@ class LiveSource(Source):
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.clock = FrameClock(config.frame_period_s)
         #: Seconds without any data packet before the stream is declared dead.
-        self.data_timeout_s = max(2.0, 10 * config.frame_period_s)
+        self.data_timeout_s = max(2.0, 10 * config.frame_period_s) if data_timeout_s is None else data_timeout_s
         self.fpga_version = None
         #: Frames handed to the consumer: whole, with zero-filled bytes, and those bytes
         #: (all of them; of them, lost on the way and cut at stop, each counted on its own).
@@ -219,7 +220,8 @@ class LiveSource(Source):
         what = (f"no data from the DCA1000 for {now - last:.1f} s since its last packet" if stats.packets else
                 f"no data packet of the DCA1000's reached {s.host_ip}:{s.data_port} in {now - started:.1f} s "
                 "since the radar started")
-        raise DeviceTimeout(f"{what} (frame period {self.config.frame_period_s:g} s).{hint}")
+        raise DeviceTimeout(f"{what} (data_timeout={self.data_timeout_s:g}, frame period "
+                            f"{self.config.frame_period_s:g} s).{hint}")
 
     def describe(self) -> dict:
         """The live stream's accounting, where every frame and every missing byte went.
@@ -311,6 +313,7 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
     stop_timeout = options.take("stop_timeout", positive_number, defaults.stop_timeout_s,
                                 "seconds to wait for RECORD_COMPLETED after RECORD_STOP")
+    data_timeout = options.take("data_timeout", positive_number, None, "seconds without a data packet")
     options.finish()
     for what, address in (("board address", board), ("host", host)):
         _check_ipv4(options.url, what, address)
@@ -334,7 +337,7 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
                           f"need {buffers * cfg.frame_bytes / 2**30:.1f} GiB of memory; at most "
                           f"{MAX_RING_BYTES // cfg.frame_bytes} with this cfg")
     return LiveSource(cfg, settings, cli, policy=policy, buffers=buffers, start_timeout_s=start_timeout,
-                      cli_timeout_s=cli_timeout)
+                      cli_timeout_s=cli_timeout, data_timeout_s=data_timeout)
 
 
 def _check_ipv4(url: str, what: str, address: str) -> None:
