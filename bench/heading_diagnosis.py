@@ -75,28 +75,20 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
+from sequences import true_velocities, truth  # noqa: E402,F401  (truth: turn_phases' too)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
-from radarodom.estimator.evaluation import associate  # noqa: E402
 from radarodom.estimator.heading_metrics import (  # noqa: E402
     MOVING_MPS, STRAIGHT_RATE_DPS, _straight, drift_parts, straight_runs)
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
-from radarodom.estimator.velocity import VelocityEstimate, VelocityStatus, estimate_velocity  # noqa: E402
-from radarodom.tum import TumTrajectory  # noqa: E402
+from radarodom.estimator.velocity import VelocityEstimate  # noqa: E402
 
 STAGES = ("estimate", "field, true translation", "field, no translation")
 
 
 def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
-def truth(seq: sequences.Sequence) -> np.ndarray:
-    """The true SE(2) poses (n, 3) at the sequence's frame times."""
-    stub = TumTrajectory.from_se2(seq.times, np.zeros((len(seq), 3)), source="frames")
-    _, ref = associate(stub, seq.groundtruth, 0.01)
-    return ref.se2()
 
 
 def step_motion(poses: np.ndarray, i: int, j: int) -> tuple[np.ndarray, float]:
@@ -132,34 +124,6 @@ class Step:
     estimate_rad: float
     field_rad: float | None
     flags: tuple[str, ...]
-
-
-def true_velocities(seq: sequences.Sequence, config: EstimatorConfig) -> list[VelocityEstimate]:
-    """The radar's velocity at each frame by the ground truth (whose poses are the radar's), body
-    frame, as velocity estimates: the central difference of the poses before and after (one-sided
-    at the ends), turned into the frame's heading; ``zero_velocity`` under the fit's threshold.
-    A cloud without elevation (every point's 0: a 2-TX array) keeps its level fit's forward speed
-    as the estimate's level velocity (``level_scale``: the truth's over the fit's), which is what
-    the Doppler's elevation reads cells against (docs/heading.md item 26)."""
-    poses = truth(seq)
-    t = np.asarray(seq.times, dtype=float)
-    rng = np.random.default_rng(config.velocity.seed)
-    out = []
-    for i in range(len(seq)):
-        a, b = max(i - 1, 0), min(i + 1, len(seq) - 1)
-        world = (poses[b, :2] - poses[a, :2]) / (t[b] - t[a]) if b > a else np.zeros(2)
-        c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
-        vx, vy = c * world[0] + s * world[1], -s * world[0] + c * world[1]
-        still = math.hypot(vx, vy) < config.velocity.zero_velocity_threshold_mps
-        est = VelocityEstimate(t=float(t[i]), vx=vx, vy=vy, covariance=np.eye(2) * 1e-6,
-                               status=VelocityStatus.ZERO if still else VelocityStatus.OK)
-        points = seq.points[i]
-        if points is not None and len(points) and not np.any(points["elevation"]):
-            level = estimate_velocity(points, est.t, config.velocity, rng)
-            if level.ok and min(abs(level.vx), abs(vx)) > config.features.doppler_elevation_min_mps:
-                est.level_scale = vx / level.vx
-        out.append(est)
-    return out
 
 
 def run(seq: sequences.Sequence, config: EstimatorConfig, velocities: list[VelocityEstimate] | None = None

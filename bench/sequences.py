@@ -7,13 +7,15 @@ and dominant Doppler), made by the pipeline radar-capture runs, so that estimato
 repeating the DSP.  The key names what made it: the DSP's source files, its FFT
 backend, the DspConfig and the radar cfg the recording is read with (its own, or
 another one: the same recording with and without a calibration line); a cache
-from anything else is made anew.
+from anything else is made anew.  The ground truth at a sequence's frames: :func:`truth` (poses)
+and :func:`true_velocities` (bench/heading_diagnosis.py --true-velocity).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import subprocess
 import sys
@@ -26,6 +28,9 @@ from radarodom.cfg import RadarConfig
 from radarodom.driver.sources import open_source
 from radarodom.dsp.config import DspConfig
 from radarodom.dsp.fft import resolve_backend
+from radarodom.estimator.config import EstimatorConfig
+from radarodom.estimator.evaluation import associate
+from radarodom.estimator.velocity import VelocityEstimate, VelocityStatus, estimate_velocity
 from radarodom.pipeline import FrameResult, Pipeline, Sink
 from radarodom.products import POINT_DTYPE, RangeAzimuth
 from radarodom.tum import TumTrajectory, read_tum
@@ -162,3 +167,37 @@ def load(directory: str, name: str | None = None, *, dsp_config: DspConfig | Non
                     read_tum(os.path.join(directory, "groundtruth.tum")),
                     data["elevation"] if data["elevation"].size else None)
 
+
+def truth(seq: Sequence) -> np.ndarray:
+    """The true SE(2) poses (n, 3) at the sequence's frame times."""
+    stub = TumTrajectory.from_se2(seq.times, np.zeros((len(seq), 3)), source="frames")
+    _, ref = associate(stub, seq.groundtruth, 0.01)
+    return ref.se2()
+
+
+def true_velocities(seq: Sequence, config: EstimatorConfig) -> list[VelocityEstimate]:
+    """The radar's velocity at each frame by the ground truth (whose poses are the radar's), body
+    frame, as velocity estimates: the central difference of the poses before and after (one-sided
+    at the ends), turned into the frame's heading; ``zero_velocity`` under the fit's threshold.
+    A cloud without elevation (every point's 0: a 2-TX array) keeps its level fit's forward speed
+    as the estimate's level velocity (``level_scale``: the truth's over the fit's), which is what
+    the Doppler's elevation reads cells against (docs/heading.md item 26)."""
+    poses = truth(seq)
+    t = np.asarray(seq.times, dtype=float)
+    rng = np.random.default_rng(config.velocity.seed)
+    out = []
+    for i in range(len(seq)):
+        a, b = max(i - 1, 0), min(i + 1, len(seq) - 1)
+        world = (poses[b, :2] - poses[a, :2]) / (t[b] - t[a]) if b > a else np.zeros(2)
+        c, s = math.cos(poses[i, 2]), math.sin(poses[i, 2])
+        vx, vy = c * world[0] + s * world[1], -s * world[0] + c * world[1]
+        still = math.hypot(vx, vy) < config.velocity.zero_velocity_threshold_mps
+        est = VelocityEstimate(t=float(t[i]), vx=vx, vy=vy, covariance=np.eye(2) * 1e-6,
+                               status=VelocityStatus.ZERO if still else VelocityStatus.OK)
+        points = seq.points[i]
+        if points is not None and len(points) and not np.any(points["elevation"]):
+            level = estimate_velocity(points, est.t, config.velocity, rng)
+            if level.ok and min(abs(level.vx), abs(vx)) > config.features.doppler_elevation_min_mps:
+                est.level_scale = vx / level.vx
+        out.append(est)
+    return out

@@ -16,6 +16,7 @@ import heading_diagnosis as hd  # noqa: E402
 import robustness_matrix as rm  # noqa: E402
 import sequences  # noqa: E402
 import turn_phases  # noqa: E402
+from radarodom.estimator.velocity import estimate_velocity  # noqa: E402
 
 #: A short loop (turns at 90 deg/s, straights of 0.5 m): a few seconds to record.
 CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
@@ -82,7 +83,7 @@ def test_the_true_velocity_is_what_the_estimator_is_given_in_place_of_the_fit(re
     for p in level:
         p["elevation"] = 0.0
     flat = hd.true_velocities(dataclasses.replace(seq, points=level), config)
-    fits = [hd.estimate_velocity(p, v.t, config.velocity, np.random.default_rng(config.velocity.seed))
+    fits = [estimate_velocity(p, v.t, config.velocity, np.random.default_rng(config.velocity.seed))
             for p, v in zip(level, flat)]
     kept = [(v, f) for v, f in zip(flat, fits) if v.level_scale != 1.0]
     assert len(kept) > 10 and all(v.level_velocity[0] == pytest.approx(f.vx, rel=0.05) for v, f in kept)
