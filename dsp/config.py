@@ -125,16 +125,18 @@ class DspConfig(Settings):
             if value < 1:
                 raise ConfigError(f"must be at least 1, got {value}", field=name)
         for name, lo, hi in (("range_skirt_db", 0.0, math.inf), ("azimuth_peak_snr_db", -math.inf, math.inf),
-                             ("azimuth_peak_ratio_db", -math.inf, 0.0)):
+                             ("azimuth_peak_ratio_db", -math.inf, 0.0),
+                             ("heatmap_doppler_between_bins_mps", 0.0, math.inf)):
             value = getattr(self, name)
-            if value is None and name == "range_skirt_db":
+            if value is None and name in ("range_skirt_db", "heatmap_doppler_between_bins_mps"):
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi \
                     or not math.isfinite(value):
                 bounds = {"range_skirt_db": "a finite number of dB >= 0 (or null: keep every detection)",
                           "azimuth_peak_snr_db": "a finite number of dB",
                           "azimuth_peak_ratio_db": "a finite number of dB <= 0 (a further peak is weaker "
-                                                   "than the first)"}[name]
+                                                   "than the first)",
+                          "heatmap_doppler_between_bins_mps": "a finite number of m/s >= 0 (or null: never)"}[name]
                 raise ConfigError(f"must be {bounds}, got {value!r}", field=name)
         for name in ("range_fft_size", "doppler_fft_size"):
             if getattr(self, name) is not None and getattr(self, name) < 2:
@@ -142,11 +144,6 @@ class DspConfig(Settings):
         check_choice(self.fft, BACKENDS, "fft")
         if self.second_peak_threshold is not None and not 0 < self.second_peak_threshold <= 1:
             raise ConfigError("must be in (0, 1]", field="second_peak_threshold")
-        between = self.heatmap_doppler_between_bins_mps
-        if between is not None and (isinstance(between, bool) or not isinstance(between, (int, float))
-                                    or not 0 <= between < math.inf):
-            raise ConfigError(f"must be a finite number of m/s >= 0 (or null: never), got {between!r}",
-                              field="heatmap_doppler_between_bins_mps")
         if self.min_range_m < 0:
             raise ConfigError(f"must be >= 0, got {self.min_range_m}", field="min_range_m")
         if self.max_range_m is not None and not self.max_range_m > self.min_range_m:
