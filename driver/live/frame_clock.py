@@ -1,5 +1,6 @@
 """Frame times for a live radar: the host's receive times of each frame's first packet, smoothed
-onto the radar's frame grid (:class:`FrameClock`; used by ``dca1000://`` and ``tidemo://``)."""
+onto the radar's frame grid (:class:`FrameClock`), and how long its stream may stay quiet
+(:func:`stream_timeout_s`); used by ``dca1000://`` and ``tidemo://``."""
 
 from __future__ import annotations
 
@@ -9,6 +10,12 @@ import logging
 from ...errors import DeviceError
 
 log = logging.getLogger(__name__)
+
+
+def stream_timeout_s(frame_period_s: float, given: float | None = None) -> float:
+    """Seconds without a packet before a live stream is declared dead: *given* (the URL's
+    ``data_timeout``), else 10 frame periods and at least 2 s."""
+    return max(2.0, 10 * frame_period_s) if given is None else given
 
 
 class FrameClock:

@@ -42,7 +42,7 @@ from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Settings
 from .dca1000_receiver import Dca1000Receiver
 from .dca1000_wire import BOARD_IP, DATA_PORT, HOST_IP, AsyncStatus
-from .frame_clock import FrameClock
+from .frame_clock import FrameClock, stream_timeout_s
 from .frame_ring import POLICIES, FrameRing
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, given_text, number_in, one_of, positive_number, udp_port
@@ -70,7 +70,7 @@ class LiveSource(Source):
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.clock = FrameClock(config.frame_period_s)
         #: Seconds without any data packet before the stream is declared dead.
-        self.data_timeout_s = max(2.0, 10 * config.frame_period_s) if data_timeout_s is None else data_timeout_s
+        self.data_timeout_s = stream_timeout_s(config.frame_period_s, data_timeout_s)
         self.fpga_version = None
         #: Frames handed to the consumer: whole, with zero-filled bytes, and those bytes
         #: (all of them; of them, lost on the way and cut at stop, each counted on its own).

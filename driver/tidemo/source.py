@@ -46,7 +46,7 @@ from ...calibration import CALIBRATION_COMMAND, uncalibrated_note
 from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
 from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
-from ..live.frame_clock import FrameClock
+from ..live.frame_clock import FrameClock, stream_timeout_s
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number, whole_in
 from .framer import TlvFramer
@@ -128,7 +128,7 @@ class TidemoSource(Source):
         self.clock = FrameClock(config.frame_period_s)
         self.frames = PacketFrames(self.geometry, self._stamp)
         #: Seconds without a packet before the stream is declared dead.
-        self.data_timeout_s = max(2.0, 10 * config.frame_period_s) if data_timeout_s is None else data_timeout_s
+        self.data_timeout_s = stream_timeout_s(config.frame_period_s, data_timeout_s)
         self.radar = Awr1843Cli(cli_url, start_timeout_s=start_timeout_s, command_timeout_s=cli_timeout_s)
         self.port: serial.SerialBase | None = None
         self._ring: collections.deque[Frame] = collections.deque()
