@@ -257,6 +257,12 @@ class PointYawConfig(Settings):
     range_noise_m: float = 0.05
     #: ... and at least this every way, m.
     position_floor_m: float = 0.05
+    #: Each map point weighed by the inverse of the map's density about it (the map's Gaussians
+    #: summed at its centre), so that a point is scored by whether the map has seen structure
+    #: where it lies, not by how often: a sum of Gaussians draws a point on a wall toward where the
+    #: map's frames saw it most often, on the matrix's scenes toward boresight on either side, a
+    #: turn a lopsided scene does not cancel (docs/heading.md item 38; off: not the default yet).
+    density_weighted: bool = False
     #: A point is static when its radial velocity is within this of a static reflector's, m/s.
     static_threshold_mps: float = 0.1
     #: Fewer static points than this in a frame, or map points than ``min_map_points``: no turn

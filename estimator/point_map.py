@@ -18,6 +18,7 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .config import PointYawConfig
 from .yaw_measurement import CurrentFrame, KeptFrame
@@ -42,6 +43,24 @@ def _gaussians(points: np.ndarray, origin: np.ndarray,
            * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
     sigma = np.sqrt(np.maximum(across, cfg.range_noise_m ** 2) + cfg.position_floor_m ** 2)
     return points, np.linalg.inv(cov), sigma
+
+
+def _log_density(centres: np.ndarray, inverse: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """The log of the map's density (m,) at each of its points *centres* (m, 2) m: the sum of
+    the map's Gaussians (inverse covariances *inverse* (m, 2, 2) 1/m^2, each 1 at its own centre)
+    there, its own included; a Gaussian further than three of its largest standard deviations
+    (*sigma* (m,) m) adds less than 0.011 and is left out."""
+    density = np.ones(len(centres))
+    if len(centres) < 2:
+        return np.zeros(len(centres))
+    pairs = cKDTree(centres).query_pairs(3.0 * float(sigma.max()), output_type="ndarray")
+    if len(pairs):
+        j, k = pairs[:, 0], pairs[:, 1]
+        d = centres[j] - centres[k]  # (pairs, 2) m
+        for a, b in ((j, k), (k, j)):  # b's Gaussian at a
+            m = np.einsum("pi,pij,pj->p", d, inverse[b], d)
+            density += np.bincount(a, weights=np.exp(-0.5 * m), minlength=len(centres))
+    return np.log(density)
 
 
 @dataclass
@@ -75,6 +94,7 @@ class LocalMap:
         #: deviations (:meth:`arrays`): placed once, so worked out once.
         self._frames: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=config.map_frames)
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._log_weights: np.ndarray | None = None
         #: The last frame's pose along the map's chain, and the odometry's.
         self.pose: tuple[float, float, float] | None = None
         self._odometry_pose: tuple[float, float, float] | None = None
@@ -147,4 +167,15 @@ class LocalMap:
             if not self._frames:
                 return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0)
             self._arrays = tuple(np.concatenate([f[i] for f in self._frames]) for i in range(3))
+            self._log_weights = None
         return self._arrays
+
+    def log_weights(self) -> np.ndarray | None:
+        """Each map point's log weight (m,) (``density_weighted``: minus the log of the map's
+        density there), None when unweighted."""
+        if not self._config.density_weighted:
+            return None
+        arrays = self.arrays()
+        if self._log_weights is None:
+            self._log_weights = -_log_density(*arrays)
+        return self._log_weights

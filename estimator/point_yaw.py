@@ -135,7 +135,7 @@ class _PairScore:
     quadratic form."""
 
     def __init__(self, xy: np.ndarray, origin: np.ndarray, centres: np.ndarray, inverse: np.ndarray,
-                 point: np.ndarray, near: np.ndarray, floor: float) -> None:
+                 point: np.ndarray, near: np.ndarray, floor: float, log_weight: np.ndarray | None = None) -> None:
         p = xy[point]  # (pairs, 2) m
         jp = np.stack([-p[:, 1], p[:, 0]], 1)  # p turned a quarter
         d = origin - centres[near]  # (pairs, 2) m
@@ -149,6 +149,8 @@ class _PairScore:
         # Times -1/2: the Gaussian's exponent, (5, pairs).
         self._terms = -0.5 * np.stack([form(d, d) + 0.5 * (pwp + jwj), 2.0 * form(d, p), 2.0 * form(d, jp),
                                        0.5 * (pwp - jwj), form(p, jp)])
+        if log_weight is not None:  # each map point's weight (``density_weighted``), in its constant
+            self._terms[0] += log_weight[near]
         self._n = len(xy)
         counts = np.bincount(point, minlength=self._n)
         self._has = counts > 0
@@ -227,8 +229,9 @@ class PointYaw:
             cos_el = None if self._elevation is None else self._elevation.points_cos_elevation(cloud)
             xy = static_points(cloud, own if own is not None else velocity, cfg.static_threshold_mps, cos_el)
         self.map.pending = (current.t, xy)
-        points = self._points_turn(xy, translation, -predicted)
         slow = self._slow(velocity, flags)
+        # At rest every frame sees the same: no lopsided density to take out (docs/heading.md item 38).
+        points = self._points_turn(xy, translation, -predicted, None if slow else self.map.log_weights())
         relocated = self._relocate(current, translation, -predicted) if slow else None
         heatmap = None
         if slow and (self._beside or points is None or relocated is not None):
@@ -304,18 +307,18 @@ class PointYaw:
         rad: what the held rate may have missed (``gap_widen_rad`` each, ``gap_widen_frames`` at most)."""
         return min(self._gap, self._config.gap_widen_frames) * self._config.gap_widen_rad
 
-    def _points_turn(self, xy: np.ndarray, translation: np.ndarray,
-                     predicted_turn: float) -> tuple[float, float] | None:
+    def _points_turn(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float,
+                     log_weight: np.ndarray | None = None) -> tuple[float, float] | None:
         """The static points' turn and variance (:meth:`_register`); where the search found no peak,
         with ``look_beyond`` a second search as far again beyond it, whose peak counts only outside
         the first (a rate held from a false turn puts the true one past the edge), unless the
         search is already wider by what steps the points did not measure may have missed: a look
         beyond that took a braking gap's few points to false turns (docs/heading.md item 32)."""
-        found = self._register(xy, translation, predicted_turn)
+        found = self._register(xy, translation, predicted_turn, log_weight=log_weight)
         cfg = self._config
         if found is not None or not cfg.look_beyond or self._gap_widen_rad > 0:
             return found
-        beyond = self._register(xy, translation, predicted_turn, cfg.search_rad, cfg.prior_rad)
+        beyond = self._register(xy, translation, predicted_turn, cfg.search_rad, cfg.prior_rad, log_weight=log_weight)
         if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad - cfg.step_rad:
             return None
         return beyond
@@ -335,12 +338,14 @@ class PointYaw:
                               cfg.relocate_step_rad)
 
     def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float, widen: float | None = None,
-                  prior_rad: float | None = None, step_rad: float | None = None) -> tuple[float, float] | None:
+                  prior_rad: float | None = None, step_rad: float | None = None,
+                  log_weight: np.ndarray | None = None) -> tuple[float, float] | None:
         """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by
         *translation* (2,) m in the previous frame's axes, best on the map, and its variance; None
         with too few points or map points, or no peak inside the search (widened by *widen* rad, by
         default after unmeasured steps; a prior of *prior_rad*, by default the widened one's; turns
-        every *step_rad*, by default ``step_rad``)."""
+        every *step_rad*, by default ``step_rad``; each map point's likelihood times the exponential
+        of its *log_weight* (m,), ``density_weighted``)."""
         cfg = self._config
         if self.map.pose is None or len(xy) < cfg.min_points:
             return None
@@ -359,7 +364,7 @@ class PointYaw:
             prior_rad = math.hypot(cfg.prior_rad, widen)
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets
-        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._floor)
+        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._floor, log_weight)
         score, best = _climb(lambda i: pairs.at(yaw0 + turns[i]), -0.5 * (offsets / prior_rad) ** 2,
                              max(1, round(cfg.coarse_step_rad / step)) if cfg.coarse_step_rad else 1)
         if best == 0 or best == len(score) - 1:
