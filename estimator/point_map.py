@@ -48,11 +48,11 @@ def _gaussians(points: np.ndarray, origin: np.ndarray,
 def _log_density(centres: np.ndarray, inverse: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """The log of the map's density (m,) at each of its points *centres* (m, 2) m: the sum of
     the map's Gaussians (inverse covariances *inverse* (m, 2, 2) 1/m^2, each 1 at its own centre)
-    there, its own included; a Gaussian further than three of its largest standard deviations
-    (*sigma* (m,) m) adds less than 0.011 and is left out."""
-    density = np.ones(len(centres))
+    there, its own included.  Pairs further apart than three of the map's largest standard
+    deviation (*sigma* (m,) m) are left out: each Gaussian adds less than 0.011 there."""
     if len(centres) < 2:
         return np.zeros(len(centres))
+    density = np.ones(len(centres))
     pairs = cKDTree(centres).query_pairs(3.0 * float(sigma.max()), output_type="ndarray")
     if len(pairs):
         j, k = pairs[:, 0], pairs[:, 1]

@@ -231,7 +231,7 @@ class PointYaw:
         self.map.pending = (current.t, xy)
         slow = self._slow(velocity, flags)
         # At rest every frame sees the same: no lopsided density to take out (docs/heading.md item 38).
-        points = self._points_turn(xy, translation, -predicted, None if slow else self.map.log_weights())
+        points = self._points_turn(xy, translation, -predicted, weighted=not slow)
         relocated = self._relocate(current, translation, -predicted) if slow else None
         heatmap = None
         if slow and (self._beside or points is None or relocated is not None):
@@ -308,17 +308,17 @@ class PointYaw:
         return min(self._gap, self._config.gap_widen_frames) * self._config.gap_widen_rad
 
     def _points_turn(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float,
-                     log_weight: np.ndarray | None = None) -> tuple[float, float] | None:
+                     weighted: bool = False) -> tuple[float, float] | None:
         """The static points' turn and variance (:meth:`_register`); where the search found no peak,
         with ``look_beyond`` a second search as far again beyond it, whose peak counts only outside
         the first (a rate held from a false turn puts the true one past the edge), unless the
         search is already wider by what steps the points did not measure may have missed: a look
         beyond that took a braking gap's few points to false turns (docs/heading.md item 32)."""
-        found = self._register(xy, translation, predicted_turn, log_weight=log_weight)
+        found = self._register(xy, translation, predicted_turn, weighted=weighted)
         cfg = self._config
         if found is not None or not cfg.look_beyond or self._gap_widen_rad > 0:
             return found
-        beyond = self._register(xy, translation, predicted_turn, cfg.search_rad, cfg.prior_rad, log_weight=log_weight)
+        beyond = self._register(xy, translation, predicted_turn, cfg.search_rad, cfg.prior_rad, weighted=weighted)
         if beyond is None or abs(beyond[0] - predicted_turn) <= cfg.search_rad - cfg.step_rad:
             return None
         return beyond
@@ -339,13 +339,13 @@ class PointYaw:
 
     def _register(self, xy: np.ndarray, translation: np.ndarray, predicted_turn: float, widen: float | None = None,
                   prior_rad: float | None = None, step_rad: float | None = None,
-                  log_weight: np.ndarray | None = None) -> tuple[float, float] | None:
+                  weighted: bool = False) -> tuple[float, float] | None:
         """The turn (rad, counter-clockwise) that lays the static points *xy* (n, 2), moved by
         *translation* (2,) m in the previous frame's axes, best on the map, and its variance; None
         with too few points or map points, or no peak inside the search (widened by *widen* rad, by
         default after unmeasured steps; a prior of *prior_rad*, by default the widened one's; turns
-        every *step_rad*, by default ``step_rad``; each map point's likelihood times the exponential
-        of its *log_weight* (m,), ``density_weighted``)."""
+        every *step_rad*, by default ``step_rad``; *weighted*: the map's weights, when
+        ``density_weighted`` makes them)."""
         cfg = self._config
         if self.map.pose is None or len(xy) < cfg.min_points:
             return None
@@ -364,7 +364,8 @@ class PointYaw:
             prior_rad = math.hypot(cfg.prior_rad, widen)
         point, near = self._pairs(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets
-        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._floor, log_weight)
+        pairs = _PairScore(xy, origin, centres, inverse, point, near, self._floor,
+                           self.map.log_weights() if weighted else None)
         score, best = _climb(lambda i: pairs.at(yaw0 + turns[i]), -0.5 * (offsets / prior_rad) ** 2,
                              max(1, round(cfg.coarse_step_rad / step)) if cfg.coarse_step_rad else 1)
         if best == 0 or best == len(score) - 1:

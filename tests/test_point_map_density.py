@@ -31,7 +31,7 @@ def _wall_turn(weighted: bool, frames: int, wall_m: float = 1.5, bin_m: float = 
     part.map.pose = (0.0, 0.0, 0.0)
     seen = ranges + 0.5 * bin_m  # the frame's own range bins fall between the map's
     xy = np.stack([np.sqrt(seen ** 2 - wall_m ** 2), np.full(len(seen), wall_m)], 1)
-    found = part._register(xy, np.zeros(2), 0.0, log_weight=part.map.log_weights())
+    found = part._register(xy, np.zeros(2), 0.0, weighted=True)
     assert found is not None
     return math.degrees(found[0])
 
@@ -46,7 +46,7 @@ def test_a_wall_seen_by_many_frames_turns_the_unweighted_points_and_not_the_weig
 
 
 def test_the_maps_density_is_its_gaussians_summed_at_each_point():
-    # Against every pair summed: those left out (beyond three of the larger spread) add little.
+    # Against every pair summed: those left out (beyond three of the map's largest spread) add little.
     rng = np.random.default_rng(4)
     points = np.concatenate([rng.uniform(0, 4, (150, 2)), rng.normal([2.0, 2.0], 0.1, (50, 2))])
     centres, inverse, sigma = _gaussians(points, np.zeros(2), EstimatorConfig().point_yaw)
