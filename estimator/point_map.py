@@ -18,9 +18,9 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .config import PointYawConfig
+from .map_density import MapDensity
 from .yaw_measurement import CurrentFrame, KeptFrame
 
 
@@ -43,24 +43,6 @@ def _gaussians(points: np.ndarray, origin: np.ndarray,
            * n[:, None, :] + cfg.position_floor_m ** 2 * np.eye(2))
     sigma = np.sqrt(np.maximum(across, cfg.range_noise_m ** 2) + cfg.position_floor_m ** 2)
     return points, np.linalg.inv(cov), sigma
-
-
-def _log_density(centres: np.ndarray, inverse: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-    """The log of the map's density (m,) at each of its points *centres* (m, 2) m: the sum of
-    the map's Gaussians (inverse covariances *inverse* (m, 2, 2) 1/m^2, each 1 at its own centre)
-    there, its own included.  Pairs further apart than three of the map's largest standard
-    deviation (*sigma* (m,) m) are left out: each Gaussian adds less than 0.011 there."""
-    if len(centres) < 2:
-        return np.zeros(len(centres))
-    density = np.ones(len(centres))
-    pairs = cKDTree(centres).query_pairs(3.0 * float(sigma.max()), output_type="ndarray")
-    if len(pairs):
-        j, k = pairs[:, 0], pairs[:, 1]
-        d = centres[j] - centres[k]  # (pairs, 2) m
-        for a, b in ((j, k), (k, j)):  # b's Gaussian at a
-            m = np.einsum("pi,pij,pj->p", d, inverse[b], d)
-            density += np.bincount(a, weights=np.exp(-0.5 * m), minlength=len(centres))
-    return np.log(density)
 
 
 @dataclass
@@ -94,6 +76,9 @@ class LocalMap:
         #: deviations (:meth:`arrays`): placed once, so worked out once.
         self._frames: deque[tuple[np.ndarray, np.ndarray, np.ndarray]] = deque(maxlen=config.map_frames)
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        #: The map's density at each of its points, kept as frames enter and leave
+        #: (``density_weighted``), and the weights last made from it.
+        self._density = MapDensity() if config.density_weighted else None
         self._log_weights: np.ndarray | None = None
         #: The last frame's pose along the map's chain, and the odometry's.
         self.pose: tuple[float, float, float] | None = None
@@ -156,9 +141,18 @@ class LocalMap:
             ref.steps += 1
         self._odometry_pose, self.pose, self.turn = pose, chained, None
         if self.pending is not None and self.pending[0] == current.t and len(self.pending[1]):
-            self._frames.append(_gaussians(_world(self.pending[1], chained), np.array(chained[:2]), self._config))
-            self._arrays = None
+            self.add(_gaussians(_world(self.pending[1], chained), np.array(chained[:2]), self._config))
         self.pending = None
+
+    def add(self, gaussians: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        """A frame's points placed in the world, with their Gaussians (:func:`_gaussians`), join the
+        map; its oldest frame leaves when it holds ``map_frames``."""
+        if self._density is not None:
+            if len(self._density) == self._frames.maxlen:
+                self._density.leave()
+            self._density.enter(gaussians)
+        self._frames.append(gaussians)
+        self._arrays = self._log_weights = None
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The map's points (m, 2) m, their Gaussians' inverse covariances (m, 2, 2), 1/m^2, and
@@ -167,15 +161,13 @@ class LocalMap:
             if not self._frames:
                 return np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0)
             self._arrays = tuple(np.concatenate([f[i] for f in self._frames]) for i in range(3))
-            self._log_weights = None
         return self._arrays
 
     def log_weights(self) -> np.ndarray | None:
         """Each map point's log weight (m,) (``density_weighted``: minus the log of the map's
         density there), None when unweighted."""
-        if not self._config.density_weighted:
+        if self._density is None:
             return None
-        arrays = self.arrays()
         if self._log_weights is None:
-            self._log_weights = -_log_density(*arrays)
+            self._log_weights = -self._density.log_density()
         return self._log_weights

@@ -12,7 +12,9 @@ import pytest
 
 from radarodom.estimator.config import EstimatorConfig
 from radarodom.estimator.odometry import RadarOdometry
-from radarodom.estimator.point_map import _gaussians, _log_density
+from radarodom.estimator.config import PointYawConfig
+from radarodom.estimator.map_density import MapDensity, gaussian_values
+from radarodom.estimator.point_map import LocalMap, _gaussians
 
 
 def _wall_turn(weighted: bool, frames: int, wall_m: float = 1.5, bin_m: float = 0.1) -> float:
@@ -27,7 +29,7 @@ def _wall_turn(weighted: bool, frames: int, wall_m: float = 1.5, bin_m: float = 
     for k in range(frames):
         origin = np.array([-0.08 * (frames - k), 0.0])
         wall = np.stack([origin[0] + np.sqrt(ranges ** 2 - wall_m ** 2), np.full(len(ranges), wall_m)], 1)
-        part.map._frames.append(_gaussians(wall, origin, part._config))
+        part.map.add(_gaussians(wall, origin, part._config))
     part.map.pose = (0.0, 0.0, 0.0)
     seen = ranges + 0.5 * bin_m  # the frame's own range bins fall between the map's
     xy = np.stack([np.sqrt(seen ** 2 - wall_m ** 2), np.full(len(seen), wall_m)], 1)
@@ -45,14 +47,32 @@ def test_a_wall_seen_by_many_frames_turns_the_unweighted_points_and_not_the_weig
     assert abs(weighted[2]) < 0.3 * unweighted[2]
 
 
-def test_the_maps_density_is_its_gaussians_summed_at_each_point():
-    # Against every pair summed: those left out (beyond three of the map's largest spread) add little.
-    rng = np.random.default_rng(4)
-    points = np.concatenate([rng.uniform(0, 4, (150, 2)), rng.normal([2.0, 2.0], 0.1, (50, 2))])
-    centres, inverse, sigma = _gaussians(points, np.zeros(2), EstimatorConfig().point_yaw)
+def _every_pair(centres: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """The map's density at each point, every pair summed (within the cut)."""
     d = centres[:, None] - centres[None]  # (m, m, 2): point j less point k
-    every = np.exp(-0.5 * np.einsum("jki,kil,jkl->jk", d, inverse, d)).sum(1)
-    found = np.exp(_log_density(centres, inverse, sigma))
-    assert found == pytest.approx(every, rel=0.03)
-    assert found.min() >= 1.0 and found[150:].mean() > 5 * found[:150].mean()  # the cluster is denser
-    assert _log_density(centres[:1], inverse[:1], sigma[:1]) == pytest.approx([0.0])
+    return gaussian_values(d.reshape(-1, 2), np.broadcast_to(inverse[None], (len(centres),) + inverse.shape)
+                           .reshape(-1, 2, 2)).reshape(len(centres), len(centres)).sum(1)
+
+
+def test_the_maps_density_kept_as_frames_enter_and_leave_is_its_gaussians_summed_at_each_point():
+    # Frames of a few points each, about a cluster, through a map of 6 frames: each time, the
+    # density kept equals every pair summed anew.
+    rng = np.random.default_rng(4)
+    config = PointYawConfig(map_frames=6, density_weighted=True)
+    local = LocalMap(config)
+    for n in range(15):
+        origin = np.array([0.3 * n, 0.0])
+        points = np.concatenate([rng.uniform(0, 4, (int(rng.integers(1, 12)), 2)), rng.normal([2.0, 2.0], 0.1, (5, 2))])
+        local.add(_gaussians(points, origin, config))
+        centres, inverse, _ = local.arrays()
+        assert len(centres) == sum(len(f[0]) for f in list(local._frames)[-6:])
+        assert np.exp(-local.log_weights()) == pytest.approx(_every_pair(centres, inverse), rel=1e-12)
+    found = np.exp(-local.log_weights())
+    assert found.min() >= 1.0 and found[-5:].mean() > 5 * found[:-5].min()  # the cluster is denser
+
+
+def test_the_density_of_a_map_of_one_point_is_one_and_of_none_empty():
+    density = MapDensity()
+    assert len(density.log_density()) == 0
+    density.enter(_gaussians(np.array([[1.0, 2.0]]), np.zeros(2), PointYawConfig()))
+    assert density.log_density() == pytest.approx([0.0])
