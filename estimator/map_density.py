@@ -30,7 +30,7 @@ def gaussian_values(d: np.ndarray, inverse: np.ndarray) -> np.ndarray:
     """The values (pairs,) of Gaussians (inverse covariances *inverse* (pairs, 2, 2) 1/m^2, 1 at
     their centres) at the offsets *d* (pairs, 2) m from their centres; 0 beyond the cut."""
     m = np.einsum("pi,pij,pj->p", d, inverse, d)
-    return np.where(m <= _CUT, np.exp(-0.5 * np.minimum(m, _CUT)), 0.0)
+    return np.where(m <= _CUT, np.exp(-0.5 * m), 0.0)
 
 
 @dataclass
@@ -40,21 +40,27 @@ class _FrameDensity:
     own: np.ndarray
     #: The Gaussians of each older frame in the map when it entered, at its points (older, k) ...
     older: np.ndarray
-    #: ... the first this many rows of which belong to frames that have left since.
-    left: int = 0
+    #: ... and how many frames had left the map by then (those leaving since own its first rows).
+    departed: int
 
-    def density(self) -> np.ndarray:
-        return self.own + self.older[self.left:].sum(0)
+    def density(self, departed: int) -> np.ndarray:
+        """Its density (k,) once *departed* frames in all have left the map."""
+        return self.own + self.older[departed - self.departed:].sum(0)
 
 
 class MapDensity:
-    """The density at each point of a map of frames (:meth:`enter`, :meth:`leave`)."""
+    """The density at each point of a map of the last *frames* frames (:meth:`enter`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, frames: int) -> None:
         self._frames: deque[_FrameDensity] = deque()
+        self._capacity = frames
+        self._departed = 0
 
     def enter(self, gaussians: Gaussians) -> None:
-        """A frame's *gaussians* join the map, the newest."""
+        """A frame's *gaussians* join the map, the newest; its oldest frame leaves when it is full."""
+        if len(self._frames) == self._capacity:
+            self._frames.popleft()
+            self._departed += 1
         points, inverse, sigma = gaussians
         own = np.ones(len(points))
         if len(points) > 1:
@@ -77,19 +83,10 @@ class MapDensity:
             owner = np.repeat(np.arange(len(sizes)), sizes)[j]
             older = np.bincount(owner * len(points) + i, gaussian_values(d, inverses[j]),
                                 older.size).reshape(older.shape)
-        self._frames.append(_FrameDensity(gaussians, own, older))
-
-    def leave(self) -> None:
-        """The map's oldest frame leaves it."""
-        self._frames.popleft()
-        for frame in self._frames:
-            frame.left += 1
-
-    def __len__(self) -> int:
-        return len(self._frames)
+        self._frames.append(_FrameDensity(gaussians, own, older, self._departed))
 
     def log_density(self) -> np.ndarray:
         """The log of the density (m,) at each of the map's points, oldest frame's first."""
         if not self._frames:
             return np.zeros(0)
-        return np.log(np.concatenate([f.density() for f in self._frames]))
+        return np.log(np.concatenate([f.density(self._departed) for f in self._frames]))

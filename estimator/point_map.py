@@ -78,7 +78,7 @@ class LocalMap:
         self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         #: The map's density at each of its points, kept as frames enter and leave
         #: (``density_weighted``), and the weights last made from it.
-        self._density = MapDensity() if config.density_weighted else None
+        self._density = MapDensity(config.map_frames) if config.density_weighted else None
         self._log_weights: np.ndarray | None = None
         #: The last frame's pose along the map's chain, and the odometry's.
         self.pose: tuple[float, float, float] | None = None
@@ -148,8 +148,6 @@ class LocalMap:
         """A frame's points placed in the world, with their Gaussians (:func:`_gaussians`), join the
         map; its oldest frame leaves when it holds ``map_frames``."""
         if self._density is not None:
-            if len(self._density) == self._frames.maxlen:
-                self._density.leave()
             self._density.enter(gaussians)
         self._frames.append(gaussians)
         self._arrays = self._log_weights = None

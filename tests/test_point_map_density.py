@@ -10,9 +10,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from radarodom.estimator.config import EstimatorConfig
+from radarodom.estimator.config import EstimatorConfig, PointYawConfig
 from radarodom.estimator.odometry import RadarOdometry
-from radarodom.estimator.config import PointYawConfig
 from radarodom.estimator.map_density import MapDensity, gaussian_values
 from radarodom.estimator.point_map import LocalMap, _gaussians
 
@@ -72,7 +71,7 @@ def test_the_maps_density_kept_as_frames_enter_and_leave_is_its_gaussians_summed
 
 
 def test_the_density_of_a_map_of_one_point_is_one_and_of_none_empty():
-    density = MapDensity()
+    density = MapDensity(80)
     assert len(density.log_density()) == 0
     density.enter(_gaussians(np.array([[1.0, 2.0]]), np.zeros(2), PointYawConfig()))
     assert density.log_density() == pytest.approx([0.0])
