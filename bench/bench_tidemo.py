@@ -4,6 +4,7 @@ its per-frame cost on the host, and the odometry's accuracy on the simulator's s
     python bench/bench_tidemo.py cost [--rounds 3] [--frames 40] [--data DIR]
     python bench/bench_tidemo.py accuracy [--scenes corridor room lab] [--seeds 0 1 2]
                                           [--thresholds 15 10] [--data DIR] [--json FILE]
+                                          [--settings FILE.json]
 
 ``cost``: per frame, the host's share of each path.  UART: framing a packet, parsing it, its points
 and static antenna values, and their heatmap (``dsp.static_heatmap``); raw: the DSP on the cube
@@ -21,7 +22,9 @@ estimators: the raw path's defaults (``EstimatorConfig()``), and on the UART pat
 radar-capture takes for a tidemo source (``pipeline.source_estimator``: ``EstimatorConfig.tidemo()``)
 and, for comparison, the defaults.  Yaw-increment RMSE (deg per frame, overall and by kind of step:
 straight or turning, moving or not) and drift (% of the path) against the ground truth
-(``radarodom.estimator.evaluation``), and the points a frame.
+(``radarodom.estimator.evaluation``), and the points a frame.  ``--settings FILE.json`` lays
+settings over every estimator (``EstimatorConfig.with_``'s sections, e.g. ``{"point_yaw":
+{"density_weighted": true}}``) to measure a change on both paths.
 
 The cfg: the shipped one with 128 ADC samples (``configs/awr1843_raw.cfg`` at 10 frames/s; its 256
 samples make an 8 KB heatmap the 921600-baud UART cannot carry in the 73 ms between frames), the
@@ -147,14 +150,16 @@ def measure(seq, config: EstimatorConfig) -> dict:
             "final_yaw_error_deg": float(errors.sum()), "flagged": flagged, "by_kind": by_kind}
 
 
-def accuracy(scenes: list[str], seeds: list[int], thresholds: list[float], data: str) -> dict:
+def accuracy(scenes: list[str], seeds: list[int], thresholds: list[float], data: str,
+             settings: dict | None = None) -> dict:
+    raw_config, uart_config = (c.with_(**(settings or {})) for c in (EstimatorConfig(), EstimatorConfig.tidemo()))
     out: dict = {}
     for scene in scenes:
         for seed in seeds:
             key = f"{scene}/{seed}"
             started = time.monotonic()
             directory = tidemo_sequences.record(scene, seed, data)
-            row = {"raw": measure(tidemo_sequences.raw(directory), EstimatorConfig())}
+            row = {"raw": measure(tidemo_sequences.raw(directory), raw_config)}
             for threshold in thresholds:
                 seq, points = tidemo_sequences.uart(directory, threshold)
                 cfg = tidemo_cfg(threshold)
@@ -164,14 +169,21 @@ def accuracy(scenes: list[str], seeds: list[int], thresholds: list[float], data:
                 extra = {"points_mean": float(pts.mean()), "points_p90": float(np.percentile(pts, 90)),
                          "frames_without_points": int(np.sum(pts == 0)),
                          "frames_over_uart_budget": int(np.sum(pts > budget)), "uart_budget_points": budget}
-                row[f"{threshold:g} dB"] = measure(seq, EstimatorConfig.tidemo()) | extra
-                row[f"{threshold:g} dB, default estimator"] = measure(seq, EstimatorConfig()) | extra
+                row[f"{threshold:g} dB"] = measure(seq, uart_config) | extra
+                row[f"{threshold:g} dB, default estimator"] = measure(seq, raw_config) | extra
             out[key] = row
             print(f"{key} ({time.monotonic() - started:.0f} s): " + "; ".join(
                 f"{n}: yaw {v['yaw_rmse_deg']:.2f} deg, drift {v['drift_pct']:.1f} %"
                 + (f", {v['points_mean']:.1f} points" if "points_mean" in v else "") for n, v in row.items()),
                 flush=True)
     return out
+
+
+def _settings(path: str | None) -> dict | None:
+    if path is None:
+        return None
+    with open(path, encoding="utf-8") as fh:
+        return json.load(fh)
 
 
 def main(argv=None) -> int:
@@ -184,12 +196,13 @@ def main(argv=None) -> int:
     a.add_argument("--scenes", nargs="+", default=["corridor", "room", "lab"])
     a.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     a.add_argument("--thresholds", nargs="+", type=float, default=[15.0, 10.0])
+    a.add_argument("--settings", metavar="FILE.json", help="settings laid over every estimator (JSON sections)")
     for p in (c, a):
         p.add_argument("--data", default=tidemo_sequences.DATA, help="the simulated sequences' cache")
         p.add_argument("--json", metavar="FILE")
     args = parser.parse_args(argv)
     result = (cost(args.rounds, args.frames, args.data) if args.what == "cost"
-              else accuracy(args.scenes, args.seeds, args.thresholds, args.data))
+              else accuracy(args.scenes, args.seeds, args.thresholds, args.data, _settings(args.settings)))
     result = {"machine": f"{platform.machine()} {os.cpu_count()} cores, {platform.python_version()}",
               "date": time.strftime("%Y-%m-%d"), "what": args.what, "result": result}
     if args.json:

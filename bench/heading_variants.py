@@ -17,3 +17,6 @@ HEATMAPS_ALONE = {"point_yaw": {"blend": 0.0}, **NO_WALL_MAP}
 #: changes made since).
 FOUR_OPTIONS_OFF = {"icp": {"score_support": "inside", "reject_moving_mps": None},
                     "features": {"elevation": "ignore"}, "odometry": {"rectification": "velocity"}}
+
+#: Item 38 on: the points' map's points weighed by the map's density around them.
+DENSITY_WEIGHTED = {"point_yaw": {"density_weighted": True}}
