@@ -18,5 +18,6 @@ HEATMAPS_ALONE = {"point_yaw": {"blend": 0.0}, **NO_WALL_MAP}
 FOUR_OPTIONS_OFF = {"icp": {"score_support": "inside", "reject_moving_mps": None},
                     "features": {"elevation": "ignore"}, "odometry": {"rectification": "velocity"}}
 
-#: Item 38 on: the points' map's points weighed by the map's density around them.
-DENSITY_WEIGHTED = {"point_yaw": {"density_weighted": True}}
+#: Item 38 off: the points' map's points not weighed by the map's density around them (the
+#: defaults before 2026-12-05's fourteenth session).
+NO_DENSITY_WEIGHTS = {"point_yaw": {"density_weighted": False}}

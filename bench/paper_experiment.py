@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
-from heading_variants import DENSITY_WEIGHTED, FOUR_OPTIONS_OFF, LAG_GIVEN_TWICE, NO_WALL_MAP  # noqa: E402
+from heading_variants import FOUR_OPTIONS_OFF, LAG_GIVEN_TWICE, NO_DENSITY_WEIGHTS, NO_WALL_MAP  # noqa: E402
 
 from radarodom.estimator.config import EstimatorConfig, paper_variants  # noqa: E402
 from radarodom.estimator.evaluation import evaluate  # noqa: E402
@@ -92,7 +92,7 @@ def research_variants() -> dict[str, tuple[str, EstimatorConfig]]:
         "default without the wall map (before 2026-12-04)": d.with_(**NO_WALL_MAP),
         "default, the filter's lag unbounded and given twice (before item 36)": d.with_(**LAG_GIVEN_TWICE),
         "default without the four heading options (2026-11-25)": d.with_(**FOUR_OPTIONS_OFF),
-        "default, the points' map weighed by its density (item 38)": d.with_(**DENSITY_WEIGHTED),
+        "default, the points' map unweighted by its density (before item 38)": d.with_(**NO_DENSITY_WEIGHTS),
     }
     return {k: ("beyond", v) for k, v in out.items()}
 

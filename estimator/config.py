@@ -322,7 +322,8 @@ class EstimatorConfig(Settings):
         heatmap's cells not weighed by their peak's shape (docs/tidemo.md: the chip's static
         heatmap is not the raw one those weights were measured on), its speed not scaled to the
         level reflectors' edge (its Doppler on the chip's bins: not measured there), no map of
-        wall directions (not measured on the chip's few points) and no bound on the yaw-rate
+        wall directions (not measured on the chip's few points), its points' map unweighted by its
+        density (on the demo's sequences, seed 0, it moved the yaw both ways) and no bound on the yaw-rate
         filter's lag (made the default with the keyframes' payments of the lag, which the points'
         yaw does not make: alone, on the demo's sequences, it raised the yaw RMSE and a lab run's
         drift to 5.0 %, docs/tidemo.md)."""
@@ -367,7 +368,7 @@ TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bear
                               "level_edge_quantile": None},
                  "icp": {"field_shape_width": None},
                  "odometry": {"yaw_filter_max_lag_rad": None},
-                 "point_yaw": {"use": True}, "wall_map": {"use": False}}
+                 "point_yaw": {"use": True, "density_weighted": False}, "wall_map": {"use": False}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).
 PRESETS = {"tidemo": TIDEMO_PRESET}

@@ -261,8 +261,9 @@ class PointYawConfig(Settings):
     #: summed at its centre), so that a point is scored by whether the map has seen structure
     #: where it lies, not by how often: a sum of Gaussians draws a point on a wall toward where the
     #: map's frames saw it most often, on the matrix's scenes toward boresight on either side, a
-    #: turn a lopsided scene does not cancel (docs/heading.md item 38; off: not the default yet).
-    density_weighted: bool = False
+    #: turn a lopsided scene does not cancel (docs/heading.md item 38; off in TI's demo preset,
+    #: whose few points a frame make a sparse map).
+    density_weighted: bool = True
     #: A point is static when its radial velocity is within this of a static reflector's, m/s.
     static_threshold_mps: float = 0.1
     #: Fewer static points than this in a frame, or map points than ``min_map_points``: no turn

@@ -395,6 +395,10 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
     # 36), which the points' yaw does not make: alone it did worse on the demo's sequences.
     assert preset.odometry.yaw_filter_max_lag_rad is None and default.odometry.yaw_filter_max_lag_rad is not None
     assert same["odometry"] == {**default.to_dict()["odometry"], "yaw_filter_max_lag_rad": None}
+    # The map's density weights (docs/heading.md item 38) were measured on the raw path's maps,
+    # not on the chip's sparse ones.
+    assert default.point_yaw.density_weighted and not preset.point_yaw.density_weighted
+    assert same["point_yaw"] == {**default.to_dict()["point_yaw"], "use": True, "density_weighted": False}
     assert EstimatorConfig.from_dict(same) == preset
 
 
