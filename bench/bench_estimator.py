@@ -4,8 +4,8 @@
                                     [--rounds 3] [--json FILE]
 
 Runs :class:`radarodom.estimator.odometry.RadarOdometry` with the defaults (and with some of them
-off: the yaw-rate filter's lag bound, the map of wall directions, ``wall_map.use``, the points'
-registration, the heading options)
+off: the points' map's density weights, the yaw-rate filter's lag bound, the map of wall
+directions, ``wall_map.use``, the points' registration, the heading options)
 and with the paper's method on simulated sequences (recorded with ``radar-sim`` and put through
 the DSP once, as ``paper_experiment.py`` does, cached in --data) and reports the median and 90th
 percentile of ``OdometryState.compute_s`` (everything the estimator does for a frame: the
@@ -33,7 +33,8 @@ import scipy.fft
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
-from heading_variants import FOUR_OPTIONS_OFF, HEATMAPS_ALONE, LAG_GIVEN_TWICE, NO_WALL_MAP  # noqa: E402
+from heading_variants import (  # noqa: E402
+    FOUR_OPTIONS_OFF, HEATMAPS_ALONE, LAG_GIVEN_TWICE, NO_DENSITY_WEIGHTS, NO_WALL_MAP)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
@@ -68,8 +69,10 @@ def timed_configs() -> dict[str, EstimatorConfig]:
     """The estimator configs timed: the defaults, each of issue 20's heading changes off for its cost, the paper's."""
     default = EstimatorConfig()
     return {"default": default,
-            # Each for its cost: the yaw-rate filter's lag unbounded and given again after the
-            # keyframes (issue 20's item 36 off), ...
+            # Each for its cost: the points' map unweighted by its density (issue 20's item 38 off), ...
+            "default, the points' map unweighted by its density": default.with_(**NO_DENSITY_WEIGHTS),
+            # ... the yaw-rate filter's lag unbounded and given again after the keyframes (item 36
+            # off), ...
             "default, the filter's lag unbounded and given twice": default.with_(**LAG_GIVEN_TWICE),
             # ... the map of wall directions off (item 35), ...
             "default without the wall map": default.with_(**NO_WALL_MAP),
@@ -106,9 +109,9 @@ def main(argv=None) -> int:
                          "x_anchor": float(np.median(ms)) / anchor})
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
           f"numpy {np.__version__}, scipy {scipy.__version__}")
-    print(f"{'round':>5} {'anchor ms':>9}  {'config':<42} {'sequence':<12} {'median ms':>9} {'p90 ms':>7} {'x anchor':>8}")
+    print(f"{'round':>5} {'anchor ms':>9}  {'config':<52} {'sequence':<12} {'median ms':>9} {'p90 ms':>7} {'x anchor':>8}")
     for r in rows:
-        print(f"{r['round']:>5} {r['anchor_ms']:>9.2f}  {r['config']:<42} {r['sequence']:<12} "
+        print(f"{r['round']:>5} {r['anchor_ms']:>9.2f}  {r['config']:<52} {r['sequence']:<12} "
               f"{r['median_ms']:>9.2f} {r['p90_ms']:>7.2f} {r['x_anchor']:>8.2f}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:

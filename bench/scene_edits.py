@@ -8,6 +8,7 @@ docs/heading.md, "Driving close past furniture").
     python bench/scene_edits.py CELL --only --out DIR        # the walls alone
     python bench/scene_edits.py CELL --flat --out DIR        # every scatterer at the radar's height
     python bench/scene_edits.py CELL --azimuth-hpbw 130 --out DIR   # a wider beam in azimuth
+    python bench/scene_edits.py CELL --mirror --out DIR     # the scene and its loop mirrored left to right
     python bench/heading_diagnosis.py DIR --straights 1      # then each straight, chain by chain
 
 CELL is a simulated cell's name as bench/robustness_matrix.py writes it. The edited scene file is
@@ -15,12 +16,16 @@ written beside the recording (DIR.scene.json). Nothing is left out but what is n
 recording is the cell's own, value for value, when no object is left out (radar-sim is
 deterministic for a seed), so the differences are the objects'. ``--flat`` and the beam widths
 edit the scene's radar instead (docs/heading.md, "The turns in place's length"): the scene file's
-``flat`` and ``[radar]`` ``azimuth_hpbw_deg`` / ``elevation_hpbw_deg``.
+``flat`` and ``[radar]`` ``azimuth_hpbw_deg`` / ``elevation_hpbw_deg``. ``--mirror`` takes the scene
+and its loop's turns to their mirror image (y -> -y), the seed's scatterers with them: the cell and its
+mirror image differ by the receiver noise and by any handedness of the simulator, the DSP or the
+estimator (docs/heading.md, "Straight drives still turn").
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import sys
 
@@ -76,6 +81,44 @@ def edited(spec: dict, without: list[int] | None = None, only: list[int] | None 
     return out
 
 
+def _mirror_xy(p) -> list:
+    return [p[0], -p[1], *p[2:]]
+
+
+def mirrored(spec: dict) -> dict:
+    """*spec* (a scene table) mirrored left to right about its x axis: walls, objects (a door's posts
+    swapped, so that its recess stays behind it), movers' paths, the surfaces, and the trajectory's
+    start, turns and mounting."""
+    out = copy.deepcopy(spec)
+    for wall in out.get("walls", []):
+        wall["points"] = [_mirror_xy(p) for p in wall["points"]]
+    for obj in out.get("objects", []):
+        for key in ("center", "position"):
+            if key in obj:
+                obj[key] = _mirror_xy(obj[key])
+        if "yaw" in obj:
+            obj["yaw"] = -obj["yaw"]
+        if obj.get("type") == "door":
+            obj["a"], obj["b"] = _mirror_xy(obj["b"]), _mirror_xy(obj["a"])
+    for mover in out.get("movers", []):
+        mover["path"] = [_mirror_xy(p) for p in mover["path"]]
+    if "surfaces" in out:
+        lo, hi = out["surfaces"]["min"], out["surfaces"]["max"]
+        out["surfaces"]["min"], out["surfaces"]["max"] = [lo[0], -hi[1]], [hi[0], -lo[1]]
+    trajectory = out["trajectory"]
+    for key in ("start", "mount"):
+        if key in trajectory:
+            x, y, yaw = trajectory[key]
+            trajectory[key] = [x, -y, -yaw]
+    for segment in trajectory.get("segments", []):
+        for key in ("turn", "rotate"):
+            if key in segment:
+                segment[key] = -segment[key]
+    if "waypoints" in trajectory:
+        trajectory["waypoints"] = [_mirror_xy(p) for p in trajectory["waypoints"]]
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("cell", metavar="CELL",
@@ -91,6 +134,8 @@ def main(argv=None) -> int:
                         help="the antennas' half-power beam width in azimuth (the simulator's: 100)")
     parser.add_argument("--elevation-hpbw", type=float, metavar="DEG",
                         help="the same in elevation (the simulator's: 40)")
+    parser.add_argument("--mirror", action="store_true",
+                        help="the scene and its loop mirrored left to right (y -> -y)")
     parser.add_argument("--out", metavar="DIR", help="the recording's directory (replaced)")
     args = parser.parse_args(argv)
     try:
@@ -108,6 +153,8 @@ def main(argv=None) -> int:
                                           ("elevation_hpbw_deg", args.elevation_hpbw)) if value is not None}
     try:
         spec = edited(spec, args.without, args.only, flat=args.flat, beam=beam)
+        if args.mirror:
+            spec = mirrored(spec)
     except ValueError as exc:
         parser.error(str(exc))
     try:  # radar-sim's own check, before it runs: a beam width out of range, named
@@ -115,7 +162,8 @@ def main(argv=None) -> int:
     except ConfigError as exc:
         parser.error(str(exc))
     simulate(spec, cell, os.path.abspath(args.out))
-    radar = "".join([", flat" if args.flat else ""] + [f", {key} {value:g}" for key, value in beam.items()])
+    radar = "".join([", flat" if args.flat else "", ", mirrored" if args.mirror else ""]
+                    + [f", {key} {value:g}" for key, value in beam.items()])
     print(f"{args.out}: {cell.name} with {len(spec['objects'])} object(s){radar}")
     return 0
 
