@@ -236,6 +236,18 @@ def frame(world_xy: np.ndarray, amplitude: np.ndarray, pose, velocity_xy, rng: n
     return cloud, hm
 
 
+def frames(trajectory: Trajectory, *, seed: int = 2, n_reflectors: int = 40) -> list:
+    """(t, cloud, heatmap) of every frame at 10 Hz along *trajectory* among :func:`scene`'s
+    *n_reflectors* (the world of *seed*, the noise of seed + 100)."""
+    world, amp = scene(trajectory, n_reflectors, seed=seed)
+    rng = np.random.default_rng(seed + 100)
+    out = []
+    for i in range(round(trajectory.duration * 10) + 1):
+        vx, vy, _ = trajectory.twist(i / 10)
+        out.append((i / 10, *frame(world, amp, trajectory.pose(i / 10), (vx, vy), rng)))
+    return out
+
+
 #: Twelve point reflectors 2.5-10 m from the origin, over +/- 50 degrees of bearing (m, world): a
 #: scene whose heatmaps register (the odometry's and the keyframes' tests).
 _SCENE_R = np.array([3.0, 5.0, 7.0, 4.0, 9.0, 6.0, 8.0, 2.5, 5.5, 10.0, 6.5, 3.5])

@@ -18,16 +18,6 @@ DRIVE = synth.Trajectory([(1.0, 0.8, 0.0), (2.0, 0.8, math.radians(40.0)), (1.0,
                           (2.0, 0.0, math.radians(60.0)), (0.5, 0.0, 0.0)])
 
 
-def _frames(trajectory, seed=2):
-    world, amp = synth.scene(trajectory, 40, seed=seed)
-    rng = np.random.default_rng(seed + 100)
-    out = []
-    for i in range(round(trajectory.duration * 10) + 1):
-        vx, vy, _ = trajectory.twist(i / 10)
-        out.append((i / 10, *synth.frame(world, amp, trajectory.pose(i / 10), (vx, vy), rng)))
-    return out
-
-
 def _state(s):
     return (s.t, s.x, s.y, s.yaw, s.vx, s.vy, s.yaw_rate, s.yaw_increment, s.flags, s.features,
             s.pose_covariance.tobytes(), s.twist_covariance.tobytes())
@@ -38,7 +28,7 @@ def _state(s):
                          ids=["no Doppler elevation", "default", "wheeled, radar ahead of the axis"])
 def test_each_chain_of_the_blend_gets_to_the_bit_what_it_makes_alone(changes):
     config = EstimatorConfig().with_(**changes)
-    frames = _frames(DRIVE)
+    frames = synth.frames(DRIVE)
     blend = RadarOdometry(config)
     # Each chain alone as the blend runs it: the map of wall directions corrects only what the
     # blend publishes.

@@ -20,16 +20,6 @@ LOOP = synth.Trajectory([(1.0, 0.8, 0.0), (2.0, 0.8, math.radians(45.0)), (1.0, 
                          (3.0, 0.0, math.radians(60.0)), (1.5, 0.8, 0.0)])
 
 
-def _frames(seed: int = 3) -> list:
-    world, amp = synth.scene(LOOP, 40, seed=seed)
-    rng = np.random.default_rng(seed + 100)
-    out = []
-    for i in range(round(LOOP.duration * 10) + 1):
-        vx, vy, _ = LOOP.twist(i / 10)
-        out.append((i / 10, *synth.frame(world, amp, LOOP.pose(i / 10), (vx, vy), rng)))
-    return out
-
-
 def _mirrored(cloud: np.ndarray, hm):
     cloud = cloud.copy()
     cloud["x"], cloud["azimuth"] = -cloud["x"], -cloud["azimuth"]
@@ -46,7 +36,7 @@ def _yaws(config: EstimatorConfig, frames) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def frames():
-    return _frames()
+    return synth.frames(LOOP, seed=3)
 
 
 @pytest.mark.parametrize("config", [synth.heatmap_chain(), EstimatorConfig()],
