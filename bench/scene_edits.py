@@ -17,9 +17,10 @@ recording is the cell's own, value for value, when no object is left out (radar-
 deterministic for a seed), so the differences are the objects'. ``--flat`` and the beam widths
 edit the scene's radar instead (docs/heading.md, "The turns in place's length"): the scene file's
 ``flat`` and ``[radar]`` ``azimuth_hpbw_deg`` / ``elevation_hpbw_deg``. ``--mirror`` takes the scene
-and its loop's turns to their mirror image (y -> -y), the seed's scatterers with them: the cell and its
-mirror image differ by the receiver noise and by any handedness of the simulator, the DSP or the
-estimator (docs/heading.md, "Straight drives still turn").
+and its loop's turns to their mirror image (y -> -y; the walls' scatterers mirror one for one, the
+objects', floor's and ceiling's are drawn anew in their mirrored places): a bias of the scene's
+geometry changes sign with it, a handedness of the simulator, the DSP or the estimator does not
+(docs/heading.md, "Straight drives still turn").
 """
 
 from __future__ import annotations
