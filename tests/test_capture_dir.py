@@ -500,6 +500,8 @@ BAD_METADATA = {
     "simulator-seed-negative": (lambda d: _meta_with(d, simulator={"seed": -1}),
                                 "simulator.seed: expected an integer >= 0, got -1"),
     "simulator-seed-a-float": (lambda d: _meta_with(d, simulator={"seed": 1.5}), "simulator.seed: expected an integer"),
+    "simulator-noise-seed-negative": (lambda d: _meta_with(d, simulator={"seed": 1, "noise_seed": -2}),
+                                      "simulator.noise_seed: expected an integer >= 0, got -2"),
     "simulator-scene-a-number": (lambda d: _meta_with(d, simulator={"scene": 5}),
                                  "simulator.scene: expected a string, got 5"),
     "simulator-board-null": (lambda d: _meta_with(d, simulator={"board": None}),

@@ -1,6 +1,6 @@
 """radar-sim: simulate a scene and write a capture directory with ground truth.
 
-    radar-sim SCENE [--cfg CFG] [--duration S] [--seed N] [--board NAME|FILE] --out DIR
+    radar-sim SCENE [--cfg CFG] [--duration S] [--seed N] [--noise-seed N] [--board NAME|FILE] --out DIR
 """
 
 from __future__ import annotations
@@ -37,6 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=cli.positive_float, metavar="S",
                         help="seconds to simulate (default: the whole trajectory)")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0, metavar="N", help="random seed (default 0)")
+    parser.add_argument("--noise-seed", type=cli.non_negative_int, metavar="N",
+                        help="the thermal noise's own seed (default: --seed's): another draw of the noise over the "
+                             "same scatterers and path")
     parser.add_argument("--board", default="ideal", metavar="NAME|FILE",
                         help=f"the board's imperfections: {', '.join(BUILTIN_BOARDS)} or a board .toml file "
                              "(default: ideal)")
@@ -69,11 +72,12 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
         name = args.scene.removeprefix("sim:").removeprefix("//").partition("?")[0] or "corridor"
         raise UsageError(f"{args.scene}: radar-sim takes a scene's name or file, not a sim:// URL: "
                          f"radar-sim {name} --out DIR (the URL's options are radar-sim's: --seed, --duration, "
-                         "--board, --fidelity)")
+                         "--board, --fidelity, --noise-seed)")
     cfg = RadarConfig.from_file(args.cfg or shipped_config_path())
     scene = load_scene(args.scene, seed=args.seed)
     board = load_board(args.board)
-    sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board, fidelity=args.fidelity)
+    sim = Simulator(cfg, scene, seed=args.seed, duration_s=args.duration, board=board, fidelity=args.fidelity,
+                    noise_seed=args.noise_seed)
     replaced = 0  # the bytes --overwrite frees
     if os.path.exists(args.out):  # else CaptureWriter checks (and makes its parents)
         cli.check_new_path(args.out, is_dir=True, overwrite=args.overwrite)
@@ -89,7 +93,8 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     start = time.monotonic()
     # Quoted, so that a board file's path with '&', '?' or spaces reads back as the same option.
     url = (f"sim://{args.scene}?seed={args.seed}" + ("" if board.is_ideal else f"&board={quote(args.board, safe='/')}")
-           + ("" if args.fidelity == "exact" else f"&fidelity={args.fidelity}"))
+           + ("" if args.fidelity == "exact" else f"&fidelity={args.fidelity}")
+           + ("" if args.noise_seed is None else f"&noise_seed={args.noise_seed}"))
     # Ctrl-C and SIGTERM stop between frames, so that the recording closes on a whole frame.
     stopped: list[int] = []
     written = 0
@@ -120,7 +125,8 @@ def _main(args: argparse.Namespace, status: StatusLine) -> int:
     status.clear()
     frames = f"{sim.num_frames} frame{'' if sim.num_frames == 1 else 's'}"
     print(f"radar-sim: {frames} of {scene.name} ({sim.num_frames * sim.period:.1f} s, "
-          f"seed {args.seed}) in {time.monotonic() - start:.1f} s -> {args.out}")
+          f"seed {args.seed}{'' if args.noise_seed is None else f', noise seed {args.noise_seed}'}) in "
+          f"{time.monotonic() - start:.1f} s -> {args.out}")
     return 0
 
 

@@ -91,6 +91,7 @@ def _check_simulator(ck: _Checker, sim: Any) -> None:
         if key in sim and not isinstance(sim[key], str):
             raise ck.fail(f"simulator.{key}", "a string", sim[key])
     ck.int_field(sim, "seed", 0, required=False, name="simulator.seed")
+    ck.int_field(sim, "noise_seed", 0, required=False, name="simulator.noise_seed")
     if "board_calibration" not in sim:
         return
     where, cal = "simulator.board_calibration", sim["board_calibration"]

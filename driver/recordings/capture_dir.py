@@ -38,6 +38,7 @@ ignored):
         scene, board       strings, optional (a board not built in is taken as unknown
                            without board_calibration: never read from a file)
         seed               integer >= 0, optional
+        noise_seed         integer >= 0, optional: the thermal noise's own seed, where not seed's
         board_calibration  object, optional: range_bias_m (a number, m) and coefficients
                            (12 [re, im] pairs, TX1 RX1 to TX3 RX4, each part within -1..1,
                            not both 0), the board's exact compRangeBiasAndRxChanPhase

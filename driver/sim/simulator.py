@@ -125,10 +125,13 @@ class Simulator:
 
     def __init__(self, cfg: RadarConfig, scene: Scene, *, seed: int = 0,
                  duration_s: float | None = None, pattern: AntennaPattern | None = None,
-                 fidelity: str = "exact", board: Board | None = None) -> None:
+                 fidelity: str = "exact", board: Board | None = None, noise_seed: int | None = None) -> None:
         self.cfg = cfg
         self.scene = scene
         self.seed = seed
+        #: The thermal noise's own seed (None: *seed*'s): another draw of the noise over the same
+        #: scene, scatterers and path, which tells what in a result is the noise's.
+        self.noise_seed = noise_seed
         #: The board's imperfections (default: the perfect board).
         self.board = board or Board()
         self.synth = FmcwSynthesizer(cfg, fidelity=fidelity, extra_path_m=2.0 * self.board.range_bias_m)
@@ -307,7 +310,7 @@ class Simulator:
             cube *= self._gains
         if self._leakage is not None:
             cube += self._leakage
-        rng = np.random.default_rng([self.seed, i])
+        rng = np.random.default_rng([self.seed if self.noise_seed is None else self.noise_seed, i])
         noise = self._noise
         noise.real[...] = rng.standard_normal(cube.shape, dtype=np.float32)
         noise.imag[...] = rng.standard_normal(cube.shape, dtype=np.float32)

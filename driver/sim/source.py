@@ -1,12 +1,14 @@
 """``sim://`` : the simulator as a frame source.
 
-``sim://SCENE?seed=0&rate=1.0&duration=S&loop=1``
+``sim://SCENE?seed=0&rate=1.0&duration=S&loop=1&noise_seed=N``
 
 - SCENE: a built-in scene (``corridor``, ``room``, ``lab``, ``calibration``;
   default ``corridor``) or a scene file (``sim:///path/to/scene.toml``).
 - ``seed``: everything random (scatterers, phases, noise); same seed, same bytes (with
   ``fidelity=exact`` whatever the BLAS thread count; with ``fast`` at the same BLAS thread
   count, as radar-capture runs it: one).
+- ``noise_seed``: the thermal noise's alone (default: ``seed``): another draw of the noise over
+  the same scatterers and path.
 - ``rate``: 1.0 streams in real time (default), 2 twice as fast, ``max`` as
   fast as frames can be made.
 - ``duration``: seconds of stream; default the scene's trajectory.
@@ -86,12 +88,15 @@ class SimSource(Source):
 
     def recording_metadata(self) -> dict:
         board = self.sim.board
-        return {"simulator": {"scene": self.sim.scene.name, "seed": self.sim.seed, "board": board.name,
-                              "board_calibration": board.calibration().describe()}}
+        out = {"scene": self.sim.scene.name, "seed": self.sim.seed, "board": board.name,
+               "board_calibration": board.calibration().describe()}
+        if self.sim.noise_seed is not None:
+            out["noise_seed"] = self.sim.noise_seed
+        return {"simulator": out}
 
     def describe(self) -> dict:
         return {"url": self.url, "scene": self.sim.scene.name, "frames": self.sim.num_frames,
-                "seed": self.sim.seed, "board": self.sim.board.name,
+                "seed": self.sim.seed, "noise_seed": self.sim.noise_seed, "board": self.sim.board.name,
                 "rate": "max" if self.rate == float("inf") else self.rate, "loop": self.loop,
                 "duration_s": pass_duration_s(self.sim)}
 
@@ -119,6 +124,7 @@ def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimS
     fidelity = options.take("fidelity", one_of(*FIDELITIES), None, " or ".join(FIDELITIES))
     board = options.take("board", _board_name, "ideal", "ideal, uncalibrated or a board .toml file")
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
+    noise_seed = options.take("noise_seed", at_least(0), None, "an integer >= 0")
     options.finish()
     if fidelity is None:
         fidelity = "exact" if rate == float("inf") else "fast"
@@ -128,5 +134,6 @@ def open_sim(path: str, options: UrlOptions, config: RadarConfig | None) -> SimS
                           ".toml/.json scene file")
     cfg = config if config is not None else RadarConfig.from_file(shipped_config_path())
     scene = load_scene(name, seed=seed)
-    sim = Simulator(cfg, scene, seed=seed, duration_s=duration, fidelity=fidelity, board=load_board(board))
+    sim = Simulator(cfg, scene, seed=seed, duration_s=duration, fidelity=fidelity, board=load_board(board),
+                    noise_seed=noise_seed)
     return SimSource(sim, rate=rate, loop=loop)
