@@ -127,16 +127,18 @@ def record(cell: SimCell, data: str) -> str:
     return directory
 
 
-def simulate(spec: dict, cell: SimCell, directory: str) -> None:
+def simulate(spec: dict, cell: SimCell, directory: str, noise_seed: int | None = None) -> None:
     """Record the scene table *spec* with radar-sim at the cell's seed, cfg and fidelity into
     *directory* (replaced), its scene file beside it as DIRECTORY.scene.json; through a temporary
-    directory first, so that a recording cut short never passes for a whole one."""
+    directory first, so that a recording cut short never passes for a whole one. *noise_seed*:
+    radar-sim's --noise-seed (None: the cell's seed draws the noise too)."""
     scene_file = directory + ".scene.json"
     with open(scene_file, "w", encoding="utf-8") as fh:
         json.dump(spec, fh, indent=1)
     tmp = directory + ".tmp"
     subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene_file, "--seed", str(cell.seed),
-                    "--cfg", CFGS[cell.cfg], "--fidelity", cell.fidelity, "--out", tmp, "--overwrite", "-q"], check=True,
+                    "--cfg", CFGS[cell.cfg], "--fidelity", cell.fidelity, "--out", tmp, "--overwrite", "-q"]
+                   + ([] if noise_seed is None else ["--noise-seed", str(noise_seed)]), check=True,
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     shutil.rmtree(directory, ignore_errors=True)
     os.replace(tmp, directory)

@@ -153,3 +153,31 @@ def test_the_scene_and_its_loop_are_mirrored_left_to_right(scene):
     assert distance.max() < 0.35
     if a.movers:
         assert [m.path.tolist() for m in b.movers] == [(m.path * flip).tolist() for m in a.movers]
+
+
+def test_the_turn_in_place_turned_right_and_the_noise_drawn_anew(tmp_path, capsys):
+    """--turn-in-place-right: the loop's turn in place the other way, the radar facing the same way
+    after it; --noise-seed reaches radar-sim; a loop without such a turn is refused by name."""
+    from radarodom.driver.sim.trajectory import from_spec
+    spec = mc.scene_spec(CELL)
+    right = scene_edits.turned_in_place_right(spec)
+    assert right["objects"] == spec["objects"] and mc.scene_spec(CELL) == spec  # spec untouched
+    a, b = from_spec(spec["trajectory"]), from_spec(right["trajectory"])
+    turning = np.abs(np.angle(np.exp(1j * (a.yaw - b.yaw)))) > 1e-4  # else the same heading
+    assert turning.any() and np.abs(a.yaw[-1] - b.yaw[-1]) == pytest.approx(2 * np.pi, abs=1e-6)
+    # The same path up to the turn; after it within centimetres (the braking into the turn and the
+    # start after it, which the turn overlaps, curve the other way).
+    first = np.flatnonzero(turning)[0]
+    np.testing.assert_allclose([b.x[:first], b.y[:first]], [a.x[:first], a.y[:first]], atol=1e-9)
+    assert np.hypot(a.x - b.x, a.y - b.y).max() < 0.05
+    # Within the turn each has turned as far as the other, the other way.
+    start = a.yaw[first - 1]
+    np.testing.assert_allclose(b.yaw[turning] - start, -(a.yaw[turning] - start), atol=1e-4)
+    with pytest.raises(ValueError, match="no single turn in place of 180 degrees"):
+        scene_edits.turned_in_place_right(right)
+    out = tmp_path / "right"
+    assert scene_edits.main([CELL.name, "--turn-in-place-right", "--noise-seed", "5", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == (f"{out}: {CELL.name} with 10 object(s), turned in place to the right, "
+                                               "noise seed 5")
+    with open(out / "capture.json", encoding="utf-8") as fh:
+        assert json.load(fh)["simulator"]["noise_seed"] == 5
