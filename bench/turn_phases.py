@@ -12,6 +12,10 @@ the published estimate and each blended chain (the heatmaps' registration's and 
 beside the degrees the truth turned in it; then each sequence's sums, the whole turn's ratio
 (estimated / true) per estimate and chain, and with several sequences their mean. A cause in
 what both chains are given shows in both; one of a registration's own, in its chain alone.
+Last, the same sum over the AFTER_STEPS steps after the turn ("after it"; outside the ratio, as
+the matrix's metrics put them in the straight drive after): what the estimate takes back of the
+turn's error, or gives, once it has ended (docs/heading.md, "The straight after a turn in place
+pays for the turn's error").
 """
 
 from __future__ import annotations
@@ -32,29 +36,34 @@ from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.heading_metrics import segment_turns  # noqa: E402
 
 PHASES = ("braking in", "at rest", "starting off")
+#: The steps after a turn in place summed as "after it" (a second at 10 frames/s).
+AFTER_STEPS = 10
 #: Below this speed (m/s) the radar stands.
 REST_MPS = 0.02
 ESTIMATES = ("published", "heatmaps' chain", "points' chain")
 
 
-def phase_errors(times: np.ndarray, ref: np.ndarray, estimates: np.ndarray) -> np.ndarray:
+def phase_errors(times: np.ndarray, ref: np.ndarray, estimates: np.ndarray, *, after_steps: int = 0
+                 ) -> np.ndarray:
     """Summed over every turn in place of the truth *ref* ((n, 3) x, y, yaw at *times* (n,); the
     matrix's turns, heading_metrics.segment_turns), per phase (PHASES) and estimate (the columns
     of *estimates*, (n - 1, E) rad a step): the error in the turn's direction (rad) and, last
-    column, the truth's turn (rad); (3, E + 1)."""
+    column, the truth's turn (rad); (3, E + 1). With *after_steps*, a fourth row: the same over
+    that many steps after each turn (fewer where the sequence ends)."""
     dt = np.diff(times)
     true_rad = _wrap(np.diff(ref[:, 2]))
     speed = np.hypot(*np.diff(ref[:, :2], axis=0).T) / dt
-    out = np.zeros((len(PHASES), estimates.shape[1] + 1))
+    out = np.zeros((len(PHASES) + (after_steps > 0), estimates.shape[1] + 1))
     for i, j, in_place in segment_turns(times, ref):
         turn = np.arange(i, j)
         rest = turn[speed[turn] < REST_MPS]
         if not in_place or len(rest) == 0:
             continue
         sign = np.sign(true_rad[turn].sum())
-        parts = (turn < rest[0], (turn >= rest[0]) & (turn <= rest[-1]), turn > rest[-1])
-        for k, part in enumerate(parts):
-            steps = turn[part]
+        parts = [turn[turn < rest[0]], turn[(turn >= rest[0]) & (turn <= rest[-1])], turn[turn > rest[-1]]]
+        if after_steps:
+            parts.append(np.arange(j, min(j + after_steps, len(true_rad))))
+        for k, steps in enumerate(parts):
             out[k, :-1] += sign * (estimates[steps] - true_rad[steps, None]).sum(axis=0)
             out[k, -1] += abs(true_rad[steps].sum())
     return out
@@ -65,7 +74,7 @@ def sequence_phases(directory: str, config: EstimatorConfig) -> np.ndarray:
     published increments and each blended chain's (NaN where the estimator has no blend)."""
     seq = sequences.load(directory)
     headings = np.array([(state.yaw, *chains) for _, state, _, chains in run(seq, config)])
-    return phase_errors(seq.times, truth(seq), _wrap(np.diff(headings, axis=0)))
+    return phase_errors(seq.times, truth(seq), _wrap(np.diff(headings, axis=0)), after_steps=AFTER_STEPS)
 
 
 def _shown(value: float, spec: str) -> str:
@@ -76,14 +85,18 @@ def _shown(value: float, spec: str) -> str:
 def lines(name: str, table: np.ndarray) -> list[str]:
     """*table* (:func:`phase_errors`' shape) as text, degrees."""
     deg = np.degrees(table)
+    phases, after = deg[:len(PHASES)], deg[len(PHASES):]
     out = [f"{name}: turns in place, error summed in the turn's direction, degrees ("
            + " / ".join(ESTIMATES) + ")"]
-    for phase, row in zip(PHASES, deg):
+    for phase, row in zip(PHASES, phases):
         out.append(f"  {phase:13s} " + " / ".join(_shown(v, "+.2f") for v in row[:-1]) + f"  of {row[-1]:.0f} turned")
-    turned = deg[:, -1].sum()
+    turned = phases[:, -1].sum()
     if turned > 0:
-        ratios = 1.0 + deg[:, :-1].sum(axis=0) / turned
+        ratios = 1.0 + phases[:, :-1].sum(axis=0) / turned
         out.append("  whole turn ratio " + " / ".join(_shown(r, ".4f") for r in ratios))
+    for row in after:
+        out.append(f"  {'after it':13s} " + " / ".join(_shown(v, "+.2f") for v in row[:-1])
+                   + f"  over the {AFTER_STEPS} steps after each turn")
     return out
 
 

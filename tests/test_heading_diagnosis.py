@@ -164,6 +164,13 @@ def test_turn_phases_split_each_turn_in_place_by_the_truths_speed():
     np.testing.assert_allclose(table[:, 0], 0.1 * table[:, -1])  # in the turn's direction: too long is positive
     np.testing.assert_allclose(table[:, 1], 0.0, atol=1e-15)
     np.testing.assert_allclose(table[:, 2], -0.1 * table[:, -1])
+    # The step after the turn in place (the straight one), its error in the turn's direction: taking
+    # back 0.02 rad of a right turn is turning left by it.
+    estimates[11, :] += 0.02
+    after = turn_phases.phase_errors(times, ref, estimates, after_steps=1)
+    np.testing.assert_allclose(after[:3], table)
+    np.testing.assert_allclose(after[3], [-0.02, -0.02, -0.02, 0.0], atol=1e-15)
+    estimates[11, :] -= 0.02
     # Mostly moving (its median speed 0.1 m/s): a moving turn's slow passage, not a turn in place.
     slow = speed.copy()
     slow[4:9] = 0.1
@@ -179,6 +186,10 @@ def test_turn_phases_show_a_chain_the_estimator_lacks_as_a_dash():
     assert "nan" not in "\n".join(text).lower()
     assert text[1] == "  braking in    +0.57 / - / -  of 11 turned"
     assert text[-1] == "  whole turn ratio 0.9968 / - / -"
+    # A fourth row, the steps after the turn, stays out of the ratio.
+    text = turn_phases.lines("run", np.vstack([table, [0.01, np.nan, np.nan, 0.0]]))
+    assert text[-2] == "  whole turn ratio 0.9968 / - / -"
+    assert text[-1] == f"  after it      +0.57 / - / -  over the {turn_phases.AFTER_STEPS} steps after each turn"
 
 
 def test_turn_phases_of_a_recording_sum_to_its_turn_in_place(recording, tmp_path, capsys):
@@ -198,3 +209,5 @@ def test_turn_phases_of_a_recording_sum_to_its_turn_in_place(recording, tmp_path
     ratios = [float(v) for v in re.findall(r"\d\.\d{4}", out[4])]
     sums = [sum(float(r[k]) for r in rows) for k in (2, 3, 4)]
     assert ratios == pytest.approx([1 + s / sum(turned) for s in sums], abs=0.003)
+    after = re.fullmatch(r"  after it +([-+\d.]+) / ([-+\d.]+) / ([-+\d.]+)  over the 10 steps after each turn", out[5])
+    assert after and float(after[1]) == pytest.approx(0.5 * (float(after[2]) + float(after[3])), abs=0.011)
