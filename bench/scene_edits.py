@@ -166,6 +166,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.noise_seed is not None and args.noise_seed < 0:
         parser.error(f"--noise-seed {args.noise_seed}: an integer >= 0")
+    if args.mirror and args.turn_in_place_right:
+        parser.error("--turn-in-place-right with --mirror: the mirrored loop turns in place to the right already")
     try:
         cell = SimCell.from_name(args.cell)
     except ValueError as exc:

@@ -175,6 +175,9 @@ def test_the_turn_in_place_turned_right_and_the_noise_drawn_anew(tmp_path, capsy
     np.testing.assert_allclose(b.yaw[turning] - start, -(a.yaw[turning] - start), atol=1e-4)
     with pytest.raises(ValueError, match="no single turn in place of 180 degrees"):
         scene_edits.turned_in_place_right(right)
+    with pytest.raises(SystemExit):  # the mirrored loop turns right already: refused, by name
+        scene_edits.main([CELL.name, "--mirror", "--turn-in-place-right", "--out", str(tmp_path / "both")])
+    assert "turns in place to the right already" in capsys.readouterr().err
     out = tmp_path / "right"
     assert scene_edits.main([CELL.name, "--turn-in-place-right", "--noise-seed", "5", "--out", str(out)]) == 0
     assert capsys.readouterr().out.strip() == (f"{out}: {CELL.name} with 10 object(s), turned in place to the right, "

@@ -19,6 +19,7 @@ from radarodom.driver.recordings.capture_dir import ADC_DATA
 from radarodom.driver.sim.physics import EXACT_PRODUCT_COLUMNS, exact_product
 from radarodom.driver.sim.scene import load_scene
 from radarodom.driver.sim.simulator import Simulator
+from radarodom.driver.sources import open_source
 
 #: Frames of the corridor (moving at walking speed among about a thousand paths) that came out
 #: one ADC count apart with one and two OpenBLAS threads before the fix.
@@ -120,8 +121,8 @@ def test_radar_sim_fast_fidelity_records_what_sim_fast_streams(tmp_path):
 
 def test_a_noise_seed_draws_other_noise_over_the_same_scene():
     """The same scene, scatterers and path with the noise drawn again: each frame differs from the
-    seed's by thermal noise alone (what a noiseless scene gives is the same), the seed's own number as
-    noise seed changes nothing, and radar-sim, sim:// and the recording say the noise seed."""
+    seed's by the two draws of thermal noise alone, and the seed's own number as noise seed changes
+    nothing."""
     cfg = RadarConfig.from_file(shipped_config_path())
     scene = load_scene("corridor", seed=2)
 
@@ -140,7 +141,9 @@ def test_a_noise_seed_draws_other_noise_over_the_same_scene():
     assert np.mean(np.abs(a) ** 2) > 3.0 * noise_power
 
 
-def test_radar_sim_records_its_noise_seed(tmp_path):
+def test_radar_sim_and_sim_record_their_noise_seed(tmp_path):
+    """radar-sim --noise-seed records the frames the Simulator makes with it and says the noise seed
+    in its output, capture.json and source URL; sim://...&noise_seed= streams the same frames."""
     out = tmp_path / "noise7"
     proc = run_together(dict(args=console_command("radar-sim") + [
         "corridor", "--seed", "2", "--noise-seed", "7", "--duration", "0.2", "--out", str(out)],
@@ -153,7 +156,6 @@ def test_radar_sim_records_its_noise_seed(tmp_path):
     cfg = RadarConfig.from_file(shipped_config_path())
     expected = Simulator(cfg, load_scene("corridor", seed=2), seed=2, noise_seed=7, fidelity="exact")
     assert (out / ADC_DATA).read_bytes()[:expected.layout.frame_bytes] == expected.frame(0).raw
-    from radarodom.driver.sources import open_source
     with open_source("sim://corridor?seed=2&noise_seed=7&rate=max&duration=0.2") as source:
         assert source.describe()["noise_seed"] == 7
         assert bytes(next(iter(source)).raw) == expected.frame(0).raw
