@@ -123,7 +123,7 @@ def test_radar_sim_given_a_sim_url_says_to_give_the_scene(given, name, tmp_path,
     assert radar_sim.main([given, "--out", str(tmp_path / "out")]) == 2
     assert capsys.readouterr().err == (f"radar-sim: error: {given}: radar-sim takes a scene's name or file, not a "
                                        f"sim:// URL: radar-sim {name} --out DIR (the URL's options are radar-sim's: "
-                                       "--seed, --duration, --board, --fidelity)\n")
+                                       "--seed, --duration, --board, --fidelity, --noise-seed)\n")
     assert not (tmp_path / "out").exists()
 
 
