@@ -46,6 +46,7 @@ from robustness_matrix import simulate  # noqa: E402
 
 from radarodom.driver.sim.scene import scene_from_dict  # noqa: E402
 from radarodom.errors import ConfigError  # noqa: E402
+from radarodom.tools import cli  # noqa: E402
 
 
 def describe(index: int, obj: dict, path: np.ndarray | None = None) -> str:
@@ -160,12 +161,10 @@ def main(argv=None) -> int:
                         help="the scene and its loop mirrored left to right (y -> -y)")
     parser.add_argument("--turn-in-place-right", action="store_true",
                         help="the loop's turn in place to the right instead of the left")
-    parser.add_argument("--noise-seed", type=int, metavar="N",
+    parser.add_argument("--noise-seed", type=cli.non_negative_int, metavar="N",
                         help="radar-sim's --noise-seed: the thermal noise drawn anew (default: the cell's seed's)")
     parser.add_argument("--out", metavar="DIR", help="the recording's directory (replaced)")
     args = parser.parse_args(argv)
-    if args.noise_seed is not None and args.noise_seed < 0:
-        parser.error(f"--noise-seed {args.noise_seed}: an integer >= 0")
     if args.mirror and args.turn_in_place_right:
         parser.error("--turn-in-place-right with --mirror: the mirrored loop turns in place to the right already")
     try:
