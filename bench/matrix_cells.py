@@ -70,6 +70,13 @@ class SimCell:
     kind: str = "sim"
 
     @property
+    def turn_in_place_deg(self) -> int:
+        """The loop's turn in place, degrees: to the left (+180) on even seeds, to the right (-180)
+        on odd ones, so that a row's six seeds turn half each way (since 2026-12-06: a matrix whose
+        turns in place all went left put their direction's sign into the straight drives after them)."""
+        return 180 if self.seed % 2 == 0 else -180
+
+    @property
     def name(self) -> str:
         return (f"{self.scene}_s{self.seed}_{self.cfg}_snr{self.snr_db:g}_v{self.speed_mps:g}"
                 f"_w{self.turn_rate_dps:g}_{self.movers}_L{self.straight_m:g}"
@@ -111,11 +118,14 @@ Cell = SimCell | ColoradarCell
 
 # ------------------------------------------------------------------ scenes and trajectories
 def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: float,
-                  mount_m: float = 0.0) -> tuple[list, list]:
+                  mount_m: float = 0.0, turn_in_place_deg: int = 180) -> tuple[list, list]:
     """(segments, start [x, y, yaw deg]) of the matrix's closed loop in *scene* (module text) for
     a radar *mount_m* ahead of the base's axis (the base's second straight is shortened by it, so
-    that the radar, not the base, stops at y_max before turning in place); ValueError when it does
-    not fit, or when the base or the radar passes nearer than CLEARANCE_M to a wall or an object."""
+    that the radar, not the base, stops at y_max before turning in place), turning in place by
+    *turn_in_place_deg* (180 to the left, -180 to the right); ValueError when it does not fit, or
+    when the base or the radar passes nearer than CLEARANCE_M to a wall or an object."""
+    if turn_in_place_deg not in (180, -180):
+        raise ValueError(f"the loop's turn in place is 180 or -180 degrees, got {turn_in_place_deg:g}")
     lay = LAYOUT[scene]
     r = speed / math.radians(turn_rate_dps)
     l1 = min(straight_m, lay["turn_x"] - r - lay["x_min"])
@@ -124,7 +134,7 @@ def loop_segments(scene: str, speed: float, turn_rate_dps: float, straight_m: fl
     if min(l1, l2) < 0.5:
         raise ValueError(f"{scene}: a loop at {speed} m/s and {turn_rate_dps} deg/s (radius {r:.2f} m) does not fit")
     segs = [{"pause": 1.0}, {"straight": l1, "speed": speed}, {"turn": 90, "radius": r, "speed": speed},
-            {"straight": l2, "speed": speed}, {"rotate": 180, "rate": turn_rate_dps},
+            {"straight": l2, "speed": speed}, {"rotate": turn_in_place_deg, "rate": turn_rate_dps},
             {"straight": l2, "speed": speed}, {"turn": -90, "radius": r, "speed": speed},
             {"straight": l1, "speed": speed}, {"pause": 1.0}]
     start = [x0, y0, 0.0]
@@ -192,7 +202,8 @@ def object_distance(obj: dict, path: np.ndarray) -> float | None:
 def scene_spec(cell: SimCell) -> dict:
     """The built-in scene's table with the cell's trajectory, SNR and movers."""
     spec = _scene_table(cell.scene)
-    segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m, cell.mount_m)
+    segs, start = loop_segments(cell.scene, cell.speed_mps, cell.turn_rate_dps, cell.straight_m, cell.mount_m,
+                                cell.turn_in_place_deg)
     spec["trajectory"] = {"start": start, "height": spec.get("trajectory", {}).get("height", 0.4), "segments": segs,
                           "mount": [float(cell.mount_m), 0.0, 0.0]}
     spec.setdefault("radar", {})["snr_db"] = float(cell.snr_db)

@@ -9,8 +9,8 @@ A cell is one sequence: a scene, a seed, a cfg, an SNR, a speed, a turn rate, wi
 walking people, the radar on the base's rotation axis or ahead of it (:class:`SimCell`), or a ColoRadar run read through ``coloradar://``
 (:class:`ColoradarCell`). Simulated cells drive a closed loop made for the matrix inside the
 scene: pause, straight, a moving left turn of 90 degrees (radius speed / turn rate), straight, a
-turn in place of 180 degrees at the turn rate, straight back, a moving right turn, straight back,
-pause (:func:`loop_segments`). The SNR is the scene's ``[radar] snr_db`` (per-sample SNR of a
+turn in place of 180 degrees at the turn rate (to the left on even seeds, to the right on odd
+ones), straight back, a moving right turn, straight back, pause (:func:`loop_segments`). The SNR is the scene's ``[radar] snr_db`` (per-sample SNR of a
 1 m^2 target 5 m away on boresight; the built-in scenes have 0 dB).
 
 ``--design star`` (default) varies one axis at a time around the base cell (shipped cfg, 0 dB,
@@ -260,7 +260,7 @@ def cells(args) -> list[Cell]:
                 variants += [dataclasses.replace(variants[0], **{axis: v}) for v in values[1:]]
         for v in variants:
             try:
-                loop_segments(v.scene, v.speed_mps, v.turn_rate_dps, v.straight_m, v.mount_m)
+                loop_segments(v.scene, v.speed_mps, v.turn_rate_dps, v.straight_m, v.mount_m, v.turn_in_place_deg)
             except ValueError as exc:
                 print(f"skipped {v.name}: {exc}", file=sys.stderr)
                 continue

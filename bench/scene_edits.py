@@ -10,7 +10,7 @@ docs/heading.md, "Driving close past furniture").
     python bench/scene_edits.py CELL --azimuth-hpbw 130 --out DIR   # a wider beam in azimuth
     python bench/scene_edits.py CELL --mirror --out DIR     # the scene and its loop mirrored left to right
     python bench/scene_edits.py CELL --mirror --noise-seed 1000 --out DIR   # ... with the noise drawn anew
-    python bench/scene_edits.py CELL --turn-in-place-right --out DIR   # the loop's turn in place the other way
+    python bench/scene_edits.py CELL --turn-in-place-reversed --out DIR   # the loop's turn in place the other way
     python bench/heading_diagnosis.py DIR --straights 1      # then each straight, chain by chain
 
 CELL is a simulated cell's name as bench/robustness_matrix.py writes it. The edited scene file is
@@ -24,9 +24,10 @@ objects', floor's and ceiling's are drawn anew in their mirrored places): a bias
 geometry changes sign with it, a handedness of the simulator, the DSP or the estimator does not
 (docs/heading.md, "Straight drives still turn"). The mirrored cell's thermal noise is the cell's own
 draw, frame for frame, unless ``--noise-seed`` draws it anew: the same noise in both is a part of
-their errors that the mirror does not flip. ``--turn-in-place-right`` turns the loop's turn in place
-to the right (the matrix's loops all turn left): the same scene, scatterers and noise, the same path
-up to the turn and after it within 2-4 cm (the braking into the turn and the start after it, which
+their errors that the mirror does not flip. ``--turn-in-place-reversed`` turns the loop's turn in
+place the other way (the matrix's loops turn left on even seeds, right on odd ones; with ``--mirror``,
+the mirrored loop's turn): the same scene, scatterers and noise, the same path up to the turn and after
+it within 2-4 cm (the braking into the turn and the start after it, which
 the turn overlaps, curve the other way), the radar facing the same way after it.
 """
 
@@ -128,18 +129,23 @@ def mirrored(spec: dict) -> dict:
     return out
 
 
-def turned_in_place_right(spec: dict) -> dict:
-    """*spec* with its loop's one turn in place (a matrix loop's ``rotate: 180``, to the left) turned
-    the other way: the radar faces the same way after it, and the rest of the path is the same within
-    centimetres.
-    ValueError for a trajectory without exactly one turn in place of 180 degrees."""
+def turned_in_place_reversed(spec: dict) -> dict:
+    """*spec* with its loop's one turn in place (a matrix loop's ``rotate`` of 180 or -180 degrees)
+    turned the other way: the radar faces the same way after it, and the rest of the path is the same
+    within centimetres.
+    ValueError for a trajectory without exactly one turn in place of 180 degrees either way."""
     out = copy.deepcopy(spec)
     turns = [seg for seg in out["trajectory"].get("segments", []) if "rotate" in seg]
-    if len(turns) != 1 or turns[0]["rotate"] != 180:
-        raise ValueError("--turn-in-place-right: the scene's trajectory has no single turn in place of 180 degrees "
-                         "(a matrix loop has one)")
-    turns[0]["rotate"] = -180
+    if len(turns) != 1 or abs(turns[0]["rotate"]) != 180:
+        raise ValueError("--turn-in-place-reversed: the scene's trajectory has no single turn in place of 180 "
+                         "degrees (a matrix loop has one)")
+    turns[0]["rotate"] = -turns[0]["rotate"]
     return out
+
+
+def _turn_in_place(spec: dict) -> str:
+    rotate = next(seg["rotate"] for seg in spec["trajectory"]["segments"] if "rotate" in seg)
+    return f", turned in place to the {'left' if rotate > 0 else 'right'}"
 
 
 def main(argv=None) -> int:
@@ -159,14 +165,12 @@ def main(argv=None) -> int:
                         help="the same in elevation (the simulator's: 40)")
     parser.add_argument("--mirror", action="store_true",
                         help="the scene and its loop mirrored left to right (y -> -y)")
-    parser.add_argument("--turn-in-place-right", action="store_true",
-                        help="the loop's turn in place to the right instead of the left")
+    parser.add_argument("--turn-in-place-reversed", action="store_true",
+                        help="the loop's turn in place the other way (to the right on even seeds, the left on odd)")
     parser.add_argument("--noise-seed", type=cli.non_negative_int, metavar="N",
                         help="radar-sim's --noise-seed: the thermal noise drawn anew (default: the cell's seed's)")
     parser.add_argument("--out", metavar="DIR", help="the recording's directory (replaced)")
     args = parser.parse_args(argv)
-    if args.mirror and args.turn_in_place_right:
-        parser.error("--turn-in-place-right with --mirror: the mirrored loop turns in place to the right already")
     try:
         cell = SimCell.from_name(args.cell)
     except ValueError as exc:
@@ -184,8 +188,8 @@ def main(argv=None) -> int:
         spec = edited(spec, args.without, args.only, flat=args.flat, beam=beam)
         if args.mirror:
             spec = mirrored(spec)
-        if args.turn_in_place_right:
-            spec = turned_in_place_right(spec)
+        if args.turn_in_place_reversed:
+            spec = turned_in_place_reversed(spec)
     except ValueError as exc:
         parser.error(str(exc))
     try:  # radar-sim's own check, before it runs: a beam width out of range, named
@@ -194,7 +198,7 @@ def main(argv=None) -> int:
         parser.error(str(exc))
     simulate(spec, cell, os.path.abspath(args.out), noise_seed=args.noise_seed)
     radar = "".join([", flat" if args.flat else "", ", mirrored" if args.mirror else "",
-                     ", turned in place to the right" if args.turn_in_place_right else "",
+                     _turn_in_place(spec) if args.turn_in_place_reversed else "",
                      "" if args.noise_seed is None else f", noise seed {args.noise_seed}"]
                     + [f", {key} {value:g}" for key, value in beam.items()])
     print(f"{args.out}: {cell.name} with {len(spec['objects'])} object(s){radar}")

@@ -4,6 +4,7 @@ its per-cell cache, and a ColoRadar run as a cell (tests/coloradar_synth.py's sy
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import os
 import sys
@@ -46,6 +47,21 @@ def test_each_scene_drives_a_closed_loop_with_the_cells_speed_turn_rate_snr_and_
     assert not scene_from_dict(rm.scene_spec(dataclasses.replace(cell, movers="none"))).movers
 
 
+@pytest.mark.parametrize("scene", sorted(rm.LAYOUT))
+def test_odd_seeds_turn_in_place_to_the_right_over_the_same_loop(scene):
+    # Until 2026-12-06 every loop turned in place to the left, and the straights after the turn,
+    # which take back part of its error, carried that direction's sign into the straight bias.
+    even, odd = rm.SimCell(scene=scene, seed=2), rm.SimCell(scene=scene, seed=3)
+    assert (even.turn_in_place_deg, odd.turn_in_place_deg) == (180, -180)
+    a, b = (scene_from_dict(rm.scene_spec(c)).trajectory for c in (even, odd))
+    assert math.hypot(b.x[-1] - b.x[0], b.y[-1] - b.y[0]) < 0.05  # the loop closes
+    assert math.degrees(b.yaw[-1] - b.yaw[0]) == pytest.approx(-180, abs=0.01)  # +90, -180, -90
+    assert math.degrees(a.yaw[-1] - a.yaw[0]) == pytest.approx(180, abs=0.01)  # +90, +180, -90
+    assert len(a.times) == len(b.times) and np.hypot(a.x - b.x, a.y - b.y).max() < 0.05  # the same path
+    with pytest.raises(ValueError, match="180 or -180 degrees, got 90"):
+        rm.loop_segments(scene, 0.8, 45.0, 3.0, turn_in_place_deg=90)
+
+
 def test_a_loop_through_the_furniture_is_refused(monkeypatch):
     # The room's loop once drove through its pillar at 0.3 m/s and 90 deg/s: a radar inside a
     # pillar sees nothing, which no robot meets.
@@ -66,8 +82,8 @@ def test_a_radar_mounted_ahead_of_its_base_keeps_clear_too(monkeypatch):
     import matrix_cells
     from radarodom.driver.sim.trajectory import from_segments
     table = matrix_cells._scene_table("lab")
-    for mount in (0.0, 0.3):
-        segs, start = matrix_cells.loop_segments("lab", 0.8, 45.0, 3.0, mount)
+    for mount, side in itertools.product((0.0, 0.3), (180, -180)):
+        segs, start = matrix_cells.loop_segments("lab", 0.8, 45.0, 3.0, mount, side)
         radar = from_segments(segs, start=start, mount=(mount, 0.0, 0.0))
         assert max(radar.y) == pytest.approx(matrix_cells.LAYOUT["lab"]["y_max"], abs=0.01)  # the radar stops there
         assert matrix_cells.loop_clearance(table, radar)[0] >= matrix_cells.CLEARANCE_M

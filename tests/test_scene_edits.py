@@ -5,6 +5,7 @@ out); and heading_diagnosis.py --straights on such recordings, chain by chain.""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import filecmp
 import json
 import os
@@ -155,13 +156,15 @@ def test_the_scene_and_its_loop_are_mirrored_left_to_right(scene):
         assert [m.path.tolist() for m in b.movers] == [(m.path * flip).tolist() for m in a.movers]
 
 
-def test_the_turn_in_place_turned_right_and_the_noise_drawn_anew(tmp_path, capsys):
-    """--turn-in-place-right: the loop's turn in place the other way, the radar facing the same way
-    after it; --noise-seed reaches radar-sim; a loop without such a turn is refused by name."""
+def test_the_turn_in_place_reversed_and_the_noise_drawn_anew(tmp_path, capsys):
+    """--turn-in-place-reversed: the loop's turn in place the other way, the radar facing the same way
+    after it, twice the same loop again; --noise-seed reaches radar-sim; a loop without such a turn is
+    refused by name."""
     from radarodom.driver.sim.trajectory import from_spec
     spec = mc.scene_spec(CELL)
-    right = scene_edits.turned_in_place_right(spec)
+    right = scene_edits.turned_in_place_reversed(spec)
     assert right["objects"] == spec["objects"] and mc.scene_spec(CELL) == spec  # spec untouched
+    assert scene_edits.turned_in_place_reversed(right) == spec
     a, b = from_spec(spec["trajectory"]), from_spec(right["trajectory"])
     turning = np.abs(np.angle(np.exp(1j * (a.yaw - b.yaw)))) > 1e-4  # else the same heading
     assert turning.any() and np.abs(a.yaw[-1] - b.yaw[-1]) == pytest.approx(2 * np.pi, abs=1e-6)
@@ -173,14 +176,23 @@ def test_the_turn_in_place_turned_right_and_the_noise_drawn_anew(tmp_path, capsy
     # Within the turn each has turned as far as the other, the other way.
     start = a.yaw[first - 1]
     np.testing.assert_allclose(b.yaw[turning] - start, -(a.yaw[turning] - start), atol=1e-4)
+    twice = dict(right, trajectory=dict(right["trajectory"], segments=right["trajectory"]["segments"] * 2))
     with pytest.raises(ValueError, match="no single turn in place of 180 degrees"):
-        scene_edits.turned_in_place_right(right)
-    with pytest.raises(SystemExit):  # the mirrored loop turns right already: refused, by name
-        scene_edits.main([CELL.name, "--mirror", "--turn-in-place-right", "--out", str(tmp_path / "both")])
-    assert "turns in place to the right already" in capsys.readouterr().err
+        scene_edits.turned_in_place_reversed(twice)
     out = tmp_path / "right"
-    assert scene_edits.main([CELL.name, "--turn-in-place-right", "--noise-seed", "5", "--out", str(out)]) == 0
+    assert scene_edits.main([CELL.name, "--turn-in-place-reversed", "--noise-seed", "5", "--out", str(out)]) == 0
     assert capsys.readouterr().out.strip() == (f"{out}: {CELL.name} with 10 object(s), turned in place to the right, "
                                                "noise seed 5")
     with open(out / "capture.json", encoding="utf-8") as fh:
         assert json.load(fh)["simulator"]["noise_seed"] == 5
+    # An odd seed's loop turns in place to the right: reversed, to the left; mirrored, to the left
+    # too; both, to the right again.
+    odd = dataclasses.replace(CELL, seed=1)
+    rotate = lambda spec: [seg["rotate"] for seg in spec["trajectory"]["segments"] if "rotate" in seg]  # noqa: E731
+    assert rotate(mc.scene_spec(odd)) == [-180] and rotate(mc.scene_spec(CELL)) == [180]
+    assert rotate(scene_edits.turned_in_place_reversed(mc.scene_spec(odd))) == [180]
+    assert rotate(scene_edits.mirrored(mc.scene_spec(odd))) == [180]
+    assert scene_edits.main([odd.name, "--mirror", "--turn-in-place-reversed", "--out", str(tmp_path / "odd")]) == 0
+    assert capsys.readouterr().out.strip().endswith("object(s), mirrored, turned in place to the right")
+    with open(f"{tmp_path / 'odd'}.scene.json", encoding="utf-8") as fh:
+        assert rotate(json.load(fh)) == [-180]
