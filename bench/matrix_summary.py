@@ -59,6 +59,8 @@ def totals(results: list[dict]) -> dict:
     return {"cells": len(results), "yaw RMSE deg": f"{statistics.mean(r['yaw_rmse_deg'] for r in results):.2f}",
             "mean |straight bias| deg/frame": f"{statistics.mean(bias):.3f}",
             "straight bias <= 0.005": sum(b <= 0.005 for b in bias),
+            "the straights' own bias <= 0.005": _own_within(results),
+            "signed straight bias, all / after turns' frames deg/frame": _signed(results),
             "each straight's heading error, RMS / worst deg/m": _straights(results),
             "moving turns within 2 %": _within(results, "moving_turn_ratio"),
             "each moving turn within 2 %": _within(results, "moving_turn_worst_ratio"),
@@ -66,6 +68,26 @@ def totals(results: list[dict]) -> dict:
             "drift % mean": f"{statistics.mean(drift):.2f}", "drift % median": f"{statistics.median(drift):.2f}",
             "drift <= 2 %": sum(d <= 2.0 for d in drift), "drift % worst": f"{max(drift):.1f}",
             "|final heading| deg": f"{statistics.mean(abs(r['final_heading_error_deg']) for r in results):.1f}"}
+
+
+def _own_within(results: list[dict]) -> int | str:
+    """The cells whose straight frames but the first after each turn keep the straight goal; "-"
+    for results without the split (runs before 2026-12-06)."""
+    if not all("straight_own_bias_deg_per_frame" in r for r in results):
+        return "-"
+    return sum(r["straight_own_bias_deg_per_frame"] is not None and abs(r["straight_own_bias_deg_per_frame"]) <= 0.005
+               for r in results)
+
+
+def _signed(results: list[dict]) -> str:
+    """The straight bias's signed mean over the cells, and the part of it made in the frames after
+    the turns (each cell's summed error there over its straight frames); "-" for the second without
+    the split (runs before 2026-12-06)."""
+    signed = statistics.mean(r["straight_bias_deg_per_frame"] for r in results)
+    if not all("straight_after_turn_deg" in r for r in results):
+        return f"{signed:+.4f} / -"
+    after = statistics.mean(r["straight_after_turn_deg"] / r["straight_frames"] for r in results)
+    return f"{signed:+.4f} / {after:+.4f}"
 
 
 def _straights(results: list[dict]) -> str:

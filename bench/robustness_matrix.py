@@ -307,6 +307,8 @@ def _f(v, fmt: str) -> str:
 
 COLUMNS = [("yaw RMSE deg", "yaw_rmse_deg", ".2f"), ("straight bias deg/m", "straight_bias_deg_per_m", "+.3f"),
            ("deg/min", "straight_bias_deg_per_min", "+.1f"), ("deg/frame", "straight_bias_deg_per_frame", "+.4f"),
+           ("after turns deg", "straight_after_turn_deg", "+.2f"),
+           ("own deg/frame", "straight_own_bias_deg_per_frame", "+.4f"),
            ("each straight RMS deg/m", "straight_rms_deg_per_m", ".2f"),
            ("worst straight deg/m", "straight_max_deg_per_m", ".2f"),
            ("moving-turn ratio", "moving_turn_ratio", ".3f"),

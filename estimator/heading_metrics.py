@@ -7,7 +7,11 @@ or too small.  These metrics measure them separately, by segmenting the truth:
 - **yaw-increment RMSE** (deg): the frame-to-frame yaw change, estimate minus truth;
 - **straight-drive heading bias**: the yaw-increment error (estimate minus truth) summed
   over the frames where the truth drives straight (|yaw rate| below ``straight_rate_dps``, speed above
-  ``moving_speed_mps``), per metre driven and per minute of such driving (and per frame);
+  ``moving_speed_mps``), per metre driven and per minute of such driving (and per frame); and
+  apart, the error summed over the straight frames within ``after_turn_frames`` after a turn
+  (where the estimate takes back part of the turn's error: the same error then counts in the
+  turn's ratio and again in the straight) and the bias of the other straight frames, the
+  straights' own;
 - **each straight's heading error** (deg/m): the same error summed over each run of straight
   frames at least ``min_straight_m`` long, over its length: their RMS and the largest.  The
   whole sequence's bias above is their weighted mean, in which a straight that turns left and
@@ -40,7 +44,8 @@ import numpy as np
 
 from .evaluation import path_steps, se2_compose, se2_inverse, se2_relative
 
-__all__ = ["DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns", "straight_runs"]
+__all__ = ["AFTER_TURN_FRAMES", "DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns",
+           "straight_runs"]
 
 #: The parts :func:`drift_parts` reports, in order.
 DRIFT_PARTS = ("all", "straight", "after turn", "moving turn", "turn in place", "other", "translation")
@@ -51,6 +56,10 @@ STRAIGHT_RATE_DPS = 2.0
 MOVING_MPS = 0.05
 MIN_TURN_DEG = 10.0
 MIN_STRAIGHT_M = 1.0
+#: The straight frames after a turn whose error :func:`heading_metrics` sums apart (a second at
+#: 10 frames a second: where the estimate settles a turn's error, docs/heading.md, "The straight
+#: after a turn in place pays for the turn's error").
+AFTER_TURN_FRAMES = 10
 
 
 def _wrap(a):
@@ -67,6 +76,12 @@ class HeadingMetrics:
     straight_bias_deg_per_m: float
     straight_bias_deg_per_min: float
     straight_bias_deg_per_frame: float
+    #: Of those, the frames within ``after_turn_frames`` after a turn: how many, and their summed
+    #: heading error, deg (in the bias above); and the bias of the other straight frames, deg a
+    #: frame: the straights' own turning, a turn's error taken back after it apart.
+    straight_after_turn_frames: int
+    straight_after_turn_deg: float
+    straight_own_bias_deg_per_frame: float
     #: Each straight drive of at least ``min_straight_m`` apart: how many, and their heading errors'
     #: RMS and largest magnitude, deg/m.
     straights: int
@@ -160,12 +175,25 @@ def segment_turns(times: np.ndarray, ref: np.ndarray, *, straight_rate_dps: floa
     return out
 
 
+def _after_turns(straight: np.ndarray, turns: list[tuple[int, int, bool]], frames: int) -> np.ndarray:
+    """Which steps (n-1,) are among the first *frames* straight steps (*straight* (n-1,) bool) that
+    follow each of *turns* (:func:`segment_turns`') without a break."""
+    out = np.zeros_like(straight)
+    for _, j, _ in turns:
+        k = j
+        while k < len(straight) and k < j + frames and straight[k]:
+            out[k] = True
+            k += 1
+    return out
+
+
 def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS,
                     moving_speed_mps: float = MOVING_MPS, min_turn_deg: float = MIN_TURN_DEG,
-                    min_straight_m: float = MIN_STRAIGHT_M,
+                    min_straight_m: float = MIN_STRAIGHT_M, after_turn_frames: int = AFTER_TURN_FRAMES,
                     radar_on_base=(0.0, 0.0, 0.0)) -> HeadingMetrics:
     """The metrics of the module text for *est* against *ref* ((n, 3) SE(2) at *times*);
-    *min_straight_m*: the shortest straight measured apart.
+    *min_straight_m*: the shortest straight measured apart; *after_turn_frames*: the straight
+    frames after a turn summed apart.
     *radar_on_base*: where the radar sits on the base that carries it, (3,) x, y (m) and yaw (rad)
     in the base's frame (e.g. 0.3 m ahead of a wheeled base's rotation axis): straight drives and
     turns in place are told by the base's motion (a radar ahead of the axis moves in a turn in
@@ -199,6 +227,8 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         # (undefined when one is, as the kind's ratio is)
         worst = nan if not ratios or any(map(math.isnan, ratios)) else max(ratios, key=lambda r: abs(r - 1.0))
         kinds[in_place] = (len(ratios), math.degrees(true_sum), est_sum / true_sum if true_sum > 0 else nan, worst)
+    after = _after_turns(straight, turns, after_turn_frames)
+    own = straight & ~after
 
     path = float(step_m.sum())
     est_path = float(path_steps(est[:, :2]).sum())
@@ -211,6 +241,8 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
         straight_bias_deg_per_m=s_yaw / s_m if s_m > 0 else nan,
         straight_bias_deg_per_min=60.0 * s_yaw / s_s if s_s > 0 else nan,
         straight_bias_deg_per_frame=s_yaw / int(straight.sum()) if straight.any() else nan,
+        straight_after_turn_frames=int(after.sum()), straight_after_turn_deg=math.degrees(float(err[after].sum())),
+        straight_own_bias_deg_per_frame=math.degrees(float(err[own].sum())) / int(own.sum()) if own.any() else nan,
         straights=len(runs), straight_rms_deg_per_m=float(np.sqrt(np.mean(runs ** 2))) if len(runs) else nan,
         straight_max_deg_per_m=float(np.abs(runs).max()) if len(runs) else nan,
         moving_turns=kinds[False][0], moving_turn_deg=kinds[False][1], moving_turn_ratio=kinds[False][2],
@@ -239,13 +271,11 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS
     base = _base(ref, radar_on_base)
     straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     kind = np.where(straight, "straight", "other").astype(object)
-    for i, j, in_place in segment_turns(times, base, straight_rate_dps=straight_rate_dps,
-                                        moving_speed_mps=moving_speed_mps, min_turn_deg=min_turn_deg):
+    turns = segment_turns(times, base, straight_rate_dps=straight_rate_dps, moving_speed_mps=moving_speed_mps,
+                          min_turn_deg=min_turn_deg)
+    for i, j, in_place in turns:
         kind[i:j] = "turn in place" if in_place else "moving turn"
-        after = j
-        while after < len(kind) and after < j + after_turn_frames and straight[after]:
-            kind[after] = "after turn"
-            after += 1
+    kind[_after_turns(straight, turns, after_turn_frames)] = "after turn"
     ref_steps, est_steps = se2_relative(ref[:-1], ref[1:])[:, :2], se2_relative(est[:-1], est[1:])[:, :2]
     path = float(np.hypot(*ref_steps.T).sum())
 

@@ -259,13 +259,17 @@ def test_heading_figures_of_straights_and_turns(tmp_path):
     lines = proc.stdout.splitlines()
     start = lines.index("heading (the truth drives straight where it turns under 2 deg/s and moves; "
                         "a turn turns 10 deg or more):")
-    assert lines[start + 1:start + 6] == [
+    # The ten straight frames after each of the two turns apart: 0.20 degrees, the rest 0.01 a frame.
+    assert h["straight_after_turn_frames"] == 20 and h["straight_after_turn_deg"] == pytest.approx(0.2)
+    assert h["straight_own_bias_deg_per_frame"] == pytest.approx(0.01)
+    assert lines[start + 1:start + 7] == [
         "  straight drives   12.00 m in 15.0 s, heading bias +0.125 deg/m = +6.00 deg/min = +0.0100 deg/frame",
         "                    each of 3 straight(s) of 1 m or more: RMS 0.125, worst 0.125 deg/m",
+        "                    in the 10 frames after each turn +0.20 deg in all; the rest +0.0100 deg/frame",
         "  moving turns      1, 90.0 deg in all, measured 0.970 of it",
         "  turns in place    1, 90.0 deg in all, measured 1.050 of it",
         "  drift parts, % of the path (each kind of frame's yaw errors alone, and the translation's):"]
-    assert lines[start + 6] == "                    " + ", ".join(
+    assert lines[start + 7] == "                    " + ", ".join(
         f"{name} {parts[name]:.2f}" for name in ("straight", "after turn", "moving turn", "turn in place", "other",
                                                  "translation"))
 

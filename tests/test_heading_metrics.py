@@ -7,7 +7,9 @@ import math
 import numpy as np
 import pytest
 from radarodom.driver.sim.trajectory import from_segments
-from radarodom.estimator.heading_metrics import DRIFT_PARTS, drift_parts, heading_metrics, segment_turns, straight_runs
+from radarodom.estimator.evaluation import se2_relative
+from radarodom.estimator.heading_metrics import (AFTER_TURN_FRAMES, DRIFT_PARTS, drift_parts, heading_metrics,
+                                               segment_turns, straight_runs)
 
 SEGMENTS = [{"pause": 1.0}, {"straight": 4.0, "speed": 1.0}, {"turn": 90, "radius": 1.0, "speed": 0.8},
             {"straight": 3.0, "speed": 0.5}, {"rotate": 180, "rate": 60}, {"straight": 3.0, "speed": 0.5},
@@ -109,6 +111,37 @@ def test_straight_bias_and_turn_ratios_are_measured_apart():
     expected = 0.05 * 90 - 0.05 * 90 - 0.09 * 180 + 0.02 * m.straight_frames
     assert m.final_heading_error_deg == pytest.approx(expected, abs=0.1)
     assert m.drift_pct > 1.0
+
+
+def test_a_turns_error_taken_back_after_it_is_told_from_the_straights_own_bias():
+    # The turn in place measured 2 % long (3.6 degrees), a third of it taken back over the five
+    # straight frames after it, and every straight frame turned by 0.01 degrees besides: the
+    # straight bias holds both, the after-turn frames' sum the taking back, the rest the 0.01.
+    t, ref = truth()
+    est = estimate(t, ref, bias_deg=0.01, inplace_k=1.02)
+    (_, end, _), = [turn for turn in segment_turns(t, ref) if turn[2]]
+    d_est = np.diff(est[:, 2])
+    d_est[end:end + 5] -= math.radians(0.02 * 180 / 3) / 5
+    est = estimate_with_yaw(ref, est, d_est)
+    m = heading_metrics(t, ref, est)
+    assert m.straight_after_turn_frames == 3 * AFTER_TURN_FRAMES  # ten after each of the three turns
+    assert m.straight_after_turn_deg == pytest.approx(-1.2 + 0.01 * m.straight_after_turn_frames, abs=1e-6)
+    assert m.straight_own_bias_deg_per_frame == pytest.approx(0.01, abs=1e-6)
+    total = 0.01 * m.straight_frames - 1.2
+    assert m.straight_bias_deg_per_frame == pytest.approx(total / m.straight_frames, abs=1e-6)
+    assert heading_metrics(t, ref, est, after_turn_frames=0).straight_after_turn_frames == 0
+    same = heading_metrics(t, ref, est, after_turn_frames=0)
+    assert same.straight_own_bias_deg_per_frame == pytest.approx(same.straight_bias_deg_per_frame, abs=1e-12)
+
+
+def estimate_with_yaw(ref, est, d_est):
+    """*est* with its yaw increments replaced by *d_est* (n-1,) rad, its body-frame steps kept."""
+    steps = se2_relative(est[:-1], est[1:])
+    yaw = est[0, 2] + np.concatenate([[0.0], np.cumsum(d_est)])
+    c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
+    x = est[0, 0] + np.concatenate([[0.0], np.cumsum(c * steps[:, 0] - s * steps[:, 1])])
+    y = est[0, 1] + np.concatenate([[0.0], np.cumsum(s * steps[:, 0] + c * steps[:, 1])])
+    return np.column_stack([x, y, yaw])
 
 
 def test_straights_that_turn_opposite_ways_are_measured_each_though_they_cancel_in_the_bias():

@@ -176,6 +176,9 @@ def test_the_summary_gives_a_row_per_axis_and_the_goals_before_and_after():
     assert "cells 2 -> 2" in text and "drift <= 2 % 0 -> 1" in text and "straight bias <= 0.005 2 -> 2" in text
     assert "What makes the drift" not in text  # results without drift parts (before 2026-11-29)
     assert "each straight's heading error, RMS / worst deg/m - -> -" in text  # nor straights (2026-11-30)
+    # nor the frames after the turns apart (2026-12-06)
+    assert "the straights' own bias <= 0.005 - -> -" in text
+    assert "signed straight bias, all / after turns' frames deg/frame -0.0040 / - -> -0.0040 / -" in text
 
 
 def test_the_summary_says_what_makes_the_drift_per_row():
@@ -186,8 +189,13 @@ def test_the_summary_says_what_makes_the_drift_per_row():
         return {"name": name, "cell": {**dataclasses.asdict(rm.SimCell(scene="room")), **cell}, "yaw_rmse_deg": 0.3,
                 "straight_bias_deg_per_frame": 0.0, "moving_turn_ratio": 1.0, "inplace_turn_ratio": 1.0,
                 "drift_pct": 1.0, "final_heading_error_deg": 0.0, "drift_parts": parts,
-                "straight_rms_deg_per_m": turn_in_place / 10, "straight_max_deg_per_m": turn_in_place / 5}
+                "straight_rms_deg_per_m": turn_in_place / 10, "straight_max_deg_per_m": turn_in_place / 5,
+                "straight_frames": 100, "straight_after_turn_deg": -turn_in_place,
+                "straight_own_bias_deg_per_frame": 0.002 * turn_in_place}
     text = matrix_summary.summary([[result("a", 1.0), result("b", 3.0, seed=1), result("c", 2.0, speed_mps=1.5)]])
+    # own biases 0.002, 0.006, 0.004: two within the goal; the after-turn frames' -0.01, -0.03, -0.02
+    assert "the straights' own bias <= 0.005 2" in text
+    assert "signed straight bias, all / after turns' frames deg/frame +0.0000 / -0.0200" in text
     # the RMS over the cells of 0.1, 0.3, 0.2 deg/m, and the worst straight of all
     assert "each straight's heading error, RMS / worst deg/m 0.22 / 0.60" in text
     lines = text.split("What makes the drift")[1].splitlines()

@@ -7,7 +7,8 @@ import math
 
 from ..estimator.consistency import offset_text
 from ..estimator.evaluation import EvaluationResult, Stats
-from ..estimator.heading_metrics import DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG, STRAIGHT_RATE_DPS, HeadingMetrics
+from ..estimator.heading_metrics import (AFTER_TURN_FRAMES, DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG, STRAIGHT_RATE_DPS,
+                                         HeadingMetrics)
 from ..estimator.quality import Flag
 from .odometry_log import OdometryLog
 
@@ -71,6 +72,10 @@ def format_heading(m: HeadingMetrics, parts: dict[str, float]) -> str:
             straight += (f"\n{'':<20}each of {m.straights} straight(s) of {MIN_STRAIGHT_M:g} m or more: RMS "
                          f"{_num(m.straight_rms_deg_per_m, '.3f')}, "
                          f"worst {_num(m.straight_max_deg_per_m, '.3f')} deg/m")
+        if m.straight_after_turn_frames:
+            straight += (f"\n{'':<20}in the {AFTER_TURN_FRAMES} frames after each turn "
+                         f"{_num(m.straight_after_turn_deg, '+.2f')} deg in all; the rest "
+                         f"{_num(m.straight_own_bias_deg_per_frame, '+.4f')} deg/frame")
     else:
         straight = "none"
     kinds = ", ".join(f"{name} {_num(parts[name], '.2f')}" for name in DRIFT_PARTS[1:])
