@@ -10,8 +10,9 @@ walking people, the radar on the base's rotation axis or ahead of it (:class:`Si
 (:class:`ColoradarCell`). Simulated cells drive a closed loop made for the matrix inside the
 scene: pause, straight, a moving left turn of 90 degrees (radius speed / turn rate), straight, a
 turn in place of 180 degrees at the turn rate (to the left on even seeds, to the right on odd
-ones), straight back, a moving right turn, straight back, pause (:func:`loop_segments`). The SNR is the scene's ``[radar] snr_db`` (per-sample SNR of a
-1 m^2 target 5 m away on boresight; the built-in scenes have 0 dB).
+ones), straight back, a moving right turn, straight back, pause (:func:`loop_segments`). The SNR
+is the scene's ``[radar] snr_db`` (per-sample SNR of a 1 m^2 target 5 m away on boresight; the
+built-in scenes have 0 dB).
 
 ``--design star`` (default) varies one axis at a time around the base cell (shipped cfg, 0 dB,
 0.8 m/s, 45 deg/s, the scene's own movers), for every scene and seed; ``--design product``

@@ -7,8 +7,8 @@ import math
 
 from ..estimator.consistency import offset_text
 from ..estimator.evaluation import EvaluationResult, Stats
-from ..estimator.heading_metrics import (AFTER_TURN_FRAMES, DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG, STRAIGHT_RATE_DPS,
-                                         HeadingMetrics)
+from ..estimator.heading_metrics import (AFTER_TURN_FRAMES, DRIFT_PARTS, MIN_STRAIGHT_M, MIN_TURN_DEG,
+                                         STRAIGHT_RATE_DPS, HeadingMetrics)
 from ..estimator.quality import Flag
 from .odometry_log import OdometryLog
 
