@@ -247,6 +247,11 @@ class PointYawConfig(Settings):
     #: turn moved this share of the way from the heatmaps' chain's to the points' (0: not run;
     #: estimator/heading_blend.py, docs/heading.md item 30).  With ``use``: no effect.
     blend: float = 0.5
+    #: With ``blend``: where the heatmaps' chain measured no turn in a step (it held its yaw rate
+    #: or lost its motion: a weak view) and the points' chain measured one, publish the points'
+    #: turn whole for that step rather than a share of it: a rate held through a turn's end runs
+    #: the turn on (docs/heading.md item 39; on since 2026-12-06).
+    blend_points_where_held: bool = True
     #: The map holds the static points of this many last frames: a long map anchors each frame's
     #: few points to what the frames before saw (docs/tidemo.md, "How it compares").
     map_frames: int = 80

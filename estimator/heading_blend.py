@@ -8,7 +8,8 @@ drives hardly correlate from cell to cell, so a share of each holds the heading 
 either alone.  The two run side by side, unaware of each other (each its own velocity fit, yaw-rate
 filter and keyframes or map); what is published is the heatmap chain's state, each step's turn
 moved *share* of the way to the points' chain's turn over the same step (the heatmap chain's
-alone over frames lost and where the points' chain has long measured nothing), and its position
+alone over frames lost and where the points' chain has long measured nothing; the points' whole
+where the heatmap chain held its rate and the points' chain measured the step, item 39), and its position
 integrated from the heatmap chain's own steps along that heading; its covariances the heatmap
 chain's, the heading's walked further by the turn the blend adds.
 """
@@ -21,9 +22,13 @@ from typing import Protocol
 
 import numpy as np
 
+from .quality import Flag
+
 
 #: A step longer than this many frame periods has lost frames.
 _LOST = 1.5
+#: A heatmap chain's step with one of these flags measured no turn of its own.
+_HELD = frozenset({Flag.YAW_HELD, Flag.MOTION_LOST})
 
 
 class _Odometry(Protocol):
@@ -40,9 +45,13 @@ class HeadingBlend:
     """The published state of each frame from the heatmap chain's (:meth:`__call__`), the
     points' estimator fed the same points and heatmaps."""
 
-    def __init__(self, points: _Odometry, share: float, walk_var_rad: float, catch_up_steps: int) -> None:
+    def __init__(self, points: _Odometry, share: float, walk_var_rad: float, catch_up_steps: int, *,
+                 points_where_held: bool = False) -> None:
         self.points = points
         self.share = share
+        #: Where the heatmap chain's step measured no turn (its rate held, or its motion lost) and
+        #: the points' chain's did, the points' turn whole (``point_yaw.blend_points_where_held``).
+        self.points_where_held = points_where_held
         #: The points' chain makes up for a turn it held within this many steps (its map's
         #: ``point_yaw.lag_frames``): a held step of its is blended only so soon after a measured one.
         self.catch_up_steps = catch_up_steps
@@ -89,6 +98,8 @@ class HeadingBlend:
             self._unmeasured = 0 if other.ok else self._unmeasured + 1
             alive = self._unmeasured <= self.catch_up_steps
             w = self.share if alive and dt <= _LOST * self._period else 0.0
+            if w and self.points_where_held and other.ok and _HELD & set(own.flags):
+                w = 1.0
             increment = own_turn + w * (other_turn - own_turn)
             self._added_var += self.walk_var_rad * abs(increment - own_turn)
             # The heatmap chain's step in its own axes at the step's start, turned onto the

@@ -114,7 +114,8 @@ class RadarOdometry:
         if self.point_yaw is None and self.config.point_yaw.blend:
             points = RadarOdometry(self.config.with_(point_yaw={"use": True, "blend": 0.0}, wall_map={"use": False}))
             self.blend = HeadingBlend(points, self.config.point_yaw.blend, self._walk_var_rad,
-                                      self.config.point_yaw.lag_frames)
+                                      self.config.point_yaw.lag_frames,
+                                      points_where_held=self.config.point_yaw.blend_points_where_held)
         #: wall_map.use: the published heading corrected by the walls seen again (None: not).
         self.walls = WallMap(self.config.wall_map) if self.config.wall_map.use else None
         self._held_rate_std = odo.held_yaw_rate_std_radps

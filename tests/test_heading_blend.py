@@ -48,9 +48,10 @@ def _run(config, frames):
     return [odom.step(t, cloud, hm) for t, cloud, hm in frames]
 
 
-def _three(share, frames):
-    """The states of the heatmaps' estimator, the points' and the blend's, frame by frame."""
-    blend = EstimatorConfig().with_(point_yaw={"blend": share})
+def _three(share, frames, *, where_held=False):
+    """The states of the heatmaps' estimator, the points' and the blend's, frame by frame (the
+    share everywhere unless *where_held*: ``point_yaw.blend_points_where_held``)."""
+    blend = EstimatorConfig().with_(point_yaw={"blend": share, "blend_points_where_held": where_held})
     return list(zip(*(_run(config, frames) for config in (HEATMAPS, POINTS, blend))))
 
 
@@ -113,6 +114,26 @@ def test_frames_lost_or_long_unmeasured_by_the_points_take_the_heatmaps_turn():
         assert blend[k] == pytest.approx(expected, abs=1e-12), k
     assert np.max(np.abs(blend - field)[heatmaps_held & ~points_held & ~lost]) > 1e-4
     assert all(c.flags == a.flags for a, _, c in frames)
+
+
+def test_where_the_heatmaps_held_their_rate_the_points_turn_is_taken_whole():
+    # point_yaw.blend_points_where_held (docs/heading.md item 39; the default): a step whose heatmap
+    # showed the heatmaps' chain nothing (it stood in its held rate) but whose points the points'
+    # chain measured publishes the points' turn; every other step as the share has it.
+    from radarodom.estimator.quality import Flag
+    standing_turn = synth.Trajectory([(1.0, 0.8, 0.0), (3.0, 0.0, math.radians(30.0)), (2.5, 0.8, 0.0)])
+    frames = _frames(standing_turn, drop={12, 13, 14}, blind={30, 31}, dark={36, 37, 38})
+    option = EstimatorConfig()
+    assert option.point_yaw.blend_points_where_held and option.point_yaw.blend == 0.5
+    triples = list(zip(*(_run(config, frames) for config in (HEATMAPS, POINTS, option))))
+    field, points, blend = (_turns(chain) for chain in zip(*triples))
+    plain = _turns([c for _, _, c in _three(0.5, frames)])
+    held = np.array([bool({Flag.YAW_HELD, Flag.MOTION_LOST} & set(a.flags)) and b.ok for a, b, _ in triples[1:]])
+    lost = np.array([triples[k + 1][0].t - triples[k][0].t > 0.15 for k in range(len(triples) - 1)])
+    assert (held & ~lost).sum() >= 2  # the dark heatmaps beside their clouds
+    np.testing.assert_allclose(blend[held & ~lost], points[held & ~lost], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(blend[~held | lost], plain[~held | lost], rtol=0, atol=1e-12)
+    assert np.max(np.abs(points - field)[held & ~lost]) > 1e-4  # (else the test could not tell)
 
 
 def test_without_a_share_or_with_the_points_alone_nothing_is_blended():

@@ -91,10 +91,18 @@ def test_the_points_on_the_map_follow_a_moving_turn_the_heatmap_registration_los
     assert abs(final_error) < 3.0, final_error
     assert rmse < 1.0
     assert sum(s.ok for s in states[1:]) >= len(states) - 3  # measured, not held
-    # The heatmap registration alone (the raw path's) has nothing to register while moving.
-    states, final_error, _ = _run(EstimatorConfig(), MOVING_TURN)
+    # The heatmap registration alone (the raw path's without the blend) has nothing to register
+    # while moving ...
+    states, final_error, _ = _run(EstimatorConfig().with_(point_yaw={"blend": 0.0}), MOVING_TURN)
     assert abs(final_error) > 30.0
     assert sum("no_structure" in s.flags for s in states) > len(states) // 2
+    # ... and the default, which blends the points' chain in, publishes the points' turn over the
+    # steps it held (point_yaw.blend_points_where_held, docs/heading.md item 39); with half of
+    # the held rate instead, it loses the turn too.
+    _, final_error, _ = _run(EstimatorConfig(), MOVING_TURN)
+    assert abs(final_error) < 3.0, final_error
+    _, final_error, _ = _run(EstimatorConfig().with_(point_yaw={"blend_points_where_held": False}), MOVING_TURN)
+    assert abs(final_error) > 10.0, final_error
 
 
 def test_standing_and_turning_in_place_the_points_measure_the_turn_and_the_heatmap_may_join_them():
