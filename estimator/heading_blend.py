@@ -46,7 +46,7 @@ class HeadingBlend:
     points' estimator fed the same points and heatmaps."""
 
     def __init__(self, points: _Odometry, share: float, walk_var_rad: float, catch_up_steps: int, *,
-                 points_where_held: bool = False) -> None:
+                 points_where_held: bool) -> None:
         self.points = points
         self.share = share
         #: Where the heatmap chain's step measured no turn (its rate held, or its motion lost) and
