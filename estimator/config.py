@@ -368,7 +368,8 @@ TIDEMO_PRESET = {"velocity": {"min_points": 3, "zero_velocity_ratio": 0.5, "bear
                               "level_edge_quantile": None},
                  "icp": {"field_shape_width": None},
                  "odometry": {"yaw_filter_max_lag_rad": None},
-                 "point_yaw": {"use": True, "density_weighted": False}, "wall_map": {"use": False}}
+                 "point_yaw": {"use": True, "density_weighted": False, "check_min_points": 0},
+                 "wall_map": {"use": False}}
 #: The presets a source may call for by name (``Source.estimator_preset``), each the changes it
 #: makes to other settings, by section (:meth:`EstimatorConfig.preset`).
 PRESETS = {"tidemo": TIDEMO_PRESET}

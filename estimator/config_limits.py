@@ -174,6 +174,7 @@ POINT_YAW = {
     "outlier_sigmas": "(0, 30] standard deviations", "min_noise_rad": NOISE, "max_noise_rad": NOISE,
     "slow_mps": "[0, 100] m/s", "heatmap_noise_rad": NOISE, "agreement_sigmas": SIGMAS, "check_sigmas": SIGMAS,
     "check_steady_frames": "[0, 1e6] (0: always taken)", "check_steady_rad": ANGLE,
+    "check_min_points": "[0, 1e6] (0: never)",
     "heatmap_max_accel_radps2": "(0, 1000] rad/s^2 (or null: always believed)", "lag_frames": COUNT,
 }
 

@@ -353,6 +353,12 @@ class PointYawConfig(Settings):
     #: map and the heatmap, frame to frame, cannot: then the points' turn is taken.
     check_steady_frames: int = 3
     check_steady_rad: float = math.radians(3.0)
+    #: With "check", where the two agree within ``check_sigmas`` but the step has fewer static
+    #: points than this, the heatmap's turn is taken (0: the points' always): turning in place
+    #: facing a near wall, 2-20 points a frame measure the turn short, by a degree a step at
+    #: times, within what the check lets pass; where they disagree, as above (docs/heading.md
+    #: item 40; measured on the raw path's points, so 0 in TI's demo preset).
+    check_min_points: int = 20
     #: Standing in for the points' or checking them ("check", "fallback"; not fused), its turn is
     #: not believed further from the predicted one (the last measured rate's;
     #: ``icp.initial_guess`` "zero" predicts none, and then it is not checked) than this yaw

@@ -34,8 +34,9 @@ register frame to frame, but enough against the points of the last seconds:
   there the heatmap registration (:class:`~.yaw_measurement.YawMeasurement`, the raw path's)
   measures the turn too (a variance of at least ``heatmap_noise_rad`` squared); ``heatmap_use``
   says how the two are combined ("check", the default, takes the heatmap's where the points give
-  none or where they disagree by more than ``check_sigmas``, unless steadily: the settings'
-  docstrings, :class:`~.config_odometry.PointYawConfig`, say why).  The demo's heatmap has no
+  none, where they disagree by more than ``check_sigmas`` (unless steadily), and where they
+  agree but the points are fewer than ``check_min_points``: the settings' docstrings,
+  :class:`~.config_odometry.PointYawConfig`, say why).  The demo's heatmap has no
   elevation, and facing a wall its few cells register to false turns: its turn is not believed
   further from the predicted one than ``heatmap_max_accel_radps2`` allows over the step.
 
@@ -246,7 +247,7 @@ class PointYaw:
             self._overrides.clear()
             self.map.turn, self.map.turn_variance = relocated
             return YawStep(-heatmap[0], None, heatmap[1]) if heatmap else YawStep(predicted, None, relocated[1])
-        found = self._choose(heatmap, points)  # (turn rad, variance rad^2)
+        found = self._choose(heatmap, points, len(xy))  # (turn rad, variance rad^2)
         if not found:
             flags.append(Flag.FEW_FEATURES if len(xy) < cfg.min_points else Flag.NO_STRUCTURE)
             self._gap += 1
@@ -258,13 +259,14 @@ class PointYaw:
         self.map.turn, self.map.turn_variance = turn, float(1.0 / weights.sum())
         return YawStep(-turn, None, self.map.turn_variance)
 
-    def _choose(self, heatmap: tuple[float, float] | None,
-                points: tuple[float, float] | None) -> list[tuple[float, float]]:
+    def _choose(self, heatmap: tuple[float, float] | None, points: tuple[float, float] | None,
+                count: int) -> list[tuple[float, float]]:
         """The measurements (turn rad, variance rad^2) the step's turn is averaged from, by
-        ``heatmap_use``: where both measured, "check" keeps the points' unless the heatmap's
-        differs by more than ``check_sigmas`` of their combined spread, "fuse" both unless they
-        differ by more than ``agreement_sigmas`` (then the points'); "check" takes the points'
-        after ``check_steady_frames`` steps running of the heatmap's taken by a steady difference."""
+        ``heatmap_use``: where both measured, "check" keeps the points' (*count* static points)
+        unless the heatmap's differs by more than ``check_sigmas`` of their combined spread, or
+        agrees but the points are fewer than ``check_min_points``; "fuse" both unless they differ
+        by more than ``agreement_sigmas`` (then the points'); "check" takes the points' after
+        ``check_steady_frames`` steps running of the heatmap's taken by a steady difference."""
         if heatmap is None or points is None:
             self._overrides.clear()
             return [m for m in (heatmap, points) if m is not None]
@@ -273,8 +275,11 @@ class PointYaw:
         if self._fuse:
             return [heatmap, points] if difference <= cfg.agreement_sigmas else [points]
         if difference <= cfg.check_sigmas:
+            # A few points' turn within the check errs by what its spread lets pass (short, a
+            # degree a step at times, facing a near wall); one off by more is the map's chain's
+            # making up a turn it missed, as below, which the heatmap, frame to frame, cannot see.
             self._overrides.clear()
-            return [points]
+            return [points] if count >= cfg.check_min_points else [heatmap]
         run = self._overrides
         run.append(points[0] - heatmap[0])
         if (len(run) == cfg.check_steady_frames and (min(run) > 0 or max(run) < 0)

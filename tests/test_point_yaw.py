@@ -198,6 +198,43 @@ def test_a_steady_difference_between_the_points_and_the_static_heatmap_is_the_ma
                        points_turn=offset)
     assert steady == pytest.approx(5.0, abs=1.0), steady
     assert abs(never) < 1.0, never
+    # So too where the frame's 8 points are fewer than check_min_points, which takes the heatmap's
+    # turn only where the two agree (docs/heading.md item 40): each against the same run without
+    # the offset, the heading moves as much with the count as without.
+    _, plain, _ = _run(EstimatorConfig.tidemo(), IN_PLACE)
+    fewer = EstimatorConfig.tidemo().with_(point_yaw={"check_min_points": 20})
+    _, few, _ = _run(fewer, IN_PLACE, points_turn=offset)
+    _, few_plain, _ = _run(fewer, IN_PLACE)
+    assert few - few_plain == pytest.approx(steady - plain, abs=0.5), (few, few_plain, steady, plain)
+    assert few - few_plain > 3.0
+
+
+def test_where_few_points_agree_with_the_static_heatmap_its_turn_is_taken():
+    # "check" on one step's two turns (rad, variance): within check_sigmas of their combined
+    # spread the points' turn is kept, unless its step has fewer static points than
+    # check_min_points (turning in place facing a near wall, 3-15 points a frame measure the turn
+    # short by what the check lets pass: docs/heading.md item 40); then the heatmap's, whichever
+    # is the longer (keeping the longer of two would lengthen every turn).  Where they differ by
+    # more, the heatmap's either way, and after three steady differences the points' (the map's
+    # chain off by a turn the steps before missed): the count changes neither.
+    def part(least):
+        config = EstimatorConfig.tidemo().with_(point_yaw={"check_min_points": least})
+        return RadarOdometry(config).point_yaw
+
+    assert EstimatorConfig.tidemo().point_yaw.check_min_points == 0
+    var = math.radians(1.5) ** 2
+    heatmap, near, far = (0.080, var), (0.070, var), (0.030, var)  # far: 2.9 degrees off, 1.35 sigma
+    longer, backward = (0.090, var), (-0.080, var)
+    assert part(0)._choose(heatmap, near, 4) == [near]
+    assert part(10)._choose(heatmap, near, 4) == [heatmap]
+    assert part(10)._choose(heatmap, near, 10) == [near]
+    assert part(10)._choose(heatmap, longer, 4) == [heatmap]
+    assert part(10)._choose(backward, (-0.070, var), 4) == [backward]  # turning the other way
+    for least in (0, 10):
+        chooser = part(least)
+        assert [chooser._choose(heatmap, far, 4) for _ in range(3)] == [[heatmap], [heatmap], [far]]
+    assert part(10)._choose(None, near, 4) == [near]
+    assert part(10)._choose(heatmap, None, 0) == [heatmap]
 
 
 def _map_and_frame(rng, frames, half_width, step, pose, turn_deg, radius, n, last=None):
@@ -406,7 +443,11 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
     # The map's density weights (docs/heading.md item 38) were measured on the raw path's maps,
     # not on the chip's sparse ones.
     assert default.point_yaw.density_weighted and not preset.point_yaw.density_weighted
-    assert same["point_yaw"] == {**default.to_dict()["point_yaw"], "use": True, "density_weighted": False}
+    # So was the few points' check (item 40): the chip sends few points a frame everywhere, and
+    # its static heatmap has no elevation.
+    assert default.point_yaw.check_min_points == 20 and preset.point_yaw.check_min_points == 0
+    assert same["point_yaw"] == {**default.to_dict()["point_yaw"], "use": True, "density_weighted": False,
+                                 "check_min_points": 0}
     assert EstimatorConfig.from_dict(same) == preset
 
 
@@ -416,6 +457,7 @@ def test_the_preset_is_the_defaults_with_point_yaw_and_its_velocity_settings():
                                           ("heatmap_use", "sometimes"), ("heatmap_max_accel_radps2", 0.0),
                                           ("gap_widen_rad", -0.01), ("gap_widen_frames", -1),
                                           ("check_steady_frames", -1), ("check_steady_rad", 0.0),
+                                          ("check_min_points", -1),
                                           ("relocate_cells", -1), ("relocate_gap_frames", 0),
                                           ("relocate_widen_rad", -0.1), ("relocate_prior_rad", 0.0),
                                           ("gap_turn_std_rad", 0.0), ("gap_correction_max_rad", 0.0),
