@@ -22,13 +22,11 @@ from typing import Protocol
 
 import numpy as np
 
-from .quality import Flag
+from .quality import UNMEASURED_TURN
 
 
 #: A step longer than this many frame periods has lost frames.
 _LOST = 1.5
-#: A heatmap chain's step with one of these flags measured no turn of its own.
-_HELD = frozenset({Flag.YAW_HELD, Flag.MOTION_LOST})
 
 
 class _Odometry(Protocol):
@@ -98,7 +96,7 @@ class HeadingBlend:
             self._unmeasured = 0 if other.ok else self._unmeasured + 1
             alive = self._unmeasured <= self.catch_up_steps
             w = self.share if alive and dt <= _LOST * self._period else 0.0
-            if w and self.points_where_held and other.ok and _HELD & set(own.flags):
+            if w and self.points_where_held and other.ok and not UNMEASURED_TURN.isdisjoint(own.flags):
                 w = 1.0
             increment = own_turn + w * (other_turn - own_turn)
             self._added_var += self.walk_var_rad * abs(increment - own_turn)

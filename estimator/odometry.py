@@ -44,7 +44,7 @@ from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
 from .odometry_state import OdometryState
 from .point_yaw import point_yaw_part
-from .quality import Flag, may_hold
+from .quality import UNMEASURED_VELOCITY, Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import StepVelocity, VelocityTrack
 from .wall_map import WallMap
@@ -58,8 +58,6 @@ FIRST_FRAME, VELOCITY_FAILED, VELOCITY_HELD = Flag.FIRST_FRAME, Flag.VELOCITY_FA
 VELOCITY_FROM_HEATMAP, FEW_FEATURES, NO_STRUCTURE = Flag.VELOCITY_FROM_HEATMAP, Flag.FEW_FEATURES, Flag.NO_STRUCTURE
 ICP_FAILED, ICP_NOT_CONVERGED, YAW_HELD, MOTION_LOST = (Flag.ICP_FAILED, Flag.ICP_NOT_CONVERGED, Flag.YAW_HELD,
                                                         Flag.MOTION_LOST)
-#: A step flagged so had no velocity of its own (odometry.yaw_filter_max_lag_trusted_only).
-_UNMEASURED_VELOCITY = frozenset((Flag.VELOCITY_FAILED, Flag.VELOCITY_HELD, Flag.MOTION_LOST))
 
 #: Correlation guess: bearing grid step, rad.
 _PROFILE_STEP = math.radians(0.25)
@@ -286,7 +284,7 @@ class RadarOdometry:
             var_yaw = (self._held_rate_std * dt) ** 2 + step.variance
         else:
             dyaw, var_yaw = self.rate(step.observed, step.variance, dt, floored=step.fused_doppler,
-                                      weak=not _UNMEASURED_VELOCITY.isdisjoint(flags))
+                                      weak=not UNMEASURED_VELOCITY.isdisjoint(flags))
             # The next search's prediction follows the filter's rate, not the increment given: with
             # yaw_filter_max_lag_rad that carries the measurements' noise (docs/heading.md).
             self._good_rate = (t, self.rate.filtered / dt)

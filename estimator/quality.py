@@ -42,6 +42,14 @@ class Flag(TextEnum):
     MOTION_LOST = "motion_lost"
 
 
+#: A step flagged with any of these had no velocity of its own: its fit failed, or one from
+#: before stood in, or none did.
+UNMEASURED_VELOCITY = frozenset({Flag.VELOCITY_FAILED, Flag.VELOCITY_HELD, Flag.MOTION_LOST})
+#: A step flagged with any of these measured no turn of its own: its yaw rate from before stood
+#: in, or none did.
+UNMEASURED_TURN = frozenset({Flag.YAW_HELD, Flag.MOTION_LOST})
+
+
 def may_hold(good_t: float | None, t: float, hold_s: float, flag: Flag, flags: list[Flag]) -> bool:
     """Whether the last good value (taken at *good_t*, None: never) may still stand in at *t*:
     if so *flag* is added to *flags*, if not ``motion_lost`` (once)."""
