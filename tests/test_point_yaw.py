@@ -212,7 +212,7 @@ def test_a_steady_difference_between_the_points_and_the_static_heatmap_is_the_ma
 def test_where_few_points_agree_with_the_static_heatmap_its_turn_is_taken():
     # "check" on one step's two turns (rad, variance): within check_sigmas of their combined
     # spread the points' turn is kept, unless its step has fewer static points than
-    # check_min_points (turning in place facing a near wall, 3-15 points a frame measure the turn
+    # check_min_points (turning in place facing a near wall, 2-20 points a frame measure the turn
     # short by what the check lets pass: docs/heading.md item 40); then the heatmap's, whichever
     # is the longer (keeping the longer of two would lengthen every turn).  Where they differ by
     # more, the heatmap's either way, and after three steady differences the points' (the map's
