@@ -18,7 +18,7 @@ from radarodom.errors import ConfigError
 from radarodom.estimator.config import EstimatorConfig, PointYawConfig
 from radarodom.estimator.odometry import RadarOdometry
 from radarodom.estimator.keyframe import ChainStep
-from radarodom.estimator import point_yaw
+from radarodom.estimator import point_search
 from radarodom.estimator.features import Features
 from radarodom.estimator.point_map import LocalMap, _gaussians
 from radarodom.estimator.point_yaw import static_points
@@ -263,10 +263,10 @@ def test_the_map_points_left_out_of_a_points_likelihood_change_nothing(monkeypat
     part, xy = _map_and_frame(rng, 80, 6.0, (0.05, 0.02), (4.0, 1.6, math.radians(20.0)), 3.0, 8.0, 10, last=40)
     pruned = part._register(xy, np.zeros(2), math.radians(1.0))
     centres, _, sigma = part.map.arrays()
-    pairs, _ = part._pairs(xy, np.array(part.map.pose[:2]), part.map.pose[2] + math.radians(1.0), centres, sigma,
-                           part._config.search_rad)
+    pairs, _ = point_search.pairs_within_reach(xy, np.array(part.map.pose[:2]), part.map.pose[2] + math.radians(1.0),
+                                               centres, sigma, part._config.search_rad)
     assert 0 < len(pairs) < 0.25 * len(xy) * len(centres)  # most pairs are left out
-    monkeypatch.setattr(point_yaw, "_REACH_SIGMAS", math.inf)
+    monkeypatch.setattr(point_search, "_REACH_SIGMAS", math.inf)
     every_pair = part._register(xy, np.zeros(2), math.radians(1.0))
     assert pruned is not None and math.degrees(pruned[0]) == pytest.approx(3.0, abs=0.5)
     assert pruned == pytest.approx(every_pair, rel=1e-9, abs=1e-12)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from test_point_yaw import _map_and_frame
 
-from radarodom.estimator import point_yaw
+from radarodom.estimator import point_search
 
 
 def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussians():
@@ -20,9 +20,9 @@ def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussian
     part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.01), (1.2, 0.4, math.radians(30.0)), 2.0, 6.0, 12)
     centres, inverse, sigma = part.map.arrays()
     origin = np.array([1.5, 0.2])
-    point, near = part._pairs(xy, origin, 0.5, centres, sigma, math.radians(8.0))
+    point, near = point_search.pairs_within_reach(xy, origin, 0.5, centres, sigma, math.radians(8.0))
     yaws = 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
-    score = point_yaw._PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws)
+    score = point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws)
     expected = []
     for yaw in yaws:
         c, s = math.cos(yaw), math.sin(yaw)
@@ -51,12 +51,12 @@ def test_the_coarse_then_fine_search_finds_a_single_peak_anywhere_scoring_a_frac
     # turns either side of it are scored for the parabola, each turn at most once.
     values = -((np.arange(161) - peak) / 20.0) ** 2
     score_at, asked = _score_calls(values)
-    score, best = point_yaw._climb(score_at, np.zeros(161), 5)
+    score, best = point_search.climb(score_at, np.zeros(161), 5)
     assert best == peak
     assert all(np.isfinite(score[max(best - 1, 0):best + 2]))
     assert len(asked) == len(set(asked)) and len(asked) < 50
     assert score[asked] == pytest.approx(values[asked]) and np.isneginf(np.delete(score, asked)).all()
-    full, everywhere = point_yaw._climb(score_at, np.zeros(161), 1)
+    full, everywhere = point_search.climb(score_at, np.zeros(161), 1)
     assert everywhere == peak and full == pytest.approx(values)
 
 
@@ -67,7 +67,7 @@ def test_the_coarse_then_fine_search_weighs_the_prior_as_the_full_one_does():
         twin = np.maximum(-((np.arange(161) - low) / 5.0) ** 2, -((np.arange(161) - high) / 5.0) ** 2)
         prior = -0.5 * ((np.arange(161) - 80) / 40.0) ** 2
         score_at, _ = _score_calls(twin)
-        assert point_yaw._climb(score_at, prior, 5)[1] == point_yaw._climb(score_at, prior, 1)[1] == low
+        assert point_search.climb(score_at, prior, 5)[1] == point_search.climb(score_at, prior, 1)[1] == low
 
 
 @pytest.mark.parametrize("size", [161, 163, 164, 167])
@@ -77,8 +77,8 @@ def test_the_coarse_grid_holds_both_ends_and_the_predicted_turn_whatever_the_gri
     # finds it; and the middle turn (the prediction) is a coarse one.
     rising = np.arange(size) / 10.0
     score_at, asked = _score_calls(rising)
-    assert point_yaw._climb(score_at, np.zeros(size), 5)[1] == size - 1
+    assert point_search.climb(score_at, np.zeros(size), 5)[1] == size - 1
     assert {0, (size - 1) // 2, size - 1} <= set(asked)
     falling = -rising
     score_at, _ = _score_calls(falling)
-    assert point_yaw._climb(score_at, np.zeros(size), 5)[1] == 0
+    assert point_search.climb(score_at, np.zeros(size), 5)[1] == 0
