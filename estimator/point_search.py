@@ -23,7 +23,7 @@ def search_grid(search_rad: float, step_rad: float) -> np.ndarray:
 
 
 def climb(score_at: Callable[[np.ndarray], np.ndarray], prior: np.ndarray,
-           coarse: int) -> tuple[np.ndarray, int]:
+          coarse: int) -> tuple[np.ndarray, int]:
     """The scores (T,) on a grid of T turns where computed (-inf elsewhere) and the index of the
     best score plus *prior* (T,): every *coarse* turn first (counted from the grid's middle, the
     predicted turn, and both ends: a score rising to an edge is no peak), then every turn within
