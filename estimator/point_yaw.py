@@ -290,9 +290,9 @@ class PointYaw:
         point, near = pairs_within_reach(xy, origin, yaw0 + predicted_turn, centres, sigma, cfg.search_rad + widen)
         turns = predicted_turn + offsets
         pairs = PairScore(xy, origin, centres, inverse, point, near, self._floor,
-                           self.map.log_weights() if weighted else None)
+                          self.map.log_weights() if weighted else None)
         score, best = climb(lambda i: pairs.at(yaw0 + turns[i]), -0.5 * (offsets / prior_rad) ** 2,
-                             max(1, round(cfg.coarse_step_rad / step)) if cfg.coarse_step_rad else 1)
+                            max(1, round(cfg.coarse_step_rad / step)) if cfg.coarse_step_rad else 1)
         if best == 0 or best == len(score) - 1:
             return None
         left, mid, right = score[best - 1:best + 2]
