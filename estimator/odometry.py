@@ -44,7 +44,7 @@ from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
 from .odometry_state import OdometryState
 from .point_yaw import point_yaw_part
-from .quality import UNMEASURED_VELOCITY, Flag, may_hold
+from .quality import HELD_OR_NO_VELOCITY, UNMEASURED_VELOCITY, Flag, may_hold
 from .velocity import VelocityEstimate, estimate_velocity
 from .velocity_track import StepVelocity, VelocityTrack
 from .wall_map import WallMap
@@ -335,7 +335,7 @@ class RadarOdometry:
         registered = None if measured.rotation is None else -measured.rotation  # the world turns the other way
         var_registered = measured.variance
         doppler = None
-        if self.doppler_yaw is not None and not {Flag.VELOCITY_HELD, Flag.MOTION_LOST} & set(flags):
+        if self.doppler_yaw is not None and HELD_OR_NO_VELOCITY.isdisjoint(flags):
             doppler = self.doppler_yaw(v, velocity.covariance, registered is not None, rate)
             if doppler is not None:
                 var_registered = max(var_registered, self._yaw_noise_var)  # the filter's floor, before fusing

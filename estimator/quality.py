@@ -42,9 +42,13 @@ class Flag(TextEnum):
     MOTION_LOST = "motion_lost"
 
 
-#: A step flagged with any of these had no velocity of its own: its fit failed, or one from
-#: before stood in, or none did.
-UNMEASURED_VELOCITY = frozenset({Flag.VELOCITY_FAILED, Flag.VELOCITY_HELD, Flag.MOTION_LOST})
+#: A step flagged with any of these had no velocity measured in it at all: one from before stood
+#: in, or none did.  A step whose clouds' fit failed (``velocity_failed``) alone may still have the
+#: heatmap's Doppler's (``velocity_from_heatmap``), which the Doppler yaw rate takes.
+HELD_OR_NO_VELOCITY = frozenset({Flag.VELOCITY_HELD, Flag.MOTION_LOST})
+#: A step flagged with any of these had no velocity of its own from its clouds: their fit failed,
+#: or one from before stood in, or none did.
+UNMEASURED_VELOCITY = HELD_OR_NO_VELOCITY | {Flag.VELOCITY_FAILED}
 #: A step flagged with any of these measured no turn of its own: its yaw rate from before stood
 #: in, or none did.
 UNMEASURED_TURN = frozenset({Flag.YAW_HELD, Flag.MOTION_LOST})
