@@ -65,6 +65,10 @@ class WallMapConfig(Settings):
     gate_rad: float = math.radians(5.0)
     #: ... and within three standard deviations, and its middle within this of the wall's line, m.
     distance_gate_m: float = 0.25
+    #: Both direction gates allow for the error the heading may have taken since a wall was last
+    #: seen by the turn made since: ``turn_noise`` of that turn as one scale over it (the filter
+    #: counts a turn's share frame by frame, as independent; docs/heading.md item 41).
+    gate_turn_error: bool = True
     #: The walls kept: past this many the one seen longest ago is forgotten (the filter's cost grows
     #: with the square of their number: at most 1000, 8 MB and some milliseconds an update).
     max_walls: int = 200

@@ -7,7 +7,8 @@ points of the last ``window_frames`` frames, placed by the odometry's own poses 
 frame's axes, are searched for straight lines (a Hough vote, then a total-least-squares fit of each
 line's points).  Each line is matched to a wall seen before by its direction and place, while the
 heading turned by at most ``match_span_rad`` over those frames (the line the less certain the more
-it turned: ``span_noise``), or, while it held (``steady_rad`` over ``settle_frames``), starts a new
+it turned: ``span_noise``; the gates the wider the more the heading turned since the wall was
+last seen: ``gate_turn_error``), or, while it held (``steady_rad`` over ``settle_frames``), starts a new
 wall.  A small Kalman filter holds the heading and every wall's direction in the world: the
 odometry's turn over each frame moves the heading and grows its variance (``turn_noise``,
 ``distance_noise_rad_per_m``, ``frame_noise_rad``); a wall seen again measures their difference.
@@ -179,7 +180,8 @@ class WallMap:
         self._x = np.zeros(1)
         self._p = np.zeros((1, 1))
         self._wall_points = np.zeros((0, 2))  # a point on each wall, m (world), ...
-        self._wall_seen = np.zeros(0)  # ... and when it was last seen, s
+        self._wall_seen = np.zeros(0)  # ... when it was last seen, s, ...
+        self._wall_heading = np.zeros(0)  # ... and the heading then, rad
 
     @property
     def walls(self) -> int:
@@ -254,6 +256,7 @@ class WallMap:
                     self._add_wall(line.direction, middle, variance / shared, t)
                     used = np.append(used, True)
             else:
+                self._wall_heading[wall] = self._x[0]
                 self._update(wall, line.direction, variance)
                 self._wall_seen[wall], used[wall] = t, True
         while self.walls > self.config.max_walls:
@@ -270,10 +273,18 @@ class WallMap:
         spread = np.diagonal(p)[1:] + p[0, 0] - 2.0 * p[0, 1:] + variance
         normals = np.stack([-np.sin(walls), np.cos(walls)], 1)
         off = np.abs(np.sum(normals * (middle - self._wall_points), axis=1))
-        score = innovation ** 2 / spread
-        fits = ~used & (np.abs(innovation) < self.config.gate_rad) & (score < _GATE_SIGMAS ** 2) \
+        gate = self.config.gate_rad
+        if self.config.gate_turn_error:
+            # A turn's error is one scale over the whole turn, which the filter's per-frame noise
+            # understates: after a turn in place a wall seen again lies degrees off its prediction.
+            allowance = self.config.turn_noise * np.abs(heading - self._wall_heading)
+            gated = spread + allowance ** 2
+            gate = np.maximum(gate, np.minimum(_GATE_SIGMAS * np.sqrt(gated), gate + _GATE_SIGMAS * allowance))
+        else:
+            gated = spread
+        fits = ~used & (np.abs(innovation) < gate) & (innovation ** 2 / gated < _GATE_SIGMAS ** 2) \
             & (off < self.config.distance_gate_m)
-        return int(np.argmin(np.where(fits, score, np.inf))) if fits.any() else None
+        return int(np.argmin(np.where(fits, innovation ** 2 / spread, np.inf))) if fits.any() else None
 
     def _update(self, wall: int, direction: float, variance: float) -> None:
         """The filter given that wall *wall* lies at *direction* from the heading (rad)."""
@@ -294,6 +305,7 @@ class WallMap:
         self._x, self._p = np.append(self._x, self._x[0] + direction), p
         self._wall_points = np.vstack([self._wall_points, middle])
         self._wall_seen = np.append(self._wall_seen, t)
+        self._wall_heading = np.append(self._wall_heading, self._x[0])
 
     def _forget(self, wall: int) -> None:
         """Drop wall *wall* from the filter (its direction's information about the heading goes)."""
@@ -301,3 +313,4 @@ class WallMap:
         self._x, self._p = self._x[keep], self._p[np.ix_(keep, keep)]
         self._wall_points = np.delete(self._wall_points, wall, axis=0)
         self._wall_seen = np.delete(self._wall_seen, wall)
+        self._wall_heading = np.delete(self._wall_heading, wall)
