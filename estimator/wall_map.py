@@ -8,8 +8,8 @@ frame's axes, are searched for straight lines (a Hough vote, then a total-least-
 line's points).  Each line is matched to a wall seen before by its direction and place, while the
 heading turned by at most ``match_span_rad`` over those frames (the line the less certain the more
 it turned: ``span_noise``; the gates the wider the more the heading turned since the wall was
-last seen: ``gate_turn_error``), or, while it held (``steady_rad`` over ``settle_frames``), starts a new
-wall.  A small Kalman filter holds the heading and every wall's direction in the world: the
+last seen: ``gate_turn_error``), or, while it held (``steady_rad`` over ``settle_frames``), starts
+a new wall.  A small Kalman filter holds the heading and every wall's direction in the world: the
 odometry's turn over each frame moves the heading and grows its variance (``turn_noise``,
 ``distance_noise_rad_per_m``, ``frame_noise_rad``); a wall seen again measures their difference.
 What is published is the odometry's state with the filter's heading and its position integrated
@@ -273,18 +273,18 @@ class WallMap:
         spread = np.diagonal(p)[1:] + p[0, 0] - 2.0 * p[0, 1:] + variance
         normals = np.stack([-np.sin(walls), np.cos(walls)], 1)
         off = np.abs(np.sum(normals * (middle - self._wall_points), axis=1))
+        # A turn's error is one scale over the whole turn, which the filter's per-frame noise
+        # understates: after a turn in place a wall seen again lies degrees off its prediction.
+        # The gates allow for it by the turn since the wall was last seen (none: as fixed).
+        turned = np.abs(heading - self._wall_heading) if self.config.gate_turn_error else 0.0
+        allowance = self.config.turn_noise * turned
+        gated = spread + allowance ** 2
         gate = self.config.gate_rad
-        if self.config.gate_turn_error:
-            # A turn's error is one scale over the whole turn, which the filter's per-frame noise
-            # understates: after a turn in place a wall seen again lies degrees off its prediction.
-            allowance = self.config.turn_noise * np.abs(heading - self._wall_heading)
-            gated = spread + allowance ** 2
-            gate = np.maximum(gate, np.minimum(_GATE_SIGMAS * np.sqrt(gated), gate + _GATE_SIGMAS * allowance))
-        else:
-            gated = spread
-        fits = ~used & (np.abs(innovation) < gate) & (innovation ** 2 / gated < _GATE_SIGMAS ** 2) \
+        gate = np.maximum(gate, np.minimum(_GATE_SIGMAS * np.sqrt(gated), gate + _GATE_SIGMAS * allowance))
+        squared = innovation ** 2
+        fits = ~used & (np.abs(innovation) < gate) & (squared / gated < _GATE_SIGMAS ** 2) \
             & (off < self.config.distance_gate_m)
-        return int(np.argmin(np.where(fits, innovation ** 2 / spread, np.inf))) if fits.any() else None
+        return int(np.argmin(np.where(fits, squared / spread, np.inf))) if fits.any() else None
 
     def _update(self, wall: int, direction: float, variance: float) -> None:
         """The filter given that wall *wall* lies at *direction* from the heading (rad)."""
