@@ -4,8 +4,9 @@
                                     [--rounds 3] [--json FILE]
 
 Runs :class:`radarodom.estimator.odometry.RadarOdometry` with the defaults (and with some of them
-off: the points' map's density weights, the yaw-rate filter's lag bound, the map of wall
-directions, ``wall_map.use``, the points' registration, the heading options)
+off: the points' map's density weights, the yaw-rate filter's lag bound, the wall map's gates
+widened by the turn since a wall was seen, the map of wall directions, ``wall_map.use``, the
+points' registration, the heading options)
 and with the paper's method on simulated sequences (recorded with ``radar-sim`` and put through
 the DSP once, as ``paper_experiment.py`` does, cached in --data) and reports the median and 90th
 percentile of ``OdometryState.compute_s`` (everything the estimator does for a frame: the
@@ -34,7 +35,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import sequences  # noqa: E402  (bench/ is not a package)
 from heading_variants import (  # noqa: E402
-    FOUR_OPTIONS_OFF, HEATMAPS_ALONE, LAG_GIVEN_TWICE, NO_DENSITY_WEIGHTS, NO_WALL_MAP)
+    FIXED_WALL_GATES, FOUR_OPTIONS_OFF, HEATMAPS_ALONE, LAG_GIVEN_TWICE, NO_DENSITY_WEIGHTS, NO_WALL_MAP)
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
@@ -74,6 +75,8 @@ def timed_configs() -> dict[str, EstimatorConfig]:
             # ... the yaw-rate filter's lag unbounded and given again after the keyframes (item 36
             # off), ...
             "default, the filter's lag unbounded and given twice": default.with_(**LAG_GIVEN_TWICE),
+            # ... the wall map's gates fixed whatever the turn since a wall was seen (item 41 off), ...
+            "default, the wall map's gates fixed": default.with_(**FIXED_WALL_GATES),
             # ... the map of wall directions off (item 35), ...
             "default without the wall map": default.with_(**NO_WALL_MAP),
             # ... the heatmaps' registration alone (items 30 and 35 off: the points' cost), ...

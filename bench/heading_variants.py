@@ -10,6 +10,9 @@ LAG_GIVEN_TWICE = {"odometry": {"yaw_filter_max_lag_rad": None, "keyframe_pays_l
 #: Item 35 off: no map of wall directions.
 NO_WALL_MAP = {"wall_map": {"use": False}}
 
+#: Item 41 off: the wall map's match gates fixed, whatever the heading turned since a wall was seen.
+FIXED_WALL_GATES = {"wall_map": {"gate_turn_error": False}}
+
 #: Items 30 and 35 off: the heatmaps' registration alone, unblended, without the wall map.
 HEATMAPS_ALONE = {"point_yaw": {"blend": 0.0}, **NO_WALL_MAP}
 
