@@ -16,6 +16,7 @@ import heading_diagnosis as hd  # noqa: E402
 import robustness_matrix as rm  # noqa: E402
 import sequences  # noqa: E402
 import turn_phases  # noqa: E402
+import wall_lines  # noqa: E402
 from radarodom.estimator.velocity import estimate_velocity  # noqa: E402
 
 #: A short loop (turns at 90 deg/s, straights of 0.5 m): a few seconds to record.
@@ -211,3 +212,25 @@ def test_turn_phases_of_a_recording_sum_to_its_turn_in_place(recording, tmp_path
     assert ratios == pytest.approx([1 + s / sum(turned) for s in sums], abs=0.003)
     after = re.fullmatch(r"  after it +([-+\d.]+) / ([-+\d.]+) / ([-+\d.]+)  over the 10 steps after each turn", out[5])
     assert after and float(after[1]) == pytest.approx(0.5 * (float(after[2]) + float(after[3])), abs=0.011)
+
+
+def test_a_lines_error_is_against_the_nearest_wall_direction_whichever_its_sense():
+    walls = np.array([0.0, np.pi / 2])
+    errors = wall_lines.direction_errors(np.array([0.1, np.pi - 0.05, np.pi / 2 + 0.2, 1.0, -np.pi / 2]), walls)
+    assert errors == pytest.approx([0.1, -0.05, 0.2, 1.0 - np.pi / 2, 0.0])
+    assert wall_lines.direction_errors(np.zeros(0), walls).shape == (0,)
+
+
+def test_the_wall_maps_lines_of_a_recording_lie_along_its_scenes_walls(recording, capsys):
+    # The room is a rectangle: its walls run along x and y.
+    assert wall_lines.scene_directions(recording) == pytest.approx([0.0, np.pi / 2])
+    assert wall_lines.main([recording]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split()[1] for line in out] == ["true", "own"]
+    truth = re.search(r"(\d+) lines, +(\d+) within 10 degrees: median \|error\| ([\d.]+), RMS ([\d.]+)", out[0])
+    assert truth, out[0]
+    # Placed by the true poses the lines err by their points' places alone: most of them lie on a
+    # wall, within a degree or two of its direction.
+    assert int(truth[2]) >= 0.6 * int(truth[1]) > 0
+    assert float(truth[3]) < 2.0
+
