@@ -37,6 +37,8 @@ import sequences  # noqa: E402  (bench/ is not a package)
 from heading_diagnosis import run  # noqa: E402
 
 from radarodom.driver.sim.scene import load_scene  # noqa: E402
+from radarodom.driver.sources import split_url  # noqa: E402
+from radarodom.estimator.angles import wrap_line  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.config_wall_map import WallMapConfig  # noqa: E402
 from radarodom.estimator.point_yaw import static_points  # noqa: E402
@@ -53,11 +55,11 @@ def scene_directions(capture_dir: str) -> np.ndarray:
     recorded in (capture.json's ``sim://`` source, its seed), each once."""
     with open(os.path.join(capture_dir, "capture.json"), encoding="utf-8") as fh:
         source = json.load(fh).get("source", "")
-    url = urllib.parse.urlsplit(source)
-    if url.scheme != "sim":
+    scheme, scene_name, query = split_url(source) if "://" in source else ("", "", "")
+    if scheme != "sim":
         raise SystemExit(f"{capture_dir}: not a simulated recording (its source is {source!r})")
-    seed = int(urllib.parse.parse_qs(url.query).get("seed", ["0"])[0])
-    scene = load_scene(url.netloc + url.path, seed=seed)
+    seed = int(urllib.parse.parse_qs(query).get("seed", ["0"])[0])
+    scene = load_scene(scene_name, seed=seed)
     d = scene.wall_b - scene.wall_a
     keep = np.hypot(d[:, 0], d[:, 1]) >= MIN_SEGMENT_M
     return np.unique(np.round(np.arctan2(d[keep, 1], d[keep, 0]) % math.pi, 9))
@@ -65,8 +67,8 @@ def scene_directions(capture_dir: str) -> np.ndarray:
 
 def direction_errors(directions: np.ndarray, walls: np.ndarray) -> np.ndarray:
     """Each of *directions* (rad, world; a line has no sense) minus the nearest of *walls* (rad),
-    in (-pi/2, pi/2]."""
-    diff = (np.asarray(directions, float)[:, None] - walls[None, :] + math.pi / 2) % math.pi - math.pi / 2
+    in [-pi/2, pi/2)."""
+    diff = wrap_line(np.asarray(directions, float)[:, None] - walls[None, :])
     return diff[np.arange(len(diff)), np.argmin(np.abs(diff), axis=1)] if len(diff) else np.zeros(0)
 
 

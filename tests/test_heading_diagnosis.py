@@ -233,4 +233,3 @@ def test_the_wall_maps_lines_of_a_recording_lie_along_its_scenes_walls(recording
     # wall, within a degree or two of its direction.
     assert int(truth[2]) >= 0.6 * int(truth[1]) > 0
     assert float(truth[3]) < 2.0
-
