@@ -17,7 +17,10 @@ the estimator's, it adds the heading's error and the window's, as the map sees i
 Printed per sequence, then over all: the lines found; of those within ``--near`` degrees of a
 wall direction (the others are furniture, clutter or corners, which the map's gates must keep
 out), the median and RMS of the error and its mean, and the median of what each line states as
-its standard deviation; and the share of all lines beyond 5 degrees.
+its standard deviation; and the share of all lines beyond 5 degrees. With ``--by-stated``, the
+lines within ``--near`` degrees over all the sequences again, grouped by what each states: how
+far they lie off their wall against what they state (docs/heading.md, "Measured and not adopted":
+what a line states and how far it lies).
 """
 
 from __future__ import annotations
@@ -48,6 +51,8 @@ from radarodom.estimator.wall_map import wall_lines  # noqa: E402
 MIN_SEGMENT_M = 0.3
 #: The share of lines reported as far off a wall: beyond this, degrees.
 FAR_DEG = 5.0
+#: ``--by-stated``'s groups: the standard deviation a line states, degrees, between these.
+STATED_EDGES_DEG = (0.0, 0.2, 0.3, 0.5, 0.8, math.inf)
 
 
 def scene_directions(capture_dir: str) -> np.ndarray:
@@ -129,12 +134,33 @@ def summary(name: str, placing: str, lines: np.ndarray, near_deg: float) -> str:
             f"beyond {FAR_DEG:g}: {100.0 * np.mean(np.abs(err) > FAR_DEG):.1f} %")
 
 
+def by_stated(lines: np.ndarray, near_deg: float, edges_deg=STATED_EDGES_DEG) -> list[str]:
+    """For *lines* ((L, 2) error, stated std rad) within *near_deg* of a wall, one row per group of
+    what they state (*edges_deg*): how many, their median and RMS error, the share off by more than
+    a degree, and the RMS over the group's median stated std."""
+    err, stated = np.degrees(np.abs(lines[:, 0])), np.degrees(lines[:, 1])
+    near = err < near_deg
+    err, stated = err[near], stated[near]
+    rows = []
+    for lo, hi in zip(edges_deg[:-1], edges_deg[1:]):
+        k = (stated >= lo) & (stated < hi)
+        if not k.any():
+            continue
+        rms = math.sqrt(float(np.mean(err[k] ** 2)))
+        rows.append(f"  stating {lo:.1f}-{hi:.1f} degrees: {k.sum():5d} lines, median |error| "
+                    f"{np.median(err[k]):.2f}, RMS {rms:.2f} ({rms / np.median(stated[k]):.1f} times the "
+                    f"stated), beyond 1 degree {100.0 * np.mean(err[k] > 1.0):.0f} %")
+    return rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("sequences", nargs="+", metavar="SEQUENCE_DIR")
     parser.add_argument("--estimator-config", metavar="FILE.json", help="estimator settings over the defaults")
     parser.add_argument("--near", type=float, default=10.0, metavar="DEG",
                         help="a line this close to a wall direction is the wall's (default 10)")
+    parser.add_argument("--by-stated", action="store_true",
+                        help="the lines near a wall grouped by the standard deviation they state")
     args = parser.parse_args(argv)
     config = EstimatorConfig.load(args.estimator_config) if args.estimator_config else EstimatorConfig()
     every: dict[str, list[np.ndarray]] = {}
@@ -146,6 +172,10 @@ def main(argv=None) -> int:
     if len(args.sequences) > 1:
         for placing, parts in every.items():
             print(summary(f"all {len(args.sequences)}", placing, np.concatenate(parts), args.near))
+    if args.by_stated:
+        for placing, parts in every.items():
+            print(f"{placing}, by what each line states:")
+            print("\n".join(by_stated(np.concatenate(parts), args.near)))
     return 0
 
 

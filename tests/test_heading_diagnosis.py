@@ -221,11 +221,30 @@ def test_a_lines_error_is_against_the_nearest_wall_direction_whichever_its_sense
     assert wall_lines.direction_errors(np.zeros(0), walls).shape == (0,)
 
 
+def test_lines_grouped_by_what_they_state_count_each_near_line_once():
+    # (error, stated) in degrees: two groups near a wall, one line far off any.
+    lines = np.radians([[0.1, 0.1], [-0.3, 0.15], [2.0, 0.6], [-4.0, 0.7], [30.0, 0.1]])
+    rows = wall_lines.by_stated(lines, 10.0)
+    assert len(rows) == 2
+    low = re.search(r"stating 0\.0-0\.2 degrees: +(\d+) lines, median \|error\| ([\d.]+), RMS ([\d.]+) "
+                    r"\(([\d.]+) times the stated\), beyond 1 degree (\d+) %", rows[0])
+    assert low and int(low[1]) == 2 and float(low[2]) == pytest.approx(0.2, abs=0.01)
+    assert float(low[3]) == pytest.approx(np.sqrt((0.1 ** 2 + 0.3 ** 2) / 2), abs=0.01) and low[5] == "0"
+    high = re.search(r"stating 0\.5-0\.8 degrees: +(\d+) lines.*RMS ([\d.]+) \(([\d.]+) times.*beyond 1 degree "
+                     r"(\d+) %", rows[1])
+    assert high and int(high[1]) == 2 and high[4] == "100"
+    assert float(high[3]) == pytest.approx(np.sqrt(10.0) / 0.65, abs=0.05)
+
+
 def test_the_wall_maps_lines_of_a_recording_lie_along_its_scenes_walls(recording, capsys):
     # The room is a rectangle: its walls run along x and y.
     assert wall_lines.scene_directions(recording) == pytest.approx([0.0, np.pi / 2])
-    assert wall_lines.main([recording]) == 0
+    assert wall_lines.main([recording, "--by-stated"]) == 0
     out = capsys.readouterr().out.splitlines()
+    heads = [i for i, line in enumerate(out) if line.endswith("by what each line states:")]
+    assert [out[i] for i in heads] == ["true poses, by what each line states:", "own poses, by what each line states:"]
+    grouped = out[heads[0] + 1:heads[1]]
+    out = out[:heads[0]]
     assert [line.split()[1] for line in out] == ["true", "own"]
     truth = re.search(r"(\d+) lines, +(\d+) within 10 degrees: median \|error\| ([\d.]+), RMS ([\d.]+)", out[0])
     assert truth, out[0]
@@ -233,3 +252,5 @@ def test_the_wall_maps_lines_of_a_recording_lie_along_its_scenes_walls(recording
     # wall, within a degree or two of its direction.
     assert int(truth[2]) >= 0.6 * int(truth[1]) > 0
     assert float(truth[3]) < 2.0
+    # Grouped by what they state, the same lines near a wall, each once.
+    assert sum(int(re.search(r"degrees: +(\d+) lines", line)[1]) for line in grouped) == int(truth[2])
