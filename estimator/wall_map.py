@@ -42,6 +42,10 @@ _HOUGH_BIN_M = 0.05
 _REFITS = 3
 #: A line's spread across it is at least this, m (the points are placed to a range bin or so).
 _MIN_SPREAD_M = 0.02
+#: A line's places along it are counted in bins of this, m: the window's frames see the same
+#: reflectors again, and a line's precision is that of the places it was seen at, not of its points
+#: (docs/heading.md item 42).
+_PLACE_BIN_M = 0.1
 #: A line is a wall seen before only within this many standard deviations of its direction.
 _GATE_SIGMAS = 3.0
 
@@ -69,7 +73,8 @@ class WallLine:
     direction: float
     #: The middle of its points, (2,) m.
     middle: np.ndarray
-    #: The direction's standard deviation from the points' spread across it, rad.
+    #: The direction's standard deviation from the points' spread across it and the places along it
+    #: they were seen at, rad.
     std: float
 
 
@@ -146,8 +151,9 @@ def wall_lines(points: np.ndarray, config: WallMapConfig) -> list[WallLine]:
         if length < config.min_length_m:
             continue
         across = max(float(((on - middle) @ normal).std()), _MIN_SPREAD_M)
+        places = len(np.unique(np.floor(spread / _PLACE_BIN_M)))
         found.append(WallLine(wrap_line(math.atan2(along[1], along[0])), middle,
-                              across * math.sqrt(12.0 / len(on)) / length))
+                              across * math.sqrt(12.0 / places) / length))
     return found
 
 

@@ -90,6 +90,23 @@ def test_lines_are_the_walls_the_points_draw():
     assert wall_lines(np.zeros((0, 2)), WallMapConfig()) == []
 
 
+def test_a_line_seen_again_and_again_at_the_same_places_states_their_precision():
+    # A window's frames see the same reflectors again: 24 of them 0.2 m apart along a wall, seen in
+    # five frames, are no more precise than seen once (docs/heading.md item 42).
+    rng = np.random.default_rng(3)
+    reflectors = np.column_stack([np.linspace(1.0, 5.6, 24), 2.0 + 0.03 * rng.standard_normal(24)])
+    once = wall_lines(reflectors, WallMapConfig())
+    again = np.repeat(reflectors, 5, axis=0) + 0.002 * rng.standard_normal((120, 2))
+    five = wall_lines(again, WallMapConfig())
+    assert len(once) == len(five) == 1
+    assert five[0].direction == pytest.approx(once[0].direction, abs=math.radians(0.5))
+    # (Counted by their points, five sightings would state sqrt(5) = 2.2 times less.)
+    assert 0.75 * once[0].std < five[0].std < 1.25 * once[0].std
+    # Points at more places state more: 120 points over the 4.6 m fill its 46 places of 0.1 m.
+    dense = np.column_stack([np.linspace(1.0, 5.6, 120), 2.0 + 0.03 * rng.standard_normal(120)])
+    assert wall_lines(dense, WallMapConfig())[0].std == pytest.approx(once[0].std * math.sqrt(24 / 46), rel=0.25)
+
+
 @pytest.mark.parametrize("seed", range(20))
 def test_a_lines_fit_is_the_total_least_squares_one(seed):
     # The closed form of the scatter's principal axis replaced an SVD per fit: the same axes.
