@@ -45,7 +45,7 @@ from radarodom.estimator.angles import wrap_line  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.config_wall_map import WallMapConfig  # noqa: E402
 from radarodom.estimator.point_yaw import static_points  # noqa: E402
-from radarodom.estimator.wall_map import wall_lines  # noqa: E402
+from radarodom.estimator.wall_map import _rot, wall_lines  # noqa: E402  (the map's own window placing)
 
 #: A scene segment shorter than this (m) gives no wall direction (a pillar's cross).
 MIN_SEGMENT_M = 0.3
@@ -75,11 +75,6 @@ def direction_errors(directions: np.ndarray, walls: np.ndarray) -> np.ndarray:
     in [-pi/2, pi/2)."""
     diff = wrap_line(np.asarray(directions, float)[:, None] - walls[None, :])
     return diff[np.arange(len(diff)), np.argmin(np.abs(diff), axis=1)] if len(diff) else np.zeros(0)
-
-
-def _rot(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s], [s, c]])
 
 
 def window_lines(poses: np.ndarray, statics: list[np.ndarray], config: WallMapConfig) -> list[tuple[float, float]]:
@@ -169,13 +164,14 @@ def main(argv=None) -> int:
         for placing, lines in sequence_lines(directory, config).items():
             print(summary(name, placing, lines, args.near))
             every.setdefault(placing, []).append(lines)
+    pooled = {placing: np.concatenate(parts) for placing, parts in every.items()}
     if len(args.sequences) > 1:
-        for placing, parts in every.items():
-            print(summary(f"all {len(args.sequences)}", placing, np.concatenate(parts), args.near))
+        for placing, lines in pooled.items():
+            print(summary(f"all {len(args.sequences)}", placing, lines, args.near))
     if args.by_stated:
-        for placing, parts in every.items():
+        for placing, lines in pooled.items():
             print(f"{placing}, by what each line states:")
-            print("\n".join(by_stated(np.concatenate(parts), args.near)))
+            print("\n".join(by_stated(lines, args.near)))
     return 0
 
 
