@@ -128,18 +128,21 @@ def record(cell: SimCell, data: str) -> str:
     return directory
 
 
-def simulate(spec: dict, cell: SimCell, directory: str, noise_seed: int | None = None) -> None:
+def simulate(spec: dict, cell: SimCell, directory: str, noise_seed: int | None = None,
+             duration_s: float | None = None) -> None:
     """Record the scene table *spec* with radar-sim at the cell's seed, cfg and fidelity into
     *directory* (replaced), its scene file beside it as DIRECTORY.scene.json; through a temporary
     directory first, so that a recording cut short never passes for a whole one. *noise_seed*:
-    radar-sim's --noise-seed (None: the cell's seed draws the noise too)."""
+    radar-sim's --noise-seed (None: the cell's seed draws the noise too); *duration_s*: its
+    --duration (None: the whole loop)."""
     scene_file = directory + ".scene.json"
     with open(scene_file, "w", encoding="utf-8") as fh:
         json.dump(spec, fh, indent=1)
     tmp = directory + ".tmp"
     subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene_file, "--seed", str(cell.seed),
                     "--cfg", CFGS[cell.cfg], "--fidelity", cell.fidelity, "--out", tmp, "--overwrite", "-q"]
-                   + ([] if noise_seed is None else ["--noise-seed", str(noise_seed)]), check=True,
+                   + ([] if noise_seed is None else ["--noise-seed", str(noise_seed)])
+                   + ([] if duration_s is None else ["--duration", repr(duration_s)]), check=True,
                    env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     shutil.rmtree(directory, ignore_errors=True)
     os.replace(tmp, directory)

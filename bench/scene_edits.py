@@ -169,6 +169,8 @@ def main(argv=None) -> int:
                         help="the loop's turn in place the other way (to the right on even seeds, the left on odd)")
     parser.add_argument("--noise-seed", type=cli.non_negative_int, metavar="N",
                         help="radar-sim's --noise-seed: the thermal noise drawn anew (default: the cell's seed's)")
+    parser.add_argument("--duration", type=cli.positive_float, metavar="S",
+                        help="record the loop's first S seconds only (default: the whole loop)")
     parser.add_argument("--out", metavar="DIR", help="the recording's directory (replaced)")
     args = parser.parse_args(argv)
     try:
@@ -196,10 +198,11 @@ def main(argv=None) -> int:
         scene_from_dict(spec, where=f"the edited scene of {cell.name}")
     except ConfigError as exc:
         parser.error(str(exc))
-    simulate(spec, cell, os.path.abspath(args.out), noise_seed=args.noise_seed)
+    simulate(spec, cell, os.path.abspath(args.out), noise_seed=args.noise_seed, duration_s=args.duration)
     radar = "".join([", flat" if args.flat else "", ", mirrored" if args.mirror else "",
                      _turn_in_place(spec) if args.turn_in_place_reversed else "",
-                     "" if args.noise_seed is None else f", noise seed {args.noise_seed}"]
+                     "" if args.noise_seed is None else f", noise seed {args.noise_seed}",
+                     "" if args.duration is None else f", its first {args.duration:g} s"]
                     + [f", {key} {value:g}" for key, value in beam.items()])
     print(f"{args.out}: {cell.name} with {len(spec['objects'])} object(s){radar}")
     return 0

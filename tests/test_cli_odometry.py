@@ -408,7 +408,8 @@ def test_a_radar_on_a_wheeled_bases_axis_does_not_slide_sideways(tmp_path):
     extras = {"flag": ["--wheeled", "--estimator-config", learn], "file": ["--estimator-config", wheeled],
               "any": ["--estimator-config", learn]}
     procs = run_together(*(dict(args=console_command("radar-capture") + [
-        "--source", "sim://corridor?rate=max&duration=3", "--no-publish", "--odom-json", outputs[name], *extra],
+        "--source", "sim://corridor?rate=max&fidelity=fast&duration=3", "--no-publish", "--odom-json", outputs[name],
+        *extra],
         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120) for name, extra in extras.items()))
     for proc in procs:
         assert proc.returncode == 0, proc.stderr

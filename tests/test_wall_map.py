@@ -239,13 +239,18 @@ def test_the_estimator_publishes_the_corrected_heading():
     plain = RadarOdometry(EstimatorConfig().with_(wall_map={"use": False}))
     walls = WallMap(config.wall_map)
     _, states, clouds = _odometry(1.0, seed=3)
-    for (t, cloud), truth in zip([(s.t, c) for s, c in zip(states, clouds)], [LOOP.pose(s.t) for s in states]):
-        heatmap = synth.scene_heatmap(truth)
-        got = odom.step(t, cloud, heatmap)
+    corrected = 0.0
+    # The loop's first 3.5 s: its straight and the turn's first half, where the map corrects.
+    for state, cloud in list(zip(states, clouds))[:35]:
+        heatmap = synth.scene_heatmap(LOOP.pose(state.t))
+        got = odom.step(state.t, cloud, heatmap)
         walls.add_points(cloud)
-        expected = walls(plain.step(t, cloud, heatmap))
+        published = plain.step(state.t, cloud, heatmap)
+        expected = walls(published)
         assert got.pose == pytest.approx(expected.pose, abs=1e-12)
         assert got.compute_s > 0
+        corrected = max(corrected, abs(got.pose[2] - published.pose[2]))
+    assert corrected > 1e-5  # the map did correct the heading
 
 
 def test_settings_are_checked():
