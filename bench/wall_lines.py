@@ -45,7 +45,7 @@ from radarodom.estimator.angles import wrap_line  # noqa: E402
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.config_wall_map import WallMapConfig  # noqa: E402
 from radarodom.estimator.point_yaw import static_points  # noqa: E402
-from radarodom.estimator.wall_map import _rot, wall_lines  # noqa: E402  (the map's own window placing)
+from radarodom.estimator.wall_map import placed_points, wall_lines, window_points  # noqa: E402
 
 #: A scene segment shorter than this (m) gives no wall direction (a pillar's cross).
 MIN_SEGMENT_M = 0.3
@@ -87,12 +87,10 @@ def window_lines(poses: np.ndarray, statics: list[np.ndarray], config: WallMapCo
         span = poses[k - frames + 1:k + 1, 2]
         if span.max() - span.min() > config.match_span_rad:
             continue
-        placed = [(_rot(poses[j, 2]) @ statics[j].T).T + poses[j, :2]
-                  for j in range(k - frames + 1, k + 1) if len(statics[j])]
-        if not placed:
+        here = window_points([placed_points(statics[j], poses[j]) for j in range(k - frames + 1, k + 1)],
+                             poses[k], config.max_range_m)
+        if here is None:
             continue
-        here = (np.concatenate(placed) - poses[k, :2]) @ _rot(poses[k, 2])
-        here = here[np.hypot(here[:, 0], here[:, 1]) <= config.max_range_m]
         out += [(line.direction + poses[k, 2], line.std) for line in wall_lines(here, config)]
     return out
 

@@ -83,6 +83,24 @@ def _rot(angle: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def placed_points(static: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Static points (n, 2) m in the radar's axes at *pose* (x m, y m, yaw rad), placed in the
+    world: (n, 2) m."""
+    return (_rot(pose[2]) @ static.T).T + pose[:2]
+
+
+def window_points(placed: list[np.ndarray], pose: np.ndarray, max_range_m: float) -> np.ndarray | None:
+    """A window's points placed in the world (:func:`placed_points`, one (n, 2) m array a frame) in
+    the axes of *pose*, within *max_range_m* of it: (n, 2) m; None if no frame has any."""
+    placed = [points for points in placed if len(points)]
+    if not placed:
+        return None
+    here = (np.concatenate(placed) - pose[:2]) @ _rot(pose[2])
+    # The vote's grid spans the points: those of frames the odometry placed far off (a
+    # velocity of kilometres a second) would make it gigabytes.
+    return here[np.hypot(here[:, 0], here[:, 1]) <= max_range_m]
+
+
 def _axes(centred: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The unit vectors (2,) along and across the line through *centred* points (n, 2) m, their
     mean at 0: the total-least-squares fit, the principal axis of their 2 x 2 scatter in closed
@@ -211,7 +229,7 @@ class WallMap:
         else:
             self._predict(self._last, pose)
         self._last = pose
-        self._window.append((_rot(pose[2]) @ static.T).T + pose[:2])
+        self._window.append(placed_points(static, pose))
         self._headings.append(pose[2])
         span = self._span(self.config.window_frames)
         if span <= self.config.match_span_rad:
@@ -241,13 +259,9 @@ class WallMap:
     def _observe(self, t: float, pose: np.ndarray, span: float, may_start: bool) -> None:
         """Fit lines to the window's static points, over which the heading turned by *span* (rad),
         and match each to a wall or, if *may_start*, start one."""
-        placed = [points for points in self._window if len(points)]
-        if not placed:
+        here = window_points(list(self._window), pose, self.config.max_range_m)
+        if here is None:
             return
-        here = (np.concatenate(placed) - pose[:2]) @ _rot(pose[2])  # in this frame's axes
-        # The vote's grid spans the points: those of frames the odometry placed far off (a
-        # velocity of kilometres a second) would make it gigabytes.
-        here = here[np.hypot(here[:, 0], here[:, 1]) <= self.config.max_range_m]
         used = np.zeros(self.walls, bool)
         # Consecutive windows share all their frames but one: each fit's information is counted
         # once over the window.
