@@ -16,7 +16,6 @@ one end uses the other side's ``train`` cells only, with the one-sided scale
 from __future__ import annotations
 
 import numpy as np
-import scipy.ndimage
 
 from .cfar import CfarParams, Detections, _cfar_last_axis, check_map
 
@@ -148,6 +147,8 @@ def above_skirts(power_rd: np.ndarray, det: Detections, below_db: float, span: i
     # linear in the map's size whatever the number of detections.
     only = np.zeros(power_rd.shape, np.float64)
     only[det.doppler_idx, det.range_idx] = value
+    import scipy.ndimage  # here: a program that never detects does not import it
+
     strongest = scipy.ndimage.maximum_filter1d(only, size=2 * span + 1, axis=1, mode="constant", cval=0.0)
     return value * 10 ** (below_db / 10) >= strongest[det.doppler_idx, det.range_idx]
 

@@ -17,7 +17,6 @@ import importlib.util
 import logging
 
 import numpy as np
-import scipy.fft
 
 from ..errors import ConfigError
 
@@ -85,6 +84,8 @@ class SpectrumFFTs:
     def range(self) -> np.ndarray:
         """FFT of :attr:`samples` over the samples: complex64 (loops, tx_slots, rx, n_range)."""
         if self._plans is None:
+            import scipy.fft
+
             # pocketfft pads to n itself; samples are rewritten every frame, so they may go.
             return scipy.fft.fft(self.samples, n=self.n_range, axis=-1, workers=self.workers, overwrite_x=True)
         self._plans[0].execute()
@@ -94,6 +95,8 @@ class SpectrumFFTs:
         """FFT over the loops of a range spectrum (loops, tx_slots, rx, n_range), which it may
         overwrite: complex64 (n_doppler, tx_slots, rx, n_range), uncentred."""
         if self._plans is None:
+            import scipy.fft
+
             return scipy.fft.fft(range_spectrum, n=self.n_doppler, axis=0, workers=self.workers, overwrite_x=True)
         loops = len(self._range_out)
         if range_spectrum is not self._range_out:

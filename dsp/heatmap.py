@@ -26,8 +26,6 @@ elevation is taken per detection.  Two intensities: over all Doppler bins, and o
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
-import scipy.ndimage
 
 from ..errors import UsageError, quoted
 from ..plain_numbers import is_whole_number
@@ -342,6 +340,8 @@ class CartesianGrid:
 
     def resample(self, polar: np.ndarray) -> np.ndarray:
         """A (n_range, n_azimuth) array on the grid: (len(y), len(x))."""
+        import scipy.ndimage
+
         out = scipy.ndimage.map_coordinates(polar, self._coords, order=1, mode="constant", cval=0.0)
         out[self._outside] = 0.0
         return out

@@ -19,7 +19,6 @@ horizontal positions, ``Wz = angle(A conj(E)) / pi`` at that peak (the same as T
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
 
 from ..calibration import ChannelCalibration
 from ..cfg import RadarConfig
@@ -88,6 +87,13 @@ def invert_three_bins(below: np.ndarray, centre: np.ndarray, above: np.ndarray,
     :func:`three_bin_response` table."""
     ratio = (above - below) / np.maximum(centre, np.finfo(np.float32).tiny)
     return np.interp(ratio, *table)
+
+
+def _angle_fft(elements: np.ndarray, workers: int) -> np.ndarray:
+    """The FFT over the antennas (axis 1) of zero-padded elements (detections, n_angle), complex."""
+    import scipy.fft  # at the first frame: a program that only checks its input starts without it
+
+    return scipy.fft.fft(elements, axis=1, workers=workers)
 
 
 class PointMaker:
@@ -163,7 +169,7 @@ class PointMaker:
                       if self._offset_table is not None else None)
         az_in = np.zeros((n, self.n_az), np.complex64)
         az_in[:, self.az_h] = elements[:, self.az_elements]
-        az = scipy.fft.fft(az_in, axis=1, workers=self.params.workers)
+        az = _angle_fft(az_in, self.params.workers)
         mag = np.abs(az)
         peak = mag.argmax(axis=1)
         out = self._points_at(az, peak, elements, range_idx, doppler, snr_db, noise, neighbours)
@@ -194,7 +200,7 @@ class PointMaker:
         if len(self.el_elements):
             el_in = np.zeros((n, self.n_az), np.complex64)
             el_in[:, self.el_h] = elements[:, self.el_elements]
-            el = scipy.fft.fft(el_in, axis=1, workers=self.params.workers)
+            el = _angle_fft(el_in, self.params.workers)
             rows = np.arange(n)
             wz = np.angle(az[rows, peak] * np.conj(el[rows, peak])) / np.pi
         wz = np.clip(wz, -1.0, 1.0)
@@ -259,7 +265,7 @@ class PointMaker:
         for _ in range(1, p.max_azimuth_peaks):
             self._cleaner.remove(elements, sides, 2.0 * taken[-1] / self.n_az)
             az_in[:, self.az_h] = elements[:, self.az_elements]
-            az = scipy.fft.fft(az_in, axis=1, workers=p.workers)
+            az = _angle_fft(az_in, p.workers)
             peak = np.abs(az).argmax(axis=1)
             power = np.abs(az[np.arange(len(peak)), peak]) ** 2
             k = self._bins_at(az, peak)
@@ -295,7 +301,7 @@ class PointMaker:
             k = doppler + j * self.n_doppler
             turned = elements * self._compensation(k)
             az_in[:, self.az_h] = turned[:, self.az_elements]
-            yield k, turned, np.abs(scipy.fft.fft(az_in, axis=1, workers=self.params.workers)).max(axis=1)
+            yield k, turned, np.abs(_angle_fft(az_in, self.params.workers)).max(axis=1)
 
     def _slot_phases(self, doppler: np.ndarray) -> np.ndarray:
         """TDM-MIMO phase correction of each TX slot for (signed, possibly disambiguated,

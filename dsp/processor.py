@@ -27,7 +27,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 
 from ..calibration import ChannelCalibration, RangeCoupling
 from ..cfg import RadarConfig, require_config
@@ -238,7 +237,11 @@ class FrameProcessor:
             s = np.einsum("l,lmrn->mrn", w, data) / float(w @ w)
             data -= w[:, None, None, None] * s[None]
         spec = self._ffts.doppler(data)
-        return spec if self._centred_by_sign else scipy.fft.fftshift(spec, axes=0)
+        if self._centred_by_sign:
+            return spec
+        import scipy.fft
+
+        return scipy.fft.fftshift(spec, axes=0)
 
     def power(self, spectrum: np.ndarray) -> np.ndarray:
         """Power summed over the virtual array: float32 (n_doppler, n_range)."""

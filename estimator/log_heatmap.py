@@ -6,7 +6,6 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-import scipy.ndimage
 
 from .angles import wrap
 from .config import FeatureConfig
@@ -67,6 +66,8 @@ class LogHeatmap:
         out = copy.copy(self)
         if sigma_bins <= 0:
             return out
+        import scipy.ndimage
+
         smooth = scipy.ndimage.gaussian_filter(self.values, sigma_bins, mode="nearest")
         if upsampling <= 1:
             out._set_values(smooth)

@@ -16,7 +16,6 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 #: The squared Mahalanobis distance beyond which a Gaussian is left out of the density.
 _CUT = 9.0
@@ -61,6 +60,8 @@ class MapDensity:
         if len(self._frames) == self._capacity:
             self._frames.popleft()
             self._departed += 1
+        from scipy.spatial import cKDTree
+
         points, inverse, sigma = gaussians
         own = np.ones(len(points))
         if len(points) > 1:

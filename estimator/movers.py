@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_dilation, label
 
 from .features import Features, PolarHeatmap
 
@@ -197,6 +196,8 @@ def _blobs(flagged: np.ndarray, intensity: np.ndarray, off: np.ndarray, x: np.nd
     (intensity-weighted) and its median Doppler less the static world's, m/s."""
     if not flagged.any():
         return []
+    from scipy.ndimage import binary_dilation, label
+
     labels, count = label(binary_dilation(flagged, np.ones((3, 3), bool)))
     out = []
     for k in range(1, count + 1):

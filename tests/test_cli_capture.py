@@ -674,13 +674,15 @@ def test_no_carriage_returns_when_stderr_is_a_pipe(src):
 
 def test_summary_rate_is_the_stream_rate(src):
     path, _ = src
-    proc = run_capture_cli("--source", f"replay://{path}?rate=1", "--frames", "2")
+    # Its 20 Hz frames paced at a tenth of that: 2 Hz, far below what the estimator keeps up with.
+    proc = run_capture_cli("--source", f"replay://{path}?rate=0.1", "--frames", "3")
     assert proc.returncode == 0, proc.stderr
     rate = float(re.search(r", (\d+\.\d) Hz,", proc.stdout).group(1))
-    # The frames' rate from the first to the last: never faster than the 20 Hz the replay is paced
-    # at, slower when a busy machine makes the second late (17.3 Hz seen; test_cli_status_line has
-    # the rate's arithmetic).
-    assert 0 < rate <= 20.5, proc.stdout
+    # The frames' rate from the first to the last (test_cli_status_line has its arithmetic): slower
+    # when a busy machine makes the last late, and faster by as much as the first is late: the pace
+    # is kept from the first frame's due time (21.7 Hz seen for two frames paced at 20 Hz under a
+    # load of 4 on 2 cores).  A quarter of a second late at most here.
+    assert 0 < rate <= 2.6, proc.stdout
 
 
 @pytest.fixture

@@ -166,6 +166,18 @@ def test_imports_follow_the_layering():
     assert offenders == []
 
 
+def test_programs_start_without_scipy():
+    """Every program's module imports without scipy (docs/benchmarks.md, "Start-up"): scipy is
+    imported where a frame first needs it, so a program that refuses its input or prints its help
+    is done in half the time."""
+    tools = sorted(p.stem for p in (REPO / "tools").glob("*.py") if p.stem != "__init__")
+    script = ("import sys\n" + "".join(f"import radarodom.tools.{name}\n" for name in tools)
+              + "print(sorted(m for m in sys.modules if m == 'scipy' or m.startswith('scipy.')))")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "radar_capture" in tools and proc.stdout.strip() == "[]", proc.stdout
+
+
 def test_library_never_prints_or_exits():
     """Library code logs and raises; only tools/ may print or exit."""
     offenders = []
