@@ -28,7 +28,7 @@ from radarodom.estimator.config import EstimatorConfig
 DURATION_S = 3
 FRAMES = 30  # 10 Hz (configs/awr1843_raw.cfg)
 STANDING_S = 1.0  # the corridor's trajectory starts with a 1 s pause
-SIM_URL = f"sim://corridor?rate=max&duration={DURATION_S}"
+SIM_URL = f"sim://corridor?rate=max&fidelity=fast&duration={DURATION_S}"
 assert SIM_URL == CORRIDOR_URL  # the run is conftest's corridor_run
 
 #: The odometry part radar-capture adds to its summary when the estimator runs.

@@ -24,7 +24,7 @@ FRAMES = 30
 
 @pytest.fixture(scope="module")
 def recording(corridor_run):
-    """The recording of sim://corridor?rate=max&duration=3 (read only)."""
+    """The recording of conftest.CORRIDOR_URL (read only)."""
     assert corridor_run.proc.returncode == 0, corridor_run.proc.stderr
     return corridor_run.rec
 

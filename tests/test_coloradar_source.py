@@ -71,7 +71,7 @@ def sim_pair(request, tmp_path_factory):
     """(recording, its odometry TUM, the same frames as a ColoRadar run)."""
     root = tmp_path_factory.mktemp(f"coloradar_{request.param}")
     rec, odom = root / "rec", root / "replay.tum"
-    url = f"sim://corridor?rate=max&duration={SIM_SECONDS}"
+    url = f"sim://corridor?rate=max&fidelity=fast&duration={SIM_SECONDS}"
     if request.param == "ti_order":
         # The shipped cfg's recording of this URL is conftest's session-wide corridor_run: a copy
         # of it (edited below).
@@ -81,7 +81,7 @@ def sim_pair(request, tmp_path_factory):
     else:
         # What is compared is this recording with itself (replay:// and coloradar://), so the
         # simulator's fast fidelity (half the exact one's cost) makes as good a recording.
-        proc = _capture("--source", url + "&fidelity=fast", "--cfg", _xwr_order_cfg(root / "xwr.cfg"), "--record", rec,
+        proc = _capture("--source", url, "--cfg", _xwr_order_cfg(root / "xwr.cfg"), "--record", rec,
                         "--no-odom")
         assert proc.returncode == 0, proc.stderr
     # As a real board's recording: a ColoRadar run cannot know that the identity line fits its board

@@ -44,7 +44,8 @@ from radarodom.estimator.config import EstimatorConfig, paper_variants
 from radarodom.estimator.odometry import RadarOdometry
 from radarodom.products import RangeAzimuth
 
-FRAMES = 12
+#: Frames each setting runs: six, the two blind ones and one after them.
+FRAMES = 9
 #: Frames replaced by blind ones.
 BLIND = (6, 7)
 #: Settings whose ends take a second a frame (a search of the points' map over half a turn every

@@ -292,7 +292,7 @@ def png_size(path) -> tuple[int, int]:
 def sim_run(tmp_path_factory, corridor_run):
     """3 s of the simulated corridor, recorded (its ground truth) with the odometry as TUM, and
     a flags file written by hand at the odometry's times.  The run is conftest's session-wide
-    corridor_run (radar-capture --source sim://corridor?rate=max&duration=3 --record --odom-out);
+    corridor_run (radar-capture --source CORRIDOR_URL --record --odom-out);
     its trajectory is copied here under this module's name for it."""
     assert corridor_run.proc.returncode == 0
     base = tmp_path_factory.mktemp("eval_plots")
