@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, replace
-from typing import Protocol, TypeVar
+from typing import Iterable, Protocol, TypeVar
 
 import numpy as np
 
@@ -89,7 +89,7 @@ def placed_points(static: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return (_rot(pose[2]) @ static.T).T + pose[:2]
 
 
-def window_points(placed: list[np.ndarray], pose: np.ndarray, max_range_m: float) -> np.ndarray | None:
+def window_points(placed: Iterable[np.ndarray], pose: np.ndarray, max_range_m: float) -> np.ndarray | None:
     """A window's points placed in the world (:func:`placed_points`, one (n, 2) m array a frame) in
     the axes of *pose*, within *max_range_m* of it: (n, 2) m; None if no frame has any."""
     placed = [points for points in placed if len(points)]
@@ -259,7 +259,7 @@ class WallMap:
     def _observe(self, t: float, pose: np.ndarray, span: float, may_start: bool) -> None:
         """Fit lines to the window's static points, over which the heading turned by *span* (rad),
         and match each to a wall or, if *may_start*, start one."""
-        here = window_points(list(self._window), pose, self.config.max_range_m)
+        here = window_points(self._window, pose, self.config.max_range_m)
         if here is None:
             return
         used = np.zeros(self.walls, bool)

@@ -497,7 +497,8 @@ def _free_port() -> int:
         return probe.getsockname()[1]  # closed again: nothing listens there
 
 
-@pytest.mark.parametrize("source, close_timeout_s", [("capture", 8.0), ("sim://corridor?rate=max&fidelity=fast&duration=2", 2.0)])
+@pytest.mark.parametrize("source, close_timeout_s",
+                         [("capture", 8.0), ("sim://corridor?rate=max&fidelity=fast&duration=2", 2.0)])
 def test_connect_to_where_no_viewer_ever_listens_says_no_frame_reached_one(capture, caplog, source, close_timeout_s):
     """Nothing listens when the view opens, nor later: the summary said '30 frames drawn, 0 dropped'
     (Rerun had them, and waited for a viewer in vain, or gave up); now no frame counts as drawn.
