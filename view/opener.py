@@ -4,6 +4,7 @@ the sink that hands it the pipeline's frames.  Rerun is imported when a view ope
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 from .process import ProcessDrawer
@@ -27,15 +28,19 @@ def open_view(target: ViewTarget, *, estimator: EstimatorConfig | None = None, c
     a thread (*process* forces either).  Raises UsageError for a target that cannot work here (no
     display, a port in use) and CaptureError for a file that cannot be written."""
     check(target)
-    missing = viewer_missing(target)
+    # Whether a viewer answers is asked while the view's process starts (both take seconds).
+    with ThreadPoolExecutor(1, thread_name_prefix="viewer-probe") as pool:
+        probe = pool.submit(viewer_missing, target)
+        if process if process is not None else target.kind != "save":
+            drawer = ProcessDrawer(target, estimator=estimator, config=config, mount=mount)
+            drawer.missing = probe.result()
+        else:
+            scene, where = open_scene(target, estimator=estimator, config=config, mount=mount)
+            drawer = ThreadDrawer(scene, where)
+        missing = probe.result()
     if missing:
         log.warning("%s: the view's data waits for one (start it: rerun), and at the end the run waits up to %.0f s "
                     "for it to take the rest", missing, close_timeout_s)
-    if process if process is not None else target.kind != "save":
-        drawer = ProcessDrawer(target, estimator=estimator, config=config, mount=mount, missing=missing)
-    else:
-        scene, where = open_scene(target, estimator=estimator, config=config, mount=mount)
-        drawer = ThreadDrawer(scene, where)
     if drawer.unreachable:
         log.warning("%s; the view is not drawn: %s", drawer.unreachable, viewer_hint(target))
     return ViewSink(drawer, close_timeout_s=close_timeout_s, path=target.path if target.kind == "save" else None)

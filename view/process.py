@@ -88,9 +88,11 @@ class ProcessDrawer:
     what opening the target raised there (UsageError, CaptureError) or RadarodomError."""
 
     def __init__(self, target: ViewTarget, *, estimator: EstimatorConfig | None = None,
-                 config: RadarConfig | None = None, mount: Mount | None = None, missing: str | None = None) -> None:
-        #: Why no viewer answered when the view opened (``connect:``: :func:`.target.viewer_missing`), or None.
-        self._target, self._missing = target, missing
+                 config: RadarConfig | None = None, mount: Mount | None = None) -> None:
+        self._target = target
+        #: Why no viewer answered when the view opened (``connect:``: :func:`.target.viewer_missing`,
+        #: which its opener asks while this process starts), or None.
+        self.missing: str | None = None
         mine, theirs = socket.socketpair()
         with theirs:
             # -c rather than -m: the package imports this module first, and runpy warns that it
@@ -162,7 +164,7 @@ class ProcessDrawer:
         drawn, problem = done[1], done[2]
         closed = self._receive(deadline)
         if closed is None:
-            if problem is None and self._missing is not None:
+            if problem is None and self.missing is not None:
                 from .target import reached_no_viewer
 
                 problem = reached_no_viewer(self._target)

@@ -27,6 +27,7 @@ Two timelines: ``frame`` (the frame's index) and ``stream_time`` (s since the fi
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import numpy as np
@@ -73,12 +74,15 @@ class Scene:
 
     *estimator*: its settings (the features are extracted again with them; None: no features);
     *config*: the source's radar configuration (the velocity scale and field of view; None for
-    product-only sources); *mount*: the radar on the base (None: the radar is the base).
+    product-only sources); *mount*: the radar on the base (None: the radar is the base);
+    *connecting*: a thread still connecting *recording* to a viewer, which :meth:`close` waits for.
     """
 
     def __init__(self, recording: rr.RecordingStream, *, estimator: EstimatorConfig | None = None,
-                 config: RadarConfig | None = None, mount: Mount | None = None) -> None:
+                 config: RadarConfig | None = None, mount: Mount | None = None,
+                 connecting: threading.Thread | None = None) -> None:
         self.rec = recording
+        self._connecting = connecting
         self.colors = ColorMaps()
         self._estimator = estimator
         self._config = config
@@ -156,6 +160,10 @@ class Scene:
 
     def close(self) -> None:
         """Send what is buffered and let go of the viewer, file or server."""
+        if self._connecting is not None:
+            # Flushed before the connection is set up, the data would stay in Rerun's buffer, and
+            # the connection would be made after the disconnect.
+            self._connecting.join()
         self.rec.flush()
         self.rec.disconnect()
 

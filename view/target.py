@@ -7,6 +7,7 @@ import os
 import shutil
 import socket
 import sys
+import threading
 import time
 import urllib.parse
 from dataclasses import dataclass
@@ -154,8 +155,12 @@ def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, 
     # logged within a tick into one chunk per entity; measured in docs/view.md).
     batching = rr.ChunkBatcherConfig(flush_tick=WEB_FLUSH_TICK_S) if target.kind == "web" else None
     recording = rr.RecordingStream(APPLICATION, batcher_config=batching)
-    where = _OPENERS[target.kind](recording, target, layout())
-    scene = Scene(recording, estimator=estimator, config=config, mount=mount)
+    connecting = None
+    if target.kind == "connect":
+        where, connecting = _connect(recording, target, layout())
+    else:
+        where = _OPENERS[target.kind](recording, target, layout())
+    scene = Scene(recording, estimator=estimator, config=config, mount=mount, connecting=connecting)
     scene.note(f"radarodom's view, sent to {where}", static=True)
     if target.kind == "connect":
         scene.unreachable = not_a_viewer(recording, target)
@@ -300,10 +305,20 @@ def web_page_url(host: str, target: ViewTarget) -> str:
     return f"http://{host}:{target.port}/?url={urllib.parse.quote(data, safe='')}"
 
 
-def _connect(recording, target: ViewTarget, blueprint) -> str:
+def _connect(recording, target: ViewTarget, blueprint) -> tuple[str, threading.Thread | None]:
+    """Where the view goes, and the thread still connecting to it (None: connected)."""
     url = grpc_url(target.address)
-    recording.connect_grpc(url, default_blueprint=blueprint)
-    return f"the Rerun viewer at {url}"
+    where = f"the Rerun viewer at {url}"
+    if _no_answer(target, 0.0) is None:
+        recording.connect_grpc(url, default_blueprint=blueprint)
+        return where, None
+    # Where nothing listens, Rerun's connect_grpc (0.41) returns only when its first attempt has
+    # given up, 5 s later: the view would start that late.  What is logged meanwhile is kept and
+    # sent on to a viewer that comes later, as is what is logged after.
+    connecting = threading.Thread(target=recording.connect_grpc, args=(url,),
+                                  kwargs={"default_blueprint": blueprint}, name="rerun-connect", daemon=True)
+    connecting.start()
+    return where, connecting
 
 
 def _save(recording, target: ViewTarget, blueprint) -> str:
@@ -319,7 +334,7 @@ def _save(recording, target: ViewTarget, blueprint) -> str:
     return f"{target.path} (open it with: rerun {target.path})"
 
 
-_OPENERS = {"spawn": _spawn, "web": _web, "connect": _connect, "save": _save}
+_OPENERS = {"spawn": _spawn, "web": _web, "save": _save}
 
 
 def _check_free(target: ViewTarget) -> None:
