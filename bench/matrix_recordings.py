@@ -16,6 +16,17 @@ checked cell is the same are the other cells' earlier recordings moved under tod
 otherwise the first difference is named and nothing is moved (the matrix then records those cells
 anew, as it would have).  Exit status 0 when recordings were kept or none needed to be, 1 when a
 difference (or no cell to check) kept them out.
+
+    python bench/matrix_recordings.py --products [the cell options] [--check-seeds 0] [--dry-run] ...
+
+The same across a change to the dsp package's sources (``sequences.dsp_fingerprint``): the matrix
+keeps no ADC samples, so a changed DSP records every cell anew (hours).  For each cell selected whose
+recording under today's key holds earlier DSP products and neither today's nor its ADC samples, the
+check seeds' cells are recorded anew (in place, so that they are the matrix's recordings after) and
+their products under today's DSP compared with their earlier ones array by array; cells that already
+have both are compared as they are.  Only if every checked cell's are the same are the other cells'
+earlier products linked as today's (a hard link: the earlier key keeps its file, for a DSP change
+taken back).
 """
 
 from __future__ import annotations
@@ -81,7 +92,12 @@ def difference(old: str, new: str) -> str | None:
     for directory in (old, new):
         if not os.path.exists(sequences.cache_path(directory)):
             sequences.load(directory)
-    with np.load(sequences.cache_path(old)) as a, np.load(sequences.cache_path(new)) as b:
+    return products_difference(sequences.cache_path(old), sequences.cache_path(new))
+
+
+def products_difference(a_path: str, b_path: str) -> str | None:
+    """What differs between two files of DSP products, array by array (None: nothing)."""
+    with np.load(a_path) as a, np.load(b_path) as b:
         if sorted(a.files) != sorted(b.files):
             return f"the DSP products hold {sorted(a.files)} against {sorted(b.files)}"
         for key in a.files:
@@ -116,6 +132,18 @@ def _adopt(old: str, new: str) -> None:
         os.replace(path + ".tmp", path)
 
 
+def _first_difference(compare, checks: list, data: str, keep_adc: bool, workers: int | None):
+    """The first (cell's name, difference) that *compare* (:func:`check`, :func:`check_products`)
+    finds among *checks*, (cell, earlier) pairs run on a local process pool; None: none."""
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(compare, c, old, data, keep_adc): c for c, old in checks}
+        for fut in concurrent.futures.as_completed(futures):
+            found = fut.result()
+            if found is not None:
+                return futures[fut].name, found
+    return None
+
+
 def keep_recordings(todo: list, data: str, *, check_seeds: list[int] | None = None, workers: int | None = None,
                     keep_adc: bool = False, dry_run: bool = False, log=lambda msg: print(msg, file=sys.stderr)) -> int:
     """The earlier recordings of *todo*'s simulated cells kept under today's keys once those of
@@ -136,14 +164,11 @@ def keep_recordings(todo: list, data: str, *, check_seeds: list[int] | None = No
         "where it is not yet)")
     if dry_run:
         return 0
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(check, c, old, data, keep_adc): c for c, old in checks}
-        for fut in concurrent.futures.as_completed(futures):
-            found = fut.result()
-            if found is not None:
-                log(f"{futures[fut].name}: {found} from its earlier recording: the simulator records otherwise now; "
-                    "no recording kept (the matrix records them anew)")
-                return 1
+    found = _first_difference(check, checks, data, keep_adc, workers)
+    if found is not None:
+        log(f"{found[0]}: {found[1]} from its earlier recording: the simulator records otherwise now; no recording "
+            "kept (the matrix records them anew)")
+        return 1
     for c, old in checks:  # today's is the same: the earlier one is a spare copy
         shutil.rmtree(old, ignore_errors=True)
         if os.path.exists(old + ".scene.json"):
@@ -155,6 +180,88 @@ def keep_recordings(todo: list, data: str, *, check_seeds: list[int] | None = No
     return 0
 
 
+def earlier_products(directory: str) -> str | None:
+    """The newest DSP products in *directory* made by another DSP than today's (None: none)."""
+    today = sequences.cache_path(directory)
+    found = [path for path in glob.glob(os.path.join(glob.escape(directory), "dsp-*.npz"))
+             if path != today and not path.endswith(".tmp.npz")]
+    return max(found, key=os.path.getmtime) if found else None
+
+
+def check_products(cell: SimCell, old: str, data: str, keep_adc: bool) -> str | None:
+    """*cell*'s DSP products under today's DSP (its recording made anew where it has no ADC samples,
+    its *old* products set aside meanwhile) compared with *old* (None: the same)."""
+    directory = rm._sequence_dir(cell, data)
+    if not os.path.exists(sequences.cache_path(directory)):
+        aside = directory + ".earlier-" + os.path.basename(old)
+        os.replace(old, aside)  # recording anew replaces the folder
+        try:
+            rm.record(cell, data)
+            sequences.load(directory)
+            return products_difference(aside, sequences.cache_path(directory))
+        finally:
+            if not keep_adc:
+                rm.drop_adc(directory)
+            os.makedirs(directory, exist_ok=True)
+            os.replace(aside, old)  # kept, for a DSP change taken back
+    return products_difference(old, sequences.cache_path(directory))
+
+
+def keep_products(todo: list, data: str, *, check_seeds: list[int] | None = None, workers: int | None = None,
+                  keep_adc: bool = False, dry_run: bool = False, log=lambda msg: print(msg, file=sys.stderr)) -> int:
+    """The earlier DSP products of *todo*'s simulated cells linked as today's once those of
+    *check_seeds* (default the first simulated cell's seed), made anew, and any already made are
+    the same as their earlier ones; the exit status."""
+    sims = [c for c in todo if isinstance(c, SimCell)]
+    made, needed = [], []  # (cell, its earlier products) with today's products, and without them or ADC samples
+    for c in sims:
+        directory = rm._sequence_dir(c, data)
+        old = earlier_products(directory) if os.path.exists(os.path.join(directory, "capture.json")) else None
+        if old is not None and os.path.exists(sequences.cache_path(directory)):
+            made.append((c, old))
+        elif old is not None and not os.path.exists(os.path.join(directory, "adc_data.bin")):
+            needed.append((c, old))
+    if not needed:
+        log(f"none of the {len(sims)} simulated cells' recordings needs earlier DSP products: nothing to keep")
+        return 0
+    seeds = set(check_seeds) if check_seeds is not None else {sims[0].seed}
+    checks = made + [(c, old) for c, old in needed if c.seed in seeds]
+    rest = [(c, old) for c, old in needed if c.seed not in seeds]
+    if not checks:
+        log(f"none of the {len(needed)} cells needing earlier DSP products is of seed {sorted(seeds)} to check, "
+            "nor has any other cell today's: nothing kept")
+        return 1
+    log(f"{len(needed)} cells need earlier DSP products; {len(checks)} compared with today's DSP's (seed "
+        f"{sorted(seeds)} recorded anew where it has no ADC samples)")
+    if dry_run:
+        return 0
+    found = _first_difference(check_products, checks, data, keep_adc, workers)
+    if found is not None:
+        log(f"{found[0]}: {found[1]} from the earlier DSP's: the DSP computes otherwise now; no products kept "
+            "(the matrix records the cells anew)")
+        return 1
+    # The key of a cell's products under the default settings depends on the DSP's sources alone, so
+    # the checked cells' earlier file names are those of the DSP checked; another name is products
+    # of other settings (bench/dsp_experiment.py's) or of another DSP, and is left alone.
+    checked = {os.path.basename(old) for _, old in checks}
+    linked = 0
+    for c, old in rest:
+        directory = rm._sequence_dir(c, data)
+        same = [name for name in checked if os.path.exists(os.path.join(directory, name))]
+        if not same:
+            continue
+        old = max((os.path.join(directory, name) for name in same), key=os.path.getmtime)
+        today = sequences.cache_path(directory)
+        try:
+            os.link(old, today)
+        except OSError:  # a file system without hard links
+            shutil.copyfile(old, today)
+        linked += 1
+    log(f"{len(checks)} cells' DSP products the same under today's DSP; {linked} cells' earlier products linked "
+        f"as today's" + (f" ({len(rest) - linked} hold none of the checked DSP's)" if linked < len(rest) else ""))
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     rm.add_cell_arguments(parser)
@@ -163,12 +270,16 @@ def main(argv=None) -> int:
     parser.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
     parser.add_argument("--keep-adc", action="store_true", help="keep the checked cells' ADC samples")
     parser.add_argument("--dry-run", action="store_true", help="say what would be recorded and kept, and stop")
+    parser.add_argument("--products", action="store_true",
+                        help="keep the DSP products across a change to the dsp package (not the recordings "
+                             "across one to the simulator)")
     args = parser.parse_args(argv)
     todo = rm.selected_cells(args)
     if not todo:
         parser.error("no cells selected")
-    return keep_recordings(todo, args.data, check_seeds=args.check_seeds, workers=args.workers,
-                           keep_adc=args.keep_adc, dry_run=args.dry_run)
+    keep = keep_products if args.products else keep_recordings
+    return keep(todo, args.data, check_seeds=args.check_seeds, workers=args.workers, keep_adc=args.keep_adc,
+                dry_run=args.dry_run)
 
 
 if __name__ == "__main__":

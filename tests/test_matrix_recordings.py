@@ -105,3 +105,49 @@ def test_products_that_differ_are_named(tmp_path, recorded):
     arrays["intensity"] = arrays["intensity"] * 1.0001
     np.savez(path, **arrays)
     assert mr.difference(recorded, str(other)) == "the DSP products' 'intensity' differ"
+
+
+OLD_PRODUCTS = "dsp-0123456789abcdef.npz"
+
+
+def _under_an_earlier_dsp(recording: str, data: str, cell) -> str:
+    """A copy of *recording* as *cell*'s today, its DSP products as an earlier DSP's (OLD_PRODUCTS)."""
+    directory = rm._sequence_dir(cell, data)
+    shutil.copytree(recording, directory)
+    os.replace(sequences.cache_path(directory), os.path.join(directory, OLD_PRODUCTS))
+    return directory
+
+
+def test_earlier_dsp_products_are_linked_once_a_cell_made_anew_gives_the_same(tmp_path, recorded):
+    """The check seed's cell is recorded anew and its products under today's DSP compared; the same,
+    so the other cell's earlier products become today's (a link: the earlier name stays)."""
+    data = str(tmp_path)
+    checked, other = _under_an_earlier_dsp(recorded, data, CELL), _under_an_earlier_dsp(recorded, data, OTHER)
+    said = []
+    assert mr.keep_products([CELL, OTHER], data, workers=1, dry_run=True, log=said.append) == 0
+    assert not os.path.exists(sequences.cache_path(other))
+    assert mr.keep_products([CELL, OTHER], data, workers=1, log=said.append) == 0
+    assert said[-1] == "1 cells' DSP products the same under today's DSP; 1 cells' earlier products linked as today's"
+    linked, earlier = sequences.cache_path(other), os.path.join(other, OLD_PRODUCTS)
+    assert os.path.samefile(linked, earlier)
+    # The checked cell: recorded anew, today's products made, its ADC dropped, its earlier products kept.
+    assert os.path.exists(sequences.cache_path(checked)) and os.path.exists(os.path.join(checked, OLD_PRODUCTS))
+    assert not os.path.exists(os.path.join(checked, "adc_data.bin"))
+    assert mr.keep_products([CELL, OTHER], data, workers=1, log=said.append) == 0
+    assert "nothing to keep" in said[-1]
+
+
+def test_earlier_dsp_products_that_differ_keep_every_cells_out(tmp_path, recorded):
+    import numpy as np
+    data = str(tmp_path)
+    checked, other = _under_an_earlier_dsp(recorded, data, CELL), _under_an_earlier_dsp(recorded, data, OTHER)
+    made = sequences.cache_path(checked)
+    shutil.copyfile(os.path.join(checked, OLD_PRODUCTS), made)  # made by today's DSP already: compared as it is
+    with np.load(made) as products:
+        arrays = {k: products[k] for k in products.files}
+    arrays["doppler"] = arrays["doppler"] + 1e-3
+    np.savez(made, **arrays)
+    said = []
+    assert mr.keep_products([CELL, OTHER], data, workers=1, log=said.append) == 1
+    assert said[-1].startswith(f"{CELL.name}: the DSP products' 'doppler' differ from the earlier DSP's")
+    assert not os.path.exists(sequences.cache_path(other))
