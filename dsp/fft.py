@@ -50,58 +50,82 @@ def resolve_backend(name: str) -> str:
     return name
 
 
+def spectrum_ffts(cube_shape: tuple[int, int, int, int], n_range: int, n_doppler: int, backend: str,
+                  workers: int) -> SpectrumFFTs:
+    """The frame processor's two transforms by *backend* ("scipy" or "fftw": :func:`resolve_backend`)."""
+    return (FftwFFTs if backend == "fftw" else ScipyFFTs)(cube_shape, n_range, n_doppler, workers)
+
+
 class SpectrumFFTs:
     """The frame processor's two transforms for one cube shape, with their buffers.
 
     *cube_shape*: (loops, tx_slots, rx, samples); the range FFT has *n_range* points over the
     samples and the Doppler FFT *n_doppler* over the loops (zero-padded when larger).
     Write the windowed samples into :attr:`samples`, then call :meth:`range` and
-    :meth:`doppler`.  Results live in reused buffers: valid until the next frame.
+    :meth:`doppler`.  Results may live in reused buffers: valid until the next frame.
     """
 
-    def __init__(self, cube_shape: tuple[int, int, int, int], n_range: int, n_doppler: int, backend: str,
-                 workers: int) -> None:
-        loops, slots, nrx, ns = cube_shape
-        self.workers = workers
-        self.n_range, self.n_doppler = n_range, n_doppler
-        self._plans = None
-        if backend == "fftw":
-            import pyfftw
+    samples: np.ndarray
 
-            # Zeros past the samples are the range FFT's zero padding: written once, never
-            # overwritten.  The Doppler FFT runs in place, so its padding rows (past the loops)
-            # are zeroed again before each run.
-            self._padded = pyfftw.zeros_aligned((loops, slots, nrx, n_range), np.complex64)
-            self.samples = self._padded[..., :ns]
-            self._spectrum = pyfftw.zeros_aligned((n_doppler, slots, nrx, n_range), np.complex64)
-            self._range_out = self._spectrum[:loops]
-            flags = ("FFTW_ESTIMATE",)
-            self._plans = (pyfftw.FFTW(self._padded, self._range_out, axes=(3,), flags=flags, threads=workers),
-                           pyfftw.FFTW(self._spectrum, self._spectrum, axes=(0,), flags=flags, threads=workers))
-        else:
-            self.samples = np.empty(cube_shape, np.complex64)
+    def __init__(self, n_range: int, n_doppler: int, workers: int) -> None:
+        self.n_range, self.n_doppler, self.workers = n_range, n_doppler, workers
 
     def range(self) -> np.ndarray:
         """FFT of :attr:`samples` over the samples: complex64 (loops, tx_slots, rx, n_range)."""
-        if self._plans is None:
-            import scipy.fft
-
-            # pocketfft pads to n itself; samples are rewritten every frame, so they may go.
-            return scipy.fft.fft(self.samples, n=self.n_range, axis=-1, workers=self.workers, overwrite_x=True)
-        self._plans[0].execute()
-        return self._range_out
+        raise NotImplementedError
 
     def doppler(self, range_spectrum: np.ndarray) -> np.ndarray:
         """FFT over the loops of a range spectrum (loops, tx_slots, rx, n_range), which it may
         overwrite: complex64 (n_doppler, tx_slots, rx, n_range), uncentred."""
-        if self._plans is None:
-            import scipy.fft
+        raise NotImplementedError
 
-            return scipy.fft.fft(range_spectrum, n=self.n_doppler, axis=0, workers=self.workers, overwrite_x=True)
+
+class ScipyFFTs(SpectrumFFTs):
+    """scipy.fft's pocketfft, which pads to the transform's length itself."""
+
+    def __init__(self, cube_shape: tuple[int, int, int, int], n_range: int, n_doppler: int, workers: int) -> None:
+        import scipy.fft  # here: a program that refuses its input before any frame does not import it
+
+        super().__init__(n_range, n_doppler, workers)
+        self._fft = scipy.fft.fft
+        self.samples = np.empty(cube_shape, np.complex64)
+
+    def range(self) -> np.ndarray:
+        # The samples are rewritten every frame, so they may go.
+        return self._fft(self.samples, n=self.n_range, axis=-1, workers=self.workers, overwrite_x=True)
+
+    def doppler(self, range_spectrum: np.ndarray) -> np.ndarray:
+        return self._fft(range_spectrum, n=self.n_doppler, axis=0, workers=self.workers, overwrite_x=True)
+
+
+class FftwFFTs(SpectrumFFTs):
+    """pyFFTW's plans of the two transforms, made once, over aligned buffers."""
+
+    def __init__(self, cube_shape: tuple[int, int, int, int], n_range: int, n_doppler: int, workers: int) -> None:
+        import pyfftw
+
+        super().__init__(n_range, n_doppler, workers)
+        loops, slots, nrx, ns = cube_shape
+        # Zeros past the samples are the range FFT's zero padding: written once, never
+        # overwritten.  The Doppler FFT runs in place, so its padding rows (past the loops)
+        # are zeroed again before each run.
+        self._padded = pyfftw.zeros_aligned((loops, slots, nrx, n_range), np.complex64)
+        self.samples = self._padded[..., :ns]
+        self._spectrum = pyfftw.zeros_aligned((n_doppler, slots, nrx, n_range), np.complex64)
+        self._range_out = self._spectrum[:loops]
+        flags = ("FFTW_ESTIMATE",)
+        self._range_plan = pyfftw.FFTW(self._padded, self._range_out, axes=(3,), flags=flags, threads=workers)
+        self._doppler_plan = pyfftw.FFTW(self._spectrum, self._spectrum, axes=(0,), flags=flags, threads=workers)
+
+    def range(self) -> np.ndarray:
+        self._range_plan.execute()
+        return self._range_out
+
+    def doppler(self, range_spectrum: np.ndarray) -> np.ndarray:
         loops = len(self._range_out)
         if range_spectrum is not self._range_out:
             self._range_out[...] = range_spectrum
         if self.n_doppler > loops:
             self._spectrum[loops:] = 0
-        self._plans[1].execute()
+        self._doppler_plan.execute()
         return self._spectrum

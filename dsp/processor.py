@@ -36,7 +36,7 @@ from .cfar import CfarParams, cfar_2d_ti
 from .cfar_peaks import above_skirts, cfar_peaks
 from .cfar_ti import fov_mask, params_from_ti
 from .config import DspConfig
-from .fft import SpectrumFFTs, resolve_backend
+from .fft import resolve_backend, spectrum_ffts
 from .points import POINT_DTYPE, PointMaker, three_bin_response
 
 log = logging.getLogger(__name__)
@@ -177,7 +177,7 @@ class FrameProcessor:
         self.velocity_mps = self.doppler_bins * cfg.velocity_resolution_mps * loops / self.n_doppler
         #: The FFT backend in use ("scipy" or "fftw"; DspConfig.fft).
         self.fft_backend = resolve_backend(params.fft)
-        self._ffts = SpectrumFFTs(cfg.cube_shape, self.n_range, self.n_doppler, self.fft_backend, params.workers)
+        self._ffts = spectrum_ffts(cfg.cube_shape, self.n_range, self.n_doppler, self.fft_backend, params.workers)
         # (-1)^l shifts the spectrum by half the FFT size: the fftshift, for free.
         self._centred_by_sign = self.n_doppler % 2 == 0
         sign = np.where(np.arange(loops) % 2, -1.0, 1.0) if self._centred_by_sign else np.ones(loops)
