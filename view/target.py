@@ -162,7 +162,7 @@ def open_scene(target: ViewTarget, *, estimator: EstimatorConfig | None = None, 
         where = _OPENERS[target.kind](recording, target, layout())
     scene = Scene(recording, estimator=estimator, config=config, mount=mount, connecting=connecting)
     scene.note(f"radarodom's view, sent to {where}", static=True)
-    if target.kind == "connect":
+    if target.kind == "connect" and connecting is None:  # else nothing listened: the close's timeout judges
         scene.unreachable = not_a_viewer(recording, target)
         if scene.unreachable:
             where = f"nothing ({grpc_url(target.address)} is not a Rerun viewer)"
