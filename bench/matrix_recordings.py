@@ -180,11 +180,11 @@ def keep_recordings(todo: list, data: str, *, check_seeds: list[int] | None = No
     return 0
 
 
-def earlier_products(directory: str) -> str | None:
-    """The newest DSP products in *directory* made by another DSP than today's (None: none)."""
-    today = sequences.cache_path(directory)
+def earlier_products(directory: str, today: str) -> str | None:
+    """The newest DSP products in *directory* other than those named *today* (the file name of
+    today's DSP's, :func:`sequences.cache_path`), None: none."""
     found = [path for path in glob.glob(os.path.join(glob.escape(directory), "dsp-*.npz"))
-             if path != today and not path.endswith(".tmp.npz")]
+             if os.path.basename(path) != today and not path.endswith(".tmp.npz")]
     return max(found, key=os.path.getmtime) if found else None
 
 
@@ -213,11 +213,14 @@ def keep_products(todo: list, data: str, *, check_seeds: list[int] | None = None
     *check_seeds* (default the first simulated cell's seed), made anew, and any already made are
     the same as their earlier ones; the exit status."""
     sims = [c for c in todo if isinstance(c, SimCell)]
+    # Every cell's products of today's DSP have one name (default settings, the recording's own
+    # cfg), whose key hashes the DSP's sources: made once.
+    today = os.path.basename(sequences.cache_path(data))
     made, needed = [], []  # (cell, its earlier products) with today's products, and without them or ADC samples
     for c in sims:
         directory = rm._sequence_dir(c, data)
-        old = earlier_products(directory) if os.path.exists(os.path.join(directory, "capture.json")) else None
-        if old is not None and os.path.exists(sequences.cache_path(directory)):
+        old = earlier_products(directory, today) if os.path.exists(os.path.join(directory, "capture.json")) else None
+        if old is not None and os.path.exists(os.path.join(directory, today)):
             made.append((c, old))
         elif old is not None and not os.path.exists(os.path.join(directory, "adc_data.bin")):
             needed.append((c, old))
@@ -251,11 +254,10 @@ def keep_products(todo: list, data: str, *, check_seeds: list[int] | None = None
         if not same:
             continue
         old = max((os.path.join(directory, name) for name in same), key=os.path.getmtime)
-        today = sequences.cache_path(directory)
         try:
-            os.link(old, today)
+            os.link(old, os.path.join(directory, today))
         except OSError:  # a file system without hard links
-            shutil.copyfile(old, today)
+            shutil.copyfile(old, os.path.join(directory, today))
         linked += 1
     log(f"{len(checks)} cells' DSP products the same under today's DSP; {linked} cells' earlier products linked "
         f"as today's" + (f" ({len(rest) - linked} hold none of the checked DSP's)" if linked < len(rest) else ""))
