@@ -10,7 +10,14 @@ import pathlib
 import shutil
 import sys
 
-import numpy as np
+# One OpenBLAS thread in the test workers and the programs they start, as radar-capture and
+# radar-calibrate set for themselves: two workers on two cores each with a thread per core made
+# the simulator's matrix products spin against each other (twice the CPU time of a test file that
+# simulates; docs/library.md, "The tests"). Before numpy loads; an explicit setting wins, and the
+# tests about the thread count set theirs.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402  (after the BLAS setting)
 import pytest
 from hypothesis import settings
 

@@ -75,6 +75,20 @@ def replay_url(sim_run) -> str:
     return f"replay://{sim_run.rec}?rate=max"
 
 
+@pytest.fixture(scope="module")
+def default_replay(sim_run, tmp_path_factory):
+    """The recording replayed with the default settings, not publishing, its trajectory (tum) and
+    its messages (odom) written: the plain run that the heatmap export's and the wall map's tests
+    hold theirs against (read only; one replay for both)."""
+    from types import SimpleNamespace
+
+    base = tmp_path_factory.mktemp("default_replay")
+    tum, odom = base / "plain.tum", base / "plain.jsonl"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--no-publish", "--odom-out", tum, "--odom-json", odom)
+    assert proc.returncode == 0, proc.stderr
+    return SimpleNamespace(tum=tum, odom=odom)
+
+
 # ------------------------------------------------------------------ the run itself
 def test_summary_has_the_odometry_part(sim_run):
     proc = sim_run.proc
@@ -310,7 +324,9 @@ def test_settings_that_cannot_run_on_the_cfg_fail_before_overwrite_replaces_anyt
     let --overwrite replace the recording; a nested CFAR field was named without its section."""
     defaults = EstimatorConfig().to_dict()
     record = tmp_path / "run"
-    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", record)
+    # The recording to be kept is made recording only: no estimator nor publisher to load.
+    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", record, "--no-odom",
+                           "--no-publish")
     assert proc.returncode == 0, proc.stderr
     before = {p.name: p.read_bytes() for p in record.iterdir()}
     cases = [({"features": {**defaults["features"], "method": "cfar",
@@ -336,17 +352,18 @@ def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path):
     assert proc.returncode == 0, proc.stderr
 
 
-def test_the_wall_map_corrects_the_heading_unless_turned_off(sim_run, tmp_path):
+def test_the_wall_map_corrects_the_heading_unless_turned_off(sim_run, default_replay, tmp_path):
     """The map of wall directions (``wall_map.use``, on by default; docs/estimator.md): the
     corridor's walls, seen while it drives straight, move the heading by their points' noise;
     --no-wall-map and a settings file's ``"use": false`` publish the odometry's own."""
     config = tmp_path / "no-walls.json"
     config.write_text(json.dumps({"wall_map": {"use": False}}))
-    outputs = {name: tmp_path / f"{name}.jsonl" for name in ("walls", "flag", "file")}
+    # With the walls: the default settings' replay (default_replay's messages).
+    outputs = {"walls": default_replay.odom, **{name: tmp_path / f"{name}.jsonl" for name in ("flag", "file")}}
     procs = run_together(*(dict(args=console_command("radar-capture") + [
         "--source", replay_url(sim_run), "--no-publish", "--odom-json", outputs[name], *extra],
         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120) for name, extra in
-        (("walls", []), ("flag", ["--no-wall-map"]), ("file", ["--estimator-config", config]))))
+        (("flag", ["--no-wall-map"]), ("file", ["--estimator-config", config]))))
     for proc in procs:
         assert proc.returncode == 0, proc.stderr
     states = {name: [{k: v for k, v in json.loads(line).items() if k != "compute_ms"}
@@ -359,13 +376,14 @@ def test_the_wall_map_corrects_the_heading_unless_turned_off(sim_run, tmp_path):
     assert [a["yaw"] for a in states["walls"]] == pytest.approx([b["yaw"] for b in plain], abs=math.radians(0.5))
 
 
-def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, tmp_path):
+def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, default_replay, tmp_path):
     """--heatmap-out writes every cell's dominant Doppler, the estimator takes its strongest
     cells' only: the export is made apart, and the odometry is the same to the last digit."""
-    plain, exported, heatmaps = tmp_path / "plain.tum", tmp_path / "exported.tum", tmp_path / "heatmaps"
-    for args in (["--odom-out", plain], ["--odom-out", exported, "--heatmap-out", heatmaps]):
-        proc = run_capture_cli("--source", replay_url(sim_run), *args)
-        assert proc.returncode == 0, proc.stderr
+    # The run without the export is default_replay's: the same options but --heatmap-out.
+    plain, exported, heatmaps = default_replay.tum, tmp_path / "exported.tum", tmp_path / "heatmaps"
+    proc = run_capture_cli("--source", replay_url(sim_run), "--no-publish", "--odom-out", exported,
+                           "--odom-json", tmp_path / "exported.jsonl", "--heatmap-out", heatmaps)
+    assert proc.returncode == 0, proc.stderr
     assert plain.read_bytes() == exported.read_bytes()
     index = json.loads((heatmaps / "index.json").read_text())
     assert len(index["frames"]) == len(plain.read_text().splitlines()) >= 20
@@ -377,7 +395,8 @@ def test_a_recording_of_a_replayed_simulation_keeps_its_simulated_board(sim_run,
     """The simulator block (scene, seed, board and its calibration) goes into a recording of the
     replay, which replay:// then checks a cfg's calibration line against, as the original's."""
     copy = tmp_path / "copy"
-    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", copy, "--no-odom")
+    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", copy, "--no-odom",
+                           "--no-publish")
     assert proc.returncode == 0, proc.stderr
     original = json.loads((sim_run.rec / "capture.json").read_text())["simulator"]
     assert json.loads((copy / "capture.json").read_text())["simulator"] == original
@@ -397,10 +416,12 @@ def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
 
 
 # ------------------------------------------------------------------ a radar on a wheeled base
-def test_a_radar_on_a_wheeled_bases_axis_does_not_slide_sideways(tmp_path):
+def test_a_radar_on_a_wheeled_bases_axis_does_not_slide_sideways(sim_run, tmp_path):
     """--wheeled without --mount (the radar on the axis; it was refused: its Doppler sees no yaw
     rate there) takes the velocity along the base's forward axis, once learnt from the straight
     frames (5 here), from the settings file as from the flag."""
+    # The three runs replay the module's recording of the corridor (SIM_URL) rather than each
+    # simulating it.
     learn, wheeled = tmp_path / "learn.json", tmp_path / "wheeled.json"
     learn.write_text(json.dumps({"odometry": {"axis_learn_frames": 5}}))
     wheeled.write_text(json.dumps({"odometry": {"base": "wheeled", "axis_learn_frames": 5}}))
@@ -408,8 +429,7 @@ def test_a_radar_on_a_wheeled_bases_axis_does_not_slide_sideways(tmp_path):
     extras = {"flag": ["--wheeled", "--estimator-config", learn], "file": ["--estimator-config", wheeled],
               "any": ["--estimator-config", learn]}
     procs = run_together(*(dict(args=console_command("radar-capture") + [
-        "--source", "sim://corridor?rate=max&fidelity=fast&duration=3", "--no-publish", "--odom-json", outputs[name],
-        *extra],
+        "--source", replay_url(sim_run), "--no-publish", "--odom-json", outputs[name], *extra],
         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120) for name, extra in extras.items()))
     for proc in procs:
         assert proc.returncode == 0, proc.stderr

@@ -141,6 +141,14 @@ def moving_run(tmp_path_factory):
     return write_moving_run(tmp_path_factory.mktemp("coloradar_moving"))
 
 
+@pytest.fixture(scope="module")
+def moving_capture(moving_run, tmp_path_factory):
+    """radar-capture's odometry of the paper setup (the same command for the tests that read it,
+    made once): (the CompletedProcess, its --odom-out TUM)."""
+    odom = tmp_path_factory.mktemp("coloradar_moving_capture") / "est.tum"
+    return _capture("--source", f"coloradar://{moving_run}?rate=max", "--odom-out", odom), odom
+
+
 def test_the_paper_setup_plays_velocity_and_heatmap_frames_in_time_order(moving_run):
     with open_source(f"coloradar://{moving_run}?rate=max") as source:
         assert source.config is None and not source.carries_raw
@@ -157,9 +165,8 @@ def test_the_paper_setup_plays_velocity_and_heatmap_frames_in_time_order(moving_
         frames[0].cube()
 
 
-def test_the_paper_setup_through_radar_capture_and_radar_eval(moving_run, tmp_path):
-    odom = tmp_path / "est.tum"
-    proc = _capture("--source", f"coloradar://{moving_run}?rate=max", "--odom-out", odom)
+def test_the_paper_setup_through_radar_capture_and_radar_eval(moving_run, moving_capture, tmp_path):
+    proc, odom = moving_capture
     assert proc.returncode == 0, proc.stderr
     assert "60 frames" in proc.stdout
     est = read_tum(odom)
@@ -173,10 +180,10 @@ def test_the_paper_setup_through_radar_capture_and_radar_eval(moving_run, tmp_pa
     assert numbers["final_drift"]["percent_of_path"] < 1.0  # 0.22 (0.18 on a flat world, before its z)
 
 
-def test_radar_capture_and_radar_coloradar_agree(moving_run, tmp_path):
+def test_radar_capture_and_radar_coloradar_agree(moving_run, moving_capture, tmp_path):
     """Both run the default estimator on the same frames: the same trajectory."""
-    odom, out = tmp_path / "est.tum", tmp_path / "tables"
-    assert _capture("--source", f"coloradar://{moving_run}?rate=max", "--odom-out", odom).returncode == 0
+    (proc, odom), out = moving_capture, tmp_path / "tables"
+    assert proc.returncode == 0, proc.stderr
     proc = subprocess.run(console_command("radar-coloradar") + [str(moving_run), "--out", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr

@@ -157,6 +157,20 @@ def input_digest(seq: Sequence) -> str:
 CONFIGS = {"default": EstimatorConfig(), "paper": EstimatorConfig.paper()}
 
 
+@pytest.fixture(scope="module")
+def runs(sequences):
+    """``runs(sequence, config)``: ``run(sequences[sequence], CONFIGS[config])``, made once for the
+    tests that read it (never changed). The same input gives the same output (TestReproducible,
+    which runs afresh), so a run shared is the run each test would make."""
+    made = {}
+
+    def get(sequence: str, config: str):
+        if (sequence, config) not in made:
+            made[sequence, config] = run(sequences[sequence], CONFIGS[config])
+        return made[sequence, config]
+    return get
+
+
 # ----------------------------------------------------------------- Doppler speed bias
 @pytest.mark.parametrize("speed,half_width_deg", [(0.6, 60.0), (0.8, 60.0), (0.6, 85.0)])
 def test_straight_drive_doppler_speed_unbiased(speed, half_width_deg):
@@ -199,8 +213,8 @@ def test_straight_drive_doppler_speed_unbiased(speed, half_width_deg):
 
 # --------------------------------------------------------------------------- velocity
 class TestVelocity:
-    def test_standing_still_is_exactly_zero(self, straight):
-        velocities, _, _ = run(straight, EstimatorConfig())
+    def test_standing_still_is_exactly_zero(self, straight, runs):
+        velocities, _, _ = runs("straight", "default")
         still = [i for i in range(len(straight)) if np.hypot(*straight.body_velocity(i)) < 1e-3]
         assert len(still) == 10  # the first second
         for i in still:
@@ -208,8 +222,8 @@ class TestVelocity:
             assert v.status == "zero_velocity" and v.ok, (i, v.status)
             assert (v.vx, v.vy) == (0.0, 0.0)
 
-    def test_matches_the_true_body_velocity(self, straight):
-        velocities, _, _ = run(straight, EstimatorConfig())
+    def test_matches_the_true_body_velocity(self, straight, runs):
+        velocities, _, _ = runs("straight", "default")
         moving = [i for i in range(len(straight)) if np.hypot(*straight.body_velocity(i)) >= 1e-3]
         assert len(moving) == 25
         errors = []
@@ -224,8 +238,8 @@ class TestVelocity:
         assert np.mean(errors < 0.05) >= 0.8, errors
         assert errors.max() < 0.1 and np.median(errors) < 0.03, errors
 
-    def test_in_the_turn(self, turn):
-        velocities, _, _ = run(turn, EstimatorConfig())
+    def test_in_the_turn(self, turn, runs):
+        velocities, _, _ = runs("turn", "default")
         ok = [i for i, v in enumerate(velocities) if v.ok]
         # The first frames, barely moving, have too few points for a fit: refused, not guessed.
         assert len(ok) >= 0.85 * len(turn)
@@ -235,13 +249,13 @@ class TestVelocity:
         assert np.mean(errors < 0.05) >= 0.85, errors
         assert errors.max() < 0.1, errors
 
-    def test_paper_config_same_velocity_unweighted(self, straight):
+    def test_paper_config_same_velocity_unweighted(self, straight, runs):
         # The paper's settings change the yaw and leave the velocity fit unweighted: that is all
         # they change of it (docs/heading.md item 20).
         a, _, _ = run(straight, EstimatorConfig().with_(velocity={"bearing_noise_rad": 0.0}))
-        b, _, _ = run(straight, EstimatorConfig.paper())
+        b, _, _ = runs("straight", "paper")
         assert [(v.vx, v.vy, v.status) for v in a] == [(v.vx, v.vy, v.status) for v in b]
-        weighted, _, _ = run(straight, EstimatorConfig())
+        weighted, _, _ = runs("straight", "default")
         assert [v.status for v in weighted] == [v.status for v in b]
         # The weights move each velocity within the fit's own noise (above: errors under 0.1 m/s).
         assert max(math.hypot(v.vx - w.vx, v.vy - w.vy) for v, w in zip(weighted, b)) < 0.05
@@ -250,9 +264,9 @@ class TestVelocity:
 # --------------------------------------------------------------------------- odometry
 class TestOdometry:
     @pytest.mark.parametrize("name", list(CONFIGS))
-    def test_never_nan_and_bookkeeping(self, straight, turn, name):
-        for seq in (straight, turn):
-            _, states, _ = run(seq, CONFIGS[name])
+    def test_never_nan_and_bookkeeping(self, straight, turn, runs, name):
+        for seq, sequence in ((straight, "straight"), (turn, "turn")):
+            _, states, _ = runs(sequence, name)
             assert len(states) == len(seq)
             assert all(finite(s) for s in states)
             assert [s.frame for s in states] == list(range(len(seq)))
@@ -273,8 +287,8 @@ class TestOdometry:
         ("default", 0.8, 2.0, 2.0),
         ("paper", 2.0, 10.0, 8.0),
     ])
-    def test_follows_the_straight_corridor(self, straight, name, max_dyaw_deg, max_yaw_deg, max_pos_pct):
-        _, states, _ = run(straight, CONFIGS[name])
+    def test_follows_the_straight_corridor(self, straight, runs, name, max_dyaw_deg, max_yaw_deg, max_pos_pct):
+        _, states, _ = runs("straight", name)
         est, truth = pose_array(states), straight.truth
         # The yaw increments, frame by frame, within a couple of degrees of the truth.
         dyaw_err = np.degrees(np.diff(est[:, 2]) - np.diff(truth[:, 2]))
@@ -288,8 +302,8 @@ class TestOdometry:
         assert end_err < max_pos_pct / 100 * straight.path_m, end_err
         assert np.all(np.diff(est[:, 0]) >= 0)
 
-    def test_default_follows_the_turn(self, turn):
-        _, states, _ = run(turn, EstimatorConfig())
+    def test_default_follows_the_turn(self, turn, runs):
+        _, states, _ = runs("turn", "default")
         est, truth = pose_array(states), turn.truth
         true_dyaw = np.degrees(np.diff(truth[:, 2]))
         dyaw_err = np.degrees(np.diff(est[:, 2])) - true_dyaw
@@ -312,8 +326,8 @@ class TestOdometry:
     # yaw-increment RMSE 0.483 degree in the corridor's 57 deg/s turn at 10 Hz (0.653 before:
     # the one-model filter lagged at the turn's onset and end), the turn 0.9 degree long at
     # the end (6.4 short before); the same with either FFT backend.
-    def test_default_meets_the_yaw_target_in_the_turn(self, turn):
-        _, states, _ = run(turn, EstimatorConfig())
+    def test_default_meets_the_yaw_target_in_the_turn(self, turn, runs):
+        _, states, _ = runs("turn", "default")
         dyaw_err = np.degrees(np.diff(pose_array(states)[:, 2]) - np.diff(turn.truth[:, 2]))
         assert np.sqrt(np.mean(dyaw_err ** 2)) <= 0.5
         assert abs(math.degrees(states[-1].yaw - turn.truth[-1, 2])) < 5.0
@@ -337,19 +351,20 @@ class TestReproducible:
                                              icp={"initial_guess": "profile"}, velocity={"seed": 3}),
                      id="custom"),
     ])
-    def test_dump_load_round_trip_gives_the_same_trajectory(self, straight, tmp_path, config):
+    def test_dump_load_round_trip_gives_the_same_trajectory(self, straight, runs, tmp_path, config):
         path = tmp_path / "estimator.json"
         config.dump(path)
         loaded = EstimatorConfig.load(path)
         assert loaded == config
-        _, a, _ = run(straight, config)
+        shared = [name for name, known in CONFIGS.items() if known == config]  # its run made once
+        _, a, _ = runs("straight", shared[0]) if shared else run(straight, config)
         _, b, _ = run(straight, loaded)
         assert fingerprint(a) == fingerprint(b)
 
-    def test_different_configs_differ(self, straight):
+    def test_different_configs_differ(self, runs):
         # The trajectories above are not the same whatever the settings.
-        _, a, _ = run(straight, EstimatorConfig())
-        _, b, _ = run(straight, EstimatorConfig.paper())
+        _, a, _ = runs("straight", "default")
+        _, b, _ = runs("straight", "paper")
         assert [s.yaw for s in a] != [s.yaw for s in b]
 
 
@@ -369,14 +384,14 @@ class TestMultiRate:
             assert s.vy == pytest.approx(velocities[i - 1].vy, abs=1e-9)
             assert s.ok, s.flags
 
-    def test_follows_the_straight_corridor(self, straight):
+    def test_follows_the_straight_corridor(self, straight, runs):
         _, states, frames = run(straight, EstimatorConfig(), heatmap_every=2)
         est, truth = pose_array(states), straight.truth[frames]
         dyaw_err = np.degrees(np.diff(est[:, 2]) - np.diff(truth[:, 2]))
         assert np.abs(dyaw_err).max() < 1.5, dyaw_err  # measured 1.12 (ICP's yaw alone: 0.21)
         assert math.hypot(*(est[-1, :2] - truth[-1, :2])) < 0.03 * straight.path_m  # measured 10 mm
         # And close to the odometry at the full rate.
-        _, full, _ = run(straight, EstimatorConfig())
+        _, full, _ = runs("straight", "default")
         full_at = pose_array(full)[frames]
         assert np.abs(est[:, :2] - full_at[:, :2]).max() < 0.03
         assert np.degrees(np.abs(est[:, 2] - full_at[:, 2])).max() < 2.0  # measured 1.5 (ICP's yaw alone: 0.3)

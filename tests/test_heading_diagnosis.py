@@ -17,6 +17,7 @@ import robustness_matrix as rm  # noqa: E402
 import sequences  # noqa: E402
 import turn_phases  # noqa: E402
 import wall_lines  # noqa: E402
+from bench_recordings import shared_recording  # noqa: E402
 from radarodom.estimator.velocity import estimate_velocity  # noqa: E402
 
 #: A short loop (turns at 90 deg/s, straights of 0.5 m): a few seconds to record.
@@ -25,7 +26,7 @@ CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
-    return rm.record(CELL, str(tmp_path_factory.mktemp("diagnosis")))
+    return shared_recording(CELL, tmp_path_factory)
 
 
 def test_the_trace_gives_each_step_its_truth_estimate_and_summed_error(recording, capsys):

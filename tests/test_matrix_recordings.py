@@ -15,6 +15,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(
 import matrix_recordings as mr  # noqa: E402
 import robustness_matrix as rm  # noqa: E402
 import sequences  # noqa: E402
+from bench_recordings import shared_recording  # noqa: E402
 
 #: A short loop (turns at 90 deg/s, straights of 0.5 m): a few seconds to record.
 CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
@@ -27,8 +28,12 @@ def recorded(tmp_path_factory):
     """CELL recorded by today's simulator, with its DSP products and without its ADC samples, as
     the matrix keeps it."""
     data = str(tmp_path_factory.mktemp("matrix"))
-    directory = rm.record(CELL, data)
-    sequences.load(directory)
+    # The run's one recording of CELL (rm.record's, its products made) copied: its ADC is dropped here.
+    shared = shared_recording(CELL, tmp_path_factory)
+    directory = rm._sequence_dir(CELL, data)
+    shutil.copytree(shared, directory)
+    shutil.copyfile(shared + ".scene.json", directory + ".scene.json")
+    assert os.path.basename(directory) == os.path.basename(shared)
     rm.drop_adc(directory)
     return directory
 

@@ -45,9 +45,11 @@ def topics(path) -> dict[str, list]:
 
 @pytest.fixture(scope="module")
 def corridor(tmp_path_factory):
-    """A capture directory of the simulated corridor (1 s, with its ground truth)."""
+    """A capture directory of the simulated corridor (1 s, with its ground truth), at the
+    simulator's fast fidelity (what the tests count and compare is the replay against itself)."""
     out = tmp_path_factory.mktemp("rec") / "corridor"
-    subprocess.run(console_command("radar-sim") + ["corridor", "--duration", "1", "--out", str(out), "-q"],
+    subprocess.run(console_command("radar-sim") + ["corridor", "--duration", "1", "--fidelity", "fast", "--out",
+                                                   str(out), "-q"],
                    check=True, timeout=300, stdin=subprocess.DEVNULL)
     return out
 

@@ -21,6 +21,7 @@ import heading_diagnosis as hd  # noqa: E402
 import matrix_cells as mc  # noqa: E402
 import robustness_matrix as rm  # noqa: E402
 import scene_edits  # noqa: E402
+from bench_recordings import shared_recording  # noqa: E402
 
 #: The short loop of tests/test_heading_diagnosis.py (turns at 90 deg/s, straights of 0.5 m).
 CELL = rm.SimCell(scene="room", turn_rate_dps=90.0, straight_m=0.5)
@@ -82,8 +83,8 @@ def test_the_list_numbers_the_objects_and_bad_input_exits_2(capsys, tmp_path, mo
     assert not os.listdir(tmp_path)  # nothing recorded nor written for a refused edit
 
 
-def test_a_cell_recorded_again_is_its_own_recording_and_edited_differs(tmp_path, capsys):
-    own = rm.record(CELL, str(tmp_path / "data"))
+def test_a_cell_recorded_again_is_its_own_recording_and_edited_differs(tmp_path, tmp_path_factory, capsys):
+    own = shared_recording(CELL, tmp_path_factory)  # rm.record's, made once for the run: read only
     whole_adc = pathlib.Path(own, "adc_data.bin").read_bytes()
     whole_frames = len(pathlib.Path(own, "timestamps.txt").read_text().splitlines())
     # Its first second recorded again with nothing left out: the recording's first ten frames.

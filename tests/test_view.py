@@ -49,7 +49,8 @@ def rerun_analytics_off(tmp_path_factory):
     config = tmp_path_factory.mktemp("xdg_config")
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("XDG_CONFIG_HOME", str(config))
-        subprocess.run([sys.executable, "-m", "rerun", "analytics", "disable"], capture_output=True,
+        # rerun_cli: the same CLI as `python -m rerun`, without importing the SDK first (Rerun's advice).
+        subprocess.run([sys.executable, "-m", "rerun_cli", "analytics", "disable"], capture_output=True,
                        timeout=GUARD_S, check=True)
         assert json.loads((config / "rerun" / "analytics.json").read_text())["analytics_enabled"] is False
         yield config
@@ -255,8 +256,8 @@ def capture_main(argv, capsys) -> tuple[int, str, str]:
 def test_quiet_keeps_the_view_to_the_summary(tmp_path, capsys):
     """-q: only errors and the summary (docs/cli.md); the summary still names the view's frames."""
     rrd = tmp_path / "run.rrd"
-    rc, out, err = capture_main(["--source", "sim://corridor?rate=max&duration=0.3", "--no-publish", "-q",
-                                 "--view", f"save:{rrd}"], capsys)
+    rc, out, err = capture_main(["--source", "sim://corridor?rate=max&fidelity=fast&duration=0.3", "--no-publish",
+                                 "-q", "--view", f"save:{rrd}"], capsys)
     assert rc == 0, err
     assert "view:" not in err, err
     assert re.search(r"; view: \d+ frames drawn", out), out
@@ -266,7 +267,7 @@ def test_radar_capture_saves_a_simulated_run_that_reads_back(tmp_path, capsys):
     """``--view save:FILE.rrd`` on the simulator: every frame's points (as --points-out writes
     them, in REP-103), the odometry (as --odom-out), the ground truth and the time series."""
     rrd = tmp_path / "run.rrd"
-    rc, out, err = capture_main(["--source", "sim://corridor?rate=max&duration=0.5", "--no-publish",
+    rc, out, err = capture_main(["--source", "sim://corridor?rate=max&fidelity=fast&duration=0.5", "--no-publish",
                                  "--view", f"save:{rrd}", "--points-out", tmp_path / "points.csv",
                                  "--odom-out", tmp_path / "odom.tum"], capsys)
     assert rc == 0, err
@@ -449,7 +450,7 @@ def test_a_run_that_sees_no_frame_takes_back_its_bag_and_rrd(tmp_path, capsys):
     from radarodom.pipeline.stats import PipelineStats
 
     bag, rrd = tmp_path / "run.mcap", tmp_path / "run.rrd"
-    argv = ["--source", "sim://corridor?rate=max&duration=0.3", "--no-publish", "-q", "--mcap", bag]
+    argv = ["--source", "sim://corridor?rate=max&fidelity=fast&duration=0.3", "--no-publish", "-q", "--mcap", bag]
     rc, _, err = capture_main(argv + ["--view", "save:/proc/radarodom-view.rrd"], capsys)
     assert rc == 1 and "cannot write the view to /proc/radarodom-view.rrd" in err
     assert list(tmp_path.iterdir()) == []
@@ -476,17 +477,19 @@ def test_a_saved_view_that_could_not_be_written_fails_the_run(tmp_path):
 
     rrd = tmp_path / "v.rrd"
     # Not -q: the failure was also warned of as the view closed, a line before the same error.
+    # 10 frames at fast fidelity make a .rrd of about 0.7 MB, well past the limit (as the exact
+    # fidelity's do: the view draws the same heatmaps and point clouds either way).
     proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source",
-                           "sim://corridor?rate=max&duration=2", "--no-publish", "--view", f"save:{rrd}"],
+                           "sim://corridor?rate=max&fidelity=fast&duration=1", "--no-publish", "--view", f"save:{rrd}"],
                           capture_output=True, text=True, timeout=GUARD_S, preexec_fn=small_files,
                           env={**{k: v for k, v in os.environ.items() if k != "RUST_LOG"}, "RERUN_ANALYTICS": "0"})
     assert proc.returncode == 1, proc.stderr
-    summary = [ln for ln in proc.stdout.splitlines() if ln.startswith("radar-capture: 20 frames")]
-    assert len(summary) == 1 and "view: 20 frames drawn" in summary[0], proc.stdout
+    summary = [ln for ln in proc.stdout.splitlines() if ln.startswith("radar-capture: 10 frames")]
+    assert len(summary) == 1 and "view: 10 frames drawn" in summary[0], proc.stdout
     # One line: not Rerun's own ANSI-coloured ERROR lines from its file writer (and at exit) too.
     lines = proc.stderr.splitlines()
     assert lines[-1].startswith(f"radar-capture: error: --view save:{rrd}: the file is incomplete"), lines
-    # (A slow run's status lines, "frames 19 ... incomplete 0 ...", are not messages.)
+    # (A slow run's status lines, "frames 9 ... incomplete 0 ...", are not messages.)
     said = [ln for ln in lines[:-1] if not ln.startswith("frames ")]
     assert "\x1b" not in proc.stderr and not any("incomplete" in ln or "close" in ln for ln in said), lines
 
@@ -536,8 +539,8 @@ def test_a_viewer_started_after_the_view_opened_is_not_said_to_be_none(tmp_path,
     port = _free_port()
     received = tmp_path / "received.rrd"
     view = open_view(ViewTarget("connect", address=f"127.0.0.1:{port}"), close_timeout_s=GUARD_S / 2)
-    # A viewer that saves what it gets (`rerun --save`: no window).
-    viewer = subprocess.Popen([sys.executable, "-m", "rerun", "--port", str(port), "--save", str(received)],
+    # A viewer that saves what it gets (`rerun --save`: no window; rerun_cli, the `rerun` command).
+    viewer = subprocess.Popen([sys.executable, "-m", "rerun_cli", "--port", str(port), "--save", str(received)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                               env={**os.environ, "RERUN_ANALYTICS": "0"})
     try:

@@ -18,7 +18,21 @@ import pytest
 
 pytest.importorskip("rerun")
 
-from radarodom.view.target import CONNECT_PROBE_S, ViewTarget, not_a_viewer  # noqa: E402
+from radarodom.view import target as view_target  # noqa: E402
+from radarodom.view.target import CONNECT_PROBE_TRIES, ViewTarget, not_a_viewer  # noqa: E402
+
+#: The flush's timeout the probe is run with here (the library's is 2 s): its verdicts go by a
+#: fraction of it (a flush that took 0.9 of it timed out), so the stand-in flushes below sleep
+#: fractions of it, and each verdict is the same at any length.  Long enough that the greeting
+#: (answered at once by a thread of this process) comes well within its timeout, the probe's
+#: length times its tries (3 s here).
+PROBE_S = 1.0
+
+
+@pytest.fixture(autouse=True)
+def probe_length(monkeypatch):
+    monkeypatch.setattr(view_target, "CONNECT_PROBE_S", PROBE_S)
+    assert PROBE_S * CONNECT_PROBE_TRIES >= 3.0
 
 
 class LateRecording:
@@ -69,7 +83,7 @@ def probe(port: int, delay_s: float, said: str) -> tuple[str | None, LateRecordi
 SEVERED = "gRPC connection severed: Failed to send messages: Unknown error, uri: {url}"
 
 
-@pytest.mark.parametrize("delay_s", [0.0, 0.95 * CONNECT_PROBE_S])
+@pytest.mark.parametrize("delay_s", [0.0, 0.95 * PROBE_S])
 def test_a_broken_connection_is_no_viewer_however_late_it_is_said(port, delay_s):
     why, recording = probe(port, delay_s, SEVERED)
     url = f"rerun+http://127.0.0.1:{port}/proxy"
@@ -79,10 +93,10 @@ def test_a_broken_connection_is_no_viewer_however_late_it_is_said(port, delay_s)
 
 
 def test_the_other_way_rerun_says_a_broken_connection(port):
-    why, _ = probe(port, 0.95 * CONNECT_PROBE_S, "gRPC connection is open, but flush still failed, uri: {url}")
+    why, _ = probe(port, 0.95 * PROBE_S, "gRPC connection is open, but flush still failed, uri: {url}")
     assert why is not None and "is not a Rerun viewer" in why
 
 
 def test_a_flush_that_timed_out_is_a_slow_viewer_not_a_refusal(port):
-    why, recording = probe(port, 0.95 * CONNECT_PROBE_S, "gRPC flush timed out after 2s, uri: {url}")
+    why, recording = probe(port, 0.95 * PROBE_S, "gRPC flush timed out after 2s, uri: {url}")
     assert why is None and not recording.disconnected

@@ -73,6 +73,15 @@ def _run(config, states, clouds):
     return walls, out
 
 
+@pytest.fixture(scope="module")
+def loop_run():
+    """``_odometry(1.004)`` (the loop, its turns 0.4 % long) and the map's run over it with the
+    default settings, made once for the tests that read them (never changed)."""
+    truths, states, clouds = _odometry(1.004)
+    walls, out = _run(WallMapConfig(), states, clouds)
+    return truths, states, clouds, walls, out
+
+
 def test_lines_are_the_walls_the_points_draw():
     rng = np.random.default_rng(1)
     along = np.column_stack([np.linspace(1.0, 5.0, 60), np.full(60, 2.0)])  # 4 m along x at y = 2
@@ -124,9 +133,9 @@ def test_a_lines_fit_is_the_total_least_squares_one(seed):
     assert along @ normal == pytest.approx(0.0, abs=1e-12)
 
 
-def test_walls_seen_again_correct_a_turn_that_erred():
-    truths, states, clouds = _odometry(1.004)
-    walls, out = _run(WallMapConfig(use=True), states, clouds)
+def test_walls_seen_again_correct_a_turn_that_erred(loop_run):
+    assert WallMapConfig().use  # the shared run's settings: the map in use
+    truths, states, _, walls, out = loop_run
     final_truth = truths[-1][2]
     odometry_error = math.degrees(states[-1].yaw - final_truth)
     assert odometry_error == pytest.approx(1.44, abs=0.01)  # 0.4 % of a whole turn
@@ -188,14 +197,13 @@ def test_a_heading_that_jumped_past_the_gate_starts_new_walls():
     assert walls.walls >= 4
 
 
-def test_points_beyond_the_range_are_left_out():
+def test_points_beyond_the_range_are_left_out(loop_run):
     """Static points past ``max_range_m`` (30 m) are left out: a wall 45 m ahead is none (the
     vote's grid spans the points, and a stray point kilometres off would make it gigabytes)."""
-    truths, states, clouds = _odometry(1.004)
+    truths, states, clouds, walls, near_only = loop_run
     wall = np.column_stack([np.full(30, 45.0), np.linspace(-2.0, 2.0, 30)])
     far = [np.concatenate([cloud, synth.points(synth.world_to_body(wall, pose), (s.vx, s.vy))])
            for s, cloud, pose in zip(states, clouds, truths)]
-    walls, near_only = _run(WallMapConfig(), states, clouds)
     walls_far, with_far = _run(WallMapConfig(), states, far)
     assert walls_far.walls == walls.walls
     assert np.array([s.pose for s in with_far]) == pytest.approx(np.array([s.pose for s in near_only]), abs=1e-12)
@@ -222,8 +230,8 @@ def test_a_window_the_odometry_spread_far_stays_small():
     assert peak < 50e6
 
 
-def test_the_walls_kept_are_bounded():
-    _, states, clouds = _odometry(1.004)
+def test_the_walls_kept_are_bounded(loop_run):
+    _, states, clouds, _, _ = loop_run
     walls, out = _run(WallMapConfig(use=True, max_walls=1), states, clouds)
     assert walls.walls == 1
     assert len(out) == len(states)
