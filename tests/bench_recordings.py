@@ -14,7 +14,7 @@ import sequences  # noqa: E402
 def shared_recording(cell: rm.SimCell, tmp_path_factory) -> str:
     """*cell* recorded (rm.record) with its DSP products (sequences.load) once for the whole test run:
     tests/test_heading_diagnosis.py, test_scene_edits.py and test_matrix_recordings.py each recorded
-    the same loop (a radar-sim run and the DSP, 11 s of CPU time), the same bytes.  Theirs to read only
+    the same loop (a radar-sim run and the DSP), the same bytes.  Theirs to read only
     (a test that changes a recording copies it first).  Under xdist, in the run's folder that its workers
     share (--dist loadfile may put the three files on either), made by the first under a lock."""
     root = tmp_path_factory.getbasetemp()

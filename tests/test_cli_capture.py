@@ -232,8 +232,8 @@ def test_duration_limit_counts_stream_time(src, tmp_path, duration, expected):
     out = tmp_path / "out"
     # Recording only (--no-odom --no-publish): the rule is the pipeline's frame loop, the same with
     # the estimator and the publisher or without them (the --frames test and
-    # test_duration_past_the_end_ends_with_the_source run it with both); loading them cost each of
-    # the seven runs some 0.8 s of CPU more.
+    # test_duration_past_the_end_ends_with_the_source run it with both), which the seven runs
+    # would load for nothing.
     proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--duration", duration, "--record", out,
                            "--no-odom", "--no-publish")
     assert proc.returncode == 0, proc.stderr

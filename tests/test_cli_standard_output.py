@@ -44,7 +44,7 @@ def test_a_full_disk_on_stdout_is_one_line_and_exit_1(tum, program, args):
 def test_the_outputs_written_are_kept(tmp_path):
     odom = tmp_path / "odom.tum"
     # Fast fidelity: what is checked is the summary's failed write and the trajectory kept, not the
-    # simulator's exact bytes (the lab's 5 frames at exact fidelity took some 7 s of CPU).
+    # simulator's exact bytes.
     with open("/dev/full", "w") as full:
         proc = _run(console_command("radar-capture") + ["--source", "sim://lab?rate=max&fidelity=fast&duration=0.5",
                                                        "--no-publish", "--odom-out", str(odom)], full)

@@ -78,15 +78,16 @@ ARC = [(0.5, 0.0, 0.0), (1.0, 0.6, 0.0), (3.0, 0.6, math.radians(-30.0)), (1.0, 
 
 @pytest.fixture(scope="module")
 def blank_run():
-    """``_run(_wheeled(), phases, blank=True)`` (the radar 0.3 m ahead of the axis, heatmaps of noise
-    alone) of SPIN and ARC, each made once for the tests that read it (never changed): a whole
-    simulated run, and the same inputs give the same states (the estimator is deterministic)."""
+    """``_run(_wheeled(mount), phases, blank=True, mount=mount)`` (heatmaps of noise alone; the mount
+    by default 0.3 m ahead of the axis, _run's and _wheeled's), each made once for the tests that
+    read it (never changed): a whole simulated run, and the same inputs give the same states (the
+    estimator is deterministic)."""
     runs = {}
 
-    def get(phases):
-        key = tuple(phases)
+    def get(phases, mount=(LEVER, 0.0, 0.0)):
+        key = (tuple(phases), mount)
         if key not in runs:
-            runs[key] = _run(_wheeled(), phases, blank=True)
+            runs[key] = _run(_wheeled(mount), phases, blank=True, mount=mount)
         return runs[key]
     return get
 
@@ -98,10 +99,7 @@ def blank_run():
     (SPIN, (-0.25, 0.1, math.radians(20.0)))],
     ids=["in place, ahead", "moving, ahead", "moving, behind", "in place, behind and yawed"])
 def test_the_doppler_alone_measures_the_turn_when_the_heatmap_holds_nothing(phases, mount, blank_run):
-    if mount == (LEVER, 0.0, 0.0):  # _run's and _wheeled's own mount: the shared run
-        states, true_turn = blank_run(phases)
-    else:
-        states, true_turn = _run(_wheeled(mount), phases, blank=True, mount=mount)
+    states, true_turn = blank_run(phases, mount)
     assert all("no_structure" in s.flags for s in states[1:])  # the registration measured nothing
     # In a moving turn the fit's sideways speed runs long (docs/heading.md, the mounted radar's
     # moving turns): 2 % in place, 4 % moving.

@@ -64,8 +64,8 @@ class Kept(Sink):
 def record(directory, mount: Mount, seconds: float = 1.5):
     kept = Kept()
     path = directory / "run.mcap"
-    # Fast fidelity (half the exact one's cost): every check here compares the bag with the
-    # results the same run gave its sinks, whatever the simulator's fidelity.
+    # Fast fidelity: every check here compares the bag with the results the same run gave its
+    # sinks, whatever the simulator's fidelity.
     with open_source(f"sim://corridor?rate=max&fidelity=fast&duration={seconds}") as source:
         sinks = [kept, McapSink(path, source, mount=mount), OdometryJsonSink(directory / "odom.jsonl")]
         stats = Pipeline(source, estimator=EstimatorConfig(), sinks=sinks).run()
