@@ -28,8 +28,9 @@ alone, and the translation's).
 A cell's result is cached in ``DATA/results/`` under a key of its parameters and a fingerprint
 of the simulator's, the DSP's and the estimator's sources: a rerun computes only what changed.
 Workers: a local process pool (``--workers``, default the CPU count), or with ``--cluster
-ADDRESS`` a running Dask distributed scheduler (``pip install "dask[distributed]"``; its workers
-need radarodom installed and this clone's bench/ on their path or the same paths).
+ADDRESS`` a running Dask distributed scheduler (matrix_cluster.py: the scheduler and the workers
+started with this clone's bench/ on their path, the workers with radarodom installed and --data
+at the same path).
 
 Writes OUT/robustness.md (a table per cell) and OUT/robustness.json.
 """
@@ -288,18 +289,14 @@ def run_all(todo: list[Cell], data: str, *, workers: int | None = None, cluster:
         log(f"[{len(results)}/{len(todo)}] {todo[i].name}: yaw {r['yaw_rmse_deg']:.2f} deg, "
             f"drift {_f(r['drift_pct'], '.1f')} %{' (cached)' if r['cached'] else ''}")
 
+    calls = [(c, data, fp, settings, keep_adc) for c in todo]
     if cluster:
-        try:
-            from dask.distributed import Client, as_completed
-        except ImportError:
-            raise SystemExit("--cluster needs Dask distributed: pip install \"dask[distributed]\"") from None
-        with Client(cluster) as client:
-            futures = {client.submit(run_cell, c, data, fp, settings, keep_adc, pure=False): i for i, c in enumerate(todo)}
-            for fut in as_completed(futures):
-                done(futures[fut], fut.result())
+        from matrix_cluster import run_on_cluster
+        for i, r in run_on_cluster(cluster, run_cell, calls):
+            done(i, r)
     else:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_cell, c, data, fp, settings, keep_adc): i for i, c in enumerate(todo)}
+            futures = {pool.submit(run_cell, *args): i for i, args in enumerate(calls)}
             for fut in concurrent.futures.as_completed(futures):
                 done(futures[fut], fut.result())
     return [results[i] for i in range(len(todo))]

@@ -7,7 +7,10 @@ import dataclasses
 import itertools
 import math
 import os
+import re
+import subprocess
 import sys
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -133,6 +136,52 @@ def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
     assert again["straights"] == 0 and again["straight_rms_deg_per_m"] is None
     older = {k: v for k, v in again.items() if k not in ("straight_rms_deg_per_m", "straight_max_deg_per_m")}
     assert rm.table([older]) == rm.table([again])
+
+
+def test_a_dask_cluster_runs_the_cells_as_the_local_pool_does(tmp_path):
+    # A real Dask scheduler and worker process on loopback (free ports, no dashboard), given by
+    # address as --cluster takes it; the worker imports the bench modules from the path it inherits.
+    distributed = pytest.importorskip("dask.distributed")
+    run = write_moving_run(tmp_path / "runs")
+    cells = [rm.ColoradarCell(str(run))]
+    logged: list[str] = []
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        remote = rm.run_all(cells, str(tmp_path / "dask"), cluster=cluster.scheduler_address, log=logged.append)
+        again = rm.run_all(cells, str(tmp_path / "dask"), cluster=cluster.scheduler_address, log=logged.append)
+    local = rm.run_all(cells, str(tmp_path / "local"), workers=1, log=lambda msg: None)
+    assert [m.startswith("[1/1] coloradar_ec_hallways_run0: yaw ") for m in logged] == [True, True]
+    assert [m.endswith(" (cached)") for m in logged] == [False, True]
+    assert not remote[0]["cached"] and again[0]["cached"]  # the worker wrote the cell's result to the cache
+    assert os.listdir(tmp_path / "dask" / "results")
+    same = {k: v for k, v in remote[0].items() if k != "compute_s"}
+    assert same == {k: v for k, v in local[0].items() if k != "compute_s"}
+
+
+def test_a_scheduler_without_the_bench_modules_is_refused_before_any_cell(tmp_path):
+    # Dask's scheduler unpickles each task: started without bench/ on its path, every cell would
+    # fail with "Error during deserialization of the task graph". A scheduler of its own on a free
+    # port, started outside the clone.
+    pytest.importorskip("dask.distributed")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    log = tmp_path / "scheduler.log"
+    with open(log, "w") as err:
+        scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                      "--port", "0", "--no-dashboard"], cwd=tmp_path, env=env,
+                                     stdout=subprocess.DEVNULL, stderr=err)
+    try:
+        deadline = time.monotonic() + 120  # a bound on a hung start, not a speed check
+        while not (found := re.search(r"Scheduler at:\s*(\S+)", log.read_text())):
+            assert scheduler.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        with pytest.raises(SystemExit, match=r"the scheduler cannot import bench/'s modules \(matrix_cells, "
+                                             r"robustness_matrix, sequences\): start the scheduler and the workers "
+                                             r"with this clone's bench/ on their path, e\.g\. PYTHONPATH="):
+            rm.run_all([rm.SimCell(scene="room")], str(tmp_path / "data"), cluster=found.group(1))
+        assert not (tmp_path / "data").exists()  # nothing was recorded
+    finally:
+        scheduler.terminate()
+        scheduler.wait(timeout=30)
 
 
 def test_cluster_without_dask_says_what_to_install(tmp_path, monkeypatch):
