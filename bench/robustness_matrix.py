@@ -17,7 +17,7 @@ built-in scenes have 0 dB).
 ``--design star`` (default) varies one axis at a time around the base cell (shipped cfg, 0 dB,
 0.8 m/s, 45 deg/s, the scene's own movers), for every scene and seed; ``--design product``
 takes every combination of the values given. ``--smoke`` is a small preset (three scenes, one
-seed, short loops).
+seed, short loops) for the axes not given (``--smoke --scenes room``: the room alone).
 
 Each cell runs in a worker: the sequence is recorded with ``radar-sim`` (once), put through the
 DSP (once, cached beside it by bench/sequences.py; then the recording's ADC samples are dropped
@@ -326,35 +326,47 @@ def table(results: list[dict]) -> str:
                           for r in results)
 
 
+#: The axes' values where not given on the command line, and --smoke's preset in their place.
+AXES = {"scenes": ["corridor", "room", "lab"], "seeds": list(range(6)), "cfgs": list(CFGS),
+        "snr": [0.0, -5.0, -10.0, -15.0], "speeds": [0.8, 0.3, 1.5], "turn_rates": [45.0, 30.0, 90.0],
+        "movers": ["scene", "none", "people"], "mounts": [0.0, 0.3], "straight": 3.0}
 SMOKE = {"scenes": ["corridor", "room", "lab"], "seeds": [0], "cfgs": ["shipped"], "snr": [0.0], "speeds": [0.8],
-             "turn_rates": [45.0], "movers": ["scene"], "mounts": [0.0], "straight": 2.0}
+         "turn_rates": [45.0], "movers": ["scene"], "mounts": [0.0], "straight": 2.0}
 
 
 def add_cell_arguments(parser: argparse.ArgumentParser) -> None:
     """The options that select the cells (and --data, where their recordings are), as
-    :func:`selected_cells` reads them; bench/matrix_recordings.py takes them too."""
-    parser.add_argument("--smoke", action="store_true", help="the small preset: " + ", ".join(f"{k}={v}" for k, v in SMOKE.items()))
+    :func:`selected_cells` reads them; bench/matrix_recordings.py takes them too.  The axes' options
+    default to None: :func:`selected_cells` fills what was not given (:data:`AXES`, or with --smoke
+    :data:`SMOKE`), so that --smoke --scenes room runs the room alone."""
+    parser.add_argument("--smoke", action="store_true",
+                        help="the small preset, for the axes not given: " + ", ".join(f"{k}={v}" for k, v in SMOKE.items()))
     parser.add_argument("--design", choices=["star", "product"], default="star")
-    parser.add_argument("--scenes", nargs="+", choices=sorted(LAYOUT), default=["corridor", "room", "lab"])
-    parser.add_argument("--seeds", nargs="+", type=int, default=list(range(6)))
-    parser.add_argument("--cfgs", nargs="+", choices=list(CFGS), default=list(CFGS))
-    parser.add_argument("--snr", nargs="+", type=float, default=[0.0, -5.0, -10.0, -15.0], metavar="DB")
-    parser.add_argument("--speeds", nargs="+", type=float, default=[0.8, 0.3, 1.5], metavar="M/S")
-    parser.add_argument("--turn-rates", nargs="+", type=float, default=[45.0, 30.0, 90.0], metavar="DEG/S")
-    parser.add_argument("--movers", nargs="+", choices=["scene", "none", "people"], default=["scene", "none", "people"])
-    parser.add_argument("--mounts", nargs="+", type=float, default=[0.0, 0.3], metavar="M",
-                        help="the radar's lever arm ahead of the rotation axis")
+
+    def axis(name: str, **kw) -> None:
+        text = kw.pop("help", "")
+        parser.add_argument(name, default=None, **kw, help=f"{text} (default: {AXES[name[2:].replace('-', '_')]})".strip())
+
+    axis("--scenes", nargs="+", choices=sorted(LAYOUT))
+    axis("--seeds", nargs="+", type=int)
+    axis("--cfgs", nargs="+", choices=list(CFGS))
+    axis("--snr", nargs="+", type=float, metavar="DB")
+    axis("--speeds", nargs="+", type=float, metavar="M/S")
+    axis("--turn-rates", nargs="+", type=float, metavar="DEG/S")
+    axis("--movers", nargs="+", choices=["scene", "none", "people"])
+    axis("--mounts", nargs="+", type=float, metavar="M", help="the radar's lever arm ahead of the rotation axis")
     parser.add_argument("--fidelity", choices=["fast", "exact"], default="fast", help="the simulator's (radar-sim)")
-    parser.add_argument("--straight", type=float, default=3.0, metavar="M", help="the loop's straights (at most)")
+    axis("--straight", type=float, metavar="M", help="the loop's straights (at most)")
     parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
     parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
 
 
 def selected_cells(args) -> list[Cell]:
-    """The cells :func:`add_cell_arguments`' options select (--smoke's preset applied to *args*)."""
-    if args.smoke:
-        for k, v in SMOKE.items():
+    """The cells :func:`add_cell_arguments`' options select: the axes not given filled in on
+    *args* from --smoke's preset or the defaults."""
+    for k, v in (SMOKE if args.smoke else AXES).items():
+        if getattr(args, k) is None:
             setattr(args, k, v)
     todo = cells(args)
     return [c for c in todo if isinstance(c, ColoradarCell)] if args.no_sim else todo

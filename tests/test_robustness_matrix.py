@@ -112,6 +112,16 @@ def test_cells_are_selected_by_axis_in_star_and_product_designs():
     assert {c.mount_m for c in rm.cells(args)} == {0.0, 0.3}
 
 
+def test_smoke_presets_only_the_axes_not_given():
+    import argparse
+    parser = argparse.ArgumentParser()
+    rm.add_cell_arguments(parser)
+    names = lambda argv: [c.name for c in rm.selected_cells(parser.parse_args(argv))]  # noqa: E731
+    assert names(["--smoke"]) == [f"{s}_s0_shipped_snr0_v0.8_w45_scene_L2" for s in ("corridor", "room", "lab")]
+    assert names(["--smoke", "--scenes", "room", "--seeds", "3"]) == ["room_s3_shipped_snr0_v0.8_w45_scene_L2"]
+    assert len(names([])) == 288 and len(names(["--scenes", "lab"])) == 96  # the whole star, and its lab
+
+
 def test_a_cells_cache_key_follows_its_parameters_and_the_sources():
     a = rm.SimCell(scene="lab")
     assert rm.cell_key(a, "fp1") == rm.cell_key(rm.SimCell(scene="lab"), "fp1")
