@@ -1,9 +1,13 @@
 """The heading robustness matrix's cells (bench/robustness_matrix.py): the cfgs, where the loop
 fits in each built-in scene, a simulated cell (scene, seed, cfg, SNR, speed, turn rate, movers,
-mount, fidelity) and its scene file, and a ColoRadar run as a cell."""
+mount, fidelity) and its scene file, a ColoRadar run as a cell, and the command-line options
+that select cells (robustness_matrix.py's and matrix_recordings.py's)."""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
+import itertools
 import math
 import os
 import re
@@ -217,3 +221,82 @@ def scene_spec(cell: SimCell) -> dict:
         raise ValueError(f"movers must be scene, none or people, got {cell.movers!r}")
     spec["name"] = cell.name
     return spec
+
+
+# ------------------------------------------------------------------ selecting cells
+BASE = SimCell(scene="corridor")
+
+
+def cells(args) -> list[Cell]:
+    out: list[Cell] = []
+    axes = {"cfg": args.cfgs, "snr_db": args.snr, "speed_mps": args.speeds, "turn_rate_dps": args.turn_rates,
+            "movers": args.movers, "mount_m": args.mounts}
+    for scene, seed in itertools.product(args.scenes, args.seeds):
+        base = dataclasses.replace(BASE, scene=scene, seed=seed, straight_m=args.straight,
+                                   fidelity=getattr(args, "fidelity", "fast"))
+        if args.design == "product":
+            variants = [dataclasses.replace(base, **dict(zip(axes, combo)))
+                        for combo in itertools.product(*axes.values())]
+        else:
+            first = {k: v[0] for k, v in axes.items()}
+            variants = [dataclasses.replace(base, **first)]
+            for axis, values in axes.items():
+                variants += [dataclasses.replace(variants[0], **{axis: v}) for v in values[1:]]
+        for v in variants:
+            try:
+                loop_segments(v.scene, v.speed_mps, v.turn_rate_dps, v.straight_m, v.mount_m, v.turn_in_place_deg)
+            except ValueError as exc:
+                print(f"skipped {v.name}: {exc}", file=sys.stderr)
+                continue
+            if v not in out:
+                out.append(v)
+    # Base cells first: a partial run already covers every scene and seed.
+    out.sort(key=lambda c: sum(getattr(c, axis) != values[0] for axis, values in axes.items()))
+    out += [ColoradarCell(run) for run in args.coloradar or []]
+    return out
+
+
+#: The axes' values where not given on the command line, and --smoke's preset in their place.
+AXES = {"scenes": ["corridor", "room", "lab"], "seeds": list(range(6)), "cfgs": list(CFGS),
+        "snr": [0.0, -5.0, -10.0, -15.0], "speeds": [0.8, 0.3, 1.5], "turn_rates": [45.0, 30.0, 90.0],
+        "movers": ["scene", "none", "people"], "mounts": [0.0, 0.3], "straight": 3.0}
+SMOKE = {"scenes": ["corridor", "room", "lab"], "seeds": [0], "cfgs": ["shipped"], "snr": [0.0], "speeds": [0.8],
+         "turn_rates": [45.0], "movers": ["scene"], "mounts": [0.0], "straight": 2.0}
+
+
+def add_cell_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options that select the cells (and --data, where their recordings are), as
+    :func:`selected_cells` reads them; bench/matrix_recordings.py takes them too.  The axes' options
+    default to None: :func:`selected_cells` fills what was not given (:data:`AXES`, or with --smoke
+    :data:`SMOKE`), so that --smoke --scenes room runs the room alone."""
+    preset = ", ".join(f"{k}={v}" for k, v in SMOKE.items())
+    parser.add_argument("--smoke", action="store_true", help=f"the small preset, for the axes not given: {preset}")
+    parser.add_argument("--design", choices=["star", "product"], default="star")
+
+    def axis(name: str, **kw) -> None:
+        text = f"{kw.pop('help', '')} (default: {AXES[name[2:].replace('-', '_')]})".strip()
+        parser.add_argument(name, default=None, **kw, help=text)
+
+    axis("--scenes", nargs="+", choices=sorted(LAYOUT))
+    axis("--seeds", nargs="+", type=int)
+    axis("--cfgs", nargs="+", choices=list(CFGS))
+    axis("--snr", nargs="+", type=float, metavar="DB")
+    axis("--speeds", nargs="+", type=float, metavar="M/S")
+    axis("--turn-rates", nargs="+", type=float, metavar="DEG/S")
+    axis("--movers", nargs="+", choices=["scene", "none", "people"])
+    axis("--mounts", nargs="+", type=float, metavar="M", help="the radar's lever arm ahead of the rotation axis")
+    parser.add_argument("--fidelity", choices=["fast", "exact"], default="fast", help="the simulator's (radar-sim)")
+    axis("--straight", type=float, metavar="M", help="the loop's straights (at most)")
+    parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
+    parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")
+    parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
+
+
+def selected_cells(args) -> list[Cell]:
+    """The cells :func:`add_cell_arguments`' options select: the axes not given filled in on
+    *args* from --smoke's preset or the defaults."""
+    for k, v in (SMOKE if args.smoke else AXES).items():
+        if getattr(args, k) is None:
+            setattr(args, k, v)
+    todo = cells(args)
+    return [c for c in todo if isinstance(c, ColoradarCell)] if args.no_sim else todo
