@@ -3,7 +3,8 @@ design (the base cells, then each value changed), means and ranges over its cell
 matrix against issue 20's goals; given two runs, each figure as BEFORE -> AFTER. Then, per row,
 what makes the drift (the cells' drift parts, means: the drift each kind of frame's yaw errors
 make alone, and the translation's; heading_metrics.drift_parts), and how the reported pose
-covariance covers the errors (estimator/consistency.py), of the last run.
+covariance covers the errors (estimator/consistency.py), of the last run; before them, per goal,
+the cells that miss it (given two runs: that came within it, and that fell out of it).
 
     python bench/matrix_summary.py [BEFORE/robustness.json] AFTER/robustness.json
 
@@ -150,6 +151,44 @@ def covariance_table(results: list[dict]) -> list[str]:
     return lines
 
 
+#: Issue 20's per-cell goals: (name, the result's key, whether a value meets it; None: no such turn).
+GOALS = (("straight bias at most 0.005 deg/frame", "straight_bias_deg_per_frame", lambda v: abs(v) <= 0.005),
+         ("each moving turn within 2 %", "moving_turn_worst_ratio", lambda v: v is None or abs(v - 1.0) <= 0.02),
+         ("turns in place within 2 %", "inplace_turn_ratio", lambda v: v is None or abs(v - 1.0) <= 0.02),
+         ("drift at most 2 %", "drift_pct", lambda v: v <= 2.0))
+#: The cells named per goal and way; the rest counted.
+NAMED = 12
+
+
+def _value(v) -> str:
+    return "-" if v is None else f"{v:.4g}"
+
+
+def goal_changes(runs: list[list[dict]]) -> list[str]:
+    """Per goal (:data:`GOALS`), the cells that miss it in the last run, or with two runs the cells
+    that came within it and those that fell out of it, each with its value(s): which cells a
+    change moved, where the counts alone net them out."""
+    last = {r["name"]: r for r in runs[-1]}
+    first = {r["name"]: r for r in runs[0]}
+    lines = []
+    for goal, key, meets in GOALS:
+        if not all(key in r for run in runs for r in run):
+            continue  # results from before the key existed
+        if len(runs) == 1:
+            groups = [("missed by", [n for n in sorted(last) if not meets(last[n][key])])]
+        else:
+            groups = [(way, [n for n in sorted(last) if meets(first[n][key]) != meets(last[n][key])
+                             and meets(last[n][key]) == gained]) for way, gained in (("gained", True), ("lost", False))]
+        for way, names in groups:
+            if not names:
+                continue
+            shown = ", ".join(f"{n} {' -> '.join(_value(r[n][key]) for r in (first, last)[2 - len(runs):])}"
+                              for n in names[:NAMED])
+            more = f", and {len(names) - NAMED} more" if len(names) > NAMED else ""
+            lines.append(f"- {goal}, {way} {len(names)}: {shown}{more}")
+    return lines
+
+
 def summary(runs: list[list[dict]]) -> str:
     names = set.intersection(*({r["name"] for r in run} for run in runs))
     runs = [[r for r in run if r["name"] in names] for run in runs]
@@ -168,6 +207,10 @@ def summary(runs: list[list[dict]]) -> str:
     all_totals = [totals(run) for run in runs]
     lines.append("")
     lines.append("; ".join(f"{key} {joined([str(t[key]) for t in all_totals])}" for key in all_totals[0]))
+    changes = goal_changes(runs)
+    if changes:
+        lines += ["", "The cells " + ("that crossed a goal (BEFORE -> AFTER):" if len(runs) > 1
+                                      else "that miss a goal:"), ""] + changes
     parts = parts_table(runs[-1])
     if parts:
         lines += ["", "What makes the drift (% of the path, means; each kind of frame's yaw errors alone, "

@@ -240,6 +240,29 @@ def test_the_summary_gives_a_row_per_axis_and_the_goals_before_and_after():
     assert "signed straight bias, all / after turns' frames deg/frame -0.0040 / - -> -0.0040 / -" in text
 
 
+def test_the_summary_names_the_cells_that_miss_or_cross_each_goal():
+    import matrix_summary
+    def result(name, drift, bias, inplace):
+        return {"name": name, "cell": dataclasses.asdict(rm.SimCell(scene="lab")), "yaw_rmse_deg": 0.3,
+                "straight_bias_deg_per_frame": bias, "moving_turn_ratio": 1.0, "moving_turn_worst_ratio": 1.0,
+                "inplace_turn_ratio": inplace, "drift_pct": drift, "final_heading_error_deg": 0.5}
+    before = [result("a", 2.5, 0.004, 1.01), result("b", 1.0, -0.007, None), result("c", 1.5, 0.001, 0.97)]
+    after = [result("a", 1.5, 0.006, 1.01), result("b", 2.2, 0.002, None), result("c", 1.5, 0.001, 0.97)]
+    text = matrix_summary.summary([before, after])
+    assert "The cells that crossed a goal (BEFORE -> AFTER):" in text
+    assert "- straight bias at most 0.005 deg/frame, gained 1: b -0.007 -> 0.002" in text
+    assert "- straight bias at most 0.005 deg/frame, lost 1: a 0.004 -> 0.006" in text
+    assert "- drift at most 2 %, gained 1: a 2.5 -> 1.5" in text and "- drift at most 2 %, lost 1: b 1 -> 2.2" in text
+    assert "turns in place" not in text.split("crossed a goal")[1]  # c misses it in both runs: no crossing
+    alone = matrix_summary.summary([after])
+    assert "- turns in place within 2 %, missed by 1: c 0.97" in alone  # b turns in place nowhere
+    assert "- drift at most 2 %, missed by 1: b 2.2" in alone
+    assert "each moving turn within 2 %, missed" not in alone  # every cell meets it
+    many = [result(f"cell{i:02d}", 3.0, 0.0, 1.0) for i in range(15)]
+    listed = matrix_summary.summary([many])
+    assert "missed by 15: cell00 3, " in listed and "cell11 3, and 3 more" in listed  # twelve named
+
+
 def test_the_summary_says_what_makes_the_drift_per_row():
     import matrix_summary
     from radarodom.estimator.heading_metrics import DRIFT_PARTS
