@@ -45,12 +45,25 @@ def _stats(results: list[dict]) -> dict:
             "drift": f"{statistics.mean(drift):.1f} / {max(drift):.1f}"}
 
 
+# Issue 20's per-cell goals, each a test of one result's value.
+def _bias_ok(deg_per_frame: float) -> bool:
+    return abs(deg_per_frame) <= 0.005
+
+
+def _turn_ok(ratio: float | None) -> bool:
+    return ratio is None or abs(ratio - 1.0) <= 0.02  # None: no such turn
+
+
+def _drift_ok(pct: float) -> bool:
+    return pct <= 2.0
+
+
 def _within(results: list[dict], key: str) -> int | str:
     """The cells whose *key* ratio is within 2 % of 1 (or undefined: no such turn); "-" for
     results without it (each turn's own: runs before 2026-11-30)."""
     if not all(key in r for r in results):
         return "-"
-    return sum(r[key] is None or abs(r[key] - 1.0) <= 0.02 for r in results)
+    return sum(_turn_ok(r[key]) for r in results)
 
 
 def totals(results: list[dict]) -> dict:
@@ -59,7 +72,7 @@ def totals(results: list[dict]) -> dict:
     drift = [r["drift_pct"] for r in results]
     return {"cells": len(results), "yaw RMSE deg": f"{statistics.mean(r['yaw_rmse_deg'] for r in results):.2f}",
             "mean |straight bias| deg/frame": f"{statistics.mean(bias):.3f}",
-            "straight bias <= 0.005": sum(b <= 0.005 for b in bias),
+            "straight bias <= 0.005": sum(map(_bias_ok, bias)),
             "the straights' own bias <= 0.005": _own_within(results),
             "signed straight bias, all / after turns' frames deg/frame": _signed(results),
             "each straight's heading error, RMS / worst deg/m": _straights(results),
@@ -67,7 +80,7 @@ def totals(results: list[dict]) -> dict:
             "each moving turn within 2 %": _within(results, "moving_turn_worst_ratio"),
             "turns in place within 2 %": _within(results, "inplace_turn_ratio"),
             "drift % mean": f"{statistics.mean(drift):.2f}", "drift % median": f"{statistics.median(drift):.2f}",
-            "drift <= 2 %": sum(d <= 2.0 for d in drift), "drift % worst": f"{max(drift):.1f}",
+            "drift <= 2 %": sum(map(_drift_ok, drift)), "drift % worst": f"{max(drift):.1f}",
             "|final heading| deg": f"{statistics.mean(abs(r['final_heading_error_deg']) for r in results):.1f}"}
 
 
@@ -76,7 +89,7 @@ def _own_within(results: list[dict]) -> int | str:
     for results without the split (runs before 2026-12-06)."""
     if not all("straight_own_bias_deg_per_frame" in r for r in results):
         return "-"
-    return sum(r["straight_own_bias_deg_per_frame"] is not None and abs(r["straight_own_bias_deg_per_frame"]) <= 0.005
+    return sum(r["straight_own_bias_deg_per_frame"] is not None and _bias_ok(r["straight_own_bias_deg_per_frame"])
                for r in results)
 
 
@@ -151,11 +164,11 @@ def covariance_table(results: list[dict]) -> list[str]:
     return lines
 
 
-#: Issue 20's per-cell goals: (name, the result's key, whether a value meets it; None: no such turn).
-GOALS = (("straight bias at most 0.005 deg/frame", "straight_bias_deg_per_frame", lambda v: abs(v) <= 0.005),
-         ("each moving turn within 2 %", "moving_turn_worst_ratio", lambda v: v is None or abs(v - 1.0) <= 0.02),
-         ("turns in place within 2 %", "inplace_turn_ratio", lambda v: v is None or abs(v - 1.0) <= 0.02),
-         ("drift at most 2 %", "drift_pct", lambda v: v <= 2.0))
+#: Issue 20's per-cell goals: (name, the result's key, its test).
+GOALS = (("straight bias at most 0.005 deg/frame", "straight_bias_deg_per_frame", _bias_ok),
+         ("each moving turn within 2 %", "moving_turn_worst_ratio", _turn_ok),
+         ("turns in place within 2 %", "inplace_turn_ratio", _turn_ok),
+         ("drift at most 2 %", "drift_pct", _drift_ok))
 #: The cells named per goal and way; the rest counted.
 NAMED = 12
 
@@ -168,22 +181,21 @@ def goal_changes(runs: list[list[dict]]) -> list[str]:
     """Per goal (:data:`GOALS`), the cells that miss it in the last run, or with two runs the cells
     that came within it and those that fell out of it, each with its value(s): which cells a
     change moved, where the counts alone net them out."""
-    last = {r["name"]: r for r in runs[-1]}
-    first = {r["name"]: r for r in runs[0]}
+    by_name = [{r["name"]: r for r in run} for run in runs]  # one run, or before and after
     lines = []
     for goal, key, meets in GOALS:
         if not all(key in r for run in runs for r in run):
             continue  # results from before the key existed
+        met = {n: [meets(run[n][key]) for run in by_name] for n in sorted(by_name[-1])}
         if len(runs) == 1:
-            groups = [("missed by", [n for n in sorted(last) if not meets(last[n][key])])]
+            groups = [("missed by", [n for n, (now,) in met.items() if not now])]
         else:
-            groups = [(way, [n for n in sorted(last) if meets(first[n][key]) != meets(last[n][key])
-                             and meets(last[n][key]) == gained]) for way, gained in (("gained", True), ("lost", False))]
+            groups = [("gained", [n for n, (was, now) in met.items() if now and not was]),
+                      ("lost", [n for n, (was, now) in met.items() if was and not now])]
         for way, names in groups:
             if not names:
                 continue
-            shown = ", ".join(f"{n} {' -> '.join(_value(r[n][key]) for r in (first, last)[2 - len(runs):])}"
-                              for n in names[:NAMED])
+            shown = ", ".join(f"{n} {' -> '.join(_value(run[n][key]) for run in by_name)}" for n in names[:NAMED])
             more = f", and {len(names) - NAMED} more" if len(names) > NAMED else ""
             lines.append(f"- {goal}, {way} {len(names)}: {shown}{more}")
     return lines
