@@ -55,7 +55,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
-from matrix_cells import (AXES, BASE, CFGS, LAYOUT, SMOKE, Cell, ColoradarCell, SimCell,  # noqa: E402,F401
+from matrix_cells import (CFGS, LAYOUT, Cell, ColoradarCell, SimCell,  # noqa: E402,F401
                           add_cell_arguments, cells, loop_segments, scene_spec, selected_cells)
 
 
