@@ -5,6 +5,7 @@ standing in for it when the registration fails; on the axis the radar does not s
 
 from __future__ import annotations
 
+import functools
 import math
 
 import estimator_synth as synth
@@ -82,14 +83,10 @@ def blank_run():
     by default 0.3 m ahead of the axis, _run's and _wheeled's), each made once for the tests that
     read it (never changed): a whole simulated run, and the same inputs give the same states (the
     estimator is deterministic)."""
-    runs = {}
-
-    def get(phases, mount=(LEVER, 0.0, 0.0)):
-        key = (tuple(phases), mount)
-        if key not in runs:
-            runs[key] = _run(_wheeled(mount), phases, blank=True, mount=mount)
-        return runs[key]
-    return get
+    @functools.cache
+    def made(phases: tuple, mount: tuple):
+        return _run(_wheeled(mount), list(phases), blank=True, mount=mount)
+    return lambda phases, mount=(LEVER, 0.0, 0.0): made(tuple(phases), mount)
 
 
 @pytest.mark.parametrize("phases, mount", [

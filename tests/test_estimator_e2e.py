@@ -14,6 +14,7 @@ Poses are the body frame (REP-103) in the first frame's (docs/conventions.md).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import multiprocessing
@@ -162,12 +163,9 @@ def runs(sequences):
     """``runs(sequence, config)``: ``run(sequences[sequence], CONFIGS[config])``, made once for the
     tests that read it (never changed). The same input gives the same output (TestReproducible,
     which runs afresh), so a run shared is the run each test would make."""
-    made = {}
-
+    @functools.cache
     def get(sequence: str, config: str):
-        if (sequence, config) not in made:
-            made[sequence, config] = run(sequences[sequence], CONFIGS[config])
-        return made[sequence, config]
+        return run(sequences[sequence], CONFIGS[config])
     return get
 
 
