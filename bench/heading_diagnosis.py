@@ -1,7 +1,8 @@
 """Stage-by-stage heading diagnosis against the ground truth (issue 20).
 
     python bench/heading_diagnosis.py SEQUENCE_DIR [...] [--estimator-config FILE.json]
-                                      [--baselines 1 2 4 8] [--straights 6 [--min-straight-m 1]]
+                                      [--baselines 1 2 4 8]
+                                      [--straights 6 [--min-straight-m 1] [--straight-end-m 1]]
                                       [--trace 100 120]
                                       [--turned-translation 0 0.1 -0.1] [--true-velocity]
 
@@ -33,7 +34,9 @@ place they err by up to a fifth each way and cancel in their sum: docs/heading.m
 straights turn opposite ways and cancel in the bias): the estimate's heading error over it, each
 blended chain's (the heatmaps' registration's and the points'), and the field search's with the
 true motion between frames K apart along it, in degrees a metre (docs/heading.md, "Each straight
-apart": the field has the straights' error too, so it is the registration's, not the chain's).
+apart": the field has the straights' error too, so it is the registration's, not the chain's), and
+the estimate's error in degrees over its first metre, its middle and its last metre
+(``--straight-end-m``; docs/heading.md, "Longer straights": where along a straight it arises).
 bench/scene_edits.py records a matrix cell with objects of its scene left out, to run this on.
 
 ``--trace FIRST LAST`` prints the steps into frames FIRST to LAST one by one: the truth's speed
@@ -251,11 +254,13 @@ def baselines(seq: sequences.Sequence, kept: list, config: EstimatorConfig, step
 
 
 def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config: EstimatorConfig,
-              steps: int, chains: np.ndarray | None = None, min_m: float = 1.0) -> list[str]:
+              steps: int, chains: np.ndarray | None = None, min_m: float = 1.0, end_m: float = 1.0) -> list[str]:
     """Each straight drive at least *min_m* long apart (heading_metrics.straight_runs): its length
     and the estimate's heading error over it (in degrees a metre and in all), each blended chain's
-    (*chains*, :func:`diagnose`'s) beside it, and the field search's with the true motion between
-    frames *steps* apart along it (mean error a hop over the mean hop, degrees a metre)."""
+    (*chains*, :func:`diagnose`'s) beside it, the field search's with the true motion between
+    frames *steps* apart along it (mean error a hop over the mean hop, degrees a metre), and the
+    estimate's error in its first *end_m* metres, its middle and its last *end_m* (degrees; the
+    first wins where they overlap)."""
     poses = truth(seq)
     dt = np.diff(seq.times)
     steps_m = np.hypot(*np.diff(poses[:, :2], axis=0).T)
@@ -282,8 +287,13 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
             errors = chain_err[i:j].sum(axis=0)
             own += (f", heatmaps' chain {errors[0] / length:+.2f} ({errors[0]:+.2f} deg), points' chain "
                     f"{errors[1] / length:+.2f} ({errors[1]:+.2f} deg)")
+        along = np.cumsum(steps_m[i:j])  # m driven at each step's end
+        first = along <= end_m
+        last = (along > length - end_m) & ~first
+        ends = " / ".join(f"{math.degrees(err[i:j][m].sum()):+.2f}" for m in (first, ~first & ~last, last))
         lines.append(f"  straight from frame {i}, {length:.1f} m: {own}, "
-                     f"field with the true motion ({steps} frames apart) {field} deg/m")
+                     f"field with the true motion ({steps} frames apart) {field} deg/m; "
+                     f"first {end_m:g} m / middle / last {end_m:g} m {ends} deg")
     return lines
 
 
@@ -349,6 +359,8 @@ def main(argv=None) -> int:
                         help="each straight apart, the field's hops K frames long")
     parser.add_argument("--min-straight-m", type=float, default=1.0, metavar="M",
                         help="--straights: the shortest straight taken apart (default 1 m)")
+    parser.add_argument("--straight-end-m", type=float, default=1.0, metavar="M",
+                        help="--straights: each straight's error also in its first M m, middle and last M m")
     parser.add_argument("--trace", nargs=2, type=int, default=None, metavar=("FIRST", "LAST"),
                         help="the steps into frames FIRST to LAST, one by one")
     parser.add_argument("--turned-translation", nargs="+", type=float, default=None, metavar="DEG",
@@ -367,7 +379,8 @@ def main(argv=None) -> int:
         if args.baselines:
             print("\n".join(baselines(seq, kept, config, args.baselines)))
         if args.straights:
-            print("\n".join(straights(seq, kept, estimated, config, args.straights, chains, args.min_straight_m)))
+            print("\n".join(straights(seq, kept, estimated, config, args.straights, chains, args.min_straight_m,
+                                       args.straight_end_m)))
         if args.turned_translation:
             print(turned_translation(seq, kept, config, args.turned_translation))
         parts = drift_parts(seq.times, truth(seq), estimated)

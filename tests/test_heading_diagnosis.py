@@ -63,6 +63,27 @@ def test_the_trace_of_frames_outside_the_run_is_only_its_header(recording, capsy
     assert out[header + 1].startswith("  drift parts")
 
 
+def test_each_straight_apart_splits_its_error_into_its_ends_and_middle(recording, capsys):
+    """--straights: each straight of the loop long enough (its first and last, some 0.3 m of
+    straight driving each between their ramps and turns) with the estimate's error over it, and
+    that error again over its first 0.1 m, its middle and its last 0.1 m, which add up to it (to
+    the printed rounding), in the loop's order."""
+    assert hd.main([recording, "--straights", "1", "--min-straight-m", "0.3", "--straight-end-m", "0.1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    rows = [re.search(r"straight from frame (\d+), ([\d.]+) m: estimate [-+][\d.]+ deg/m \(([-+][\d.]+) deg\).*"
+                      r"first 0\.1 m / middle / last 0\.1 m ([-+][\d.]+) / ([-+][\d.]+) / ([-+][\d.]+) deg$", line)
+            for line in out if line.startswith("  straight from frame")]
+    assert len(rows) == 2 and all(rows)
+    frames = [int(r[1]) for r in rows]
+    assert frames == sorted(frames)
+    for r in rows:
+        assert 0.2 <= float(r[2]) <= 0.5
+        whole, parts = float(r[3]), [float(r[k]) for k in (4, 5, 6)]
+        assert sum(parts) == pytest.approx(whole, abs=0.021)
+    # The middle is what the ends leave: not empty on a 0.3 m straight with 0.1 m ends.
+    assert any(float(r[5]) != 0.0 for r in rows)
+
+
 def test_the_true_velocity_is_what_the_estimator_is_given_in_place_of_the_fit(recording, capsys):
     """--true-velocity: each frame's velocity by the truth's poses (the radar's), body frame, fed
     with the frame's points; every step's velocity is then the truth's at its middle, and the
