@@ -82,7 +82,7 @@ from sequences import true_velocities, truth  # noqa: E402,F401  (truth: turn_ph
 
 from radarodom.estimator.config import EstimatorConfig  # noqa: E402
 from radarodom.estimator.heading_metrics import (  # noqa: E402
-    MOVING_MPS, STRAIGHT_RATE_DPS, _straight, drift_parts, straight_runs)
+    MOVING_MPS, STRAIGHT_RATE_DPS, drift_parts, straight_runs, straight_steps)
 from radarodom.estimator.icp import _offsets, _peak_at, _scores, field_rotation  # noqa: E402
 from radarodom.estimator.odometry import RadarOdometry  # noqa: E402
 from radarodom.estimator.velocity import VelocityEstimate  # noqa: E402
@@ -265,7 +265,7 @@ def straights(seq: sequences.Sequence, kept: list, estimated: np.ndarray, config
     dt = np.diff(seq.times)
     steps_m = np.hypot(*np.diff(poses[:, :2], axis=0).T)
     d_ref = _wrap(np.diff(poses[:, 2]))
-    straight = _straight(dt, d_ref, poses, STRAIGHT_RATE_DPS, MOVING_MPS)
+    straight = straight_steps(dt, d_ref, poses, STRAIGHT_RATE_DPS, MOVING_MPS)
     err = _wrap(_wrap(np.diff(estimated[:, 2])) - d_ref)
     chain_err = None if chains is None else np.degrees(_wrap(_wrap(np.diff(chains, axis=0)) - d_ref[:, None]))
     icp = config.icp

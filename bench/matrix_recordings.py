@@ -63,7 +63,7 @@ def earlier(cell: SimCell, data: str) -> str | None:
         if directory == today or not os.path.isdir(directory) or not rm.recorded(directory):
             continue
         try:
-            with open(directory + ".scene.json", encoding="utf-8") as fh:
+            with open(rm.scene_file(directory), encoding="utf-8") as fh:
                 spec = json.load(fh)
             with open(os.path.join(directory, "radar.cfg"), "rb") as fh:
                 same_cfg = fh.read() == cfg
@@ -119,14 +119,14 @@ def check(cell: SimCell, old: str, data: str, keep_adc: bool) -> str | None:
 
 def _adopt(old: str, new: str) -> None:
     """*old* moved to *new*, its scene file with it, and its capture.json's source naming that file."""
-    os.replace(old + ".scene.json", new + ".scene.json")
+    os.replace(rm.scene_file(old), rm.scene_file(new))
     os.replace(old, new)
     path = os.path.join(new, "capture.json")
     with open(path, encoding="utf-8") as fh:
         meta = json.load(fh)
     if isinstance(meta.get("source"), str):
-        scene = os.path.basename(old) + ".scene.json"
-        meta["source"] = meta["source"].replace(scene, os.path.basename(new) + ".scene.json")
+        meta["source"] = meta["source"].replace(os.path.basename(rm.scene_file(old)),
+                                                os.path.basename(rm.scene_file(new)))
         with open(path + ".tmp", "w", encoding="utf-8") as fh:
             json.dump(meta, fh, indent=1)
         os.replace(path + ".tmp", path)
@@ -171,8 +171,8 @@ def keep_recordings(todo: list, data: str, *, check_seeds: list[int] | None = No
         return 1
     for c, old in checks:  # today's is the same: the earlier one is a spare copy
         shutil.rmtree(old, ignore_errors=True)
-        if os.path.exists(old + ".scene.json"):
-            os.remove(old + ".scene.json")
+        if os.path.exists(rm.scene_file(old)):
+            os.remove(rm.scene_file(old))
     for c, old in rest:
         _adopt(old, rm._sequence_dir(c, data))
     log(f"{len(checks)} cells recorded under today's key the same as before; {len(rest)} earlier recordings kept "

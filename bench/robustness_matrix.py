@@ -128,6 +128,17 @@ def record(cell: SimCell, data: str) -> str:
     return directory
 
 
+def scene_file(directory: str) -> str:
+    """The scene file radar-sim recorded *directory* from: beside it, as DIRECTORY.scene.json."""
+    return directory + ".scene.json"
+
+
+def copy_recording(source: str, directory: str) -> None:
+    """The recording *source* and its scene file copied to *directory* (which must not exist yet)."""
+    shutil.copytree(source, directory)
+    shutil.copyfile(scene_file(source), scene_file(directory))
+
+
 def simulate(spec: dict, cell: SimCell, directory: str, noise_seed: int | None = None,
              duration_s: float | None = None) -> None:
     """Record the scene table *spec* with radar-sim at the cell's seed, cfg and fidelity into
@@ -135,11 +146,11 @@ def simulate(spec: dict, cell: SimCell, directory: str, noise_seed: int | None =
     directory first, so that a recording cut short never passes for a whole one. *noise_seed*:
     radar-sim's --noise-seed (None: the cell's seed draws the noise too); *duration_s*: its
     --duration (None: the whole loop)."""
-    scene_file = directory + ".scene.json"
-    with open(scene_file, "w", encoding="utf-8") as fh:
+    scene = scene_file(directory)
+    with open(scene, "w", encoding="utf-8") as fh:
         json.dump(spec, fh, indent=1)
     tmp = directory + ".tmp"
-    subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene_file, "--seed", str(cell.seed),
+    subprocess.run([sys.executable, "-m", "radarodom.tools.radar_sim", scene, "--seed", str(cell.seed),
                     "--cfg", CFGS[cell.cfg], "--fidelity", cell.fidelity, "--out", tmp, "--overwrite", "-q"]
                    + ([] if noise_seed is None else ["--noise-seed", str(noise_seed)])
                    + ([] if duration_s is None else ["--duration", repr(duration_s)]), check=True,

@@ -45,7 +45,7 @@ import numpy as np
 from .evaluation import path_steps, se2_compose, se2_inverse, se2_relative
 
 __all__ = ["AFTER_TURN_FRAMES", "DRIFT_PARTS", "HeadingMetrics", "drift_parts", "heading_metrics", "segment_turns",
-           "straight_runs"]
+           "straight_runs", "straight_steps"]
 
 #: The parts :func:`drift_parts` reports, in order.
 DRIFT_PARTS = ("all", "straight", "after turn", "moving turn", "turn in place", "other", "translation")
@@ -127,8 +127,8 @@ def _base(ref: np.ndarray, radar_on_base) -> np.ndarray:
     return se2_compose(ref, se2_inverse(mount)[None, :])
 
 
-def _straight(dt: np.ndarray, d_ref: np.ndarray, base: np.ndarray, straight_rate_dps: float,
-              moving_speed_mps: float) -> np.ndarray:
+def straight_steps(dt: np.ndarray, d_ref: np.ndarray, base: np.ndarray, straight_rate_dps: float,
+                   moving_speed_mps: float) -> np.ndarray:
     """Which of the n-1 steps (durations *dt* s, true yaw increments *d_ref* rad, the *base*'s
     poses (n, 3)) drive straight: the truth turning at most *straight_rate_dps*, the base moving
     faster than *moving_speed_mps*."""
@@ -205,7 +205,7 @@ def heading_metrics(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE
     err = _wrap(d_est - d_ref)
     step_m = np.hypot(*np.diff(ref[:, :2], axis=0).T)
     base = _base(ref, radar_on_base)
-    straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
+    straight = straight_steps(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     s_m, s_s = float(step_m[straight].sum()), float(dt[straight].sum())
     s_yaw = math.degrees(float(err[straight].sum()))  # the truth turns ~0 there; its ramps' rest removed
     nan = float("nan")
@@ -269,7 +269,7 @@ def drift_parts(times, ref, est, *, straight_rate_dps: float = STRAIGHT_RATE_DPS
     d_ref = _wrap(np.diff(ref[:, 2]))
     err = _wrap(_wrap(np.diff(est[:, 2])) - d_ref)
     base = _base(ref, radar_on_base)
-    straight = _straight(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
+    straight = straight_steps(dt, d_ref, base, straight_rate_dps, moving_speed_mps)
     kind = np.where(straight, "straight", "other").astype(object)
     turns = segment_turns(times, base, straight_rate_dps=straight_rate_dps, moving_speed_mps=moving_speed_mps,
                           min_turn_deg=min_turn_deg)

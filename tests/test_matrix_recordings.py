@@ -31,8 +31,7 @@ def recorded(tmp_path_factory):
     # The run's one recording of CELL (rm.record's, its products made) copied: its ADC is dropped here.
     shared = shared_recording(CELL, tmp_path_factory)
     directory = rm._sequence_dir(CELL, data)
-    shutil.copytree(shared, directory)
-    shutil.copyfile(shared + ".scene.json", directory + ".scene.json")
+    rm.copy_recording(shared, directory)
     assert os.path.basename(directory) == os.path.basename(shared)
     rm.drop_adc(directory)
     return directory
