@@ -40,6 +40,7 @@ LAYOUT = {
     "corridor": {"x_min": -0.5, "y0": 0.0, "turn_x": 16.0, "y_max": 11.0, "person": [[2.0, -0.5], [14.0, -0.5]]},
     "room": {"x_min": 1.0, "y0": 0.6, "turn_x": 7.0, "y_max": 5.4, "person": [[2.0, 4.6], [6.0, 4.6]]},
     "lab": {"x_min": 1.0, "y0": 3.0, "turn_x": 6.0, "y_max": 7.0, "person": [[1.0, 4.0], [9.0, 4.0]]},
+    "hall": {"x_min": 2.0, "y0": 3.6, "turn_x": 19.0, "y_max": 16.0, "person": [[8.0, 5.2], [18.0, 5.2]]},
 }
 
 #: The least distance, m, between the loop and a wall or the footprint of an object of the scene.

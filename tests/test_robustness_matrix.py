@@ -65,6 +65,18 @@ def test_odd_seeds_turn_in_place_to_the_right_over_the_same_loop(scene):
         rm.loop_segments(scene, 0.8, 45.0, 3.0, turn_in_place_deg=90)
 
 
+@pytest.mark.parametrize("speed, rate, mount", [(0.8, 45, 0.0), (0.3, 45, 0.0), (1.5, 45, 0.0), (0.8, 30, 0.0),
+                                               (0.8, 90, 0.0), (0.8, 45, 0.3)])
+def test_the_hall_has_room_for_straights_of_10_m_among_its_furniture(speed, rate, mount):
+    # Its reason to be: the other scenes fit the star's loops with 3-5 m straights, the corridor
+    # 10 m ones without furniture (docs/heading.md, "Longer straights").
+    import matrix_cells
+    segments, start = rm.loop_segments("hall", speed, rate, 10.0, mount)
+    assert [s["straight"] for s in segments if "straight" in s] == [10.0] * 4
+    table = matrix_cells._scene_table("hall")
+    assert sum(o["type"] in ("box", "cylinder") for o in table["objects"]) >= 15
+
+
 def test_a_loop_through_the_furniture_is_refused(monkeypatch):
     # The room's loop once drove through its pillar at 0.3 m/s and 90 deg/s: a radar inside a
     # pillar sees nothing, which no robot meets.

@@ -50,7 +50,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 #: Built-in scene names (files ``scenes/<name>.toml`` in this package).
-BUILTIN_SCENES = ("corridor", "room", "lab", "calibration")
+BUILTIN_SCENES = ("corridor", "room", "lab", "hall", "calibration")
 
 
 @dataclass
