@@ -671,7 +671,7 @@ def test_sim_source_scene_file(tmp_path, small_cfg):
     assert frames[0].layout.frame_bytes == small_cfg.frame_bytes
     assert bytes(frames[3].raw) == Simulator(small_cfg, load_scene(str(path), seed=2), seed=2).frame(3).raw
     with pytest.raises(SourceError, match=f"sim://{tmp_path}/missing.toml: no such scene {tmp_path}/missing.toml: "
-                                          "use one of corridor, room, lab, calibration or a .toml/.json scene file"):
+                                          "use one of corridor, room, lab, hall, calibration or a .toml/.json scene file"):
         open_source(f"sim://{tmp_path}/missing.toml", small_cfg)
 
 
