@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..plain_numbers import beyond_text, is_whole_number
-from .cfar_pfa import log_pfa_go, log_pfa_os, log_pfa_so, noise_factor, solve_alpha, summed_scale
+from .cfar_pfa import noise_factor, ordered_scale, split_scale, summed_scale
 
 #: CFAR methods :class:`CfarParams` accepts.
 METHODS = ("ca", "cago", "caso", "os")
@@ -214,12 +214,10 @@ class CfarParams:
             side = n if method in ("ca", "os") else n // 2
             return summed_scale(method, side, self.channels, k, pfa)
         if self.method == "os":
-            return solve_alpha(lambda a: log_pfa_os(a, n, k), pfa)
+            return ordered_scale(n, k, pfa)
         if self.method == "ca" or one_sided:
             return n * (pfa ** (-1.0 / n) - 1.0)
-        side = n // 2
-        fn = log_pfa_go if self.method == "cago" else log_pfa_so
-        return solve_alpha(lambda a: fn(a, side), pfa)
+        return split_scale(self.method, n // 2, pfa)
 
     # ------------------------------------------------------------------ (de)serialise
     def to_dict(self) -> dict[str, Any]:

@@ -21,12 +21,12 @@ Scales are solved by Brent's method on log Pfa.
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
 
 from ..errors import ConfigError
+from .kept_scales import kept
 
 
 def log_pfa_ca(alpha: float, n: int) -> float:
@@ -95,13 +95,26 @@ def log_pfa_summed(alpha: float, method: str, n: int, channels: int, k: int | No
     return math.log(max(value, 1e-300))
 
 
-@functools.lru_cache(maxsize=256)
+@kept
 def summed_scale(method: str, n: int, channels: int, k: int | None, pfa: float) -> float:
-    """The solved alpha for summed noise (solving takes milliseconds: cached)."""
+    """The solved alpha for summed noise (kept on disk: :mod:`.kept_scales`)."""
     return solve_alpha(lambda a: log_pfa_summed(a, method, n, channels, k), pfa)
 
 
-@functools.lru_cache(maxsize=256)
+@kept
+def ordered_scale(n: int, k: int, pfa: float) -> float:
+    """The solved alpha of OS-CFAR, rank *k* of *n* cells (kept on disk)."""
+    return solve_alpha(lambda a: log_pfa_os(a, n, k), pfa)
+
+
+@kept
+def split_scale(method: str, side: int, pfa: float) -> float:
+    """The solved alpha of CAGO or CASO (*method*) with *side* cells a side (kept on disk)."""
+    fn = log_pfa_go if method == "cago" else log_pfa_so
+    return solve_alpha(lambda a: fn(a, side), pfa)
+
+
+@kept
 def noise_factor(method: str, side: float, channels: int, rank: float | None) -> float:
     """E[noise estimate] / E[cell power] for independent Gamma(channels) cells, *side* cells a
     side (independent-cell worth), OS rank *rank* of 2 * side."""
@@ -153,5 +166,5 @@ def solve_alpha(log_pfa, pfa: float) -> float:
 
 
 
-__all__ = ["log_pfa_ca", "log_pfa_go", "log_pfa_os", "log_pfa_so", "log_pfa_summed", "noise_factor", "solve_alpha",
-           "summed_scale"]
+__all__ = ["log_pfa_ca", "log_pfa_go", "log_pfa_os", "log_pfa_so", "log_pfa_summed", "noise_factor", "ordered_scale",
+           "solve_alpha", "split_scale", "summed_scale"]

@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 import logging
+import sys
 
 import numpy as np
 
@@ -26,11 +27,26 @@ log = logging.getLogger(__name__)
 BACKENDS = ("auto", "scipy", "fftw")
 
 
+def _import_pyfftw():
+    """pyFFTW, imported without its Dask interface where Dask is not imported yet: pyFFTW's
+    interfaces import dask.array when it is installed, for an interface this package never uses,
+    and that import was a good part of a program's start (docs/benchmarks.md, "Start-up")."""
+    hide = "dask" not in sys.modules
+    if hide:
+        sys.modules["dask"] = None  # an import of dask raises ImportError, which pyFFTW expects
+    try:
+        import pyfftw
+    finally:
+        if hide and "dask" in sys.modules and sys.modules["dask"] is None:
+            del sys.modules["dask"]
+    return pyfftw
+
+
 @functools.cache
 def fftw_available() -> bool:
     """Whether pyFFTW imports (installed, and its bundled FFTW loads)."""
     try:
-        import pyfftw  # noqa: F401
+        _import_pyfftw()
     except ImportError as exc:
         if importlib.util.find_spec("pyfftw") is not None:
             log.warning("pyFFTW is installed but does not import (%s): using scipy.fft", exc)
@@ -102,8 +118,7 @@ class FftwFFTs(SpectrumFFTs):
     """pyFFTW's plans of the two transforms, made once, over aligned buffers."""
 
     def __init__(self, cube_shape: tuple[int, int, int, int], n_range: int, n_doppler: int, workers: int) -> None:
-        import pyfftw
-
+        pyfftw = _import_pyfftw()
         super().__init__(n_range, n_doppler, workers)
         loops, slots, nrx, ns = cube_shape
         # Zeros past the samples are the range FFT's zero padding: written once, never

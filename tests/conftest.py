@@ -39,6 +39,20 @@ def pytest_configure(config):
 
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    # The solved CFAR scales the programs keep (radarodom.dsp.kept_scales) go to a directory of
+    # the run's, not the user's cache: made here before xdist starts its workers, which inherit it
+    # with the programs they start.
+    if "RADARODOM_CACHE_DIR" not in os.environ:
+        import tempfile
+
+        config._radarodom_cache = os.environ["RADARODOM_CACHE_DIR"] = tempfile.mkdtemp(prefix="radarodom-test-cache-")
+
+
+def pytest_unconfigure(config):
+    made = getattr(config, "_radarodom_cache", None)
+    if made:
+        shutil.rmtree(made, ignore_errors=True)
+        os.environ.pop("RADARODOM_CACHE_DIR", None)
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 SHARED = pathlib.Path(os.environ.get("RADARODOM_SHARED", REPO.parent / "shared")) / "reference"
