@@ -1,10 +1,10 @@
 """CFAR scales kept on disk once solved, so that the next program reads them instead.
 
 A CFAR's scale for a false-alarm probability is solved by numerical integration and root finding
-(:mod:`.cfar_pfa`, with scipy.integrate and scipy.optimize). Importing those costs every program
-that builds a frame processor far more than everything else it does before its first frame
-(docs/benchmarks.md, "Start-up"). So each value solved is written to a small JSON file in the
-user's cache directory and read back, bit for bit, by the programs that come after it.
+(:mod:`.cfar_pfa`, with scipy.integrate and scipy.optimize): importing those and solving took a
+good part of the start of every program that builds a frame processor (docs/benchmarks.md,
+"Start-up"). So each value solved is written to a small JSON file in the user's cache directory
+and read back, bit for bit, by the programs that come after it.
 
 The file's name carries a digest of :mod:`.cfar_pfa`'s source and of scipy's version: a change to
 either starts a new file. Where: ``$RADARODOM_CACHE_DIR``, else ``$XDG_CACHE_HOME/radarodom``,
