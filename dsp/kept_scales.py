@@ -20,9 +20,10 @@ import json
 import logging
 import numbers
 import os
-import tempfile
 from importlib import metadata
 from typing import Callable
+
+from ..whole_files import write_text_atomically
 
 log = logging.getLogger(__name__)
 
@@ -78,17 +79,11 @@ def _write(path: str, key: str, value: float) -> None:
     # (two writing at once may each drop the other's newest entry, which is then solved again).
     entries = _read(path)
     entries[key] = value
-    tmp = None
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=".cfar-scales-", suffix=".tmp")
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(entries, fh, sort_keys=True, indent=0)
-        os.replace(tmp, path)
+        write_text_atomically(path, json.dumps(entries, sort_keys=True, indent=0))
     except OSError as exc:
         log.debug("a solved CFAR scale not kept in %s (%s)", path, exc)
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def _plain(arg):

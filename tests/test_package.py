@@ -62,10 +62,11 @@ def test_version_matches_pyproject():
     assert ast.literal_eval(line.split("=", 1)[1].strip()) == radarodom.__version__
 
 
-#: The modules every layer may use: the cfg model, wire-free data types, errors, JSON, numbers.
+#: The modules every layer may use: the cfg model, wire-free data types, errors, JSON, numbers,
+#: files written whole.
 CORE = {"radarodom", "antenna", "calibration", "cfg", "cfg_checks", "cfg_commands", "cfg_fields", "cfg_physics",
         "cfg_text", "errors", "line_file", "mount", "plain_numbers", "products", "rawframe", "settings",
-        "strict_json", "tum"}
+        "strict_json", "tum", "whole_files"}
 DRIVER = {"driver.sources", "driver.live", "driver.recordings", "driver.sim", "driver.coloradar", "driver.emulators",
           "driver.tidemo"}
 #: Which part of the package may import which (besides itself and CORE); "ext:" names third-party

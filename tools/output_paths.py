@@ -286,7 +286,7 @@ def write_output(path: str, text: str, *, overwrite: bool, what: str | None = No
     names; without *overwrite* a file that appeared there while the program ran is left alone.
     A failure is a :class:`CaptureError` naming the file (and *what* was written to it), why
     and what to do."""
-    from ..driver.recordings.capture_writer import write_text_atomically
+    from ..whole_files import write_text_atomically
 
     try:
         write_text_atomically(path, text, replace=overwrite)

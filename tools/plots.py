@@ -15,9 +15,9 @@ import logging
 import os
 from typing import Any, Callable
 
-from ..driver.recordings.capture_writer import write_bytes_atomically
 from ..errors import CaptureError, UsageError, why_not_written
 from ..estimator.evaluation import EvaluationResult
+from ..whole_files import write_bytes_atomically
 from . import plot_panels as panels
 from .odometry_log import OdometryLog, read_odometry_log
 from .eval_summary import format_table, summary_lines

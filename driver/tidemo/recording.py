@@ -32,9 +32,9 @@ from ... import __version__
 from ...cfg import RadarConfig
 from ...errors import CaptureError, why_not_written
 from ...line_file import write_file_all
+from ...whole_files import write_text_atomically
 from ..recordings.capture_check import TIDEMO_FORMAT_NAME
 from ..recordings.capture_dir import write_json_atomically
-from ..recordings.capture_writer import write_text_atomically
 from ..recordings.recording_dir import abandon_recording, claim_recording_directory, frames_kept
 
 log = logging.getLogger(__name__)
