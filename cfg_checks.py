@@ -1,7 +1,7 @@
 """The checks a cfg passes when :class:`radarodom.cfg.RadarConfig` is built: the commands the raw
 data layout needs, the modes radarodom supports, the profile's ADC window and RF range, the
-chirps and the frame, the fields of view; each failure a :class:`ConfigError` naming
-``file:line: command: field``."""
+chirps and the frame, the virtual array's azimuth row, the fields of view; each failure a
+:class:`ConfigError` naming ``file:line: command: field``."""
 
 from __future__ import annotations
 
@@ -17,6 +17,8 @@ if TYPE_CHECKING:
 #: CFAR, and its range FFT's peak interpolation, need that many bins.
 MIN_LOOPS = 4
 MIN_ADC_SAMPLES = 4
+#: The fewest places on the virtual array's azimuth row the DSP measures an azimuth with.
+MIN_AZIMUTH_PLACES = 2
 
 #: Commands that must appear once, and describe the raw data layout.
 REQUIRED_COMMANDS = ("channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")
@@ -41,6 +43,7 @@ class ConfigChecks:
         self._validate_modes()
         self._validate_profile()
         self._validate_chirps_and_frame()
+        self._validate_array()
         self._validate_fov()
 
     def _validate_modes(self) -> None:
@@ -134,6 +137,23 @@ class ConfigChecks:
                 f"{self.active_frame_time_s * 1e3:.3f} ms ({f.num_loops} loops x "
                 f"{self.num_tx_slots} chirps x {self.chirp_time_s * 1e6:g} us)",
                 frame_ln, "framePeriodicity")
+
+    def _validate_array(self) -> None:
+        """The frame's chirps must place antennas at two places or more on the azimuth row (TX1
+        and TX3 with the enabled RX; TX2 is the raised row), or there is no azimuth to measure."""
+        va = self.virtual_array
+        places = len(set(va.h.ravel()[va.azimuth_row].tolist()))
+        if places >= MIN_AZIMUTH_PLACES:
+            return
+        ln = self._first["channelCfg"]
+        need = f"radarodom's DSP needs antennas at {MIN_AZIMUTH_PLACES} places of it or more to measure azimuth"
+        if places == 0:
+            raise self._fail(f"the frame's chirps transmit on TX2 only, the raised antenna, which leaves the "
+                             f"azimuth row empty; {need}: chirp TX1 or TX3 too (chirpCfg txEnable 1 or 4)",
+                             ln, "txChannelEn")
+        tx = next(t for t in va.tx_order if t != 2)
+        raise self._fail(f"the frame's chirps put one antenna on the azimuth row (TX{tx} x 1 RX); {need}: "
+                         f"enable two RX or more (rxChannelEn), or chirp TX1 and TX3", ln, "rxChannelEn")
 
     def _validate_fov(self) -> None:
         for key, ln in self._keyed["cfarFovCfg"].items():

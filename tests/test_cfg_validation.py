@@ -202,6 +202,34 @@ def test_chirp_tx_mask_zero():
     expect_error(text, line_of(text, bad), "chirpCfg", "txEnable", "no TX")
 
 
+def _frame_of_chirps(text: str, *tx_masks: int) -> str:
+    """*text* with its frame's chirps one on each TX mask given, in that order."""
+    chirps = "\n".join(f"chirpCfg {i} {i} 0 0 0 0 0 {m}" for i, m in enumerate(tx_masks))
+    text = edit(CHIRP0, chirps, edit(CHIRP2, "", edit(CHIRP1, "", text)))
+    return edit(FRAME, f"frameCfg 0 {len(tx_masks) - 1} 4 0 50 1 0", text)
+
+
+@pytest.mark.parametrize("rx, tx_masks, field, words", [
+    (15, (2,), "txChannelEn", ("TX2 only", "azimuth row empty", "chirp TX1 or TX3 too")),
+    (1, (1,), "rxChannelEn", ("one antenna on the azimuth row (TX1 x 1 RX)", "enable two RX or more")),
+    (8, (4, 2), "rxChannelEn", ("one antenna on the azimuth row (TX3 x 1 RX)", "or chirp TX1 and TX3")),
+])
+def test_a_frame_with_no_azimuth_to_measure_is_refused_at_channelCfg(rx, tx_masks, field, words):
+    """TX2 alone (the raised antenna) or one antenna on the azimuth row leave the DSP no azimuth:
+    refused where the cfg is read (the DSP failed inside on them before)."""
+    text = _frame_of_chirps(edit(CHANNEL, f"channelCfg {rx} 7 0"), *tx_masks)
+    expect_error(text, line_of(text, f"channelCfg {rx} 7 0"), "channelCfg", field, *words)
+
+
+@pytest.mark.parametrize("rx, tx_masks", [(3, (1,)), (1, (1, 4)), (9, (4, 2)), (15, (2, 1))])
+def test_two_places_on_the_azimuth_row_are_enough(rx, tx_masks):
+    """Two RX with one TX, or TX1 and TX3 with one RX: the DSP is made for them."""
+    from radarodom.dsp.processor import FrameProcessor
+
+    cfg = RadarConfig.from_text(_frame_of_chirps(edit(CHANNEL, f"channelCfg {rx} 7 0"), *tx_masks), NAME)
+    assert len(FrameProcessor(cfg).point_maker.az_h) >= 2
+
+
 def test_chirp_end_below_start():
     bad = "chirpCfg 2 1 0 0 0 0 0 2"
     text = edit(CHIRP2, bad)
