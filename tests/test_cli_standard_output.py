@@ -1,5 +1,5 @@
-"""A program whose standard output cannot be written (sent to a full disk) says so in one line,
-exit 1, and keeps the outputs it wrote; a closed pipe (``| head``) still ends it quietly."""
+"""A program whose standard output cannot be written (sent to a full disk, or closed) says so in
+one line, exit 1, and keeps the outputs it wrote; a closed pipe (``| head``) still ends it quietly."""
 
 from __future__ import annotations
 
@@ -50,6 +50,29 @@ def test_the_outputs_written_are_kept(tmp_path):
                                                        "--no-publish", "--odom-out", str(odom)], full)
     assert proc.returncode == 1 and proc.stderr.rstrip().endswith(f"radar-capture: error: {FULL}"), proc.stderr
     assert len(odom.read_text().splitlines()) >= 2
+
+
+@pytest.mark.parametrize("program, args", [
+    ("radar-cfg", [CFG, "--json"]),  # once "internal error: AttributeError: 'NoneType' object has no attribute 'write'"
+    ("radar-cfg", ["--list", "--json"]),
+    ("radar-eval", ["TUM", "TUM"]),  # once exit 0, its report lost without a word (print to None)
+    ("radar-cfg", ["--help"]),
+])
+def test_a_closed_stdout_is_one_line_and_exit_1(tum, program, args):
+    """Started with its standard output closed (``>&-``, where Python's sys.stdout is None)."""
+    argv = console_command(program) + [str(tum) if a == "TUM" else a for a in args]
+    proc = subprocess.run(["sh", "-c", 'exec "$@" >&-', "sh", *argv], stderr=subprocess.PIPE, text=True, timeout=120)
+    assert proc.returncode == 1
+    lines = [line for line in proc.stderr.splitlines() if ": warning: " not in line]
+    assert lines == [f"{program}: error: cannot write to the standard output: it is closed"], proc.stderr
+
+
+def test_a_run_with_its_stdout_closed_keeps_its_recording(tmp_path):
+    proc = subprocess.run(["sh", "-c", 'exec "$@" >&-', "sh", *console_command("radar-capture"), "--source",
+                           "sim://lab?rate=max&fidelity=fast&duration=0.3", "--no-publish", "-q", "--record",
+                           str(tmp_path / "rec")], stderr=subprocess.PIPE, text=True, timeout=120)
+    assert proc.returncode == 1 and proc.stderr.endswith("it is closed\n"), proc.stderr  # its summary
+    assert (tmp_path / "rec" / "capture.json").is_file()  # the recording kept
 
 
 def test_a_closed_pipe_still_ends_quietly(tum):

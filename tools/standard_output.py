@@ -47,18 +47,36 @@ class _Watched:
         return getattr(self._stream, name)
 
 
+class _Closed:
+    """The standard output of a program started with it closed (``>&-``: Python's ``sys.stdout``
+    is None): what is written to it fails as a write to a full disk does, instead of vanishing
+    (``print``) or ending in an AttributeError (``sys.stdout.write``); nothing written, nothing
+    said."""
+
+    def write(self, text: str) -> int:
+        if text:
+            raise StdoutFailed(OSError(errno.EBADF, "it is closed"))
+        return 0
+
+    def flush(self) -> None:
+        pass
+
+    def isatty(self) -> bool:
+        return False
+
+
 @contextlib.contextmanager
 def watched_stdout() -> Iterator[None]:
-    """``sys.stdout`` watched while the block runs (left alone when there is none)."""
+    """``sys.stdout`` watched while the block runs (a closed one stood in for)."""
     stream = sys.stdout
-    if stream is None or isinstance(stream, _Watched):
+    if isinstance(stream, (_Watched, _Closed)):
         yield
         return
-    sys.stdout = _Watched(stream)  # type: ignore[assignment]
+    sys.stdout = _Closed() if stream is None else _Watched(stream)  # type: ignore[assignment]
     try:
         yield
     finally:
-        if sys.stdout.__class__ is _Watched:
+        if sys.stdout.__class__ in (_Watched, _Closed):
             sys.stdout = stream
 
 
