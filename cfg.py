@@ -327,6 +327,10 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
         """cfarFovCfg by procDirection (0 range in m, 1 Doppler in m/s)."""
         return {k: ln.value for k, ln in self._keyed["cfarFovCfg"].items()}
 
+    def cfar_fov_line(self, direction: int) -> CfgLine | None:
+        """The cfarFovCfg line of procDirection *direction* (its number, for messages), or None."""
+        return self._keyed["cfarFovCfg"].get(direction)
+
     @property
     def aoa_fov(self) -> cc.AoaFovCfg | None:
         return self._value("aoaFovCfg")

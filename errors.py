@@ -41,6 +41,15 @@ def quoted_json(value: Any, limit: int = QUOTED_CHARS) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
+def one_line(text: str) -> str:
+    """*text* as a terminal line shows it: its control characters (a path's newline, an escape
+    sequence that would clear the screen) written as Python escapes, ``\\n``, ``\\x1b``."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode("ascii")
+                   for ch in text)
+
+
 def named_character(ch: str) -> str:
     """A character as an error message names it, whatever a terminal would make of it:
     ``U+00A0 (no-break space)``."""

@@ -36,6 +36,7 @@ from .cfar import CfarParams, cfar_2d_ti
 from .cfar_peaks import above_skirts, cfar_peaks
 from .cfar_ti import fov_mask, params_from_ti
 from .config import DspConfig
+from .detection_range import detection_range
 from .fft import resolve_backend, spectrum_ffts
 from .points import POINT_DTYPE, PointMaker, three_bin_response
 
@@ -201,7 +202,7 @@ class FrameProcessor:
         #: cfarFovCfg minimum, if higher) to DspConfig.max_range_m, else the cfg's cfarFovCfg
         #: maximum capped at the usable range, else the usable range (beat frequencies up to 80 %
         #: of the IF band, RadarConfig.max_range_m, less the range bias).
-        self.detection_range_m = _detection_range(cfg, params, self.calibration.range_bias_m)
+        self.detection_range_m = detection_range(cfg, params, self.calibration.range_bias_m)
         lo, hi = self.detection_range_m
         self._range_ok = (self.range_m >= lo) & (self.range_m <= hi)
         #: Range bins the heatmaps span: from 0 to the last bin within the detection range
@@ -325,7 +326,7 @@ def heatmap_range_bins(cfg: RadarConfig, params: DspConfig | None = None) -> int
     before it opens its outputs."""
     params = _params_for(cfg, params)
     bias = _calibration_in_use(cfg, params).range_bias_m
-    _, hi = _detection_range(cfg, params, bias)
+    _, hi = detection_range(cfg, params, bias)
     return _bins_to(_range_axis(cfg, params.range_fft_size or cfg.cube_shape[3], bias), hi)
 
 
@@ -363,27 +364,6 @@ def _bins_to(range_m: np.ndarray, hi: float) -> int:
     """Bins from 0 to the last within *hi* m (beyond lie the IF filter's roll-off and the TX-RX
     leakage's negative-frequency side)."""
     return int(np.searchsorted(range_m, hi, side="right"))
-
-
-def _detection_range(cfg: RadarConfig, params: DspConfig, range_bias_m: float) -> tuple[float, float]:
-    """(shortest, longest) range of a detection, m (see FrameProcessor.detection_range_m)."""
-    fov = cfg.cfar_fov.get(0)
-    lo = params.min_range_m if fov is None else max(params.min_range_m, fov.min_value)
-    # The IF band's limit is on the beat frequency, before the range bias comes off.
-    usable = cfg.max_range_m - range_bias_m
-    if params.max_range_m is not None:
-        hi = params.max_range_m
-    elif fov is not None:  # never beyond the usable range
-        hi = min(fov.max_value, usable)
-        note = cfg.range_fov_note(range_bias_m)
-        if note is not None:
-            log.info("%s", note)
-    else:
-        hi = usable
-    if hi <= lo:
-        raise ConfigError(f"no range is left to detect in: {lo:g} m to {hi:g} m (DspConfig min_range_m, "
-                          "max_range_m and the cfg's cfarFovCfg range limits)", field="max_range_m")
-    return lo, hi
 
 
 def ti_like_params(cfg: RadarConfig, params: DspConfig) -> DspConfig:

@@ -1,7 +1,7 @@
 """The detection range: a cfg's cfarFovCfg range maximum is capped at the usable range (beat
 frequencies up to 80 % of the IF band, less the board's range bias), where the simulated
 uncalibrated board's TX-to-RX leakage would otherwise make a fake zero-Doppler point, and
-radar-cfg warns about such a cfg."""
+radar-cfg warns about such a cfg; a window closed by the cfg is refused at its line."""
 
 from __future__ import annotations
 
@@ -85,3 +85,45 @@ def test_radar_cfg_warns_of_a_range_fov_beyond_the_usable_range(tmp_path, shippe
         proc = _radar_cfg(path)
         assert proc.returncode == 0 and "cfarFovCfg" not in proc.stderr, proc.stderr
     assert FrameProcessor(with_range_fov(shipped_cfg, 10.0)).detection_range_m[1] == pytest.approx(with_line)
+
+
+def _cfg_line(path, prefix: str) -> int:
+    return next(n for n, text in enumerate(path.read_text().splitlines(), start=1) if text.startswith(prefix))
+
+
+@pytest.mark.parametrize("edit, prefix, where, words", [
+    (("cfarFovCfg -1 0 0 10.0", "cfarFovCfg -1 0 0 0.1"), "cfarFovCfg -1 0 ", "cfarFovCfg: max (meters or m/s)",
+     "the range window ends at 0.1 m, at or below radarodom's shortest range (0.3 m)"),
+    (("cfarFovCfg -1 0 0 10.0", "cfarFovCfg -1 0 10.5 12"), "cfarFovCfg -1 0 ", "cfarFovCfg: min (meters or m/s)",
+     "the range window starts at 10.5 m, beyond the usable range"),
+    (("compRangeBiasAndRxChanPhase 0.0 ", "compRangeBiasAndRxChanPhase 9.99 "), "compRangeBiasAndRxChanPhase",
+     "compRangeBiasAndRxChanPhase: rangeBias", "a range bias of 9.99 m leaves 0.00 m of the profile's usable"),
+])
+def test_a_cfg_that_leaves_nothing_to_detect_in_is_refused_at_its_line(tmp_path, shipped_cfg, edit, prefix, where,
+                                                                          words):
+    """Its range window, or a range bias that eats the usable range: refused by radar-cfg and by
+    radar-capture, naming the line that closed the window (they once blamed "the estimator's
+    settings" and a DspConfig field no option reaches, and radar-cfg called the cfg valid)."""
+    text = shipped_cfg.to_text()
+    assert edit[0] in text
+    path = tmp_path / "closed.cfg"
+    path.write_text(text.replace(edit[0], edit[1]))
+    expected = f"{path}:{_cfg_line(path, prefix)}: {where}: {words}"
+    for argv in (["radar-cfg", str(path)],
+                 ["radar-capture", "--cfg", str(path), "--no-publish", "--source", "sim://lab?rate=max&duration=0.2"]):
+        proc = subprocess.run(console_command(argv[0]) + argv[1:], stdin=subprocess.DEVNULL, capture_output=True,
+                              text=True, timeout=60)
+        errors = [ln for ln in proc.stderr.splitlines() if ": error: " in ln]
+        assert proc.returncode == 2 and len(errors) == 1, proc.stderr
+        assert errors[0].startswith(f"{argv[0]}: error: {expected}"), errors
+        assert "nothing is left to detect in between " in errors[0], errors
+
+
+def test_the_dsps_own_limits_are_named_when_they_close_the_window(shipped_cfg):
+    from radarodom.errors import ConfigError
+
+    cfg = RadarConfig.from_text(shipped_cfg.to_text().replace(SHIPPED_FOV, "cfarFovCfg -1 0 2 10"), "fov.cfg")
+    with pytest.raises(ConfigError) as info:  # the window's 2 m beyond the DSP's own longest range
+        FrameProcessor(cfg, DspConfig(max_range_m=1.0))
+    assert str(info.value).startswith("max_range_m: nothing is left to detect in between 2 m and 1 m (DspConfig "
+                                      "min_range_m 0.3 m and max_range_m 1 m"), str(info.value)

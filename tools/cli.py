@@ -19,7 +19,7 @@ import sys
 import traceback
 from typing import Any, Callable, Iterator, Sequence
 
-from ..errors import RadarodomError, UsageError, quoted
+from ..errors import RadarodomError, UsageError, one_line, quoted
 from ..mount import Mount, parse_mount
 from ..plain_numbers import MAX_WHOLE_OPTION, plain_float, plain_int, whole_beyond
 from .output_paths import (  # noqa: F401  (the programs' output checks, re-exported: cli.check_distinct)
@@ -37,7 +37,7 @@ class _Formatter(logging.Formatter):
 
     def format(self, record: logging.LogRecord) -> str:
         where = f" [{record.name}]" if self.verbose else ""
-        return f"{self.prog}: {record.levelname.lower()}{where}: {record.getMessage()}"
+        return f"{self.prog}: {record.levelname.lower()}{where}: {one_line(record.getMessage())}"
 
 
 #: Largest number a float option takes unless it says otherwise: far beyond any duration in
@@ -213,7 +213,7 @@ def _run(main: Callable[[argparse.Namespace], int | None], parser: argparse.Argu
     except RadarodomError as exc:
         if handler is not None:
             handler.flush()
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {one_line(str(exc))}", file=sys.stderr)
         _print_notes(prog, exc)
         if verbose:
             traceback.print_exc()
@@ -230,7 +230,7 @@ def _run(main: Callable[[argparse.Namespace], int | None], parser: argparse.Argu
             _print_notes(prog, exc)
             return 130
         # A bug: say so in one line, details on request.
-        print(f"{prog}: internal error: {type(exc).__name__}: {exc}"
+        print(f"{prog}: internal error: {type(exc).__name__}: {one_line(str(exc))}"
               + ("" if verbose else " (run with --verbose for the traceback)"), file=sys.stderr)
         _print_notes(prog, exc)
         if verbose:
@@ -307,7 +307,7 @@ def on_stop_signals(handler: Callable[[int, Any], None]) -> Iterator[None]:
 def _print_notes(prog: str, exc: BaseException) -> None:
     """What failed after *exc* (closing the outputs: errors.add_note), a warning line each."""
     for note in getattr(exc, "__notes__", ()):
-        print(f"{prog}: warning: {note}", file=sys.stderr)
+        print(f"{prog}: warning: {one_line(str(note))}", file=sys.stderr)
 
 
 def run_with_status(

@@ -15,6 +15,8 @@ from ..driver.tidemo.layout import (DEFAULT_BAUD, DEFAULT_MAX_POINTS, DemoGeomet
                                      gui_selection, uart_budget)
 from ..errors import ConfigError, RadarodomError, UsageError
 from .. import strict_json
+from ..dsp.config import DspConfig
+from ..dsp.detection_range import detection_range
 from ..cfg import DCA1000_DEFAULT_PACKET_DELAY_US, DCA1000_PACKET_DELAY_RANGE_US, RAW_LVDS_LINE, RadarConfig
 from . import cli
 
@@ -171,7 +173,9 @@ def _report(path: str, args: argparse.Namespace, documents: dict | None) -> int:
     if note is not None:
         log.warning("%s", note)
     line = cfg.comp_range_bias_and_rx_chan_phase
-    for note in (cfg.range_fov_note(line.range_bias_m if line is not None else 0.0), cfg.session_order_note()):
+    bias = line.range_bias_m if line is not None else 0.0
+    detection_range(cfg, DspConfig(), bias)  # a window that leaves nothing to detect in is refused
+    for note in (cfg.range_fov_note(bias), cfg.session_order_note()):
         if note is not None:
             log.warning("%s", note)
     if documents is not None:

@@ -1,0 +1,42 @@
+"""An error or a warning is one line on the terminal whatever the user's input held: a path's or a
+URL's newline, tab or escape sequence (``\\x1b[2J`` clears the screen) is written as its Python
+escape, never sent raw to the terminal."""
+
+from __future__ import annotations
+
+import subprocess
+
+from conftest import console_command
+from hypothesis import given
+from hypothesis import strategies as st
+
+from radarodom.errors import one_line
+
+HOSTILE = "a\nb\x1b[2J\tc\r\x7f\x85\u202e"
+
+
+@given(st.text())
+def test_one_line_has_no_control_character_and_keeps_printable_text(text):
+    shown = one_line(text)
+    assert all(ch.isprintable() or ch == " " for ch in shown)
+    if text.isprintable():
+        assert shown == text
+    assert one_line(shown) == shown  # what it shows is shown as it is
+
+
+def test_one_line_writes_each_control_as_its_escape():
+    assert one_line(HOSTILE) == "a\\nb\\x1b[2J\\tc\\r\\x7f\\x85\\u202e"
+    assert one_line("né 中 x") == "né 中 x"
+
+
+def test_a_path_and_a_url_with_controls_give_one_error_line(tmp_path):
+    bad = str(tmp_path / f"no{HOSTILE}.tum")
+    for argv, what in ((["radar-eval", bad, bad], "no such file"),
+                       (["radar-cfg", bad], "cannot read the file"),
+                       (["radar-capture", "--no-publish", "--source", f"sim://corr{HOSTILE}idor"], "no such scene")):
+        proc = subprocess.run(console_command(argv[0]) + argv[1:], stdin=subprocess.DEVNULL, capture_output=True,
+                              text=True, timeout=60)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(f"{argv[0]}: error: "), repr(proc.stderr)
+        assert "\x1b" not in proc.stderr and "\r" not in proc.stderr and "\\x1b[2J" in proc.stderr
+        assert what in proc.stderr
