@@ -181,8 +181,13 @@ class RadarConfig(ConfigChecks, ConfigPhysics):
                     raise self._fail(f"given twice for procDirection {key} (first at line {first})", ln)
                 self._keyed[name][key] = ln
             elif name in cc.TYPED_COMMANDS:
-                if name in self._first:
-                    raise self._fail(f"given twice (first at line {self._first[name].line})", ln)
+                first = self._first.get(name)
+                if first is not None and name == "profileCfg" and ln.value.profile_id != first.value.profile_id:
+                    raise self._fail(f"a second profile (profileId {ln.value.profile_id}; profileId "
+                                     f"{first.value.profile_id} at line {first.line}): radarodom takes one profile, "
+                                     f"which every chirpCfg uses", ln, "profileId")
+                if first is not None:
+                    raise self._fail(f"given twice (first at line {first.line})", ln)
                 self._first[name] = ln
             elif name == "bpmCfg" and ln.value.enabled:
                 raise self._fail("BPM-MIMO is not supported: use TDM (bpmCfg -1 0 0 0)", ln, "enabled")

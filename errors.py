@@ -11,6 +11,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import stat
 import unicodedata
 from typing import Any
 
@@ -77,6 +78,22 @@ def given_path(path: Any, error: type[RadarodomError], what: str = "file path") 
 CHOOSE_WRITABLE = "choose a writable destination"
 
 
+def kind_of_file(path: str) -> str:
+    """What stands at *path*, which is no directory, as a message names it: "a file", "a device",
+    "a pipe", "a socket" or "a link to nothing"."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return "a link to nothing"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISFIFO(mode):
+        return "a pipe"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a file"
+
+
 def no_directory(parent: str) -> str:
     """Why no file can be made in *parent*, a directory that is not there, and the fix: the nearest
     path above it that is there is a file ("no directory a/b" would hide that a is a file), or
@@ -85,7 +102,7 @@ def no_directory(parent: str) -> str:
     while not os.path.lexists(above):
         above = os.path.dirname(above)
     if not os.path.isdir(above):
-        return f"{above} is a file, not a directory; {CHOOSE_WRITABLE}"
+        return f"{above} is {kind_of_file(above)}, not a directory; {CHOOSE_WRITABLE}"
     return f"no directory {parent}; make it first (mkdir -p {parent}) or {CHOOSE_WRITABLE}"
 
 

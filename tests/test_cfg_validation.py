@@ -395,6 +395,14 @@ def test_duplicated_profile_cfg():
     expect_error(text, line_of(text, PROFILE, 2), "profileCfg", None, "given twice", "first at line 8")
 
 
+def test_a_second_profile_is_refused_as_one_more_than_radarodom_takes():
+    """Another profileId is no repeat: the message says radarodom takes one profile."""
+    second = "profileCfg 1" + PROFILE[len("profileCfg 0"):]
+    text = insert_before(SENSOR_START, second)
+    expect_error(text, line_of(text, second), "profileCfg", "profileId", "a second profile (profileId 1; profileId 0 "
+                 "at line 8)", "radarodom takes one profile")
+
+
 CFAR_RANGE = "cfarCfg -1 0 2 8 4 3 0 15 1"
 CFAR_DOPPLER = "cfarCfg -1 1 0 8 4 4 1 15 1"
 

@@ -218,6 +218,14 @@ def test_a_file_where_a_directory_goes_is_a_usage_error(tmp_path, capsys, option
                                     "writable destination\n"), err
 
 
+def test_a_device_where_a_directory_goes_is_named_a_device(tmp_path, capsys):
+    """/dev/null as radar-sim --out (and under it): "a device", not "a file"."""
+    rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", os.devnull, "-q"])
+    assert rc == 2 and capsys.readouterr().err.endswith(f"error: {os.devnull} is a device, not a directory\n")
+    rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", os.path.join(os.devnull, "run"), "-q"])
+    assert rc == 2 and f"{os.devnull} is a device, not a directory; choose a" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("option", ["--points-out", "--odom-json", "--odom-out", "--mcap", "--heatmap-out"])
 def test_an_output_the_system_will_not_take_says_why_in_one_line(capsys, option):
     out = "/proc/radarodom-test-output"  # a directory no file can be made in, for root too

@@ -10,7 +10,8 @@ import os
 from typing import Mapping, Sequence
 
 # The explanations live with the errors, for the library's writers too (the view's .rrd).
-from ..errors import CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageError, no_directory, why_not_written
+from ..errors import (CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageError, kind_of_file, no_directory,
+                      why_not_written)
 
 
 def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None,
@@ -31,7 +32,7 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     if not is_dir:
         _refuse_a_directory_name(path, f"cannot {target}")
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
-        raise CaptureExistsError(f"{path} is a file, not a directory"
+        raise CaptureExistsError(f"{path} is {kind_of_file(path)}, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
     if not is_dir and os.path.lexists(path):
         if os.path.isdir(path):  # --overwrite would not help: said before it is tried

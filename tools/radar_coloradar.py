@@ -30,7 +30,7 @@ import numpy as np
 from .. import strict_json
 from ..driver.coloradar.run import ColoRadarRun
 from ..driver.coloradar.source import HEATMAP_MODES, VELOCITY_MODES, ColoRadarSource
-from ..errors import CaptureError, ConfigError, SourceError, UsageError, why_not_written
+from ..errors import CaptureError, ConfigError, SourceError, UsageError, kind_of_file, why_not_written
 from ..estimator.config import EstimatorConfig, paper_variants
 from ..estimator.evaluation import evaluate
 from ..estimator.odometry import RadarOdometry
@@ -188,7 +188,7 @@ def _outputs(args: argparse.Namespace, names: Sequence[str]) -> list[tuple[str, 
     outputs = []
     if args.out:
         if os.path.exists(args.out) and not os.path.isdir(args.out):
-            raise UsageError(f"--out {args.out} is a file, not a directory")
+            raise UsageError(f"--out {args.out} is {kind_of_file(args.out)}, not a directory")
         outputs += [("--out", os.path.join(args.out, name)) for name in ["groundtruth.tum", *map(_tum_name, names)]]
     if args.json:
         outputs.append(("--json", args.json))
