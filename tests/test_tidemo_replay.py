@@ -103,6 +103,22 @@ def test_a_file_without_a_packet_and_a_bad_format_are_refused(tmp_path, cfg):
         open_source(f"replay://{tmp_path / 'noise.bin'}?format=visualizer", cfg)
 
 
+def test_packets_begun_and_given_up_are_told_apart_from_no_magic_word(tmp_path, cfg):
+    """Magic words whose packets' TLVs overrun their length (a length field damaged): said so,
+    with the reason and where, not as if the magic word were missing."""
+    damaged = b""
+    for packet in packets(cfg, range(1, 4)):
+        raw = bytearray(packet)
+        at = wire.HEADER_DTYPE.itemsize + wire.TL_DTYPE.fields["length"][1]  # the first TLV's length
+        raw[at:at + 4] = (0xFFFFFFF0).to_bytes(4, "little")
+        damaged += bytes(raw)
+    (tmp_path / "damaged.bin").write_bytes(damaged)
+    with pytest.raises(CaptureFormatError) as info:
+        open_source(f"replay://{tmp_path / 'damaged.bin'}?format=tidemo", cfg)
+    assert str(info.value).endswith(f"no whole demo packet in {len(damaged)} bytes: 3 begun with the magic word, "
+                                    "all given up (bad TLVs 3; the first at byte 0)"), str(info.value)
+
+
 def test_a_recorded_stream_replays_frame_for_frame(tmp_path, cfg):
     """The live stream recorded by its recorder sink while the pipeline runs the odometry, then
     replay://DIR (its format found by uart.bin, its cfg by radar.cfg): the same frames, indices,

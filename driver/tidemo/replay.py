@@ -81,8 +81,7 @@ class TidemoReplaySource(Source):
         if frames is not None:
             self.packets = self.packets[:frames]
         if not self.packets:
-            raise CaptureFormatError(f"{path}: no whole demo packet in {size} bytes (the UART stream of TI's "
-                                     "SDK 3.x demo starts each with the magic word 02 01 04 03 06 05 08 07)")
+            raise CaptureFormatError(f"{path}: no whole demo packet in {size} bytes{_given_up(self.framer)}")
         last = self.packets[-1][2]
         if timestamps is not None:
             self.stamps = read_timestamps(timestamps, 1 << 40)
@@ -178,6 +177,17 @@ class TidemoReplaySource(Source):
         if isinstance(self._data, mmap.mmap):
             self._data.close()
         self._file.close()
+
+
+def _given_up(framer: TlvFramer) -> str:
+    """Why a stream held no whole packet, for its error: no magic word at all, or the packets begun
+    with one and given up, by reason, and where the first was."""
+    if not framer.rejections:
+        return " (the UART stream of TI's SDK 3.x demo starts each packet with the magic word 02 01 04 03 06 05 08 07)"
+    reasons = collections.Counter(why for _, why in framer.rejections)
+    counts = ", ".join(f"{why} {n}" for why, n in reasons.most_common())
+    return (f": {len(framer.rejections)} begun with the magic word, all given up ({counts}; the first at byte "
+            f"{framer.rejections[0][0]})")
 
 
 def _read_metadata(path: str) -> dict:
