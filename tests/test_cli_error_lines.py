@@ -1,6 +1,7 @@
 """An error or a warning is one line on the terminal whatever the user's input held: a path's or a
 URL's newline, tab or escape sequence (``\\x1b[2J`` clears the screen) is written as its Python
-escape, never sent raw to the terminal."""
+escape, never sent raw to the terminal.  And an option that takes one value, given twice, is
+refused rather than one of them dropped without a word."""
 
 from __future__ import annotations
 
@@ -40,3 +41,28 @@ def test_a_path_and_a_url_with_controls_give_one_error_line(tmp_path):
         assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(f"{argv[0]}: error: "), repr(proc.stderr)
         assert "\x1b" not in proc.stderr and "\r" not in proc.stderr and "\\x1b[2J" in proc.stderr
         assert what in proc.stderr
+
+
+def test_an_option_given_twice_is_refused_naming_both(tmp_path):
+    """``--odom-out a --odom-out b`` wrote b alone, ``--view save:`` twice one view: refused, exit 2,
+    before any output is written; flags and list options still repeat."""
+    from radarodom.tools import cli, radar_capture
+
+    base = ["--source", "sim://lab?rate=max&fidelity=fast&duration=0.2", "--no-publish", "-q"]
+    a, b = tmp_path / "a.tum", tmp_path / "b.tum"
+    for twice, message in (
+            (["--odom-out", str(a), "--odom-out", str(b)],
+             f"argument --odom-out: given twice (--odom-out {str(a)!r}, then {str(b)!r}): give it once"),
+            (["--frames", "2", "--frames=3"], "argument --frames: given twice (--frames 2, then 3): give it once"),
+            (["--view", f"save:{a}.rrd", "--view", f"save:{b}.rrd"], "argument --view: given twice")):
+        proc = subprocess.run(console_command("radar-capture") + base + twice, stdin=subprocess.DEVNULL,
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2 and proc.stderr.startswith(f"radar-capture: error: {message}"), proc.stderr
+        assert proc.stderr.count("\n") == 1, proc.stderr
+        assert list(tmp_path.iterdir()) == []
+    # Flags and lists repeat as before; made so twice and parsing twice, a parser refuses nothing more.
+    parser = radar_capture.build_parser()
+    for _ in range(2):
+        cli._refuse_repeats(parser)
+        args = parser.parse_args(["-v", "-v", "--connect", "tcp/127.0.0.1:1", "--connect", "tcp/127.0.0.1:2"])
+        assert args.connect == ["tcp/127.0.0.1:1", "tcp/127.0.0.1:2"]

@@ -191,7 +191,8 @@ def test_overwrite_replaces_only_a_regular_file(tmp_path, capsys):
 
 @pytest.mark.parametrize("option", ["--record", "--odom-out", "--cfg", "--estimator-config", "--source"])
 def test_an_empty_path_is_a_usage_error(tmp_path, capsys, option):
-    rc = radar_capture.main(["--source", URL, "--no-publish", "-q", option, ""])
+    source = [] if option == "--source" else ["--source", URL]  # an option is given once
+    rc = radar_capture.main([*source, "--no-publish", "-q", option, ""])
     assert rc == 2 and f"argument {option}: empty value" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 

@@ -160,6 +160,41 @@ def _attach_negative_lists(parser: argparse.ArgumentParser, argv: list[str]) -> 
     return out
 
 
+#: Actions an option may be given more than once for: a flag, a count, a list.
+_REPEATABLE = (argparse._StoreConstAction, argparse._AppendAction, argparse._AppendConstAction, argparse._CountAction,
+               argparse._HelpAction, argparse._VersionAction)
+#: Characters of a repeated option's value quoted (a path whole, as typed).
+_QUOTED_VALUE = 300
+#: The namespace attribute that holds, while argv is parsed, what each option given once was given.
+_GIVEN = "_radarodom_given_once"
+
+
+def _once(base: type) -> type:
+    """*base* (an argparse action class) refusing its option a second time: the later value would
+    silently replace the earlier (``--odom-out a.tum --odom-out b.tum`` writes b.tum alone)."""
+
+    class Once(base):  # type: ignore[misc, valid-type]
+        def __call__(self, parser, namespace, values, option_string=None) -> None:
+            given = namespace.__dict__.setdefault(_GIVEN, {})
+            if self.dest in given:
+                first, name = given[self.dest]
+                parser.error(f"argument {option_string}: given twice ({name} {first}, then "
+                             f"{quoted(values, _QUOTED_VALUE)}): give it once")
+            given[self.dest] = (quoted(values, _QUOTED_VALUE), option_string)
+            super().__call__(parser, namespace, values, option_string)
+
+    Once.__name__ = Once.__qualname__ = f"Once{base.__name__}"
+    Once.given_once = True
+    return Once
+
+
+def _refuse_repeats(parser: argparse.ArgumentParser) -> None:
+    """Options that take one value refuse a second (every action but flags, counts and lists)."""
+    for action in parser._actions:
+        if action.option_strings and not isinstance(action, _REPEATABLE) and not getattr(action, "given_once", False):
+            action.__class__ = _once(type(action))
+
+
 def _refuse_empty_values(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """An empty argument (``--record "$OUT"`` with OUT unset) is a usage error, not "no output":
     no option or argument of radarodom's programs takes an empty string."""
@@ -191,7 +226,9 @@ def _run(main: Callable[[argparse.Namespace], int | None], parser: argparse.Argu
          argv: Sequence[str] | None, handler: logging.Handler | None) -> int:
     parser.error = _option_error(parser)  # type: ignore[method-assign]
     try:
+        _refuse_repeats(parser)
         args = parser.parse_args(_attach_negative_lists(parser, sys.argv[1:] if argv is None else list(argv)))
+        vars(args).pop(_GIVEN, None)
         _refuse_empty_values(parser, args)
     except SystemExit as exc:  # argparse: --help (0) or a usage error (2)
         flush_stdout()
