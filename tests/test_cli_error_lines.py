@@ -43,6 +43,14 @@ def test_a_path_and_a_url_with_controls_give_one_error_line(tmp_path):
         assert what in proc.stderr
 
 
+def test_an_unknown_option_with_controls_is_shown_escaped():
+    proc = subprocess.run(console_command("radar-eval") + ["a.tum", "b.tum", f"--bogus{HOSTILE}"],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and proc.stderr.splitlines()[-1] == f"radar-eval: error: unrecognized arguments: " \
+        f"--bogus{one_line(HOSTILE)}", proc.stderr
+    assert "\x1b" not in proc.stderr
+
+
 def test_an_option_given_twice_is_refused_naming_both(tmp_path):
     """``--odom-out a --odom-out b`` wrote b alone, ``--view save:`` twice one view: refused, exit 2,
     before any output is written; flags and list options still repeat."""

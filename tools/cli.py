@@ -295,8 +295,8 @@ def _option_error(parser: argparse.ArgumentParser) -> Callable[[str], None]:
 
     def error(message: str) -> None:
         if not message.startswith("argument "):
-            usage_error(message)
-        parser.exit(2, f"{parser.prog}: error: {message}\n")
+            usage_error(one_line(message))
+        parser.exit(2, f"{parser.prog}: error: {one_line(message)}\n")
     return error
 
 
