@@ -74,7 +74,7 @@ def test_a_run_without_its_ground_truth_times_or_folder_is_refused_by_name(tmp_p
         and f"radar-capture --source coloradar://{run} estimates without one" in err[0], proc.stderr
 
 
-def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_path):
+def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_path, capsys):
     """--json is a new file (or --overwrite), never one of the run's files nor one --out writes;
     --out is a directory; each refused with one line, exit 2, before the run is read."""
     run = write_moving_run(tmp_path / "data")
@@ -84,9 +84,12 @@ def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_p
     mine.write_text("keep\n")
     (tmp_path / "f").write_text("")
 
-    def coloradar(*args):
-        return subprocess.run(console_command("radar-coloradar") + [str(run), *map(str, args)],
-                              capture_output=True, text=True, timeout=300)
+    def coloradar(*args):  # in this process (the program's own run, exit code and output)
+        from radarodom.tools import radar_coloradar
+
+        rc = radar_coloradar.main([str(run), *map(str, args)])
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess(["radar-coloradar", *args], rc, out, err)
 
     for args, message in [
             (["--json", mine], f"{mine} already exists; choose a new file (or --overwrite)"),

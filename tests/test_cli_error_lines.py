@@ -51,7 +51,7 @@ def test_an_unknown_option_with_controls_is_shown_escaped():
     assert "\x1b" not in proc.stderr
 
 
-def test_an_option_given_twice_is_refused_naming_both(tmp_path):
+def test_an_option_given_twice_is_refused_naming_both(tmp_path, capsys):
     """``--odom-out a --odom-out b`` wrote b alone, ``--view save:`` twice one view: refused, exit 2,
     before any output is written; flags and list options still repeat."""
     from radarodom.tools import cli, radar_capture
@@ -63,10 +63,10 @@ def test_an_option_given_twice_is_refused_naming_both(tmp_path):
              f"argument --odom-out: given twice (--odom-out {str(a)!r}, then {str(b)!r}): give it once"),
             (["--frames", "2", "--frames=3"], "argument --frames: given twice (--frames 2, then 3): give it once"),
             (["--view", f"save:{a}.rrd", "--view", f"save:{b}.rrd"], "argument --view: given twice")):
-        proc = subprocess.run(console_command("radar-capture") + base + twice, stdin=subprocess.DEVNULL,
-                              capture_output=True, text=True, timeout=60)
-        assert proc.returncode == 2 and proc.stderr.startswith(f"radar-capture: error: {message}"), proc.stderr
-        assert proc.stderr.count("\n") == 1, proc.stderr
+        rc = radar_capture.main(base + twice)
+        stderr = capsys.readouterr().err
+        assert rc == 2 and stderr.startswith(f"radar-capture: error: {message}"), stderr
+        assert stderr.count("\n") == 1, stderr
         assert list(tmp_path.iterdir()) == []
     # Flags and lists repeat as before; made so twice and parsing twice, a parser refuses nothing more.
     parser = radar_capture.build_parser()

@@ -99,8 +99,8 @@ def _cfg_line(path, prefix: str) -> int:
     (("compRangeBiasAndRxChanPhase 0.0 ", "compRangeBiasAndRxChanPhase 9.99 "), "compRangeBiasAndRxChanPhase",
      "compRangeBiasAndRxChanPhase: rangeBias", "a range bias of 9.99 m leaves 0.00 m of the profile's usable"),
 ])
-def test_a_cfg_that_leaves_nothing_to_detect_in_is_refused_at_its_line(tmp_path, shipped_cfg, edit, prefix, where,
-                                                                          words):
+def test_a_cfg_that_leaves_nothing_to_detect_in_is_refused_at_its_line(tmp_path, capsys, shipped_cfg, edit, prefix,
+                                                                          where, words):
     """Its range window, or a range bias that eats the usable range: refused by radar-cfg and by
     radar-capture, naming the line that closed the window (they once blamed "the estimator's
     settings" and a DspConfig field no option reaches, and radar-cfg called the cfg valid)."""
@@ -109,13 +109,17 @@ def test_a_cfg_that_leaves_nothing_to_detect_in_is_refused_at_its_line(tmp_path,
     path = tmp_path / "closed.cfg"
     path.write_text(text.replace(edit[0], edit[1]))
     expected = f"{path}:{_cfg_line(path, prefix)}: {where}: {words}"
-    for argv in (["radar-cfg", str(path)],
-                 ["radar-capture", "--cfg", str(path), "--no-publish", "--source", "sim://lab?rate=max&duration=0.2"]):
-        proc = subprocess.run(console_command(argv[0]) + argv[1:], stdin=subprocess.DEVNULL, capture_output=True,
-                              text=True, timeout=60)
-        errors = [ln for ln in proc.stderr.splitlines() if ": error: " in ln]
-        assert proc.returncode == 2 and len(errors) == 1, proc.stderr
-        assert errors[0].startswith(f"{argv[0]}: error: {expected}"), errors
+    from radarodom.tools import radar_capture, radar_cfg
+
+    for program, main, argv in (
+            ("radar-cfg", radar_cfg.main, [str(path)]),
+            ("radar-capture", radar_capture.main,
+             ["--cfg", str(path), "--no-publish", "--source", "sim://lab?rate=max&duration=0.2"])):
+        rc = main(argv)
+        stderr = capsys.readouterr().err
+        errors = [ln for ln in stderr.splitlines() if ": error: " in ln]
+        assert rc == 2 and len(errors) == 1, stderr
+        assert errors[0].startswith(f"{program}: error: {expected}"), errors
         assert "nothing is left to detect in between " in errors[0], errors
 
 
