@@ -219,6 +219,28 @@ def test_a_file_where_a_directory_goes_is_a_usage_error(tmp_path, capsys, option
                                     "writable destination\n"), err
 
 
+def test_no_output_replaces_a_file_of_another_recording(tmp_path, capsys):
+    """--overwrite replaced an existing recording's ground truth with this run's odometry (and
+    radar-calibrate --write-cfg its cfg, radar-coloradar --out its groundtruth.tum): refused, the
+    recording unchanged; a file of another name beside it is written as before."""
+    from radarodom.tools import radar_cfg
+
+    rec = tmp_path / "rec"
+    assert radar_sim.main(["calibration", "--duration", "0.2", "--out", str(rec), "-q"]) == 0
+    capsys.readouterr()
+    before = {p.name: p.read_bytes() for p in rec.iterdir()}
+    for option, name in (("--odom-out", "groundtruth.tum"), ("--points-out", "timestamps.txt")):
+        rc, err = capture(capsys, option, rec / name, "--overwrite")
+        assert rc == 2 and err == (f"radar-capture: error: {option} {rec / name}: {name} is a file of the recording "
+                                   f"in {rec}, which no output replaces (--overwrite or not); choose another name or "
+                                   "directory\n"), err
+    assert radar_cfg.main(["--copy", "awr1843_raw.cfg", str(rec / "radar.cfg"), "--overwrite"]) == 2
+    assert "radar.cfg is a file of the recording in" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in rec.iterdir()} == before
+    rc, err = capture(capsys, "--odom-out", rec / "odom.tum")
+    assert rc == 0 and (rec / "odom.tum").is_file(), err
+
+
 def test_a_device_where_a_directory_goes_is_named_a_device(tmp_path, capsys):
     """/dev/null as radar-sim --out (and under it): "a device", not "a file"."""
     rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", os.devnull, "-q"])

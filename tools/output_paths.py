@@ -31,6 +31,7 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     target = f"write {what} to {path}" if what else f"create {path}"
     if not is_dir:
         _refuse_a_directory_name(path, f"cannot {target}")
+        _refuse_a_recordings_file(path, f"cannot {target}")
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is {kind_of_file(path)}, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
@@ -67,6 +68,18 @@ def _refuse_a_directory_name(path: str, what: str) -> None:
     its parent, made on the path without it, passed, and the write failed after the work."""
     if path.endswith(tuple(sep for sep in (os.sep, os.altsep) if sep)):
         raise UsageError(f"{what}: the path ends in '{path[-1]}', which names a directory; give a file's name")
+
+
+def _refuse_a_recordings_file(path: str, what: str) -> None:
+    """A file of a recording of radarodom's (its ground truth, timestamps, cfg, ...) is no output's
+    to replace, ``--overwrite`` or not: the recording would be changed or lost without a word
+    (another run's odometry as its ground truth, another calibration line over its frames)."""
+    real = os.path.realpath(path)
+    directory = os.path.dirname(real)
+    if _recordings_own(directory, real) and _own_output_in(directory, "capture"):
+        raise UsageError(f"{what}: {os.path.basename(real)} is a file of the recording in "
+                         f"{os.path.dirname(path) or os.curdir}, which no output replaces (--overwrite or not); "
+                         f"choose another name or directory")
 
 
 def _own_output_in(directory: str, kind: str) -> str | None:
@@ -263,6 +276,7 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
     for path, kind, option in outputs:
         if kind == "file":
             _refuse_a_directory_name(path, f"{option} {path}")
+            _refuse_a_recordings_file(path, f"{option} {path}")
         if kind != "file" and not os.path.exists(path):
             check_writable_directory(path, option)  # the rest by its writer (which makes its parents)
             continue
