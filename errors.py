@@ -80,11 +80,11 @@ CHOOSE_WRITABLE = "choose a writable destination"
 
 def kind_of_file(path: str) -> str:
     """What stands at *path*, which is no directory, as a message names it: "a file", "a device",
-    "a pipe", "a socket" or "a link to nothing"."""
+    "a pipe", "a socket", "a link to nothing" or "a link in a loop"."""
     try:
         mode = os.stat(path).st_mode
-    except OSError:
-        return "a link to nothing"
+    except OSError as exc:
+        return "a link in a loop" if exc.errno == errno.ELOOP else "a link to nothing"
     if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
         return "a device"
     if stat.S_ISFIFO(mode):

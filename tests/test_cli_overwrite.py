@@ -241,6 +241,21 @@ def test_no_output_replaces_a_file_of_another_recording(tmp_path, capsys):
     assert rc == 0 and (rec / "odom.tum").is_file(), err
 
 
+def test_a_link_to_nothing_or_a_loop_where_a_directory_goes_is_named(tmp_path, capsys):
+    """A dangling link or a link loop as --record, --heatmap-out or radar-sim --out: one line,
+    exit 2, that says what it is (it was "File exists", exit 1)."""
+    (tmp_path / "dang").symlink_to(tmp_path / "nowhere" / "zz")
+    (tmp_path / "loopA").symlink_to(tmp_path / "loopB")
+    (tmp_path / "loopB").symlink_to(tmp_path / "loopA")
+    for option, name, what in (("--record", "dang", "a link to nothing"), ("--heatmap-out", "dang", "a link to nothing"),
+                               ("--record", "loopA", "a link in a loop")):
+        rc, err = capture(capsys, option, tmp_path / name)
+        assert rc == 2 and err == (f"radar-capture: error: {option} {tmp_path / name}: {tmp_path / name} is {what}, "
+                                   "not a directory; choose a directory's name\n"), err
+    rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", str(tmp_path / "loopA" / "run"), "-q"])
+    assert rc == 2 and f"{tmp_path / 'loopA'} is a link in a loop, not a directory" in capsys.readouterr().err
+
+
 def test_a_device_where_a_directory_goes_is_named_a_device(tmp_path, capsys):
     """/dev/null as radar-sim --out (and under it): "a device", not "a file"."""
     rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", os.devnull, "-q"])

@@ -119,6 +119,10 @@ ROOM_FOR_NAMES = 48
 def check_writable_directory(path: str, option: str) -> None:
     """Refuse a directory output (made when missing, with its parents) that could not be written
     into: itself, or the nearest directory above it that is there."""
+    link = next((p for p in (path, *missing_directories(path)) if os.path.islink(p)), None)
+    if link is not None:  # a link to nothing (or a loop) where a directory is to be made: not "File exists"
+        raise UsageError(f"{option} {path}: {link} is {kind_of_file(link)}, not a directory; "
+                         f"choose a directory's name")
     there = _nearest_there(path)
     longest = _longest_path(there)
     if len(os.fsencode(os.path.abspath(path))) + ROOM_FOR_NAMES >= longest:
