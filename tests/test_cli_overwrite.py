@@ -256,6 +256,15 @@ def test_a_link_to_nothing_or_a_loop_where_a_directory_goes_is_named(tmp_path, c
     assert rc == 2 and f"{tmp_path / 'loopA'} is a link in a loop, not a directory" in capsys.readouterr().err
 
 
+def test_a_file_output_path_longer_than_the_system_takes_is_one_short_line(tmp_path, capsys):
+    """5000 characters of path for --odom-out: said in one line of a few hundred characters (the
+    path shortened), not 15 kB suggesting a mkdir -p that cannot work."""
+    long = tmp_path / "/".join(["d" * 200] * 25) / "odom.tum"
+    rc, err = capture(capsys, "--odom-out", long)
+    assert rc == 2 and err.count("\n") == 1 and len(err) < 400, err
+    assert "the path is longer than this system takes" in err and "mkdir" not in err, err
+
+
 def test_a_device_where_a_directory_goes_is_named_a_device(tmp_path, capsys):
     """/dev/null as radar-sim --out (and under it): "a device", not "a file"."""
     rc = radar_sim.main(["calibration", "--duration", "0.2", "--out", os.devnull, "-q"])

@@ -29,6 +29,10 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     holds ("capture", the default, or "heatmaps"): an existing one of that kind radarodom wrote is
     refused here without *overwrite*, with the option's name (its writer would refuse it without)."""
     target = f"write {what} to {path}" if what else f"create {path}"
+    longest = _longest_path(_nearest_there(os.path.dirname(os.path.abspath(path))))
+    if len(os.fsencode(os.path.abspath(path))) >= longest:  # no mkdir -p could make its directory
+        raise UsageError(f"cannot create {_shortened_path(path)}: the path is longer than this system takes "
+                         f"({longest} bytes); choose a shorter one")
     if not is_dir:
         _refuse_a_directory_name(path, f"cannot {target}")
         _refuse_a_recordings_file(path, f"cannot {target}")
