@@ -54,6 +54,8 @@ GROUNDTRUTH_TOPIC = "/radar/groundtruth"
 #: Every topic radarodom writes but the odometry's, whose name the user chooses (``--ros2-topic``).
 OTHER_TOPICS = (POINTS_TOPIC, TF_TOPIC, TF_STATIC_TOPIC, HEATMAP_TOPIC, HEATMAP_AXES_TOPIC, DIAGNOSTICS_TOPIC,
                 GROUNDTRUTH_TOPIC)
+#: The topics every ROS 2 node has, with their messages' type: no odometry's to take.
+ROS2_SYSTEM_TOPICS = {"/rosout": "rcl_interfaces/msg/Log", "/parameter_events": "rcl_interfaces/msg/ParameterEvent"}
 
 #: rmw_zenoh's QoS of a publisher token: reliable, volatile, keep last 10 (only the depth differs
 #: from rmw_zenoh's defaults, so only it is written) ...
@@ -68,11 +70,15 @@ ros2_stamp = ros2_messages.stamp
 
 
 def check_odometry_topic(topic: str) -> str:
-    """*topic* if it is not one of radarodom's other topics (PublishConfigError otherwise): the
-    odometry on /tf would be TF messages of another type."""
+    """*topic* if it is neither one of radarodom's other topics nor one of ROS 2's own
+    (PublishConfigError otherwise): the odometry on /tf would be TF messages of another type, on
+    /rosout Odometry where every ROS 2 tool reads log messages."""
     if topic in OTHER_TOPICS:
         raise PublishConfigError(f"{topic} is one of radarodom's other topics ({', '.join(OTHER_TOPICS)}): "
                                  "give the odometry its own")
+    if topic in ROS2_SYSTEM_TOPICS:
+        raise PublishConfigError(f"{topic} is ROS 2's own topic ({ROS2_SYSTEM_TOPICS[topic]}, which every ROS 2 "
+                                 "node and tool uses): give the odometry its own")
     return topic
 
 

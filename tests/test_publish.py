@@ -609,6 +609,17 @@ def test_the_odometry_topic_is_never_another_radarodom_topic(tmp_path):
     assert not (tmp_path / "x.mcap").exists()
 
 
+def test_the_odometry_topic_is_never_one_of_ros2s_own():
+    """/rosout and /parameter_events carry rcl_interfaces messages that every ROS 2 tool reads."""
+    for topic, kind in (("/rosout", "rcl_interfaces/msg/Log"), ("/parameter_events", "rcl_interfaces/msg/ParameterEvent")):
+        with pytest.raises(PublishConfigError) as info:
+            ros2.check_odometry_topic(topic)
+        assert str(info.value) == f"{topic} is ROS 2's own topic ({kind}, which every ROS 2 node and tool uses): give " \
+                                  "the odometry its own"
+        assert info.value.exit_code == 2
+    assert ros2.check_odometry_topic("/rosout2") == "/rosout2"
+
+
 def test_a_client_without_its_router_fails_to_open_with_a_hint(endpoint):
     with pytest.raises(PublishError, match="router running") as info:
         Publisher(ZenohOptions(mode="client", connect=[endpoint]))
