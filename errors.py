@@ -47,8 +47,7 @@ def one_line(text: str) -> str:
     sequence that would clear the screen) written as Python escapes, ``\\n``, ``\\x1b``."""
     if text.isprintable():
         return text
-    return "".join(ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode("ascii")
-                   for ch in text)
+    return "".join(ch if ch.isprintable() else ch.encode("unicode_escape").decode("ascii") for ch in text)
 
 
 def named_character(ch: str) -> str:

@@ -27,7 +27,7 @@ import time
 from typing import Any, Callable, Sequence
 
 from .. import messages, strict_json
-from ..errors import MessageError
+from ..errors import MessageError, one_line
 from ..publish import DEFAULT_ENDPOINT, KINDS, open_session
 from . import cli
 from .zenoh_args import add_zenoh_arguments, options_from_args
@@ -78,11 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _printable(text: str, limit: int) -> str:
-    """*text* safe on one terminal line: control characters (newlines, escapes) and lone
-    surrogates escaped, cut to *limit* characters."""
-    if not text.isprintable():
-        text = "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace").decode("ascii")
-                       for c in text)
+    """*text* safe on one terminal line (:func:`radarodom.errors.one_line`: control characters and
+    lone surrogates escaped), cut to *limit* characters."""
+    text = one_line(text)
     return text if len(text) <= limit else text[:limit] + "..."
 
 
