@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import logging
 import math
 import re
@@ -169,6 +170,7 @@ _QUOTED_VALUE = 300
 _GIVEN = "_radarodom_given_once"
 
 
+@functools.cache
 def _once(base: type) -> type:
     """*base* (an argparse action class) refusing its option a second time: the later value would
     silently replace the earlier (``--odom-out a.tum --odom-out b.tum`` writes b.tum alone)."""

@@ -15,7 +15,7 @@ from ..errors import (CHOOSE_WRITABLE, CaptureError, CaptureExistsError, UsageEr
 
 
 def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, what: str | None = None,
-                   kind: str = "capture") -> None:
+                   kind: str = "capture", option: str | None = None) -> None:
     """Refuse an output that exists (a file, or a directory holding what radarodom wrote of its
     *kind*; the rest of a directory is checked by its writer) or cannot be created (no parent
     directory): radarodom never overwrites what a user has.
@@ -27,7 +27,8 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
     holds data radarodom did not write.  *what*: what is written there,
     for the message ("cannot write the copy of NAME to PATH").  *kind*: what a directory output
     holds ("capture", the default, or "heatmaps"): an existing one of that kind radarodom wrote is
-    refused here without *overwrite*, with the option's name (its writer would refuse it without)."""
+    refused here without *overwrite*, with the option's name (its writer would refuse it without).
+    *option*: the option that names *path*, for the message that refuses a recording's file."""
     target = f"write {what} to {path}" if what else f"create {path}"
     longest = _longest_path(_nearest_there(os.path.dirname(os.path.abspath(path))))
     if len(os.fsencode(os.path.abspath(path))) >= longest:  # no mkdir -p could make its directory
@@ -35,7 +36,7 @@ def check_new_path(path: str, *, is_dir: bool = False, overwrite: bool = False, 
                          f"({longest} bytes); choose a shorter one")
     if not is_dir:
         _refuse_a_directory_name(path, f"cannot {target}")
-        _refuse_a_recordings_file(path, f"cannot {target}")
+        _refuse_a_recordings_file(path, f"{option} {path}" if option else f"cannot {target}")
     if is_dir and os.path.exists(path) and not os.path.isdir(path):
         raise CaptureExistsError(f"{path} is {kind_of_file(path)}, not a directory"
                                  + ("; --overwrite replaces only a directory radarodom wrote" if overwrite else ""))
@@ -284,7 +285,6 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
     for path, kind, option in outputs:
         if kind == "file":
             _refuse_a_directory_name(path, f"{option} {path}")
-            _refuse_a_recordings_file(path, f"{option} {path}")
         if kind != "file" and not os.path.exists(path):
             check_writable_directory(path, option)  # the rest by its writer (which makes its parents)
             continue
@@ -293,7 +293,8 @@ def check_new_outputs(outputs: Sequence[tuple[str, str, str]], *, overwrite: boo
         theirs = kind == "capture" and os.path.isdir(path) and foreign_files(path)
         if theirs:
             raise CaptureExistsError(foreign_files_message(path, theirs))
-        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option), kind=kind)
+        check_new_path(path, is_dir=kind != "file", overwrite=overwrite, what=(what or {}).get(option), kind=kind,
+                       option=option)
 
 
 def _heatmaps_own(name: str) -> bool:
