@@ -22,6 +22,7 @@ from live_helpers import (
     Process,
     assert_continuous,
     assert_frames_match,
+    collect,
     collect_until_stopped,
     wait_until,
 )
@@ -92,6 +93,37 @@ def test_without_record_completed_in_time_the_tail_is_cut_and_counted_as_such(sm
     assert described["packets_lost"] == 0, described
     warned = [m for m in warning_messages(warnings_log) if "RECORD_COMPLETED" in m]
     assert len(warned) == 1 and "cut at stop" in warned[0] and "stop_timeout" in warned[0], warned
+
+
+def test_an_aborted_runs_record_completed_does_not_end_the_next_run(small_capture, small_cfg):
+    """Run A is aborted (closed without waiting for its RECORD_COMPLETED, as a second Ctrl-C
+    does) and run B starts at once and stops before A's message comes: A's RECORD_COMPLETED,
+    arriving while B waits for its own, was taken as B's end, and B's last frame lost the tail
+    the board sends with B's own, counted as "lost on the way"."""
+    directory, frames = small_capture
+    delay = RECORD_COMPLETED_DELAY_S
+    with EmulatedRig(f"replay://{directory}", config=small_cfg, record_completed_delay_s=delay) as rig:
+        with open_source(rig.url(**URL_TIMEOUTS), small_cfg) as src:
+            collect(src, 3)
+        a_stopped = time.monotonic()  # close() sent RECORD_STOP and did not wait
+        with open_source(rig.url(**URL_TIMEOUTS), small_cfg) as src:
+            stopped = []
+            got = collect_until_stopped(src, 2, on_frame=lambda f, g: len(g) == 2 and stopped.append(time.monotonic()))
+            ended = time.monotonic()
+            described = src.describe()
+        sent = rig.board.stats.frames_in
+
+    # A's message came while B waited for its own: otherwise this run did not test anything.
+    assert stopped[0] < a_stopped + delay, "B stopped after A's RECORD_COMPLETED came: too slow to test"
+    assert described["async_status"].get("RECORD_COMPLETED") >= 1, described
+    assert ended - stopped[0] >= delay  # B waited for its own, which brought its last frame's tail
+    assert len(got) == sent
+    assert tail_bytes(len(got), small_cfg.frame_bytes), "the last frame ends on a packet boundary: nothing held"
+    assert_continuous([g.index for g in got])
+    assert all(g.missing_bytes == 0 for g in got), [(g.index, g.missing_bytes) for g in got]
+    assert_frames_match(got, frames)
+    assert_adds_up(described, sent)
+    assert described["lost_bytes"] == described["cut_bytes"] == described["packets_lost"] == 0, described
 
 
 # ---------------------------------------------------------------------- accounting

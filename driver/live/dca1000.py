@@ -173,14 +173,18 @@ class Dca1000Client:
         if self._sock is not None:
             self._await(None, 0.0)
 
+    def async_count(self, bit: AsyncStatus) -> int:
+        """Status messages with *bit* received so far."""
+        return self.async_status.counts.get(bit.name, 0)
+
     def await_async(self, bit: AsyncStatus, timeout: float) -> bool:
         """Wait up to *timeout* s for a status message with *bit* (one not seen before this
         call); True when it came."""
         if self._sock is None:
             return False
-        seen = self.async_status.counts.get(bit.name, 0)
+        seen = self.async_count(bit)
         deadline = time.monotonic() + timeout
-        while self.async_status.counts.get(bit.name, 0) == seen:
+        while self.async_count(bit) == seen:
             left = deadline - time.monotonic()
             if left <= 0:
                 return False

@@ -189,7 +189,7 @@ class LiveSource(Source):
                 log.warning("while stopping: %s", exc)
         done = False
         if self._record_stopped:
-            done = self.board.await_async(AsyncStatus.RECORD_COMPLETED, self.settings.stop_timeout_s)
+            done = self._await_record_completed()
             if not done:
                 log.warning("the DCA1000 did not report RECORD_COMPLETED within %g s of RECORD_STOP: "
                             "frames still open are handed on as they are, their missing bytes counted "
@@ -197,6 +197,27 @@ class LiveSource(Source):
                             self.settings.stop_timeout_s)
         # A radar that answered sensorStop ended its last frame, so the stream ends at a frame's end.
         self.receiver.stop(sent_all=done and self._frame_end_stop)
+
+    def _await_record_completed(self) -> bool:
+        """Whether the board reported RECORD_COMPLETED within stop_timeout_s of RECORD_STOP.
+
+        The first such message may be an earlier recording's: one aborted without waiting for it
+        (a second Ctrl-C) and followed at once by this one gets its message up to 2 s later, after
+        this recording's RECORD_STOP.  The board's own comes with the last frame's held-back
+        packet, so after a radar that stopped at a frame's end the end is taken once the stream is
+        whole too, or at a second message; a message that came counts by the timeout, whole or
+        not (the held-back packet was lost)."""
+        board, bit = self.board, AsyncStatus.RECORD_COMPLETED
+        before = board.async_count(bit)
+        deadline = time.monotonic() + self.settings.stop_timeout_s
+        while True:
+            came = board.async_count(bit) - before
+            if came >= 2 or came and (not self._frame_end_stop or self.receiver.assembler.open_frames == 0):
+                return True
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return came > 0
+            board.await_async(bit, min(left, 0.05))
 
     def _check_data_flows(self, now: float, started: float) -> None:
         last = self.receiver.last_packet_monotonic or started
