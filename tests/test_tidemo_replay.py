@@ -119,6 +119,23 @@ def test_packets_begun_and_given_up_are_told_apart_from_no_magic_word(tmp_path, 
                                     "all given up (bad TLVs 3; the first at byte 0)"), str(info.value)
 
 
+def test_a_stream_of_another_radars_demo_says_which_platform_it_is(tmp_path, cfg):
+    """Packets whose header names another platform (an xWR68xx's demo: another antenna array)
+    were played as the xWR18xx's; one such packet among others is rejected and counted."""
+    good = packets(cfg, range(1, 4))
+    foreign = [p[:16] + (0xA6843).to_bytes(4, "little") + p[20:] for p in good]
+    (tmp_path / "other.bin").write_bytes(b"".join(foreign))
+    with pytest.raises(CaptureFormatError) as info:
+        open_source(f"replay://{tmp_path / 'other.bin'}?format=tidemo", cfg)
+    assert str(info.value).endswith("3 begun with the magic word, all given up (bad header 3; the first at byte 0; "
+                                    "the first bad header's platform 0xA6843, not the xWR18xx's 0xA1843 (another "
+                                    "radar's demo))"), str(info.value)
+    (tmp_path / "one.bin").write_bytes(good[0] + foreign[1] + good[2])
+    with open_source(f"replay://{tmp_path / 'one.bin'}?format=tidemo&rate=max", cfg) as source:
+        assert [f.index for f in source] == [0, 2]
+        assert source.describe()["rejected_packets"] == 1
+
+
 def test_a_recorded_stream_replays_frame_for_frame(tmp_path, cfg):
     """The live stream recorded by its recorder sink while the pipeline runs the odometry, then
     replay://DIR (its format found by uart.bin, its cfg by radar.cfg): the same frames, indices,

@@ -82,6 +82,9 @@ def test_points_tlv_without_points_follows_the_firmwares_condition():
     (lambda d: d[:8] + (0x02050004).to_bytes(4, "little") + d[12:], "SDK version 02.05"),
     (lambda d: d[:12] + (len(d) + 5).to_bytes(4, "little") + d[16:], "no multiple of 32"),
     (lambda d: d[:-32], "bytes where totalPacketLen says"),
+    # Another radar's demo (the xWR16xx's), and a sub-frame a frame-based cfg never has.
+    (lambda d: d[:16] + (0xA1642).to_bytes(4, "little") + d[20:], "platform 0xA1642, not the xWR18xx's 0xA1843"),
+    (lambda d: d[:36] + (7).to_bytes(4, "little") + d[40:], "subFrameNumber 7, where a frame-based demo sends 0"),
 ])
 def test_a_damaged_packet_is_refused_with_the_reason(damage, reason):
     assert reason in wire.parse_packet(damage(packet(3)))

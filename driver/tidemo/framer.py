@@ -11,7 +11,8 @@ what the framer makes of it:
 - bytes before a magic word (a port opened mid-packet, line noise, a stale boot message) are
   discarded;
 - a header that cannot be the demo's (SDK version, a length that is no multiple of 32 or too
-  long, too many TLVs) is a false magic word: it is skipped and the search goes on;
+  long, too many TLVs, another platform, a sub-frame) is a false magic word: it is skipped and
+  the search goes on;
 - a packet inside which another magic word starts, its padding included, lost bytes (or was cut
   short): it is rejected and framing resumes at that magic word, so the next packet is kept;
 - a packet whose TLVs disagree with its header (unknown types, lengths, more than padding after
@@ -77,6 +78,8 @@ class TlvFramer:
         #: (stream offset, reason) of each rejection, in stream order, when *note_rejections* (a
         #: file's replay tells what the part it played lost; a live stream would grow it forever).
         self.rejections: list[tuple[int, str]] | None = [] if note_rejections else None
+        #: Why the first header rejected as BAD_HEADER could not be the demo's (None: none was).
+        self.first_bad_header: str | None = None
         self._buf = bytearray()
         self._offset = 0  # stream offset of _buf[0]
         self._scanned = len(MAGIC)  # _buf[1:_scanned] holds no magic word's start (when _buf starts with one)
@@ -130,7 +133,10 @@ class TlvFramer:
             if len(self._buf) < HEADER_DTYPE.itemsize:
                 return out
             header = np.frombuffer(bytes(self._buf[:HEADER_DTYPE.itemsize]), HEADER_DTYPE)[0]
-            if header_problem(header, self.max_length) is not None:
+            problem = header_problem(header, self.max_length)
+            if problem is not None:
+                if self.first_bad_header is None:
+                    self.first_bad_header = problem
                 self._reject(BAD_HEADER)
                 self._discard(1)
                 continue

@@ -177,6 +177,11 @@ def header_problem(header: np.void, max_length: int) -> str | None:
         return f"totalPacketLen {length} is no multiple of {SEGMENT_LEN} in [{HEADER_DTYPE.itemsize}, {max_length}]"
     if int(header["num_tlvs"]) > len(Tlv):
         return f"numTLVs {int(header['num_tlvs'])} is more than the {len(Tlv)} types"
+    if int(header["platform"]) != PLATFORM_XWR18XX:
+        return f"platform 0x{int(header['platform']):X}, not the xWR18xx's 0x{PLATFORM_XWR18XX:X} (another radar's demo)"
+    if int(header["subframe_number"]):
+        # radarodom takes frame-based cfgs only (dfeDataOutputMode 1), whose one sub-frame is 0.
+        return f"subFrameNumber {int(header['subframe_number'])}, where a frame-based demo sends 0"
     return None
 
 
