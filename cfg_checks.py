@@ -20,6 +20,10 @@ MIN_ADC_SAMPLES = 4
 #: The fewest places on the virtual array's azimuth row the DSP measures an azimuth with.
 MIN_AZIMUTH_PLACES = 2
 
+#: The largest range bias, m, taken without a warning: a board's (its antenna feeds and traces)
+#: is centimetres, so metres are a typo or another quantity.
+MAX_PLAUSIBLE_RANGE_BIAS_M = 1.0
+
 #: Commands that must appear once, and describe the raw data layout.
 REQUIRED_COMMANDS = ("channelCfg", "adcCfg", "adcbufCfg", "profileCfg", "chirpCfg", "frameCfg")
 
@@ -45,6 +49,7 @@ class ConfigChecks:
         self._validate_chirps_and_frame()
         self._validate_array()
         self._validate_fov()
+        self._check_range_bias()
 
     def _validate_modes(self) -> None:
         ln = self._first.get("dfeDataOutputMode")
@@ -166,3 +171,13 @@ class ConfigChecks:
                 raise self._fail("minAzimuthDeg is above maxAzimuthDeg", ln, "minAzimuthDeg")
             if a.min_elevation_deg > a.max_elevation_deg:
                 raise self._fail("minElevationDeg is above maxElevationDeg", ln, "minElevationDeg")
+
+    def _check_range_bias(self) -> None:
+        ln = self._first.get("compRangeBiasAndRxChanPhase")
+        if ln is None or abs(ln.value.range_bias_m) <= MAX_PLAUSIBLE_RANGE_BIAS_M:
+            return
+        bias = ln.value.range_bias_m
+        self._warnings.add("range bias", ln.line,
+                           f"compRangeBiasAndRxChanPhase: rangeBias {bias:g} m, where a board's is a few "
+                           f"centimetres: every range is taken {abs(bias):g} m {'shorter' if bias > 0 else 'longer'}"
+                           f" and the usable range moves with it; is it the board's? radar-calibrate measures it")

@@ -184,7 +184,8 @@ class ConfigPhysics:
         if ln is None or ln.value.max_value <= usable + 2 * self.range_resolution_m:
             return None
         return (f"{self.path}:{ln.line}: cfarFovCfg range maximum {ln.value.max_value:g} m reaches beyond the "
-                f"usable range, {usable:.2f} m (beat frequencies up to 80 % of the IF band): detection is "
+                f"usable range, {usable:.2f} m (beat frequencies up to 80 % of the IF band"
+                f"{f', less the range bias of {range_bias_m:g} m' if range_bias_m else ''}): detection is "
                 f"capped there, since the IF filter's roll-off and the TX-to-RX leakage lie beyond; "
                 f"set the maximum to {usable:.2f} m or less")
 

@@ -5,6 +5,7 @@ radar-cfg warns about such a cfg; a window closed by the cfg is refused at its l
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 
@@ -64,8 +65,10 @@ def test_radar_cfg_warns_of_a_range_fov_beyond_the_usable_range(tmp_path, shippe
     """One warning naming the line, the usable range it is capped to, and the fix; the board's
     range bias counts.  Within two range bins (cfgs round the limit: the shipped 10 m for
     9.993 m, 9.928 m with the board's line) the cap is silent."""
-    with_line = shipped_cfg.max_range_m - load_board("uncalibrated").range_bias_m
+    bias = load_board("uncalibrated").range_bias_m
+    with_line = shipped_cfg.max_range_m - bias
     for maximum, line, usable in ((15.0, False, shipped_cfg.max_range_m), (10.05, True, with_line)):
+        less = f", less the range bias of {bias:g} m" if line else ""
         cfg = with_range_fov(shipped_cfg, maximum, line)
         path = tmp_path / "fov.cfg"
         cfg.write(path)
@@ -75,7 +78,7 @@ def test_radar_cfg_warns_of_a_range_fov_beyond_the_usable_range(tmp_path, shippe
                   if text.startswith("cfarFovCfg -1 0 "))
         warning = [ln for ln in proc.stderr.splitlines() if "cfarFovCfg" in ln]
         assert warning == [f"radar-cfg: warning: {path}:{at}: cfarFovCfg range maximum {maximum:g} m reaches beyond "
-                           f"the usable range, {usable:.2f} m (beat frequencies up to 80 % of the IF band): detection "
+                           f"the usable range, {usable:.2f} m (beat frequencies up to 80 % of the IF band{less}): detection "
                            f"is capped there, since the IF filter's roll-off and the TX-to-RX leakage lie beyond; "
                            f"set the maximum to {usable:.2f} m or less"], proc.stderr
         assert math.isclose(FrameProcessor(cfg).detection_range_m[1], usable)
@@ -85,6 +88,25 @@ def test_radar_cfg_warns_of_a_range_fov_beyond_the_usable_range(tmp_path, shippe
         proc = _radar_cfg(path)
         assert proc.returncode == 0 and "cfarFovCfg" not in proc.stderr, proc.stderr
     assert FrameProcessor(with_range_fov(shipped_cfg, 10.0)).detection_range_m[1] == pytest.approx(with_line)
+
+
+@pytest.mark.parametrize("bias, words", [(9.5, "taken 9.5 m shorter"), (-2, "taken 2 m longer")])
+def test_a_range_bias_of_metres_is_warned_of_at_its_line(tmp_path, shipped_cfg, caplog, bias, words):
+    """A board's range bias is centimetres: 9.5 m left the frames without a point and nothing
+    said why but the range window's warning (radar-cfg's alone)."""
+    line = load_board("uncalibrated").calibration()
+    path = tmp_path / "bias.cfg"
+    shipped_cfg.replace(dataclasses.replace(line, range_bias_m=bias).to_command()).write(path)
+    caplog.clear()
+    RadarConfig.from_file(path)
+    at = _cfg_line(path, "compRangeBiasAndRxChanPhase")
+    warned = [r.getMessage() for r in caplog.records if "rangeBias" in r.getMessage()]
+    assert warned == [f"{path}:{at}: compRangeBiasAndRxChanPhase: rangeBias {bias:g} m, where a board's is a few "
+                      f"centimetres: every range is {words} and the usable range moves with it; is it the "
+                      "board's? radar-calibrate measures it"], caplog.text
+    caplog.clear()
+    shipped_cfg.replace(line.to_command())  # the uncalibrated board's own: a few centimetres
+    assert "rangeBias" not in caplog.text
 
 
 def _cfg_line(path, prefix: str) -> int:
