@@ -489,6 +489,9 @@ def test_a_saved_view_that_could_not_be_written_fails_the_run(tmp_path):
     # One line: not Rerun's own ANSI-coloured ERROR lines from its file writer (and at exit) too.
     lines = proc.stderr.splitlines()
     assert lines[-1].startswith(f"radar-capture: error: --view save:{rrd}: the file is incomplete"), lines
+    # Rerun's words as Rerun's, without a Python exception's name ("the view did not close cleanly:
+    # RuntimeError: File-writer thread shut down prematurely").
+    assert "(Rerun failed as the view closed: " in summary[0] and "Error:" not in proc.stdout + proc.stderr, summary
     # (A slow run's status lines, "frames 9 ... incomplete 0 ...", are not messages.)
     said = [ln for ln in lines[:-1] if not ln.startswith("frames ")]
     assert "\x1b" not in proc.stderr and not any("incomplete" in ln or "close" in ln for ln in said), lines

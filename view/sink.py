@@ -168,7 +168,8 @@ class Drawing:
             self.scene.close()
         except Exception as exc:  # noqa: BLE001 (what the radar recorded matters more than the view)
             self.close_error = exc
-            said = f"the view did not close cleanly: {type(exc).__name__}: {exc}" if lost is None else lost(exc)
+            said = (f"Rerun failed as the view closed: {exc or type(exc).__name__}" if lost is None
+                    else lost(exc))
             if self.failure is None:  # (a file's writer that failed, a full disk, says so only here)
                 self.failure = said  # said by the view's summary (and a saved file's error): once
                 log.debug("%s", said)
