@@ -86,3 +86,16 @@ def test_a_closed_pipe_still_ends_quietly(tum):
 def test_a_program_that_prints_normally_is_unchanged(tum):
     proc = _run(console_command("radar-eval") + [str(tum), str(tum)], subprocess.PIPE)
     assert proc.returncode == 0 and proc.stderr == "" and "yaw" in proc.stdout.lower()
+
+
+@pytest.mark.parametrize("stderr", ["closed", "full"])
+def test_an_error_that_cannot_be_said_still_gets_its_exit_code(tmp_path, stderr):
+    """stderr closed (2>&-) or on a full disk (2>/dev/full): a bad cfg's error is lost, but the exit
+    code is still the bad input's 2 (a full stderr gave 1, a traceback's), and nothing goes to
+    stdout (a closed stderr's error was printed there: print(file=None) writes to stdout)."""
+    bad = tmp_path / "bad.cfg"
+    bad.write_text("bogus 1 2\n")
+    redirect = "2>&-" if stderr == "closed" else "2>/dev/full"
+    proc = subprocess.run(["sh", "-c", f'exec "$@" {redirect}', "sh", *console_command("radar-cfg"), str(bad)],
+                          stdout=subprocess.PIPE, text=True, timeout=120)
+    assert (proc.returncode, proc.stdout) == (2, "")

@@ -14,6 +14,7 @@ import contextlib
 import functools
 import logging
 import math
+import os
 import re
 import signal
 import sys
@@ -208,6 +209,30 @@ def _refuse_empty_values(parser: argparse.ArgumentParser, args: argparse.Namespa
             parser.error(f"argument {name}: empty value (an unset shell variable?)")
 
 
+def _say(text: str) -> None:
+    """One line on stderr; one that cannot be written (2>/dev/full) is lost, and the exit code
+    still says what happened (it was 1 for every failure, a traceback's)."""
+    try:
+        print(text, file=sys.stderr)
+    except OSError:
+        pass
+
+
+@contextlib.contextmanager
+def _stderr_for_the_run() -> Iterator[None]:
+    """A program started with stderr closed (2>&-: Python's ``sys.stderr`` is None) says nothing:
+    ``print(file=None)`` would put its messages on stdout, among what the program prints there."""
+    if sys.stderr is not None:
+        yield
+        return
+    with open(os.devnull, "w") as nowhere:
+        sys.stderr = nowhere
+        try:
+            yield
+        finally:
+            sys.stderr = None
+
+
 def run(
     main: Callable[[argparse.Namespace], int | None],
     parser: argparse.ArgumentParser,
@@ -216,11 +241,11 @@ def run(
     handler: logging.Handler | None = None,
 ) -> int:
     """Parse *argv*, run *main*, and turn what it raises into an exit code."""
-    with watched_stdout():
+    with _stderr_for_the_run(), watched_stdout():
         try:
             return _run(main, parser, argv, handler)
         except StdoutFailed as failed:  # what is printed goes to a full disk: said, not a bug
-            print(stdout_failure(parser.prog, failed), file=sys.stderr)
+            _say(stdout_failure(parser.prog, failed))
             return 1
 
 
@@ -246,31 +271,31 @@ def _run(main: Callable[[argparse.Namespace], int | None], parser: argparse.Argu
     except StdoutFailed:
         raise
     except _Terminated as exc:  # a service manager's stop: what Ctrl-C does (the radar stopped), then 143
-        print(f"{prog}: terminated", file=sys.stderr)
+        _say(f"{prog}: terminated")
         _print_notes(prog, exc)
         return 128 + signal.SIGTERM
     except RadarodomError as exc:
         if handler is not None:
             handler.flush()
-        print(f"{prog}: error: {one_line(str(exc))}", file=sys.stderr)
+        _say(f"{prog}: error: {one_line(str(exc))}")
         _print_notes(prog, exc)
         if verbose:
             traceback.print_exc()
         return exc.exit_code
     except KeyboardInterrupt as exc:
-        print(f"{prog}: interrupted", file=sys.stderr)
+        _say(f"{prog}: interrupted")
         _print_notes(prog, exc)
         return 130
     except BrokenPipeError:
         return 1
     except Exception as exc:
         if _interrupted(exc):  # a Ctrl-C that Python wrapped (raised in a class being made)
-            print(f"{prog}: interrupted", file=sys.stderr)
+            _say(f"{prog}: interrupted")
             _print_notes(prog, exc)
             return 130
         # A bug: say so in one line, details on request.
-        print(f"{prog}: internal error: {type(exc).__name__}: {one_line(str(exc))}"
-              + ("" if verbose else " (run with --verbose for the traceback)"), file=sys.stderr)
+        _say(f"{prog}: internal error: {type(exc).__name__}: {one_line(str(exc))}"
+             + ("" if verbose else " (run with --verbose for the traceback)"))
         _print_notes(prog, exc)
         if verbose:
             traceback.print_exc()
@@ -346,7 +371,7 @@ def on_stop_signals(handler: Callable[[int, Any], None]) -> Iterator[None]:
 def _print_notes(prog: str, exc: BaseException) -> None:
     """What failed after *exc* (closing the outputs: errors.add_note), a warning line each."""
     for note in getattr(exc, "__notes__", ()):
-        print(f"{prog}: warning: {one_line(str(note))}", file=sys.stderr)
+        _say(f"{prog}: warning: {one_line(str(note))}")
 
 
 def run_with_status(
@@ -356,5 +381,6 @@ def run_with_status(
 ) -> int:
     """:func:`run` for programs with a live status line on stderr; log records
     erase the line before they print."""
-    status = StatusLine(sys.stderr)
-    return run(lambda args: main(args, status), parser, argv, handler=StatusAwareHandler(status))
+    with _stderr_for_the_run():
+        status = StatusLine(sys.stderr)
+        return run(lambda args: main(args, status), parser, argv, handler=StatusAwareHandler(status))
