@@ -309,6 +309,10 @@ def _open_failure(options: ZenohOptions, reason: str) -> str:
         text += " (is the Zenoh router running? Without a router use --mode peer)"
     elif "already in use" in reason:
         text += " (another program listens there: choose another --listen)"
+    elif "TLS" in reason:  # tls/ and quic/ endpoints
+        text += (" (tls/ and quic/ endpoints need TLS certificates, given in a Zenoh config file "
+                 "(--zenoh-config) under transport/link/tls: listen_certificate and listen_private_key "
+                 "to listen, root_ca_certificate to connect; or use tcp/)")
     return text
 
 

@@ -593,6 +593,18 @@ def test_an_endpoint_protocol_zenoh_does_not_have_is_a_usage_error_naming_where(
     assert str(info.value).startswith(f"zenoh config {config}: Zenoh has no 'tcpx' protocol (")
 
 
+@pytest.mark.parametrize("protocol", ["tls", "quic"])
+def test_a_tls_endpoint_without_certificates_says_where_they_go(protocol):
+    """Zenoh's own words ("Missing TLS private key") named no fix."""
+    endpoint = f"{protocol}/{free_endpoint().split('/', 1)[1]}"
+    with pytest.raises(PublishError) as info:
+        open_session(ZenohOptions(listen=[endpoint], connect=[]))
+    assert "TLS private key" in str(info.value) and str(info.value).endswith(
+        "(tls/ and quic/ endpoints need TLS certificates, given in a Zenoh config file (--zenoh-config) under "
+        "transport/link/tls: listen_certificate and listen_private_key to listen, root_ca_certificate to "
+        "connect; or use tcp/)"), str(info.value)
+
+
 def test_the_odometry_topic_is_never_another_radarodom_topic(tmp_path):
     # Before any session or file opens: the odometry on /tf would be TF messages of another type.
     pytest.importorskip("rosbags.typesys")
