@@ -8,8 +8,10 @@ and read back, bit for bit, by the programs that come after it.
 
 The file's name carries a digest of :mod:`.cfar_pfa`'s source and of scipy's version: a change to
 either starts a new file. Where: ``$RADARODOM_CACHE_DIR``, else ``$XDG_CACHE_HOME/radarodom``,
-else ``~/.cache/radarodom``. A directory that cannot be read or written, or a damaged file, only
-means solving again (said at debug level); deleting the files is always safe.
+else ``~/.cache/radarodom``. A directory that cannot be read or written, or a damaged file (not
+JSON, too large or deep, a scale that is no finite number above 0, a pipe or a directory in its
+place), only means solving again (said at debug level; the file is then written anew); deleting
+the files is always safe.
 """
 
 from __future__ import annotations
@@ -18,14 +20,20 @@ import functools
 import hashlib
 import json
 import logging
+import math
 import numbers
 import os
+import stat
 from importlib import metadata
 from typing import Callable
 
+from .. import strict_json
 from ..whole_files import write_text_atomically
 
 log = logging.getLogger(__name__)
+
+#: The largest kept-scales file read, bytes (a program's few dozen scales take a few kB).
+MAX_FILE_BYTES = 1 << 20
 
 
 def cache_dir() -> str:
@@ -57,13 +65,27 @@ def kept_path() -> str:
 
 
 def _read(path: str) -> dict[str, float]:
+    """The scales in *path*; none when it is missing or damaged (a scale that is no finite number
+    above 0, a file too deep or too large, or no regular file: a pipe there must not hang)."""
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-        return {str(k): float(v) for k, v in data.items()}
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
         return {}
-    except (OSError, ValueError, TypeError, AttributeError) as exc:
+    except OSError as exc:
+        log.debug("kept CFAR scales in %s not read (%s): solving them again", path, exc)
+        return {}
+    try:
+        with os.fdopen(fd, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise ValueError("not a regular file")
+            data = strict_json.loads(fh.read(MAX_FILE_BYTES + 1), max_bytes=MAX_FILE_BYTES)
+        if not isinstance(data, dict):
+            raise ValueError("not a JSON object")
+        for key, value in data.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+                raise ValueError(f"{key}: {value!r} is no scale (a finite number above 0)")
+        return {key: float(value) for key, value in data.items()}
+    except (OSError, ValueError) as exc:
         log.debug("kept CFAR scales in %s not read (%s): solving them again", path, exc)
         return {}
 

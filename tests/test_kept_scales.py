@@ -69,6 +69,31 @@ def test_a_damaged_or_unwritable_cache_only_means_solving_again(tmp_path):
     assert not [p for p in tmp_path.rglob(".cfar-scales-*")]  # no temporary file left
 
 
+@pytest.mark.parametrize("text", [
+    "[" * 200_000 + "]" * 200_000,  # was "internal error: RecursionError" in every program with a DSP
+    '{"k": NaN}', '{"k": Infinity}', '{"k": 1e400}',  # were used: no point in any frame
+    '{"k": -5.0}', '{"k": 0}',  # were used: every cell a point
+    '{"k": "7"}', '{"k": true}', '{"k": [7]}', "[7]", '{"k": 7, "k": 8}',
+])
+def test_a_file_of_impossible_scales_is_not_read(tmp_path, text):
+    path = tmp_path / "kept.json"
+    path.write_text(text)
+    assert kept_scales._read(str(path)) == {}
+
+
+def test_only_a_regular_file_is_read(tmp_path):
+    """A pipe where the file goes hung every program that builds a DSP (its open waited for a writer)."""
+    path = tmp_path / "kept.json"
+    os.mkfifo(path)
+    assert kept_scales._read(str(path)) == {}
+    path.unlink()
+    path.mkdir()
+    assert kept_scales._read(str(path)) == {}
+    path.rmdir()
+    path.write_text('{"summed_scale(\'os\', 8)": 12.5, "noise_factor(\'ca\')": 1}')
+    assert kept_scales._read(str(path)) == {"summed_scale('os', 8)": 12.5, "noise_factor('ca')": 1.0}
+
+
 def test_where_the_cache_is(monkeypatch, tmp_path):
     monkeypatch.delenv("RADARODOM_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
