@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 
 from ..cfg import RadarConfig
+from ..cfg_text import CfgLine
 from ..errors import ConfigError
 from .config import DspConfig
 
@@ -20,7 +21,8 @@ FOV_MIN, FOV_MAX = "min (meters or m/s)", "max (meters or m/s)"
 def detection_range(cfg: RadarConfig, params: DspConfig, range_bias_m: float) -> tuple[float, float]:
     """(shortest, longest) range of a detection, m (see FrameProcessor.detection_range_m);
     :class:`ConfigError` where the two meet, naming what set them."""
-    fov = cfg.cfar_fov.get(0)
+    fov_line = cfg.cfar_fov_line(0)
+    fov = None if fov_line is None else fov_line.value
     lo = params.min_range_m if fov is None else max(params.min_range_m, fov.min_value)
     # The IF band's limit is on the beat frequency, before the range bias comes off.
     usable = cfg.max_range_m - range_bias_m
@@ -34,11 +36,11 @@ def detection_range(cfg: RadarConfig, params: DspConfig, range_bias_m: float) ->
     else:
         hi = usable
     if hi <= lo:
-        raise _nothing_left(cfg, params, lo, hi, usable, range_bias_m)
+        raise _nothing_left(cfg, fov_line, params, lo, hi, usable, range_bias_m)
     return lo, hi
 
 
-def _nothing_left(cfg: RadarConfig, params: DspConfig, lo: float, hi: float, usable: float,
+def _nothing_left(cfg: RadarConfig, fov_line: CfgLine | None, params: DspConfig, lo: float, hi: float, usable: float,
                   range_bias_m: float) -> ConfigError:
     """The error of a closed window, located at what closed it: the DSP's own limit, the cfg's
     range window, its range bias, or its profile's range."""
@@ -46,7 +48,6 @@ def _nothing_left(cfg: RadarConfig, params: DspConfig, lo: float, hi: float, usa
     if params.max_range_m is not None:
         return ConfigError(f"{window} (DspConfig min_range_m {params.min_range_m:g} m and max_range_m "
                            f"{params.max_range_m:g} m, and the cfg's range window)", field="max_range_m")
-    fov_line = cfg.cfar_fov_line(0)
     if fov_line is not None:
         fov = fov_line.value
         if lo == fov.min_value > params.min_range_m:
