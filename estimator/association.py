@@ -47,6 +47,17 @@ def check_increasing(traj: TumTrajectory) -> None:
                               f"pose's {time_text(traj.times[i - 1], 9)} s; timestamps must increase")
 
 
+def check_finite(traj: TumTrajectory) -> None:
+    """:class:`EvaluationError` naming the first pose with a NaN or inf: read_tum refuses them, but
+    a trajectory built in Python made every figure NaN (a NaN time its pose left out unsaid)."""
+    bad = ~(np.isfinite(traj.times) & np.isfinite(traj.positions).all(axis=1)
+            & np.isfinite(traj.quaternions).all(axis=1))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise EvaluationError(f"{traj.where(i)}: pose {i} (t {traj.times[i]:g} s) holds NaN or inf; a pose's "
+                              "time, position and orientation must be finite numbers")
+
+
 def check_trajectory(name: str, traj) -> None:
     """:class:`EvaluationError` unless *traj* is a trajectory (a path is read by ``read_tum``)."""
     if not isinstance(traj, TumTrajectory):
@@ -71,6 +82,7 @@ def associate(est: TumTrajectory, ref: TumTrajectory, max_diff: float = 0.01
     for name, traj in (("est", est), ("ref", ref)):
         check_trajectory(name, traj)
     for traj in (est, ref):
+        check_finite(traj)
         check_increasing(traj)
         if len(traj) < 2:
             raise EvaluationError(f"{traj.source or '<trajectory>'} holds "

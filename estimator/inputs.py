@@ -49,8 +49,9 @@ def check_points(points, fields: tuple[str, ...] = POINT_FIELDS) -> None:
 
 
 def check_heatmap(heatmap) -> None:
-    """:class:`UsageError` unless *heatmap* has a non-empty (n_range, n_azimuth) intensity on its axes
-    (1-D arrays of numbers), and its other cell arrays the intensity's shape."""
+    """:class:`UsageError` unless *heatmap* has a (n_range, n_azimuth) intensity of real numbers on
+    its axes (1-D arrays of at least 2 increasing finite numbers), and its other cell arrays the
+    intensity's shape, of real numbers too."""
     try:
         shape = np.shape(heatmap.intensity)
         axes = (len(heatmap.range_m), len(heatmap.azimuth_rad))
@@ -66,11 +67,20 @@ def check_heatmap(heatmap) -> None:
             raise UsageError(f"heatmap: {name} must be a (n,) numpy array of numbers, got {got}")
         if not np.isfinite(axis).all():
             raise UsageError(f"heatmap: {name} holds NaN or inf; its axes must be finite")
-    for name in ("static", "doppler_mps", "elevation_rad"):
+    for name in ("intensity", "static", "doppler_mps", "elevation_rad"):
         cells = getattr(heatmap, name, None)
-        if cells is not None and np.shape(cells) != shape:
+        if cells is None:
+            continue
+        if np.shape(cells) != shape:
             raise UsageError(f"heatmap: {name} {np.shape(cells)} must be the intensity's shape, (range bins, "
                              f"azimuth bins) = {shape}")
+        if np.asarray(cells).dtype.kind not in "fiu":
+            raise UsageError(f"heatmap: {name} must hold real numbers, got {np.asarray(cells).dtype}")
+    for name in ("range_m", "azimuth_rad"):  # the log-polar resampling divides by each one's span
+        axis = getattr(heatmap, name)
+        if len(axis) < 2 or not (np.diff(axis) > 0).all():
+            raise UsageError(f"heatmap: {name} must hold at least 2 bins, increasing (" + (
+                f"{len(axis)} given)" if len(axis) < 2 else f"{axis[0]:g} .. {axis[-1]:g} given, not increasing)"))
 
 
 def finite_points(points: np.ndarray, fields: tuple[str, ...] = POINT_FIELDS) -> np.ndarray:

@@ -125,7 +125,8 @@ class Pipeline:
         self._result_sinks: list[Sink] = []
         try:
             given = [sinks] if _is_sink(sinks) else _sink_list(sinks)
-            self.sinks = [s for s in given if _is_sink(s)]  # closed below if the rest fails
+            # Closed below if the rest fails, each once (a sink given twice is refused).
+            self.sinks = list({id(s): s for s in given if _is_sink(s)}.values())
             self._raw_sinks = [s for s in self.sinks if s.takes_raw]
             self._result_sinks = [s for s in self.sinks if not s.takes_raw]
             _check_sinks(sinks, given)
@@ -178,6 +179,8 @@ class Pipeline:
     def process(self, frame: Frame) -> FrameResult:
         """The frame, given to the sinks that take raw frames; its products and odometry, given
         to every other sink."""
+        if not isinstance(frame, Frame):
+            raise UsageError(f"frame: a source's Frame (radarodom.driver.sources.Frame), got {type(frame).__name__}")
         for sink in self._raw_sinks:
             sink.write_raw(frame, self.stats)
         if self.products is None:
@@ -284,7 +287,7 @@ def _is_sink(obj) -> bool:
     """Whether *obj* does what the pipeline asks of a sink: :class:`Sink`'s attributes and the
     methods its :attr:`~Sink.takes_raw` calls for (a sink need not subclass it: the recorders in
     driver/ do not)."""
-    if not hasattr(obj, "takes_raw") or not callable(getattr(obj, "close", None)):
+    if isinstance(obj, type) or not hasattr(obj, "takes_raw") or not callable(getattr(obj, "close", None)):
         return False
     return callable(getattr(obj, "write_raw" if obj.takes_raw else "write", None))
 
@@ -311,10 +314,20 @@ def _check_sinks(sinks, given: list) -> None:
     if _is_sink(sinks):
         raise UsageError(f"sinks: a list of Sinks, got one {type(sinks).__name__} (sinks=[...] gives a list)")
     for i, sink in enumerate(given):
+        if isinstance(sink, type):  # its methods are there, unbound: the first frame's write failed
+            raise UsageError(f"sinks[{i}]: a Sink, got the class {sink.__name__} itself; make one: "
+                             f"{sink.__name__}(path)")
         if not _is_sink(sink):
             hint = " (a sink is made from a path: TumSink(path), PointsCsvSink(path), ...)" \
                 if isinstance(sink, (str, os.PathLike)) else ""
             raise UsageError(f"sinks[{i}]: a Sink, got {type(sink).__name__} {quoted(sink)}{hint}")
+        method = "write_raw" if sink.takes_raw else "write"
+        if getattr(type(sink), method, None) is getattr(Sink, method):
+            raise UsageError(f"sinks[{i}]: {type(sink).__name__} subclasses Sink but has no {method} of its own")
+        first = next(j for j, other in enumerate(given) if other is sink)
+        if first != i:
+            raise UsageError(f"sinks[{i}] is sinks[{first}], {type(sink).__name__}: a sink given twice writes "
+                             "each result twice")
 
 
 def _checked_limits(max_frames, max_duration_s) -> tuple[int | None, float | None]:

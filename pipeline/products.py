@@ -21,7 +21,7 @@ from ..dsp.config import DspConfig
 from ..dsp.heatmap import HeatmapMaker
 from ..dsp.processor import FrameProcessor, heatmap_range_bins
 from ..dsp.static_heatmap import StaticHeatmapMaker
-from ..errors import CaptureError, ConfigError
+from ..errors import CaptureError, ConfigError, UsageError
 from ..estimator.config import FeatureConfig
 from ..products import Products, RangeAzimuth
 
@@ -61,11 +61,18 @@ class FrameProducts:
         """Products for an estimator whose features are *features*: the Doppler of its
         ``doppler_cells`` strongest cells (``FeatureConfig.doppler_cells``), enough for its
         dynamic-object rejection and much cheaper than the full map's."""
+        if not isinstance(features, FeatureConfig):
+            hint = " (EstimatorConfig's .features)" if hasattr(features, "features") else ""
+            raise UsageError(f"features: a FeatureConfig{hint}, got {type(features).__name__}")
         return cls(config, dsp, doppler_cells=features.doppler_cells, coupling=coupling, calibrated=calibrated)
 
     def __call__(self, frame: Frame, *, heatmap: bool = True) -> Products:
         """The products of *frame*.  The DSP's heatmap is made only when *heatmap* is true (it
         is the costly half of a velocity-only frame)."""
+        if not isinstance(frame, Frame):
+            raise UsageError(f"frame: a source's Frame (radarodom.driver.sources.Frame), got {type(frame).__name__}"
+                             + (": the products are made of the frame, not its cube"
+                                if isinstance(frame, np.ndarray) else ""))
         result = None
         self._spectrum = None
         if frame.raw is not None:

@@ -23,7 +23,7 @@ from radarodom.estimator.config import EstimatorConfig, FeatureConfig, IcpConfig
 from radarodom.estimator.evaluation import evaluate
 from radarodom.estimator.odometry import RadarOdometry
 from radarodom.estimator.velocity import VelocityEstimate
-from radarodom.pipeline import HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, Sink, TumSink
+from radarodom.pipeline import FrameProducts, HeatmapSink, LatencyMeter, Pipeline, PointsCsvSink, Sink, TumSink
 from radarodom.pipeline.sinks import OdometryJsonSink
 from radarodom.products import POINT_DTYPE, RangeAzimuth
 from radarodom.tum import TumTrajectory, TumWriter
@@ -171,11 +171,37 @@ def test_a_cfg_path_given_for_the_cfg_says_how_to_read_it():
     (dict(sinks=["odom.tum"]), "sinks[0]: a Sink, got str 'odom.tum' (a sink is made from a path: TumSink(path)"),
     (dict(sinks=[None]), "sinks[0]: a Sink, got NoneType None"),
     (dict(sinks=5), "sinks: a list of Sinks, got int"),
+    # Each once ended at the first frame: TypeError: TumSink.write() missing 1 required positional argument.
+    (dict(sinks=[TumSink]), "sinks[0]: a Sink, got the class TumSink itself; make one: TumSink(path)"),
+    # A bare NotImplementedError at the first frame.
+    (dict(sinks=[type("Mute", (Sink,), {})()]), "sinks[0]: Mute subclasses Sink but has no write of its own"),
 ])
 def test_wrong_pipeline_arguments_are_usage_errors_naming_them(kwargs, words):
     with pytest.raises(UsageError) as info:
         Pipeline.from_url(SIM, estimator=kwargs.pop("estimator", EstimatorConfig()), **kwargs)
     assert words in str(info.value), str(info.value)
+
+
+def test_a_sink_given_twice_is_refused_and_its_file_taken_back(tmp_path):
+    """Accepted, every pose was written twice: a TUM file radar-eval then refused (time not after
+    the previous pose's)."""
+    sink = TumSink(tmp_path / "odom.tum")
+    with pytest.raises(UsageError, match=r"sinks\[1\] is sinks\[0\], TumSink: a sink given twice writes each result "):
+        Pipeline.from_url(SIM, estimator=EstimatorConfig(), sinks=[sink, sink])
+    assert not (tmp_path / "odom.tum").exists()
+
+
+@pytest.mark.parametrize("frame", [None, np.zeros((2, 3), np.complex64)])
+def test_what_is_no_frame_is_refused_by_the_products_and_the_pipeline(shipped_cfg, frame):
+    products = FrameProducts.for_estimator(shipped_cfg, EstimatorConfig().features)
+    with pytest.raises(UsageError, match="frame: a source's Frame .* got (NoneType|ndarray)"):
+        products(frame)
+    with Pipeline.from_url(SIM, estimator=EstimatorConfig()) as pipe, \
+            pytest.raises(UsageError, match="frame: a source's Frame"):
+        pipe.process(frame)
+    with pytest.raises(UsageError, match=r"features: a FeatureConfig \(EstimatorConfig's .features\), got "
+                                         "EstimatorConfig"):
+        FrameProducts.for_estimator(shipped_cfg, EstimatorConfig())
 
 
 def test_a_url_given_as_the_source_points_to_from_url():
@@ -343,6 +369,26 @@ def test_nan_or_inf_where_a_measurement_goes_is_none_said_once(caplog):
     assert len(said) == 2 * len(frames)  # the points and the heatmap each frame, at debug after the first
 
 
+@pytest.mark.parametrize("change, words", [
+    # Each ended deep in the log-polar resampling: ZeroDivisionError, IndexError, numpy's TypeError.
+    (dict(azimuth_rad=np.zeros(3)), "heatmap: azimuth_rad must hold at least 2 bins, increasing (0 .. 0 given"),
+    (dict(range_m=np.full(4, 2.0)), "heatmap: range_m must hold at least 2 bins, increasing (2 .. 2 given"),
+    (dict(range_m=np.arange(4.0)[::-1].copy()), "range_m must hold at least 2 bins, increasing (3 .. 0 given"),
+    (dict(intensity=np.ones((1, 1)), static=np.ones((1, 1)), doppler_mps=np.zeros((1, 1)), range_m=np.ones(1),
+          azimuth_rad=np.zeros(1)), "heatmap: range_m must hold at least 2 bins, increasing (1 given)"),
+    (dict(intensity=np.ones((4, 3)).astype(object)), "heatmap: intensity must hold real numbers, got object"),
+    (dict(intensity=np.ones((4, 3), complex)), "heatmap: intensity must hold real numbers, got complex128"),
+    (dict(elevation_rad=np.full((4, 3), "up")), "heatmap: elevation_rad must hold real numbers, got <U2"),
+])
+def test_a_heatmap_the_resampling_cannot_read_is_refused(change, words):
+    cells = dict(intensity=np.ones((4, 3)), static=np.ones((4, 3)), doppler_mps=np.zeros((4, 3)),
+                 range_m=np.arange(1.0, 5.0), azimuth_rad=np.linspace(-0.5, 0.5, 3))
+    cells.update(change)
+    with pytest.raises(UsageError) as info:
+        RadarOdometry().add_heatmap(0.1, RangeAzimuth(**cells))
+    assert words in str(info.value), str(info.value)
+
+
 def test_a_heatmap_axis_with_nan_is_refused():
     hm = RangeAzimuth(np.ones((4, 3)), np.ones((4, 3)), np.zeros((4, 3)), np.array([1.0, 2.0, np.nan, 4.0]),
                       np.zeros(3))
@@ -360,6 +406,18 @@ def test_evaluation_takes_trajectories_and_says_how_to_read_a_file():
     for kwargs in ({"delta_m": "1"}, {"max_diff": None}):
         with pytest.raises(EvaluationError, match="must be a"):
             evaluate(_line(), _line(), **kwargs)
+
+
+@pytest.mark.parametrize("column, value", [("times", math.nan), ("positions", math.nan), ("positions", math.inf),
+                                           ("quaternions", math.nan)])
+def test_a_trajectory_built_with_nan_or_inf_is_refused_by_the_evaluation(column, value):
+    """Every ATE figure came out NaN (the alignment poisoned), and a NaN time dropped its pose."""
+    line = _line(5)
+    getattr(line, column)[2] = value
+    with pytest.raises(EvaluationError, match=r"<trajectory>: pose 2 \(t .* s\) holds NaN or inf"):
+        evaluate(line, _line(5))
+    with pytest.raises(EvaluationError, match="pose 2"):
+        evaluate(_line(5), line)
 
 
 def test_a_trajectorys_poses_and_the_quaternion_helpers_name_a_wrong_index_or_shape():
