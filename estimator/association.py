@@ -47,6 +47,10 @@ def check_increasing(traj: TumTrajectory) -> None:
                               f"pose's {time_text(traj.times[i - 1], 9)} s; timestamps must increase")
 
 
+#: The least share of the shorter trajectory's time span the matched poses are expected to cover.
+PARTLY = 0.8
+
+
 def check_finite(traj: TumTrajectory) -> None:
     """:class:`EvaluationError` naming the first pose with a NaN or inf: read_tum refuses them, but
     a trajectory built in Python made every figure NaN (a NaN time its pose left out unsaid)."""
@@ -114,5 +118,10 @@ def associate(est: TumTrajectory, ref: TumTrajectory, max_diff: float = 0.01
             f"{max_diff:g} s; at least 2 are needed ({_unit_hint(est, ref) or 'same clock? --max-diff?'})")
     if len(idx_short) < len(short):
         log.info("%d of %d poses of %s matched", len(idx_short), len(short), short.source or "the shorter trajectory")
+    matched_s = ts[idx_short[-1]] - ts[idx_short[0]]
+    if matched_s < PARTLY * min(est.times[-1] - est.times[0], ref.times[-1] - ref.times[0]):
+        # Each covers a stretch the other does not: another run's truth, or a clock offset.
+        log.warning("the poses matched span %.3g s, less than %d %% of %s and %s: the two overlap in time only "
+                    "in part (same run, same clock?)", matched_s, round(PARTLY * 100), _span(est), _span(ref))
     pair = (short.take(idx_short), long_.take(idx_long))
     return pair if est_short else (pair[1], pair[0])

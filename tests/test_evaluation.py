@@ -4,6 +4,8 @@ numbers checked against evo on the same files."""
 
 from __future__ import annotations
 
+import logging
+
 import json
 import math
 
@@ -295,6 +297,22 @@ def test_associate_refuses_trajectories_that_do_not_overlap_in_time():
         associate(traj([], np.zeros((0, 3)), "empty.tum"), traj(t, ref, "gt.tum"))
     with pytest.raises(EvaluationError, match=r"^gt\.tum holds 1 pose: at least 2 are needed$"):
         associate(traj(t, est, "est.tum"), traj(t[:1], ref[:1], "gt.tum"))
+
+
+def test_trajectories_that_overlap_in_time_only_in_part_are_warned_of(caplog):
+    """A truth 2 s off (another run's, another clock's): half of each matched and the figures were
+    printed without a word."""
+    t, ref, est = drive(40)
+    with caplog.at_level(logging.WARNING, logger="radarodom"):
+        e, _ = associate(traj(t, est, "est.tum"), traj(t + 2.0, ref, "gt.tum"))
+    assert len(e) == 20
+    assert [r.getMessage() for r in caplog.records] == [
+        "the poses matched span 1.9 s, less than 80 % of est.tum (40 poses, t 1000.000 .. 1003.900 s) and gt.tum "
+        "(40 poses, t 1002.000 .. 1005.900 s): the two overlap in time only in part (same run, same clock?)"]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="radarodom"):  # an estimate of a part of the truth's run
+        associate(traj(t[10:30], est[10:30], "est.tum"), traj(t, ref, "gt.tum"))
+    assert not caplog.records
 
 
 @pytest.mark.parametrize("factor, unit", [(1e9, "nanoseconds"), (1e6, "microseconds"), (1e3, "milliseconds")])
