@@ -265,6 +265,29 @@ SMOKE = {"scenes": ["corridor", "room", "lab"], "seeds": [0], "cfgs": ["shipped"
          "turn_rates": [45.0], "movers": ["scene"], "mounts": [0.0], "straight": 2.0}
 
 
+def _number(low: float | None, what: str, *, whole: bool = False, above: bool = True):
+    """An argparse type: a finite number (a whole one with *whole*) above *low* (at least it
+    without *above*; None: any); argparse names the option before the value it refuses."""
+    def parse(text: str):
+        try:
+            value = int(text) if whole else float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or low is not None and (value <= low if above else value < low):
+            raise argparse.ArgumentTypeError(f"{text!r}: {what}")
+        return value
+    return parse
+
+
+positive_int = _number(0, "a whole number above 0", whole=True)
+
+
+def _run_directory(text: str) -> str:
+    if not os.path.isdir(text):
+        raise argparse.ArgumentTypeError(f"{text!r}: no such directory (a ColoRadar run's)")
+    return text
+
+
 def add_cell_arguments(parser: argparse.ArgumentParser) -> None:
     """The options that select the cells (and --data, where their recordings are), as
     :func:`selected_cells` reads them; bench/matrix_recordings.py takes them too.  The axes' options
@@ -279,16 +302,18 @@ def add_cell_arguments(parser: argparse.ArgumentParser) -> None:
         parser.add_argument(name, default=None, **kw, help=text)
 
     axis("--scenes", nargs="+", choices=sorted(LAYOUT))
-    axis("--seeds", nargs="+", type=int)
+    axis("--seeds", nargs="+", type=_number(0, "a whole number >= 0", whole=True, above=False))
     axis("--cfgs", nargs="+", choices=list(CFGS))
-    axis("--snr", nargs="+", type=float, metavar="DB")
-    axis("--speeds", nargs="+", type=float, metavar="M/S")
-    axis("--turn-rates", nargs="+", type=float, metavar="DEG/S")
+    axis("--snr", nargs="+", type=_number(None, "a finite number of dB"), metavar="DB")
+    axis("--speeds", nargs="+", type=_number(0, "a speed above 0 m/s"), metavar="M/S")
+    axis("--turn-rates", nargs="+", type=_number(0, "a turn rate above 0 deg/s"), metavar="DEG/S")
     axis("--movers", nargs="+", choices=["scene", "none", "people"])
-    axis("--mounts", nargs="+", type=float, metavar="M", help="the radar's lever arm ahead of the rotation axis")
+    axis("--mounts", nargs="+", type=_number(None, "a finite lever arm in m"), metavar="M",
+         help="the radar's lever arm ahead of the rotation axis")
     parser.add_argument("--fidelity", choices=["fast", "exact"], default="fast", help="the simulator's (radar-sim)")
-    axis("--straight", type=float, metavar="M", help="the loop's straights (at most)")
-    parser.add_argument("--coloradar", nargs="+", metavar="RUN_DIR", help="ColoRadar runs as more cells")
+    axis("--straight", type=_number(0, "a length above 0 m"), metavar="M", help="the loop's straights (at most)")
+    parser.add_argument("--coloradar", nargs="+", type=_run_directory, metavar="RUN_DIR",
+                        help="ColoRadar runs as more cells")
     parser.add_argument("--no-sim", action="store_true", help="only the --coloradar cells")
     parser.add_argument("--data", default=os.path.expanduser("~/.cache/radarodom/robustness"))
 

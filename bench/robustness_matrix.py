@@ -55,7 +55,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
-from matrix_cells import (CFGS, LAYOUT, Cell, ColoradarCell, SimCell,  # noqa: E402,F401
+from matrix_cells import (CFGS, LAYOUT, Cell, ColoradarCell, SimCell, positive_int,  # noqa: E402,F401
                           add_cell_arguments, cells, loop_segments, scene_spec, selected_cells)
 
 
@@ -225,9 +225,9 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
     computed (and cached); the recording's ADC samples kept only with *keep_adc*."""
     key_fp = fp if settings is None else fp + json.dumps(settings, sort_keys=True)
     path = os.path.join(data, "results", f"{cell.name}-{cell_key(cell, key_fp)}.json")
-    if os.path.exists(path):
-        with open(path, encoding="utf-8") as fh:
-            return {**json.load(fh), "cached": True}
+    cached = _cached_result(path)
+    if cached is not None:
+        return {**cached, "cached": True}
     from radarodom.estimator.evaluation import associate
     from radarodom.estimator.consistency import odometry_consistency
     from radarodom.cfg import RadarConfig
@@ -249,10 +249,29 @@ def run_cell(cell: Cell, data: str, fp: str, settings: dict | None = None, keep_
                   *states, truth, measured_at_s=RadarConfig.from_file(CFGS[cell.cfg]).measured_at_s)[0]),
               "compute_s": time.monotonic() - started, "fingerprint": fp}
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    with open(path + ".tmp", "w", encoding="utf-8") as fh:
+    tmp = f"{path}.{os.getpid()}.tmp"  # two matrices on one --data each write their own
+    with open(tmp, "w", encoding="utf-8") as fh:
         json.dump(result, fh, indent=1)
-    os.replace(path + ".tmp", path)
+    os.replace(tmp, path)
     return {**result, "cached": False}
+
+
+def _cached_result(path: str) -> dict | None:
+    """The result kept in *path*, None when there is none; a damaged one (a run killed as it wrote,
+    an edit) is said, naming the file, and computed again."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            result = json.load(fh)
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as exc:
+        print(f"{path}: damaged ({exc}): the cell is computed again", file=sys.stderr)
+        return None
+    if not isinstance(result, dict) or not all(isinstance(result.get(k), (int, float))
+                                               for k in ("yaw_rmse_deg", "frames")):
+        print(f"{path}: damaged (no cell's result): the cell is computed again", file=sys.stderr)
+        return None
+    return result
 
 
 # ------------------------------------------------------------------ the matrix
@@ -308,7 +327,7 @@ def table(results: list[dict]) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_cell_arguments(parser)
-    parser.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
+    parser.add_argument("--workers", type=positive_int, default=None, help="local processes (default: the CPU count)")
     parser.add_argument("--cluster", metavar="ADDRESS", help="a Dask distributed scheduler, e.g. tcp://host:8786")
     parser.add_argument("--out", default="robustness-out")
     parser.add_argument("--estimator-config", metavar="FILE.json",
@@ -324,8 +343,16 @@ def main(argv=None) -> int:
     started = time.monotonic()
     settings = None
     if args.estimator_config:
+        from radarodom.errors import RadarodomError
         from radarodom.estimator.config import EstimatorConfig
-        settings = EstimatorConfig.load(args.estimator_config).to_dict()
+        try:
+            settings = EstimatorConfig.load(args.estimator_config).to_dict()
+        except RadarodomError as exc:
+            parser.error(f"--estimator-config: {exc}")
+    try:  # before the hours of work, not after
+        os.makedirs(args.out, exist_ok=True)
+    except OSError as exc:
+        parser.error(f"--out {args.out}: {exc.strerror or exc}")
     results = run_all(todo, args.data, workers=args.workers, cluster=args.cluster, settings=settings,
                       keep_adc=args.keep_adc)
     header = (f"{len(results)} cells ({sum(r['cached'] for r in results)} from the cache); "
@@ -333,7 +360,6 @@ def main(argv=None) -> int:
               f"{time.strftime('%Y-%m-%d')}; {time.monotonic() - started:.0f} s.\n\n")
     text = header + table(results)
     print(text)
-    os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "robustness.md"), "w", encoding="utf-8") as fh:
         fh.write(text)
     with open(os.path.join(args.out, "robustness.json"), "w", encoding="utf-8") as fh:

@@ -19,6 +19,7 @@ import math
 import os
 import subprocess
 import sys
+import zipfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,18 +149,33 @@ def cache_path(directory: str, dsp_config: DspConfig | None = None, cfg: RadarCo
     return os.path.join(directory, f"dsp-{_key(dsp_config, cfg)}.npz")
 
 
+def _cached(path: str):
+    """The products kept in *path* (an NpzFile), None when there are none; a damaged file (a run
+    killed as it wrote) is said and made again."""
+    if not os.path.exists(path):
+        return None
+    try:
+        data = np.load(path)
+        data["counts"]  # the index read: a file cut short fails here, not later
+        return data
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+        print(f"{path}: damaged ({type(exc).__name__}: {exc}): the DSP products are made again", file=sys.stderr)
+        return None
+
+
 def load(directory: str, name: str | None = None, *, dsp_config: DspConfig | None = None,
          cfg: RadarConfig | None = None) -> Sequence:
     """The sequence in *directory* through the DSP (*dsp_config*, default settings; the recording
     read with *cfg*, default its own radar.cfg), from its cache, made on first use and again
     whenever what makes it has changed."""
     cache = cache_path(directory, dsp_config, cfg)
-    if not os.path.exists(cache):
+    data = _cached(cache)
+    if data is None:
         data = _process(directory, dsp_config, cfg)
-        tmp = cache + ".tmp.npz"
+        tmp = f"{cache}.{os.getpid()}.tmp.npz"  # two programs on one directory each write their own
         np.savez(tmp, **data)
         os.replace(tmp, cache)
-    data = np.load(cache)
+        data = np.load(cache)
     splits = np.cumsum(data["counts"])[:-1]
     return Sequence(name or os.path.basename(os.path.normpath(directory)), directory, data["times"],
                     np.split(data["points"], splits), data["intensity"], data["doppler"],

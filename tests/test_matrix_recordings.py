@@ -9,6 +9,7 @@ import os
 import shutil
 import sys
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
@@ -155,3 +156,14 @@ def test_earlier_dsp_products_that_differ_keep_every_cells_out(tmp_path, recorde
     assert mr.keep_products([CELL, OTHER], data, workers=1, log=said.append) == 1
     assert said[-1].startswith(f"{CELL.name}: the DSP products' 'doppler' differ from the earlier DSP's")
     assert not os.path.exists(sequences.cache_path(other))
+
+
+def test_damaged_dsp_products_are_said_and_made_again(tmp_path, capsys):
+    """A products file cut short (a run killed as it wrote) was a BadZipFile traceback naming no file."""
+    path = tmp_path / "dsp-x.npz"
+    np.savez(path, counts=np.arange(3), times=np.zeros(3))
+    assert list(sequences._cached(str(path))["counts"]) == [0, 1, 2]
+    path.write_bytes(path.read_bytes()[:100])
+    assert sequences._cached(str(path)) is None
+    assert capsys.readouterr().err.startswith(f"{path}: damaged (BadZipFile: ")
+    assert sequences._cached(str(tmp_path / "none.npz")) is None

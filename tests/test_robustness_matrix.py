@@ -161,6 +161,36 @@ def test_a_coloradar_run_is_a_cell_and_its_result_is_cached(tmp_path):
     assert again["straights"] == 0 and again["straight_rms_deg_per_m"] is None
     older = {k: v for k, v in again.items() if k not in ("straight_rms_deg_per_m", "straight_max_deg_per_m")}
     assert rm.table([older]) == rm.table([again])
+    # A result cut short (a run killed as it wrote): said, naming the file, and computed again (it was
+    # a JSONDecodeError traceback, naming no file, on every rerun until the file was found).
+    [kept] = (tmp_path / "data" / "results").iterdir()
+    kept.write_text(kept.read_text()[:100])
+    anew = rm.run_all([cell], str(tmp_path / "data"), workers=1, log=lambda msg: None)[0]
+    assert not anew["cached"] and anew["yaw_rmse_deg"] == first["yaw_rmse_deg"]
+    assert rm._cached_result(str(kept))["yaw_rmse_deg"] == first["yaw_rmse_deg"]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--workers", "0"], "argument --workers: '0': a whole number above 0"),
+    (["--turn-rates", "0"], "argument --turn-rates: '0': a turn rate above 0 deg/s"),  # a ZeroDivisionError
+    (["--speeds", "nan"], "argument --speeds: 'nan': a speed above 0 m/s"),
+    (["--snr", "1e400"], "argument --snr: '1e400': a finite number of dB"),  # a cell named snrinf
+    (["--seeds", "-3"], "argument --seeds: '-3': a whole number >= 0"),
+    (["--coloradar", "/nonexistent"], "argument --coloradar: '/nonexistent': no such directory"),
+])
+def test_bad_arguments_are_refused_before_any_cell(capsys, args, words):
+    with pytest.raises(SystemExit) as info:
+        rm.main(["--smoke", "--list", *args])
+    assert info.value.code == 2 and words in capsys.readouterr().err
+
+
+def test_an_out_that_cannot_be_written_is_refused_before_any_cell(tmp_path, capsys):
+    """It was a FileExistsError after every cell had run."""
+    (tmp_path / "out").write_text("")
+    with pytest.raises(SystemExit) as info:
+        rm.main(["--smoke", "--scenes", "room", "--out", str(tmp_path / "out"), "--data", str(tmp_path / "data")])
+    assert info.value.code == 2 and f"--out {tmp_path / 'out'}: File exists" in capsys.readouterr().err
+    assert not (tmp_path / "data").exists()
 
 
 def test_a_dask_cluster_runs_the_cells_as_the_local_pool_does(tmp_path):
