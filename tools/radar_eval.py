@@ -126,8 +126,15 @@ def _main(args: argparse.Namespace) -> int:
             measured_at_s=measured_at)
         if covariance is not None:
             table += "\n\n" + format_covariance(covariance[0], odom_log.source, covariance[1], len(odom_log))
-        overflow = (not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
-                    or (covariance is not None and _not_finite_in(covariance[0])))
+        overflow = not all(math.isfinite(v) for v in (result.ref_path_m, result.est_path_m, result.drift_m))
+        if not overflow and covariance is not None and _not_finite_in(covariance[0]):
+            smallest = _smallest_variance(odom_log)
+            if smallest < TINY_VARIANCE:  # the errors overflow divided by it, not the coordinates
+                log.warning("%s: its variances are too small to divide by (the smallest %.3g), so its normalized "
+                            "errors show as inf or nan%s", odom_log.source, smallest,
+                            " and are null in --json" if args.json else "")
+            else:
+                overflow = True
         # (json_text writes standard JSON: an undefined figure becomes null)
         data = {**result.to_dict(), "heading": {**heading.to_dict(), "drift_parts": parts},
                 **({} if covariance is None else {"covariance": covariance[0]})} if args.json else None
@@ -214,6 +221,19 @@ def _on_the_evaluation_clock(flags: plots.OdometryLog, estimate: TumTrajectory, 
         log.info("%s: %d of %d odometry messages fall outside the evaluated poses", flags.source,
                  len(flags) - len(inside), len(flags))
     return inside
+
+
+#: A variance below this (an error divided by its square root overflows a double) is no measure.
+TINY_VARIANCE = 1e-150
+
+
+def _smallest_variance(odom_log) -> float:
+    """The smallest variance above 0 the messages state (their covariances' diagonals)."""
+    diagonals = [np.diagonal(np.asarray(c, float), axis1=-2, axis2=-1).ravel()
+                 for c in (odom_log.pose_covariance, odom_log.twist_covariance) if c is not None]
+    values = np.concatenate(diagonals) if diagonals else np.zeros(0)
+    values = values[np.isfinite(values) & (values > 0)]
+    return float(values.min()) if len(values) else math.nan
 
 
 def _not_finite_in(figures) -> bool:
