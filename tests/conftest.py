@@ -139,6 +139,37 @@ def console_command(name: str) -> list[str]:
 
 
 @pytest.fixture
+def run_main(capsys):
+    """``run_main(name, *args)``: program *name*'s ``main()`` run in this process, its exit code
+    and what it printed as a ``subprocess.CompletedProcess``.  For the runs whose subject is
+    the program's answer (a refusal, a summary), not the process (signals, a terminal, the
+    environment at start-up): a subprocess of each program pays its imports again, about half
+    a second (tests that keep one check the console script itself)."""
+    import importlib
+    import subprocess
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+    def run(name: str, *args) -> subprocess.CompletedProcess:
+        program = importlib.import_module("radarodom.tools." + name.replace("-", "_"))
+        argv = [str(a) for a in args]
+        capsys.readouterr()  # what came before is not this run's
+        # Python's warnings (numpy's RuntimeWarning) on the program's stderr under Python's own
+        # filters, as a subprocess prints them: pytest's would collect them unseen.
+        with warnings.catch_warnings():
+            warnings.resetwarnings()
+            for category in (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning):
+                warnings.simplefilter("ignore", category)
+            warnings.showwarning = show
+            code = program.main(argv)
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess([name, *argv], code, out, err)
+    return run
+
+
+@pytest.fixture
 def default_endpoint(monkeypatch) -> str:
     """The Zenoh publisher's default endpoint moved to a free loopback port for the test, so
     that it meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""

@@ -1,8 +1,9 @@
 """radar-calibrate: the board's line measured from a corner reflector, on simulated boards whose
 true line is known (Board.calibration), and every bad set-up refused with its reason.
 
-The program runs as a user runs it (the console script, in a subprocess) on sim:// scenes
-written here; the library function is checked on more boards than the CLI.
+The program runs on sim:// scenes written here, in-process (its main(), conftest's run_main) where
+its answer is the subject, and as a user runs it (the console script, in a subprocess) end to end;
+the library function is checked on more boards than the CLI.
 """
 
 from __future__ import annotations
@@ -25,9 +26,15 @@ from radarodom.dsp.calibrate import measure
 from radarodom.errors import CalibrationError, ConfigError, UsageError
 
 
-def run(*args, timeout: float = 120) -> subprocess.CompletedProcess:
+def run_script(*args, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run(console_command("radar-calibrate") + [str(a) for a in args], stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture
+def run(run_main):
+    """radar-calibrate in this process (conftest's run_main)."""
+    return lambda *args: run_main("radar-calibrate", *args)
 
 
 def reflector(r: float, azimuth_deg: float = 0.0, *, z: float = 0.4, rcs_dbsm: float = 15.0) -> dict:
@@ -78,7 +85,7 @@ def test_measure_recovers_the_boards_line(board):
         assert abs(result.calibration.range_bias_m) < 1e-3
 
 
-def test_cli_prints_the_line_and_writes_the_cfg(tmp_path):
+def test_cli_prints_the_line_and_writes_the_cfg(tmp_path, run):
     board = load_board("uncalibrated")
     out_cfg = tmp_path / "board.cfg"
     proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--write-cfg", out_cfg)
@@ -101,7 +108,9 @@ def test_cli_prints_the_line_and_writes_the_cfg(tmp_path):
 
 
 def test_cli_json(tmp_path):
-    proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--frames", 5, "--json")
+    # The console script itself, end to end (the other runs of radar-calibrate are in this process).
+    proc = run_script("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3, "--frames", 5,
+                      "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     for key in ("range_bias_m", "coefficients", "cfg_line", "snr_db", "residual_phase_deg"):
@@ -118,12 +127,13 @@ def _points_csv(path) -> np.ndarray:
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
-def test_measure_then_use_the_line_on_a_recording(tmp_path):
+def test_measure_then_use_the_line_on_a_recording(tmp_path, run):
     """The user's round trip on a recording of the uncalibrated board (radar-sim): measure the
     line, write the cfg, replay the recording with it: the boresight reflector at 3 m comes out
     at 3 m, azimuth and elevation 0, and the raised one (6.0 m ahead, 0.6 m up) at its elevation;
     replayed with its own identity line, the elevations are wrong."""
     rec = tmp_path / "rec"
+    # (radar-sim's console script end to end; radar-capture's below, two at once)
     sim = subprocess.run(console_command("radar-sim") + ["calibration", "--board", "uncalibrated", "--duration", "1",
                                                         "--out", str(rec), "-q"],
                          capture_output=True, text=True, timeout=120)
@@ -163,7 +173,7 @@ REFUSALS = {  # objects, the words of the refusal, more arguments
 
 
 @pytest.mark.parametrize("case", list(REFUSALS))
-def test_bad_set_ups_are_refused(tmp_path, case):
+def test_bad_set_ups_are_refused(tmp_path, case, run):
     objects, words, more = REFUSALS[case]
     url = f"sim://{scene_file(tmp_path, objects)}?board=uncalibrated&rate=max"
     proc = run("--source", url, "--distance", 3, "--frames", 5, *more)
@@ -173,7 +183,7 @@ def test_bad_set_ups_are_refused(tmp_path, case):
     assert proc.stdout == ""
 
 
-def test_moving_reflector_is_refused(tmp_path):
+def test_moving_reflector_is_refused(tmp_path, run):
     """The radar creeping toward the reflector at 0.3 m/s: refused, nothing written."""
     url = f"sim://{scene_file(tmp_path, [reflector(3.0)], [{'straight': 2.0, 'speed': 0.3}])}?rate=max"
     out_cfg = tmp_path / "never.cfg"
@@ -182,7 +192,7 @@ def test_moving_reflector_is_refused(tmp_path):
     assert not out_cfg.exists()
 
 
-def test_creeping_reflector_is_refused_by_its_range(tmp_path):
+def test_creeping_reflector_is_refused_by_its_range(tmp_path, run):
     """Creeping at 0.05 m/s, under one Doppler bin (0.07 m/s) so the Doppler check lets it by:
     its range moves by a bin over the second the frames span, and that refuses it."""
     url = f"sim://{scene_file(tmp_path, [reflector(3.0)], [{'straight': 1.5, 'speed': 0.05}])}?rate=max"
@@ -191,7 +201,7 @@ def test_creeping_reflector_is_refused_by_its_range(tmp_path):
     assert "moves: its range changed by" in proc.stderr and "still" in proc.stderr
 
 
-def test_a_moving_reflector_is_refused_by_its_doppler_counted_in_frames(tmp_path):
+def test_a_moving_reflector_is_refused_by_its_doppler_counted_in_frames(tmp_path, run):
     # It said "2.26 m/s radial" (the Doppler axis's edge: once things move, a bin's strongest
     # return may be anything's) for a reflector approached at 0.5 m/s.
     url = f"sim://{scene_file(tmp_path, [reflector(3.0)], [{'straight': 1.5, 'speed': 0.5}])}?rate=max"
@@ -201,7 +211,7 @@ def test_a_moving_reflector_is_refused_by_its_doppler_counted_in_frames(tmp_path
         proc.stderr
 
 
-def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path):
+def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path, run):
     """A reflector 14 degrees off looks like what a board's own errors could make: refused by
     default; --max-azimuth lets it through (the user's word that it is on boresight)."""
     url = f"sim://{scene_file(tmp_path, [reflector(3.0, 14.0)])}?rate=max"
@@ -215,7 +225,7 @@ def test_a_board_with_large_errors_of_its_own_can_be_allowed(tmp_path):
     assert anything.returncode == 0, anything.stderr
 
 
-def test_a_source_of_incomplete_frames_only_says_so(tmp_path, shipped_cfg):
+def test_a_source_of_incomplete_frames_only_says_so(tmp_path, shipped_cfg, run):
     from radarodom.driver.recordings.capture_dir import CaptureWriter
 
     sim = Simulator(shipped_cfg, load_scene("calibration"), duration_s=0.3)
@@ -250,7 +260,7 @@ def test_a_datasets_coupling_is_taken_out_first(shipped_cfg):
     assert gain <= 0.05 and phase <= 0.5 and bias <= 0.002, (gain, phase, bias)
 
 
-def test_cfg_without_every_path_is_refused(tmp_path, shipped_cfg):
+def test_cfg_without_every_path_is_refused(tmp_path, shipped_cfg, run):
     text = shipped_cfg.to_text().replace("channelCfg 15 7 0", "channelCfg 3 7 0")
     path = tmp_path / "two_rx.cfg"
     path.write_text(text)
@@ -261,7 +271,7 @@ def test_cfg_without_every_path_is_refused(tmp_path, shipped_cfg):
         measure(RadarConfig.from_file(path), [], 3.0)
 
 
-def test_library_refusals_say_which_limit():
+def test_library_refusals_say_which_limit(run):
     cfg = RadarConfig.from_file(shipped_config_path())
     sim = Simulator(cfg, scene_from_dict({"objects": [reflector(3.0, -14.0)],
                                           "trajectory": {"segments": [{"pause": 1.0}]}}))
@@ -329,12 +339,12 @@ def test_a_cube_the_dsp_cannot_take_is_refused_by_add_and_the_rest_measured():
     assert calibrator.frames == 0
 
 
-def test_no_source_and_no_radar_says_what_to_do():
+def test_no_source_and_no_radar_says_what_to_do(run):
     proc = run("--distance", 3)
     assert proc.returncode == 2 and "no radar found" in proc.stderr and "sim://calibration" in proc.stderr
 
 
-def test_a_distance_far_from_what_the_reflector_reads_is_said():
+def test_a_distance_far_from_what_the_reflector_reads_is_said(run):
     # 22 cm off was written as the board's range bias without a word (a few cm is a board's).
     proc = run("--source", "sim://calibration?board=uncalibrated&rate=max", "--distance", 3.22, "--frames", 5)
     assert proc.returncode == 0, proc.stderr
@@ -343,7 +353,7 @@ def test_a_distance_far_from_what_the_reflector_reads_is_said():
     assert proc.returncode == 0 and "range bias is a few centimetres" not in proc.stderr
 
 
-def test_a_coloradar_run_without_its_adc_frames_asked_for_says_how_to_ask(tmp_path):
+def test_a_coloradar_run_without_its_adc_frames_asked_for_says_how_to_ask(tmp_path, run):
     from coloradar_synth import write_run
 
     run_dir = write_run(tmp_path)
@@ -354,7 +364,7 @@ def test_a_coloradar_run_without_its_adc_frames_asked_for_says_how_to_ask(tmp_pa
                            "coloradar://RUN?velocity=single_chip_adc&heatmap=single_chip_adc\n")
 
 
-def test_write_cfg_over_the_shipped_cfg_read_without_cfg_is_refused():
+def test_write_cfg_over_the_shipped_cfg_read_without_cfg_is_refused(run):
     """With no --cfg the run reads the shipped cfg: --write-cfg there with --overwrite replaced its
     channel line with the board's, in the install (exit 0)."""
     shipped = pathlib.Path(shipped_config_path())

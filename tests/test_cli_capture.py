@@ -1,8 +1,11 @@
 """radar-capture, the command-line program: replay -> record round trips, limits,
 error lines, Ctrl-C/SIGTERM, and the live status line on a terminal.
 
-The programs run as subprocesses (the installed console script) unless a test
-says otherwise.  Frames are SMALL_CFG's: 3072 bytes every 50 ms.
+Runs whose subject is the program's answer (its exit code, what it prints, the files it
+writes) call its main() in this process (``capture_main``: conftest's run_main); those whose
+subject is the process (signals, a terminal, a pipe, a file size limit, the emulated radar) run
+the installed console script in a subprocess, as test_help_exits_0 does to check the script
+itself.  Frames are SMALL_CFG's: 3072 bytes every 50 ms.
 """
 
 from __future__ import annotations
@@ -39,6 +42,13 @@ CAPTURE = console_command("radar-capture")
 def run_capture_cli(*args, timeout=60) -> subprocess.CompletedProcess:
     return subprocess.run(CAPTURE + private_zenoh(args), stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture
+def capture_main(run_main):
+    """``capture_main(*args)``: run_capture_cli's run (its own Zenoh port, private_zenoh) made in
+    this process, with radar-capture's main() (conftest's run_main); a CompletedProcess."""
+    return lambda *args: run_main("radar-capture", *private_zenoh(args))
 
 
 def popen_capture(*args, **kw) -> subprocess.Popen:
@@ -89,11 +99,11 @@ def src(tmp_path, small_cfg):
 
 
 # ------------------------------------------------------------ the key round trip
-def test_replay_record_round_trip_is_identical(src, tmp_path):
+def test_replay_record_round_trip_is_identical(src, tmp_path, capture_main):
     path, frames = src
     out = tmp_path / "out"
     url = f"replay://{path}?rate=max"
-    proc = run_capture_cli("--source", url, "--record", out)
+    proc = capture_main("--source", url, "--record", out)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source", out), proc.stdout.rstrip("\n")), \
@@ -130,9 +140,9 @@ def test_in_process_frames_limit_and_signal_handlers_restored(src, tmp_path, cap
     assert (out / "adc_data.bin").read_bytes() == b"".join(frames[:3])
 
 
-def test_no_record_streams_only(src, tmp_path):
+def test_no_record_streams_only(src, tmp_path, capture_main):
     path, _ = src
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max")
+    proc = capture_main("--source", f"replay://{path}?rate=max")
     assert proc.returncode == 0, proc.stderr
     assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source"), proc.stdout.rstrip("\n")), \
         proc.stdout
@@ -140,14 +150,14 @@ def test_no_record_streams_only(src, tmp_path):
 
 
 # ------------------------------------------------------------------------ --cfg
-def test_cfg_defaults_to_the_directory_radar_cfg(tmp_path):
+def test_cfg_defaults_to_the_directory_radar_cfg(tmp_path, capture_main):
     # A capture with a cfg unlike SMALL_CFG (8 loops, 100 ms): only its own radar.cfg reads it.
     text = SMALL_CFG.replace("frameCfg 0 2 4 0 50 1 0", "frameCfg 0 2 8 0 100 1 0")
     cfg = RadarConfig.from_text(text, "eight.cfg")
     assert cfg.frame_bytes == 2 * FRAME_BYTES
     path, out = tmp_path / "src8", tmp_path / "out"
     frames = make_capture(path, cfg, 5)
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     assert (out / "radar.cfg").read_text() == (path / "radar.cfg").read_text()
@@ -163,29 +173,29 @@ def _alt_cfg(tmp_path):
     return alt
 
 
-def test_explicit_cfg_is_needed_without_radar_cfg_and_used(src, tmp_path):
+def test_explicit_cfg_is_needed_without_radar_cfg_and_used(src, tmp_path, capture_main):
     path, frames = src
     (path / "radar.cfg").unlink()
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out)
     assert proc.returncode == 2
     line = one_error_line(proc)
     assert "radar.cfg" in line and "--cfg" in line
     assert not out.exists()
 
     alt = _alt_cfg(tmp_path)
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--cfg", alt, "--record", out)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--cfg", alt, "--record", out)
     assert proc.returncode == 0, proc.stderr
     assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
     assert (out / "radar.cfg").read_text() == RadarConfig.from_file(alt).to_text()
     assert "% alternative profile for --cfg" in (out / "radar.cfg").read_text()
 
 
-def test_explicit_cfg_overrides_the_directory_radar_cfg(src, tmp_path):
+def test_explicit_cfg_overrides_the_directory_radar_cfg(src, tmp_path, capture_main):
     path, frames = src
     out = tmp_path / "out"
     alt = _alt_cfg(tmp_path)
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--cfg", alt, "--record", out)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--cfg", alt, "--record", out)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""  # same frame size and cube: no mismatch warning
     assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
@@ -193,11 +203,11 @@ def test_explicit_cfg_overrides_the_directory_radar_cfg(src, tmp_path):
     assert CaptureDirectory(out).config.frame_period_s == 0.1
 
 
-def test_cfg_with_bigger_frames_than_the_data(src, tmp_path):
+def test_cfg_with_bigger_frames_than_the_data(src, tmp_path, capture_main):
     path, _ = src
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max",
-                           "--cfg", os.path.join(os.path.dirname(__file__), "..", "configs",
-                                                 "awr1843_raw.cfg"))
+    proc = capture_main("--source", f"replay://{path}?rate=max",
+                        "--cfg", os.path.join(os.path.dirname(__file__), "..", "configs",
+                                              "awr1843_raw.cfg"))
     assert proc.returncode == 2
     line = one_error_line(proc)
     assert "makes frames of" in line and "capture.json says the recording's are 3072 bytes" in line, line
@@ -205,10 +215,10 @@ def test_cfg_with_bigger_frames_than_the_data(src, tmp_path):
 
 
 # ---------------------------------------------------------------------- limits
-def test_frames_limit_records_exactly_n(src, tmp_path):
+def test_frames_limit_records_exactly_n(src, tmp_path, capture_main):
     path, frames = src
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--frames", "3", "--record", out)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--frames", "3", "--record", out)
     assert proc.returncode == 0, proc.stderr
     assert re.fullmatch(summary_re(3, 0, 0, "0.10", "frame limit", out), proc.stdout.rstrip("\n"))
     assert (out / "adc_data.bin").read_bytes() == b"".join(frames[:3])
@@ -227,15 +237,15 @@ def test_frames_limit_records_exactly_n(src, tmp_path):
     ("0.15", 3),
     ("0.3", 6),
 ])
-def test_duration_limit_counts_stream_time(src, tmp_path, duration, expected):
+def test_duration_limit_counts_stream_time(src, tmp_path, duration, expected, capture_main):
     path, frames = src
     out = tmp_path / "out"
     # Recording only (--no-odom --no-publish): the rule is the pipeline's frame loop, the same with
     # the estimator and the publisher or without them (the --frames test and
     # test_duration_past_the_end_ends_with_the_source run it with both), which the seven runs
     # would load for nothing.
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--duration", duration, "--record", out,
-                           "--no-odom", "--no-publish")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--duration", duration, "--record", out,
+                        "--no-odom", "--no-publish")
     assert proc.returncode == 0, proc.stderr
     stream = f"{(expected - 1) * PERIOD_S:.2f}"
     inc = 1 if expected > 3 else 0
@@ -245,9 +255,9 @@ def test_duration_limit_counts_stream_time(src, tmp_path, duration, expected):
     assert meta(out)["frame_count"] == expected
 
 
-def test_duration_past_the_end_ends_with_the_source(src, tmp_path):
+def test_duration_past_the_end_ends_with_the_source(src, tmp_path, capture_main):
     path, _ = src
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--duration", "5")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--duration", "5")
     assert proc.returncode == 0, proc.stderr
     assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source"), proc.stdout.rstrip("\n"))
 
@@ -262,7 +272,7 @@ def _bad_cfg(tmp_path):
 
 @pytest.mark.parametrize("case", ["unknown-scheme", "not-a-url", "unknown-option", "bad-option-value",
                                   "option-twice", "missing-dir", "invalid-cfg"])
-def test_bad_source_or_cfg_is_one_clear_line(src, tmp_path, case):
+def test_bad_source_or_cfg_is_one_clear_line(src, tmp_path, case, capture_main):
     path, _ = src
     out = tmp_path / "out"
     missing = tmp_path / "no-such-dir"
@@ -275,7 +285,7 @@ def test_bad_source_or_cfg_is_one_clear_line(src, tmp_path, case):
         "missing-dir": ["--source", f"replay://{missing}"],
         "invalid-cfg": ["--source", f"replay://{path}?rate=max", "--cfg", _bad_cfg(tmp_path)[0]],
     }[case]
-    proc = run_capture_cli(*args, "--record", out)
+    proc = capture_main(*args, "--record", out)
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert len(proc.stderr.splitlines()) == 1, proc.stderr
@@ -300,7 +310,7 @@ def test_bad_source_or_cfg_is_one_clear_line(src, tmp_path, case):
 
 
 @pytest.mark.parametrize("target", ["other-capture", "the-source-itself"])
-def test_record_into_an_existing_capture_is_refused(src, tmp_path, small_cfg, target):
+def test_record_into_an_existing_capture_is_refused(src, tmp_path, small_cfg, target, capture_main):
     path, frames = src
     if target == "other-capture":
         old = tmp_path / "old"
@@ -308,7 +318,7 @@ def test_record_into_an_existing_capture_is_refused(src, tmp_path, small_cfg, ta
     else:
         old = path
     before = snapshot(old)
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", old)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", old)
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert len(proc.stderr.splitlines()) == 1, proc.stderr
@@ -323,10 +333,10 @@ def test_record_into_an_existing_capture_is_refused(src, tmp_path, small_cfg, ta
 @pytest.mark.parametrize("option,value", [("--frames", "0"), ("--frames", "abc"), ("--frames", "-2"),
                                           ("--duration", "0"), ("--duration", "-1"),
                                           ("--duration", "abc")])
-def test_bad_limits_are_usage_errors(src, tmp_path, option, value):
+def test_bad_limits_are_usage_errors(src, tmp_path, option, value, capture_main):
     path, _ = src
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, f"{option}={value}")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, f"{option}={value}")
     assert proc.returncode == 2
     assert proc.stdout == ""
     line = one_error_line(proc)
@@ -335,17 +345,17 @@ def test_bad_limits_are_usage_errors(src, tmp_path, option, value):
 
 
 @pytest.mark.parametrize("option", ["--frames", "--duration"])
-def test_non_number_limit_message_is_clear(src, option):
+def test_non_number_limit_message_is_clear(src, option, capture_main):
     path, _ = src
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", option, "abc")
+    proc = capture_main("--source", f"replay://{path}?rate=max", option, "abc")
     assert proc.returncode == 2
     assert "_positive" not in one_error_line(proc)
 
 
-def test_no_source_streams_the_simulator_and_says_so():
+def test_no_source_streams_the_simulator_and_says_so(capture_main):
     # Originally "no --source" was a usage error suggesting replay://; the working tree
     # (tools/radar_capture.py, DEFAULT_SIM_URL) now streams the simulator with a warning.
-    proc = run_capture_cli("--frames", "2")
+    proc = capture_main("--frames", "2")
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     warnings = proc.stderr.splitlines()
@@ -359,6 +369,7 @@ def test_no_source_streams_the_simulator_and_says_so():
 
 
 def test_help_exits_0():
+    # A subprocess on purpose: the file's end-to-end check of the installed console script.
     proc = run_capture_cli("--help")
     assert proc.returncode == 0
     assert proc.stdout.startswith("usage: radar-capture")
@@ -381,7 +392,7 @@ def _refused_before_streaming(proc, out) -> str:
 @pytest.mark.parametrize("case", ["missing-bytes-absurd", "missing-bytes-negative", "frame-nan",
                                   "incomplete-frames-a-number", "nested", "frame-count-past-the-data",
                                   "simulator-seed-a-string"])
-def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
+def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case, capture_main):
     path, _ = src
     m = meta(path)
     if case == "nested":
@@ -398,7 +409,7 @@ def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
                            [{"frame": 3, "missing_bytes": missing}]})
     (path / "capture.json").write_text(text)
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
     line = _refused_before_streaming(proc, out)
     assert str(path) in line and "capture.json" in line, line
     assert "bytes lost" not in line and "99999999994" not in line
@@ -407,45 +418,45 @@ def test_cli_refuses_a_bad_capture_json_before_streaming(src, tmp_path, case):
 
 
 @pytest.mark.parametrize("bad", ["nan", "inf", "0_5", "1e300", "1000.0"])
-def test_cli_refuses_bad_timestamps_before_streaming(src, tmp_path, bad):
+def test_cli_refuses_bad_timestamps_before_streaming(src, tmp_path, bad, capture_main):
     path, _ = src
     lines = (path / "timestamps.txt").read_text().splitlines()
     lines[4] = bad  # "1000.0" repeats line 1: out of order
     (path / "timestamps.txt").write_text("\n".join(lines) + "\n")
     out, odom = tmp_path / "out", tmp_path / "odom.tum"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish",
-                           "--odom-out", odom)
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish",
+                        "--odom-out", odom)
     line = _refused_before_streaming(proc, out)
     assert f"{path / 'timestamps.txt'}:5: " in line, line
     assert not odom.exists()
 
 
-def test_cli_missing_adc_data_says_so(src, tmp_path):
+def test_cli_missing_adc_data_says_so(src, tmp_path, capture_main):
     path, _ = src
     (path / "adc_data.bin").unlink()
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}", "--record", out, "--no-publish")
+    proc = capture_main("--source", f"replay://{path}", "--record", out, "--no-publish")
     line = _refused_before_streaming(proc, out)
     assert "no adc_data.bin: the capture's frame data is missing" in line, line
     assert "has no radar.cfg" not in line
 
 
-def test_cli_edited_radar_cfg_is_refused(src, tmp_path):
+def test_cli_edited_radar_cfg_is_refused(src, tmp_path, capture_main):
     path, _ = src
     (path / "radar.cfg").write_text(SMALL_CFG.replace("0 96 1 16 8000", "0 96 1 8 8000"))
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
     line = _refused_before_streaming(proc, out)
     assert "makes frames of 1536 bytes, capture.json says the recording's are 3072 bytes" in line, line
 
 
-def test_cli_plays_a_recording_cut_by_a_crash_to_its_last_whole_frame(src, tmp_path):
+def test_cli_plays_a_recording_cut_by_a_crash_to_its_last_whole_frame(src, tmp_path, capture_main):
     path, frames = src
     (path / "capture.json").write_text(json.dumps({**meta(path), "closed": False, "frame_count": 7}))
     with open(path / "adc_data.bin", "ab") as fh:
         fh.write(bytes(1000))
     out = tmp_path / "out"
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, "--no-publish")
     assert proc.returncode == 0, proc.stderr
     assert re.fullmatch(summary_re(10, 1, 100, "0.45", "end of source", out), proc.stdout.rstrip("\n"))
     assert "was not closed" in proc.stderr and "1000 bytes of a cut-off frame" in proc.stderr, proc.stderr
@@ -458,7 +469,7 @@ def _hung_capture(emu, out, start_timeout):
     return Process(emu.capture_argv("--record", out, url_extra=f"start_timeout={start_timeout}"))
 
 
-def test_radar_that_never_starts_leaves_no_capture_directory(tmp_path, small_cfg):
+def test_radar_that_never_starts_leaves_no_capture_directory(tmp_path, small_cfg, capture_main):
     """--hang-on-start: the radar never answers sensorStart.  The run fails (exit 1) and takes its
     empty recording with it, so the same --record works the next time."""
     from live_helpers import Emulator
@@ -476,12 +487,13 @@ def test_radar_that_never_starts_leaves_no_capture_directory(tmp_path, small_cfg
             assert "sensorStart got no answer" in stderr and "already holds a capture" not in stderr, stderr
             assert not out.exists(), f"attempt {attempt}: {sorted(os.listdir(out))}"
         assert emu.stop() == 0
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-odom")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, "--no-odom")
     assert proc.returncode == 0, proc.stderr
     assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
 
 
-def test_radar_capture_killed_before_its_first_frame_leaves_a_reusable_directory(tmp_path, small_cfg):
+def test_radar_capture_killed_before_its_first_frame_leaves_a_reusable_directory(tmp_path, small_cfg,
+                                                                                   capture_main):
     from live_helpers import Emulator
 
     path = tmp_path / "src"
@@ -496,7 +508,7 @@ def test_radar_capture_killed_before_its_first_frame_leaves_a_reusable_directory
             capture.kill()  # SIGKILL: no clean-up runs
         assert (out / "adc_data.bin").stat().st_size == 0
         emu.stop()
-    proc = run_capture_cli("--source", f"replay://{path}?rate=max", "--record", out, "--no-odom")
+    proc = capture_main("--source", f"replay://{path}?rate=max", "--record", out, "--no-odom")
     assert proc.returncode == 0, proc.stderr
     assert (out / "adc_data.bin").read_bytes() == b"".join(frames)
     assert CaptureDirectory(out).num_frames == 5
@@ -679,10 +691,10 @@ def test_no_carriage_returns_when_stderr_is_a_pipe(src):
     assert proc.stderr == ""
 
 
-def test_summary_rate_is_the_stream_rate(src):
+def test_summary_rate_is_the_stream_rate(src, capture_main):
     path, _ = src
     # Its 20 Hz frames paced at a tenth of that: 2 Hz, far below what the estimator keeps up with.
-    proc = run_capture_cli("--source", f"replay://{path}?rate=0.1", "--frames", "3")
+    proc = capture_main("--source", f"replay://{path}?rate=0.1", "--frames", "3")
     assert proc.returncode == 0, proc.stderr
     rate = float(re.search(r", (\d+\.\d) Hz,", proc.stdout).group(1))
     # The frames' rate from the first to the last (test_cli_status_line has its arithmetic): slower
@@ -829,21 +841,21 @@ def test_heatmaps_that_run_out_of_room_name_the_frame_and_leave_no_part_of_it(tm
     assert json.loads((out / "index.json").read_text())["frames"] == []
 
 
-def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usage():
+def test_an_options_bad_value_is_one_line_and_a_wrong_command_line_gets_the_usage(capture_main):
     from radarodom.tools import radar_echo
 
-    proc = run_capture_cli("--mount", "0,0,0")
+    proc = capture_main("--mount", "0,0,0")
     assert proc.returncode == 2 and proc.stderr == ("radar-capture: error: argument --mount: a mount is x,y,z,yaw_deg "
                                                     "(four numbers: m, m, m, degrees), got '0,0,0'\n"), proc.stderr
     # A yaw beyond a whole turn was refused by the estimator's settings, naming odometry.mount_yaw_rad.
-    proc = run_capture_cli("--mount", "0.3,0,0,400", "--wheeled")
+    proc = capture_main("--mount", "0.3,0,0,400", "--wheeled")
     assert proc.returncode == 2 and proc.stderr == ("radar-capture: error: argument --mount: mount '0.3,0,0,400': a yaw "
                                                     "of 400 degrees is more than a whole turn: give it within -360..360 "
                                                     "degrees (40 here, the same direction)\n"), proc.stderr
     # (cli.md's +/-360, which 0,0,0,270 is within: the advice said -180..180)
-    assert run_capture_cli("--source", "sim://corridor?rate=max&fidelity=fast&duration=0.2", "--mount",
-                           "0,0,0,270").returncode == 0
-    proc = run_capture_cli("--bogus")
+    assert capture_main("--source", "sim://corridor?rate=max&fidelity=fast&duration=0.2", "--mount",
+                        "0,0,0,270").returncode == 0
+    proc = capture_main("--bogus")
     assert proc.returncode == 2 and proc.stderr.startswith("usage: radar-capture")
     assert proc.stderr.splitlines()[-1] == "radar-capture: error: unrecognized arguments: --bogus"
     assert radar_echo.main(["--count", "0"]) == 2

@@ -1,7 +1,8 @@
 """radar-cfg, the command-line program: exit codes, output, error lines.
 
-Most cases run the installed console script in a subprocess (what a user
-runs); a few call ``radarodom.tools.radar_cfg.main`` in-process with capsys.
+Most cases call ``radarodom.tools.radar_cfg.main`` in-process (conftest's run_main, or with capsys);
+the installed console script runs in a subprocess (what a user runs) once end to end, and to read
+/dev/zero (a regression would fill the memory of the process that reads).
 """
 
 from __future__ import annotations
@@ -25,9 +26,21 @@ STABLE_KEYS = ("range_resolution_m", "max_range_m", "velocity_resolution_mps", "
                "num_loops", "tx_order")
 
 
-def run_cfg(*args, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run(console_command("radar-cfg") + [str(a) for a in args], cwd=cwd,
+def run_cfg_script(*args) -> subprocess.CompletedProcess:
+    return subprocess.run(console_command("radar-cfg") + [str(a) for a in args],
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+
+
+@pytest.fixture
+def run_cfg(run_main, monkeypatch):
+    """radar-cfg in this process (conftest's run_main), in the directory
+    *cwd* when given (it resolves the relative paths it is given there)."""
+    def run(*args, cwd=None) -> subprocess.CompletedProcess:
+        with monkeypatch.context() as patch:
+            if cwd is not None:
+                patch.chdir(cwd)
+            return run_main("radar-cfg", *args)
+    return run
 
 
 def write_cfg(tmp_path, old: str | None = None, new: str | None = None, name: str = "test.cfg"):
@@ -53,7 +66,7 @@ def _table(stdout: str) -> dict[str, tuple[float, str]]:
 
 
 # --------------------------------------------------------------------- valid cfg
-def test_shipped_cfg_prints_derived_quantities_with_units(shipped_cfg):
+def test_shipped_cfg_prints_derived_quantities_with_units(shipped_cfg, run_cfg):
     proc = run_cfg("configs/awr1843_raw.cfg", cwd=REPO)
     assert proc.returncode == 0, proc.stderr
     # The shipped cfg carries the identity calibration line: one warning, naming the line and the fix.
@@ -132,7 +145,7 @@ def _check_stable_keys(data: dict, cfg: RadarConfig) -> None:
 
 
 def test_json_subprocess_has_stable_keys(shipped_cfg):
-    proc = run_cfg(SHIPPED, "--json")
+    proc = run_cfg_script(SHIPPED, "--json")  # the console script itself, end to end
     assert proc.returncode == 0, proc.stderr
     assert "compRangeBiasAndRxChanPhase is the identity" in proc.stderr  # the warning, on stderr only
     data = json.loads(proc.stdout)  # nothing but JSON on stdout
@@ -184,7 +197,7 @@ BAD_LINES = [
 
 @pytest.mark.parametrize("old,new,command,field", BAD_LINES,
                          ids=["odd-samples", "not-a-number", "14-bit", "period-too-short"])
-def test_invalid_cfg_one_line_with_location(tmp_path, old, new, command, field):
+def test_invalid_cfg_one_line_with_location(tmp_path, old, new, command, field, run_cfg):
     path, lineno = write_cfg(tmp_path, old, new, "bad.cfg")
     proc = run_cfg(path)
     assert proc.returncode == 2
@@ -196,7 +209,7 @@ def test_invalid_cfg_one_line_with_location(tmp_path, old, new, command, field):
     assert "Traceback" not in proc.stderr
 
 
-def test_invalid_cfg_verbose_shows_traceback(tmp_path):
+def test_invalid_cfg_verbose_shows_traceback(tmp_path, run_cfg):
     old, new, command, field = BAD_LINES[0]
     path, lineno = write_cfg(tmp_path, old, new, "bad.cfg")
     proc = run_cfg("--verbose", path)
@@ -217,7 +230,7 @@ def test_invalid_cfg_in_process(tmp_path, capsys):
     assert "Traceback" not in err
 
 
-def test_missing_file_exits_2(tmp_path):
+def test_missing_file_exits_2(tmp_path, run_cfg):
     path = tmp_path / "nope.cfg"
     proc = run_cfg(path)
     assert proc.returncode == 2
@@ -228,7 +241,7 @@ def test_missing_file_exits_2(tmp_path):
     assert "Traceback" not in proc.stderr
 
 
-def test_no_argument_is_a_usage_error():
+def test_no_argument_is_a_usage_error(run_cfg):
     proc = run_cfg()
     assert proc.returncode == 2
     assert "usage: radar-cfg" in proc.stderr
@@ -236,7 +249,7 @@ def test_no_argument_is_a_usage_error():
 
 
 # ----------------------------------------------------------- lvdsStreamCfg note
-def test_non_raw_lvds_is_valid_with_a_note(tmp_path):
+def test_non_raw_lvds_is_valid_with_a_note(tmp_path, run_cfg):
     path, lineno = write_cfg(tmp_path, "lvdsStreamCfg -1 0 1 0", "lvdsStreamCfg -1 0 0 0", "ti.cfg")
     proc = run_cfg(path)
     assert proc.returncode == 0, proc.stderr
@@ -263,7 +276,7 @@ def test_missing_lvds_line_is_noted(tmp_path, capsys):
     assert "'lvdsStreamCfg -1 0 1 0'" in notes[0]
 
 
-def test_help_exits_0():
+def test_help_exits_0(run_cfg):
     proc = run_cfg("--help")
     assert proc.returncode == 0
     assert proc.stdout.startswith("usage: radar-cfg")
@@ -271,7 +284,7 @@ def test_help_exits_0():
     assert proc.stderr == ""
 
 
-def test_a_boards_line_is_shown_and_not_warned_about(tmp_path, shipped_cfg):
+def test_a_boards_line_is_shown_and_not_warned_about(tmp_path, shipped_cfg, run_cfg):
     """A cfg carrying a board's compRangeBiasAndRxChanPhase: the range bias and each path's gain
     and phase relative to TX1 RX1, as the line corrects them; no warning."""
     from radarodom.driver.sim.board import load_board
@@ -313,13 +326,13 @@ def test_packet_delay_inside_its_range_prints_strict_json(tmp_path, capsys, valu
 
 
 def test_dev_zero_exits_2_with_the_size_limit():
-    proc = run_cfg("/dev/zero")
+    proc = run_cfg_script("/dev/zero")  # a subprocess: a regression would fill its memory, not the tests'
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.startswith("radar-cfg: error: /dev/zero: larger than 1 MiB")
     assert len(proc.stderr.splitlines()) == 1 and "MemoryError" not in proc.stderr
 
 
-def test_a_cfg_with_a_huge_token_is_not_echoed(tmp_path):
+def test_a_cfg_with_a_huge_token_is_not_echoed(tmp_path, run_cfg):
     path, _ = write_cfg(tmp_path, "lowPower 0 0", "lowPower 0 " + "7" * 900_000)
     proc = run_cfg(path)
     assert proc.returncode == 2
@@ -348,7 +361,7 @@ def test_several_files_are_each_reported_and_the_exit_status_is_the_worst(tmp_pa
     assert set(data[str(bad)]) == {"error"} and data[str(bad)]["error"].startswith(f"{bad}:{lineno}: ")
 
 
-def test_list_names_the_shipped_cfgs_with_a_description():
+def test_list_names_the_shipped_cfgs_with_a_description(run_cfg):
     proc = run_cfg("--list")
     assert proc.returncode == 0 and proc.stderr == ""
     shipped = sorted(p.name for p in (REPO / "configs").glob("*.cfg"))
@@ -364,13 +377,13 @@ def test_list_names_the_shipped_cfgs_with_a_description():
     assert proc.returncode == 2 and "--json goes with FILEs or --list, not --copy" in proc.stderr
 
 
-def test_overwrite_without_copy_is_refused(tmp_path):
+def test_overwrite_without_copy_is_refused(tmp_path, run_cfg):
     """'radar-cfg FILE --overwrite' was taken and ignored: nothing but --copy writes."""
     proc = run_cfg(str(shipped_config_path()), "--overwrite")
     assert proc.returncode == 2 and "--overwrite goes with --copy" in proc.stderr, proc.stderr
 
 
-def test_copy_onto_the_shipped_cfg_itself_is_refused():
+def test_copy_onto_the_shipped_cfg_itself_is_refused(run_cfg):
     """'--copy awr1843_raw <the shipped file> --overwrite' rewrote the install's own file (exit 0)."""
     shipped = pathlib.Path(shipped_config_path())
     for dest in (shipped, shipped.parent):
@@ -378,7 +391,7 @@ def test_copy_onto_the_shipped_cfg_itself_is_refused():
         assert proc.returncode == 2 and "would write over the input the shipped cfg" in proc.stderr, proc.stderr
 
 
-def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path):
+def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path, run_cfg):
     proc = run_cfg("--copy", "awr1843_raw", cwd=tmp_path)  # default: NAME here
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "awr1843_raw.cfg").read_bytes() == SHIPPED.read_bytes()
@@ -403,7 +416,7 @@ def test_copy_writes_a_shipped_cfg_and_never_overwrites_without_asking(tmp_path)
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc, where no file can be made")
-def test_copy_to_a_directory_that_takes_no_files_says_what_where_why_and_the_fix(tmp_path):
+def test_copy_to_a_directory_that_takes_no_files_says_what_where_why_and_the_fix(tmp_path, run_cfg):
     """Once only the kernel's "cannot write /proc/awr1843_raw.cfg: No such file or directory"."""
     proc = run_cfg("--copy", "awr1843_raw", "/proc")
     assert proc.returncode == 1 and proc.stdout == ""
@@ -434,7 +447,7 @@ def test_copy_under_a_file_or_into_a_read_only_directory_is_refused_before_writi
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "locked"] and not any(locked.iterdir())
 
 
-def test_the_usage_says_copy_takes_at_most_one_dest(tmp_path):
+def test_the_usage_says_copy_takes_at_most_one_dest(tmp_path, run_cfg):
     usage = radar_cfg.build_parser().format_help()
     assert "--copy NAME [DEST]" in usage and "[DEST ...]" not in usage, usage
     proc = run_cfg("--copy", "awr1843_raw", tmp_path / "a", tmp_path / "b", cwd=tmp_path)

@@ -21,9 +21,17 @@ from radarodom.tools import radar_eval
 from radarodom.tum import read_tum
 
 
-def run_eval(*args) -> subprocess.CompletedProcess:
+def run_eval_script(*args) -> subprocess.CompletedProcess:
+    """The console script in a subprocess: the end-to-end check, and the runs given a pipe or a device
+    as a file (a regression would hang, or fill the memory of, the child and not the tests)."""
     return subprocess.run(console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture
+def run_eval(run_main):
+    """radar-eval in this process (conftest's run_main): what these tests check is its answer."""
+    return lambda *args: run_main("radar-eval", *args)
 
 
 @pytest.fixture
@@ -35,7 +43,7 @@ def run_files(tmp_path):
 
 def test_prints_the_table(run_files):
     est, gt = run_files
-    proc = run_eval(est, gt)
+    proc = run_eval_script(est, gt)  # the console script itself, end to end (the other runs are in-process)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     out = proc.stdout
@@ -54,7 +62,8 @@ def test_prints_the_table(run_files):
 def test_json_and_plots(run_files, tmp_path):
     pytest.importorskip("matplotlib", reason="--plot needs matplotlib (the plot or test extra)")
     est, gt = run_files
-    proc = run_eval(est, gt, "--json", tmp_path / "eval.json", "--plot", tmp_path / "plots", "--delta-m", "2")
+    # A subprocess: the plots' work (seconds) dominates, and in this process it was no quicker.
+    proc = run_eval_script(est, gt, "--json", tmp_path / "eval.json", "--plot", tmp_path / "plots", "--delta-m", "2")
     assert proc.returncode == 0, proc.stderr
     data = json.loads((tmp_path / "eval.json").read_text())
     result = evaluate(read_tum(est), read_tum(gt), delta_m=2.0)
@@ -85,7 +94,7 @@ def test_json_without_matplotlib_plot_asks_for_the_extra(run_files, tmp_path, mo
     assert not (tmp_path / "plots").exists()
 
 
-def test_a_malformed_line_is_one_error_line_with_file_and_line(run_files, tmp_path):
+def test_a_malformed_line_is_one_error_line_with_file_and_line(run_files, tmp_path, run_eval):
     est, gt = run_files
     lines = pathlib.Path(est).read_text().splitlines(keepends=True)
     lines[41] = "1004.1 0.5 oops 0 0 0 0 1\n"
@@ -100,7 +109,7 @@ def test_a_malformed_line_is_one_error_line_with_file_and_line(run_files, tmp_pa
     assert verbose.returncode == 2 and "Traceback" in verbose.stderr
 
 
-def test_no_common_times_and_missing_files_exit_2(run_files, tmp_path):
+def test_no_common_times_and_missing_files_exit_2(run_files, tmp_path, run_eval):
     est, gt = run_files
     shifted = read_tum(est)
     late = write_tum(tmp_path / "late.tum", shifted.times + 60.0, shifted.se2())
@@ -113,11 +122,11 @@ def test_no_common_times_and_missing_files_exit_2(run_files, tmp_path):
     # --odom a pipe no one writes to waited forever, /dev/zero read until the memory ran out.
     os.mkfifo(tmp_path / "odom.fifo")
     for odom in (tmp_path / "odom.fifo", "/dev/zero"):
-        proc = run_eval(est, gt, "--odom", odom)
+        proc = run_eval_script(est, gt, "--odom", odom)  # (a subprocess: a regression hangs or fills it)
         assert (proc.returncode, proc.stderr) == (2, f"radar-eval: error: --odom {odom}: not a file\n")
 
 
-def test_bad_options_are_usage_errors(run_files):
+def test_bad_options_are_usage_errors(run_files, run_eval):
     est, gt = run_files
     for option in (["--delta-m", "0"], ["--max-diff", "-1"]):
         proc = run_eval(est, gt, *option)
@@ -131,7 +140,7 @@ def _strict(text: str):
     return json.loads(text, parse_constant=refuse)
 
 
-def test_json_of_a_run_that_never_moves_says_null(tmp_path):
+def test_json_of_a_run_that_never_moves_says_null(tmp_path, run_eval):
     """Regression (issue 18): a path of zero length leaves the drift in % and every per-distance
     figure undefined; --json writes them as null (standard JSON), never NaN."""
     t = 1000.0 + np.arange(5) / 10.0
@@ -146,7 +155,7 @@ def test_json_of_a_run_that_never_moves_says_null(tmp_path):
     assert "- % of the path" in proc.stdout
 
 
-def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
+def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path, run_eval):
     """Regression (issue 18): positions near the float limit made path lengths and errors
     infinite, and --json wrote "Infinity" (and numpy printed a RuntimeWarning per operation):
     now one warning, and null in the file."""
@@ -167,7 +176,7 @@ def test_json_of_coordinates_that_overflow_says_null_with_one_warning(tmp_path):
     assert rows and all(len(ln) == len("RPE per frame, translation m".ljust(32)) + 6 * 10 + 7 for ln in rows), rows
 
 
-def test_plots_of_coordinates_that_overflow_are_refused_before_any_output(tmp_path):
+def test_plots_of_coordinates_that_overflow_are_refused_before_any_output(tmp_path, run_eval):
     # matplotlib cannot scale an axis that overflows: "radar-eval: internal error: ValueError:
     # 'box_aspect' and 'fig_aspect' must be positive" after the table and the --json file.
     pytest.importorskip("matplotlib")
@@ -182,7 +191,7 @@ def test_plots_of_coordinates_that_overflow_are_refused_before_any_output(tmp_pa
     assert not list((tmp_path / "plots").glob("*.png"))
 
 
-def test_a_plot_directory_the_system_will_not_make_says_why_and_the_fix(tmp_path):
+def test_a_plot_directory_the_system_will_not_make_says_why_and_the_fix(tmp_path, run_eval):
     # It was "cannot create /proc/plots: No such file or directory": neither the directory that
     # refused nor what to do.
     pytest.importorskip("matplotlib")
@@ -198,7 +207,7 @@ def test_a_plot_directory_the_system_will_not_make_says_why_and_the_fix(tmp_path
                            "destination\n")
 
 
-def test_the_table_keeps_its_columns_for_large_errors(tmp_path):
+def test_the_table_keeps_its_columns_for_large_errors(tmp_path, run_eval):
     # 1e4-1e6 m figures took 11 characters in a 10-character column: the cells ran together.
     t = np.arange(20) / 10.0
     ref = np.column_stack([t, np.zeros(20), np.zeros(20)])
@@ -232,7 +241,7 @@ def _with_errors(steps, kinds, *, straight_rad=0.0, in_place=1.0, moving=1.0):
     return out
 
 
-def test_heading_figures_of_straights_and_turns(tmp_path):
+def test_heading_figures_of_straights_and_turns(tmp_path, run_eval):
     """radar-eval prints (and --json writes) the heading figures of docs/heading.md: the straight
     drives' heading bias, each kind of turn's measured share of the truth's, and the drift each
     kind of frame's yaw errors make alone."""
@@ -274,7 +283,7 @@ def test_heading_figures_of_straights_and_turns(tmp_path):
                                                  "translation"))
 
 
-def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path):
+def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path, run_eval):
     """A radar 0.3 m ahead of its base's rotation axis moves on a circle in the base's turn in
     place: without --mount that turn is a moving one, with it a turn in place, as the base made it."""
     steps, kinds = _loop()
@@ -299,14 +308,14 @@ def test_mount_tells_a_mounted_radars_turn_in_place(tmp_path):
     assert figures["-0.3,0,0.2,0"]["inplace_turns"] == 0
 
 
-def test_a_bad_mount_is_a_usage_error(run_files):
+def test_a_bad_mount_is_a_usage_error(run_files, run_eval):
     est, gt = run_files
     proc = run_eval(est, gt, "--mount", "0.3,0")
     assert proc.returncode == 2 and proc.stdout == ""
     assert "--mount: a mount is x,y,z,yaw_deg (four numbers: m, m, m, degrees), got '0.3,0'" in proc.stderr
 
 
-def test_json_never_replaces_an_input_or_an_existing_file_unasked(run_files, tmp_path):
+def test_json_never_replaces_an_input_or_an_existing_file_unasked(run_files, tmp_path, run_eval):
     est, gt = run_files
     truth = pathlib.Path(gt).read_bytes()
     for argv in ([est, gt, "--json", gt], [est, gt, "--json", gt, "--overwrite"]):
@@ -325,7 +334,7 @@ def test_json_never_replaces_an_input_or_an_existing_file_unasked(run_files, tmp
     assert proc.returncode == 2 and "is a file, not a directory" in proc.stderr
 
 
-def test_json_beside_a_recording_given_as_the_ground_truth(tmp_path):
+def test_json_beside_a_recording_given_as_the_ground_truth(tmp_path, run_eval):
     from radarodom.tools import radar_sim
 
     rec = tmp_path / "rec"
@@ -355,7 +364,7 @@ def test_a_simulated_stream_is_its_own_ground_truth(corridor_run, capsys):
     assert sim["final_drift"] == pytest.approx(rec["final_drift"], abs=1e-6)
 
 
-def test_an_estimate_whose_spread_overflows_is_aligned_by_translation_not_an_internal_error(tmp_path):
+def test_an_estimate_whose_spread_overflows_is_aligned_by_translation_not_an_internal_error(tmp_path, run_eval):
     # Positions of +/-1.7e308 made the alignment's covariance infinite and numpy's SVD failed:
     # "radar-eval: internal error: LinAlgError: SVD did not converge".
     t = 1000.0 + np.arange(20) / 10.0
@@ -372,7 +381,7 @@ def test_an_estimate_whose_spread_overflows_is_aligned_by_translation_not_an_int
         assert ate and "inf" in ate[0]
 
 
-def test_odom_checks_the_reported_covariances_against_the_truth(corridor_run, tmp_path):
+def test_odom_checks_the_reported_covariances_against_the_truth(corridor_run, tmp_path, run_eval):
     """--odom (radar-capture --odom-json's messages): how their covariances cover the errors, in the
     table and --json; the heading's figures worked out here from the messages and the truth."""
     from radarodom.tools.odometry_log import read_odometry_log
@@ -408,7 +417,7 @@ def test_odom_checks_the_reported_covariances_against_the_truth(corridor_run, tm
     assert "reported covariance" not in without and with_odom.startswith(without.rstrip("\n"))
 
 
-def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(corridor_run, tmp_path):
+def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(corridor_run, tmp_path, run_eval):
     # The odometry describes the radar at the middle of each frame's chirps (the shipped cfg's 13.44
     # ms after the stamp): --measured-at compares it with the truth there, interpolated.
     from radarodom.cfg import RadarConfig, shipped_config_path
@@ -441,7 +450,7 @@ def test_measured_at_compares_the_truth_where_the_odometry_describes_the_radar(c
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
 
 
-def test_measured_at_defaults_to_a_raw_sources_chirps_middle(corridor_run, tmp_path):
+def test_measured_at_defaults_to_a_raw_sources_chirps_middle(corridor_run, tmp_path, run_eval):
     # With the recording itself as the reference (replay://), its cfg says where the odometry
     # describes the radar: the messages are compared there without --measured-at; 0 says the stamps.
     from radarodom.cfg import RadarConfig
@@ -460,7 +469,7 @@ def test_measured_at_defaults_to_a_raw_sources_chirps_middle(corridor_run, tmp_p
     assert "30 of 30 odometry messages compared with the truth at its t;" in gt
 
 
-def test_odom_messages_that_miss_the_truth_are_one_line(corridor_run, tmp_path):
+def test_odom_messages_that_miss_the_truth_are_one_line(corridor_run, tmp_path, run_eval):
     late = tmp_path / "late.jsonl"
     late.write_text("".join(line.replace('"t":', '"t":1000') for line in
                             corridor_run.odom.read_text().splitlines(keepends=True)[:3]))
@@ -469,7 +478,7 @@ def test_odom_messages_that_miss_the_truth_are_one_line(corridor_run, tmp_path):
     assert proc.stderr.startswith("radar-eval: error: ") and "late.jsonl" in proc.stderr
 
 
-def test_times_far_out_are_shown_short(tmp_path):
+def test_times_far_out_are_shown_short(tmp_path, run_eval):
     # A file's times of 1e300 were written out in 300 digits in the "match in time" error.
     t = np.arange(5) / 10.0
     pose = np.zeros((5, 3))
@@ -491,7 +500,7 @@ def test_a_live_radar_as_the_truth_is_refused_before_a_radar_is_looked_for(tmp_p
         "GT.tum" in err[0], err
 
 
-def test_a_recordings_directory_as_the_reference_is_told_its_url(run_files, tmp_path):
+def test_a_recordings_directory_as_the_reference_is_told_its_url(run_files, tmp_path, run_eval):
     """'cap: not a file', where the recording's ground truth is read through replay://cap."""
     est, _ = run_files
     proc = run_eval(est, tmp_path)
@@ -499,7 +508,23 @@ def test_a_recordings_directory_as_the_reference_is_told_its_url(run_files, tmp_
         2, f"radar-eval: error: {tmp_path}: not a file (a recording's ground truth: give replay://{tmp_path})\n")
 
 
-def test_odom_messages_too_large_to_compute_with_are_warned_of(corridor_run, tmp_path):
+def test_odom_messages_whose_variances_are_too_small_to_divide_by_are_named(corridor_run, tmp_path, run_eval):
+    """Variances of 1e-320 overflowed the normalized errors, and the warning blamed the coordinates
+    ("are the files in metres?"), which were fine."""
+    import json
+
+    messages = [json.loads(line) for line in corridor_run.odom.read_text().splitlines()]
+    for m in messages:
+        m["pose_covariance"] = m["twist_covariance"] = [1e-320, 0, 0, 0, 1e-320, 0, 0, 0, 1e-320]
+    tiny = tmp_path / "tiny.jsonl"
+    tiny.write_text("".join(json.dumps(m) + "\n" for m in messages))
+    proc = run_eval(corridor_run.tum, corridor_run.rec / "groundtruth.tum", "--odom", tiny)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == (f"radar-eval: warning: {tiny}: its variances are too small to divide by (the smallest "
+                           "1e-320), so its normalized errors show as inf or nan\n"), proc.stderr
+
+
+def test_odom_messages_too_large_to_compute_with_are_warned_of(corridor_run, tmp_path, run_eval):
     # A message's x of 1e308 gave a position and speed RMS of inf without a word (the TUM path warns).
     import json
 

@@ -1,11 +1,13 @@
 """radar-capture with the estimator, from the command line: --odom-out, --no-odom,
 --estimator-config, the odometry part of the summary, and radar-eval on what it wrote.
 
-The programs run as subprocesses on real files.  One short simulation of the
-``corridor`` scene (1 s standing still, then 2 s driving straight ahead and
-speeding up to 1.2 m/s) is streamed once per session through ``sim://`` with
-``--record`` and ``--odom-out`` (conftest's ``corridor_run``, shared with other
-modules); the other runs replay that recording.
+The programs run on real files: in this process (``capture_main``, conftest's run_main) when
+the subject is their answer, as subprocesses where the process matters (Ctrl-C, two runs at
+once) and in test_missing_estimator_config_file (the installed script, end to end).  One short
+simulation of the ``corridor`` scene (1 s standing still, then 2 s driving straight ahead and
+speeding up to 1.2 m/s) is streamed once per session through ``sim://`` with ``--record`` and
+``--odom-out`` (conftest's ``corridor_run``, shared with other modules); the other runs replay
+that recording.
 """
 
 from __future__ import annotations
@@ -39,9 +41,11 @@ ODOM_PART = (r"; odometry: x (?P<x>-?\d+\.\d\d) m, y (?P<y>-?\d+\.\d\d) m, yaw (
              r"(?:; published \d+ odometry, \d+ point cloud, \d+ heatmap and \d+ status messages under \S+)?$")
 
 
-def run_eval(*args) -> subprocess.CompletedProcess:
-    return subprocess.run(console_command("radar-eval") + [str(a) for a in args], stdin=subprocess.DEVNULL,
-                          capture_output=True, text=True, timeout=120)
+@pytest.fixture
+def capture_main(run_main):
+    """``capture_main(*args)``: test_cli_capture.run_capture_cli's run (its own Zenoh port) made in this
+    process, with radar-capture's main() (conftest's run_main); a CompletedProcess."""
+    return lambda *args: run_main("radar-capture", *private_zenoh(args))
 
 
 def tum_rows(path) -> list[list[str]]:
@@ -145,9 +149,9 @@ def test_the_estimate_follows_the_corridor(sim_run):
     assert np.all(np.abs(np.degrees(yaw_of(p[:, 4:]))) < 2.0)
 
 
-def test_radar_eval_on_the_run(sim_run, tmp_path):
+def test_radar_eval_on_the_run(sim_run, tmp_path, run_main):
     out = tmp_path / "eval.json"
-    proc = run_eval(sim_run.tum, sim_run.rec / "groundtruth.tum", "--json", out)
+    proc = run_main("radar-eval", sim_run.tum, sim_run.rec / "groundtruth.tum", "--json", out)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     assert f"{FRAMES} poses matched" in proc.stdout
@@ -164,13 +168,13 @@ def test_radar_eval_on_the_run(sim_run, tmp_path):
     assert data["rpe_per_frame"]["translation_m"]["max"] < 0.03
 
 
-def test_replay_with_a_dumped_default_config_gives_the_same_trajectory(sim_run, tmp_path):
+def test_replay_with_a_dumped_default_config_gives_the_same_trajectory(sim_run, tmp_path, capture_main):
     # The recording replayed, with the default settings as EstimatorConfig.dump writes them:
     # the file is accepted and changes nothing.
     cfg = tmp_path / "estimator.json"
     EstimatorConfig().dump(cfg)
     tum = tmp_path / "replay.tum"
-    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
+    proc = capture_main("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     assert re.search(ODOM_PART, proc.stdout.rstrip("\n")), proc.stdout
@@ -179,13 +183,13 @@ def test_replay_with_a_dumped_default_config_gives_the_same_trajectory(sim_run, 
     np.testing.assert_allclose(poses(tum), poses(sim_run.tum), rtol=0, atol=1e-6)
 
 
-def test_estimator_config_is_used(sim_run, tmp_path):
+def test_estimator_config_is_used(sim_run, tmp_path, capture_main):
     # A partial file: a velocity fit that needs more points than any frame has never
     # succeeds, so the estimate never moves (while the default one moved 1.9 m).
     cfg = tmp_path / "strict.json"
     cfg.write_text(json.dumps({"velocity": {"min_points": 100000}}))
     tum = tmp_path / "strict.tum"
-    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
+    proc = capture_main("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
     assert proc.returncode == 0, proc.stderr
     m = re.search(ODOM_PART, proc.stdout.rstrip("\n"))
     assert m and (m["x"], m["y"]) == ("0.00", "0.00"), proc.stdout
@@ -195,9 +199,9 @@ def test_estimator_config_is_used(sim_run, tmp_path):
     assert poses(sim_run.tum)[-1, 1] > 1.5
 
 
-def test_no_odom_runs_without_the_estimator(sim_run, tmp_path):
+def test_no_odom_runs_without_the_estimator(sim_run, tmp_path, capture_main):
     before = sorted(os.listdir(tmp_path))
-    proc = run_capture_cli("--source", replay_url(sim_run), "--no-odom")
+    proc = capture_main("--source", replay_url(sim_run), "--no-odom")
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     line = proc.stdout.rstrip("\n")
@@ -238,14 +242,14 @@ def test_a_stopped_run_leaves_whole_lines_one_per_frame(tmp_path):
 
 
 # ------------------------------------------------------------------------ refusals
-def test_odom_out_onto_an_existing_file_is_refused(sim_run, tmp_path):
+def test_odom_out_onto_an_existing_file_is_refused(sim_run, tmp_path, capture_main):
     existing = tmp_path / "old.tum"
     existing.write_text("0.000000000 1 2 0 0 0 0 1\n")
     os.utime(existing, ns=(1_000_000_000, 1_000_000_000))
     before = snapshot(existing)
     points, out = tmp_path / "points.csv", tmp_path / "out"
-    proc = run_capture_cli("--source", replay_url(sim_run), "--odom-out", existing,
-                           "--points-out", points, "--record", out)
+    proc = capture_main("--source", replay_url(sim_run), "--odom-out", existing,
+                        "--points-out", points, "--record", out)
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert len(proc.stderr.splitlines()) == 1, proc.stderr
@@ -258,12 +262,11 @@ def test_odom_out_onto_an_existing_file_is_refused(sim_run, tmp_path):
 
 @pytest.mark.parametrize("extra", [["--odom-out", "x.tum"], ["--estimator-config", "e.json"], ["--wheeled"],
                                    ["--no-wall-map"]], ids=["odom-out", "estimator-config", "wheeled", "no-wall-map"])
-def test_no_odom_with_an_estimator_option_is_a_usage_error(sim_run, tmp_path, extra):
+def test_no_odom_with_an_estimator_option_is_a_usage_error(sim_run, tmp_path, extra, capture_main, monkeypatch):
     (tmp_path / "e.json").write_text("{}")
     before = sorted(os.listdir(tmp_path))
-    proc = subprocess.run(console_command("radar-capture") + private_zenoh(["--source", replay_url(sim_run),
-                                                                            "--no-odom", *extra]), cwd=tmp_path, stdin=subprocess.DEVNULL,
-                          capture_output=True, text=True, timeout=60)
+    monkeypatch.chdir(tmp_path)  # the relative x.tum and e.json are there, as for a run started there
+    proc = capture_main("--source", replay_url(sim_run), "--no-odom", *extra)
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert len(proc.stderr.splitlines()) == 1, proc.stderr
@@ -287,12 +290,12 @@ BAD_CONFIGS = {
 
 
 @pytest.mark.parametrize("case", list(BAD_CONFIGS))
-def test_bad_estimator_config_is_one_clear_line(sim_run, tmp_path, case):
+def test_bad_estimator_config_is_one_clear_line(sim_run, tmp_path, case, capture_main):
     text, words = BAD_CONFIGS[case]
     cfg = tmp_path / "estimator.json"
     cfg.write_text(text)
     tum = tmp_path / "x.tum"
-    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
+    proc = capture_main("--source", replay_url(sim_run), "--estimator-config", cfg, "--odom-out", tum)
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert len(proc.stderr.splitlines()) == 1, proc.stderr
@@ -305,28 +308,29 @@ def test_bad_estimator_config_is_one_clear_line(sim_run, tmp_path, case):
 
 def test_missing_estimator_config_file(sim_run, tmp_path):
     missing = tmp_path / "nope.json"
+    # A subprocess on purpose: the file's end-to-end check of the installed console script.
     proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", missing)
     assert proc.returncode == 2
     line = one_error_line(proc)
     assert line.startswith(f"radar-capture: error: {missing}: ") and "No such file" in line, line
 
 
-def test_a_bad_value_in_a_section_is_named_by_its_path(sim_run, tmp_path):
+def test_a_bad_value_in_a_section_is_named_by_its_path(sim_run, tmp_path, capture_main):
     cfg = tmp_path / "estimator.json"
     cfg.write_text('{"icp": {"iterations": "many"}}')
-    proc = run_capture_cli("--source", replay_url(sim_run), "--estimator-config", cfg)
+    proc = capture_main("--source", replay_url(sim_run), "--estimator-config", cfg)
     assert proc.returncode == 2
     assert "icp.iterations" in one_error_line(proc)
 
 
-def test_settings_that_cannot_run_on_the_cfg_fail_before_overwrite_replaces_anything(sim_run, tmp_path):
+def test_settings_that_cannot_run_on_the_cfg_fail_before_overwrite_replaces_anything(sim_run, tmp_path, capture_main):
     """A CFAR window longer than the cfg's heatmap, found when the first frame came, had already
     let --overwrite replace the recording; a nested CFAR field was named without its section."""
     defaults = EstimatorConfig().to_dict()
     record = tmp_path / "run"
     # The recording to be kept is made recording only: no estimator nor publisher to load.
-    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", record, "--no-odom",
-                           "--no-publish")
+    proc = capture_main("--source", replay_url(sim_run) + "&frames=3", "--record", record, "--no-odom",
+                        "--no-publish")
     assert proc.returncode == 0, proc.stderr
     before = {p.name: p.read_bytes() for p in record.iterdir()}
     cases = [({"features": {**defaults["features"], "method": "cfar",
@@ -337,18 +341,18 @@ def test_settings_that_cannot_run_on_the_cfg_fail_before_overwrite_replaces_anyt
     for settings, message in cases:
         path = tmp_path / "estimator.json"
         path.write_text(json.dumps(settings))
-        proc = run_capture_cli("--source", replay_url(sim_run), "--record", record, "--overwrite",
-                               "--estimator-config", path)
+        proc = capture_main("--source", replay_url(sim_run), "--record", record, "--overwrite",
+                            "--estimator-config", path)
         assert proc.returncode == 2
         assert one_error_line(proc).startswith(f"radar-capture: error: {path}: {message}"), proc.stderr
         assert {p.name: p.read_bytes() for p in record.iterdir()} == before
 
 
-def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path):
+def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path, capture_main):
     # --wheeled without --mount replaced the file's mount_x_m with the axis, then refused it.
     path = tmp_path / "mounted.json"
     path.write_text(json.dumps({"odometry": {"mount_x_m": 0.3}}))
-    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path, "--wheeled")
+    proc = capture_main("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path, "--wheeled")
     assert proc.returncode == 0, proc.stderr
 
 
@@ -376,13 +380,13 @@ def test_the_wall_map_corrects_the_heading_unless_turned_off(sim_run, default_re
     assert [a["yaw"] for a in states["walls"]] == pytest.approx([b["yaw"] for b in plain], abs=math.radians(0.5))
 
 
-def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, default_replay, tmp_path):
+def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, default_replay, tmp_path, capture_main):
     """--heatmap-out writes every cell's dominant Doppler, the estimator takes its strongest
     cells' only: the export is made apart, and the odometry is the same to the last digit."""
     # The run without the export is default_replay's: the same options but --heatmap-out.
     plain, exported, heatmaps = default_replay.tum, tmp_path / "exported.tum", tmp_path / "heatmaps"
-    proc = run_capture_cli("--source", replay_url(sim_run), "--no-publish", "--odom-out", exported,
-                           "--odom-json", tmp_path / "exported.jsonl", "--heatmap-out", heatmaps)
+    proc = capture_main("--source", replay_url(sim_run), "--no-publish", "--odom-out", exported,
+                        "--odom-json", tmp_path / "exported.jsonl", "--heatmap-out", heatmaps)
     assert proc.returncode == 0, proc.stderr
     assert plain.read_bytes() == exported.read_bytes()
     index = json.loads((heatmaps / "index.json").read_text())
@@ -391,12 +395,12 @@ def test_exporting_full_heatmaps_does_not_change_the_odometry(sim_run, default_r
     assert np.isfinite(doppler).all()  # the full map, not the estimator's strongest cells
 
 
-def test_a_recording_of_a_replayed_simulation_keeps_its_simulated_board(sim_run, tmp_path):
+def test_a_recording_of_a_replayed_simulation_keeps_its_simulated_board(sim_run, tmp_path, capture_main):
     """The simulator block (scene, seed, board and its calibration) goes into a recording of the
     replay, which replay:// then checks a cfg's calibration line against, as the original's."""
     copy = tmp_path / "copy"
-    proc = run_capture_cli("--source", replay_url(sim_run) + "&frames=3", "--record", copy, "--no-odom",
-                           "--no-publish")
+    proc = capture_main("--source", replay_url(sim_run) + "&frames=3", "--record", copy, "--no-odom",
+                        "--no-publish")
     assert proc.returncode == 0, proc.stderr
     original = json.loads((sim_run.rec / "capture.json").read_text())["simulator"]
     assert json.loads((copy / "capture.json").read_text())["simulator"] == original
@@ -406,10 +410,10 @@ def test_a_recording_of_a_replayed_simulation_keeps_its_simulated_board(sim_run,
         assert a.calibrated is b.calibrated is not None
 
 
-def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path):
+def test_an_uncreatable_odom_out_leaves_nothing_behind(sim_run, tmp_path, capture_main):
     points, heatmaps = tmp_path / "points.csv", tmp_path / "heatmaps"
-    proc = run_capture_cli("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,
-                           "--odom-out", tmp_path / "no-such-dir" / "x.tum")
+    proc = capture_main("--source", replay_url(sim_run), "--points-out", points, "--heatmap-out", heatmaps,
+                        "--odom-out", tmp_path / "no-such-dir" / "x.tum")
     assert proc.returncode != 0
     assert "no-such-dir" in one_error_line(proc)
     assert sorted(os.listdir(tmp_path)) == []
@@ -443,7 +447,7 @@ def test_a_radar_on_a_wheeled_bases_axis_does_not_slide_sideways(sim_run, tmp_pa
     assert moving and all(abs(s["vy"]) <= math.tan(math.radians(2.0)) * abs(s["vx"]) for s in moving)
 
 
-def test_a_mounted_radar_on_a_wheeled_base_measures_its_turn_in_place(tmp_path):
+def test_a_mounted_radar_on_a_wheeled_base_measures_its_turn_in_place(tmp_path, capture_main):
     """The radar 0.3 m ahead of a wheeled base's axis, turning in place among reflectors: with
     --mount and --wheeled the odometry turns as the base did (its Doppler sees the turn)."""
     rng = np.random.default_rng(4)
@@ -456,8 +460,8 @@ def test_a_mounted_radar_on_a_wheeled_base_measures_its_turn_in_place(tmp_path):
     path = tmp_path / "spin.json"
     path.write_text(json.dumps(scene))
     tum = tmp_path / "spin.tum"
-    proc = run_capture_cli("--source", f"sim://{path}?rate=max&fidelity=fast", "--no-publish", "--odom-out", tum,
-                           "--mount", "0.3,0,0.4,0", "--wheeled", timeout=300)
+    proc = capture_main("--source", f"sim://{path}?rate=max&fidelity=fast", "--no-publish", "--odom-out", tum,
+                        "--mount", "0.3,0,0.4,0", "--wheeled")
     assert proc.returncode == 0, proc.stderr
     yaw = np.degrees(yaw_of(poses(tum)[:, 4:]))
     assert yaw[-1] == pytest.approx(90.0, abs=3.0)

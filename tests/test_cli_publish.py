@@ -1,5 +1,7 @@
 """radar-capture publishing over Zenoh, end to end: real radar-capture processes and real
 Zenoh sessions on loopback (peers, multicast scouting off, explicit endpoints on free ports).
+The refusals, and a run that publishes nothing, call radar-capture's main() in this process
+instead (``capture_main``: conftest's run_main).
 
 A 3 s recording of the simulated corridor (30 frames) is made once per session (conftest's
 corridor_run, shared with other modules); the runs replay it.
@@ -13,6 +15,7 @@ import subprocess
 import time
 
 import pytest
+from conftest import private_zenoh
 from test_cli_capture import popen_capture, run_capture_cli
 from zenoh_helpers import Inbox, free_endpoint, peer, wait_for
 
@@ -29,6 +32,13 @@ def recording(corridor_run):
     return corridor_run.rec
 
 
+@pytest.fixture
+def capture_main(run_main):
+    """``capture_main(*args)``: run_capture_cli's run (its own Zenoh port) made in this process,
+    with radar-capture's main() (conftest's run_main); a CompletedProcess."""
+    return lambda *args: run_main("radar-capture", *private_zenoh(args))
+
+
 def _odometry(inbox: Inbox) -> list[dict]:
     return [messages.parse_odometry(payload) for key, _, payload, _ in inbox.samples if key.endswith("/odom")]
 
@@ -39,6 +49,8 @@ def test_a_subscriber_gets_every_odometry_message_in_order(recording, tmp_path):
         inbox = Inbox()
         sub = session.declare_subscriber("test/radar/**", inbox)
         try:
+            # A subprocess (its subject: messages from another process), and the file's end-to-end
+            # check of the installed console script.
             proc = run_capture_cli("--source", f"replay://{recording}?rate=2", "--key-prefix", "test/radar",
                                    "--connect", here, "--listen", free_endpoint(), timeout=120)
             assert proc.returncode == 0, proc.stderr
@@ -118,17 +130,17 @@ def test_the_publisher_keeps_going_while_its_peer_is_down_and_reaches_it_when_it
     assert proc.returncode == 0
 
 
-def test_no_publish_opens_no_session(recording):
+def test_no_publish_opens_no_session(recording, capture_main):
     # A few frames are as good as the 30: a session is opened (or not) before the first.
-    proc = run_capture_cli("--source", f"replay://{recording}?rate=max&frames=3", "--no-publish")
+    proc = capture_main("--source", f"replay://{recording}?rate=max&frames=3", "--no-publish")
     assert proc.returncode == 0, proc.stderr
     assert "published" not in proc.stdout
 
 
-def test_a_bad_zenoh_option_fails_before_the_source_opens(recording, tmp_path):
+def test_a_bad_zenoh_option_fails_before_the_source_opens(recording, tmp_path, capture_main):
     bad = tmp_path / "zenoh.json5"
     bad.write_text("{ this is not json5 }")  # closed: an unclosed '{' is named where it opens instead
-    proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--zenoh-config", bad)
+    proc = capture_main("--source", f"replay://{recording}?rate=max", "--zenoh-config", bad)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and str(bad) in proc.stderr
     # One line, saying where in the file: zenoh's own report is a multi-line drawing.
@@ -222,8 +234,8 @@ def test_radar_capture_keeps_every_frame_while_a_peer_floods_its_keys(recording)
 
 @pytest.mark.parametrize("option", [["--ros2"], ["--connect", "tcp/127.0.0.1:17999"], ["--zenoh-config", "z.json5"],
                                     ["--key-prefix", "robot/radar"], ["--ros2-domain", "3"]])
-def test_a_publishing_option_with_no_publish_is_refused_not_ignored(recording, option):
-    proc = run_capture_cli("--source", f"replay://{recording}?rate=max", "--no-publish", *option)
+def test_a_publishing_option_with_no_publish_is_refused_not_ignored(recording, option, capture_main):
+    proc = capture_main("--source", f"replay://{recording}?rate=max", "--no-publish", *option)
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr == (f"radar-capture: error: {option[0]} is about publishing over Zenoh, which --no-publish "
                            "turns off: drop one\n")
@@ -233,7 +245,7 @@ def test_a_publishing_option_with_no_publish_is_refused_not_ignored(recording, o
     (["--ros2-topic", "/robot/odom"], "--ros2-topic names the ROS 2 odometry topic: add --ros2 (publish it) or --mcap "
                                      "FILE (write it to a bag)"),
     (["--ros2-domain", "3"], "--ros2-domain is the ROS 2 domain of --ros2's messages: add --ros2")])
-def test_a_ros2_option_without_ros2_is_refused_not_ignored(recording, option, message):
+def test_a_ros2_option_without_ros2_is_refused_not_ignored(recording, option, message, capture_main):
     # It published the radarodom messages alone, the option silently unused.
-    proc = run_capture_cli("--source", f"replay://{recording}?rate=max", *option)
+    proc = capture_main("--source", f"replay://{recording}?rate=max", *option)
     assert proc.returncode == 2 and proc.stdout == "" and proc.stderr == f"radar-capture: error: {message}\n"

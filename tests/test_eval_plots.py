@@ -279,8 +279,16 @@ def test_a_flags_file_without_odometry_is_refused(tmp_path):
 
 # ------------------------------------------------------------------ radar-eval --plot on a simulated run
 def run_cli(name: str, *args, timeout: float = 300) -> subprocess.CompletedProcess:
+    """The console script in a subprocess: the runs that draw the plots (their work, seconds, dominates)."""
     return subprocess.run(console_command(name) + [str(a) for a in args], stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture
+def run_eval(run_main):
+    """radar-eval in this process (conftest's run_main): the runs whose subject
+    is its answer (the table, a refusal)."""
+    return lambda *args: run_main("radar-eval", *args)
 
 
 def png_size(path) -> tuple[int, int]:
@@ -322,29 +330,29 @@ def test_radar_eval_plot_writes_the_report_and_each_plot(sim_run):
     assert sim_run.frames == 30
 
 
-def test_radar_eval_plot_figures_match_what_it_printed(sim_run):
+def test_radar_eval_plot_figures_match_what_it_printed(sim_run, run_eval):
     """The same evaluation in the library: the figure's numbers are the table's, its flag rows the
     file's, and its name the estimate's file name when --name is not given."""
     r = evaluate(read_tum(sim_run.tum), read_tum(sim_run.rec / "groundtruth.tum"))
     flags = read_odometry_log(sim_run.flags)
     fig = plots.evaluation_figures(r, name="corridor", flags=flags.since(flags.times[0]))["report.png"]
-    proc = run_cli("radar-eval", sim_run.tum, f"replay://{sim_run.rec}", timeout=120)
+    proc = run_eval(sim_run.tum, f"replay://{sim_run.rec}")
     assert f"{r.yaw_rmse_deg:.4f}" in proc.stdout and f"yaw-increment RMSE {r.yaw_rmse_deg:.3f} deg" in all_text(fig)
     ax = axes_titled(fig, "Estimator quality flags")
     assert [t.get_text() for t in ax.get_yticklabels()] == ["first_frame (1)", "few_features (2)", "yaw_held (2)"]
     assert "quality flags: 2 of 30 steps not ok" in all_text(fig)
 
 
-def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
+def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path, run_eval):
     gt = sim_run.rec / "groundtruth.tum"
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--name", "x", timeout=120)
+    proc = run_eval(sim_run.tum, gt, "--name", "x")
     assert (proc.returncode, proc.stderr) == (2, "radar-eval: error: --name is for the plots: add --plot DIR\n")
     # Without --plot the messages' covariances are still checked (these hand-written ones report none).
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--flags", sim_run.flags, timeout=120)
+    proc = run_eval(sim_run.tum, gt, "--flags", sim_run.flags)
     assert proc.returncode == 0 and "  heading           not compared: no frame with a variance" in proc.stdout
     late = tmp_path / "late.jsonl"
     late.write_text(odom_line(5000.0, 0) + odom_line(5000.1, 1))
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", late, timeout=120)
+    proc = run_eval(sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", late)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     # (its covariances are checked first: the messages' poses match none of the truth's)
     assert (f"radar-eval: error: {late}: fewer than two of its 2 messages (t 5000.000 .. 5000.100 s) have a ground "
@@ -354,25 +362,24 @@ def test_radar_eval_flags_errors_are_one_line(sim_run, tmp_path):
     early.write_text("".join(sim_run.tum.read_text().splitlines(keepends=True)[:10]))
     later = tmp_path / "later.jsonl"
     later.write_text("".join(sim_run.flags.read_text().splitlines(keepends=True)[20:]))
-    proc = run_cli("radar-eval", early, gt, "--plot", tmp_path / "p", "--flags", later, "--json", tmp_path / "e.json",
-                   timeout=120)
+    proc = run_eval(early, gt, "--plot", tmp_path / "p", "--flags", later, "--json", tmp_path / "e.json")
     assert proc.returncode == 2, proc.stderr  # (after a warning: the first second stands still, no RPE per metre)
     assert proc.stderr.splitlines()[-1].startswith(f"radar-eval: error: {later}: its 10 odometry messages (t 2.000 "
                                                    ".. 2.900 s) fall outside the evaluated poses (t 0.000 .. 0.900 s)")
     assert proc.stdout == "" and not (tmp_path / "e.json").exists() and not (tmp_path / "p").exists()
     bad = tmp_path / "bad.jsonl"
     bad.write_text(odom_line(1.0, 0) + "oops\n")
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad, timeout=120)
+    proc = run_eval(sim_run.tum, gt, "--plot", tmp_path / "p", "--flags", bad)
     assert proc.returncode == 2 and proc.stderr.startswith(f"radar-eval: error: {bad}:2: not an odometry message: not JSON")
     assert proc.stdout == "" and not (tmp_path / "p").exists()
 
 
-def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path):
+def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path, run_eval):
     """--json naming one of --plot's files, or an input lying where a plot goes, is refused
     before the work: nothing is written, nothing read is replaced."""
     out = tmp_path / "plots"
     gt = sim_run.rec / "groundtruth.tum"
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", out, "--json", out / "yaw.png", timeout=120)
+    proc = run_eval(sim_run.tum, gt, "--plot", out, "--json", out / "yaw.png")
     assert (proc.returncode, proc.stdout) == (2, "")
     assert proc.stderr == (f"radar-eval: error: --json and --plot's yaw.png both name {out / 'yaw.png'}: "
                            "give each its own\n")
@@ -380,21 +387,20 @@ def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path):
     out.mkdir()
     flags = out / "flags.png"  # an odometry log saved under a plot's name
     shutil.copyfile(sim_run.flags, flags)
-    proc = run_cli("radar-eval", sim_run.tum, gt, "--plot", out, "--odom", flags, timeout=120)
+    proc = run_eval(sim_run.tum, gt, "--plot", out, "--odom", flags)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert f"--plot's flags.png {flags} would write over the input --odom {flags}" in proc.stderr
     assert flags.read_bytes() == sim_run.flags.read_bytes() and sorted(p.name for p in out.iterdir()) == ["flags.png"]
 
 
 @pytest.mark.parametrize("kind", ["directory", "fifo"])
-def test_a_plot_whose_name_is_taken_by_no_file_is_refused_before_the_work(sim_run, tmp_path, kind):
+def test_a_plot_whose_name_is_taken_by_no_file_is_refused_before_the_work(sim_run, tmp_path, kind, run_eval):
     """A directory (or a pipe) where yaw.png goes: the table was printed, two plots and the --json
     written, then 'cannot write .../yaw.png: Is a directory' (exit 1), the rest left behind."""
     out = tmp_path / "plots"
     out.mkdir()
     (out / "yaw.png").mkdir() if kind == "directory" else os.mkfifo(out / "yaw.png")
-    proc = run_cli("radar-eval", sim_run.tum, sim_run.rec / "groundtruth.tum", "--plot", out,
-                   "--json", tmp_path / "eval.json", timeout=120)
+    proc = run_eval(sim_run.tum, sim_run.rec / "groundtruth.tum", "--plot", out, "--json", tmp_path / "eval.json")
     assert (proc.returncode, proc.stdout) == (2, ""), proc.stderr
     assert proc.stderr == (f"radar-eval: error: --plot's yaw.png {out / 'yaw.png'} is there and is not a file (a "
                            "directory, a pipe, a device): move it away or choose another --plot directory\n")

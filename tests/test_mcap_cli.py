@@ -1,7 +1,10 @@
-"""radar-capture --mcap, --odom-json and --mount as a user runs them (the installed console
-script, in a subprocess): any recording converts (a capture directory replayed at full speed, a
-ColoRadar run), a recording killed with SIGKILL stays readable up to its last chunk, and the
-options' refusals (an existing file, --odom-json without the estimator, a bad mount)."""
+"""radar-capture --mcap, --odom-json and --mount as a user runs them: any recording converts (a
+capture directory replayed at full speed, a ColoRadar run), a recording killed with SIGKILL stays
+readable up to its last chunk, and the options' refusals (an existing file, --odom-json without
+the estimator, a bad mount).  Runs whose subject is the program's answer call its main() in this
+process (``capture_main``: conftest's run_main); the installed console script runs in a
+subprocess where the process matters (SIGKILL, a file size limit) and once as the end-to-end check
+of the script (a bad --ros2-topic)."""
 
 from __future__ import annotations
 
@@ -43,6 +46,13 @@ def topics(path) -> dict[str, list]:
     return out
 
 
+@pytest.fixture
+def capture_main(run_main):
+    """``capture_main(*args)``: capture()'s run (the same argv) made in this process, with
+    radar-capture's main() (conftest's run_main); a CompletedProcess."""
+    return lambda *args: run_main("radar-capture", *args, "--no-publish", "-q")
+
+
 @pytest.fixture(scope="module")
 def corridor(tmp_path_factory):
     """A capture directory of the simulated corridor (1 s, with its ground truth), at the
@@ -54,10 +64,10 @@ def corridor(tmp_path_factory):
     return out
 
 
-def test_a_recording_converts_at_full_speed_with_the_mount_and_the_odometry_lines(corridor, tmp_path):
+def test_a_recording_converts_at_full_speed_with_the_mount_and_the_odometry_lines(corridor, tmp_path, capture_main):
     out, lines = tmp_path / "run.mcap", tmp_path / "odom.jsonl"
-    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--odom-json", lines,
-                   "--mount", "0.3,0,0.2,90")
+    proc = capture_main("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--odom-json", lines,
+                        "--mount", "0.3,0,0.2,90")
     assert proc.returncode == 0, proc.stderr
     assert f"; ROS 2 bag {out}" in proc.stdout  # the summary names the bag it wrote
     assert f"; odometry messages in {lines}; " in proc.stdout, proc.stdout
@@ -76,38 +86,40 @@ def test_a_recording_converts_at_full_speed_with_the_mount_and_the_odometry_line
 
     # Outputs are never overwritten unasked; --overwrite replaces both.
     out.write_bytes(b"mine")
-    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--frames", "2")
+    proc = capture_main("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--frames", "2")
     assert proc.returncode == 2 and "already exists" in proc.stderr and "Traceback" not in proc.stderr
     assert out.read_bytes() == b"mine"
-    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--odom-json", lines,
-                   "--frames", "2", "--overwrite")
+    proc = capture_main("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--odom-json", lines,
+                        "--frames", "2", "--overwrite")
     assert proc.returncode == 0, proc.stderr
     assert len(topics(out)["/radar/odom"]) == 2 and len(lines.read_text().splitlines()) == 2
 
 
-def test_an_offline_conversion_names_the_odometry_topic(corridor, tmp_path):
+def test_an_offline_conversion_names_the_odometry_topic(corridor, tmp_path, capture_main):
     # --ros2-topic names the bag's odometry topic with --no-publish too (it was refused as a
     # publishing option); a topic that is not a ROS name is refused before anything is written.
     out = tmp_path / "run.mcap"
-    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--ros2-topic", "/robot/radar_odom",
-                   "--frames", "3")
+    proc = capture_main("--source", f"replay://{corridor}?rate=max", "--mcap", out, "--ros2-topic", "/robot/radar_odom",
+                        "--frames", "3")
     assert proc.returncode == 0, proc.stderr
     got = topics(out)
     assert len(got["/robot/radar_odom"]) == 3 and "/radar/odom" not in got
     bad = tmp_path / "bad.mcap"
+    # A subprocess on purpose: the file's end-to-end check of the installed console script.
     proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", bad, "--ros2-topic", "radar odom")
     assert proc.returncode == 2 and "argument --ros2-topic: ROS 2 topic must be an absolute ROS name" in proc.stderr
     assert not bad.exists()
-    proc = capture("--source", f"replay://{corridor}?rate=max", "--mcap", bad, "--ros2-topic", "/tf")
+    proc = capture_main("--source", f"replay://{corridor}?rate=max", "--mcap", bad, "--ros2-topic", "/tf")
     assert proc.returncode == 2 and "/tf is one of radarodom's other topics" in proc.stderr and not bad.exists()
-    proc = capture("--source", f"replay://{corridor}?rate=max", "--ros2-topic", "/robot/radar_odom")
+    proc = capture_main("--source", f"replay://{corridor}?rate=max", "--ros2-topic", "/robot/radar_odom")
     assert proc.returncode == 2 and "--ros2-topic is about publishing over Zenoh" in proc.stderr  # no bag: no use
 
 
-def test_a_coloradar_run_converts(tmp_path):
+def test_a_coloradar_run_converts(tmp_path, capture_main):
     run = write_run(tmp_path, "ec_hallways_run0", frames=6)
     out = tmp_path / "run.mcap"
-    proc = capture("--source", f"coloradar://{run}?rate=max", "--mcap", out, "--odom-json", tmp_path / "odom.jsonl")
+    proc = capture_main("--source", f"coloradar://{run}?rate=max", "--mcap", out,
+                        "--odom-json", tmp_path / "odom.jsonl")
     assert proc.returncode == 0, proc.stderr
     got = topics(out)
     states = len((tmp_path / "odom.jsonl").read_text().splitlines())
@@ -166,8 +178,9 @@ def test_a_recording_killed_with_sigkill_reads_back_up_to_its_last_chunk(corrido
     (["--mount", "0.3,0,0"], "a mount is x,y,z,yaw_deg"),
     (["--mount", "0.3,0,0,nan"], "mount yaw_deg"),
 ])
-def test_refusals_name_the_option(tmp_path, args, message):
-    proc = capture("--source", "sim://corridor?rate=max&duration=0.2", *args, timeout=120, cwd=tmp_path)
+def test_refusals_name_the_option(tmp_path, args, message, capture_main, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # where the relative x.jsonl would go, as for a run started there
+    proc = capture_main("--source", "sim://corridor?rate=max&duration=0.2", *args)
     assert proc.returncode == 2, proc.stderr
     assert message in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "x.jsonl").exists()
@@ -197,7 +210,7 @@ def test_a_bag_that_cannot_be_written_on_says_what_it_keeps(tmp_path):
     assert messages > 0
 
 
-def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_latency(tmp_path):
+def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_latency(tmp_path, capture_main):
     """ROS 2 counts a stamp's seconds in 32 bits: a recording whose clock is past 2038 was an
     internal error (rosbags' "'i' format requires ..."), and the summary of a run whose first
     frame's outputs failed said "latency p50 nan ms".  Such a recording is now refused before any
@@ -207,7 +220,7 @@ def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_la
 
     rec = tmp_path / "rec"
     make_capture(rec, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=3e9)
-    proc = capture("--source", f"replay://{rec}?rate=max", "--mcap", tmp_path / "run.mcap")
+    proc = capture_main("--source", f"replay://{rec}?rate=max", "--mcap", tmp_path / "run.mcap")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
     assert proc.stderr.strip().splitlines() == [
         f"radar-capture: error: {rec / 'timestamps.txt'}: the frames' times run from 3000000000.000 s to "
@@ -216,7 +229,7 @@ def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_la
     assert not (tmp_path / "run.mcap").exists()
     late = tmp_path / "late"
     make_capture(late, RadarConfig.from_text(SMALL_CFG, "small.cfg"), 3, t0=2**31 - 0.12)
-    proc = capture("--source", f"replay://{late}?rate=max&loop=2", "--mcap", tmp_path / "late.mcap")
+    proc = capture_main("--source", f"replay://{late}?rate=max&loop=2", "--mcap", tmp_path / "late.mcap")
     assert proc.returncode == 1 and "Traceback" not in proc.stderr and "internal error" not in proc.stderr
     assert [line for line in proc.stderr.strip().splitlines() if "error" in line] == [
         "radar-capture: error: ROS 2 stamp: time 2147483648.03 s is beyond what ROS 2's time holds (its seconds "

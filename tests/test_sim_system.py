@@ -38,9 +38,20 @@ STILL = [{"pause": 2.0}]
 
 
 def _run(name: str, *args, timeout: float = 120) -> subprocess.CompletedProcess:
+    """The console script in a subprocess: the end-to-end checks, and radar-capture's runs that stream."""
     argv = private_zenoh(args) if name == "radar-capture" else [str(a) for a in args]
     return subprocess.run(console_command(name) + argv, stdin=subprocess.DEVNULL,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture
+def run_program(run_main):
+    """``run_program(name, *args)``: as :func:`_run`, in this process (conftest's run_main),
+    for the runs whose subject is the program's answer."""
+    def run(name: str, *args) -> subprocess.CompletedProcess:
+        argv = private_zenoh(args) if name == "radar-capture" else args
+        return run_main(name, *argv)
+    return run
 
 
 # ----------------------------------------------------------------- determinism
@@ -638,9 +649,9 @@ def test_sim_source_bad_options(url):
         open_source(url)
 
 
-def test_radar_capture_refuses_an_empty_board_naming_the_url():
+def test_radar_capture_refuses_an_empty_board_naming_the_url(run_program):
     # It was "radar-capture: error: no such board: ..." (ConfigError of the path ''): no URL, no option.
-    proc = _run("radar-capture", "--source", "sim://calibration?board=", "--no-publish", "--frames", "1")
+    proc = run_program("radar-capture", "--source", "sim://calibration?board=", "--no-publish", "--frames", "1")
     assert proc.returncode == 2
     assert proc.stderr == ("radar-capture: error: sim://calibration?board=: option board='': expected ideal, "
                            "uncalibrated or a board .toml file\n")
@@ -649,12 +660,12 @@ def test_radar_capture_refuses_an_empty_board_naming_the_url():
 @pytest.mark.parametrize("argv", [("radar-sim", "calibration", "--duration", "0.2", "--out"),
                                   ("radar-capture", "--source", "sim://calibration?rate=max", "--no-publish",
                                    "--frames", "1", "--record")])
-def test_a_capture_directory_the_system_will_not_make_says_why_and_the_fix(argv):
+def test_a_capture_directory_the_system_will_not_make_says_why_and_the_fix(argv, run_program):
     # It was "cannot create capture directory /proc/x: No such file or directory": not which
     # directory refused, nor what to do.
     if not os.path.isdir("/proc/self"):
         pytest.skip("no /proc")
-    proc = _run(*argv, "/proc/radarodom-test-capture")
+    proc = run_program(*argv, "/proc/radarodom-test-capture")
     assert proc.returncode == 1
     assert proc.stderr.endswith(f"{argv[0]}: error: cannot create capture directory /proc/radarodom-test-capture: the "
                                 "directory /proc takes no new files (the system says: No such file or directory); "
@@ -676,9 +687,9 @@ def test_sim_source_scene_file(tmp_path, small_cfg):
 
 
 # ---------------------------------------------------------------- programs
-def test_radar_sim_writes_capture_directory(tmp_path, shipped_cfg):
+def test_radar_sim_writes_capture_directory(tmp_path, shipped_cfg, run_program):
     out = tmp_path / "cap"
-    proc = _run("radar-sim", "calibration", "--duration", "1", "--seed", "2", "--out", out)
+    proc = run_program("radar-sim", "calibration", "--duration", "1", "--seed", "2", "--out", out)
     assert proc.returncode == 0, proc.stderr
     for name in ("radar.cfg", "adc_data.bin", "timestamps.txt", "capture.json", "groundtruth.tum"):
         assert (out / name).is_file(), name
@@ -699,7 +710,7 @@ def test_radar_sim_writes_capture_directory(tmp_path, shipped_cfg):
     assert i == 9
 
 
-def test_radar_sim_records_its_board_so_the_recording_plays_back_as_made(tmp_path, shipped_cfg):
+def test_radar_sim_records_its_board_so_the_recording_plays_back_as_made(tmp_path, shipped_cfg, run_program):
     """A board file whose path holds a space, '&' and '?': the recorded source URL opens the same
     simulation again (the path quoted), and the metadata keeps the board's exact line, so a replay
     knows whether a cfg's line fits it."""
@@ -708,7 +719,7 @@ def test_radar_sim_records_its_board_so_the_recording_plays_back_as_made(tmp_pat
     board_path = folder / "b.toml"
     board_path.write_text('tx_phase_deg = [0.0, 30.0, -20.0]\nrange_bias_m = 0.05\n')
     out = tmp_path / "cap"
-    proc = _run("radar-sim", "calibration", "--duration", "0.5", "--board", board_path, "--out", out)
+    proc = run_program("radar-sim", "calibration", "--duration", "0.5", "--board", board_path, "--out", out)
     assert proc.returncode == 0, proc.stderr
     meta = json.loads((out / "capture.json").read_text())
     with open_source(meta["source"] + "&rate=max") as src:
@@ -725,7 +736,7 @@ def test_radar_sim_records_its_board_so_the_recording_plays_back_as_made(tmp_pat
 
 def test_radar_sim_bad_scene_exits_2(tmp_path):
     path = _write_scene(tmp_path, "bad", BAD_SCENES["unknown_object"])
-    proc = _run("radar-sim", path, "--out", tmp_path / "cap")
+    proc = _run("radar-sim", path, "--out", tmp_path / "cap")  # the console script itself, end to end
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
@@ -816,14 +827,14 @@ def test_radar_sim_bad_scene_exits_2(tmp_path):
     ('[[movers]]\ntype = "person"\npath = [[1, 0], [2, 0]]\n[[movers]]\ntype = "person"\npath = [[1, 0], [1, 0]]\n'
      + _PAUSE, (": movers[1]: path: a person's path has two equal points in a row",)),
 ])
-def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words):
-    _refused(_write_scene(tmp_path, "scene", text), tmp_path / "cap", words)
+def test_radar_sim_refuses_a_scene_it_cannot_simulate(tmp_path, text, words, run_program):
+    _refused(run_program, _write_scene(tmp_path, "scene", text), tmp_path / "cap", words)
 
 
-def _refused(path, out, words) -> None:
+def _refused(run_program, path, out, words) -> None:
     """radar-sim given the scene file *path* says one line naming it and holding each of *words*,
     exits 2 and makes no *out*."""
-    proc = _run("radar-sim", path, "--out", out)
+    proc = run_program("radar-sim", path, "--out", out)
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"radar-sim: error: {path}"), proc.stderr
@@ -838,20 +849,20 @@ def _refused(path, out, words) -> None:
     ('{"trajectory": {"segments": [{"straight": 2, "speed": 1' + "0" * 400 + '}]}}',
      ("trajectory.segments[0] (straight): speed must be a number",)),
 ])
-def test_radar_sim_refuses_a_json_scene_it_cannot_read(tmp_path, text, words):
+def test_radar_sim_refuses_a_json_scene_it_cannot_read(tmp_path, text, words, run_program):
     path = tmp_path / "scene.json"
     path.write_text(text)
-    _refused(path, tmp_path / "cap", words)
+    _refused(run_program, path, tmp_path / "cap", words)
 
 
-def test_a_toml_error_names_its_line_and_a_cfg_in_a_scenes_place_is_named(tmp_path):
+def test_a_toml_error_names_its_line_and_a_cfg_in_a_scenes_place_is_named(tmp_path, run_program):
     bad = tmp_path / "scene.toml"
     bad.write_text('name = "x"\nwalls = [\n  {a = 1,\n')
-    _refused(bad, tmp_path / "cap", (f"{bad}:3: cannot parse: ", "(column ",
+    _refused(run_program, bad, tmp_path / "cap", (f"{bad}:3: cannot parse: ", "(column ",
                                      ": a scene file is a TOML (or .json) table of walls, objects and a path"))
     cfg = tmp_path / "radar.cfg"
     cfg.write_text((REPO / "configs" / "awr1843_raw.cfg").read_text())
-    _refused(cfg, tmp_path / "cap", (f"{cfg}:1: cannot parse: Invalid statement (column 1)",
+    _refused(run_program, cfg, tmp_path / "cap", (f"{cfg}:1: cannot parse: Invalid statement (column 1)",
                                      "(a .cfg is the radar's configuration: give it with --cfg)"))
 
 
