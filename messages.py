@@ -238,6 +238,9 @@ def status_json(status: Mapping[str, Any]) -> bytes:
     (which it must not set itself); refuses NaN and infinity."""
     if not isinstance(status, Mapping):
         raise MessageError(f"status: a mapping of the status' items, got {type(status).__name__}")
+    keys = [k for k in status if not isinstance(k, str)]
+    if keys:  # JSON writes 1 as "1": a second "1" would be a key twice, which every reader refuses
+        raise MessageError(f"status: its keys must be strings, got {_quote(keys[0])}")
     reserved = {"schema", "version"} & set(status)
     if reserved:
         raise MessageError(f"status: {', '.join(sorted(reserved))} are set by the schema, not the caller")
@@ -291,6 +294,8 @@ def encode_pointcloud(frame: int, t: float, points: np.ndarray) -> bytes:
     if not isinstance(points, np.ndarray):
         raise MessageError(f"point cloud: a structured array of points (radarodom.products.POINT_DTYPE), got "
                            f"{type(points).__name__}")
+    if points.ndim != 1:
+        raise MessageError(f"point cloud: a (n,) array of points, got the shape {points.shape}")
     names = points.dtype.names or ()
     missing = [f for f in POINTCLOUD_RECORD.names if f not in names]
     if missing:

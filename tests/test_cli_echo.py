@@ -112,6 +112,7 @@ def test_radar_echo_skips_malformed_messages_with_a_warning(run):
             deadline = time.monotonic() + 20
             while proc.poll() is None and time.monotonic() < deadline:
                 publisher.put(b'{"schema": "radarodom/odom", "version": 1}')
+                session.delete("radar/awr1843/odom")  # no message: was "malformed: not JSON: Expecting value"
                 publisher.put(messages.odometry_json(run[3][0]))
                 time.sleep(0.05)
             out, err = proc.communicate(timeout=30)
@@ -120,6 +121,8 @@ def test_radar_echo_skips_malformed_messages_with_a_warning(run):
     assert proc.returncode == 0, err
     assert ODOM_LINE.fullmatch(out.strip()) and out.startswith("odom frame 3 ")
     assert "ignored a malformed message" in err and "'t' is missing" in err
+    assert "radar/awr1843/odom: ignored a DELETE (no message: a program deleted the key)" in err, err
+    assert "Expecting value" not in err, err
 
 
 def test_radar_echo_stops_on_ctrl_c_with_status_0():
@@ -183,6 +186,10 @@ def test_format_message_lines():
     state = estimator_run(frames=2)[1][0]
     line = radar_echo.format_message("odom", "radar/awr1843/odom", messages.odometry_json(state))
     assert ODOM_LINE.fullmatch(line) and line.startswith("odom frame 1 t 1000.100 ")
+    # A peer's numbers are finite, of any size: not 300 digits, nor "yaw inf deg".
+    huge = {**json.loads(messages.odometry_json(state)), "t": -1e300, "yaw": 1e308}
+    line = radar_echo.format_message("odom", "k", json.dumps(huge).encode())
+    assert line.startswith("odom frame 1 t -1e+300 x ") and " yaw 1e+308 rad v " in line, line
     obj = json.loads(radar_echo.format_message("status", "k", messages.status_json({"a": 1}), as_json=True))
     assert obj == {"key": "k", "schema": "radarodom/status", "version": 1, "a": 1}
 

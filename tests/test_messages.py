@@ -451,6 +451,10 @@ def test_messages_import_neither_zenoh_nor_the_dsp():
     (lambda: messages.odometry_json(None), "odometry: an OdometryState (radarodom.estimator.odometry), got NoneType"),
     (lambda: messages.odometry_dict({}), "odometry: an OdometryState"),
     (lambda: messages.status_json(None), "status: a mapping of the status' items, got NoneType"),
+    # JSON writes the key 1 as "1": the message held "1" twice, which every reader refuses.
+    (lambda: messages.status_json({1: 2, "1": 3}), "status: its keys must be strings, got 1"),
+    (lambda: messages.encode_pointcloud(0, 0.0, np.zeros((2, 3), POINT_DTYPE)),
+     "point cloud: a (n,) array of points, got the shape (2, 3)"),  # numpy's broadcast error
 ])
 def test_the_encoders_name_what_they_take(call, words):
     with pytest.raises(MessageError) as info:

@@ -43,6 +43,8 @@ _QUIET_HINT_S = 5.0
 _BACKLOG = 1000
 #: The longest reason a warning about a bad message quotes.
 _REASON_CHARS = 200
+#: A number at least this large is printed as 1.23e+15, not digit by digit.
+_FIXED_BELOW = 1e15
 #: The largest payload taken off the network, per kind (the readers' own bounds).
 _MAX_BYTES = {"odom": messages.MAX_JSON_BYTES, "status": messages.MAX_JSON_BYTES,
               "pointcloud": messages.MAX_BINARY_BYTES, "heatmap": messages.MAX_BINARY_BYTES}
@@ -84,10 +86,18 @@ def _printable(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[:limit] + "..."
 
 
+def _fixed(value: float, decimals: int) -> str:
+    """*value* with *decimals* decimals, as ``1e+300`` where that would take hundreds of digits (a
+    peer's numbers: finite, any size)."""
+    return f"{value:.{decimals}f}" if abs(value) < _FIXED_BELOW else f"{value:.3g}"
+
+
 def _odom_line(payload: bytes) -> tuple[str, dict]:
     m = messages.parse_odometry(payload)
-    text = (f"odom frame {m['frame']} t {m['t']:.3f} x {m['x']:.3f} y {m['y']:.3f} m "
-            f"yaw {math.degrees(m['yaw']):.2f} deg v {math.hypot(m['vx'], m['vy']):.3f} m/s")
+    yaw_deg = math.degrees(m["yaw"])  # inf past 1.8e306 rad: then said in radians
+    yaw = f"{_fixed(yaw_deg, 2)} deg" if math.isfinite(yaw_deg) else f"{_fixed(m['yaw'], 2)} rad"
+    text = (f"odom frame {m['frame']} t {_fixed(m['t'], 3)} x {_fixed(m['x'], 3)} y {_fixed(m['y'], 3)} m "
+            f"yaw {yaw} v {_fixed(math.hypot(m['vx'], m['vy']), 3)} m/s")
     # The flags are any peer's strings: escaped and cut, so a message stays one line.
     return text + (f" [{_printable(','.join(m['flags']), _REASON_CHARS)}]" if m["flags"] else ""), m
 
@@ -124,6 +134,11 @@ def format_message(kind: str, key: str, payload: bytes, as_json: bool = False) -
     return strict_json.dumps({"key": key, **{k: v for k, v in obj.items() if k != "key"}}, separators=(",", ":"))
 
 
+#: What the inbox holds for a key's DELETE (a Zenoh sample of no message: a program's
+#: session.delete() on the key), told apart from a malformed message.
+DELETED = object()
+
+
 class _Inbox:
     """What the Zenoh threads received, for the main thread: (kind, key, payload or None,
     size).  At most *backlog* wait; the rest are counted, not kept.  A payload over its kind's
@@ -140,8 +155,12 @@ class _Inbox:
         # Runs on a zenoh thread: it must never raise, and never wait on the main thread.
         def receive(sample: Any) -> None:
             key, size = str(sample.key_expr), len(sample.payload)
+            if str(sample.kind).endswith("DELETE"):  # zenoh.SampleKind.DELETE: another's session.delete()
+                payload = DELETED
+            else:
+                payload = sample.payload.to_bytes() if size <= limit else None
             try:
-                self._queue.put_nowait((kind, key, sample.payload.to_bytes() if size <= limit else None, size))
+                self._queue.put_nowait((kind, key, payload, size))
             except queue.Full:
                 with self._lock:
                     self._dropped[key] = self._dropped.get(key, 0) + 1
@@ -207,6 +226,9 @@ def _print_loop(args: argparse.Namespace, session, inbox: _Inbox, no_peer_hint: 
                     log.warning("%s", no_peer_hint)
             continue
         received += 1
+        if payload is DELETED:
+            log.warning("%s: ignored a DELETE (no message: a program deleted the key)", key)
+            continue
         try:
             if payload is None:
                 raise MessageError(f"{size} bytes, more than the {_MAX_BYTES[kind]} a message may have "
