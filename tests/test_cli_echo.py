@@ -304,20 +304,27 @@ class _Payload(bytes):
         return bytes(self)
 
 
+def _sample(key: str, payload: bytes, kind=zenoh.SampleKind.PUT) -> argparse.Namespace:
+    """What the inbox reads of a zenoh.Sample."""
+    return argparse.Namespace(key_expr=key, payload=_Payload(payload), kind=kind)
+
+
 def test_the_inbox_keeps_a_bounded_backlog_and_counts_what_it_drops():
     """A flood faster than radar-echo prints is dropped beyond the backlog and counted per key
     (one warning per key and batch), and a payload over its kind's bound is never copied."""
     inbox = radar_echo._Inbox(backlog=3)
     receive = inbox.receiver("odom")
     for i in range(5):
-        receive(argparse.Namespace(key_expr="radar/awr1843/odom", payload=_Payload(b"%d" % i)))
-    big = _Payload(bytes(messages.MAX_JSON_BYTES + 1))
-    inbox.receiver("status")(argparse.Namespace(key_expr="radar/awr1843/status", payload=big))
+        receive(_sample("radar/awr1843/odom", b"%d" % i))
+    big = bytes(messages.MAX_JSON_BYTES + 1)
+    inbox.receiver("status")(_sample("radar/awr1843/status", big))
     assert [inbox.get(0.1)[2] for _ in range(3)] == [b"0", b"1", b"2"]
     assert inbox.take_dropped() == {"radar/awr1843/odom": 2, "radar/awr1843/status": 1}
     assert inbox.take_dropped() == {}
-    inbox.receiver("status")(argparse.Namespace(key_expr="radar/awr1843/status", payload=big))
+    inbox.receiver("status")(_sample("radar/awr1843/status", big))
     assert inbox.get(0.1) == ("status", "radar/awr1843/status", None, messages.MAX_JSON_BYTES + 1)
+    inbox.receiver("odom")(_sample("radar/awr1843/odom", b"", zenoh.SampleKind.DELETE))
+    assert inbox.get(0.1) == ("odom", "radar/awr1843/odom", radar_echo.DELETED, 0)
 
 
 def test_the_no_peer_hint_is_given_only_when_nothing_came():
