@@ -32,6 +32,7 @@ from radarodom.driver.live.dca1000_wire import MAX_DATA_BYTES, AsyncStatus, Comm
 from radarodom.driver.emulators.fake_dca1000 import RECORD_COMPLETED_DELAY_S, Faults
 from radarodom.driver.emulators.rig import EmulatedRig
 from radarodom.driver.sources import open_source
+from radarodom.errors import UsageError
 
 N_SRC = 5
 
@@ -316,6 +317,10 @@ def test_board_sees_the_stop_sequence_once(small_capture, small_cfg):
             collect_until_stopped(src, 2)
         assert rig.board.commands.get(Command.RECORD_STOP) == 1
         assert rig.radar.received[-1] == "sensorStop" and rig.radar.received.count("sensorStart") == 1
+        # Closed, its sockets released: iterating it again was "AttributeError: 'NoneType' object has
+        # no attribute 'setblocking'".
+        with pytest.raises(UsageError, match=r"the source is closed; open a new one \(open_source\)"):
+            next(iter(src))
 
 
 def test_cli_a_board_that_stops_mid_run_still_gets_its_summary(small_capture, small_cfg, tmp_path, capsys):

@@ -19,7 +19,7 @@ from radarodom.driver.live.discovery import SerialPortInfo
 from radarodom.driver.tidemo import wire
 from radarodom.driver.tidemo.layout import DemoGeometry, demo_config, gui_selection
 from radarodom.driver.tidemo.ports import demo_ports
-from radarodom.errors import ConfigError, SourceError
+from radarodom.errors import ConfigError, SourceError, UsageError
 
 from tidemo_helpers import TIDEMO_CFG
 
@@ -184,6 +184,9 @@ def test_the_source_configures_the_radar_and_frames_what_its_data_port_sends():
                     break
             about = source.describe()
             said = source.summary()
+        # Closed, its ports released: iterating it again was pyserial's error on a closed port.
+        with pytest.raises(UsageError, match=r"the source is closed; open a new one \(open_source\)"):
+            next(iter(source))
         assert "guiMonitor -1 1 0 0 1 0 0" in radar.received and radar.received[-1] == "sensorStop"
         assert "lvdsStreamCfg" not in " ".join(radar.received)
         assert [f.index for f in frames] == [0, 1, 3, 5]

@@ -36,7 +36,7 @@ from typing import Iterator
 from ...calibration import uncalibrated_note
 from ...cfg import RadarConfig, shipped_config_path
 from ...cfg_physics import DCA1000_PACKET_DELAY_RANGE_US
-from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
+from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError, UsageError
 from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Settings
@@ -113,6 +113,8 @@ class LiveSource(Source):
             return "resetting it through the DCA1000 failed too: power-cycle the radar"
 
     def __iter__(self) -> Iterator[Frame]:
+        if self._closed:  # its sockets and the radar's port are released
+            raise UsageError(f"{self.url}: the source is closed; open a new one (open_source)")
         # Packets of an earlier recording that came while the board and the radar were set up
         # would be taken for this one's (a board left streaming by a run killed before it stopped).
         self.receiver.flush()

@@ -44,7 +44,7 @@ import serial
 
 from ...calibration import CALIBRATION_COMMAND, uncalibrated_note
 from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
-from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
+from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError, UsageError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.frame_clock import FrameClock, stream_timeout_s
 from ..sources import Frame, Source
@@ -189,6 +189,8 @@ class TidemoSource(Source):
         return None
 
     def __iter__(self) -> Iterator[Frame]:
+        if self._closed:  # its serial ports are released
+            raise UsageError(f"{self.url}: the source is closed; open a new one (open_source)")
         self.port.reset_input_buffer()
         self._reader = _Reader(self)
         self._reader.start()
