@@ -184,10 +184,9 @@ def _given_up(framer: TlvFramer) -> str:
     with one and given up, by reason, and where the first was."""
     if not framer.rejections:
         return " (the UART stream of TI's SDK 3.x demo starts each packet with the magic word 02 01 04 03 06 05 08 07)"
-    reasons = collections.Counter(why for _, why in framer.rejections)
-    counts = ", ".join(f"{why} {n}" for why, n in reasons.most_common())
+    counts = ", ".join(f"{why} {n}" for why, n in framer.stats.rejected.most_common())
     header = "" if framer.first_bad_header is None else f"; the first bad header's {framer.first_bad_header}"
-    return (f": {len(framer.rejections)} begun with the magic word, all given up ({counts}; the first at byte "
+    return (f": {framer.stats.rejected_packets} begun with the magic word, all given up ({counts}; the first at byte "
             f"{framer.rejections[0][0]}{header})")
 
 
