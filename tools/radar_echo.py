@@ -26,6 +26,8 @@ import threading
 import time
 from typing import Any, Callable, Sequence
 
+import zenoh
+
 from .. import messages, strict_json
 from ..errors import MessageError, one_line
 from ..publish import DEFAULT_ENDPOINT, KINDS, open_session
@@ -155,7 +157,7 @@ class _Inbox:
         # Runs on a zenoh thread: it must never raise, and never wait on the main thread.
         def receive(sample: Any) -> None:
             key, size = str(sample.key_expr), len(sample.payload)
-            if str(sample.kind).endswith("DELETE"):  # zenoh.SampleKind.DELETE: another's session.delete()
+            if sample.kind == zenoh.SampleKind.DELETE:  # another program's session.delete() on the key
                 payload = DELETED
             else:
                 payload = sample.payload.to_bytes() if size <= limit else None
