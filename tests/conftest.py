@@ -170,6 +170,14 @@ def run_main(capsys):
 
 
 @pytest.fixture
+def capture_main(run_main):
+    """``capture_main(*args)``: radar-capture's run in this process (:func:`run_main`), publishing
+    on a free port of its own unless it says where (:func:`private_zenoh`), as the subprocess runs
+    of the CLI tests do."""
+    return lambda *args: run_main("radar-capture", *private_zenoh(args))
+
+
+@pytest.fixture
 def default_endpoint(monkeypatch) -> str:
     """The Zenoh publisher's default endpoint moved to a free loopback port for the test, so
     that it meets nothing that runs on the real one (tcp/127.0.0.1:7448) on this machine."""

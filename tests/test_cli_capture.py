@@ -44,13 +44,6 @@ def run_capture_cli(*args, timeout=60) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=timeout)
 
 
-@pytest.fixture
-def capture_main(run_main):
-    """``capture_main(*args)``: run_capture_cli's run (its own Zenoh port, private_zenoh) made in
-    this process, with radar-capture's main() (conftest's run_main); a CompletedProcess."""
-    return lambda *args: run_main("radar-capture", *private_zenoh(args))
-
-
 def popen_capture(*args, **kw) -> subprocess.Popen:
     kw.setdefault("stdout", subprocess.PIPE)
     kw.setdefault("stderr", subprocess.PIPE)

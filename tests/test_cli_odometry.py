@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import CORRIDOR_URL, console_command, private_zenoh, run_together
+from conftest import CORRIDOR_URL, console_command, run_together
 from test_cli_capture import one_error_line, popen_capture, run_capture_cli, summary_re
 
 from radarodom.estimator.config import EstimatorConfig
@@ -39,13 +39,6 @@ ODOM_PART = (r"; odometry: x (?P<x>-?\d+\.\d\d) m, y (?P<y>-?\d+\.\d\d) m, yaw (
              r"p99 (?P<p99>\d+\.\d) ms(?:, trajectory in (?P<path>.+?))?"
              r"(?:; (?:point clouds|heatmaps|odometry messages) in .+?)?"
              r"(?:; published \d+ odometry, \d+ point cloud, \d+ heatmap and \d+ status messages under \S+)?$")
-
-
-@pytest.fixture
-def capture_main(run_main):
-    """``capture_main(*args)``: test_cli_capture.run_capture_cli's run (its own Zenoh port) made in this
-    process, with radar-capture's main() (conftest's run_main); a CompletedProcess."""
-    return lambda *args: run_main("radar-capture", *private_zenoh(args))
 
 
 def tum_rows(path) -> list[list[str]]:

@@ -15,7 +15,6 @@ import subprocess
 import time
 
 import pytest
-from conftest import private_zenoh
 from test_cli_capture import popen_capture, run_capture_cli
 from zenoh_helpers import Inbox, free_endpoint, peer, wait_for
 
@@ -30,13 +29,6 @@ def recording(corridor_run):
     """The recording of conftest.CORRIDOR_URL (read only)."""
     assert corridor_run.proc.returncode == 0, corridor_run.proc.stderr
     return corridor_run.rec
-
-
-@pytest.fixture
-def capture_main(run_main):
-    """``capture_main(*args)``: run_capture_cli's run (its own Zenoh port) made in this process,
-    with radar-capture's main() (conftest's run_main); a CompletedProcess."""
-    return lambda *args: run_main("radar-capture", *private_zenoh(args))
 
 
 def _odometry(inbox: Inbox) -> list[dict]:
