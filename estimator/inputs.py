@@ -3,7 +3,8 @@ inputs): a time, a point cloud, a heatmap, a velocity.  Each wrong one is a :cla
 (or :class:`TimeOrderError`) naming what was expected, rather than numpy's error from deep inside.
 A NaN or inf where a measurement goes (a ROS point cloud pads with NaN) is no measurement: such
 points are left out and such heatmap cells hold no power (:func:`finite_points`,
-:func:`finite_heatmap`)."""
+:func:`finite_heatmap`); so are a cloud's repeated points, and its weakest past
+:data:`MAX_CLOUD_POINTS` (:func:`distinct_points`, :func:`strongest_points`)."""
 
 from __future__ import annotations
 
@@ -24,6 +25,11 @@ POINT_YAW_FIELDS = (*POINT_FIELDS, "x", "y")
 #: the estimator reads sees so far or so fast, and the points' map's covariances of such a point
 #: cannot be inverted (a garbled packet's 1e30 m stopped the run).
 MAX_POINT_VALUE = 1e4
+#: The most points of a frame the estimator takes (the strongest). The radars it reads give dozens to
+#: a few hundred a frame; the points' map pairs each point with the others near it, so thousands
+#: crowded into a place (a record repeated with a jitter) took time and memory growing with their
+#: square, gigabytes a frame.
+MAX_CLOUD_POINTS = 500
 
 
 def check_time(t: float, what: str) -> None:
@@ -91,6 +97,34 @@ def finite_points(points: np.ndarray, fields: tuple[str, ...] = POINT_FIELDS) ->
         values = points[name]
         keep &= np.abs(values) <= MAX_POINT_VALUE if name in ("x", "y", "velocity") else np.isfinite(values)
     return points if keep.all() else points[keep]
+
+
+def distinct_points(points: np.ndarray, fields: tuple[str, ...] = POINT_FIELDS) -> np.ndarray:
+    """*points* (finite ones, :func:`finite_points`) without those equal in all *fields* to an
+    earlier one, in their order; *points* itself when none repeats. A repeated record (a source
+    that sends a point twice) measures nothing new, and a frame of one point repeated many times
+    would pair every copy with every other in the points' map."""
+    if len(points) < 2:
+        return points
+    values = np.stack([np.asarray(points[name], float) for name in fields])  # (fields, n)
+    order = np.lexsort(values)  # stable: a repeat sorts after the point it repeats
+    repeat = (values[:, order[1:]] == values[:, order[:-1]]).all(0)
+    if not repeat.any():
+        return points
+    keep = np.ones(len(points), bool)
+    keep[order[1:][repeat]] = False
+    return points[keep]
+
+
+def strongest_points(points: np.ndarray, limit: int = MAX_CLOUD_POINTS) -> np.ndarray:
+    """The *limit* strongest of *points* by their ``snr_db`` (the first *limit* of a cloud without
+    one), in their order; *points* itself when it holds no more."""
+    if len(points) <= limit:
+        return points
+    if "snr_db" not in (points.dtype.names or ()):
+        return points[:limit]
+    strength = np.nan_to_num(np.asarray(points["snr_db"], float), nan=-np.inf)
+    return points[np.sort(np.argsort(-strength, kind="stable")[:limit])]
 
 
 def finite_heatmap(heatmap):

@@ -37,8 +37,8 @@ from .doppler_elevation import doppler_elevation_part
 from .doppler_yaw import doppler_yaw_part, fuse, no_side_slip_part
 from .features import PolarHeatmap
 from .heading_blend import HeadingBlend
-from .inputs import (MAX_POINT_VALUE, POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points, check_time,
-                     check_velocity, finite_heatmap, finite_points)
+from .inputs import (MAX_CLOUD_POINTS, MAX_POINT_VALUE, POINT_FIELDS, POINT_YAW_FIELDS, check_heatmap, check_points,
+                     check_time, check_velocity, distinct_points, finite_heatmap, finite_points, strongest_points)
 from .icp import Registration
 from .keyframe import ChainStep, KeyframeCorrection, NoKeyframes
 from .motion import integrate
@@ -131,7 +131,7 @@ class RadarOdometry:
         #: What add_points checks each point has: the points' yaw reads their place too.
         self._point_fields = POINT_FIELDS if self.point_yaw is None and self.blend is None and self.walls is None \
             else POINT_YAW_FIELDS
-        self._told_not_finite = False  # whether a NaN or inf in the inputs was logged as a warning
+        self._told: set[str] = set()  # the kinds of inputs left out that were logged as a warning
         self._published: OdometryState | None = None  # with point_yaw.blend, the blend's
         self._good_rate: tuple[float, float] | None = None  # (t, yaw rate rad/s) of the last measured yaw
         self._frames = 0
@@ -155,9 +155,16 @@ class RadarOdometry:
         n_given = len(points)
         points = finite_points(points, self._point_fields)
         if len(points) < n_given:
-            self._not_finite(t, f"{n_given - len(points)} of {n_given} points hold NaN, inf or values past "
-                                f"{MAX_POINT_VALUE:g} in "
-                                f"{'/'.join(self._point_fields)}: left out")
+            self._input_note(t, "not finite", f"{n_given - len(points)} of {n_given} points hold NaN, inf or values "
+                             f"past {MAX_POINT_VALUE:g} in {'/'.join(self._point_fields)}: left out")
+        n_given = len(points)
+        points = distinct_points(points, self._point_fields)
+        if len(points) < n_given:
+            self._input_note(t, "repeated", f"{n_given - len(points)} of {n_given} points repeat another in "
+                             f"{'/'.join(self._point_fields)}: left out")
+        if len(points) > MAX_CLOUD_POINTS:
+            self._input_note(t, "too many", f"{len(points)} points: the {MAX_CLOUD_POINTS} strongest taken")
+            points = strongest_points(points)
         if velocity is not None:
             check_velocity(velocity)
             if velocity.t != t:
@@ -186,11 +193,11 @@ class RadarOdometry:
         if self.blend is not None:
             self.blend.add_velocity(est)
 
-    def _not_finite(self, t: float, what: str) -> None:
-        """Log *what* was not finite at *t*: a warning the first time, then at debug level (a
-        source that pads its clouds with NaN does so every frame)."""
-        level = logging.DEBUG if self._told_not_finite else logging.WARNING
-        self._told_not_finite = True
+    def _input_note(self, t: float, kind: str, what: str) -> None:
+        """Log *what* was left out of the inputs at *t*: a warning the first time for each *kind*,
+        then at debug level (a source that pads its clouds with NaN does so every frame)."""
+        level = logging.DEBUG if kind in self._told else logging.WARNING
+        self._told.add(kind)
         logger.log(level, "estimator at t=%.3f s: %s%s", t, what,
                    "" if level == logging.DEBUG else " (said once; the rest at debug level)")
 
@@ -213,7 +220,7 @@ class RadarOdometry:
         check_heatmap(heatmap)
         given = finite_heatmap(heatmap)  # what the blend's points' estimator is fed too
         if given is not heatmap:
-            self._not_finite(t, "heatmap cells whose power is NaN or inf: taken as none")
+            self._input_note(t, "not finite", "heatmap cells whose power is NaN or inf: taken as none")
         heatmap, previous = given, self._previous
         if previous is not None and not t > previous.t:
             raise TimeOrderError(f"heatmap at t={t} not after the previous one at t={previous.t}: "

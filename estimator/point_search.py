@@ -16,6 +16,10 @@ from .angles import wrap
 #: lie are left out of its likelihood (see :func:`pairs_within_reach`).
 _REACH_SIGMAS = 6.0
 
+#: The most (turn, pair) exponents :meth:`PairScore.at` holds at once (32 MB of each array): a
+#: crowded frame's pairs are scored a run of points at a time, which sums each point's the same.
+_CHUNK_ELEMENTS = 1 << 22
+
 
 def search_grid(search_rad: float, step_rad: float) -> np.ndarray:
     """The turns tried about the predicted one: every *step_rad* within *search_rad*, rad."""
@@ -95,7 +99,7 @@ class PairScore:
             self._terms[0] += log_weight[near]
         self._n = len(xy)
         counts = np.bincount(point, minlength=self._n)
-        self._has = counts > 0
+        self._has = np.flatnonzero(counts)  # the points with pairs, and where their pairs start
         self._starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[self._has]
         self._floor = floor  # a point's likelihood at the least (``outlier_sigmas``)
 
@@ -106,7 +110,16 @@ class PairScore:
         c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
         c2, s2 = np.cos(2.0 * yaws)[:, None], np.sin(2.0 * yaws)[:, None]
         likelihood = np.zeros((len(yaws), self._n))  # (T, n)
-        if len(self._starts):
-            exponent = k[0] + c * k[1] + s * k[2] + c2 * k[3] + s2 * k[4]  # (T, pairs)
-            likelihood[:, self._has] = np.add.reduceat(np.exp(exponent), self._starts, axis=1)
+        pairs = k.shape[1]
+        first = 0  # the first point of the run, of those with pairs
+        while first < len(self._starts):
+            # The run's points, whole, up to the budget's pairs (one point's at the least).
+            last = max(int(np.searchsorted(self._starts, self._starts[first] + _CHUNK_ELEMENTS // len(yaws),
+                                           side="right")), first + 1)
+            a, b = self._starts[first], (self._starts[last] if last < len(self._starts) else pairs)
+            t = k[:, a:b]
+            exponent = t[0] + c * t[1] + s * t[2] + c2 * t[3] + s2 * t[4]  # (T, run's pairs)
+            likelihood[:, self._has[first:last]] = np.add.reduceat(np.exp(exponent), self._starts[first:last] - a,
+                                                                  axis=1)
+            first = last
         return np.log(np.maximum(likelihood, self._floor)).sum(axis=1)

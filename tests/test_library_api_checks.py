@@ -369,6 +369,65 @@ def test_nan_or_inf_where_a_measurement_goes_is_none_said_once(caplog):
     assert len(said) == 2 * len(frames)  # the points and the heatmap each frame, at debug after the first
 
 
+def test_repeated_points_and_a_clouds_weakest_past_the_bound_are_left_out_said_once(caplog):
+    """A source that sends each point many times (fuzzing's 20 000 copies of a frame's points took
+    3 GB in the points' map, more ended the process) gives the odometry of its cloud without the
+    copies; a cloud of more than MAX_CLOUD_POINTS distinct points gives that of its strongest; one
+    warning for each, the rest at debug level."""
+    from estimator_synth import Trajectory, frame, scene
+
+    from radarodom.estimator.inputs import MAX_CLOUD_POINTS
+    trajectory = Trajectory([(1.0, 0.6, 0.0), (1.5, 0.6, math.radians(30)), (1.0, 0.6, 0.0)])
+    world, amplitude = scene(trajectory, 30, seed=3)
+    rng = np.random.default_rng(7)
+    clean, repeated, crowded, strongest = (RadarOdometry() for _ in range(4))
+    for i in range(36):
+        t = i / 10
+        x, y, yaw = trajectory.pose(t)
+        vx, vy, _ = trajectory.twist(t)
+        cloud, hm = frame(world, amplitude, (x, y, yaw), (vx, vy), rng)
+        # Weak, distinct points far off: the strongest are the cloud's own.
+        extra = np.zeros(MAX_CLOUD_POINTS + 50, POINT_DTYPE)
+        extra["x"] = 40.0 + np.arange(len(extra)) * 0.5
+        extra["azimuth"], extra["snr_db"] = 0.1, -30.0
+        if i == 0:
+            first = len(cloud)
+        with caplog.at_level("DEBUG", logger="radarodom.estimator.odometry"):
+            b = repeated.step(t, np.resize(cloud, 40 * len(cloud)), hm)
+            if i < 4:  # a crowded cloud's search is slow: a few frames tell
+                c = crowded.step(t, np.concatenate([extra[:25], cloud, extra[25:]]), hm)
+        a = clean.step(t, cloud, hm)
+        assert (a.x, a.y, a.yaw, a.vx, a.vy) == (b.x, b.y, b.yaw, b.vx, b.vy), i
+        if i < 4:
+            d = strongest.step(t, np.concatenate([extra[:25], cloud, extra[25:MAX_CLOUD_POINTS - len(cloud)]]), hm)
+            assert (c.x, c.y, c.yaw, c.vx, c.vy) == (d.x, d.y, d.yaw, d.vx, d.vy), i
+    assert abs(b.yaw - trajectory.pose(3.5)[2]) < math.radians(3)
+    said = [r.getMessage() for r in caplog.records if r.name == "radarodom.estimator.odometry"]
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 2 and len(said) == 36 + 4, said[:3]
+    assert f"{39 * first} of {40 * first} points repeat another in azimuth/elevation/velocity/x/y" in warned[0]
+    assert f"{first + len(extra)} points: the {MAX_CLOUD_POINTS} strongest taken" in warned[1]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_clouds_repeats_are_the_points_equal_to_an_earlier_one_in_every_field_read(seed):
+    from radarodom.estimator.inputs import POINT_YAW_FIELDS, distinct_points
+    rng = np.random.default_rng(seed)
+    cloud = np.zeros(200, POINT_DTYPE)
+    for name in POINT_YAW_FIELDS:  # few values, so that many points repeat one in one field or more
+        cloud[name] = rng.integers(0, 2, len(cloud)) * 0.5
+    cloud["snr_db"] = np.arange(len(cloud))  # not read: no part of what makes a repeat
+    seen, first = set(), []
+    for i, point in enumerate(cloud):
+        key = tuple(float(point[name]) for name in POINT_YAW_FIELDS)
+        if key not in seen:
+            seen.add(key)
+            first.append(i)
+    assert distinct_points(cloud, POINT_YAW_FIELDS)["snr_db"].tolist() == first
+    whole = cloud[first]
+    assert distinct_points(whole, POINT_YAW_FIELDS) is whole
+
+
 @pytest.mark.parametrize("change, words", [
     # Each ended deep in the log-polar resampling: ZeroDivisionError, IndexError, numpy's TypeError.
     (dict(azimuth_rad=np.zeros(3)), "heatmap: azimuth_rad must hold at least 2 bins, increasing (0 .. 0 given"),

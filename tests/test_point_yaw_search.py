@@ -34,6 +34,24 @@ def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussian
     assert score == pytest.approx(np.array(expected), rel=1e-9, abs=1e-9)
 
 
+def test_a_crowded_frames_pairs_are_scored_in_runs_of_points_to_the_same_figures(monkeypatch):
+    # A frame of many points near the same map points makes (turns x pairs) exponents that took
+    # gigabytes at once: scored a run of whole points at a time, each point's sum and so the score
+    # are the same to the last bit, runs of one point (the budget below one point's pairs) too.
+    rng = np.random.default_rng(8)
+    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.01), (1.2, 0.4, math.radians(30.0)), 2.0, 6.0, 12)
+    centres, inverse, sigma = part.map.arrays()
+    origin = np.array([1.5, 0.2])
+    point, near = point_search.pairs_within_reach(xy, origin, 0.5, centres, sigma, math.radians(8.0))
+    yaws = 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
+    whole = point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws)
+    assert len(point) * len(yaws) < point_search._CHUNK_ELEMENTS  # one run as shipped
+    for budget in (len(yaws) * len(point) // 3, len(yaws) * 5, 1):
+        monkeypatch.setattr(point_search, "_CHUNK_ELEMENTS", budget)
+        assert point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws).tolist() \
+            == whole.tolist(), budget
+
+
 def _score_calls(values):
     """A score over a grid given by *values* (T,), and the indices it was asked for, in order."""
     asked = []
