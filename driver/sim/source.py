@@ -31,6 +31,7 @@ The radar configuration is ``--cfg`` when given, else the shipped
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Iterator
 
 import numpy as np
@@ -61,21 +62,39 @@ class SimSource(Source):
         self.calibrated = sim.board.fits(sim.cfg)
 
     def __iter__(self) -> Iterator[Frame]:
+        # The next frame is made while this one is processed, as a radar makes its frames while the
+        # host processes the last: made after the one before (in one thread, the simulator's
+        # buffers being its own), it keeps real time where making and processing a frame take
+        # more than a period together but each less (docs/simulator.md, "Speed").
+        if self.stop_requested:
+            return
         pacer = Pacer(self.rate, self)
         n = self.sim.num_frames
         span = n * self.sim.period  # a pass, so that the next one's first frame is a period on
-        passes = 0
-        while not self.stop_requested and (self.loop == 0 or passes < self.loop):
-            for i in range(n):
-                if self.stop_requested:
-                    return
-                offset = passes * span  # later passes continue the clock, like replay's
+        order = self._order()
+        with ThreadPoolExecutor(1, thread_name_prefix="sim-frames") as maker:
+            ahead = next(order, None)
+            made = maker.submit(self.sim.frame, ahead[1]) if ahead else None
+            while made is not None and not self.stop_requested:
+                k, i = ahead
+                offset = (k // n) * span  # later passes continue the clock, like replay's
                 pacer.wait(self.sim.frame_time(i) + offset)
                 if self.stop_requested:
-                    return
-                f = self.sim.frame(i)
-                yield Frame(index=passes * n + i, timestamp=f.timestamp + offset,
+                    break
+                f = made.result()
+                ahead = next(order, None)
+                made = maker.submit(self.sim.frame, ahead[1]) if ahead else None
+                yield Frame(index=k, timestamp=f.timestamp + offset,
                             raw=np.frombuffer(f.raw, np.uint8), layout=self.sim.layout, pose=f.pose)
+            # A frame still being made is finished, not abandoned: the simulator's buffers are
+            # not to be shared with another iteration.
+
+    def _order(self) -> Iterator[tuple[int, int]]:
+        """(index in the stream, frame of the pass) of each frame to stream, every pass's."""
+        n, passes = self.sim.num_frames, 0
+        while self.loop == 0 or passes < self.loop:
+            for i in range(n):
+                yield passes * n + i, i
             passes += 1
 
     def groundtruth(self) -> TumTrajectory:
