@@ -65,7 +65,7 @@ class SimSource(Source):
         # The next frame is made while this one is processed, as a radar makes its frames while the
         # host processes the last: made after the one before (in one thread, the simulator's
         # buffers being its own), it keeps real time where making and processing a frame take
-        # more than a period together but each less (docs/simulator.md, "Speed").
+        # more than a period together but each less (docs/simulator.md, "Fidelity").
         if self.stop_requested:
             return
         pacer = Pacer(self.rate, self)
