@@ -13,15 +13,21 @@ from test_point_yaw import _map_and_frame
 from radarodom.estimator import point_search
 
 
-def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussians():
-    # The score's five per-pair terms against the rotation and quadratic form written out, on a
-    # room's map: the same at every turn, to rounding.
+def _room():
+    """A room's points' map and a frame's points in it: the part, the points (n, 2) m, the map's
+    centres and inverse covariances, the sensor's position, the pairs within reach and the turns."""
     rng = np.random.default_rng(8)
     part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.01), (1.2, 0.4, math.radians(30.0)), 2.0, 6.0, 12)
     centres, inverse, sigma = part.map.arrays()
     origin = np.array([1.5, 0.2])
     point, near = point_search.pairs_within_reach(xy, origin, 0.5, centres, sigma, math.radians(8.0))
-    yaws = 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
+    return part, xy, centres, inverse, origin, point, near, 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
+
+
+def test_a_pairs_score_at_any_turn_is_its_points_rotated_under_the_maps_gaussians():
+    # The score's five per-pair terms against the rotation and quadratic form written out, on a
+    # room's map: the same at every turn, to rounding.
+    part, xy, centres, inverse, origin, point, near, yaws = _room()
     score = point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws)
     expected = []
     for yaw in yaws:
@@ -38,12 +44,7 @@ def test_a_crowded_frames_pairs_are_scored_in_runs_of_points_to_the_same_figures
     # A frame of many points near the same map points makes (turns x pairs) exponents that took
     # gigabytes at once: scored a run of whole points at a time, each point's sum and so the score
     # are the same to the last bit, runs of one point (the budget below one point's pairs) too.
-    rng = np.random.default_rng(8)
-    part, xy = _map_and_frame(rng, 40, 5.0, (0.03, 0.01), (1.2, 0.4, math.radians(30.0)), 2.0, 6.0, 12)
-    centres, inverse, sigma = part.map.arrays()
-    origin = np.array([1.5, 0.2])
-    point, near = point_search.pairs_within_reach(xy, origin, 0.5, centres, sigma, math.radians(8.0))
-    yaws = 0.5 + np.radians(np.linspace(-8.0, 8.0, 33))
+    part, xy, centres, inverse, origin, point, near, yaws = _room()
     whole = point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws)
     assert len(point) * len(yaws) < point_search._CHUNK_ELEMENTS  # one run as shipped
     for budget in (len(yaws) * len(point) // 3, len(yaws) * 5, 1):
