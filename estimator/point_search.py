@@ -110,12 +110,11 @@ class PairScore:
         c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
         c2, s2 = np.cos(2.0 * yaws)[:, None], np.sin(2.0 * yaws)[:, None]
         likelihood = np.zeros((len(yaws), self._n))  # (T, n)
-        pairs = k.shape[1]
+        pairs, budget = k.shape[1], _CHUNK_ELEMENTS // max(len(yaws), 1)
         first = 0  # the first point of the run, of those with pairs
         while first < len(self._starts):
             # The run's points, whole, up to the budget's pairs (one point's at the least).
-            last = max(int(np.searchsorted(self._starts, self._starts[first] + _CHUNK_ELEMENTS // len(yaws),
-                                           side="right")), first + 1)
+            last = max(int(np.searchsorted(self._starts, self._starts[first] + budget, side="right")), first + 1)
             a, b = self._starts[first], (self._starts[last] if last < len(self._starts) else pairs)
             t = k[:, a:b]
             exponent = t[0] + c * t[1] + s * t[2] + c2 * t[3] + s2 * t[4]  # (T, run's pairs)

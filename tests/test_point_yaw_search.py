@@ -49,8 +49,10 @@ def test_a_crowded_frames_pairs_are_scored_in_runs_of_points_to_the_same_figures
     assert len(point) * len(yaws) < point_search._CHUNK_ELEMENTS  # one run as shipped
     for budget in (len(yaws) * len(point) // 3, len(yaws) * 5, 1):
         monkeypatch.setattr(point_search, "_CHUNK_ELEMENTS", budget)
-        assert point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor).at(yaws).tolist() \
-            == whole.tolist(), budget
+        scores = point_search.PairScore(xy, origin, centres, inverse, point, near, part._floor)
+        assert scores.at(yaws).tolist() == whole.tolist(), budget
+        # No turn asked (the climb's fine window all scored already): no score, in runs or not.
+        assert scores.at(yaws[:0]).shape == (0,)
 
 
 def _score_calls(values):
