@@ -25,7 +25,7 @@ import numpy as np
 
 from ..calibration import RangeCoupling
 from ..cfg import RadarConfig
-from ..errors import SourceError
+from ..errors import SourceError, UsageError
 from ..products import RangeAzimuth
 from ..rawframe import RawLayout
 from ..tum import TumTrajectory
@@ -143,7 +143,9 @@ class Frame:
 
 
 class Source(abc.ABC):
-    """A stream of frames.  Iterate it; close it (or use ``with``)."""
+    """A stream of frames.  Iterate it; close it (or use ``with``): a closed source has let go of
+    what it reads (ports, sockets, files) and refuses to stream again.  A source gives its frames
+    from :meth:`_frames` and lets go of what it holds in :meth:`_release`."""
 
     #: The URL the source was opened from.
     url: str = ""
@@ -174,15 +176,21 @@ class Source(abc.ABC):
 
     def __init__(self) -> None:
         self._stop_requested = False
+        self._closed = False
 
     @property
     def heatmaps_from_raw(self) -> bool:
         """Whether the frames' heatmaps are the DSP's, made from their raw samples by ``config``."""
         return self.carries_raw
 
-    @abc.abstractmethod
     def __iter__(self) -> Iterator[Frame]:
-        ...
+        if self._closed:
+            raise UsageError(f"{self.url}: the source is closed; open a new one (open_source)")
+        return self._frames()
+
+    @abc.abstractmethod
+    def _frames(self) -> Iterator[Frame]:
+        """The stream's frames in order, from an open source."""
 
     def stop(self) -> None:
         """Ask the stream to end after the current frame.  Safe to call from a
@@ -193,8 +201,19 @@ class Source(abc.ABC):
     def stop_requested(self) -> bool:
         return self._stop_requested
 
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+        return self._closed
+
     def close(self) -> None:
         """Release what the source holds.  Idempotent."""
+        if not self._closed:
+            self._closed = True
+            self._release()
+
+    def _release(self) -> None:
+        """What :meth:`close` lets go of, once (nothing, for a source that holds nothing open)."""
 
     def describe(self) -> dict[str, Any]:
         """What a status display may show about the source."""

@@ -11,6 +11,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import make_capture
 from live_helpers import URL_TIMEOUTS, port_is_free
 from radarodom.cfg import RadarConfig
 from radarodom.driver.emulators.rig import HOST_IP, EmulatedRig
@@ -567,6 +568,28 @@ def test_a_close_that_fails_after_a_bad_argument_leaves_the_arguments_error_rais
                for note in getattr(info.value, "__notes__", [])), info.value
 
 
+def test_every_source_closed_refuses_to_stream_again(tmp_path, small_cfg):
+    """A source streams until closed, then says so and how to go on: a recording's, a demo
+    stream's file (whose memory map is gone: numpy's "mmap closed" before) and a simulation alike,
+    as the radars' own sources do (test_live_stop, test_tidemo_source)."""
+    from test_tidemo_replay import packets
+    from tidemo_helpers import TIDEMO_CFG
+
+    make_capture(tmp_path / "rec", small_cfg, 3)
+    demo_cfg = RadarConfig.from_text(TIDEMO_CFG, "tidemo.cfg")
+    (tmp_path / "uart.bin").write_bytes(b"".join(packets(demo_cfg, range(1, 4))))
+    for url, cfg in ((f"replay://{tmp_path / 'rec'}?rate=max", None),
+                     (f"replay://{tmp_path / 'uart.bin'}?format=tidemo&rate=max", demo_cfg),
+                     ("sim://corridor?rate=max&duration=0.15", small_cfg)):
+        source = open_source(url, cfg)
+        assert not source.closed and len(list(source)) == 3, url
+        source.close()
+        source.close()  # twice: nothing more
+        assert source.closed
+        with pytest.raises(UsageError, match=r"the source is closed; open a new one \(open_source\)"):
+            iter(source)
+
+
 def test_numpy_booleans_and_scipy_window_tuples_are_taken():
     assert IcpConfig(sampling=np.True_).sampling is True
     assert DspConfig(range_window=("kaiser", 8.0)).range_window == ("kaiser", 8.0)
@@ -614,7 +637,7 @@ class _Frames(Source):
         super().__init__()
         self.frames, self.config = frames, config
 
-    def __iter__(self):
+    def _frames(self):
         return iter(self.frames)
 
 

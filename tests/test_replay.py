@@ -639,7 +639,7 @@ def _stopped_source(url: str):
     from radarodom.driver.sources import Source
 
     class Stopped(Source):
-        def __iter__(self):
+        def _frames(self):
             return iter(())
 
     source = Stopped()

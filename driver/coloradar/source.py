@@ -221,7 +221,7 @@ class ColoRadarSource(Source):
         heatmap = heatmap_to_polar(self.run.heatmap(sensor, e.i), self.run.heatmap_config(sensor))
         return Frame(k, e.t, None, None, pose=pose, heatmap=heatmap, role=e.role)
 
-    def __iter__(self) -> Iterator[Frame]:
+    def _frames(self) -> Iterator[Frame]:
         pacer = Pacer(self.rate, self)
         t0 = self.events[0].t
         for k, e in enumerate(self.events):

@@ -36,7 +36,7 @@ from typing import Iterator
 from ...calibration import uncalibrated_note
 from ...cfg import RadarConfig, shipped_config_path
 from ...cfg_physics import DCA1000_PACKET_DELAY_RANGE_US
-from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError, UsageError
+from ...errors import DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ...rawframe import RawLayout
 from .awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung
 from .dca1000 import Dca1000Client, Dca1000Settings
@@ -81,7 +81,6 @@ class LiveSource(Source):
         self._record_stopped = False
         self._radar_stopped = False
         self._frame_end_stop = False  # sensorStop answered: the radar finished its frame
-        self._closed = False
         try:
             self._prepare()
         except BaseException:
@@ -112,9 +111,7 @@ class LiveSource(Source):
         except RadarodomError:
             return "resetting it through the DCA1000 failed too: power-cycle the radar"
 
-    def __iter__(self) -> Iterator[Frame]:
-        if self._closed:  # its sockets and the radar's port are released
-            raise UsageError(f"{self.url}: the source is closed; open a new one (open_source)")
+    def _frames(self) -> Iterator[Frame]:
         # Packets of an earlier recording that came while the board and the radar were set up
         # would be taken for this one's (a board left streaming by a run killed before it stopped).
         self.receiver.flush()
@@ -280,11 +277,8 @@ class LiveSource(Source):
             "async_status": dict(self.board.async_status.counts), "rcvbuf_bytes": r.rcvbuf_bytes,
         }
 
-    def close(self) -> None:
+    def _release(self) -> None:
         """Stop in reverse order; every step is tried, the first failure is reported."""
-        if self._closed:
-            return
-        self._closed = True
         failures = []
         for step in (self._stop_radar, self._stop_recording, self.receiver.close,
                      self.radar.close, self.board.close):

@@ -76,7 +76,7 @@ class ReplaySource(Source):
         self.count = store.num_frames - start if frames is None else min(frames, store.num_frames - start)
         self.frames_played = 0
 
-    def __iter__(self) -> Iterator[Frame]:
+    def _frames(self) -> Iterator[Frame]:
         stamps = self.store.timestamps[self.first: self.first + self.count]
         span = float(stamps[-1] - stamps[0]) + self.config.frame_period_s
         pacer = Pacer(self.rate, self)

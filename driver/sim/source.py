@@ -61,7 +61,7 @@ class SimSource(Source):
         self.loop = loop
         self.calibrated = sim.board.fits(sim.cfg)
 
-    def __iter__(self) -> Iterator[Frame]:
+    def _frames(self) -> Iterator[Frame]:
         # The next frame is made while this one is processed, as a radar makes its frames while the
         # host processes the last: made after the one before (in one thread, the simulator's
         # buffers being its own), it keeps real time where making and processing a frame take

@@ -98,7 +98,7 @@ class TidemoReplaySource(Source):
         self.frames_played = 0
         self._passes_done, self._position = 0, -1  # the last packet played: its place in self.packets
 
-    def __iter__(self) -> Iterator[Frame]:
+    def _frames(self) -> Iterator[Frame]:
         stamps = self.stamps
         span = float(stamps[self.packets[-1][2]] - stamps[self.packets[0][2]]) + self.config.frame_period_s
         pacer, passes = Pacer(self.rate, self), 0
@@ -173,7 +173,7 @@ class TidemoReplaySource(Source):
             return self.framer.stats
         return self._losses_before(len(self.packets) - 1)
 
-    def close(self) -> None:
+    def _release(self) -> None:
         if isinstance(self._data, mmap.mmap):
             self._data.close()
         self._file.close()

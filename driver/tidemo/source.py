@@ -44,7 +44,7 @@ import serial
 
 from ...calibration import CALIBRATION_COMMAND, uncalibrated_note
 from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
-from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError, UsageError
+from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
 from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
 from ..live.frame_clock import FrameClock, stream_timeout_s
 from ..sources import Frame, Source
@@ -140,7 +140,6 @@ class TidemoSource(Source):
         #: until the source closes, is not its stream's (as a live DCA1000 source's).
         self._when_left: dict | None = None
         self._last_packet = time.monotonic()
-        self._closed = False
         #: The lines the demo printed on its CLI port while streaming (its exceptions, the
         #: measurements a cfg's measureRangeBiasAndRxChanPhase asks for, one a frame), in order:
         #: the last CLI_LINES_KEPT.
@@ -188,16 +187,14 @@ class TidemoSource(Source):
                 return self._ring.popleft()
         return None
 
-    def __iter__(self) -> Iterator[Frame]:
-        if self._closed:  # its serial ports are released
-            raise UsageError(f"{self.url}: the source is closed; open a new one (open_source)")
+    def _frames(self) -> Iterator[Frame]:
         self.port.reset_input_buffer()
         self._reader = _Reader(self)
         self._reader.start()
         self.radar.start()
         self._last_packet = time.monotonic()
         try:
-            yield from self._frames()
+            yield from self._stream()
         except GeneratorExit:  # the consumer left (a frame or duration limit)
             self._when_left = self.describe()
             raise
@@ -211,7 +208,7 @@ class TidemoSource(Source):
                 self._said = (time.monotonic(), line)
             self.cli_lines.append(line)
 
-    def _frames(self) -> Iterator[Frame]:
+    def _stream(self) -> Iterator[Frame]:
         while not self.stop_requested:
             frame = self._next(0.1)
             self._read_cli()
@@ -295,10 +292,7 @@ class TidemoSource(Source):
         if self.radar.is_open and self.radar.started:
             self.radar.stop()
 
-    def close(self) -> None:
-        if self._closed:
-            return
-        self._closed = True
+    def _release(self) -> None:
         for step in (self._stop_radar, self.radar.close):
             try:
                 step()
