@@ -99,6 +99,9 @@ def test_outputs_are_checked_before_the_work_and_never_write_over_an_input(tmp_p
              f"input RUN_DIR {run}'s own folders: choose another path (beside them is fine)"),
             (["--out", tmp_path / "o", "--json", tmp_path / "o" / "wicp.tum"],
              f"--out and --json both name {tmp_path / 'o' / 'wicp.tum'}: give each its own"),
+            # (hunt 4: the directory itself, refused only once the run's TUM files were written, and removed)
+            (["--out", tmp_path / "o", "--json", tmp_path / "o"], f"--out and --json both name {tmp_path / 'o'}: "
+             "give each its own"),
             (["--json", tmp_path / "nodir" / "x.json"], f"cannot create {tmp_path / 'nodir' / 'x.json'}: no directory"),
             (["--out", tmp_path / "f"], f"--out {tmp_path / 'f'} is a file, not a directory")]:
         proc = coloradar(*args)

@@ -384,6 +384,12 @@ def test_radar_eval_plots_never_write_over_json_or_an_input(sim_run, tmp_path, r
     assert proc.stderr == (f"radar-eval: error: --json and --plot's yaw.png both name {out / 'yaw.png'}: "
                            "give each its own\n")
     assert not out.exists()
+    # The directory itself (hunt 4): refused only after the work, "appeared while this ran", and
+    # the directory left empty.
+    proc = run_eval(sim_run.tum, gt, "--plot", out, "--json", out)
+    assert (proc.returncode, proc.stdout) == (2, "")
+    assert proc.stderr == f"radar-eval: error: --plot and --json both name {out}: give each its own\n"
+    assert not out.exists()
     out.mkdir()
     flags = out / "flags.png"  # an odometry log saved under a plot's name
     shutil.copyfile(sim_run.flags, flags)

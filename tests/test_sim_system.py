@@ -541,6 +541,24 @@ def test_a_scene_or_board_file_that_is_no_utf8_or_a_directory_says_so(tmp_path):
                                "got [0.0, -800.0, 0.6]")
 
 
+def test_a_scene_or_board_file_past_16_mib_is_read_no_further(tmp_path):
+    """Hunt 4: a scene or board path naming /dev/zero (or a disk image) was read whole: the
+    process filled the memory (24 GB) and the kernel ended it without a word, or, under a memory
+    limit, "internal error: MemoryError".  A JSON scene's 16 MiB bound was checked once read."""
+    from radarodom.driver.sim.board import load_board
+
+    zero = tmp_path / "zero"
+    zero.symlink_to("/dev/zero")
+    for load, what in ((load_scene, "scene file"), (load_board, "board file")):
+        for name in ("z.json", "z.toml"):
+            (tmp_path / name).unlink(missing_ok=True)
+            (tmp_path / name).symlink_to(zero)
+            with pytest.raises(ConfigError) as info:
+                load(str(tmp_path / name))
+            assert str(info.value) == (f"{tmp_path / name}: larger than 16 MiB, the most a {what} is read to "
+                                       f"(one is a few kB): not a {what}?")
+
+
 @pytest.mark.parametrize("name", sorted(_BUG_SCENES))
 def test_bad_numbers_in_scene_raise_config_error(tmp_path, name):
     path = _write_scene(tmp_path, name, _BUG_SCENES[name][0])

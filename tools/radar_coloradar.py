@@ -194,7 +194,7 @@ def _outputs(args: argparse.Namespace, names: Sequence[str]) -> list[tuple[str, 
         outputs.append(("--json", args.json))
     url = f"coloradar://{args.run}" + (f"?{urlencode({'calib': args.calib})}" if args.calib else "")
     inputs = cli.read_paths([], url, source_option="RUN_DIR")
-    cli.check_distinct(outputs, inputs)
+    cli.check_distinct(([("--out", args.out)] if args.out else []) + outputs, inputs)
     directory = [(args.out, "directory", "--out")] if args.out else []
     cli.check_new_outputs(directory + [(path, "file", option) for option, path in outputs], overwrite=args.overwrite)
     return outputs

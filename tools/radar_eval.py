@@ -181,7 +181,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
     inputs = cli.read_paths([("EST.tum", args.estimate), ("--odom", args.odom),
                              ("GT.tum", None if url else args.reference)],
                             args.reference if url else None, source_option="GT.tum|URL")
-    cli.check_distinct(outputs, inputs)
+    cli.check_distinct(([("--plot", args.plot)] if args.plot else []) + outputs, inputs)
     if args.json:  # (it may go into a --plot directory the run makes)
         plot = [(args.plot, "directory", "--plot")] if args.plot else []
         cli.check_new_outputs(plot + [(args.json, "file", "--json")], overwrite=args.overwrite)

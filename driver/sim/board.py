@@ -37,7 +37,7 @@ import numpy as np
 from ...antenna import NUM_RX_ANTENNAS, NUM_TX_ANTENNAS, VirtualArray
 from ...calibration import ChannelCalibration
 from ...errors import ConfigError
-from .scene_values import builtin_or_there, decode_utf8, toml_error
+from .scene_values import builtin_or_there, decode_utf8, read_bounded, toml_error
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -158,8 +158,7 @@ def load_board(name_or_path: str) -> Board:
     if os.path.isdir(path):
         raise ConfigError("a directory, not a board file: give a .toml file", path=name_or_path)
     try:
-        with open(path, "rb") as fh:
-            spec = tomllib.loads(decode_utf8(fh.read(), path))
+        spec = tomllib.loads(decode_utf8(read_bounded(path, "board file"), path))
     except ValueError as exc:  # TOMLDecodeError is a ValueError
         raise toml_error(exc, path, "a board file is a TOML table of the board's impairments") from None
     return board_from_dict(spec, where=path)

@@ -129,8 +129,19 @@ RCS_DBSM_RANGE = (-60.0, 60.0)
 MAX_RCS_M2 = 10 ** (RCS_DBSM_RANGE[1] / 10)
 
 
-#: The largest scene file read as JSON, bytes (the built-in scenes are a few kB).
+#: The largest scene (or board) file read, bytes (the built-in scenes are a few kB).
 MAX_SCENE_BYTES = 16 * 2**20
+
+
+def read_bounded(path: str, what: str) -> bytes:
+    """The bytes of *path*, a scene or board file (*what*): at most :data:`MAX_SCENE_BYTES`, read no
+    further (a wrong path to a disk image, or /dev/zero, would fill the memory), else ConfigError."""
+    with open(path, "rb") as fh:
+        raw = fh.read(MAX_SCENE_BYTES + 1)
+    if len(raw) > MAX_SCENE_BYTES:
+        raise ConfigError(f"larger than {MAX_SCENE_BYTES >> 20} MiB, the most a {what} is read to (one is a "
+                          f"few kB): not a {what}?", path=path)
+    return raw
 
 
 def builtin_or_there(name: str, builtins: tuple[str, ...]) -> bool:
@@ -165,9 +176,7 @@ def toml_error(exc: ValueError, path: str, what: str) -> ConfigError:
 def read_scene_file(path: str) -> dict:
     """The table of a scene file (``.json``, else TOML), or :class:`ConfigError` naming it."""
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read()
-        text = decode_utf8(raw, path)
+        text = decode_utf8(read_bounded(path, "scene file"), path)
         # (strict JSON: nesting and number sizes bounded, no key twice; tomllib refuses a key twice
         # itself but recurses once per nesting level)
         return strict_json.loads(text, max_bytes=MAX_SCENE_BYTES) if path.endswith(".json") else tomllib.loads(text)
