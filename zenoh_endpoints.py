@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import os
 import re
 import socket
+import stat
 from typing import Any, Callable
 
 from .errors import PublishConfigError
@@ -37,6 +39,8 @@ def check_endpoint(endpoint: Any, option: str, *, connect: bool) -> str:
         raise PublishConfigError(f"{option}: {endpoint!r} is not an endpoint; expected "
                                  "PROTOCOL/ADDRESS, e.g. tcp/192.168.1.10:7447")
     protocol, _ = endpoint.split("/", 1)
+    if protocol == "unixsock-stream" and not connect:
+        _check_socket_path(endpoint, option)
     if protocol not in INET_PROTOCOLS:
         return endpoint
     _, port = _host_port(endpoint, option)
@@ -44,6 +48,27 @@ def check_endpoint(endpoint: Any, option: str, *, connect: bool) -> str:
         raise PublishConfigError(f"{option}: {endpoint!r}: port 0 is no port to connect to; give the "
                                  "port the peer or router listens on, e.g. 7447")
     return endpoint
+
+
+def _check_socket_path(endpoint: str, option: str) -> None:
+    """A Unix socket's path to listen on: Zenoh deletes whatever is there, and PATH.lock beside it,
+    to make its socket.  What a Zenoh session left there (killed: its socket and its empty lock
+    file) may go; anything else is the user's and refused, as is a path in no directory."""
+    path = re.split(r"[?#]", endpoint.split("/", 1)[1], maxsplit=1)[0]
+    fix = "give a path of its own, e.g. unixsock-stream//tmp/radarodom.sock"
+    if not os.path.isdir(os.path.dirname(os.path.abspath(path)) or "/"):
+        raise PublishConfigError(f"{option}: {endpoint!r}: no directory {os.path.dirname(path)!r} to make the "
+                                 "socket in: make it first, or give a path in one")
+    left_by_zenoh = ((path, "socket", lambda st: stat.S_ISSOCK(st.st_mode)),
+                     (path + ".lock", "empty lock file", lambda st: stat.S_ISREG(st.st_mode) and not st.st_size))
+    for place, what, is_left in left_by_zenoh:
+        try:
+            found = os.lstat(place)
+        except FileNotFoundError:
+            continue
+        if not is_left(found):
+            raise PublishConfigError(f"{option}: {endpoint!r}: {place} is there and is not the {what} a Zenoh "
+                                     f"session leaves: Zenoh would delete it to listen there; {fix}")
 
 
 def _host_port(endpoint: str, option: str) -> tuple[str, int]:

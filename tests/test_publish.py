@@ -432,6 +432,32 @@ def test_endpoints_on_different_sockets_are_taken():
     assert ZenohOptions(connect=["tcp/localhost:7002", "tcp/127.0.0.1:7002"]).connect
 
 
+def test_a_unix_socket_path_holding_the_users_file_is_refused_and_one_zenoh_left_is_taken(tmp_path):
+    """Hunt 4: Zenoh deletes what lies at a unixsock-stream listen path, and PATH.lock, to make its
+    socket: a user's file there (a recording's capture.json) was gone without a word, a directory
+    was "another program listens there"."""
+    mine = tmp_path / "notes.txt"
+    mine.write_text("keep\n")
+    (tmp_path / "d").mkdir()
+    (tmp_path / "s.sock.lock").write_text("keep\n")
+    for path, words in ((mine, f"{mine} is there and is not the socket a Zenoh session leaves"),
+                        (tmp_path / "d", "is not the socket a Zenoh session leaves"),
+                        (tmp_path / "s.sock", "s.sock.lock is there and is not the empty lock file"),
+                        (tmp_path / "none" / "s.sock", "no directory .* make it first, or give a path in one")):
+        with pytest.raises(PublishConfigError, match=words) as info:
+            ZenohOptions(listen=[f"unixsock-stream/{path}"])
+        assert info.value.exit_code == 2 and str(info.value).startswith("listen: "), info.value
+    assert mine.read_text() == (tmp_path / "s.sock.lock").read_text() == "keep\n"
+    # What a killed session leaves (its socket, an empty lock file) is Zenoh's to take again; a
+    # connect endpoint is not checked so (it makes nothing).
+    with socket.socket(socket.AF_UNIX) as left:
+        left.bind(str(tmp_path / "left.sock"))
+    (tmp_path / "left.sock.lock").touch()
+    for path in (tmp_path / "left.sock", tmp_path / "new.sock"):
+        assert ZenohOptions(listen=[f"unixsock-stream/{path}"]).listen == (f"unixsock-stream/{path}",)
+    assert ZenohOptions(connect=[f"unixsock-stream/{mine}"]).connect
+
+
 def test_a_link_local_address_names_its_interface_by_number():
     # Zenoh looked "fe80::1%lo" up as a host name and retried the connect endpoint for ever.
     number = socket.if_nametoindex("lo")
