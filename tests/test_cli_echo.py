@@ -363,6 +363,10 @@ def test_the_no_peer_hint_is_given_only_when_nothing_came():
      "(radar-capture --listen tcp/10.0.0.5:7447)?"),
     (ZenohOptions(listen=["tcp/0.0.0.0:7447"]),
      "no Zenoh peer has connected yet to tcp/0.0.0.0:7447: give the publisher --connect tcp/THIS_MACHINE:7447"),
+    # (hunt 4: it said "give the publisher --connect tcp/127.0.0.1:0", which --connect refuses)
+    (ZenohOptions(listen=["tcp/127.0.0.1:0"]),
+     "no Zenoh peer has connected yet to tcp/127.0.0.1:0: port 0 takes a free port the publisher cannot know; "
+     "listen on a port of your own (e.g. tcp/127.0.0.1:7450) and give the publisher --connect to it"),
 ])
 def test_the_no_peer_hint_says_where_this_session_looks(options, hint):
     # With --connect given it still said 'otherwise give --connect with its endpoint'.

@@ -206,6 +206,10 @@ def _no_peer_hint(options) -> str:
     if connect:
         return (f"no Zenoh peer reached yet at {' '.join(connect)}: is a publisher listening there "
                 f"(radar-capture --listen {connect[0]})?")
+    if listen and re.search(r":0(?:[?#]|$)", listen[0]):
+        return (f"no Zenoh peer has connected yet to {' '.join(listen)}: port 0 takes a free port the publisher "
+                "cannot know; listen on a port of your own (e.g. tcp/127.0.0.1:7450) and give the publisher "
+                "--connect to it")
     # A publisher connects to this machine's address where this one listens on every interface.
     target = re.sub(r"/(0\.0\.0\.0|\[::\]):", "/THIS_MACHINE:", listen[0]) if listen else "ENDPOINT"
     return f"no Zenoh peer has connected yet to {' '.join(listen)}: give the publisher --connect {target}"
