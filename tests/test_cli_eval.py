@@ -538,3 +538,15 @@ def test_odom_messages_too_large_to_compute_with_are_warned_of(corridor_run, tmp
     assert proc.stderr.startswith("radar-eval: warning: the coordinates are too large to compute with: lengths "
                                   "overflow, so figures show as inf or nan"), proc.stderr
     assert "Warning" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+
+
+def test_a_count_of_millions_keeps_the_tables_columns_apart():
+    """Hunt 4: on 2 000 000 poses a row ended "0.0000    0.00001999999", the max and the count
+    run together."""
+    from radarodom.estimator.evaluation import Stats
+    from radarodom.tools.eval_summary import _row
+
+    for n in (7, 999_999, 2_000_000, 20_000_000):
+        row = _row("yaw-increment error deg", Stats(0.1, 0.0, 0.0, 0.1, -0.5, 0.00001, n))
+        assert row.split()[-2:] == ["0.0000", str(n)], row
+        assert len(row) == 32 + 60 + max(7, len(str(n)) + 1), row

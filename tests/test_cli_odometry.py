@@ -347,6 +347,16 @@ def test_wheeled_alone_keeps_the_settings_files_mount(sim_run, tmp_path, capture
     path.write_text(json.dumps({"odometry": {"mount_x_m": 0.3}}))
     proc = capture_main("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path, "--wheeled")
     assert proc.returncode == 0, proc.stderr
+    # The same mount given by both is one (its height is the TF's alone); two mounts were the
+    # option's without a word (hunt 4), now refused.
+    proc = capture_main("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path,
+                        "--mount", "0.3,0,0.2,0")
+    assert proc.returncode == 0, proc.stderr
+    proc = capture_main("--source", replay_url(sim_run) + "&frames=3", "--estimator-config", path,
+                        "--mount", "0.3,0,0,10")
+    assert proc.returncode == 2 and one_error_line(proc) == (
+        f"radar-capture: error: --mount 0.3,0,0,10 and --estimator-config {path}'s odometry mount (x 0.3 m, y 0 m, "
+        "yaw 0 degrees) differ: give the mount once"), proc.stderr
 
 
 def test_the_wall_map_corrects_the_heading_unless_turned_off(sim_run, default_replay, tmp_path):

@@ -27,7 +27,7 @@ def _fit(value: float, spec: str) -> str:
 
 def _row(label: str, stats: Stats) -> str:
     cells = "".join(f"{_fit(v, '.4f'):>10}" for v in (getattr(stats, c) for c in _COLUMNS))
-    return f"{label:<32}{cells}{stats.n:>7}"
+    return f"{label:<32}{cells} {stats.n:>6}"  # (a space: a count of millions keeps its column apart)
 
 
 def format_table(r: EvaluationResult) -> str:
@@ -39,7 +39,7 @@ def format_table(r: EvaluationResult) -> str:
          f"{r.max_diff_s:g} s) over {_fit(r.duration_s, '.1f')} s; path {_fit(r.ref_path_m, '.2f')} m "
          f"(estimate {_fit(r.est_path_m, '.2f')} m)"),
         "",
-        f"{'':<32}" + "".join(f"{c:>10}" for c in _COLUMNS) + f"{'n':>7}",
+        f"{'':<32}" + "".join(f"{c:>10}" for c in _COLUMNS) + f" {'n':>6}",
         _row("RPE per frame, translation m", Stats.of(r.rpe_frame.translation_m)),
         _row("RPE per frame, rotation deg", Stats.of(r.rpe_frame.rotation_deg)),
         _row(f"RPE per {d}, translation m", Stats.of(r.rpe_distance.translation_m)),

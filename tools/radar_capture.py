@@ -20,6 +20,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse  # noqa: E402  (after the BLAS setting)
 import contextlib
 import logging
+import math
 import sys
 
 from typing import Iterator, Sequence
@@ -137,6 +138,12 @@ def _estimator_config(args: argparse.Namespace) -> EstimatorConfig:
     mount = args.mount
     # Only what the options say: --wheeled alone keeps the settings file's mount.
     odometry = {} if mount.is_identity else {"mount_x_m": mount.x, "mount_y_m": mount.y, "mount_yaw_rad": mount.yaw}
+    filed = {key: getattr(config.odometry, key) for key in odometry}
+    if any(filed.values()) and not all(math.isclose(filed[k], v, abs_tol=1e-9) for k, v in odometry.items()):
+        raise UsageError(  # one of the two would be dropped without a word
+            f"--mount {mount.x:g},{mount.y:g},{mount.z:g},{math.degrees(mount.yaw):g} and --estimator-config "
+            f"{args.estimator_config}'s odometry mount (x {filed['mount_x_m']:g} m, y {filed['mount_y_m']:g} m, yaw "
+            f"{math.degrees(filed['mount_yaw_rad']):g} degrees) differ: give the mount once")
     if args.wheeled:
         odometry["base"] = "wheeled"
     if odometry:
