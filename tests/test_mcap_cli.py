@@ -235,3 +235,4 @@ def test_a_recording_past_2038_is_one_error_line_and_the_summary_has_no_empty_la
         "radar-capture: error: ROS 2 stamp: time 2147483648.03 s is beyond what ROS 2's time holds (its seconds "
         "are a 32-bit integer: up to 2147483647 s, 2038-01-19)"], proc.stderr
     assert "stopped by an error" in proc.stdout and "nan" not in proc.stdout, proc.stdout
+    assert f"; ROS 2 bag {tmp_path / 'late.mcap'}" in proc.stdout, proc.stdout  # (hunt 4: left out after an error)

@@ -313,14 +313,18 @@ def _run(args: argparse.Namespace, source: Source, publisher, status: StatusLine
             summary += (f", and to ROS 2 (domain {publisher.options.ros2_domain}) {counts['ros2']} on "
                         f"{publisher.options.ros2_topic}, {counts['ros2_points']} point clouds and "
                         f"{counts['ros2_tf']} TF")
-    if args.mcap:
-        summary += f"; ROS 2 bag {args.mcap}"
-    summary += view_option.summary(args, pipeline.sinks)
+    summary += _bag_part(args) + view_option.summary(args, pipeline.sinks)
     problem = view_option.saved_problem(args, pipeline.sinks)
     if problem:
         print(f"radar-capture: {summary}")
         raise CaptureError(problem)
     return summary
+
+
+def _bag_part(args: argparse.Namespace) -> str:
+    """The summary's word of the ROS 2 bag, kept whatever ended the run (its sink closes it, or says
+    what it kept of it)."""
+    return f"; ROS 2 bag {args.mcap}" if args.mcap else ""
 
 
 def _stream(args: argparse.Namespace, source: Source, pipeline: Pipeline, status: StatusLine,
@@ -337,7 +341,7 @@ def _stream(args: argparse.Namespace, source: Source, pipeline: Pipeline, status
         except RadarodomError:
             status.clear()
             if pipeline.stats.frames:  # what was kept and lost, then the error (a board that died, a cable)
-                print(f"radar-capture: {stream_summary(args, source, pipeline.stats, pipeline.sinks)}")
+                print(f"radar-capture: {stream_summary(args, source, pipeline.stats, pipeline.sinks)}{_bag_part(args)}")
             raise
         finally:
             status.clear()
