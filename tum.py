@@ -198,9 +198,14 @@ class TumTrajectory:
 
     def pose(self, i: int) -> tuple[float, ...]:
         """Pose *i* as ``(x, y, z, qx, qy, qz, qw)``."""
+        i = self._index(i)
+        return (*self.positions[i], *self.quaternions[i])
+
+    def _index(self, i) -> int:
+        """*i* if it indexes a pose (negative from the end), else UsageError."""
         if not isinstance(i, (int, np.integer)) or isinstance(i, bool) or not -len(self) <= i < len(self):
             raise UsageError(f"pose {i!r}: an index of the trajectory's {len(self)} poses")
-        return (*self.positions[i], *self.quaternions[i])
+        return int(i)
 
     def take(self, indices) -> "TumTrajectory":
         """The poses at *indices* (an index array or a boolean mask), same source."""
@@ -214,7 +219,7 @@ class TumTrajectory:
 
     def where(self, i: int) -> str:
         """``file:line`` of pose *i*, for messages."""
-        line = int(self.lines[i])
+        line = int(self.lines[self._index(i)])
         return f"{self.source or '<trajectory>'}:{line}" if line else f"{self.source or '<trajectory>'}"
 
 

@@ -487,6 +487,7 @@ def test_a_trajectorys_poses_and_the_quaternion_helpers_name_a_wrong_index_or_sh
     assert line.pose(-1)[0] == 3.0 and len(line.take([0, 2])) == 2 and len(line.take(line.times > 1)) == 2
     for call, words in ((lambda: line.pose(99), "pose 99: an index of the trajectory's 4 poses"),
                         (lambda: line.pose("1"), "pose '1': an index of the trajectory's 4 poses"),
+                        (lambda: line.where(99), "pose 99: an index of the trajectory's 4 poses"),
                         (lambda: line.take([99]), "take: indices of the trajectory's 4 poses, or a mask"),
                         (lambda: line.take("x"), "take: indices of the trajectory's 4 poses, or a mask"),
                         (lambda: yaw_quaternion("x"), "yaw: a number or an array of numbers (rad), got str"),
