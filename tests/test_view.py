@@ -293,8 +293,8 @@ def test_radar_capture_saves_a_simulated_run_that_reads_back(tmp_path, capsys):
     ("connect:", "connect: needs the viewer's HOST:PORT (or a rerun+http:// URL)"),
     ("connect:viewer", "a viewer's address is HOST:PORT or a rerun+http:// URL, got 'viewer'"),
     ("save:", "save: needs a file name (FILE.rrd)"),
-    ("spawn:now", "spawn takes nothing after it"),
-    ("teleport", "expected spawn, web[:PORT], connect:HOST:PORT or save:FILE.rrd, got 'teleport'"),
+    ("spawn:now", "spawn:PORT takes a port number, got 'now'"),
+    ("teleport", "expected spawn[:PORT], web[:PORT], connect:HOST:PORT or save:FILE.rrd, got 'teleport'"),
 ])
 def test_bad_view_values_are_usage_errors(capture, capsys, value, message):
     rc, out, err = capture_main(["--source", capture, "--no-publish", "--view", value], capsys)
@@ -308,6 +308,35 @@ def test_spawn_without_a_display_says_what_to_do_instead(capture, tmp_path, caps
                                  "--view"], capsys)
     assert rc == 2 and "no display" in err and "--view web[:PORT]" in err and "--view save:FILE.rrd" in err
     assert not (tmp_path / "odom.tum").exists()  # refused before anything opened
+
+
+def test_spawn_reuses_the_viewer_listening_at_its_port_and_draws_every_frame(capture, tmp_path):
+    """spawn[:PORT] with a display: Rerun's spawn reuses a viewer already listening at the port (here
+    one that saves what it gets, the `rerun` command without a window) rather than start one.  Hunt
+    5: every spawn failed with "the view could not open: TypeError: RecordingStream.spawn() got an
+    unexpected keyword argument 'executable_path'" (the viewer's path goes to rerun.spawn)."""
+    port = _free_port()
+    received = tmp_path / "received.rrd"
+    env = {**os.environ, "RERUN_ANALYTICS": "0", "DISPLAY": os.environ.get("DISPLAY") or ":99"}
+    viewer = subprocess.Popen([sys.executable, "-m", "rerun_cli", "--port", str(port), "--save", str(received)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    try:
+        assert viewer_missing(ViewTarget("connect", address=f"127.0.0.1:{port}"), wait_s=GUARD_S) is None
+        proc = subprocess.run([sys.executable, "-m", "radarodom.tools.radar_capture", "--source", capture,
+                               "--no-publish", "--view", f"spawn:{port}"], capture_output=True, text=True,
+                              timeout=GUARD_S, env=env)
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        viewer.wait(GUARD_S)
+    assert proc.returncode == 0, proc.stderr
+    assert f"view: a Rerun viewer on this machine (port {port})" in proc.stderr, proc.stderr
+    assert "view: 30 frames drawn, 0 dropped" in proc.stdout, proc.stdout
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Rerun's: an .rrd streamed to, without its footer, is read whole
+        chunks = RrdReader(str(received)).stream().collect().stream().to_chunks()
+        frames = {row["frame"] for chunk in chunks if chunk.entity_path == RADAR + "/points" and not chunk.is_static
+                  for row in chunk.to_record_batch().to_pylist()}
+    assert len(frames) == 30, sorted(frames)
 
 
 @pytest.mark.parametrize("switch", ["off", "0", "False"])

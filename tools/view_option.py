@@ -1,4 +1,4 @@
-"""radar-capture's ``--view [spawn|web[:PORT]|connect:ADDR|save:FILE.rrd]``: the option, its
+"""radar-capture's ``--view [spawn[:PORT]|web[:PORT]|connect:ADDR|save:FILE.rrd]``: the option, its
 checks and its sink, so that radar_capture.py only calls in.  The view is radarodom.view's."""
 
 from __future__ import annotations
@@ -21,20 +21,20 @@ def parse_view(text: str):
     try:
         from ..view.target import ViewTarget, check
 
-        if kind == "web":
+        if kind in ("web", "spawn"):
             if rest and not rest.isdigit():
-                raise UsageError(f"web:PORT takes a port number, got {rest!r}")
-            target = ViewTarget("web", port=int(rest)) if rest else ViewTarget("web")
-        elif kind in ("spawn", "connect", "save"):
-            if (kind == "spawn") == bool(rest):
-                raise UsageError("spawn takes nothing after it" if rest else f"{kind}: needs {_NEEDS[kind]}")
+                raise UsageError(f"{kind}:PORT takes a port number, got {rest!r}")
+            target = ViewTarget(kind, port=int(rest)) if rest else ViewTarget(kind)
+        elif kind in ("connect", "save"):
+            if not rest:
+                raise UsageError(f"{kind}: needs {_NEEDS[kind]}")
             target = ViewTarget(kind, address=rest) if kind == "connect" else ViewTarget(kind, path=rest)
             if kind == "connect":
                 from ..view.target import grpc_url
 
                 grpc_url(rest)
         else:
-            raise UsageError(f"expected spawn, web[:PORT], connect:HOST:PORT or save:FILE.rrd, got {text!r}")
+            raise UsageError(f"expected spawn[:PORT], web[:PORT], connect:HOST:PORT or save:FILE.rrd, got {text!r}")
         check(target)  # a display to spawn on, free ports: before anything opens
     except UsageError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
@@ -67,7 +67,7 @@ class _ViewAction(argparse.Action):
 def add_view_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view", action=_ViewAction, nargs="?", metavar="MODE",
                         help="draw the point clouds, heatmaps, features, trajectory and time series live with Rerun "
-                             "(docs/view.md): spawn (the default: a viewer window), web[:PORT] (serve the web "
+                             "(docs/view.md): spawn[:PORT] (the default: a viewer window, listening on PORT, default 9876), web[:PORT] (serve the web "
                              "viewer on PORT, default 9090, its data on PORT+1, for a browser elsewhere), "
                              "connect:HOST:PORT (a viewer elsewhere) or save:FILE.rrd; a slow view drops its "
                              'own frames, never the pipeline\'s (needs pip install "radarodom[view]")')

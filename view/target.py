@@ -33,20 +33,25 @@ WEB_FLUSH_TICK_S = 1.0
 
 @dataclass(frozen=True)
 class ViewTarget:
-    """*kind* "spawn" (open a viewer on this machine), "web" (serve the web viewer on *port* and
-    the data on *port* + 1), "connect" (send to the viewer at *address*, a Rerun gRPC URL) or
-    "save" (write the .rrd file *path*)."""
+    """*kind* "spawn" (open a viewer on this machine, listening on *port*; one already there is
+    reused), "web" (serve the web viewer on *port* and the data on *port* + 1), "connect" (send to
+    the viewer at *address*, a Rerun gRPC URL) or "save" (write the .rrd file *path*).  *port*
+    not given: :data:`SPAWN_PORT` or :data:`DEFAULT_WEB_PORT`."""
 
     kind: str
-    port: int = DEFAULT_WEB_PORT
+    port: int | None = None
     address: str = ""
     path: str = ""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise UsageError(f"a view goes to one of {', '.join(KINDS)}, not {self.kind!r}")
+        if self.port is None:
+            object.__setattr__(self, "port", SPAWN_PORT if self.kind == "spawn" else DEFAULT_WEB_PORT)
         if self.kind == "web" and not 1 <= self.port < 65535:
             raise UsageError(f"the web viewer's port must be 1..65534 (its data uses the next), got {self.port}")
+        if self.kind == "spawn" and not 1 <= self.port < 65536:
+            raise UsageError(f"the viewer's port must be 1..65535, got {self.port}")
 
     @property
     def data_port(self) -> int:
@@ -278,10 +283,14 @@ def viewer_hint(target: ViewTarget) -> str:
 
 
 def _spawn(recording, target: ViewTarget, blueprint) -> str:
+    import rerun as rr
+
     # Rerun looks for its viewer on PATH: a virtual environment's, not activated, is beside Python.
+    # (The module's spawn takes the viewer's path; a RecordingStream's own spawn does not.)
     here = os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
-    recording.spawn(port=SPAWN_PORT, default_blueprint=blueprint, executable_path=shutil.which("rerun", path=here))
-    return f"a Rerun viewer on this machine (port {SPAWN_PORT})"
+    rr.spawn(port=target.port, default_blueprint=blueprint, executable_path=shutil.which("rerun", path=here),
+             recording=recording)
+    return f"a Rerun viewer on this machine (port {target.port})"
 
 
 def _web(recording, target: ViewTarget, blueprint) -> str:
