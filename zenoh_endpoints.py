@@ -18,14 +18,12 @@ import stat
 from typing import Any, Callable
 
 from .errors import PublishConfigError
+from .host_names import host_problem
 
 #: Protocols whose address is host:port.
 INET_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 #: The transport under each host:port protocol: two endpoints on one port share its socket.
 _TRANSPORT = {"tcp": "tcp", "tls": "tcp", "ws": "tcp", "udp": "udp", "quic": "udp"}
-#: A host name (RFC 1123 labels; underscores, which some networks use, allowed).
-_HOST_NAME = re.compile(r"(?=.{1,253}\.?$)[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?"
-                        r"(?:\.[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?)*\.?")
 #: Addresses that listen on every interface: ``0.0.0.0`` takes the port on every IPv4 address,
 #: ``::`` on every address (Linux's IPv6 sockets take IPv4 too unless told otherwise).
 _EVERY_IPV4, _EVERY_ADDRESS = "0.0.0.0", "::"
@@ -81,28 +79,17 @@ def _host_port(endpoint: str, option: str) -> tuple[str, int]:
                                  f"e.g. {protocol}/192.168.1.10:7447")
     if int(port) > 65535:
         raise PublishConfigError(f"{option}: {endpoint!r}: port {port} is above 65535")
-    if host.startswith("[") or host.endswith("]"):
-        try:
-            if not (host.startswith("[") and host.endswith("]")):
-                raise ValueError
-            address, _, scope = host[1:-1].partition("%")
-            address = str(ipaddress.IPv6Address(address))
-        except ValueError:
-            raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv6 address in brackets, "
-                                     f"e.g. {protocol}/[::1]:{port}") from None
+    problem = host_problem(host, lambda example: f"{protocol}/{example}:{port}")
+    if problem:
+        raise PublishConfigError(f"{option}: {endpoint!r}: {problem}")
+    if host.startswith("["):
+        address, _, scope = host[1:-1].partition("%")
+        address = str(ipaddress.IPv6Address(address))
         if scope and not scope.isdigit():
             raise PublishConfigError(f"{option}: {endpoint!r}: {_scope_by_number(protocol, address, scope, port)}")
         return address, int(port)
-    if ":" in host:
-        raise PublishConfigError(f"{option}: {endpoint!r}: an IPv6 address goes in brackets, "
-                                 f"e.g. {protocol}/[{host}]:{port}")
-    if re.fullmatch(r"[0-9.]+", host):  # dotted digits: an IPv4 address, or a typo of one
-        try:
-            return str(ipaddress.IPv4Address(host)), int(port)
-        except ValueError:
-            raise PublishConfigError(f"{option}: {endpoint!r}: {host} is not an IPv4 address") from None
-    if not _HOST_NAME.fullmatch(host):
-        raise PublishConfigError(f"{option}: {endpoint!r}: {host!r} is not a host name or an IP address")
+    if re.fullmatch(r"[0-9.]+", host):
+        return str(ipaddress.IPv4Address(host)), int(port)
     return _LOOPBACK_NAMES.get(host.lower(), host.lower()), int(port)
 
 

@@ -77,7 +77,8 @@ ALLOWED = {
     "messages": {"message_format"},
     "publish": {"messages", "ros2", "zenoh_session", "ext:zenoh", "ext:rosbags"},
     "zenoh_session": {"zenoh_endpoints", "json5_brackets", "ext:zenoh"},
-    "zenoh_endpoints": set(),
+    "zenoh_endpoints": {"host_names"},
+    "host_names": set(),
     "json5_brackets": set(),
     "ros2": {"messages", "ros2_messages", "ext:zenoh", "ext:rosbags"},
     # The ROS 2 messages (from a rosbags typestore given), the frames' arithmetic, the MCAP bag.
@@ -102,7 +103,7 @@ ALLOWED = {
                           "ros2_messages"},
     # The live view: a pipeline sink drawing the results with Rerun (the only part that may import it),
     # in the frames of the ROS 2 outputs (ros2_frames).
-    "view": {"pipeline", "dsp", "estimator", "ros2_frames", "ext:rerun"},
+    "view": {"pipeline", "dsp", "estimator", "ros2_frames", "host_names", "ext:rerun"},
 }
 #: Third-party packages whose use is restricted to the parts ALLOWED names them for.
 RESTRICTED = {"zenoh", "rosbags", "serial", "usb", "rerun", "mcap", "mcap_ros2", "matplotlib"}

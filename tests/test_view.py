@@ -291,7 +291,15 @@ def test_radar_capture_saves_a_simulated_run_that_reads_back(tmp_path, capsys):
     ("web:abc", "argument --view: web:PORT takes a port number, got 'abc'"),
     ("web:65535", "the web viewer's port must be 1..65534 (its data uses the next), got 65535"),
     ("connect:", "connect: needs the viewer's HOST:PORT (or a rerun+http:// URL)"),
-    ("connect:viewer", "a viewer's address is HOST:PORT or a rerun+http:// URL, got 'viewer'"),
+    ("connect:viewer", "a viewer's address is HOST:PORT or a rerun+http://HOST:PORT/proxy URL, got 'viewer'"),
+    # (hunt 5: Rerun refused these in a thread of its own, a traceback, and the frames counted as drawn, exit 0)
+    ("connect:http://127.0.0.1:9876", "got 'http://127.0.0.1:9876' (a viewer's gRPC address is no web page: give "
+     "127.0.0.1:9876)"),
+    ("connect:rerun://127.0.0.1:9876", "a rerun+http://HOST:PORT/proxy URL, got 'rerun://127.0.0.1:9876'"),
+    ("connect:rerun+http://127.0.0.1:9876/bogus", "URL, got 'rerun+http://127.0.0.1:9876/bogus'"),
+    ("connect:a b:9876", "a viewer's address 'a b:9876': 'a b' is not a host name or an IP address"),
+    ("connect:256.1.1.1:9876", "a viewer's address '256.1.1.1:9876': 256.1.1.1 is not an IPv4 address"),
+    ("connect:::1:9876", "a viewer's address '::1:9876': an IPv6 address goes in brackets, e.g. [::1]:9876"),
     ("save:", "save: needs a file name (FILE.rrd)"),
     ("spawn:now", "spawn:PORT takes a port number, got 'now'"),
     ("teleport", "expected spawn[:PORT], web[:PORT], connect:HOST:PORT or save:FILE.rrd, got 'teleport'"),

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import socket
 import sys
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ..errors import CaptureError, UsageError, why_not_written
+from ..host_names import host_problem
 
 if TYPE_CHECKING:
     from ..cfg import RadarConfig
@@ -60,13 +62,25 @@ class ViewTarget:
 
 
 def grpc_url(address: str) -> str:
-    """A Rerun gRPC URL from ``HOST:PORT`` (or a ``rerun+http(s)://`` URL as it is)."""
-    if address.startswith(("rerun://", "rerun+http://", "rerun+https://")):
-        return address
-    host, sep, port = address.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise UsageError(f"a viewer's address is HOST:PORT or a rerun+http:// URL, got {address!r}")
-    return f"rerun+http://{host}:{int(port)}/proxy"
+    """A Rerun gRPC URL (``rerun+http(s)://HOST:PORT/proxy``) from ``HOST:PORT`` (an IPv6 address
+    in brackets) or such a URL as it is; UsageError for what Rerun cannot connect to (it would fail
+    in a thread of its own, the view's frames counted as drawn)."""
+    wrong = f"a viewer's address is HOST:PORT or a rerun+http://HOST:PORT/proxy URL, got {address!r}"
+    url = "://" in address
+    if url:
+        parts = urllib.parse.urlsplit(address)
+        if parts.scheme not in ("rerun+http", "rerun+https") or parts.path != "/proxy":
+            web = parts.scheme in ("http", "https") and re.fullmatch(r"[^/@]+:\d+", parts.netloc)
+            raise UsageError(wrong + (f" (a viewer's gRPC address is no web page: give {parts.netloc})" if web else ""))
+        host, _, port = parts.netloc.rpartition(":")
+    else:
+        host, _, port = address.rpartition(":")
+    if not host or "@" in host or not port.isascii() or not port.isdigit() or not 0 < int(port) < 65536:
+        raise UsageError(wrong)
+    problem = host_problem(host, lambda example: f"{example}:{port}")
+    if problem:
+        raise UsageError(f"a viewer's address {address!r}: {problem}")
+    return address if url else f"rerun+http://{host}:{int(port)}/proxy"
 
 
 #: How long a --view connect: viewer may take to accept a connection before the view says none does, s.
