@@ -136,6 +136,18 @@ class ConfigChecks:
             if i not in owner:
                 raise self._fail(f"chirp {i} is not defined by any chirpCfg", frame_ln,
                                  "chirpStartIndex" if i == f.chirp_start_idx else "chirpEndIndex")
+        # Both are the radar's to honour, not radarodom's: its stream would then end, or never
+        # begin, in a timeout whose message names the cable or the network.
+        if f.num_frames:
+            self._warnings.add("frame count", frame_ln.line,
+                               f"frameCfg: numFrames {f.num_frames}: the radar stops after {f.num_frames} frames "
+                               f"({f.num_frames * f.frame_period_ms / 1e3:g} s), and a live run then ends in a data "
+                               "timeout; 0 streams until stopped (radar-capture --frames N ends a run)")
+        if f.trigger_select == 2:
+            self._warnings.add("hardware trigger", frame_ln.line,
+                               "frameCfg: triggerSelect 2: each frame waits for a pulse on the radar's SYNC_IN pin, "
+                               "and without one no frame comes (a live run ends in a data timeout); 1 starts the "
+                               "frames at sensorStart")
         if self.active_frame_time_s > self.frame_period_s + 1e-12:
             raise self._fail(
                 f"{f.frame_period_ms:g} ms is shorter than the active frame time "

@@ -273,6 +273,24 @@ def test_chirp_variations_warn(caplog):
     assert f"{NAME}:10:" in caplog.text and "variations" in caplog.text
 
 
+def test_a_frame_count_and_a_hardware_trigger_warn_what_a_live_run_meets(caplog):
+    """Hunt 5: numFrames > 0 and triggerSelect 2 passed every check, and a live radar's stream
+    then stops after N frames, or never starts, in a timeout that names the cable or the network."""
+    counted = "frameCfg 0 2 4 5 50 2 0"  # FRAME with numFrames 5 and triggerSelect 2
+    text = edit(FRAME, counted)
+    with caplog.at_level(logging.WARNING, logger="radarodom.cfg"):
+        RadarConfig.from_text(text, NAME)
+    said = [r.getMessage() for r in caplog.records]
+    line = line_of(text, counted)
+    assert any(m.startswith(f"{NAME}:{line}: frameCfg: numFrames 5: the radar stops after 5 frames") for m in said), said
+    assert any(m.startswith(f"{NAME}:{line}: frameCfg: triggerSelect 2: each frame waits for a pulse on the "
+                            "radar's SYNC_IN pin") for m in said), said
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="radarodom.cfg"):
+        RadarConfig.from_text(SMALL_CFG, NAME)
+    assert "frameCfg" not in caplog.text
+
+
 # ----------------------------------------------------------- profile
 def test_adc_window_longer_than_ramp():
     # 6 us + 16 samples / 8 Msps = 8 us of sampling; the ramp ends at 7.99 us.
