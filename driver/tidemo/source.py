@@ -45,7 +45,7 @@ import serial
 from ...calibration import CALIBRATION_COMMAND, uncalibrated_note
 from ...cfg import TIDEMO_CONFIG_NAME, RadarConfig, shipped_config_path
 from ...errors import ConfigError, DeviceError, DeviceTimeout, RadarodomError, SourceError
-from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, port_open_error
+from ..live.awr1843 import COMMAND_TIMEOUT_S, Awr1843Cli, SensorStartHung, port_open_error
 from ..live.frame_clock import FrameClock, stream_timeout_s
 from ..sources import Frame, Source
 from ..url_options import UrlOptions, at_least, given_text, one_of, positive_number, whole_in
@@ -191,7 +191,11 @@ class TidemoSource(Source):
         self.port.reset_input_buffer()
         self._reader = _Reader(self)
         self._reader.start()
-        self.radar.start()
+        try:
+            self.radar.start()
+        except SensorStartHung as exc:  # no DCA1000 here to reset it through, as dca1000:// does
+            raise SensorStartHung(f"{exc}; it stays hung until reset: press the board's reset button (NRST) or "
+                                  "unplug its USB and plug it in again, then run again") from None
         self._last_packet = time.monotonic()
         try:
             yield from self._stream()
