@@ -158,6 +158,9 @@ def test_radar_emulate_uart_prints_the_radar_capture_command_that_reaches_it(tmp
     (["--source", "sim://corridor", "--uart-drop", "0.5"],
      "--uart-drop is a fault of the demo's UART data port: add --uart"),
     (["--capture", "FILE"], "--capture FILE: not a directory (give the capture directory that holds it)"),
+    # (hunt 5: a folder that is no recording was "DIR/radar.cfg: cannot read the file")
+    (["--capture", "EMPTY"], "error: EMPTY: holds no recording: neither a capture (adc_data.bin with capture.json) "
+                             "nor a TI recording (*_Raw_<n>.bin)"),
     # The URL quoted is the one given, without the options the board adds to it (rate, fidelity).
     (["--source", "sim://lab?foo=1"], "error: sim://lab?foo=1: unknown option(s) foo; supported: "),
     # The demo's fake opens its source only when radar-capture starts the radar: checked at once.
@@ -170,9 +173,10 @@ def test_radar_emulate_refuses_what_it_would_ignore(tmp_path, capsys, argv, word
     from radarodom.tools import radar_emulate
 
     (tmp_path / "adc_data.bin").write_bytes(b"\0" * 16)
-    argv = [str(tmp_path / "adc_data.bin") if a == "FILE" else a for a in argv]
-    assert radar_emulate.main(argv) == 2
-    assert words.replace("FILE", str(tmp_path / "adc_data.bin")) in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    given = {"FILE": str(tmp_path / "adc_data.bin"), "EMPTY": str(tmp_path / "empty")}
+    assert radar_emulate.main([given.get(a, a) for a in argv]) == 2
+    assert words.replace("FILE", given["FILE"]).replace("EMPTY", given["EMPTY"]) in capsys.readouterr().err
 
 
 def test_radar_emulate_refuses_a_recording_of_the_demos_stream_at_start(tmp_path, cfg):

@@ -97,6 +97,10 @@ def _main(args: argparse.Namespace) -> int:
                 else "no such directory"
             raise UsageError(f"--capture {args.capture}: {what}")
         url, cfg_path = f"replay://{args.capture}", args.cfg or os.path.join(args.capture, RADAR_CFG)
+        if not os.path.exists(cfg_path):  # a folder that is no recording is told so, as replay:// tells it
+            from ..driver.sources import open_source
+
+            open_source(url).close()
     else:
         url, cfg_path = args.source, args.cfg
     config = RadarConfig.from_file(cfg_path) if cfg_path else None
