@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from radarodom.cfg import RadarConfig
+from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver import open_source
 from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
 from radarodom.driver.tidemo import wire
@@ -168,6 +168,17 @@ def test_a_recorded_stream_replays_frame_for_frame(tmp_path, cfg):
         np.testing.assert_array_equal(a.static_antennas, b.static_antennas)
     with pytest.raises(CaptureExistsError):
         UartRecorder(out, cfg)
+    # Given a cfg of other packets (hunt 5): "frame 1: ... the radar runs another cfg than the one
+    # given", of a replay; the same cfg given is taken.
+    other = RadarConfig.from_file(shipped_config_path())
+    with pytest.raises(ConfigError) as info:
+        open_source(f"replay://{out}?rate=max", other)
+    assert str(info.value) == (
+        f"{other.path}: the cfg given makes the demo's packets of 256 range bins, 64 Doppler bins and 8 antennas, "
+        f"and {out / 'radar.cfg'}, which the radar ran, of 64 range bins, 16 Doppler bins and 8 antennas: leave "
+        "the cfg out (the recording's is used) or give the one it was recorded with"), info.value
+    with open_source(f"replay://{out}?rate=max&frames=2", cfg) as replay:
+        assert len(list(replay)) == 2
 
 
 def test_lost_frames_keep_their_timestamp_lines(tmp_path, cfg):
@@ -227,7 +238,7 @@ def test_each_pass_of_a_looped_replay_counts_the_files_losses_and_a_cut_selectio
 
 _RECORD_SCRIPT = """
 import os, sys
-from radarodom.cfg import RadarConfig
+from radarodom.cfg import RadarConfig, shipped_config_path
 from radarodom.driver.tidemo.recording import UartRecorder
 from radarodom.errors import CaptureError
 src, out, n = sys.argv[1], sys.argv[2], int(sys.argv[3])

@@ -179,6 +179,20 @@ class TidemoReplaySource(Source):
         self._file.close()
 
 
+def _check_given_cfg(given: RadarConfig | None, recorded: RadarConfig) -> None:
+    """A cfg given for a demo recording makes packets of its recorded radar.cfg's shape (another
+    calibration line is fine), else ConfigError naming both: its frames would not decode."""
+    if given is None:
+        return
+    shape = [(g.range_bins, g.doppler_bins, len(g.heatmap_elements))
+             for g in (DemoGeometry.from_config(given), DemoGeometry.from_config(recorded))]
+    if shape[0] != shape[1]:
+        said = [f"{r} range bins, {d} Doppler bins and {a} antennas" for r, d, a in shape]
+        raise ConfigError(f"the cfg given makes the demo's packets of {said[0]}, and {recorded.path}, which the "
+                          f"radar ran, of {said[1]}: leave the cfg out (the recording's is used) or give the one "
+                          "it was recorded with", path=given.path)
+
+
 def _given_up(framer: TlvFramer) -> str:
     """Why a stream held no whole packet, for its error: no magic word at all, or the packets begun
     with one and given up, by reason, and where the first was."""
@@ -254,8 +268,10 @@ def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | Non
         check_parts_are_files(directory, (UART_DATA, METADATA, TIMESTAMPS, RADAR_CFG), "a demo recording's")
         if os.path.exists(os.path.join(directory, METADATA)):
             meta = _read_metadata(os.path.join(directory, METADATA))
-        if config is None and os.path.exists(os.path.join(directory, RADAR_CFG)):
-            config = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
+        if os.path.exists(os.path.join(directory, RADAR_CFG)):
+            recorded = RadarConfig.from_file(os.path.join(directory, RADAR_CFG))
+            _check_given_cfg(config, recorded)
+            config = config or recorded
     else:
         directory, data = os.path.dirname(path) or ".", path
     if not os.path.isfile(data):  # the stream first: without it the cfg is no help
