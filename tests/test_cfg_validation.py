@@ -282,7 +282,8 @@ def test_a_frame_count_and_a_hardware_trigger_warn_what_a_live_run_meets(caplog)
         RadarConfig.from_text(text, NAME)
     said = [r.getMessage() for r in caplog.records]
     line = line_of(text, counted)
-    assert any(m.startswith(f"{NAME}:{line}: frameCfg: numFrames 5: the radar stops after 5 frames") for m in said), said
+    assert any(m.startswith(f"{NAME}:{line}: frameCfg: numFrames 5: the radar stops after 5 frames")
+               for m in said), said
     assert any(m.startswith(f"{NAME}:{line}: frameCfg: triggerSelect 2: each frame waits for a pulse on the "
                             "radar's SYNC_IN pin") for m in said), said
     caplog.clear()

@@ -76,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     faults.add_argument("--burst-flush", action="store_true",
                         help="end every frame with a short packet instead of straddling frames")
     faults.add_argument("--hang-on-start", action="store_true",
-                        help="the radar never answers sensorStart (until RESET_AR_DEV; with --uart, until the emulator stops)")
+                        help="the radar never answers sensorStart (until RESET_AR_DEV; with --uart, until the "
+                             "emulator stops)")
     ports = parser.add_argument_group("ports (default: free ones)")
     ports.add_argument("--command-port", type=cli.port, default=0, metavar="PORT",
                        help="the board's config port (a real board's is 4096; xwr sends to the port "

@@ -67,8 +67,9 @@ class _ViewAction(argparse.Action):
 def add_view_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view", action=_ViewAction, nargs="?", metavar="MODE",
                         help="draw the point clouds, heatmaps, features, trajectory and time series live with Rerun "
-                             "(docs/view.md): spawn[:PORT] (the default: a viewer window, listening on PORT, default 9876), web[:PORT] (serve the web "
-                             "viewer on PORT, default 9090, its data on PORT+1, for a browser elsewhere), "
+                             "(docs/view.md): spawn[:PORT] (the default: a viewer window, listening on PORT, "
+                             "default 9876), web[:PORT] (serve the web viewer on PORT, default 9090, its data on "
+                             "PORT+1, for a browser elsewhere), "
                              "connect:HOST:PORT (a viewer elsewhere) or save:FILE.rrd; a slow view drops its "
                              'own frames, never the pipeline\'s (needs pip install "radarodom[view]")')
 
