@@ -251,6 +251,55 @@ def test_swapped_ports_are_told_by_a_cli_port_that_never_says_anything():
            "was opened; is it the radar's CLI port (the board's first, USB interface 0" in message, message
 
 
+def test_a_cli_port_answering_bytes_that_are_no_text_is_told_as_the_wrong_port():
+    """Hunt 5: a port that answers binary (a demo's data port streaming, another device) was quoted
+    as some 200 replacement characters, without the hint a silent port gets."""
+    import os
+    import threading
+
+    from radarodom.driver.live.awr1843 import Awr1843Cli
+    from radarodom.errors import DeviceTimeout
+
+    master, slave = os.openpty()
+    done = threading.Event()
+
+    def answer_binary() -> None:
+        while not done.is_set():
+            try:
+                os.read(master, 4096)
+                os.write(master, bytes(range(256)) * 2)
+            except OSError:
+                return
+
+    threading.Thread(target=answer_binary, daemon=True).start()
+    try:
+        with Awr1843Cli(os.ttyname(slave), command_timeout_s=0.3) as cli:
+            with pytest.raises(DeviceTimeout) as info:
+                cli.send("sensorStop")
+    finally:
+        done.set()
+        os.close(master)
+        os.close(slave)
+    message = str(info.value)
+    assert " bytes that are no text: is it the radar's CLI port (the board's first, USB interface 0; radar-devices " \
+           "lists them) rather than its data port, at the CLI's 115200 baud?)" in message, message
+    assert "\ufffd" not in message and "it said" not in message, message
+
+
+def test_a_command_the_cli_port_does_not_take_in_time_names_the_time_not_the_cable():
+    """Hunt 5: cli_timeout=1e-9 was 'failed (Write timeout): was the USB cable unplugged or the board
+    reset?'."""
+    from radarodom.driver.emulators.fake_demo_uart import DemoUartRig
+    from radarodom.errors import DeviceTimeout
+
+    cfg = RadarConfig.from_text(TIDEMO_CFG, "t.cfg")
+    with DemoUartRig("sim://corridor", boot_time_s=0.05) as rig:
+        with pytest.raises(DeviceTimeout) as info:
+            open_source(rig.url() + "&cli_timeout=1e-9", cfg)
+    assert f"the radar's CLI port {rig.cli_path} did not take 'sensorStop' within 1e-09 s (cli_timeout=): is " \
+           "another program holding the port, or the time too short?" in str(info.value), str(info.value)
+
+
 def _broken_after_two_frames(break_it, error, **url_options) -> tuple[str, str]:
     """Stream the fake demo (its URL given *url_options*), call *break_it(rig)* after its second
     frame, and expect *error*: (the error's message, the rig's data port)."""

@@ -105,16 +105,31 @@ class Awr1843Cli:
                         continue
                     log.debug("unsolicited text from the radar: %r", text[:200])
                 if time.monotonic() > deadline:
-                    heard = " ".join(split_lines(self._framer.pending.decode("ascii", "replace")))[:200]
                     raise DeviceTimeout(f"the radar did not answer {command.split()[0]!r} within "
-                                        f"{timeout_s:g} s on {self.url}"
-                                        + (f" (it said: {heard!r})" if heard else "")
-                                        + ("" if heard or self._heard_any else
-                                           ": nothing has come back on it since it was opened; is it the radar's "
-                                           "CLI port (the board's first, USB interface 0; radar-devices lists "
-                                           "them), the board powered and running the demo firmware?"))
+                                        f"{timeout_s:g} s on {self.url}{self._what_came()}")
+        except serial.SerialTimeoutException:  # a write the port did not take within the command's time
+            raise DeviceTimeout(f"the radar's CLI port {self.url} did not take {command.split()[0]!r} within "
+                                f"{timeout_s:g} s (cli_timeout=): is another program holding the port, or the "
+                                "time too short?") from None
         except (serial.SerialException, OSError) as exc:
             raise self._port_failed(exc) from None
+
+    def _what_came(self) -> str:
+        """What a command's timeout says of what came back on the port instead of its answer."""
+        pending = self._framer.pending
+        text = pending.decode("ascii", "replace")
+        if pending and sum(ch == "\ufffd" or not (ch.isprintable() or ch.isspace()) for ch in text) > len(text) / 4:
+            return (f" (it sent {len(pending)} bytes that are no text: is it the radar's CLI port (the board's "
+                    "first, USB interface 0; radar-devices lists them) rather than its data port, at the "
+                    f"CLI's {self.baudrate} baud?)")
+        heard = " ".join(split_lines(text))[:200]
+        if heard:
+            return f" (it said: {heard!r})"
+        if self._heard_any:
+            return ""
+        return (": nothing has come back on it since it was opened; is it the radar's CLI port (the board's "
+                "first, USB interface 0; radar-devices lists them), the board powered and running the demo "
+                "firmware?")
 
     def _port_failed(self, exc: BaseException) -> DeviceError:
         return DeviceError(f"the radar's CLI port {self.url} failed ({exc}): was the USB cable unplugged or the "
