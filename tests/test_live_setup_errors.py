@@ -129,6 +129,8 @@ def test_radar_emulate_refuses_a_command_port_in_use_in_one_line():
     ("dca1000://?cli=/dev/null&delay=600", ("option delay='600'", "from 5 to 500")),
     ("dca1000://?cli=/dev/null&delay=3", ("option delay='3'", "from 5 to 500")),
     ("dca1000://?cli=/dev/null&buffers=100000000", ("option buffers=100000000", "GiB of memory", "at most 2730")),
+    # (hunt 5: "1e9" is 2 or more, but no whole number as written)
+    ("dca1000://?cli=/dev/null&buffers=1e9", ("option buffers='1e9': expected a whole number of frames >= 2",)),
     # It blamed another program for the port radarodom's own data socket held:
     ("dca1000://?cli=/dev/null&config_port=5003&data_port=5003", ("config_port and data_port are both 5003",
                                                                   "must differ", "4096 and 4098")),

@@ -324,7 +324,7 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     delay = options.take("delay", number_in(*DCA1000_PACKET_DELAY_RANGE_US), defaults.packet_delay_us,
                          "packet delay in us")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
-    buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
+    buffers = options.take("buffers", at_least(2), 8, "a whole number of frames >= 2")
     timeout = options.take("timeout", positive_number, defaults.timeout_s, "seconds per board command")
     start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")

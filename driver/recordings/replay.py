@@ -156,7 +156,7 @@ def open_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> R
     rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
     start = options.take("start", _start, ("frame", 0), "a frame number or seconds like 2.5s")
-    frames = options.take("frames", at_least(1), None, "a number of frames >= 1")
+    frames = options.take("frames", at_least(1), None, "a whole number of frames >= 1")
     reordered = options.take("reordered", _flag, None, "0 or 1 (TI recorder files)")
     options.finish()
     if not path:

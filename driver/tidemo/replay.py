@@ -256,7 +256,7 @@ def _check_against_metadata(source: TidemoReplaySource, meta: dict) -> None:
 def open_tidemo_replay(path: str, options: UrlOptions, config: RadarConfig | None) -> TidemoReplaySource:
     rate = options.take("rate", parse_rate, 1.0, RATE_EXPECTED)
     loop = options.take("loop", at_least(0), 1, "a number of passes (0: forever)")
-    frames = options.take("frames", at_least(1), None, "a number of frames >= 1")
+    frames = options.take("frames", at_least(1), None, "a whole number of frames >= 1")
     options.finish()
     if not path:
         raise SourceError(f"{options.url}: no path: use replay://FILE?format=tidemo")

@@ -320,7 +320,7 @@ def open_tidemo(path: str, options: UrlOptions, config: RadarConfig | None) -> T
     baud = options.take("baud", whole_in(MIN_BAUD, MAX_BAUD), DEFAULT_BAUD, "the data port's baud rate")
     max_points = options.take("max_points", at_least(0), DEFAULT_MAX_POINTS, "points a frame the UART must carry")
     policy = options.take("policy", one_of(*POLICIES), "latest", " or ".join(POLICIES))
-    buffers = options.take("buffers", at_least(2), 8, "a number of frames >= 2")
+    buffers = options.take("buffers", at_least(2), 8, "a whole number of frames >= 2")
     cli_timeout = options.take("cli_timeout", positive_number, COMMAND_TIMEOUT_S, "seconds per radar CLI command")
     start_timeout = options.take("start_timeout", positive_number, 5.0, "seconds for sensorStart")
     data_timeout = options.take("data_timeout", positive_number, None, "seconds without a packet")
