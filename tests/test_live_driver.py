@@ -490,12 +490,13 @@ def test_a_second_capture_on_the_same_ports_is_refused():
 
 
 def test_a_file_or_folder_given_as_the_cli_port_is_named_as_that(tmp_path):
-    from radarodom.errors import DeviceError
+    # A mistake in the URL, exit 2 as a port that is not there (hunt 5: it was a device's error, exit 1).
+    from radarodom.errors import DeviceError, SourceError
 
     a_file = tmp_path / "radar.cfg"
     a_file.write_text("sensorStop\n")
     for path, kind in ((a_file, "a regular file"), (tmp_path, "a folder")):
-        with pytest.raises(DeviceError, match=rf"the radar's CLI port {path} is {kind}, not a serial port: give "
+        with pytest.raises(SourceError, match=rf"the radar's CLI port {path} is {kind}, not a serial port: give "
                                               r"the XDS110's port \(/dev/ttyACM0, COM3; radar-devices lists them\)"):
             Awr1843Cli(str(path)).open()
     with pytest.raises(DeviceError, match=r"cannot open the radar's CLI port /dev/nonexistent-tty: .*Is the "

@@ -17,7 +17,7 @@ import time
 import serial
 
 from ...cfg import RadarConfig
-from ...errors import DeviceError, DeviceTimeout, RadarCommandError
+from ...errors import DeviceError, DeviceTimeout, RadarCommandError, SourceError
 from .awr1843_protocol import (CLI_BAUDRATE, REPEATABLE, Outcome, Reply, ReplyFramer, classify,
                                is_boot_banner, split_lines)
 
@@ -193,12 +193,13 @@ class Awr1843Cli:
             raise RadarCommandError(f"{what}: the radar answered: {reply.text or 'nothing but the prompt'}")
 
 
-def port_open_error(which: str, url: str, exc: BaseException) -> DeviceError:
+def port_open_error(which: str, url: str, exc: BaseException) -> DeviceError | SourceError:
     """Why the radar's *which* ("CLI", "data") port at *url* did not open, and what to do: a path
-    to a file or a folder is no serial port (pyserial says "Inappropriate ioctl for device")."""
+    to a file or a folder is no serial port (pyserial says "Inappropriate ioctl for device"), a
+    mistake in what was given (exit 2, as a port that is not there), not the device's."""
     if os.path.isfile(url) or os.path.isdir(url):
         kind = "a folder" if os.path.isdir(url) else "a regular file"
-        return DeviceError(f"the radar's {which} port {url} is {kind}, not a serial port: give the XDS110's "
+        return SourceError(f"the radar's {which} port {url} is {kind}, not a serial port: give the XDS110's "
                            f"port (/dev/ttyACM0, COM3; radar-devices lists them)")
     return DeviceError(f"cannot open the radar's {which} port {url}: {exc}. Is the AWR1843BOOST plugged in, "
                        f"and may you open the port (radar-devices tells)?")
