@@ -129,6 +129,9 @@ def test_radar_emulate_refuses_a_command_port_in_use_in_one_line():
     ("dca1000://?cli=/dev/null&delay=600", ("option delay='600'", "from 5 to 500")),
     ("dca1000://?cli=/dev/null&delay=3", ("option delay='3'", "from 5 to 500")),
     ("dca1000://?cli=/dev/null&buffers=100000000", ("option buffers=100000000", "GiB of memory", "at most 2730")),
+    # (hunt 5: taken, then "no data packet ... reached 127.0.0.1:0 ... no firewall drops UDP to port 0")
+    ("dca1000://?cli=/dev/null&data_port=0", ("data_port=0: the board sends its data to the port stored in its "
+                                              "EEPROM (4098 unless changed)",)),
     # (hunt 5: "1e9" is 2 or more, but no whole number as written)
     ("dca1000://?cli=/dev/null&buffers=1e9", ("option buffers='1e9': expected a whole number of frames >= 2",)),
     # It blamed another program for the port radarodom's own data socket held:
@@ -145,8 +148,10 @@ def test_a_board_or_host_that_is_not_an_ipv4_address_is_a_usage_error(url, words
 def test_a_host_address_with_no_route_to_the_board_is_one_line_naming_both_and_exits_1():
     # Bound to loopback, this computer can send nothing to the board's 192.168.33.180: Linux
     # refuses the datagram (EINVAL) before any packet leaves.
+    data_port = free_udp_port("127.0.0.1")
     proc = subprocess.run([*console_command("radar-capture"), "--source",
-                           "dca1000://?host=127.0.0.1&cli=/dev/null&config_port=0&data_port=0", "--no-publish"],
+                           f"dca1000://?host=127.0.0.1&cli=/dev/null&config_port=0&data_port={data_port}",
+                           "--no-publish"],
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1, proc.stderr
     assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, proc.stderr

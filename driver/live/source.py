@@ -334,6 +334,9 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
     options.finish()
     for what, address in (("board address", board), ("host", host)):
         _check_ipv4(options.url, what, address)
+    if data_port == 0:  # a free port of this host's, which the board cannot know (config_port=0 is fine)
+        raise SourceError(f"{options.url}: data_port=0: the board sends its data to the port stored in its EEPROM "
+                          f"({defaults.data_port} unless changed): give that port, or leave data_port out")
     if config_port and config_port == data_port:  # the one socket would hold both, and the second bind fail
         raise SourceError(f"{options.url}: config_port and data_port are both {data_port}: this host's ports "
                           f"for the board's answers and its data must differ (the board's defaults: "
