@@ -125,6 +125,10 @@ def test_radar_emulate_refuses_a_command_port_in_use_in_one_line():
     ("dca1000://192.168.33.180:4096?cli=/dev/null", ("'192.168.33.180:4096'", "board_port=")),
     ("dca1000://?host=my-laptop&cli=/dev/null", ("host 'my-laptop' is not an IPv4 address",)),
     ("dca1000://board.local", ("board address 'board.local'",)),  # said before a CLI port is looked for
+    # (hunt 5: taken, then "does this host have the address 255.255.255.255?")
+    ("dca1000://?host=255.255.255.255&cli=/dev/null", ("host 255.255.255.255 is no one machine's address",)),
+    ("dca1000://224.0.0.1?cli=/dev/null", ("board address 224.0.0.1 is no one machine's address",)),
+    ("dca1000://0.0.0.0?cli=/dev/null", ("board address 0.0.0.0 is no one machine's address",)),
     # An internal struct error, a stream thread that died, 71 TiB asked for:
     ("dca1000://?cli=/dev/null&delay=600", ("option delay='600'", "from 5 to 500")),
     ("dca1000://?cli=/dev/null&delay=3", ("option delay='3'", "from 5 to 500")),

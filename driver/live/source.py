@@ -364,8 +364,11 @@ def _check_ipv4(url: str, what: str, address: str) -> None:
     """The DCA1000 speaks UDP over IPv4 to fixed addresses (its EEPROM's): a name or a port
     here is a mistake, said before any board is looked for."""
     try:
-        ipaddress.IPv4Address(address)
+        ip = ipaddress.IPv4Address(address)
     except ValueError:
         hint = ("; give ports as config_port=, data_port=, board_port=" if ":" in address
                 else f" (the board's default: {BOARD_IP}, this host's: {HOST_IP})")
         raise SourceError(f"{url}: {what} {address!r} is not an IPv4 address{hint}") from None
+    if ip.is_multicast or ip == ipaddress.IPv4Address("255.255.255.255") or (what != "host" and ip.is_unspecified):
+        raise SourceError(f"{url}: {what} {address} is no one machine's address (the board's default: {BOARD_IP}, "
+                          f"this host's: {HOST_IP})")
