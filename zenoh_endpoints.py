@@ -54,7 +54,7 @@ def _check_socket_path(endpoint: str, option: str) -> None:
     file) may go; anything else is the user's and refused, as is a path in no directory."""
     path = re.split(r"[?#]", endpoint.split("/", 1)[1], maxsplit=1)[0]
     fix = "give a path of its own, e.g. unixsock-stream//tmp/radarodom.sock"
-    if not os.path.isdir(os.path.dirname(os.path.abspath(path)) or "/"):
+    if not os.path.isdir(os.path.dirname(os.path.abspath(path))):
         raise PublishConfigError(f"{option}: {endpoint!r}: no directory {os.path.dirname(path)!r} to make the "
                                  "socket in: make it first, or give a path in one")
     left_by_zenoh = ((path, "socket", lambda st: stat.S_ISSOCK(st.st_mode)),

@@ -332,8 +332,8 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
                                 "seconds to wait for RECORD_COMPLETED after RECORD_STOP")
     data_timeout = options.take("data_timeout", positive_number, None, "seconds without a data packet")
     options.finish()
-    for what, address in (("board address", board), ("host", host)):
-        _check_ipv4(options.url, what, address)
+    for what, address, every_interface in (("board address", board, False), ("host", host, True)):
+        _check_ipv4(options.url, what, address, every_interface)
     if data_port == 0:  # a free port of this host's, which the board cannot know (config_port=0 is fine)
         raise SourceError(f"{options.url}: data_port=0: the board sends its data to the port stored in its EEPROM "
                           f"({defaults.data_port} unless changed): give that port, or leave data_port out")
@@ -360,15 +360,16 @@ def open_live(path: str, options: UrlOptions, config: RadarConfig | None) -> Liv
                       cli_timeout_s=cli_timeout, data_timeout_s=data_timeout)
 
 
-def _check_ipv4(url: str, what: str, address: str) -> None:
+def _check_ipv4(url: str, what: str, address: str, every_interface: bool) -> None:
     """The DCA1000 speaks UDP over IPv4 to fixed addresses (its EEPROM's): a name or a port
-    here is a mistake, said before any board is looked for."""
+    here is a mistake, said before any board is looked for, as is an address of no one machine
+    (0.0.0.0 taken only where *every_interface*: this host listening on all of its own)."""
     try:
         ip = ipaddress.IPv4Address(address)
     except ValueError:
         hint = ("; give ports as config_port=, data_port=, board_port=" if ":" in address
                 else f" (the board's default: {BOARD_IP}, this host's: {HOST_IP})")
         raise SourceError(f"{url}: {what} {address!r} is not an IPv4 address{hint}") from None
-    if ip.is_multicast or ip == ipaddress.IPv4Address("255.255.255.255") or (what != "host" and ip.is_unspecified):
+    if ip.is_multicast or ip == ipaddress.IPv4Address("255.255.255.255") or (ip.is_unspecified and not every_interface):
         raise SourceError(f"{url}: {what} {address} is no one machine's address (the board's default: {BOARD_IP}, "
                           f"this host's: {HOST_IP})")
